@@ -1,0 +1,86 @@
+"""Combinatorial structure of a triangle mesh: edges, boundary, adjacency and connected components."""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.csgraph import connected_components as _cc
+
+
+def directed_half_edges(F: np.ndarray) -> np.ndarray:
+    """Half-edges of every face, in face order.
+
+    Parameters
+    ----------
+    F : (m, 3) int array
+        Triangle indices.
+
+    Returns
+    -------
+    (3m, 2) int64 array
+        Rows ``(F[f, k], F[f, (k+1) % 3])`` for k = 0, 1, 2, face after face.
+    """
+    F = np.asarray(F, dtype=np.int64)
+    return np.stack([F, np.roll(F, -1, axis=1)], axis=2).reshape(-1, 2)
+
+
+def unique_edges(F: np.ndarray) -> np.ndarray:
+    """Undirected edges of the mesh, each once, as sorted pairs.
+
+    Parameters
+    ----------
+    F : (m, 3) int array
+
+    Returns
+    -------
+    (e, 2) int64 array
+        Edges ``(i, j)`` with ``i < j``, sorted lexicographically.
+    """
+    he = np.sort(directed_half_edges(F), axis=1)
+    return np.unique(he, axis=0) if len(he) else np.zeros((0, 2), dtype=np.int64)
+
+
+def edge_face_counts(F: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Undirected edges with the number of faces using each.
+
+    Returns
+    -------
+    edges : (e, 2) int64 array
+    counts : (e,) int64 array
+        1 for boundary edges, 2 for interior manifold edges, more for non-manifold edges.
+    """
+    he = np.sort(directed_half_edges(F), axis=1)
+    if not len(he):
+        return np.zeros((0, 2), dtype=np.int64), np.zeros(0, dtype=np.int64)
+    edges, counts = np.unique(he, axis=0, return_counts=True)
+    return edges, counts
+
+
+def boundary_edges(F: np.ndarray) -> np.ndarray:
+    """Edges used by exactly one face, shape (b, 2)."""
+    edges, counts = edge_face_counts(F)
+    return edges[counts == 1]
+
+
+def vertex_adjacency(F: np.ndarray, n: int) -> sp.csr_matrix:
+    """Symmetric 0/1 vertex adjacency matrix (no self loops), shape (n, n)."""
+    e = unique_edges(F)
+    rows = np.concatenate([e[:, 0], e[:, 1]])
+    cols = np.concatenate([e[:, 1], e[:, 0]])
+    A = sp.csr_matrix((np.ones(len(rows), dtype=np.int8), (rows, cols)), shape=(n, n))
+    A.sum_duplicates()
+    return A
+
+
+def connected_components(F: np.ndarray, n: int) -> tuple[int, np.ndarray]:
+    """Connected components of the vertex graph.
+
+    Returns
+    -------
+    count : int
+        Number of components (isolated vertices count as components of their own).
+    labels : (n,) int array
+        Component label of every vertex.
+    """
+    count, labels = _cc(vertex_adjacency(F, n), directed=False)
+    return int(count), labels
