@@ -1,0 +1,82 @@
+"""arap: As-Rigid-As-Possible surface modeling (Sorkine & Alexa 2007).
+
+>>> import arap
+>>> V, F = arap.builtin_mesh("bar")
+>>> solver = arap.ArapSolver(V, F, constrained)          # factorises once
+>>> result = solver.solve(targets, max_iterations=10)     # back-substitutes per iteration
+>>> result.vertices, result.energies
+
+Public names are imported on first use, so ``import arap`` stays light.
+"""
+
+from __future__ import annotations
+
+import importlib
+from typing import TYPE_CHECKING, Any
+
+from arap.errors import ArapError, ConstraintError, MeshError, MeshFormatError, UnconstrainedRegionError
+
+__version__ = "0.1.0"
+
+_LAZY: dict[str, str] = {
+    "ArapSolver": "arap.solver",
+    "ArapResult": "arap.solver",
+    "arap_energy": "arap.energy",
+    "cell_energies": "arap.energy",
+    "fit_rotations": "arap.rotations",
+    "cotangent_laplacian": "arap.weights",
+    "check_mesh": "arap.mesh",
+    "repair_mesh": "arap.mesh",
+    "inspect_mesh": "arap.mesh",
+    "load_mesh": "arap.io",
+    "save_mesh": "arap.io",
+    "builtin_mesh": "arap.shapes",
+    "BUILTIN_MESHES": "arap.shapes",
+    "load_constraints": "arap.constraints",
+}
+
+__all__ = [
+    "BUILTIN_MESHES",
+    "ArapError",
+    "ArapResult",
+    "ArapSolver",
+    "ConstraintError",
+    "MeshError",
+    "MeshFormatError",
+    "UnconstrainedRegionError",
+    "__version__",
+    "arap_energy",
+    "builtin_mesh",
+    "cell_energies",
+    "check_mesh",
+    "cotangent_laplacian",
+    "fit_rotations",
+    "inspect_mesh",
+    "load_constraints",
+    "load_mesh",
+    "repair_mesh",
+    "save_mesh",
+]
+
+if TYPE_CHECKING:
+    from arap.constraints import load_constraints
+    from arap.energy import arap_energy, cell_energies
+    from arap.io import load_mesh, save_mesh
+    from arap.mesh import check_mesh, inspect_mesh, repair_mesh
+    from arap.rotations import fit_rotations
+    from arap.shapes import BUILTIN_MESHES, builtin_mesh
+    from arap.solver import ArapResult, ArapSolver
+    from arap.weights import cotangent_laplacian
+
+
+def __getattr__(name: str) -> Any:
+    module = _LAZY.get(name)
+    if module is None:
+        raise AttributeError(f"module 'arap' has no attribute {name!r}")
+    value = getattr(importlib.import_module(module), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(_LAZY))

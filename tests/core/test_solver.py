@@ -1,0 +1,155 @@
+"""The solver: rigid invariance, monotone energy, agreement with libigl, exact constraints, warm starts."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from arap.energy import arap_energy
+from arap.solver import ArapSolver
+
+from .scenarios import bend_constraints, random_rigid
+
+
+def _diag(V: np.ndarray) -> float:
+    return float(np.linalg.norm(V.max(0) - V.min(0)))
+
+
+@pytest.mark.parametrize("energy", ["spokes", "spokes_and_rims"])
+@pytest.mark.parametrize("weights", ["cotangent", "uniform"])
+def test_rigid_motion_of_all_constraints_moves_the_mesh_rigidly(
+    icosphere: tuple[np.ndarray, np.ndarray], energy: str, weights: str
+) -> None:
+    V, F = icosphere
+    Q, t = random_rigid(1)
+    _, _, constrained, _ = bend_constraints(V, axis=2, share=0.15)
+    solver = ArapSolver(V, F, constrained, energy=energy, weights=weights)
+    result = solver.solve(V[constrained] @ Q.T + t, max_iterations=200)
+    expected = V @ Q.T + t
+    assert np.abs(result.vertices - expected).max() < 1e-9 * _diag(V)
+    # No obtuse triangle: the rest energy is zero, and so is the energy of a rigid motion.
+    assert abs(result.energies[-1]) < 1e-12 * _diag(V) ** 2
+    # The rigid motion of the rest pose is a fixed point of the iteration.
+    again = solver.solve(V[constrained] @ Q.T + t, initial=expected, max_iterations=3)
+    assert np.abs(again.vertices - expected).max() < 1e-12 * _diag(V)
+
+
+def test_rigid_motion_on_a_scan_is_equivariant(camelhead: tuple[np.ndarray, np.ndarray]) -> None:
+    # With negative cotangent weights the rest pose is not the minimiser, but the solver commutes with rigid motions:
+    # moving the constraints (and the start) rigidly moves the result by the same motion.
+    V, F = camelhead
+    Q, t = random_rigid(2)
+    _, _, constrained, targets = bend_constraints(V)
+    solver = ArapSolver(V, F, constrained)
+    still = solver.solve(V[constrained], initial=V, max_iterations=5)
+    moved = solver.solve(V[constrained] @ Q.T + t, initial=V @ Q.T + t, max_iterations=5)
+    assert np.abs(moved.vertices - (still.vertices @ Q.T + t)).max() < 1e-9 * _diag(V)
+    np.testing.assert_allclose(moved.energies, still.energies, rtol=1e-9)
+    rest = arap_energy(V, F, V)
+    assert rest < 0  # negative cotangent weights: the paper's energy is below zero even at rest
+    assert still.energies[-1] <= rest
+    bent = solver.solve(targets, initial=V, max_iterations=5)
+    bent_moved = solver.solve(targets @ Q.T + t, initial=V @ Q.T + t, max_iterations=5)
+    assert np.abs(bent_moved.vertices - (bent.vertices @ Q.T + t)).max() < 1e-9 * _diag(V)
+
+
+@pytest.mark.parametrize("mesh_name", ["knight", "camelhead"])
+@pytest.mark.parametrize("energy", ["spokes", "spokes_and_rims"])
+def test_energy_never_rises_across_local_or_global_step(
+    request: pytest.FixtureRequest, mesh_name: str, energy: str
+) -> None:
+    V, F = request.getfixturevalue(mesh_name)
+    _, _, constrained, targets = bend_constraints(V, angle=0.9)
+    solver = ArapSolver(V, F, constrained, energy=energy)
+    U = V.copy()
+    U[constrained] = targets
+    R = solver.fit_rotations(V)
+    scale = _diag(V) ** 2 * 1e-12
+    for _ in range(8):
+        before_local = solver.energy(U, R)
+        R = solver.fit_rotations(U)
+        after_local = solver.energy(U, R)
+        assert after_local <= before_local + scale
+        U_next = solver.global_step(R, targets)
+        after_global = solver.energy(U_next, R)
+        assert after_global <= after_local + scale
+        U = U_next
+    result = solver.solve(targets, max_iterations=15)
+    assert np.all(np.diff(result.energies) <= scale)
+
+
+def test_reported_energy_is_the_paper_energy(knight: tuple[np.ndarray, np.ndarray]) -> None:
+    V, F = knight
+    _, _, constrained, targets = bend_constraints(V)
+    result = ArapSolver(V, F, constrained).solve(targets, max_iterations=6)
+    assert result.energies[-1] == pytest.approx(arap_energy(V, F, result.vertices), rel=1e-10)
+    np.testing.assert_array_equal(result.vertices[constrained], targets)
+
+
+def _igl_arap(V: np.ndarray, F: np.ndarray, b: np.ndarray, bc: np.ndarray, iterations: int) -> np.ndarray:
+    igl = pytest.importorskip("igl")
+    data = igl.ARAPData()
+    data.energy = igl.ARAP_ENERGY_TYPE_SPOKES
+    data.max_iter = iterations
+    igl.arap_precomputation(V, F, 3, b.astype(np.int64), data)
+    return np.asarray(igl.arap_solve(bc, data, V.copy()))
+
+
+def test_agrees_with_libigl_without_obtuse_triangles(icosphere: tuple[np.ndarray, np.ndarray]) -> None:
+    V, F = icosphere
+    _, _, constrained, targets = bend_constraints(V, axis=2, share=0.15, angle=0.5, shift=0.1)
+    ours = ArapSolver(V, F, constrained).solve(targets, max_iterations=300).vertices
+    theirs = _igl_arap(V, F, constrained, targets, 300)
+    assert np.abs(ours - theirs).max() < 1e-5 * _diag(V)
+    assert arap_energy(V, F, ours) == pytest.approx(arap_energy(V, F, theirs), rel=1e-4)
+    np.testing.assert_array_equal(ours[constrained], targets)
+
+
+def test_energy_agrees_with_libigl_on_a_scan(knight: tuple[np.ndarray, np.ndarray]) -> None:
+    V, F = knight
+    _, _, constrained, targets = bend_constraints(V)
+    ours = ArapSolver(V, F, constrained).solve(targets, max_iterations=300).vertices
+    theirs = _igl_arap(V, F, constrained, targets, 300)
+    e_ours, e_theirs = arap_energy(V, F, ours), arap_energy(V, F, theirs)
+    assert e_ours == pytest.approx(e_theirs, rel=1e-4)
+    assert e_ours <= e_theirs + 1e-12
+
+
+def test_warm_start_and_tolerance(knight: tuple[np.ndarray, np.ndarray]) -> None:
+    V, F = knight
+    _, _, constrained, targets = bend_constraints(V)
+    solver = ArapSolver(V, F, constrained)
+    first = solver.solve(targets, max_iterations=1000, tolerance=1e-8)
+    assert first.converged and first.iterations < 1000
+    # The next call starts from the previous solution: it is converged at once.
+    again = solver.solve(targets, max_iterations=50, tolerance=1e-8)
+    assert again.converged and again.iterations <= 2
+    assert again.energies[-1] == pytest.approx(first.energies[-1], rel=1e-8)
+    # An explicit initial guess overrides the warm start.
+    cold = solver.solve(targets, initial=V, max_iterations=1)
+    assert cold.energies[0] > first.energies[-1]
+    solver.reset()
+    assert solver.solve(targets, max_iterations=1).energies[0] == pytest.approx(cold.energies[0], rel=1e-12)
+
+
+def test_callback_can_stop_early(knight: tuple[np.ndarray, np.ndarray]) -> None:
+    V, F = knight
+    _, _, constrained, targets = bend_constraints(V)
+    seen: list[tuple[int, float]] = []
+
+    def callback(iteration: int, energy: float) -> bool:
+        seen.append((iteration, energy))
+        return iteration < 3
+
+    result = ArapSolver(V, F, constrained).solve(targets, max_iterations=20, callback=callback)
+    assert result.iterations == 3
+    assert [k for k, _ in seen] == [1, 2, 3]
+    assert [e for _, e in seen] == result.energies
+
+
+def test_backends_agree(knight: tuple[np.ndarray, np.ndarray]) -> None:
+    V, F = knight
+    _, _, constrained, targets = bend_constraints(V)
+    a = ArapSolver(V, F, constrained, backend="cholespy").solve(targets, max_iterations=5).vertices
+    b = ArapSolver(V, F, constrained, backend="scipy").solve(targets, max_iterations=5).vertices
+    assert np.abs(a - b).max() < 1e-9 * _diag(V)
