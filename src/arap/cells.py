@@ -20,7 +20,7 @@ from typing import Literal
 import numpy as np
 import scipy.sparse as sp
 
-from arap.weights import corner_weights
+from arap.weights import corner_weights, edge_weight_matrix
 
 EnergyType = Literal["spokes", "spokes_and_rims"]
 ENERGY_TYPES: tuple[str, ...] = ("spokes", "spokes_and_rims")
@@ -78,25 +78,21 @@ def build_cells(V: np.ndarray, F: np.ndarray, energy: str = "spokes", weights: s
         raise ValueError(f"unknown energy {energy!r}; expected one of {ENERGY_TYPES}")
     n = len(V)
     F = np.asarray(F, dtype=np.int64)
+    if energy == "spokes":
+        return _spoke_cells(V, F, weights)
     cw = corner_weights(V, F, weights)
     # Edge opposite corner k of each face: (F[:, k+1], F[:, k+2]) with weight cw[:, k].
     ea = np.concatenate([F[:, 1], F[:, 2], F[:, 0]])
     eb = np.concatenate([F[:, 2], F[:, 0], F[:, 1]])
     ew = np.concatenate([cw[:, 0], cw[:, 1], cw[:, 2]])
     ex = np.concatenate([F[:, 0], F[:, 1], F[:, 2]])
-    if energy == "spokes":
-        cell = np.concatenate([ea, eb])
-        a = np.concatenate([ea, eb])
-        b = np.concatenate([eb, ea])
-        w = np.concatenate([ew, ew])
-    else:
-        lo = np.minimum(ea, eb)
-        hi = np.maximum(ea, eb)
-        cell = np.concatenate([ea, eb, ex])
-        # Spokes are oriented away from their cell's vertex, rims canonically (lo, hi).
-        a = np.concatenate([ea, eb, lo])
-        b = np.concatenate([eb, ea, hi])
-        w = np.concatenate([ew, ew, ew])
+    lo = np.minimum(ea, eb)
+    hi = np.maximum(ea, eb)
+    cell = np.concatenate([ea, eb, ex])
+    # Spokes are oriented away from their cell's vertex, rims canonically (lo, hi).
+    a = np.concatenate([ea, eb, lo])
+    b = np.concatenate([eb, ea, hi])
+    w = np.concatenate([ew, ew, ew])
     order = np.lexsort((b, a, cell))
     cell, a, b, w = cell[order], a[order], b[order], w[order]
     first = np.ones(len(cell), dtype=bool)
@@ -106,9 +102,23 @@ def build_cells(V: np.ndarray, F: np.ndarray, energy: str = "spokes", weights: s
     cell, a, b = cell[first], a[first], b[first]
     ptr = np.zeros(n + 1, dtype=np.int64)
     np.cumsum(np.bincount(cell, minlength=n), out=ptr[1:])
+    return _finish(V, ptr, cell, a, b, w)
+
+
+def _spoke_cells(V: np.ndarray, F: np.ndarray, weights: str) -> Cells:
+    """Spoke cells are the rows of the edge-weight matrix: cell ``i`` holds ``(i, j, W[i, j])``."""
+    W = edge_weight_matrix(V, F, weights)
+    W.sort_indices()
+    n = len(V)
+    ptr = W.indptr.astype(np.int64)
+    cell = np.repeat(np.arange(n, dtype=np.int64), np.diff(ptr))
+    return _finish(V, ptr, cell, cell, W.indices.astype(np.int64), W.data.astype(np.float64))
+
+
+def _finish(V: np.ndarray, ptr: np.ndarray, cell: np.ndarray, a: np.ndarray, b: np.ndarray, w: np.ndarray) -> Cells:
     e = V[a] - V[b]
     we = np.ascontiguousarray(e * w[:, None])
-    rest_sq = np.bincount(cell, weights=w * np.einsum("ij,ij->i", e, e), minlength=n)
+    rest_sq = np.bincount(cell, weights=w * np.einsum("ij,ij->i", e, e), minlength=len(V))
     return Cells(ptr=ptr, a=a, b=b, w=w, we=we, rest_sq=rest_sq)
 
 
