@@ -34,7 +34,7 @@ class Cells:
     ----------
     ptr : (n+1,) int64
         Terms of cell ``c`` are ``ptr[c]:ptr[c+1]``.
-    a, b : (t,) int64
+    a, b : (t,) int32
         Edge endpoints of each term.
     w : (t,) float64
         Term weights.
@@ -119,7 +119,7 @@ def _finish(V: np.ndarray, ptr: np.ndarray, cell: np.ndarray, a: np.ndarray, b: 
     e = V[a] - V[b]
     we = np.ascontiguousarray(e * w[:, None])
     rest_sq = np.bincount(cell, weights=w * np.einsum("ij,ij->i", e, e), minlength=len(V))
-    return Cells(ptr=ptr, a=a, b=b, w=w, we=we, rest_sq=rest_sq)
+    return Cells(ptr=ptr, a=a.astype(np.int32), b=b.astype(np.int32), w=w, we=we, rest_sq=rest_sq)
 
 
 def system_matrix(cells: Cells, n: int) -> sp.csr_matrix:
@@ -180,4 +180,4 @@ def build_rhs_gather(cells: Cells, rows: np.ndarray, n: int) -> RhsGather:
     r, c = r[first], c[first]
     ptr = np.zeros(len(rows) + 1, dtype=np.int64)
     np.cumsum(np.bincount(r, minlength=len(rows)), out=ptr[1:])
-    return RhsGather(rows=rows, ptr=ptr, cell=c, g=np.ascontiguousarray(gs))
+    return RhsGather(rows=rows, ptr=ptr, cell=c.astype(np.int32), g=np.ascontiguousarray(gs))

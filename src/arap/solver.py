@@ -15,6 +15,7 @@ from arap.errors import ConstraintError, UnconstrainedRegionError
 from arap.indexing import check_index_array, find_unconstrained_part
 from arap.linsolve import NotPositiveDefiniteError, factorize
 from arap.mesh import check_mesh
+from arap.topology import locality_order
 from arap.weights import WEIGHT_TYPES
 
 IterationCallback = Callable[[int, float], "bool | None"]
@@ -133,11 +134,21 @@ class ArapSolver:
                 vertices=sample, size=size,
             )
 
-        self.cells = build_cells(V, F, energy, weights)
-        L = system_matrix(self.cells, n)
-        self._L_fn = L[self.free][:, self.nonfree].tocsr()
-        L_ff = L[self.free][:, self.free]
-        self._gather = build_rhs_gather(self.cells, self.free, n)
+        # Internally vertices are renumbered for memory locality (reverse Cuthill-McKee): neighbours get nearby
+        # indices, so the gathers of the local step and the right-hand side stay in cache.
+        self._perm = locality_order(F, n)
+        self._inv = np.empty_like(self._perm)
+        self._inv[self._perm] = np.arange(n)
+        self._V = np.ascontiguousarray(V[self._perm])
+        self._constrained = self._inv[self.constrained]
+        self._free = np.sort(self._inv[self.free])
+        self._nonfree = np.sort(self._inv[self.nonfree])
+        self._cells = build_cells(self._V, self._inv[F], energy, weights)
+        L = system_matrix(self._cells, n)
+        L_f = L[self._free]
+        self._L_fn = L_f[:, self._nonfree].tocsr()
+        L_ff = L_f[:, self._free]
+        self._gather = build_rhs_gather(self._cells, self._free, n)
         self._active = np.unique(self._gather.cell)
         self._prepare_constant_energy(n)
         self.factor = None
@@ -161,13 +172,13 @@ class ArapSolver:
         """Cells outside the active set only see non-free vertices: their energy is constant during a solve."""
         is_active = np.zeros(n, dtype=bool)
         is_active[self._active] = True
-        tcell = self.cells.cell_of_term()
+        tcell = self._cells.cell_of_term()
         self._inactive_terms = np.flatnonzero(~is_active[tcell])
         self._inactive_term_cell = tcell[self._inactive_terms]
         rest_E = np.zeros(n)
         inactive = np.flatnonzero(~is_active)
         if len(inactive):
-            local_step(self.cells, inactive, self.V, np.empty((n, 3, 3)), rest_E)
+            local_step(self._cells, inactive, self._V, np.empty((n, 3, 3)), rest_E)
         self._rest_E = rest_E
         self._rest_inactive_sum = float(rest_E[inactive].sum())
 
@@ -175,29 +186,42 @@ class ArapSolver:
         """Energy of the inactive cells for the given positions of the non-free vertices."""
         if not len(self._inactive_terms):
             return 0.0
-        n = len(self.V)
+        n = len(self._V)
         moved = np.zeros(n, dtype=bool)
-        moved[self.nonfree] = np.any(fixed_positions != self.V[self.nonfree], axis=1)
-        a = self.cells.a[self._inactive_terms]
-        b = self.cells.b[self._inactive_terms]
+        moved[self._nonfree] = np.any(fixed_positions != self._V[self._nonfree], axis=1)
+        a = self._cells.a[self._inactive_terms]
+        b = self._cells.b[self._inactive_terms]
         touched = np.unique(self._inactive_term_cell[moved[a] | moved[b]])
         if not len(touched):
             return self._rest_inactive_sum
-        U = self.V.copy()
-        U[self.nonfree] = fixed_positions
+        U = self._V.copy()
+        U[self._nonfree] = fixed_positions
         E = np.zeros(n)
-        local_step(self.cells, touched, U, np.empty((n, 3, 3)), E)
+        local_step(self._cells, touched, U, np.empty((n, 3, 3)), E)
         return self._rest_inactive_sum - float(self._rest_E[touched].sum()) + float(E[touched].sum())
 
     def _fixed_positions(self, targets: np.ndarray) -> np.ndarray:
         """Positions of the non-free vertices (constrained at targets, held at rest), in ``nonfree`` order."""
-        U = self.V.copy()
-        U[self.constrained] = targets
-        return U[self.nonfree]
+        U = self._V.copy()
+        U[self._constrained] = targets
+        return U[self._nonfree]
+
+    def _to_internal(self, X: np.ndarray) -> np.ndarray:
+        """Rows of a per-vertex array in the solver's internal vertex order."""
+        return np.ascontiguousarray(X[self._perm])
+
+    def _check_positions(self, U: np.ndarray, name: str) -> np.ndarray:
+        U = np.asarray(U, dtype=np.float64)
+        n = self.n_vertices
+        if U.shape != (n, 3):
+            raise ValueError(f"{name} must have shape ({n}, 3), got {U.shape}")
+        if not np.all(np.isfinite(U)):
+            raise ValueError(f"{name} has non-finite coordinates")
+        return U
 
     def _check_targets(self, targets: np.ndarray | list) -> np.ndarray:
         T = np.asarray(targets, dtype=np.float64)
-        k = len(self.constrained)
+        k = len(self._constrained)
         if T.shape != (k, 3):
             raise ConstraintError(f"targets must have shape ({k}, 3), one row per constrained vertex; got {T.shape}")
         if not np.all(np.isfinite(T)):
@@ -208,11 +232,11 @@ class ArapSolver:
     # ------------------------------------------------------------------ solving
     @property
     def n_vertices(self) -> int:
-        return len(self.V)
+        return len(self._V)
 
     @property
     def n_free(self) -> int:
-        return len(self.free)
+        return len(self._free)
 
     def solve(
         self,
@@ -247,16 +271,11 @@ class ArapSolver:
             raise ValueError(f"max_iterations must be a non-negative integer, got {max_iterations!r}")
         if not tolerance >= 0:
             raise ValueError(f"tolerance must be >= 0, got {tolerance!r}")
-        n = self.n_vertices
         use_cache = initial is None and self._last is not None and self._rotations_fresh
         if initial is None:
-            U = self.V.copy() if self._last is None else self._last.copy()
+            U = self._V.copy() if self._last is None else self._last.copy()
         else:
-            U = np.array(initial, dtype=np.float64)
-            if U.shape != (n, 3):
-                raise ValueError(f"initial must have shape ({n}, 3), got {U.shape}")
-            if not np.all(np.isfinite(U)):
-                raise ValueError("initial guess has non-finite coordinates")
+            U = self._to_internal(self._check_positions(initial, "initial"))
         fixed = self._fixed_positions(T)
         timings = {"local": 0.0, "rhs": 0.0, "solve": 0.0}
         const_E = self._constant_energy(fixed)
@@ -264,13 +283,13 @@ class ArapSolver:
         prev: float | None = None
         if not use_cache:
             t = time.perf_counter()
-            local_step(self.cells, active, U, self._R, self._E)
+            local_step(self._cells, active, U, self._R, self._E)
             timings["local"] += time.perf_counter() - t
-        if np.array_equal(U[self.nonfree], fixed):
+        if np.array_equal(U[self._nonfree], fixed):
             prev = float(self._E[active].sum()) + const_E
-        U[self.nonfree] = fixed
+        U[self._nonfree] = fixed
         rhs_const = self._L_fn @ fixed
-        rhs = np.empty((len(self.free), 3))
+        rhs = np.empty((len(self._free), 3))
         energies: list[float] = []
         converged = False
         for it in range(int(max_iterations)):
@@ -278,12 +297,12 @@ class ArapSolver:
                 t = time.perf_counter()
                 assemble_rhs(self._gather, self._R, rhs_const, rhs)
                 t2 = time.perf_counter()
-                U[self.free] = self.factor.solve(rhs)
+                U[self._free] = self.factor.solve(rhs)
                 t3 = time.perf_counter()
                 timings["rhs"] += t2 - t
                 timings["solve"] += t3 - t2
             t = time.perf_counter()
-            local_step(self.cells, active, U, self._R, self._E)
+            local_step(self._cells, active, U, self._R, self._E)
             timings["local"] += time.perf_counter() - t
             e = float(self._E[active].sum()) + const_E
             energies.append(e)
@@ -296,7 +315,7 @@ class ArapSolver:
         self._last = U
         self._rotations_fresh = True
         timings["total"] = time.perf_counter() - t_start
-        return ArapResult(vertices=U.copy(), energies=energies, iterations=len(energies), converged=converged,
+        return ArapResult(vertices=U[self._inv], energies=energies, iterations=len(energies), converged=converged,
                           timings=timings)
 
     def reset(self) -> None:
@@ -307,41 +326,42 @@ class ArapSolver:
     # ------------------------------------------------------------------ single steps (for analysis and tests)
     def fit_rotations(self, U: np.ndarray) -> np.ndarray:
         """Local step alone: the optimal rotation of every cell for positions ``U``, shape (n, 3, 3)."""
-        U = np.ascontiguousarray(U, dtype=np.float64)
+        U = self._to_internal(self._check_positions(U, "U"))
         R = np.empty((self.n_vertices, 3, 3))
-        local_step(self.cells, np.arange(self.n_vertices), U, R, np.empty(self.n_vertices))
-        return R
+        local_step(self._cells, np.arange(self.n_vertices), U, R, np.empty(self.n_vertices))
+        return R[self._inv]
 
     def energy(self, U: np.ndarray, R: np.ndarray | None = None) -> float:
         """Energy of positions ``U`` with rotations ``R`` (None: the optimal ones), summed over all cells."""
-        U = np.ascontiguousarray(U, dtype=np.float64)
+        U = self._to_internal(self._check_positions(U, "U"))
         if R is None:
             E = np.empty(self.n_vertices)
-            local_step(self.cells, np.arange(self.n_vertices), U, np.empty((self.n_vertices, 3, 3)), E)
+            local_step(self._cells, np.arange(self.n_vertices), U, np.empty((self.n_vertices, 3, 3)), E)
             return float(E.sum())
-        d = U[self.cells.a] - U[self.cells.b]
-        cur = float(np.dot(self.cells.w, np.einsum("ij,ij->i", d, d)))
-        S = covariances(self.cells, U)
-        return cur + float(self.cells.rest_sq.sum()) - 2.0 * float(np.einsum("cij,cji->", R, S))
+        d = U[self._cells.a] - U[self._cells.b]
+        cur = float(np.dot(self._cells.w, np.einsum("ij,ij->i", d, d)))
+        S = covariances(self._cells, U)
+        R = self._to_internal(np.asarray(R, dtype=np.float64))
+        return cur + float(self._cells.rest_sq.sum()) - 2.0 * float(np.einsum("cij,cji->", R, S))
 
     def global_step(self, R: np.ndarray, targets: np.ndarray | list) -> np.ndarray:
         """Global step alone: positions minimising the energy for fixed rotations ``R`` (n, 3, 3), shape (n, 3)."""
         T = self._check_targets(targets)
         fixed = self._fixed_positions(T)
-        U = self.V.copy()
-        U[self.nonfree] = fixed
+        U = self._V.copy()
+        U[self._nonfree] = fixed
         if self.factor is not None:
-            rhs = np.empty((len(self.free), 3))
-            assemble_rhs(self._gather, np.ascontiguousarray(R, dtype=np.float64), self._L_fn @ fixed, rhs)
-            U[self.free] = self.factor.solve(rhs)
-        return U
+            rhs = np.empty((len(self._free), 3))
+            assemble_rhs(self._gather, self._to_internal(np.asarray(R, dtype=np.float64)), self._L_fn @ fixed, rhs)
+            U[self._free] = self.factor.solve(rhs)
+        return U[self._inv]
 
     @property
     def system_size(self) -> int:
         """Number of unknown vertices in the linear system (free ROI vertices)."""
-        return len(self.free)
+        return len(self._free)
 
     def reduced_matrix(self) -> sp.csr_matrix:
-        """The reduced global-step matrix ``L_ff`` (for inspection)."""
-        L = system_matrix(self.cells, self.n_vertices)
-        return L[self.free][:, self.free].tocsr()
+        """The reduced global-step matrix ``L_ff`` (for inspection; rows in the solver's internal vertex order)."""
+        L = system_matrix(self._cells, self.n_vertices)
+        return L[self._free][:, self._free].tocsr()

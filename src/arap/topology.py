@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components as _cc
+from scipy.sparse.csgraph import reverse_cuthill_mckee
 
 
 def directed_half_edges(F: np.ndarray) -> np.ndarray:
@@ -85,3 +86,14 @@ def connected_components(F: np.ndarray, n: int) -> tuple[int, np.ndarray]:
     """
     count, labels = _cc(vertex_adjacency(F, n), directed=False)
     return int(count), labels
+
+
+def locality_order(F: np.ndarray, n: int) -> np.ndarray:
+    """A vertex order in which mesh neighbours have nearby indices (reverse Cuthill-McKee).
+
+    Returns
+    -------
+    (n,) int64 array
+        ``order[k]`` is the original index of the vertex placed at position ``k``.
+    """
+    return np.asarray(reverse_cuthill_mckee(vertex_adjacency(F, n), symmetric_mode=True), dtype=np.int64)
