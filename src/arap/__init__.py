@@ -29,7 +29,16 @@ _LAZY: dict[str, str] = {
     "repair_mesh": "arap.mesh",
     "inspect_mesh": "arap.mesh",
     "load_mesh": "arap.io",
+    "load_mesh_with_report": "arap.io",
+    "load_mesh_bytes": "arap.io",
     "save_mesh": "arap.io",
+    "save_mesh_bytes": "arap.io",
+    "MESH_FORMATS": "arap.io",
+    "sphere": "arap.shapes",
+    "Constraints": "arap.constraints",
+    "save_constraints": "arap.constraints",
+    "RepairResult": "arap.mesh",
+    "MeshInfo": "arap.mesh",
     "builtin_mesh": "arap.shapes",
     "BUILTIN_MESHES": "arap.shapes",
     "load_constraints": "arap.constraints",
@@ -37,12 +46,16 @@ _LAZY: dict[str, str] = {
 
 __all__ = [
     "BUILTIN_MESHES",
+    "MESH_FORMATS",
     "ArapError",
     "ArapResult",
     "ArapSolver",
     "ConstraintError",
+    "Constraints",
     "MeshError",
     "MeshFormatError",
+    "MeshInfo",
+    "RepairResult",
     "UnconstrainedRegionError",
     "__version__",
     "arap_energy",
@@ -54,17 +67,22 @@ __all__ = [
     "inspect_mesh",
     "load_constraints",
     "load_mesh",
+    "load_mesh_bytes",
+    "load_mesh_with_report",
     "repair_mesh",
+    "save_constraints",
     "save_mesh",
+    "save_mesh_bytes",
+    "sphere",
 ]
 
 if TYPE_CHECKING:
-    from arap.constraints import load_constraints
+    from arap.constraints import Constraints, load_constraints, save_constraints
     from arap.energy import arap_energy, cell_energies
-    from arap.io import load_mesh, save_mesh
-    from arap.mesh import check_mesh, inspect_mesh, repair_mesh
+    from arap.io import MESH_FORMATS, load_mesh, load_mesh_bytes, load_mesh_with_report, save_mesh, save_mesh_bytes
+    from arap.mesh import MeshInfo, RepairResult, check_mesh, inspect_mesh, repair_mesh
     from arap.rotations import fit_rotations
-    from arap.shapes import BUILTIN_MESHES, builtin_mesh
+    from arap.shapes import BUILTIN_MESHES, builtin_mesh, sphere
     from arap.solver import ArapResult, ArapSolver
     from arap.weights import cotangent_laplacian
 

@@ -1,0 +1,191 @@
+"""ARAP on the armadillo against libigl: precompute, time per iteration, energies and agreement.
+
+Scenario ("bend"): the lowest 10% of the vertices along y are fixed; the top 10% are rotated 45° about the z axis
+through their centroid and shifted by 10% of the bounding-box diagonal along x. Both solvers start from the rest
+pose and run the same number of iterations with the spokes energy and cotangent weights.
+
+Run: ``python benchmarks/bench_armadillo.py [--mesh PATH] [--iterations 10] [--repeats 5] [--json OUT]``
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import statistics
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+import arap
+from arap.io import load_mesh
+from arap.solver import ArapSolver
+
+DEFAULT_MESH = Path(__file__).resolve().parents[1].parent / "shared" / "meshes" / "armadillo.obj"
+
+
+def bend_scenario(V: np.ndarray, share: float = 0.1, angle_deg: float = 45.0
+                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Fixed and handle vertices along y, and the handle targets (rotation about z through the centroid + shift).
+
+    Returns
+    -------
+    fixed : (f,) int64 array
+    handles : (h,) int64 array
+    targets : (h, 3) float64 array
+    """
+    y = V[:, 1]
+    fixed = np.flatnonzero(y <= np.quantile(y, share))
+    handles = np.flatnonzero(y >= np.quantile(y, 1.0 - share))
+    a = np.radians(angle_deg)
+    R = np.array([[np.cos(a), -np.sin(a), 0.0], [np.sin(a), np.cos(a), 0.0], [0.0, 0.0, 1.0]])
+    centroid = V[handles].mean(axis=0)
+    diag = float(np.linalg.norm(V.max(axis=0) - V.min(axis=0)))
+    targets = (V[handles] - centroid) @ R.T + centroid + np.array([0.1 * diag, 0.0, 0.0])
+    return fixed, handles, targets
+
+
+def run_arap(V: np.ndarray, F: np.ndarray, b: np.ndarray, bc: np.ndarray, iterations: int,
+             repeats: int) -> dict[str, Any]:
+    # Warm-up on the same problem so that JIT compilation is not timed.
+    ArapSolver(V, F, b).solve(bc, max_iterations=1)
+    t0 = time.perf_counter()
+    solver = ArapSolver(V, F, b, energy="spokes", weights="cotangent")
+    precompute = time.perf_counter() - t0
+    per_iteration, runs = [], []
+    for _ in range(repeats):
+        t = time.perf_counter()
+        result = solver.solve(bc, initial=V, max_iterations=iterations)
+        per_iteration.append((time.perf_counter() - t) / result.iterations)
+        runs.append(result)
+    mid = runs[int(np.argsort(per_iteration)[len(runs) // 2])]
+    split = {key: 1e3 * mid.timings[key] / mid.iterations for key in ("local", "rhs", "solve")}
+    return {
+        "precompute_ms": 1e3 * precompute,
+        "factor_seconds": float(solver.factor_seconds),
+        "ms_per_iteration": 1e3 * statistics.median(per_iteration),
+        "split_ms": split,
+        "backend": str(getattr(solver, "backend", "?")),
+        "U": mid.vertices,
+    }
+
+
+def run_igl(V: np.ndarray, F: np.ndarray, b: np.ndarray, bc: np.ndarray, iterations: int,
+            repeats: int) -> dict[str, Any] | None:
+    try:
+        import igl
+    except ImportError:
+        return None
+    b32 = np.ascontiguousarray(b, dtype=np.int32)
+    Vc = np.ascontiguousarray(V, dtype=np.float64)
+    Fc = np.ascontiguousarray(F, dtype=np.int64)
+    data = igl.ARAPData()
+    data.energy = igl.ARAP_ENERGY_TYPE_SPOKES
+    data.max_iter = iterations
+    t0 = time.perf_counter()
+    igl.arap_precomputation(Vc, Fc, 3, b32, data)
+    precompute = time.perf_counter() - t0
+    bcc = np.ascontiguousarray(bc, dtype=np.float64)
+    times, U = [], Vc
+    for _ in range(repeats):
+        t = time.perf_counter()
+        U = igl.arap_solve(bcc, data, Vc.copy())
+        times.append((time.perf_counter() - t) / iterations)
+    return {"precompute_ms": 1e3 * precompute, "ms_per_iteration": 1e3 * statistics.median(times), "U": U}
+
+
+def table(rows: list[tuple[str, str, str]]) -> str:
+    widths = [max(len(r[i]) for r in rows) for i in range(3)]
+    lines = []
+    for k, r in enumerate(rows):
+        lines.append("  ".join(cell.ljust(widths[i]) if i == 0 else cell.rjust(widths[i]) for i, cell in enumerate(r)))
+        if k == 0:
+            lines.append("  ".join("-" * w for w in widths))
+    return "\n".join(lines)
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--mesh", type=Path, default=DEFAULT_MESH, help=f"mesh file (default: {DEFAULT_MESH})")
+    parser.add_argument("--iterations", type=int, default=10, help="iterations per run (default: 10)")
+    parser.add_argument("--repeats", type=int, default=5, help="runs; medians are reported (default: 5)")
+    parser.add_argument("--json", type=Path, help="also write the figures to this JSON file")
+    parser.add_argument("--plot", type=Path, help="bar chart of the times (PNG; needs matplotlib)")
+    args = parser.parse_args(argv)
+    if not args.mesh.exists():
+        print(f"mesh {args.mesh} not found (use --mesh)", file=sys.stderr)
+        return 2
+
+    V, F = load_mesh(args.mesh)
+    diag = float(np.linalg.norm(V.max(axis=0) - V.min(axis=0)))
+    fixed, handles, targets = bend_scenario(V)
+    b = np.concatenate([fixed, handles])
+    bc = np.concatenate([V[fixed], targets])
+    print(f"{args.mesh.name}: {len(V):,} vertices, {len(F):,} faces; {len(fixed):,} fixed, {len(handles):,} "
+          f"handles; {args.iterations} iterations, median of {args.repeats} runs\n")
+
+    ours = run_arap(V, F, b, bc, args.iterations, args.repeats)
+    igl_res = run_igl(V, F, b, bc, args.iterations, args.repeats)
+    e_ours = arap.arap_energy(V, F, ours["U"])
+    split = ours["split_ms"]
+    rows = [("", "arap", "libigl 2.6.3" if igl_res else "libigl (not installed)")]
+    rows.append(("precompute (ms)", f"{ours['precompute_ms']:.1f}",
+                 f"{igl_res['precompute_ms']:.1f}" if igl_res else "-"))
+    rows.append(("per iteration (ms)", f"{ours['ms_per_iteration']:.2f}",
+                 f"{igl_res['ms_per_iteration']:.2f}" if igl_res else "-"))
+    rows.append(("  local: covariances + rotations", f"{split['local']:.2f}", ""))
+    rows.append(("  right-hand side", f"{split['rhs']:.2f}", ""))
+    rows.append(("  solve", f"{split['solve']:.2f}", ""))
+    rows.append(("iteration / solve", f"{ours['ms_per_iteration'] / max(split['solve'], 1e-9):.2f}", ""))
+    rows.append(("final energy", f"{e_ours:.6g}", ""))
+    figures: dict[str, Any] = {
+        "mesh": str(args.mesh), "vertices": len(V), "faces": len(F), "fixed": len(fixed), "handles": len(handles),
+        "iterations": args.iterations, "repeats": args.repeats, "backend": ours["backend"],
+        "arap": {k: v for k, v in ours.items() if k != "U"} | {"energy": e_ours},
+    }
+    if igl_res:
+        e_igl = arap.arap_energy(V, F, igl_res["U"])
+        rows[-1] = ("final energy", f"{e_ours:.6g}", f"{e_igl:.6g}")
+        dist = float(np.linalg.norm(ours["U"] - igl_res["U"], axis=1).max()) / diag
+        figures["libigl"] = {k: v for k, v in igl_res.items() if k != "U"} | {"energy": e_igl}
+        figures["max_distance_over_diagonal"] = dist
+        figures["speedup_iteration"] = igl_res["ms_per_iteration"] / ours["ms_per_iteration"]
+        figures["speedup_precompute"] = igl_res["precompute_ms"] / ours["precompute_ms"]
+    print(table(rows))
+    print(f"\nlinear solver: {ours['backend']}")
+    if igl_res:
+        print(f"libigl / arap: {figures['speedup_iteration']:.2f}x per iteration, "
+              f"{figures['speedup_precompute']:.2f}x precompute")
+        print(f"max vertex distance between the results: {figures['max_distance_over_diagonal']:.2e} of the diagonal")
+    if args.json:
+        args.json.write_text(json.dumps(figures, indent=2) + "\n")
+        print(f"wrote {args.json}")
+    if args.plot:
+        plot(figures, args.plot)
+    return 0
+
+
+def plot(figures: dict[str, Any], path: Path) -> None:
+    try:
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except ImportError:
+        print("matplotlib is not installed; no plot", file=sys.stderr)
+        return
+    names = ["arap"] + (["libigl"] if "libigl" in figures else [])
+    fig, axes = plt.subplots(1, 2, figsize=(8, 3))
+    axes[0].bar(names, [figures[n]["precompute_ms"] for n in names])
+    axes[0].set_ylabel("precompute (ms)")
+    axes[1].bar(names, [figures[n]["ms_per_iteration"] for n in names])
+    axes[1].set_ylabel("ms per iteration")
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    print(f"wrote {path}")
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,136 @@
+"""How ARAP scales with mesh size: geodesic spheres from about 10k to about 1M vertices.
+
+Scenario: the bottom cap (lowest 5% along y) is fixed; the top cap (highest 5%) is rotated 30° about the x axis
+through its centroid and lifted by 0.3 radius. Each size runs in a fresh subprocess so that its peak memory
+(resident set size, which also counts the C and C++ allocations of the sparse factorisation) is its own.
+
+Run: ``python benchmarks/bench_scaling.py [--max-vertices 1000000] [--iterations 5] [--repeats 3] [--json OUT]``
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import resource
+import statistics
+import subprocess
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+SIZES = (10_000, 40_000, 160_000, 400_000, 650_000, 1_000_000)
+
+
+def current_rss_mb() -> float:
+    """Resident set size of this process now, in MiB (Linux /proc)."""
+    with open("/proc/self/statm") as fh:
+        pages = int(fh.read().split()[1])
+    return pages * resource.getpagesize() / 2**20
+
+
+def peak_rss_mb() -> float:
+    """Peak resident set size of this process so far, in MiB (ru_maxrss is in KiB on Linux)."""
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+
+
+def caps_scenario(V: np.ndarray, share: float = 0.05) -> tuple[np.ndarray, np.ndarray]:
+    """Constrained vertex indices and their targets: bottom cap at rest, top cap rotated and lifted."""
+    y = V[:, 1]
+    fixed = np.flatnonzero(y <= np.quantile(y, share))
+    handles = np.flatnonzero(y >= np.quantile(y, 1.0 - share))
+    a = np.radians(30.0)
+    R = np.array([[1.0, 0.0, 0.0], [0.0, np.cos(a), -np.sin(a)], [0.0, np.sin(a), np.cos(a)]])
+    centroid = V[handles].mean(axis=0)
+    targets = (V[handles] - centroid) @ R.T + centroid + np.array([0.0, 0.3, 0.0])
+    return np.concatenate([fixed, handles]), np.concatenate([V[fixed], targets])
+
+
+def child(target_vertices: int, iterations: int, repeats: int) -> dict[str, Any]:
+    """Measure one size in this process (called in a subprocess)."""
+    from arap.shapes import sphere, sphere_frequency_for
+    from arap.solver import ArapSolver
+
+    V, F = sphere(frequency=sphere_frequency_for(target_vertices))
+    b, bc = caps_scenario(V)
+    # Compile the kernels on a small mesh first so that JIT time is not measured.
+    Vs, Fs = sphere(2)
+    bs, bcs = caps_scenario(Vs)
+    ArapSolver(Vs, Fs, bs).solve(bcs, max_iterations=1)
+    base = current_rss_mb()
+    t0 = time.perf_counter()
+    solver = ArapSolver(V, F, b)
+    precompute = time.perf_counter() - t0
+    per_it: list[float] = []
+    split: dict[str, list[float]] = {"local": [], "rhs": [], "solve": []}
+    for _ in range(repeats):
+        t = time.perf_counter()
+        result = solver.solve(bc, initial=V, max_iterations=iterations)
+        per_it.append((time.perf_counter() - t) / result.iterations)
+        for key in split:
+            split[key].append(result.timings[key] / result.iterations)
+    peak = peak_rss_mb()
+    return {
+        "vertices": len(V),
+        "faces": len(F),
+        "constrained": len(b),
+        "precompute_s": precompute,
+        "ms_per_iteration": 1e3 * statistics.median(per_it),
+        "split_ms": {k: 1e3 * statistics.median(v) for k, v in split.items()},
+        "peak_rss_mb": peak,
+        "solver_rss_mb": peak - base,
+        "backend": str(getattr(solver, "backend", "?")),
+    }
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--max-vertices", type=int, default=1_000_000, help="largest sphere (default: 1,000,000)")
+    parser.add_argument("--iterations", type=int, default=5, help="iterations per run (default: 5)")
+    parser.add_argument("--repeats", type=int, default=3, help="runs per size; medians reported (default: 3)")
+    parser.add_argument("--timeout", type=float, default=1200.0, help="seconds allowed per size (default: 1200)")
+    parser.add_argument("--json", type=Path, help="also write the figures to this JSON file")
+    parser.add_argument("--child", type=int, help=argparse.SUPPRESS)
+    args = parser.parse_args(argv)
+    if args.child is not None:
+        print(json.dumps(child(args.child, args.iterations, args.repeats)))
+        return 0
+
+    header = (f"{'vertices':>10}  {'precompute s':>12}  {'ms/iter':>9}  {'local':>8}  {'rhs':>8}  {'solve':>8}  "
+              f"{'peak RSS MiB':>12}  {'solver MiB':>10}")
+    print(f"geodesic spheres; {args.iterations} iterations, median of {args.repeats} runs; "
+          "times per iteration in ms\n")
+    print(header)
+    print("-" * len(header))
+    rows = []
+    for size in (s for s in SIZES if s <= args.max_vertices):
+        cmd = [sys.executable, __file__, "--child", str(size), "--iterations", str(args.iterations),
+               "--repeats", str(args.repeats)]
+        try:
+            proc = subprocess.run(cmd, capture_output=True, text=True, timeout=args.timeout, check=False)
+        except subprocess.TimeoutExpired:
+            print(f"{size:>10,}  timed out after {args.timeout:.0f} s")
+            break
+        if proc.returncode != 0:
+            last = (proc.stderr.strip().splitlines() or ["(no output)"])[-1]
+            print(f"{size:>10,}  failed: {last}")
+            break
+        r = json.loads(proc.stdout.strip().splitlines()[-1])
+        rows.append(r)
+        s = r["split_ms"]
+        print(f"{r['vertices']:>10,}  {r['precompute_s']:>12.2f}  {r['ms_per_iteration']:>9.1f}  "
+              f"{s['local']:>8.1f}  {s['rhs']:>8.1f}  {s['solve']:>8.1f}  {r['peak_rss_mb']:>12.0f}  "
+              f"{r['solver_rss_mb']:>10.0f}", flush=True)
+    if rows:
+        print(f"\nlinear solver: {rows[-1]['backend']}; 'solver MiB' is the peak RSS growth while building and "
+              "running the solver")
+    if args.json:
+        args.json.write_text(json.dumps(rows, indent=2) + "\n")
+        print(f"wrote {args.json}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

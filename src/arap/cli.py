@@ -1,0 +1,359 @@
+"""The ``arap`` command line: deform a mesh file, inspect one, time the solver, start the studio.
+
+Every command takes a mesh file (OBJ, OFF, PLY, STL) or a built-in name (``cactus``, ``bar``, ``cylinder``,
+``sphere`` or ``sphere:N`` for a geodesic sphere of about N vertices). Errors are reported as one line on stderr
+with exit status 2.
+"""
+
+from __future__ import annotations
+
+import argparse
+import inspect
+import logging
+import statistics
+import sys
+import time
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any, TextIO
+
+import numpy as np
+
+from arap import __version__
+from arap.errors import ArapError, MeshError, MeshFormatError
+from arap.mesh import RepairResult
+
+__all__ = ["main"]
+
+logger = logging.getLogger("arap.cli")
+
+ENERGIES = ("spokes", "spokes_and_rims")
+WEIGHTS = ("cotangent", "uniform")
+DEFAULT_BENCH_SPHERE = 6  # subdivisions: 40,962 vertices
+
+
+# ---------------------------------------------------------------------------------------------- output
+def _out(text: str) -> None:
+    """A line of command output on stdout."""
+    sys.stdout.write(text + "\n")
+    sys.stdout.flush()
+
+
+def _err(text: str) -> None:
+    """A line of progress or diagnostics on stderr."""
+    sys.stderr.write(text + "\n")
+    sys.stderr.flush()
+
+
+# ---------------------------------------------------------------------------------------------- meshes
+def _identity_report(n: int) -> RepairResult:
+    return RepairResult(V=np.zeros((0, 3)), F=np.zeros((0, 3), dtype=np.int64),
+                        vertex_map=np.arange(n, dtype=np.int64))
+
+
+def load_mesh_argument(spec: str, *, repair: bool = True) -> tuple[np.ndarray, np.ndarray, RepairResult, str]:
+    """A mesh named on the command line: a file, a built-in name, ``sphere`` or ``sphere:N``.
+
+    Returns
+    -------
+    V : (n, 3) float64 array
+    F : (m, 3) int64 array
+    repair : RepairResult
+        What loading repaired (identity ``vertex_map`` for generated meshes).
+    label : str
+        Name for messages.
+    """
+    from arap.io import load_mesh_with_report
+    from arap.shapes import BUILTIN_MESHES, builtin_mesh, sphere, sphere_frequency_for
+
+    path = Path(spec)
+    if path.exists():
+        V, F, report = load_mesh_with_report(path, repair=repair)
+        return V, F, report, str(path)
+    if spec in BUILTIN_MESHES:
+        V, F = builtin_mesh(spec)
+        return V, F, _identity_report(len(V)), f"built-in {spec}"
+    if spec == "sphere" or spec.startswith("sphere:"):
+        if spec == "sphere":
+            V, F = sphere(DEFAULT_BENCH_SPHERE)
+        else:
+            try:
+                wanted = int(spec.split(":", 1)[1].replace("_", "").replace(",", ""))
+            except ValueError:
+                raise MeshFormatError(f"bad sphere size in {spec!r}; use e.g. sphere:100000") from None
+            V, F = sphere(frequency=sphere_frequency_for(wanted))
+        return V, F, _identity_report(len(V)), "geodesic sphere"
+    raise MeshFormatError(f"{spec}: no such file (built-in meshes: {', '.join(BUILTIN_MESHES)}, sphere, sphere:N)")
+
+
+# ---------------------------------------------------------------------------------------------- deform
+class _Progress:
+    """Per-iteration line on a stream: ``iteration k/N  energy E  change r``."""
+
+    def __init__(self, total: int, stream: TextIO, enabled: bool) -> None:
+        self.total = total
+        self.stream = stream
+        self.enabled = enabled
+        self.tty = enabled and stream.isatty()
+        self.previous: float | None = None
+        self.start = time.perf_counter()
+
+    def __call__(self, iteration: int, energy: float) -> None:
+        if not self.enabled:
+            return
+        change = "" if self.previous is None else (
+            f"  change {abs(self.previous - energy) / max(abs(self.previous), 1e-300):.2e}")
+        self.previous = energy
+        elapsed = time.perf_counter() - self.start
+        line = f"iteration {iteration}/{self.total}  energy {energy:.9g}{change}  ({elapsed:.2f} s)"
+        if self.tty:
+            self.stream.write("\r" + line.ljust(78))
+        else:
+            self.stream.write(line + "\n")
+        self.stream.flush()
+
+    def close(self) -> None:
+        if self.tty and self.previous is not None:
+            self.stream.write("\n")
+            self.stream.flush()
+
+
+def _cmd_deform(args: argparse.Namespace) -> int:
+    from arap.constraints import load_constraints
+    from arap.io import format_of, save_mesh
+    from arap.solver import ArapSolver
+
+    format_of(args.output)  # fail before any work on an unsupported output type
+    if args.iterations < 0:
+        raise ArapError(f"--iterations must be >= 0, got {args.iterations}")
+    if not args.tolerance >= 0:
+        raise ArapError(f"--tolerance must be >= 0, got {args.tolerance}")
+    V, F, repair, label = load_mesh_argument(args.mesh)
+    n_file = len(repair.vertex_map)
+    constraints = load_constraints(args.constraints, n_file)
+    renumbered = len(V) != n_file or not np.array_equal(repair.vertex_map, np.arange(n_file))
+    if repair.report and not args.quiet:
+        _err(f"arap: repaired {label}: {'; '.join(repair.report)}")
+    if renumbered:
+        constraints = constraints.remapped(repair.vertex_map)
+        if not args.quiet:
+            _err("arap: vertex indices changed by the repair; constraints were renumbered to match")
+    indices, targets = constraints.indices_and_targets(V)
+
+    solver = ArapSolver(V, F, indices, energy=args.energy, weights=args.weights, roi=constraints.roi)
+    if not args.quiet:
+        _err(f"arap: {label}: {len(V):,} vertices, {len(F):,} faces; {len(constraints.fixed):,} fixed, "
+             f"{len(constraints.handles):,} handles; precompute {1e3 * solver.factor_seconds:.0f} ms")
+    progress = _Progress(args.iterations, sys.stderr, enabled=not args.quiet)
+    t0 = time.perf_counter()
+    try:
+        result = solver.solve(targets, max_iterations=args.iterations, tolerance=args.tolerance, callback=progress)
+    finally:
+        progress.close()
+    seconds = time.perf_counter() - t0
+    save_mesh(args.output, result.vertices, F)
+    if not args.quiet:
+        if result.energies:
+            per_it = 1e3 * seconds / max(result.iterations, 1)
+            status = "converged" if result.converged else "iteration limit reached"
+            _err(f"arap: {result.iterations} iterations in {seconds:.2f} s ({per_it:.1f} ms/iteration), "
+                 f"energy {result.energies[0]:.6g} -> {result.energies[-1]:.6g}, {status}")
+        _err(f"arap: wrote {args.output}")
+    return 0
+
+
+# ---------------------------------------------------------------------------------------------- info
+def _cmd_info(args: argparse.Namespace) -> int:
+    from arap.mesh import check_mesh, inspect_mesh, repair_mesh
+
+    V, F, _, label = load_mesh_argument(args.mesh, repair=False)
+    info = inspect_mesh(V, F)
+    _out(label)
+    for line in info.lines():
+        _out(f"  {line}")
+    try:
+        check_mesh(V, F)
+        note = "" if info.n_components <= 1 else (
+            f" (each of the {info.n_components:,} components needs a constrained vertex of its own)")
+        _out(f"  ready for ARAP: yes{note}")
+    except MeshError as exc:
+        _out(f"  ready for ARAP: no ({exc})")
+    try:
+        fixed = repair_mesh(V, F)
+    except MeshError as exc:
+        _out(f"  repair: impossible ({exc})")
+        return 0
+    if not fixed.report:
+        _out("  repair: nothing to do")
+    else:
+        _out(f"  repair would: {'; '.join(fixed.report)}")
+        _out(f"  after repair: {len(fixed.V):,} vertices, {len(fixed.F):,} faces (vertex indices change)")
+    return 0
+
+
+# ---------------------------------------------------------------------------------------------- bench
+def bench_constraints(V: np.ndarray, share: float = 0.1) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Bend-like test scenario: fix the lowest ``share`` of vertices along the longest axis, lift the top ones.
+
+    Returns
+    -------
+    fixed : (f,) int64 array
+    handles : (h,) int64 array
+    targets : (h, 3) float64 array
+        Handles rotated 30° about their centroid (in the plane of the longest axis and the next one), then
+        shifted along that next axis by 10% of the bounding-box diagonal.
+    """
+    extent = V.max(axis=0) - V.min(axis=0)
+    axis = int(np.argmax(extent))
+    side = (axis + 1) % 3
+    t = V[:, axis]
+    fixed = np.flatnonzero(t <= np.quantile(t, share))
+    handles = np.flatnonzero(t >= np.quantile(t, 1.0 - share))
+    c, s = np.cos(np.pi / 6), np.sin(np.pi / 6)
+    R = np.eye(3)
+    R[np.ix_([axis, side], [axis, side])] = [[c, -s], [s, c]]
+    centroid = V[handles].mean(axis=0)
+    shift = np.zeros(3)
+    shift[side] = 0.1 * float(np.linalg.norm(extent))
+    targets = (V[handles] - centroid) @ R.T + centroid + shift
+    return fixed, handles, targets
+
+
+def _cmd_bench(args: argparse.Namespace) -> int:
+    from arap.solver import ArapSolver
+
+    if args.iterations < 1 or args.repeats < 1:
+        raise ArapError("--iterations and --repeats must be >= 1")
+    V, F, _, label = load_mesh_argument(args.mesh)
+    fixed, handles, targets = bench_constraints(V)
+    indices = np.concatenate([fixed, handles])
+    all_targets = np.concatenate([V[fixed], targets])
+    t0 = time.perf_counter()
+    solver = ArapSolver(V, F, indices, energy=args.energy, weights=args.weights)
+    precompute = time.perf_counter() - t0
+    runs = []
+    for _ in range(args.repeats):
+        result = solver.solve(all_targets, initial=V, max_iterations=args.iterations)
+        runs.append(result)
+    per_it = [1e3 * (r.timings["local"] + r.timings["rhs"] + r.timings["solve"]) / r.iterations for r in runs]
+    best = runs[int(np.argsort(per_it)[len(per_it) // 2])]
+    k = best.iterations
+    split = {key: 1e3 * best.timings[key] / k for key in ("local", "rhs", "solve")}
+    backend = getattr(solver, "backend", None) or "?"
+    rows = [
+        ("mesh", f"{label}: {len(V):,} vertices, {len(F):,} faces"),
+        ("constraints", f"{len(fixed):,} fixed, {len(handles):,} handles"),
+        ("energy / weights", f"{args.energy} / {args.weights}"),
+        ("linear solver", str(backend)),
+        ("precompute", f"{1e3 * precompute:.1f} ms"),
+        ("per iteration", f"{statistics.median(per_it):.2f} ms (median of {args.repeats} runs of {k})"),
+        ("  local (covariances + rotations)", f"{split['local']:.2f} ms"),
+        ("  right-hand side", f"{split['rhs']:.2f} ms"),
+        ("  solve", f"{split['solve']:.2f} ms"),
+        ("energy", f"{best.energies[0]:.6g} -> {best.energies[-1]:.6g}"),
+    ]
+    width = max(len(name) for name, _ in rows)
+    for name, value in rows:
+        _out(f"{name.ljust(width)}  {value}")
+    return 0
+
+
+# ---------------------------------------------------------------------------------------------- studio
+def _cmd_studio(args: argparse.Namespace) -> int:
+    try:
+        from arap import server
+    except ImportError as exc:
+        raise ArapError(f"the studio is not available: {exc}") from exc
+    serve = server.serve
+    params = inspect.signature(serve).parameters
+    kwargs: dict[str, Any] = {"host": args.host, "port": args.port, "open_browser": args.open}
+
+    def announce(url: str) -> None:
+        _out(f"ARAP Studio running at {url}  (Ctrl-C to stop)")
+
+    if "on_ready" in params:
+        kwargs["on_ready"] = announce
+    else:
+        announce(server.studio_url(args.host, args.port))
+    try:
+        serve(args.mesh, **kwargs)
+    except KeyboardInterrupt:
+        _err("stopped")
+    return 0
+
+
+# ---------------------------------------------------------------------------------------------- parser
+def build_parser() -> argparse.ArgumentParser:
+    """The argument parser of the ``arap`` command."""
+    parser = argparse.ArgumentParser(
+        prog="arap",
+        description="As-Rigid-As-Possible surface deformation (Sorkine & Alexa 2007).",
+        epilog="MESH is a file (.obj .off .ply .stl) or a built-in name: cactus, bar, cylinder, sphere, sphere:N.",
+    )
+    parser.add_argument("--version", action="version", version=f"arap {__version__}")
+    parser.add_argument("-v", "--verbose", action="store_true", help="log what the library does")
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+
+    p = sub.add_parser("deform", help="deform a mesh with a constraints file",
+                       description="Deform MESH so the handles reach their targets and the fixed vertices stay.")
+    p.add_argument("mesh", metavar="MESH")
+    p.add_argument("-c", "--constraints", required=True, metavar="FILE.json",
+                   help='JSON with "fixed", "handles", "targets" and optionally "roi" (file vertex indices)')
+    p.add_argument("-o", "--output", required=True, metavar="OUT", help="output mesh file (.obj .off .ply .stl)")
+    p.add_argument("-n", "--iterations", type=int, default=50, help="maximum iterations (default: 50)")
+    p.add_argument("-t", "--tolerance", type=float, default=1e-6,
+                   help="stop when the relative energy change is at most this (default: 1e-6; 0 runs all)")
+    p.add_argument("--energy", choices=ENERGIES, default="spokes", help="cell definition (default: spokes)")
+    p.add_argument("--weights", choices=WEIGHTS, default="cotangent", help="edge weights (default: cotangent)")
+    p.add_argument("-q", "--quiet", action="store_true", help="print nothing but errors")
+    p.set_defaults(func=_cmd_deform)
+
+    p = sub.add_parser("info", help="describe a mesh and its defects",
+                       description="Counts, components, boundary, defects, negative cotangent weights, and what "
+                                   "repair would change.")
+    p.add_argument("mesh", metavar="MESH")
+    p.set_defaults(func=_cmd_info)
+
+    p = sub.add_parser("bench", help="time the solver on a mesh",
+                       description="Fix the lowest 10%% along the longest axis, move the top 10%%, and time the "
+                                   "precompute and the iterations.")
+    p.add_argument("mesh", metavar="MESH", nargs="?", default="sphere",
+                   help="default: a geodesic sphere of 40,962 vertices")
+    p.add_argument("-n", "--iterations", type=int, default=10, help="iterations per run (default: 10)")
+    p.add_argument("-r", "--repeats", type=int, default=3, help="runs; the median is reported (default: 3)")
+    p.add_argument("--energy", choices=ENERGIES, default="spokes")
+    p.add_argument("--weights", choices=WEIGHTS, default="cotangent")
+    p.set_defaults(func=_cmd_bench)
+
+    p = sub.add_parser("studio", help="start the browser modeler",
+                       description="Serve ARAP Studio; open the printed URL in a browser.")
+    p.add_argument("mesh", metavar="MESH", nargs="?", default=None, help="mesh every session starts with")
+    p.add_argument("--host", default="127.0.0.1", help="address to bind (default: 127.0.0.1, this machine only)")
+    p.add_argument("--port", type=int, default=8000, help="TCP port (default: 8000; 0 picks a free one)")
+    p.add_argument("--open", action="store_true", help="open the studio in the default browser")
+    p.set_defaults(func=_cmd_studio)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run the ``arap`` command; returns the exit status (0 success, 2 error, 130 interrupted)."""
+    parser = build_parser()
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as exc:  # --help, --version, or a usage error already printed by argparse
+        return int(exc.code) if isinstance(exc.code, int) else 2
+    logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING,
+                        format="arap: %(message)s", stream=sys.stderr)
+    try:
+        return int(args.func(args))
+    except (ArapError, ValueError, OSError) as exc:
+        message = str(exc) or type(exc).__name__
+        _err(f"arap: error: {message}")
+        return 2
+    except KeyboardInterrupt:
+        _err("arap: interrupted")
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,282 @@
+"""Reading and writing triangle meshes (OBJ, OFF, PLY, STL), from paths or from bytes.
+
+Reading goes through trimesh's format parsers without any processing, so vertices keep their file order (vertex
+indices in constraint files refer to that order). Polygons are fan-triangulated. By default the loaded mesh goes
+through :func:`arap.mesh.repair_mesh`, which welds STL triangle soups and drops degenerate faces; a clean mesh
+comes back unchanged.
+"""
+
+from __future__ import annotations
+
+import io
+import logging
+import os
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from arap.errors import MeshError, MeshFormatError
+from arap.mesh import RepairResult, repair_mesh, triangulate_polygons
+
+__all__ = [
+    "MESH_FORMATS",
+    "format_of",
+    "load_mesh",
+    "load_mesh_bytes",
+    "load_mesh_bytes_with_report",
+    "load_mesh_with_report",
+    "save_mesh",
+    "save_mesh_bytes",
+]
+
+logger = logging.getLogger(__name__)
+
+#: File types read and written, named by their usual extension.
+MESH_FORMATS = ("obj", "off", "ply", "stl")
+
+
+def format_of(name: str | os.PathLike[str]) -> str:
+    """The mesh format of a file name or of a bare type name (``"mesh.OBJ"``, ``".obj"`` and ``"obj"`` all give
+    ``"obj"``).
+
+    Raises
+    ------
+    MeshFormatError
+        Unsupported or missing extension.
+    """
+    text = str(name).strip()
+    base = text.replace("\\", "/").rsplit("/", 1)[-1]
+    ext = base.rsplit(".", 1)[-1].lower()
+    if ext not in MESH_FORMATS:
+        raise MeshFormatError(
+            f"unsupported mesh format {ext!r} (from {text!r}); supported: {', '.join(MESH_FORMATS)}"
+        )
+    return ext
+
+
+# ---------------------------------------------------------------------------------------------- reading
+def _parse(stream: io.BytesIO, file_type: str, label: str) -> tuple[np.ndarray, np.ndarray]:
+    """Vertices and faces (polygons triangulated) as stored, without any processing."""
+    from trimesh.exchange.load import mesh_loaders
+
+    kwargs: dict[str, object] = {"file_type": file_type}
+    if file_type == "obj":
+        kwargs.update(skip_materials=True, maintain_order=True)
+    try:
+        loaded = mesh_loaders[file_type](stream, **kwargs)
+    except Exception as exc:  # the parsers raise anything from ValueError to struct.error
+        raise MeshFormatError(f"cannot parse {label} as {file_type.upper()}: {exc}") from exc
+    parts = list(loaded["geometry"].values()) if "geometry" in loaded else [loaded]
+    blocks: list[tuple[np.ndarray, np.ndarray]] = []
+    for part in parts:
+        if not isinstance(part, dict) or "vertices" not in part:
+            continue
+        V = np.asarray(part["vertices"], dtype=np.float64).reshape(-1, 3)
+        faces = part.get("faces")
+        F = _faces_array(faces)
+        blocks.append((V, F))
+    if not blocks or all(len(V) == 0 for V, _ in blocks):
+        raise MeshFormatError(f"{label} contains no vertices (empty or not a {file_type.upper()} file)")
+    if all(len(b[0]) == len(blocks[0][0]) and np.array_equal(b[0], blocks[0][0]) for b in blocks):
+        # Parts indexing one shared vertex list (OBJ groups and materials keep file order).
+        V = blocks[0][0]
+        F = np.concatenate([b[1] for b in blocks])
+    else:
+        offsets = np.cumsum([0] + [len(b[0]) for b in blocks[:-1]])
+        V = np.concatenate([b[0] for b in blocks])
+        F = np.concatenate([b[1] + off for b, off in zip(blocks, offsets, strict=True)])
+    if len(F) == 0:
+        raise MeshFormatError(f"{label} has {len(V):,} vertices but no faces (a point cloud?); a surface is needed")
+    return V, F
+
+
+def _faces_array(faces: Any) -> np.ndarray:
+    if faces is None:
+        return np.zeros((0, 3), dtype=np.int64)
+    if isinstance(faces, np.ndarray) and faces.dtype != object:
+        if faces.size == 0:
+            return np.zeros((0, 3), dtype=np.int64)
+        F = faces.astype(np.int64).reshape(len(faces), -1)
+        return F if F.shape[1] == 3 else triangulate_polygons(F)
+    return triangulate_polygons([list(np.asarray(f).ravel()) for f in faces])
+
+
+def _finish(
+    V: np.ndarray, F: np.ndarray, repair: bool, label: str
+) -> tuple[np.ndarray, np.ndarray, RepairResult]:
+    if repair:
+        try:
+            result = repair_mesh(V, F)
+        except MeshError as exc:
+            raise MeshError(f"{label}: {exc}") from exc
+        if result.report:
+            logger.info("%s: %s", label, "; ".join(result.report))
+        return result.V, result.F, result
+    identity = RepairResult(V=V, F=F, vertex_map=np.arange(len(V), dtype=np.int64), report=[],
+                            counts={})
+    return V, F, identity
+
+
+def load_mesh_bytes_with_report(
+    data: bytes, file_type: str, *, repair: bool = True, name: str = "uploaded mesh"
+) -> tuple[np.ndarray, np.ndarray, RepairResult]:
+    """Read a mesh from the bytes of a file, with what repair did.
+
+    Parameters
+    ----------
+    data : bytes
+        The whole file content.
+    file_type : str
+        ``"obj"``, ``"off"``, ``"ply"`` or ``"stl"`` (a file name or ``".obj"`` also works).
+    repair : bool
+        Run :func:`arap.mesh.repair_mesh` (weld duplicates, drop degenerate faces). If False the arrays are
+        returned as stored, unvalidated, and the result has an identity ``vertex_map``.
+    name : str
+        Label for messages.
+
+    Returns
+    -------
+    V : (n, 3) float64 array
+    F : (m, 3) int64 array
+    result : RepairResult
+        ``report`` lines, ``counts`` and ``vertex_map`` (file vertex index → returned index or -1).
+
+    Raises
+    ------
+    MeshFormatError
+        Unknown type, unparsable content, no vertices or no faces.
+    MeshError
+        The content cannot be repaired (faces using NaN vertices or out-of-range indices).
+    """
+    ft = format_of(file_type)
+    V, F = _parse(io.BytesIO(bytes(data)), ft, name)
+    return _finish(V, F, repair, name)
+
+
+def load_mesh_bytes(data: bytes, file_type: str, *, repair: bool = True) -> tuple[np.ndarray, np.ndarray]:
+    """Read a mesh from the bytes of a file; see :func:`load_mesh_bytes_with_report`.
+
+    Returns
+    -------
+    V : (n, 3) float64 array
+    F : (m, 3) int64 array
+    """
+    V, F, _ = load_mesh_bytes_with_report(data, file_type, repair=repair)
+    return V, F
+
+
+def load_mesh_with_report(
+    path: str | os.PathLike[str], *, repair: bool = True
+) -> tuple[np.ndarray, np.ndarray, RepairResult]:
+    """Read a mesh file, with what repair did; see :func:`load_mesh_bytes_with_report`.
+
+    Raises
+    ------
+    MeshFormatError
+        Unknown extension, missing or unreadable file, unparsable content, no faces.
+    """
+    path = Path(path)
+    ft = format_of(path.name)
+    try:
+        data = path.read_bytes()
+    except OSError as exc:
+        raise MeshFormatError(f"cannot read {path}: {exc.strerror or exc}") from exc
+    return load_mesh_bytes_with_report(data, ft, repair=repair, name=str(path))
+
+
+def load_mesh(path: str | os.PathLike[str], *, repair: bool = True) -> tuple[np.ndarray, np.ndarray]:
+    """Read a triangle mesh file (OBJ, OFF, PLY or STL) in file vertex order.
+
+    Parameters
+    ----------
+    path : path-like
+    repair : bool
+        Weld duplicate vertices (STL soups), drop degenerate, duplicate and unused elements
+        (:func:`arap.mesh.repair_mesh`); a clean mesh is returned unchanged.
+
+    Returns
+    -------
+    V : (n, 3) float64 array
+    F : (m, 3) int64 array
+    """
+    V, F, _ = load_mesh_with_report(path, repair=repair)
+    return V, F
+
+
+# ---------------------------------------------------------------------------------------------- writing
+def _check_for_saving(V: np.ndarray, F: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    V = np.ascontiguousarray(V, dtype=np.float64)
+    F = np.ascontiguousarray(F, dtype=np.int64)
+    if V.ndim != 2 or V.shape[1] != 3:
+        raise MeshError(f"vertices must have shape (n, 3), got {V.shape}")
+    if F.ndim != 2 or F.shape[1] != 3:
+        raise MeshError(f"faces must have shape (m, 3), got {F.shape}")
+    if len(F) and (F.min() < 0 or F.max() >= len(V)):
+        raise MeshError(f"face indices out of range [0, {len(V)})")
+    return V, F
+
+
+def _ply_bytes(V: np.ndarray, F: np.ndarray) -> bytes:
+    """Binary little-endian PLY with double-precision coordinates (exact round trip)."""
+    header = (
+        "ply\nformat binary_little_endian 1.0\n"
+        f"element vertex {len(V)}\nproperty double x\nproperty double y\nproperty double z\n"
+        f"element face {len(F)}\nproperty list uchar int vertex_indices\nend_header\n"
+    ).encode("ascii")
+    faces = np.zeros(len(F), dtype=[("n", "u1"), ("idx", "<i4", (3,))])
+    faces["n"] = 3
+    faces["idx"] = F
+    return header + V.astype("<f8").tobytes() + faces.tobytes()
+
+
+def save_mesh_bytes(V: np.ndarray, F: np.ndarray, file_type: str) -> bytes:
+    """Encode a triangle mesh as the bytes of a file.
+
+    OBJ and OFF are written as text with 17 significant digits and PLY as binary doubles, so they round-trip
+    exactly; STL is binary single precision (a triangle soup, by the format's definition).
+
+    Parameters
+    ----------
+    V : (n, 3) float array
+    F : (m, 3) int array
+    file_type : str
+        ``"obj"``, ``"off"``, ``"ply"`` or ``"stl"`` (or a file name with that extension).
+
+    Returns
+    -------
+    bytes
+    """
+    ft = format_of(file_type)
+    V, F = _check_for_saving(V, F)
+    if ft == "ply":
+        return _ply_bytes(V, F)
+    import trimesh
+
+    mesh = trimesh.Trimesh(vertices=V, faces=F, process=False, validate=False)
+    if ft == "obj":
+        out = trimesh.exchange.obj.export_obj(
+            mesh, include_normals=False, include_color=False, include_texture=False, digits=17, header=None
+        )
+    elif ft == "off":
+        out = trimesh.exchange.off.export_off(mesh, digits=17)
+    else:
+        out = trimesh.exchange.stl.export_stl(mesh)
+    return out.encode("utf-8") if isinstance(out, str) else bytes(out)
+
+
+def save_mesh(path: str | os.PathLike[str], V: np.ndarray, F: np.ndarray) -> None:
+    """Write a triangle mesh; the format follows the extension (see :func:`save_mesh_bytes`).
+
+    Raises
+    ------
+    MeshFormatError
+        Unknown extension or the file cannot be written.
+    """
+    path = Path(path)
+    data = save_mesh_bytes(V, F, path.name)
+    try:
+        path.write_bytes(data)
+    except OSError as exc:
+        raise MeshFormatError(f"cannot write {path}: {exc.strerror or exc}") from exc
+    logger.debug("wrote %s (%d vertices, %d faces)", path, len(V), len(F))

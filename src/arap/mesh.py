@@ -1,0 +1,598 @@
+"""Triangle mesh validation, inspection and repair.
+
+:func:`check_mesh` is the strict gate every solver input goes through: it only converts types and raises
+:class:`~arap.errors.MeshError` with a specific message. :func:`repair_mesh` fixes what can be fixed
+(duplicate vertices, degenerate and duplicate faces, unreferenced vertices) and reports what it did.
+:func:`inspect_mesh` describes a mesh, defects included, without changing it.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.csgraph import connected_components as _cc
+from scipy.spatial import cKDTree
+
+from arap.errors import MeshError
+from arap.topology import edge_face_counts
+
+__all__ = [
+    "DEGENERATE_TOLERANCE",
+    "WELD_TOLERANCE",
+    "MeshInfo",
+    "RepairResult",
+    "check_mesh",
+    "degenerate_faces",
+    "inspect_mesh",
+    "repair_mesh",
+    "triangulate_polygons",
+]
+
+logger = logging.getLogger(__name__)
+
+#: A face is degenerate when twice its area is at most this times the squared bounding-box diagonal.
+DEGENERATE_TOLERANCE = 1e-12
+#: Default distance, relative to the bounding-box diagonal, under which :func:`repair_mesh` welds vertices.
+WELD_TOLERANCE = 1e-9
+
+
+# ---------------------------------------------------------------------------------------------- helpers
+def _as_vertices(V: np.ndarray) -> np.ndarray:
+    V = np.asarray(V)
+    if V.dtype == object or not (np.issubdtype(V.dtype, np.floating) or np.issubdtype(V.dtype, np.integer)):
+        raise MeshError(f"vertex coordinates must be real numbers, got dtype {V.dtype}")
+    if V.ndim != 2 or V.shape[1] != 3:
+        raise MeshError(f"vertices must have shape (n, 3), got {V.shape}")
+    return np.ascontiguousarray(V, dtype=np.float64)
+
+
+def _as_faces(F: np.ndarray, allow_polygons: bool = False) -> np.ndarray:
+    F = np.asarray(F)
+    if F.size == 0 and F.ndim <= 2:
+        return np.zeros((0, 3), dtype=np.int64)
+    if F.ndim != 2:
+        raise MeshError(f"faces must be a 2-d array of vertex indices, got shape {F.shape}")
+    if np.issubdtype(F.dtype, np.floating):
+        if not np.all(np.isfinite(F)) or not np.array_equal(F, np.round(F)):
+            raise MeshError("face indices must be integers")
+    elif not np.issubdtype(F.dtype, np.integer) or F.dtype == np.bool_:
+        raise MeshError(f"face indices must be integers, got dtype {F.dtype}")
+    if F.shape[1] != 3:
+        if allow_polygons and F.shape[1] > 3:
+            return triangulate_polygons(F.astype(np.int64))
+        if F.shape[1] == 4:
+            raise MeshError("faces have 4 vertices (quads); quads must be triangulated first "
+                            "(arap.triangulate_polygons, or load the file with arap.load_mesh)")
+        raise MeshError(f"faces must be triangles of shape (m, 3), got shape {F.shape}")
+    return np.ascontiguousarray(F, dtype=np.int64)
+
+
+def _bbox_diagonal(V: np.ndarray) -> float:
+    finite = V[np.all(np.isfinite(V), axis=1)]
+    if not len(finite):
+        return 0.0
+    return float(np.linalg.norm(finite.max(axis=0) - finite.min(axis=0)))
+
+
+def _double_areas(V: np.ndarray, F: np.ndarray) -> np.ndarray:
+    """Twice the area of every face, shape (m,)."""
+    a = np.take(V, F[:, 0], axis=0)
+    b = np.take(V, F[:, 1], axis=0)
+    c = np.take(V, F[:, 2], axis=0)
+    b -= a
+    c -= a
+    cx = b[:, 1] * c[:, 2] - b[:, 2] * c[:, 1]
+    cy = b[:, 2] * c[:, 0] - b[:, 0] * c[:, 2]
+    cz = b[:, 0] * c[:, 1] - b[:, 1] * c[:, 0]
+    return np.sqrt(cx * cx + cy * cy + cz * cz)
+
+
+def _repeated_vertex_faces(F: np.ndarray) -> np.ndarray:
+    return (F[:, 0] == F[:, 1]) | (F[:, 1] == F[:, 2]) | (F[:, 2] == F[:, 0])
+
+
+def triangulate_polygons(faces: np.ndarray | list[list[int]]) -> np.ndarray:
+    """Fan-triangulate polygons: ``(a, b, c, d, …)`` becomes ``(a, b, c), (a, c, d), …``.
+
+    Parameters
+    ----------
+    faces : (m, k) int array with k ≥ 3, or a list of index lists of any lengths ≥ 3
+
+    Returns
+    -------
+    (t, 3) int64 array
+        Triangles, polygon after polygon.
+    """
+    if isinstance(faces, np.ndarray) and faces.ndim == 2:
+        P = faces.astype(np.int64)
+        if P.shape[1] < 3:
+            raise MeshError(f"polygons need at least 3 vertices, got shape {P.shape}")
+        k = P.shape[1]
+        tris = np.stack(
+            [np.repeat(P[:, :1], k - 2, axis=1), P[:, 1:-1], P[:, 2:]], axis=2
+        )
+        return tris.reshape(-1, 3)
+    out: list[list[int]] = []
+    for poly in faces:
+        p = [int(i) for i in poly]
+        if len(p) < 3:
+            raise MeshError(f"a polygon needs at least 3 vertices, got {p}")
+        out.extend([p[0], p[i], p[i + 1]] for i in range(1, len(p) - 1))
+    return np.asarray(out, dtype=np.int64).reshape(-1, 3)
+
+
+def degenerate_faces(V: np.ndarray, F: np.ndarray, tolerance: float = DEGENERATE_TOLERANCE) -> np.ndarray:
+    """Mask of zero-area faces (a repeated vertex, or area below ``tolerance`` relative to the bounding box).
+
+    Parameters
+    ----------
+    V : (n, 3) float array
+    F : (m, 3) int array, indices in range
+    tolerance : float
+        Twice the face area must exceed ``tolerance · diag²``, with ``diag`` the bounding-box diagonal.
+
+    Returns
+    -------
+    (m,) bool array
+    """
+    V = np.asarray(V, dtype=np.float64)
+    F = np.asarray(F, dtype=np.int64)
+    used = np.zeros(len(V), dtype=bool)
+    used[F.ravel()] = True
+    diag = _bbox_diagonal(V[used] if len(F) else V)
+    return _repeated_vertex_faces(F) | (_double_areas(V, F) <= tolerance * diag * diag)
+
+
+# ---------------------------------------------------------------------------------------------- check
+def check_mesh(V: np.ndarray, F: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Validate a triangle mesh strictly and return it with canonical types.
+
+    Runs in O(n + m) with vectorised NumPy, so it is cheap next to any solve.
+
+    Parameters
+    ----------
+    V : (n, 3) real array
+        Vertex positions.
+    F : (m, 3) integer array
+        Triangles as vertex indices (0-based).
+
+    Returns
+    -------
+    V : (n, 3) float64 C-contiguous array
+    F : (m, 3) int64 C-contiguous array
+
+    Raises
+    ------
+    MeshError
+        Wrong shapes or dtypes (quads and other polygons must be triangulated), an empty mesh, non-finite
+        coordinates, face indices out of range, faces repeating a vertex, zero-area faces.
+    """
+    V = _as_vertices(V)
+    F = _as_faces(F)
+    n, m = len(V), len(F)
+    if n == 0 or m == 0:
+        raise MeshError(f"the mesh is empty ({n} vertices, {m} faces)")
+    if not np.isfinite(V).all():
+        bad = np.flatnonzero(~np.all(np.isfinite(V), axis=1))
+        raise MeshError(f"{len(bad)} vertices have NaN or infinite coordinates (first: vertex {bad[0]})")
+    lo, hi = int(F.min()), int(F.max())
+    if lo < 0 or hi >= n:
+        bad = np.flatnonzero(np.any((F < 0) | (F >= n), axis=1))
+        f0 = int(bad[0])
+        raise MeshError(
+            f"{len(bad)} faces have vertex indices out of range [0, {n}) "
+            f"(first: face {f0} = {F[f0].tolist()})"
+        )
+    rep = _repeated_vertex_faces(F)
+    if rep.any():
+        bad = np.flatnonzero(rep)
+        f0 = int(bad[0])
+        raise MeshError(
+            f"{len(bad)} faces repeat a vertex (first: face {f0} = {F[f0].tolist()}); "
+            "arap.repair_mesh removes them"
+        )
+    diag = float(np.linalg.norm(V.max(axis=0) - V.min(axis=0)))
+    degenerate = _double_areas(V, F) <= DEGENERATE_TOLERANCE * diag * diag
+    if degenerate.any():
+        bad = np.flatnonzero(degenerate)
+        f0 = int(bad[0])
+        raise MeshError(
+            f"{len(bad)} faces have zero area (first: face {f0} = {F[f0].tolist()}); "
+            "arap.repair_mesh removes degenerate faces"
+        )
+    return V, F
+
+
+# ---------------------------------------------------------------------------------------------- repair
+@dataclass
+class RepairResult:
+    """Outcome of :func:`repair_mesh`.
+
+    Attributes
+    ----------
+    V : (n', 3) float64 array
+        Repaired vertices, in the order of their first occurrence in the input.
+    F : (m', 3) int64 array
+        Repaired triangles.
+    vertex_map : (n,) int64 array
+        New index of every input vertex (welded vertices share one), or -1 for dropped vertices.
+    report : list of str
+        One human-readable line per repair made; empty when the mesh was already clean.
+    counts : dict of str to int
+        ``welded_vertices``, ``triangulated_polygons``, ``repeated_vertex_faces``, ``degenerate_faces``,
+        ``duplicate_faces``, ``unreferenced_vertices``.
+    """
+
+    V: np.ndarray
+    F: np.ndarray
+    vertex_map: np.ndarray
+    report: list[str] = field(default_factory=list)
+    counts: dict[str, int] = field(default_factory=dict)
+
+    @property
+    def changed(self) -> bool:
+        """True if anything was repaired."""
+        return any(self.counts.values())
+
+
+def _first_equal_row(A: np.ndarray) -> np.ndarray:
+    """For every row of ``A`` (k, c), the index of the first row equal to it (itself if unique)."""
+    k = len(A)
+    if k == 0:
+        return np.zeros(0, dtype=np.int64)
+    order = np.lexsort(A.T[::-1])  # stable: equal rows keep their original order
+    S = A[order]
+    starts = np.ones(k, dtype=bool)
+    starts[1:] = np.any(S[1:] != S[:-1], axis=1)
+    group = np.cumsum(starts) - 1
+    rep = np.empty(k, dtype=np.int64)
+    rep[order] = order[np.flatnonzero(starts)][group]
+    return rep
+
+
+def _weld_groups(V: np.ndarray, tol: float) -> np.ndarray:
+    """Representative (smallest index) of every vertex after welding points closer than ``tol``."""
+    n = len(V)
+    rep = _first_equal_row(V + 0.0)  # + 0.0 turns -0.0 into 0.0
+    first = np.flatnonzero(rep == np.arange(n))
+    inverse = np.searchsorted(first, rep)
+    if tol > 0 and len(first) > 1:
+        U = V[first]
+        pairs = cKDTree(U).query_pairs(tol, output_type="ndarray")
+        if len(pairs):
+            k = len(U)
+            G = sp.coo_matrix((np.ones(len(pairs), dtype=np.int8), (pairs[:, 0], pairs[:, 1])), shape=(k, k))
+            _, labels = _cc(G, directed=False)
+            group_first = np.full(labels.max() + 1, n, dtype=np.int64)
+            np.minimum.at(group_first, labels, first)
+            rep = group_first[labels][inverse]
+    return rep
+
+
+def _unique_face_mask(F: np.ndarray) -> np.ndarray:
+    """True for the first occurrence of every face (same vertex set, either orientation)."""
+    return _first_equal_row(np.sort(F, axis=1)) == np.arange(len(F))
+
+
+def repair_mesh(
+    V: np.ndarray, polygons: np.ndarray | list[list[int]], *, weld_tolerance: float = WELD_TOLERANCE
+) -> RepairResult:
+    """Fix the defects that make a mesh unusable for ARAP, keeping everything else as it is.
+
+    In order: polygons are fan-triangulated, vertices closer than ``weld_tolerance · diag`` are welded
+    (the first occurrence is kept, so a clean mesh keeps its indices), faces repeating a vertex, zero-area
+    faces and duplicate faces (same three vertices, either orientation; the first is kept) are dropped, and
+    vertices used by no face are dropped. The result passes :func:`check_mesh`.
+
+    Parameters
+    ----------
+    V : (n, 3) float array
+    polygons : (m, 3) int array of triangles, (m, k) int array of polygons, or a list of polygons
+    weld_tolerance : float
+        Welding distance relative to the bounding-box diagonal of the referenced vertices; 0 welds exact
+        duplicates only.
+
+    Returns
+    -------
+    RepairResult
+
+    Raises
+    ------
+    MeshError
+        Faces use non-finite vertices or out-of-range indices, or no valid face remains.
+    """
+    V = _as_vertices(V)
+    n_polygons = len(polygons)
+    if isinstance(polygons, np.ndarray):
+        F = _as_faces(polygons, allow_polygons=True)
+    else:
+        F = triangulate_polygons(polygons) if n_polygons else np.zeros((0, 3), dtype=np.int64)
+    n = len(V)
+    counts = {
+        "triangulated_polygons": int(len(F) - n_polygons),
+        "welded_vertices": 0,
+        "repeated_vertex_faces": 0,
+        "degenerate_faces": 0,
+        "duplicate_faces": 0,
+        "unreferenced_vertices": 0,
+    }
+    report: list[str] = []
+    if len(F) and (F.min() < 0 or F.max() >= n):
+        bad = np.flatnonzero(np.any((F < 0) | (F >= n), axis=1))
+        raise MeshError(f"{len(bad)} faces have vertex indices out of range [0, {n}) (first: face {bad[0]}); "
+                        "this cannot be repaired")
+    finite = np.all(np.isfinite(V), axis=1)
+    used_bad = ~finite[F].all(axis=1) if len(F) else np.zeros(0, dtype=bool)
+    if used_bad.any():
+        bad_v = np.flatnonzero(~finite)
+        raise MeshError(f"{int((~finite).sum())} vertices have NaN or infinite coordinates (first: vertex "
+                        f"{bad_v[0]}) and {int(used_bad.sum())} faces use them; this cannot be repaired")
+
+    referenced = np.zeros(n, dtype=bool)
+    referenced[F.ravel()] = True
+    diag = _bbox_diagonal(V[referenced]) if referenced.any() else 0.0
+    # Weld among referenced vertices only; unreferenced ones are dropped below anyway.
+    ref_idx = np.flatnonzero(referenced)
+    rep = np.arange(n, dtype=np.int64)
+    if len(ref_idx):
+        rep[ref_idx] = ref_idx[_weld_groups(V[ref_idx], weld_tolerance * diag)]
+    counts["welded_vertices"] = int((rep[ref_idx] != ref_idx).sum())
+    F = rep[F]
+
+    keep = ~_repeated_vertex_faces(F)
+    counts["repeated_vertex_faces"] = int((~keep).sum())
+    F = F[keep]
+    for _ in range(8):
+        degenerate = degenerate_faces(V, F) if len(F) else np.zeros(0, dtype=bool)
+        if not degenerate.any():
+            break
+        counts["degenerate_faces"] += int(degenerate.sum())
+        F = F[~degenerate]
+    keep = _unique_face_mask(F)
+    counts["duplicate_faces"] = int((~keep).sum())
+    F = F[keep]
+    if not len(F):
+        raise MeshError("no valid face remains after removing degenerate and duplicate faces")
+
+    used = np.zeros(n, dtype=bool)
+    used[F.ravel()] = True
+    new_index = np.full(n, -1, dtype=np.int64)
+    new_index[used] = np.arange(int(used.sum()))
+    vertex_map = new_index[rep]
+    counts["unreferenced_vertices"] = int(n - used.sum() - counts["welded_vertices"])
+    V_out = np.ascontiguousarray(V[used])
+    F_out = np.ascontiguousarray(new_index[F])
+
+    messages = {
+        "triangulated_polygons": "split polygons into triangles ({} extra faces)",
+        "welded_vertices": "welded {} duplicate vertices",
+        "repeated_vertex_faces": "dropped {} faces repeating a vertex",
+        "degenerate_faces": "dropped {} zero-area faces",
+        "duplicate_faces": "dropped {} duplicate faces",
+        "unreferenced_vertices": "dropped {} vertices used by no face",
+    }
+    for key, template in messages.items():
+        if counts[key]:
+            report.append(template.format(f"{counts[key]:,}"))
+    if report:
+        logger.info("repaired mesh: %s", "; ".join(report))
+    return RepairResult(V=V_out, F=F_out, vertex_map=vertex_map, report=report, counts=counts)
+
+
+# ---------------------------------------------------------------------------------------------- inspect
+@dataclass
+class MeshInfo:
+    """Description of a triangle mesh and its defects (see :func:`inspect_mesh`).
+
+    Attributes
+    ----------
+    n_vertices, n_faces, n_edges : int
+    bbox_min, bbox_max : (3,) float64 arrays
+        Bounding box of the finite vertices.
+    diagonal : float
+        Bounding-box diagonal length.
+    component_sizes : list of int
+        Vertex count of each connected component of the faces, largest first (unreferenced vertices excluded).
+    boundary_edges, boundary_loops : int
+        Edges used by one face, and the connected chains they form.
+    non_manifold_edges : int
+        Edges used by more than two faces.
+    duplicate_vertices : int
+        Vertices :func:`repair_mesh` would weld into an earlier one.
+    repeated_vertex_faces, degenerate_faces, duplicate_faces : int
+        Faces repeating a vertex, other zero-area faces, and repeated faces.
+    unreferenced_vertices, nonfinite_vertices, out_of_range_faces : int
+    negative_weight_share : float
+        Share of edges whose cotangent weight ``½ Σ cot(opposite angles)`` is negative (0 to 1).
+    euler_characteristic : int
+        ``V − E + F`` over the referenced vertices.
+    """
+
+    n_vertices: int
+    n_faces: int
+    n_edges: int
+    bbox_min: np.ndarray
+    bbox_max: np.ndarray
+    diagonal: float
+    component_sizes: list[int]
+    boundary_edges: int
+    boundary_loops: int
+    non_manifold_edges: int
+    duplicate_vertices: int
+    repeated_vertex_faces: int
+    degenerate_faces: int
+    duplicate_faces: int
+    unreferenced_vertices: int
+    nonfinite_vertices: int
+    out_of_range_faces: int
+    negative_weight_share: float
+    euler_characteristic: int
+
+    @property
+    def n_components(self) -> int:
+        """Number of connected components."""
+        return len(self.component_sizes)
+
+    @property
+    def closed(self) -> bool:
+        """True when every edge has exactly two faces."""
+        return self.boundary_edges == 0 and self.non_manifold_edges == 0 and self.n_faces > 0
+
+    @property
+    def problems(self) -> list[str]:
+        """Defects that :func:`check_mesh` rejects or that :func:`repair_mesh` fixes, one line each."""
+        items = [
+            (self.nonfinite_vertices, "vertices with NaN or infinite coordinates"),
+            (self.out_of_range_faces, "faces with out-of-range indices"),
+            (self.duplicate_vertices, "duplicate vertices"),
+            (self.repeated_vertex_faces, "faces repeating a vertex"),
+            (self.degenerate_faces, "zero-area faces"),
+            (self.duplicate_faces, "duplicate faces"),
+            (self.unreferenced_vertices, "vertices used by no face"),
+            (self.non_manifold_edges, "non-manifold edges"),
+        ]
+        return [f"{count:,} {what}" for count, what in items if count]
+
+    def lines(self) -> list[str]:
+        """Human-readable summary, one fact per line."""
+        sizes = ", ".join(f"{s:,}" for s in self.component_sizes[:8])
+        if len(self.component_sizes) > 8:
+            sizes += ", …"
+        lo = ", ".join(f"{x:.4g}" for x in self.bbox_min)
+        hi = ", ".join(f"{x:.4g}" for x in self.bbox_max)
+        shape = "closed" if self.closed else (
+            f"open: {self.boundary_edges:,} boundary edges in {self.boundary_loops:,} loops"
+            if self.boundary_edges else "not closed"
+        )
+        out = [
+            f"vertices: {self.n_vertices:,}",
+            f"faces: {self.n_faces:,}",
+            f"edges: {self.n_edges:,}",
+            f"bounding box: [{lo}] to [{hi}] (diagonal {self.diagonal:.4g})",
+            f"components: {self.n_components:,} ({sizes} vertices)",
+            f"surface: {shape}; Euler characteristic {self.euler_characteristic}",
+            f"negative cotangent weights: {100 * self.negative_weight_share:.1f}% of edges",
+        ]
+        problems = self.problems
+        out.append("defects: " + ("none" if not problems else "; ".join(problems)))
+        return out
+
+    def __str__(self) -> str:
+        return "\n".join(self.lines())
+
+
+def _negative_weight_share(V: np.ndarray, F: np.ndarray) -> float:
+    """Share of undirected edges whose summed cotangent weight is negative."""
+    if not len(F):
+        return 0.0
+    P = V[F]
+    cots = np.empty((len(F), 3))
+    for k in range(3):
+        a = P[:, (k + 1) % 3] - P[:, k]
+        b = P[:, (k + 2) % 3] - P[:, k]
+        cross = np.linalg.norm(np.cross(a, b), axis=1)
+        cots[:, k] = np.einsum("ij,ij->i", a, b) / np.maximum(cross, np.finfo(float).tiny)
+    # The angle at corner k is opposite the edge (k+1, k+2).
+    i = np.concatenate([F[:, 1], F[:, 2], F[:, 0]])
+    j = np.concatenate([F[:, 2], F[:, 0], F[:, 1]])
+    lo, hi = np.minimum(i, j), np.maximum(i, j)
+    key = lo * (int(V.shape[0]) + 1) + hi
+    uniq, inverse = np.unique(key, return_inverse=True)
+    w = np.zeros(len(uniq))
+    np.add.at(w, inverse.reshape(-1), 0.5 * cots.T.reshape(-1))
+    return float((w < 0).mean())
+
+
+def _face_graph(F: np.ndarray, n: int) -> sp.coo_matrix:
+    """Vertex graph with one entry per face side (duplicates are harmless for connectivity)."""
+    rows = F.ravel()
+    cols = np.roll(F, -1, axis=1).ravel()
+    return sp.coo_matrix((np.ones(len(rows), dtype=np.int8), (rows, cols)), shape=(n, n))
+
+
+def _boundary_loops(bedges: np.ndarray, n: int) -> int:
+    if not len(bedges):
+        return 0
+    verts, local = np.unique(bedges, return_inverse=True)
+    local = local.reshape(-1, 2)
+    k = len(verts)
+    G = sp.coo_matrix((np.ones(len(local), dtype=np.int8), (local[:, 0], local[:, 1])), shape=(k, k))
+    count, _ = _cc(G, directed=False)
+    return int(count)
+
+
+def inspect_mesh(V: np.ndarray, F: np.ndarray) -> MeshInfo:
+    """Describe a mesh and count its defects without changing or rejecting it.
+
+    Parameters
+    ----------
+    V : (n, 3) float array
+    F : (m, 3) int array
+
+    Returns
+    -------
+    MeshInfo
+
+    Raises
+    ------
+    MeshError
+        Only for arrays of the wrong shape or type.
+    """
+    V = _as_vertices(V)
+    F = _as_faces(F)
+    n, m = len(V), len(F)
+    finite = np.all(np.isfinite(V), axis=1)
+    in_range = np.all((F >= 0) & (F < n), axis=1) if m else np.zeros(0, dtype=bool)
+    out_of_range = int((~in_range).sum())
+    Fv = F[in_range]
+    Fv = Fv[finite[Fv].all(axis=1)] if len(Fv) else Fv
+    referenced = np.zeros(n, dtype=bool)
+    referenced[Fv.ravel()] = True
+    if finite.any():
+        bmin, bmax = V[finite].min(axis=0), V[finite].max(axis=0)
+    else:
+        bmin = bmax = np.zeros(3)
+    diag = float(np.linalg.norm(bmax - bmin))
+
+    repeated = _repeated_vertex_faces(Fv)
+    degenerate = degenerate_faces(V, Fv) & ~repeated if len(Fv) else np.zeros(0, dtype=bool)
+    duplicate = int((~_unique_face_mask(Fv)).sum())
+    ref_idx = np.flatnonzero(referenced)
+    dup_vertices = 0
+    if len(ref_idx):
+        rep = _weld_groups(V[ref_idx], WELD_TOLERANCE * _bbox_diagonal(V[ref_idx]))
+        dup_vertices = int((rep != np.arange(len(ref_idx))).sum())
+
+    edges, counts = edge_face_counts(Fv)
+    bedges = edges[counts == 1]
+    if len(ref_idx):
+        _, labels = _cc(_face_graph(Fv, n), directed=False)
+        sizes = np.bincount(labels[referenced])
+        component_sizes = sorted((int(s) for s in sizes if s), reverse=True)
+    else:
+        component_sizes = []
+    good = Fv[~repeated & ~degenerate] if len(Fv) else Fv
+    return MeshInfo(
+        n_vertices=n,
+        n_faces=m,
+        n_edges=len(edges),
+        bbox_min=bmin,
+        bbox_max=bmax,
+        diagonal=diag,
+        component_sizes=component_sizes,
+        boundary_edges=len(bedges),
+        boundary_loops=_boundary_loops(bedges, n),
+        non_manifold_edges=int((counts > 2).sum()),
+        duplicate_vertices=dup_vertices,
+        repeated_vertex_faces=int(repeated.sum()),
+        degenerate_faces=int(degenerate.sum()),
+        duplicate_faces=duplicate,
+        unreferenced_vertices=int(n - referenced.sum()),
+        nonfinite_vertices=int((~finite).sum()),
+        out_of_range_faces=out_of_range,
+        negative_weight_share=_negative_weight_share(V, good),
+        euler_characteristic=int(referenced.sum()) - len(edges) + len(Fv),
+    )

@@ -1,0 +1,338 @@
+"""Built-in triangle meshes generated in code: editing demos and benchmark spheres.
+
+Every built-in is a single closed, manifold, genus-0 surface without degenerate faces, standing on the plane
+``y = 0`` (y is up) and centred on the y axis. They are deterministic: the same call always returns the same
+arrays.
+
+- ``bar``: a 1 × 5 × 1 box, each side a uniform grid of right triangles.
+- ``cylinder``: radius 0.5, height 4, flat caps; near-equilateral triangles (staggered rings).
+- ``cactus``: a trunk with two arms, a smooth Catmull–Clark surface built from a block cage, about 5 tall.
+"""
+
+from __future__ import annotations
+
+import itertools
+from collections.abc import Callable
+
+import numpy as np
+
+from arap.mesh import repair_mesh
+
+__all__ = ["BUILTIN_MESHES", "builtin_mesh", "sphere", "sphere_frequency_for"]
+
+BUILTIN_MESHES = ("cactus", "bar", "cylinder")
+
+
+# ---------------------------------------------------------------------------------------------- helpers
+def _orient_outward(V: np.ndarray, F: np.ndarray, center: Callable[[np.ndarray], np.ndarray]) -> np.ndarray:
+    """Flip faces whose normal points towards ``center(centroids)`` (valid for locally convex parts)."""
+    P = V[F]
+    normal = np.cross(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0])
+    centroid = P.mean(axis=1)
+    inward = np.einsum("ij,ij->i", normal, centroid - center(centroid)) < 0
+    F = F.copy()
+    F[inward] = F[inward][:, ::-1]
+    return F
+
+
+def _split_quads(V: np.ndarray, Q: np.ndarray) -> np.ndarray:
+    """Triangles from quads (a, b, c, d), each cut along its shorter diagonal."""
+    d_ac = np.linalg.norm(V[Q[:, 0]] - V[Q[:, 2]], axis=1)
+    d_bd = np.linalg.norm(V[Q[:, 1]] - V[Q[:, 3]], axis=1)
+    use_ac = d_ac <= d_bd
+    t_ac = np.concatenate([Q[:, [0, 1, 2]], Q[:, [0, 2, 3]]])
+    t_bd = np.concatenate([Q[:, [0, 1, 3]], Q[:, [1, 2, 3]]])
+    mask = np.concatenate([use_ac, use_ac])
+    return np.where(mask[:, None], t_ac, t_bd)
+
+
+# ---------------------------------------------------------------------------------------------- bar
+def _bar(divisions: int = 14, length: int = 5) -> tuple[np.ndarray, np.ndarray]:
+    """Box [-0.5, 0.5] × [0, length] × [-0.5, 0.5] with ``divisions`` grid cells per unit."""
+    n = divisions
+    size = np.array([n, length * n, n])
+    points: list[np.ndarray] = []
+    tris: list[np.ndarray] = []
+    offset = 0
+    for axis in range(3):
+        u_ax, v_ax = [a for a in range(3) if a != axis]
+        nu, nv = size[u_ax], size[v_ax]
+        iu, iv = np.meshgrid(np.arange(nu + 1), np.arange(nv + 1), indexing="ij")
+        grid = (iu * (nv + 1) + iv).astype(np.int64)
+        a, b, c, d = grid[:-1, :-1], grid[1:, :-1], grid[1:, 1:], grid[:-1, 1:]
+        flip = ((iu[:-1, :-1] + iv[:-1, :-1]) % 2).astype(bool)
+        t1 = np.where(flip[..., None], np.stack([a, b, d], -1), np.stack([a, b, c], -1)).reshape(-1, 3)
+        t2 = np.where(flip[..., None], np.stack([b, c, d], -1), np.stack([a, c, d], -1)).reshape(-1, 3)
+        for side in (0, size[axis]):
+            P = np.zeros(((nu + 1) * (nv + 1), 3), dtype=np.int64)
+            P[:, u_ax] = iu.ravel()
+            P[:, v_ax] = iv.ravel()
+            P[:, axis] = side
+            points.append(P)
+            tris.append(np.concatenate([t1, t2]) + offset)
+            offset += len(P)
+    lattice = np.concatenate(points)
+    F = np.concatenate(tris)
+    repaired = repair_mesh(lattice.astype(np.float64), F, weld_tolerance=0.0)  # weld shared box edges
+    V = repaired.V / n - np.array([0.5, 0.0, 0.5])
+    F = _orient_outward(V, repaired.F, lambda c: np.array([0.0, length / 2, 0.0]))
+    return V, F
+
+
+# ---------------------------------------------------------------------------------------------- revolution
+def _band(lower: np.ndarray, a_lower: np.ndarray, upper: np.ndarray, a_upper: np.ndarray) -> list[list[int]]:
+    """Triangles between two rings of vertex ids with increasing angles in [0, 2π)."""
+    n, m = len(lower), len(upper)
+    a = np.append(a_lower, a_lower[0] + 2 * np.pi)
+    b = np.append(a_upper, a_upper[0] + 2 * np.pi)
+    i = j = 0
+    out: list[list[int]] = []
+    while i < n or j < m:
+        step_lower = j == m or (i < n and a[i + 1] < b[j + 1])
+        if step_lower:
+            if n > 1:
+                out.append([int(lower[i % n]), int(lower[(i + 1) % n]), int(upper[j % m])])
+            i += 1
+        else:
+            if m > 1:
+                out.append([int(lower[i % n]), int(upper[(j + 1) % m]), int(upper[j % m])])
+            j += 1
+    return out
+
+
+def _revolve(profile: np.ndarray, spacing: float) -> tuple[np.ndarray, np.ndarray]:
+    """Closed surface of revolution about the y axis from a profile of (radius, height) points.
+
+    The profile starts and ends on the axis (radius 0); each ring gets about ``2π r / spacing`` vertices, and
+    rings of equal count are staggered by half a step so the triangles are close to equilateral.
+    """
+    verts: list[np.ndarray] = []
+    rings: list[tuple[np.ndarray, np.ndarray]] = []
+    count = 0
+    previous_n = 0
+    for k, (r, y) in enumerate(profile):
+        n = 1 if r <= 0 else max(6, round(2 * np.pi * r / spacing))
+        stagger = 0.5 if (n == previous_n and k % 2) else 0.0
+        angles = (np.arange(n) + stagger) * (2 * np.pi / n)
+        verts.append(np.stack([r * np.sin(angles), np.full(n, y), r * np.cos(angles)], axis=1))
+        rings.append((np.arange(count, count + n), angles))
+        count += n
+        previous_n = n
+    F: list[list[int]] = []
+    for (lo, a_lo), (hi, a_hi) in itertools.pairwise(rings):
+        F.extend(_band(lo, a_lo, hi, a_hi))
+    V = np.concatenate(verts)
+    F_arr = np.asarray(F, dtype=np.int64)
+    return V, F_arr
+
+
+def _cylinder(radius: float = 0.5, height: float = 4.0, spacing: float = 0.05) -> tuple[np.ndarray, np.ndarray]:
+    row = spacing * np.sqrt(3) / 2
+    n_cap = int(np.ceil(radius / spacing))
+    n_side = int(np.ceil(height / row))
+    cap = np.linspace(0.0, radius, n_cap + 1)
+    side = np.linspace(0.0, height, n_side + 1)
+    profile = np.concatenate([
+        np.stack([cap, np.zeros_like(cap)], axis=1),
+        np.stack([np.full(n_side - 1, radius), side[1:-1]], axis=1),
+        np.stack([cap[::-1], np.full_like(cap, height)], axis=1),
+    ])
+    V, F = _revolve(profile, spacing)
+    F = _orient_outward(V, F, lambda c: np.stack([np.zeros(len(c)), np.full(len(c), height / 2), np.zeros(len(c))],
+                                                 axis=1))
+    return V, F
+
+
+# ---------------------------------------------------------------------------------------------- cactus
+# Blocks (x, y, z) of the control cage: a trunk with a low left arm and a higher right arm.
+_CACTUS_BLOCKS = (
+    [(0, y, 0) for y in range(10)]
+    + [(-1, 3, 0), (-2, 3, 0), (-2, 4, 0), (-2, 5, 0), (-2, 6, 0)]
+    + [(1, 5, 0), (2, 5, 0), (2, 6, 0), (2, 7, 0), (2, 8, 0)]
+)
+
+# Corners of the unit cube's faces, counter-clockwise seen from outside, by outward direction.
+_CUBE_FACES = {
+    (1, 0, 0): [(1, 0, 0), (1, 1, 0), (1, 1, 1), (1, 0, 1)],
+    (-1, 0, 0): [(0, 0, 0), (0, 0, 1), (0, 1, 1), (0, 1, 0)],
+    (0, 1, 0): [(0, 1, 0), (0, 1, 1), (1, 1, 1), (1, 1, 0)],
+    (0, -1, 0): [(0, 0, 0), (1, 0, 0), (1, 0, 1), (0, 0, 1)],
+    (0, 0, 1): [(0, 0, 1), (1, 0, 1), (1, 1, 1), (0, 1, 1)],
+    (0, 0, -1): [(0, 0, 0), (0, 1, 0), (1, 1, 0), (1, 0, 0)],
+}
+
+
+def _block_cage(blocks: list[tuple[int, int, int]]) -> tuple[np.ndarray, np.ndarray]:
+    """Quad surface of a union of unit cubes (faces between two cubes removed), vertices shared."""
+    occupied = set(blocks)
+    corners: dict[tuple[int, int, int], int] = {}
+    quads: list[list[int]] = []
+    for bx, by, bz in blocks:
+        for (dx, dy, dz), face in _CUBE_FACES.items():
+            if (bx + dx, by + dy, bz + dz) in occupied:
+                continue
+            quad = []
+            for cx, cy, cz in face:
+                key = (bx + cx, by + cy, bz + cz)
+                quad.append(corners.setdefault(key, len(corners)))
+            quads.append(quad)
+    V = np.zeros((len(corners), 3))
+    for key, idx in corners.items():
+        V[idx] = key
+    return V, np.asarray(quads, dtype=np.int64)
+
+
+def _catmull_clark(V: np.ndarray, Q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """One Catmull–Clark step on a closed quad mesh; returns (vertices, quads)."""
+    n, q = len(V), len(Q)
+    face_pts = V[Q].mean(axis=1)
+    a = Q.ravel()
+    b = np.roll(Q, -1, axis=1).ravel()
+    key = np.minimum(a, b) * n + np.maximum(a, b)
+    uniq, edge_of = np.unique(key, return_inverse=True)
+    edge_of = edge_of.reshape(q, 4)  # edge_of[f, k] is the edge (Q[f, k], Q[f, k+1])
+    e0, e1 = uniq // n, uniq % n
+    e_faces = np.zeros((len(uniq), 3))
+    np.add.at(e_faces, edge_of.ravel(), np.repeat(face_pts, 4, axis=0))
+    edge_pts = (V[e0] + V[e1] + e_faces) / 4.0  # closed mesh: two faces per edge
+
+    valence = np.bincount(np.concatenate([e0, e1]), minlength=n).astype(np.float64)
+    face_sum = np.zeros((n, 3))
+    np.add.at(face_sum, Q.ravel(), np.repeat(face_pts, 4, axis=0))
+    mid = (V[e0] + V[e1]) / 2.0
+    mid_sum = np.zeros((n, 3))
+    np.add.at(mid_sum, e0, mid)
+    np.add.at(mid_sum, e1, mid)
+    k = valence[:, None]
+    new_v = (face_sum / k + 2.0 * mid_sum / k + (k - 3.0) * V) / k
+
+    V_out = np.concatenate([new_v, edge_pts, face_pts])
+    e_id = n + edge_of
+    f_id = n + len(uniq) + np.arange(q)
+    quads = [np.stack([Q[:, c], e_id[:, c], f_id, e_id[:, (c - 1) % 4]], axis=1) for c in range(4)]
+    return V_out, np.concatenate(quads)
+
+
+def _cactus(levels: int = 3, scale: float = 0.5) -> tuple[np.ndarray, np.ndarray]:
+    V, Q = _block_cage(_CACTUS_BLOCKS)
+    for _ in range(levels):
+        V, Q = _catmull_clark(V, Q)
+    F = _split_quads(V, Q)
+    V = V - np.array([0.5, 0.0, 0.5])
+    V[:, 1] -= V[:, 1].min()
+    return V * scale, F
+
+
+# ---------------------------------------------------------------------------------------------- spheres
+_PHI = (1.0 + 5.0 ** 0.5) / 2.0
+_ICO_V = np.array([
+    [-1, _PHI, 0], [1, _PHI, 0], [-1, -_PHI, 0], [1, -_PHI, 0],
+    [0, -1, _PHI], [0, 1, _PHI], [0, -1, -_PHI], [0, 1, -_PHI],
+    [_PHI, 0, -1], [_PHI, 0, 1], [-_PHI, 0, -1], [-_PHI, 0, 1],
+])
+_ICO_F = np.array([
+    [0, 11, 5], [0, 5, 1], [0, 1, 7], [0, 7, 10], [0, 10, 11], [1, 5, 9], [5, 11, 4], [11, 10, 2], [10, 7, 6],
+    [7, 1, 8], [3, 9, 4], [3, 4, 2], [3, 2, 6], [3, 6, 8], [3, 8, 9], [4, 9, 5], [2, 4, 11], [6, 2, 10],
+    [8, 6, 7], [9, 8, 1],
+])
+
+
+def sphere_frequency_for(n_vertices: int) -> int:
+    """Geodesic frequency whose sphere has about ``n_vertices`` vertices (``10 k² + 2``)."""
+    return max(1, round(((max(n_vertices, 12) - 2) / 10.0) ** 0.5))
+
+
+def sphere(subdivisions: int = 4, *, frequency: int | None = None, radius: float = 1.0
+           ) -> tuple[np.ndarray, np.ndarray]:
+    """Geodesic (icosahedral) sphere: each icosahedron face split into ``k²`` triangles, projected on the sphere.
+
+    Parameters
+    ----------
+    subdivisions : int
+        ``k = 2**subdivisions``, giving the vertex count of the classic icosphere: 10 · 4^s + 2 (s = 5: 10,242;
+        s = 7: 163,842; s = 8: 655,362).
+    frequency : int or None
+        Use this ``k`` instead (any size: ``10 k² + 2`` vertices; k = 316 gives 998,562).
+    radius : float
+
+    Returns
+    -------
+    V : (10 k² + 2, 3) float64 array
+    F : (20 k², 3) int64 array
+        Counter-clockwise seen from outside.
+    """
+    k = int(frequency) if frequency is not None else 2 ** int(subdivisions)
+    if k < 1:
+        raise ValueError(f"sphere frequency must be >= 1, got {k}")
+    edges = {tuple(sorted((int(f[i]), int(f[(i + 1) % 3])))) for f in _ICO_F for i in range(3)}
+    edge_index = {e: i for i, e in enumerate(sorted(edges))}
+    n_edge_pts = k - 1
+    n_inner = (k - 1) * (k - 2) // 2
+    base_inner = 12 + len(edge_index) * n_edge_pts
+    n_total = base_inner + 20 * n_inner
+    V = np.zeros((n_total, 3))
+    V[:12] = _ICO_V
+
+    i, j = np.meshgrid(np.arange(k + 1), np.arange(k + 1), indexing="ij")
+    valid = i + j <= k
+    i, j = i[valid], j[valid]
+    w = np.stack([k - i - j, i, j], axis=1)  # weights on the corners (A, B, C)
+    local = -np.ones((k + 1, k + 1), dtype=np.int64)
+    tri_up = np.stack([np.stack([i, j], 1), np.stack([i + 1, j], 1), np.stack([i, j + 1], 1)], 1)
+    up = (i + j) < k
+    down = (i + j) < k - 1
+    tri_dn = np.stack([np.stack([i + 1, j], 1), np.stack([i + 1, j + 1], 1), np.stack([i, j + 1], 1)], 1)
+    faces: list[np.ndarray] = []
+    for f, corners in enumerate(_ICO_F):
+        ids = np.empty(len(i), dtype=np.int64)
+        nonzero = (w > 0).sum(axis=1)
+        corner = nonzero == 1
+        ids[corner] = corners[np.argmax(w[corner], axis=1)]
+        on_edge = nonzero == 2
+        if on_edge.any():
+            we = w[on_edge]
+            pair = np.sort(np.where(we > 0, corners[None, :], -1), axis=1)[:, 1:]  # the two corners used
+            e = np.array([edge_index[(int(p), int(q))] for p, q in pair])
+            w_hi = np.where(corners[None, :] == pair[:, 1:2], we, 0).sum(axis=1)
+            ids[on_edge] = 12 + e * n_edge_pts + (w_hi - 1)
+        inner = nonzero == 3
+        ids[inner] = base_inner + f * n_inner + np.arange(int(inner.sum()))
+        V[ids] = (w @ _ICO_V[corners]) / k
+        local[i, j] = ids
+        faces.append(local[tri_up[up, :, 0], tri_up[up, :, 1]])
+        faces.append(local[tri_dn[down, :, 0], tri_dn[down, :, 1]])
+    V *= radius / np.linalg.norm(V, axis=1, keepdims=True)
+    return V, np.concatenate(faces)
+
+
+# ---------------------------------------------------------------------------------------------- registry
+_BUILDERS: dict[str, Callable[[], tuple[np.ndarray, np.ndarray]]] = {
+    "cactus": _cactus,
+    "bar": _bar,
+    "cylinder": _cylinder,
+}
+
+
+def builtin_mesh(name: str) -> tuple[np.ndarray, np.ndarray]:
+    """One of the built-in meshes (see the module description).
+
+    Parameters
+    ----------
+    name : {"cactus", "bar", "cylinder"}
+
+    Returns
+    -------
+    V : (n, 3) float64 array
+    F : (m, 3) int64 array
+
+    Raises
+    ------
+    ValueError
+        Unknown name.
+    """
+    try:
+        build = _BUILDERS[name]
+    except KeyError:
+        raise ValueError(f"unknown built-in mesh {name!r}; choose one of {', '.join(BUILTIN_MESHES)}") from None
+    V, F = build()
+    return np.ascontiguousarray(V, dtype=np.float64), np.ascontiguousarray(F, dtype=np.int64)

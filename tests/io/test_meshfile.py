@@ -1,0 +1,202 @@
+"""Mesh files: round trips, file vertex order, STL welding, bytes loaders and clear errors on bad files."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from scipy.spatial import cKDTree
+
+from arap.errors import MeshError, MeshFormatError
+from arap.io import (
+    MESH_FORMATS,
+    format_of,
+    load_mesh,
+    load_mesh_bytes,
+    load_mesh_bytes_with_report,
+    load_mesh_with_report,
+    save_mesh,
+    save_mesh_bytes,
+)
+from arap.shapes import builtin_mesh, sphere
+
+
+@pytest.fixture(scope="module")
+def mesh() -> tuple[np.ndarray, np.ndarray]:
+    """A small closed mesh with irrational coordinates (exercises printing precision)."""
+    V, F = sphere(2)
+    return V * np.pi + [0.1, -2.0, 3.3], F
+
+
+@pytest.mark.parametrize("fmt", ["obj", "off", "ply"])
+def test_exact_round_trip(tmp_path: Path, mesh: tuple[np.ndarray, np.ndarray], fmt: str) -> None:
+    V, F = mesh
+    path = tmp_path / f"m.{fmt}"
+    save_mesh(path, V, F)
+    V2, F2 = load_mesh(path)
+    np.testing.assert_array_equal(V2, V)
+    np.testing.assert_array_equal(F2, F)
+    assert V2.dtype == np.float64 and F2.dtype == np.int64
+
+
+def test_stl_soup_is_welded_back(tmp_path: Path, mesh: tuple[np.ndarray, np.ndarray]) -> None:
+    V, F = mesh
+    path = tmp_path / "m.stl"
+    save_mesh(path, V, F)
+    raw_V, raw_F = load_mesh(path, repair=False)
+    assert len(raw_V) == 3 * len(F) and len(raw_F) == len(F)  # STL stores a soup
+    V2, F2, result = load_mesh_with_report(path)
+    assert V2.shape == V.shape and F2.shape == F.shape
+    assert result.counts["welded_vertices"] == 3 * len(F) - len(V)
+    assert any("welded" in line for line in result.report)
+    # Same vertices up to single precision, one loaded vertex for each original one.
+    dist, match = cKDTree(V2).query(V)
+    assert dist.max() < 1e-5
+    assert len(np.unique(match)) == len(V)
+    # Same triangles, with the same orientation.
+    expected = {tuple(np.roll(f, -int(np.argmin(f)))) for f in match[F]}
+    loaded = {tuple(np.roll(f, -int(np.argmin(f)))) for f in F2}
+    assert loaded == expected
+
+
+@pytest.mark.parametrize("fmt", MESH_FORMATS)
+def test_bytes_round_trip(mesh: tuple[np.ndarray, np.ndarray], fmt: str) -> None:
+    V, F = mesh
+    data = save_mesh_bytes(V, F, fmt)
+    assert isinstance(data, bytes) and len(data) > 100
+    V2, F2 = load_mesh_bytes(data, fmt)
+    assert V2.shape == V.shape and F2.shape == F.shape
+    if fmt != "stl":
+        np.testing.assert_array_equal(V2, V)
+
+
+def test_bytes_loader_report_and_type_spellings(mesh: tuple[np.ndarray, np.ndarray]) -> None:
+    V, F = mesh
+    data = save_mesh_bytes(V, F, "model.OBJ")
+    for spelling in ("obj", ".obj", "OBJ", "upload.obj"):
+        V2, F2, result = load_mesh_bytes_with_report(data, spelling)
+        np.testing.assert_array_equal(V2, V)
+        np.testing.assert_array_equal(F2, F)
+        assert result.report == []
+
+
+@pytest.mark.parametrize(
+    ("name", "n_vertices", "n_faces"),
+    [("armadillo.obj", 43_243, 86_482), ("camelhead.off", 11_381, 22_704), ("decimated-knight.off", 502, 1_000)],
+)
+def test_shared_meshes_keep_file_vertex_order(shared_meshes_dir: Path, name: str, n_vertices: int,
+                                              n_faces: int) -> None:
+    path = shared_meshes_dir / name
+    V, F, result = load_mesh_with_report(path)
+    assert V.shape == (n_vertices, 3) and F.shape == (n_faces, 3)
+    assert result.report == []
+    # The first vertex lines of the file, in order.
+    text = path.read_text().splitlines()
+    if name.endswith(".obj"):
+        rows = [line.split()[1:4] for line in text if line.startswith("v ")][:5]
+    else:
+        rows = [line.split()[:3] for line in text[2:7]]
+    np.testing.assert_array_equal(V[:5], np.array(rows, dtype=float))
+    np.testing.assert_array_equal(load_mesh(path, repair=False)[0], V)
+
+
+def test_polygons_are_triangulated(tmp_path: Path) -> None:
+    off = "OFF\n5 1 0\n0 0 0\n1 0 0\n1 1 0\n0 1 0\n0.5 1.5 0\n5 0 1 2 4 3\n"
+    V, F = load_mesh_bytes(off.encode(), "off")
+    assert F.shape == (3, 3) and len(V) == 5
+    obj = "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3 4\n"
+    V, F, result = load_mesh_bytes_with_report(obj.encode(), "obj")
+    np.testing.assert_array_equal(F, [[0, 1, 2], [0, 2, 3]])
+    assert result.counts["triangulated_polygons"] == 0  # the parser already split the quad
+
+
+def test_ply_polygons_are_triangulated() -> None:
+    header = ("ply\nformat ascii 1.0\nelement vertex 5\nproperty float x\nproperty float y\nproperty float z\n"
+              "element face 2\nproperty list uchar int vertex_indices\nend_header\n")
+    body = "0 0 0\n1 0 0\n1 1 0\n0 1 0\n0.5 1.5 0\n4 0 1 2 3\n4 3 2 4 0\n"
+    V, F = load_mesh_bytes((header + body).encode(), "ply")
+    assert len(V) == 5
+    assert sorted(map(tuple, F.tolist())) == [(0, 1, 2), (0, 2, 3), (3, 2, 4), (3, 4, 0)]
+
+
+def test_obj_with_texture_coordinates_keeps_vertex_order() -> None:
+    obj = (
+        "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\n"
+        "vt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\nvt 0.5 0.5\nvn 0 0 1\n"
+        "f 4/1/1 1/2/1 2/3/1\nf 4/5/1 2/2/1 3/4/1\n"
+    )
+    V, F = load_mesh_bytes(obj.encode(), "obj")
+    np.testing.assert_array_equal(V, [[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]])
+    np.testing.assert_array_equal(F, [[3, 0, 1], [3, 1, 2]])
+
+
+def test_obj_groups_share_vertices() -> None:
+    obj = "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\ng a\nusemtl red\nf 1 2 3\ng b\nusemtl blue\nf 1 3 4\n"
+    V, F = load_mesh_bytes(obj.encode(), "obj")
+    assert len(V) == 4
+    assert sorted(map(tuple, F.tolist())) == [(0, 1, 2), (0, 2, 3)]
+
+
+def test_builtin_mesh_survives_every_format(tmp_path: Path) -> None:
+    V, F = builtin_mesh("cactus")
+    for fmt in MESH_FORMATS:
+        path = tmp_path / f"cactus.{fmt}"
+        save_mesh(path, V, F)
+        V2, F2 = load_mesh(path)
+        assert V2.shape == V.shape and F2.shape == F.shape, fmt
+
+
+# ---------------------------------------------------------------------------------------------- errors
+def test_unknown_extension(tmp_path: Path, mesh: tuple[np.ndarray, np.ndarray]) -> None:
+    with pytest.raises(MeshFormatError, match=r"unsupported mesh format 'xyz'.*obj, off, ply, stl"):
+        load_mesh(tmp_path / "a.xyz")
+    with pytest.raises(MeshFormatError, match="unsupported mesh format 'readme'"):
+        format_of("README")
+    assert format_of("C:\\models\\Bunny.PLY") == "ply"
+    with pytest.raises(MeshFormatError, match="unsupported"):
+        save_mesh(tmp_path / "a.glb", *mesh)
+    with pytest.raises(MeshFormatError, match="unsupported"):
+        load_mesh_bytes(b"", "exe")
+
+
+def test_missing_file(tmp_path: Path) -> None:
+    with pytest.raises(MeshFormatError, match="cannot read"):
+        load_mesh(tmp_path / "nothing.obj")
+
+
+@pytest.mark.parametrize(
+    ("data", "fmt", "message"),
+    [
+        (b"garbage", "off", "cannot parse"),
+        (b"garbage", "ply", "cannot parse"),
+        (b"", "obj", "no vertices"),
+        (b"", "stl", "no vertices"),
+        (b"v 0 0 0\nv 1 0 0\nv 0 1 0\n", "obj", "no faces"),
+        (b"OFF\n3 0 0\n0 0 0\n1 0 0\n1 1 0\n", "off", "no faces"),
+    ],
+)
+def test_bad_content(data: bytes, fmt: str, message: str) -> None:
+    with pytest.raises(MeshFormatError, match=message):
+        load_mesh_bytes(data, fmt)
+
+
+def test_bad_file_on_disk_names_the_file(tmp_path: Path) -> None:
+    path = tmp_path / "broken.off"
+    path.write_text("OFF\n3 1 0\n0 0 0\n1 0 0\n")
+    with pytest.raises(MeshFormatError, match=r"broken\.off"):
+        load_mesh(path)
+
+
+def test_unrepairable_content_is_a_mesh_error() -> None:
+    obj = b"v 0 0 0\nv nan 0 0\nv 0 1 0\nf 1 2 3\n"
+    with pytest.raises(MeshError, match="cannot be repaired"):
+        load_mesh_bytes(obj, "obj")
+
+
+def test_save_rejects_bad_arrays(tmp_path: Path) -> None:
+    with pytest.raises(MeshError, match="shape"):
+        save_mesh(tmp_path / "a.obj", np.zeros((3, 2)), [[0, 1, 2]])
+    with pytest.raises(MeshError, match="out of range"):
+        save_mesh(tmp_path / "a.obj", np.zeros((3, 3)), [[0, 1, 3]])
+    assert not (tmp_path / "a.obj").exists()
