@@ -1,4 +1,4 @@
-"""Fixtures for the solver tests: generated meshes and the shared real meshes."""
+"""Fixtures for the solver tests: generated meshes and the shared real meshes (file vertex order)."""
 
 from __future__ import annotations
 
@@ -8,16 +8,9 @@ import numpy as np
 import pytest
 import trimesh
 
-REPO = Path(__file__).resolve().parents[2]
-SHARED_MESHES = REPO.parent / "shared" / "meshes"
 
-
-def load_real(name: str) -> tuple[np.ndarray, np.ndarray]:
-    """A mesh from ../shared/meshes in file vertex order; skips the test if the folder is absent."""
-    path = SHARED_MESHES / name
-    if not path.exists():
-        pytest.skip(f"shared mesh {path} not available")
-    m = trimesh.load(path, process=False, force="mesh")
+def _load(directory: Path, name: str) -> tuple[np.ndarray, np.ndarray]:
+    m = trimesh.load(directory / name, process=False, force="mesh")
     return np.asarray(m.vertices, dtype=np.float64), np.asarray(m.faces, dtype=np.int64)
 
 
@@ -29,15 +22,15 @@ def icosphere() -> tuple[np.ndarray, np.ndarray]:
 
 
 @pytest.fixture(scope="session")
-def knight() -> tuple[np.ndarray, np.ndarray]:
-    return load_real("decimated-knight.off")
+def knight(shared_meshes_dir: Path) -> tuple[np.ndarray, np.ndarray]:
+    return _load(shared_meshes_dir, "decimated-knight.off")
 
 
 @pytest.fixture(scope="session")
-def camelhead() -> tuple[np.ndarray, np.ndarray]:
-    return load_real("camelhead.off")
+def camelhead(shared_meshes_dir: Path) -> tuple[np.ndarray, np.ndarray]:
+    return _load(shared_meshes_dir, "camelhead.off")
 
 
 @pytest.fixture(scope="session")
-def armadillo() -> tuple[np.ndarray, np.ndarray]:
-    return load_real("armadillo.obj")
+def armadillo(shared_meshes_dir: Path) -> tuple[np.ndarray, np.ndarray]:
+    return _load(shared_meshes_dir, "armadillo.obj")

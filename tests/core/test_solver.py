@@ -53,7 +53,7 @@ def test_rigid_motion_on_a_scan_is_equivariant(camelhead: tuple[np.ndarray, np.n
     assert np.abs(bent_moved.vertices - (bent.vertices @ Q.T + t)).max() < 1e-9 * _diag(V)
 
 
-@pytest.mark.parametrize("mesh_name", ["knight", "camelhead"])
+@pytest.mark.parametrize("mesh_name", ["knight", "camelhead", "armadillo"])
 @pytest.mark.parametrize("energy", ["spokes", "spokes_and_rims"])
 def test_energy_never_rises_across_local_or_global_step(
     request: pytest.FixtureRequest, mesh_name: str, energy: str
