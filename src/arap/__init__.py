@@ -27,7 +27,7 @@ _LAZY: dict[str, str] = {
     "cotangent_laplacian": "arap.weights",
     "check_mesh": "arap.mesh",
     "repair_mesh": "arap.mesh",
-    "inspect_mesh": "arap.mesh",
+    "inspect_mesh": "arap.diagnose",
     "load_mesh": "arap.io",
     "load_mesh_with_report": "arap.io",
     "load_mesh_bytes": "arap.io",
@@ -38,7 +38,7 @@ _LAZY: dict[str, str] = {
     "Constraints": "arap.constraints",
     "save_constraints": "arap.constraints",
     "RepairResult": "arap.mesh",
-    "MeshInfo": "arap.mesh",
+    "MeshInfo": "arap.diagnose",
     "builtin_mesh": "arap.shapes",
     "BUILTIN_MESHES": "arap.shapes",
     "load_constraints": "arap.constraints",
@@ -78,9 +78,10 @@ __all__ = [
 
 if TYPE_CHECKING:
     from arap.constraints import Constraints, load_constraints, save_constraints
+    from arap.diagnose import MeshInfo, inspect_mesh
     from arap.energy import arap_energy, cell_energies
     from arap.io import MESH_FORMATS, load_mesh, load_mesh_bytes, load_mesh_with_report, save_mesh, save_mesh_bytes
-    from arap.mesh import MeshInfo, RepairResult, check_mesh, inspect_mesh, repair_mesh
+    from arap.mesh import RepairResult, check_mesh, repair_mesh
     from arap.rotations import fit_rotations
     from arap.shapes import BUILTIN_MESHES, builtin_mesh, sphere
     from arap.solver import ArapResult, ArapSolver

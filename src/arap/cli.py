@@ -164,7 +164,8 @@ def _cmd_deform(args: argparse.Namespace) -> int:
 
 # ---------------------------------------------------------------------------------------------- info
 def _cmd_info(args: argparse.Namespace) -> int:
-    from arap.mesh import check_mesh, inspect_mesh, repair_mesh
+    from arap.diagnose import inspect_mesh
+    from arap.mesh import check_mesh, repair_mesh
 
     V, F, _, label = load_mesh_argument(args.mesh, repair=False)
     info = inspect_mesh(V, F)

@@ -5,11 +5,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from arap.diagnose import inspect_mesh
 from arap.errors import MeshError
 from arap.mesh import (
     check_mesh,
     degenerate_faces,
-    inspect_mesh,
     repair_mesh,
     triangulate_polygons,
 )

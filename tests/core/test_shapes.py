@@ -5,7 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from arap.mesh import check_mesh, inspect_mesh
+from arap.diagnose import inspect_mesh
+from arap.mesh import check_mesh
 from arap.shapes import BUILTIN_MESHES, builtin_mesh, sphere, sphere_frequency_for
 
 

@@ -1,0 +1,238 @@
+"""Describe a mesh without changing it: counts, components, boundary, defects and weight statistics."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.csgraph import connected_components as _cc
+
+from arap.mesh import (
+    WELD_TOLERANCE,
+    _as_faces,
+    _as_vertices,
+    _bbox_diagonal,
+    _repeated_vertex_faces,
+    _unique_face_mask,
+    _weld_groups,
+    degenerate_faces,
+)
+from arap.topology import edge_face_counts
+
+__all__ = ["MeshInfo", "inspect_mesh"]
+
+
+@dataclass
+class MeshInfo:
+    """Description of a triangle mesh and its defects (see :func:`inspect_mesh`).
+
+    Attributes
+    ----------
+    n_vertices, n_faces, n_edges : int
+    bbox_min, bbox_max : (3,) float64 arrays
+        Bounding box of the finite vertices.
+    diagonal : float
+        Bounding-box diagonal length.
+    component_sizes : list of int
+        Vertex count of each connected component of the faces, largest first (unreferenced vertices excluded).
+    boundary_edges, boundary_loops : int
+        Edges used by one face, and the connected chains they form.
+    non_manifold_edges : int
+        Edges used by more than two faces.
+    duplicate_vertices : int
+        Vertices :func:`repair_mesh` would weld into an earlier one.
+    repeated_vertex_faces, degenerate_faces, duplicate_faces : int
+        Faces repeating a vertex, other zero-area faces, and repeated faces.
+    unreferenced_vertices, nonfinite_vertices, out_of_range_faces : int
+    negative_weight_share : float
+        Share of edges whose cotangent weight ``½ Σ cot(opposite angles)`` is negative (0 to 1).
+    euler_characteristic : int
+        ``V − E + F`` over the referenced vertices.
+    """
+
+    n_vertices: int
+    n_faces: int
+    n_edges: int
+    bbox_min: np.ndarray
+    bbox_max: np.ndarray
+    diagonal: float
+    component_sizes: list[int]
+    boundary_edges: int
+    boundary_loops: int
+    non_manifold_edges: int
+    duplicate_vertices: int
+    repeated_vertex_faces: int
+    degenerate_faces: int
+    duplicate_faces: int
+    unreferenced_vertices: int
+    nonfinite_vertices: int
+    out_of_range_faces: int
+    negative_weight_share: float
+    euler_characteristic: int
+
+    @property
+    def n_components(self) -> int:
+        """Number of connected components."""
+        return len(self.component_sizes)
+
+    @property
+    def closed(self) -> bool:
+        """True when every edge has exactly two faces."""
+        return self.boundary_edges == 0 and self.non_manifold_edges == 0 and self.n_faces > 0
+
+    @property
+    def problems(self) -> list[str]:
+        """Defects that :func:`check_mesh` rejects or that :func:`repair_mesh` fixes, one line each."""
+        items = [
+            (self.nonfinite_vertices, "vertices with NaN or infinite coordinates"),
+            (self.out_of_range_faces, "faces with out-of-range indices"),
+            (self.duplicate_vertices, "duplicate vertices"),
+            (self.repeated_vertex_faces, "faces repeating a vertex"),
+            (self.degenerate_faces, "zero-area faces"),
+            (self.duplicate_faces, "duplicate faces"),
+            (self.unreferenced_vertices, "vertices used by no face"),
+            (self.non_manifold_edges, "non-manifold edges"),
+        ]
+        return [f"{count:,} {what}" for count, what in items if count]
+
+    def lines(self) -> list[str]:
+        """Human-readable summary, one fact per line."""
+        sizes = ", ".join(f"{s:,}" for s in self.component_sizes[:8])
+        if len(self.component_sizes) > 8:
+            sizes += ", …"
+        lo = ", ".join(f"{x:.4g}" for x in self.bbox_min)
+        hi = ", ".join(f"{x:.4g}" for x in self.bbox_max)
+        shape = "closed" if self.closed else (
+            f"open: {self.boundary_edges:,} boundary edges in {self.boundary_loops:,} loops"
+            if self.boundary_edges else "not closed"
+        )
+        out = [
+            f"vertices: {self.n_vertices:,}",
+            f"faces: {self.n_faces:,}",
+            f"edges: {self.n_edges:,}",
+            f"bounding box: [{lo}] to [{hi}] (diagonal {self.diagonal:.4g})",
+            f"components: {self.n_components:,} ({sizes} vertices)",
+            f"surface: {shape}; Euler characteristic {self.euler_characteristic}",
+            f"negative cotangent weights: {100 * self.negative_weight_share:.1f}% of edges",
+        ]
+        problems = self.problems
+        out.append("defects: " + ("none" if not problems else "; ".join(problems)))
+        return out
+
+    def __str__(self) -> str:
+        return "\n".join(self.lines())
+
+
+def _negative_weight_share(V: np.ndarray, F: np.ndarray) -> float:
+    """Share of undirected edges whose summed cotangent weight is negative."""
+    if not len(F):
+        return 0.0
+    P = V[F]
+    cots = np.empty((len(F), 3))
+    for k in range(3):
+        a = P[:, (k + 1) % 3] - P[:, k]
+        b = P[:, (k + 2) % 3] - P[:, k]
+        cross = np.linalg.norm(np.cross(a, b), axis=1)
+        cots[:, k] = np.einsum("ij,ij->i", a, b) / np.maximum(cross, np.finfo(float).tiny)
+    # The angle at corner k is opposite the edge (k+1, k+2).
+    i = np.concatenate([F[:, 1], F[:, 2], F[:, 0]])
+    j = np.concatenate([F[:, 2], F[:, 0], F[:, 1]])
+    lo, hi = np.minimum(i, j), np.maximum(i, j)
+    key = lo * (int(V.shape[0]) + 1) + hi
+    uniq, inverse = np.unique(key, return_inverse=True)
+    w = np.zeros(len(uniq))
+    np.add.at(w, inverse.reshape(-1), 0.5 * cots.T.reshape(-1))
+    return float((w < 0).mean())
+
+
+def _face_graph(F: np.ndarray, n: int) -> sp.coo_matrix:
+    """Vertex graph with one entry per face side (duplicates are harmless for connectivity)."""
+    rows = F.ravel()
+    cols = np.roll(F, -1, axis=1).ravel()
+    return sp.coo_matrix((np.ones(len(rows), dtype=np.int8), (rows, cols)), shape=(n, n))
+
+
+def _boundary_loops(bedges: np.ndarray, n: int) -> int:
+    if not len(bedges):
+        return 0
+    verts, local = np.unique(bedges, return_inverse=True)
+    local = local.reshape(-1, 2)
+    k = len(verts)
+    G = sp.coo_matrix((np.ones(len(local), dtype=np.int8), (local[:, 0], local[:, 1])), shape=(k, k))
+    count, _ = _cc(G, directed=False)
+    return int(count)
+
+
+def inspect_mesh(V: np.ndarray, F: np.ndarray) -> MeshInfo:
+    """Describe a mesh and count its defects without changing or rejecting it.
+
+    Parameters
+    ----------
+    V : (n, 3) float array
+    F : (m, 3) int array
+
+    Returns
+    -------
+    MeshInfo
+
+    Raises
+    ------
+    MeshError
+        Only for arrays of the wrong shape or type.
+    """
+    V = _as_vertices(V)
+    F = _as_faces(F)
+    n, m = len(V), len(F)
+    finite = np.all(np.isfinite(V), axis=1)
+    in_range = np.all((F >= 0) & (F < n), axis=1) if m else np.zeros(0, dtype=bool)
+    out_of_range = int((~in_range).sum())
+    Fv = F[in_range]
+    Fv = Fv[finite[Fv].all(axis=1)] if len(Fv) else Fv
+    referenced = np.zeros(n, dtype=bool)
+    referenced[Fv.ravel()] = True
+    if finite.any():
+        bmin, bmax = V[finite].min(axis=0), V[finite].max(axis=0)
+    else:
+        bmin = bmax = np.zeros(3)
+    diag = float(np.linalg.norm(bmax - bmin))
+
+    repeated = _repeated_vertex_faces(Fv)
+    degenerate = degenerate_faces(V, Fv) & ~repeated if len(Fv) else np.zeros(0, dtype=bool)
+    duplicate = int((~_unique_face_mask(Fv)).sum())
+    ref_idx = np.flatnonzero(referenced)
+    dup_vertices = 0
+    if len(ref_idx):
+        rep = _weld_groups(V[ref_idx], WELD_TOLERANCE * _bbox_diagonal(V[ref_idx]))
+        dup_vertices = int((rep != np.arange(len(ref_idx))).sum())
+
+    edges, counts = edge_face_counts(Fv)
+    bedges = edges[counts == 1]
+    if len(ref_idx):
+        _, labels = _cc(_face_graph(Fv, n), directed=False)
+        sizes = np.bincount(labels[referenced])
+        component_sizes = sorted((int(s) for s in sizes if s), reverse=True)
+    else:
+        component_sizes = []
+    good = Fv[~repeated & ~degenerate] if len(Fv) else Fv
+    return MeshInfo(
+        n_vertices=n,
+        n_faces=m,
+        n_edges=len(edges),
+        bbox_min=bmin,
+        bbox_max=bmax,
+        diagonal=diag,
+        component_sizes=component_sizes,
+        boundary_edges=len(bedges),
+        boundary_loops=_boundary_loops(bedges, n),
+        non_manifold_edges=int((counts > 2).sum()),
+        duplicate_vertices=dup_vertices,
+        repeated_vertex_faces=int(repeated.sum()),
+        degenerate_faces=int(degenerate.sum()),
+        duplicate_faces=duplicate,
+        unreferenced_vertices=int(n - referenced.sum()),
+        nonfinite_vertices=int((~finite).sum()),
+        out_of_range_faces=out_of_range,
+        negative_weight_share=_negative_weight_share(V, good),
+        euler_characteristic=int(referenced.sum()) - len(edges) + len(Fv),
+    )
