@@ -1,0 +1,209 @@
+"""Fixtures of the browser tests: the real studio server on a free local port, headless Chromium (the system's,
+through Playwright) and a page connected to its own studio session."""
+
+from __future__ import annotations
+
+import base64
+import os
+import shutil
+import subprocess
+import threading
+import time
+from collections.abc import Callable, Iterator
+from pathlib import Path
+
+import numpy as np
+import pytest
+import uvicorn
+from playwright.sync_api import Browser, ConsoleMessage, Page, Playwright, sync_playwright
+
+from arap.server import bind_socket, create_app, studio_url
+from arap.server.app import STATIC_DIR, frame_limit
+
+REPO = Path(__file__).resolve().parents[2]
+WEB = REPO / "web"
+CHROMIUM = Path("/usr/bin/chromium")
+CHROMIUM_ARGS = [
+    "--headless",
+    "--no-sandbox",
+    "--disable-gpu",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--disable-sync",
+    "--no-first-run",
+]
+MAX_UPLOAD_BYTES = 256 * 1024
+"""Upload cap of the test server (small, so that the oversized-upload test needs only a modest file)."""
+VIEWPORT = {"width": 1280, "height": 800}
+
+
+def _client_built() -> bool:
+    return (STATIC_DIR / "index.html").is_file()
+
+
+def _build_client() -> str | None:
+    """Build the web client when it is missing; the reason it cannot be built, or None."""
+    if _client_built():
+        return None
+    npm = shutil.which("npm")
+    if npm is None or not (WEB / "package.json").is_file():
+        return "the web client is not built (src/arap/static) and npm is not available to build it"
+    steps = [[npm, "ci", "--no-audit", "--no-fund"]] if not (WEB / "node_modules").is_dir() else []
+    steps.append([npm, "run", "build"])
+    for cmd in steps:
+        done = subprocess.run(cmd, cwd=WEB, capture_output=True, text=True, timeout=600, check=False)
+        if done.returncode != 0:
+            return f"building the web client failed ({' '.join(cmd[1:])}): {done.stderr[-400:]}"
+    return None if _client_built() else "the web client build did not produce src/arap/static/index.html"
+
+
+class _ServerThread(threading.Thread):
+    """uvicorn serving the studio app on an already bound socket, in a daemon thread."""
+
+    def __init__(self) -> None:
+        super().__init__(daemon=True, name="studio-server")
+        app = create_app(None, max_upload_bytes=MAX_UPLOAD_BYTES)
+        self.sock = bind_socket("127.0.0.1", 0)
+        self.url = studio_url("127.0.0.1", self.sock.getsockname()[1])
+        config = uvicorn.Config(app, log_level="warning", ws_per_message_deflate=False,
+                                ws_max_size=frame_limit(MAX_UPLOAD_BYTES), lifespan="off")
+        self.server = uvicorn.Server(config)
+
+    def run(self) -> None:
+        self.server.run(sockets=[self.sock])
+
+    def wait_started(self, timeout: float = 30.0) -> None:
+        deadline = time.monotonic() + timeout
+        while not self.server.started:
+            if not self.is_alive() or time.monotonic() > deadline:
+                raise RuntimeError("the studio server did not start")
+            time.sleep(0.05)
+
+    def stop(self) -> None:
+        self.server.should_exit = True
+        self.join(timeout=10)
+        self.sock.close()
+
+
+@pytest.fixture(scope="session")
+def server_url() -> Iterator[str]:
+    """URL of a studio server for the whole test session (each page opens its own editing session)."""
+    reason = _build_client()
+    if reason is not None:
+        pytest.skip(reason)
+    server = _ServerThread()
+    server.start()
+    server.wait_started()
+    yield server.url
+    server.stop()
+
+
+@pytest.fixture(scope="session")
+def pw() -> Iterator[Playwright]:
+    with sync_playwright() as p:
+        yield p
+
+
+@pytest.fixture(scope="session")
+def browser(pw: Playwright, tmp_path_factory: pytest.TempPathFactory) -> Iterator[Browser]:
+    """Headless Chromium from the system (Debian's package; `./dev test` installs it)."""
+    if not CHROMIUM.is_file():
+        pytest.skip(f"{CHROMIUM} is missing (apt-get install chromium)")
+    b = pw.chromium.launch(executable_path=str(CHROMIUM), args=CHROMIUM_ARGS,
+                           downloads_path=tmp_path_factory.mktemp("downloads"))
+    yield b
+    b.close()
+
+
+@pytest.fixture
+def page(browser: Browser, server_url: str) -> Iterator[Page]:
+    """A studio page with its mesh loaded; fails the test on uncaught page errors."""
+    context = browser.new_context(viewport=VIEWPORT, accept_downloads=True)
+    pg = context.new_page()
+    page_errors: list[str] = []
+    pg.on("pageerror", lambda exc: page_errors.append(str(exc)))
+
+    def on_console(msg: ConsoleMessage) -> None:
+        if msg.type == "error":
+            page_errors.append(msg.text)
+
+    pg.on("console", on_console)
+    pg.goto(server_url)
+    wait_ready(pg)
+    yield pg
+    context.close()
+    assert not page_errors, f"errors in the page: {page_errors}"
+
+
+def wait_ready(page: Page, timeout_ms: float = 30_000) -> None:
+    """Wait until the studio has a mesh and nothing is pending."""
+    page.wait_for_function("() => window.__arap && window.__arap.ready && !window.__arap.busy", timeout=timeout_ms)
+
+
+def wait_idle(page: Page, timeout_ms: float = 30_000) -> None:
+    """Wait until no request that changes the view is unanswered, then for one more frame to be drawn."""
+    page.wait_for_function("() => !window.__arap.busy", timeout=timeout_ms)
+    page.evaluate("() => new Promise((r) => requestAnimationFrame(() => requestAnimationFrame(r)))")
+
+
+@pytest.fixture
+def shoot(page: Page, tmp_path: Path) -> Callable[[str], Path]:
+    """Save a screenshot of the page under a name (in tmp_path, and in $ARAP_TEST_ARTIFACTS when set)."""
+
+    def save(name: str) -> Path:
+        path = tmp_path / f"{name}.png"
+        page.screenshot(path=str(path))
+        folder = os.environ.get("ARAP_TEST_ARTIFACTS")
+        if folder:
+            Path(folder).mkdir(parents=True, exist_ok=True)
+            shutil.copy(path, Path(folder) / path.name)
+        return path
+
+    return save
+
+
+def canvas_pixels(page: Page) -> np.ndarray:
+    """The 3D view's pixels as an ``(h, w, 4)`` uint8 array (CSS-pixel resolution)."""
+    data = page.evaluate(
+        """() => {
+            const src = document.getElementById('view');
+            const w = src.clientWidth, h = src.clientHeight;
+            const c = document.createElement('canvas');
+            c.width = w; c.height = h;
+            const ctx = c.getContext('2d');
+            ctx.drawImage(src, 0, 0, w, h);
+            const bytes = ctx.getImageData(0, 0, w, h).data;
+            let s = '';
+            for (let i = 0; i < bytes.length; i += 0x8000) {
+                s += String.fromCharCode.apply(null, bytes.subarray(i, i + 0x8000));
+            }
+            return { w, h, b64: btoa(s) };
+        }"""
+    )
+    raw = np.frombuffer(base64.b64decode(data["b64"]), dtype=np.uint8)
+    return raw.reshape(data["h"], data["w"], 4)
+
+
+def positions(page: Page) -> np.ndarray:
+    """Current vertex positions shown by the client, ``(n, 3)``."""
+    return np.asarray(page.evaluate("() => window.__arap.positions()"), dtype=np.float64).reshape(-1, 3)
+
+
+def screen_points(page: Page) -> np.ndarray:
+    """Page coordinates (CSS pixels) of every vertex, ``(n, 2)``."""
+    pts = page.evaluate(
+        """() => {
+            const p = window.__arap.positions();
+            const out = [];
+            for (let i = 0; i < p.length; i += 3) out.push(window.__arap.project([p[i], p[i + 1], p[i + 2]]));
+            return out;
+        }"""
+    )
+    return np.asarray(pts, dtype=np.float64)
+
+
+def canvas_origin(page: Page) -> tuple[float, float]:
+    """Page coordinates of the 3D view's top-left corner."""
+    box = page.locator("#view").bounding_box()
+    assert box is not None
+    return box["x"], box["y"]

@@ -1,0 +1,125 @@
+// WebSocket session with the studio server: framing, reconnection and drag coalescing.
+import { CLIENT, decodeBinary, encodeBinary, SERVER } from './protocol.js';
+
+const DRAG_REPLY_TIMEOUT_MS = 5000;
+
+export class Connection {
+  /**
+   * @param {string} url WebSocket address
+   * @param {object} handlers onOpen(), onClose(event), onMessage(msg); a binary frame arrives as its header
+   *   fields plus `frame` ({header, payload}, see decodeBinary)
+   */
+  constructor(url, handlers) {
+    this.url = url;
+    this.handlers = handlers;
+    this.ws = null;
+    this.open = false;
+    this.seq = 0;
+    this.inFlight = null; // {seq, sentAt}
+    this.pending = null; // latest unsent transforms
+    this.endDragQueued = false;
+    this.lastLatencyMs = null;
+  }
+
+  connect() {
+    if (this.ws && (this.ws.readyState === WebSocket.OPEN || this.ws.readyState === WebSocket.CONNECTING)) return;
+    const ws = new WebSocket(this.url);
+    ws.binaryType = 'arraybuffer';
+    this.ws = ws;
+    ws.addEventListener('open', () => {
+      this.open = true;
+      this.inFlight = null;
+      this.pending = null;
+      this.handlers.onOpen?.();
+    });
+    ws.addEventListener('close', (ev) => {
+      if (this.ws !== ws) return;
+      this.open = false;
+      this.inFlight = null;
+      this.pending = null;
+      this.handlers.onClose?.(ev);
+    });
+    ws.addEventListener('message', (ev) => this._receive(ev.data));
+  }
+
+  close() {
+    this.ws?.close();
+  }
+
+  send(msg) {
+    if (!this.open) return false;
+    this.ws.send(JSON.stringify(msg));
+    return true;
+  }
+
+  sendBinary(header, bytes) {
+    if (!this.open) return false;
+    this.ws.send(encodeBinary(header, bytes));
+    return true;
+  }
+
+  /** Queue a drag; at most one drag is unanswered, later ones collapse into the newest. */
+  drag(transforms) {
+    if (this.inFlight && performance.now() - this.inFlight.sentAt > DRAG_REPLY_TIMEOUT_MS) this.inFlight = null;
+    if (this.inFlight) {
+      this.pending = transforms;
+      return;
+    }
+    this._sendDrag(transforms);
+  }
+
+  /** Finish a drag: the newest transforms go out first, then end_drag. */
+  endDrag() {
+    if (this.pending) {
+      this._sendDrag(this.pending);
+      this.pending = null;
+    }
+    this.send({ type: CLIENT.END_DRAG });
+  }
+
+  get dragBusy() {
+    return this.inFlight !== null;
+  }
+
+  _sendDrag(transforms) {
+    this.seq += 1;
+    if (this.send({ type: CLIENT.DRAG, seq: this.seq, transforms })) {
+      this.inFlight = { seq: this.seq, sentAt: performance.now() };
+    }
+  }
+
+  _dragAnswered(seq) {
+    if (!this.inFlight || seq < this.inFlight.seq) return;
+    this.lastLatencyMs = performance.now() - this.inFlight.sentAt;
+    this.inFlight = null;
+    if (this.pending) {
+      const t = this.pending;
+      this.pending = null;
+      this._sendDrag(t);
+    }
+  }
+
+  _receive(data) {
+    let msg;
+    try {
+      if (typeof data === 'string') {
+        msg = JSON.parse(data);
+      } else {
+        const frame = decodeBinary(data);
+        msg = { ...frame.header, frame };
+      }
+    } catch (err) {
+      this.handlers.onMessage?.({ type: 'error', code: 'bad_message', message: `unreadable frame: ${err}`, request: null });
+      return;
+    }
+    if (msg.type === SERVER.VERTICES && typeof msg.seq === 'number' && msg.seq >= 0) this._dragAnswered(msg.seq);
+    if (msg.type === SERVER.ERROR && msg.request === CLIENT.DRAG && this.inFlight) this._dragAnswered(this.inFlight.seq);
+    this.handlers.onMessage?.(msg);
+  }
+}
+
+export function defaultSocketUrl() {
+  const proto = location.protocol === 'https:' ? 'wss:' : 'ws:';
+  const base = location.pathname.replace(/[^/]*$/, '');
+  return `${proto}//${location.host}${base}ws`;
+}

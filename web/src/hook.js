@@ -1,0 +1,81 @@
+// Read-only view of the studio state on `window.__arap`, for automated browser tests and debugging.
+
+/** Screen position of the gizmo and of points on its axes (CSS pixels relative to the canvas). */
+function gizmoInfo(viewer, gizmo) {
+  if (!gizmo.controls.object) return null;
+  const c = gizmo.centroid;
+  const cam = viewer.camera;
+  // TransformControls scales its helper to a constant screen size; its arrow pickers span 0..0.6 of that
+  const scale = (cam.position.distanceTo(gizmo.pivot.position) * 1.9 * Math.tan((Math.PI * cam.fov) / 360) * gizmo.controls.size) / 4;
+  const axes = {};
+  for (const [name, d] of Object.entries({ x: [1, 0, 0], y: [0, 1, 0], z: [0, 0, 1] })) {
+    axes[name] = viewer.project([c[0] + d[0] * scale * 0.45, c[1] + d[1] * scale * 0.45, c[2] + d[2] * scale * 0.45]);
+  }
+  return { group: gizmo.group, centroid: c, screen: viewer.project(c), axes, mode: gizmo.controls.mode };
+}
+
+export function installTestHook({ app, viewer, selection, gizmo, conn }) {
+  const toPage = ([x, y]) => {
+    const r = viewer.canvas.getBoundingClientRect();
+    return [x + r.left, y + r.top];
+  };
+  window.__arap = Object.freeze({
+    get ready() {
+      return app.ready;
+    },
+    get connected() {
+      return conn.open;
+    },
+    get meshName() {
+      return app.meshName;
+    },
+    get nVertices() {
+      return viewer.nVertices;
+    },
+    get nFaces() {
+      return app.nFaces;
+    },
+    get lastSeq() {
+      return app.lastSeq;
+    },
+    /** True while a request that changes the view is unanswered. */
+    get busy() {
+      return app.busyFor !== null || app.sentKey !== null || app.awaitingState || conn.dragBusy;
+    },
+    get canUndo() {
+      return app.canUndo;
+    },
+    get canRedo() {
+      return app.canRedo;
+    },
+    get builtins() {
+      return app.builtins.slice();
+    },
+    get params() {
+      return { ...app.params };
+    },
+    get limits() {
+      return { ...app.limits };
+    },
+    get errors() {
+      return app.errors.map((e) => ({ ...e }));
+    },
+    get messages() {
+      return app.messages;
+    },
+    positions: () => Array.from(viewer.positions),
+    counts: () => selection.counts(),
+    constraints: () => {
+      const c = selection.toConstraints();
+      return { roi: c.roi, fixed: c.fixed, handle_groups: c.handle_groups };
+    },
+    /** Page coordinates (CSS pixels) of a world point. */
+    project: (p) => toPage(viewer.project(p)),
+    gizmo: () => {
+      const g = gizmoInfo(viewer, gizmo);
+      if (!g) return null;
+      const axes = Object.fromEntries(Object.entries(g.axes).map(([k, v]) => [k, toPage(v)]));
+      return { ...g, screen: toPage(g.screen), axes };
+    },
+  });
+}

@@ -1,0 +1,454 @@
+// ARAP Studio: wires the connection, the 3D view, the selection tools, the gizmo and the side panel.
+import './style.css';
+import { Connection, defaultSocketUrl } from './connection.js';
+import { checkMeshFile, download, formatBytes, installDropTarget, parseConstraints } from './files.js';
+import { HandleGizmo } from './gizmo.js';
+import { installTestHook } from './hook.js';
+import { Panel } from './panel.js';
+import { LinePlot } from './plot.js';
+import { CLIENT, meshArrays, SERVER, vertexArray } from './protocol.js';
+import { constraintsKey, Selection } from './selection.js';
+import { SelectionTools } from './tools.js';
+import { Viewer } from './viewer.js';
+
+const viewer = new Viewer(document.getElementById('view'));
+const selection = new Selection();
+const app = {
+  ready: false,
+  meshName: null,
+  nFaces: 0,
+  limits: { max_upload_bytes: 0, max_vertices: 0 },
+  builtins: [],
+  role: 'handle',
+  lastSeq: -1,
+  groupMap: [], // server handle group k = client group groupMap[k]
+  sentKey: null, // constraintsKey of the last set_constraints not yet echoed by a state
+  sentVersion: -1, // selection.version that set_constraints carried
+  syncedVersion: -1, // selection.version known to match the server's constraints
+  serverKey: '',
+  errors: [],
+  messages: 0,
+  updateTimes: [],
+  energyHistory: [],
+  canUndo: false,
+  canRedo: false,
+  params: {},
+  busyFor: null,
+  awaitingState: false, // an end_drag whose state has not arrived yet
+  brush: { screen: 24, world: 4 },
+};
+
+const gizmo = new HandleGizmo(viewer, {
+  onDragStart: () => {
+    if (selectionSynced()) return true;
+    const pending = app.sentKey !== null;
+    panel.showStatus(pending
+      ? 'The new selection is still being set up; try again in a moment.'
+      : 'The server has not accepted the current selection (see the previous message); change it or undo.',
+    'error', pending ? 3000 : 0);
+    return false;
+  },
+  onDrag: () => conn.drag(gizmo.transformsFor(app.groupMap)),
+  onDragEnd: () => {
+    conn.endDrag();
+    app.awaitingState = true;
+  },
+  onDraggingChanged: () => {},
+});
+const tools = new SelectionTools(viewer, {
+  isGizmoActive: () => gizmo.active,
+  onPaint: (indices, subtract) => {
+    if (selection.paint(indices, app.role, subtract)) refreshSelection(false);
+  },
+  onStrokeEnd: () => commitConstraints(),
+});
+viewer.attachControls(); // after the gizmo and the tools, so they see pointer events first
+
+const iterPlot = new LinePlot(document.getElementById('plot-iter'), { color: '#4c9aff', xLabel: 'iterations' });
+const timePlot = new LinePlot(document.getElementById('plot-time'), { color: '#f0883e', xLabel: 'updates', maxPoints: 300 });
+
+const conn = new Connection(defaultSocketUrl(), {
+  onOpen: () => {
+    panel.setConnection('open');
+    panel.setEnabled(true);
+    panel.setHistory(app.canUndo, app.canRedo);
+  },
+  onClose: () => {
+    app.ready = false;
+    app.awaitingState = false;
+    panel.setConnection('closed');
+    panel.setEnabled(false);
+    panel.setBusy(null);
+    panel.showStatus('The connection to the studio server was closed. Use “Reconnect” to start a new session.', 'error');
+  },
+  onMessage: (msg) => handleMessage(msg),
+});
+
+function setBusy(text, forType) {
+  app.busyFor = text ? forType : null;
+  panel.setBusy(text);
+}
+
+function send(msg) {
+  if (!conn.send(msg)) {
+    panel.showStatus('Not connected to the studio server.', 'error');
+    return false;
+  }
+  return true;
+}
+
+// ------------------------------------------------------------------ selection
+
+function refreshSelection(full = true) {
+  viewer.updateColors(selection.roiCount ? selection.roi : null, selection.role);
+  gizmo.syncGroups(selection.groups.length);
+  if (full) updateGroupsUi();
+  else scheduleGroupsUi();
+}
+
+let groupsUiQueued = false;
+function scheduleGroupsUi() {
+  if (groupsUiQueued) return;
+  groupsUiQueued = true;
+  setTimeout(() => {
+    groupsUiQueued = false;
+    updateGroupsUi();
+  }, 100);
+}
+
+function updateGroupsUi() {
+  const counts = selection.counts();
+  panel.setGroups(selection.groups, selection.activeGroup, counts, viewer.nVertices);
+  if (!gizmo.dragging) gizmo.attach(selection.activeGroup, selection.groupIndices(selection.activeGroup));
+}
+
+/** True when the server holds the local selection (so drags refer to the groups shown). */
+function selectionSynced() {
+  if (selection.version === app.syncedVersion) return true;
+  if (app.sentKey === null && constraintsKey(selection.toConstraints()) === app.serverKey) {
+    app.syncedVersion = selection.version;
+    return true;
+  }
+  return false;
+}
+
+/** Send the local selection as the session's constraint set. */
+function commitConstraints() {
+  updateGroupsUi();
+  if (!app.ready) return;
+  const c = selection.toConstraints();
+  const key = constraintsKey(c);
+  if (key === app.serverKey && app.sentKey === null) return;
+  app.groupMap = c.groupMap;
+  app.sentKey = key;
+  app.sentVersion = selection.version;
+  gizmo.resetTransforms();
+  if (send({ type: CLIENT.SET_CONSTRAINTS, roi: c.roi, fixed: c.fixed, handle_groups: c.handle_groups })) {
+    setBusy('Updating constraints…', SERVER.STATE);
+  }
+}
+
+// ------------------------------------------------------------------ messages
+
+function handleMessage(msg) {
+  app.messages++;
+  switch (msg.type) {
+    case SERVER.WELCOME:
+      return onWelcome(msg);
+    case SERVER.MESH:
+      return onMesh(msg);
+    case SERVER.VERTICES:
+      return onVertices(msg);
+    case SERVER.STATE:
+      return onState(msg);
+    case SERVER.CONSTRAINTS: {
+      const base = (app.meshName || 'mesh').replace(/\.[^.]+$/, '');
+      download(JSON.stringify(msg.document, null, 2), `${base}-constraints.json`, 'application/json');
+      return panel.showStatus('Constraints saved.', 'info', 2500);
+    }
+    case SERVER.EXPORT: {
+      const p = msg.frame.payload;
+      download(new Blob([p], { type: msg.mime || 'application/octet-stream' }), msg.filename || 'mesh');
+      return panel.showStatus(`Exported ${msg.filename} (${formatBytes(p.byteLength)}).`, 'info', 3000);
+    }
+    case SERVER.ERROR:
+      return onError(msg);
+    default:
+      return undefined;
+  }
+}
+
+function onWelcome(msg) {
+  app.builtins = msg.builtin_meshes || [];
+  app.limits = { ...app.limits, ...(msg.limits || {}) };
+  panel.setBuiltins(app.builtins, app.meshName);
+  panel.setParams(msg.params);
+  if (msg.params) app.params = { ...msg.params };
+  setBusy('Loading mesh…', SERVER.MESH);
+}
+
+function onMesh(msg) {
+  const { positions, faces } = meshArrays(msg.frame);
+  viewer.setMesh(positions, faces);
+  selection.reset(msg.n_vertices);
+  gizmo.syncGroups(1);
+  gizmo.resetTransforms();
+  app.meshName = msg.name;
+  app.nFaces = msg.n_faces;
+  app.lastSeq = -1;
+  app.groupMap = [];
+  app.sentKey = null;
+  app.syncedVersion = selection.version;
+  app.serverKey = constraintsKey({ roi: null, fixed: [], handle_groups: [] });
+  app.energyHistory = [];
+  app.updateTimes = [];
+  app.ready = true;
+  iterPlot.clear();
+  timePlot.clear();
+  panel.setCurrentModel(msg.name);
+  panel.setMeshInfo(`${msg.name}: ${msg.n_vertices.toLocaleString('en-US')} vertices, ${msg.n_faces.toLocaleString('en-US')} faces`);
+  panel.setStats({ n_vertices: msg.n_vertices, n_faces: msg.n_faces, ups: NaN, latency_ms: null, ms_per_iteration: null });
+  refreshSelection(true);
+  setBusy(null);
+  const report = Array.isArray(msg.report) ? msg.report : msg.report ? [String(msg.report)] : [];
+  if (report.length) panel.showStatus(`Loaded ${msg.name}. Repairs: ${report.join('; ')}`, 'info', 8000);
+  else panel.hideStatus();
+}
+
+function onVertices(msg) {
+  const pos = vertexArray(msg.frame);
+  if (pos.length !== viewer.nVertices * 3) return;
+  viewer.updatePositions(pos);
+  app.lastSeq = msg.seq;
+  gizmo.recenter();
+  if (!(msg.iterations > 0)) return; // a pose change without a solve (undo, reset)
+  const now = performance.now();
+  app.updateTimes.push(now);
+  while (app.updateTimes.length && now - app.updateTimes[0] > 1000) app.updateTimes.shift();
+  const energies = (msg.energies || []).filter((e) => e !== null);
+  iterPlot.set(energies);
+  if (energies.length) timePlot.push(energies[energies.length - 1]);
+  panel.setStats({
+    ms_per_iteration: msg.ms_per_iteration,
+    ups: app.updateTimes.length,
+    latency_ms: msg.seq >= 0 && conn.lastLatencyMs !== null ? conn.lastLatencyMs : msg.solve_ms,
+  });
+}
+
+function onState(msg) {
+  app.awaitingState = false;
+  app.canUndo = !!msg.can_undo;
+  app.canRedo = !!msg.can_redo;
+  panel.setHistory(app.canUndo, app.canRedo);
+  panel.setParams(msg.params);
+  if (msg.params) app.params = { ...msg.params };
+  if (msg.stats) panel.setStats(msg.stats);
+  const c = msg.constraints || { roi: null, fixed: [], handle_groups: [] };
+  const key = constraintsKey(c);
+  app.serverKey = key;
+  if (app.sentKey !== null && key === app.sentKey) {
+    app.sentKey = null;
+    app.syncedVersion = app.sentVersion;
+  } else if (app.sentKey === null && key !== constraintsKey(selection.toConstraints())) {
+    // the server's constraints changed under us (undo/redo, loaded document): adopt them
+    selection.fromConstraints(c);
+    app.groupMap = c.handle_groups.map((_, k) => k);
+    app.syncedVersion = selection.version;
+    refreshSelection(true);
+  }
+  if (!gizmo.dragging) gizmo.setTransforms(msg.transforms, app.groupMap);
+  if (app.busyFor === SERVER.STATE) setBusy(null);
+  updateGroupsUi();
+}
+
+function onError(msg) {
+  app.errors.push({ code: msg.code, message: msg.message, request: msg.request ?? null });
+  if (msg.request === CLIENT.SET_CONSTRAINTS) app.sentKey = null;
+  if (app.busyFor) setBusy(null);
+  if (msg.request === CLIENT.END_DRAG) app.awaitingState = false;
+  const what = msg.request ? ` (${msg.request})` : '';
+  panel.showStatus(`${msg.message || msg.code}${what}`, 'error');
+}
+
+// ------------------------------------------------------------------ actions
+
+function uploadFile(file) {
+  const problem = checkMeshFile(file, app.limits.max_upload_bytes);
+  if (problem) {
+    app.errors.push({ code: 'client_check', message: problem, request: CLIENT.UPLOAD });
+    panel.showStatus(problem, 'error');
+    return;
+  }
+  setBusy(`Uploading ${file.name}…`, SERVER.MESH);
+  file.arrayBuffer().then((buf) => {
+    if (!conn.sendBinary({ type: CLIENT.UPLOAD, filename: file.name }, buf)) {
+      setBusy(null);
+      panel.showStatus('Not connected to the studio server.', 'error');
+    }
+  });
+}
+
+function loadConstraintsFile(file) {
+  file.text().then((text) => {
+    let c;
+    try {
+      c = parseConstraints(text);
+    } catch (err) {
+      const message = `Cannot read ${file.name}: ${err.message}`;
+      app.errors.push({ code: 'client_check', message, request: CLIENT.SET_CONSTRAINTS });
+      panel.showStatus(message, 'error');
+      return;
+    }
+    const n = viewer.nVertices;
+    const bad = [...(c.roi || []), ...c.fixed, ...c.handle_groups.flat()].find((i) => i >= n);
+    if (bad !== undefined) {
+      panel.showStatus(`${file.name} refers to vertex ${bad}, but the mesh has ${n} vertices.`, 'error');
+      return;
+    }
+    selection.fromConstraints(c);
+    refreshSelection(true);
+    commitConstraints();
+  });
+}
+
+function setRole(role) {
+  app.role = role;
+  panel.setSegment('role-seg', 'role', role);
+  document.getElementById('btn-invert').disabled = role === 'erase';
+}
+
+function setTool(tool) {
+  tools.setTool(tool);
+  panel.setSegment('tool-seg', 'tool', tool);
+}
+
+function setBrushUnits(units) {
+  tools.units = units;
+  panel.setBrushRadius(units, app.brush[units]);
+}
+
+function setGizmoMode(mode) {
+  gizmo.setMode(mode);
+  panel.setSegment('gizmo-seg', 'gizmo', mode);
+}
+
+const panel = new Panel({
+  send,
+  loadBuiltin: (name) => {
+    if (name && send({ type: CLIENT.LOAD_BUILTIN, name })) setBusy(`Loading ${name}…`, SERVER.MESH);
+  },
+  uploadFile,
+  loadConstraintsFile,
+  setTool,
+  setRole,
+  setGizmoMode,
+  setBrushRadius: (v) => {
+    app.brush[tools.units] = v;
+    if (tools.units === 'world') tools.worldRadiusFrac = v / 100;
+    else tools.radiusPx = v;
+    panel.setBrushRadius(tools.units, v);
+  },
+  setBrushUnits,
+  setFrontOnly: (on) => (tools.frontOnly = on),
+  clearRole: () => {
+    selection.clear(app.role);
+    refreshSelection(true);
+    commitConstraints();
+  },
+  invertRole: () => {
+    if (selection.invert(app.role)) {
+      refreshSelection(true);
+      commitConstraints();
+    }
+  },
+  clearAll: () => {
+    selection.clear('erase');
+    refreshSelection(true);
+    commitConstraints();
+  },
+  newGroup: () => {
+    selection.addGroup();
+    setRole('handle');
+    refreshSelection(true);
+  },
+  removeGroup: (g) => {
+    selection.removeGroup(g);
+    refreshSelection(true);
+    commitConstraints();
+  },
+  selectGroup: (g) => {
+    selection.activeGroup = g;
+    setRole('handle');
+    updateGroupsUi();
+  },
+  undo: () => send({ type: CLIENT.UNDO }),
+  redo: () => send({ type: CLIENT.REDO }),
+  setParams: (p) => send({ type: CLIENT.SET_PARAMS, ...p }),
+  setFlatShading: (on) => viewer.setFlatShading(on),
+  setWireframe: (on) => viewer.setWireframe(on),
+  fit: () => viewer.fit(),
+  reconnect: () => {
+    panel.setConnection('connecting');
+    panel.hideStatus();
+    conn.connect();
+  },
+});
+
+// ------------------------------------------------------------------ keyboard and drop
+
+window.addEventListener('keydown', (e) => {
+  if (e.target instanceof HTMLInputElement || e.target instanceof HTMLSelectElement) return;
+  const k = e.key.toLowerCase();
+  if ((e.ctrlKey || e.metaKey) && k === 'z') {
+    e.preventDefault();
+    send({ type: e.shiftKey ? CLIENT.REDO : CLIENT.UNDO });
+    return;
+  }
+  if ((e.ctrlKey || e.metaKey) && k === 'y') {
+    e.preventDefault();
+    send({ type: CLIENT.REDO });
+    return;
+  }
+  if (e.ctrlKey || e.metaKey || e.altKey) return;
+  const keys = {
+    w: () => setGizmoMode('translate'),
+    e: () => setGizmoMode('rotate'),
+    b: () => setTool('brush'),
+    x: () => setTool('box'),
+    o: () => setTool('orbit'),
+    f: () => viewer.fit(),
+    n: () => panel.actions.newGroup(),
+    1: () => setRole('roi'),
+    2: () => setRole('fixed'),
+    3: () => setRole('handle'),
+    4: () => setRole('erase'),
+    escape: () => panel.hideStatus(),
+  };
+  if (keys[k]) {
+    keys[k]();
+    e.preventDefault();
+  }
+});
+
+installDropTarget(document.getElementById('viewport'), document.getElementById('drop-overlay'), uploadFile);
+
+installTestHook({ app, viewer, selection, gizmo, conn });
+
+// updates per second over the last second; decays to zero once dragging stops
+setInterval(() => {
+  if (!app.updateTimes.length) return;
+  const now = performance.now();
+  while (app.updateTimes.length && now - app.updateTimes[0] > 1000) app.updateTimes.shift();
+  panel.setStats({ ups: app.updateTimes.length });
+}, 500);
+
+// ------------------------------------------------------------------ start
+
+panel.setEnabled(false);
+panel.setConnection('connecting');
+setTool('brush');
+setRole('handle');
+setGizmoMode('translate');
+panel.setBrushRadius('screen', app.brush.screen);
+updateGroupsUi();
+conn.connect();

@@ -1,0 +1,225 @@
+// Side panel: controls bound to studio actions, and the read-outs (groups, counts, statistics, status).
+import { cssColor, FIXED_COLOR, groupColor } from './viewer.js';
+
+const $ = (id) => document.getElementById(id);
+
+function fmtMs(v) {
+  if (v === null || v === undefined || !Number.isFinite(v)) return '–';
+  return v >= 100 ? `${v.toFixed(0)} ms` : `${v.toFixed(1)} ms`;
+}
+
+function fmtInt(v) {
+  return Number.isFinite(v) ? v.toLocaleString('en-US') : '–';
+}
+
+export class Panel {
+  /** @param {object} actions callbacks invoked by the controls (see main.js) */
+  constructor(actions) {
+    this.actions = actions;
+    this._statusTimer = null;
+
+    $('builtin-select').addEventListener('change', (e) => actions.loadBuiltin(e.target.value));
+    $('btn-open').addEventListener('click', () => $('file-input').click());
+    $('file-input').addEventListener('change', (e) => {
+      const f = e.target.files?.[0];
+      e.target.value = '';
+      if (f) actions.uploadFile(f);
+    });
+    this._segment('tool-seg', 'tool', (v) => actions.setTool(v));
+    this._segment('role-seg', 'role', (v) => actions.setRole(v));
+    this._segment('gizmo-seg', 'gizmo', (v) => actions.setGizmoMode(v));
+
+    const radius = $('brush-radius');
+    radius.addEventListener('input', () => actions.setBrushRadius(Number(radius.value)));
+    $('brush-units').addEventListener('change', (e) => actions.setBrushUnits(e.target.value));
+    $('front-only').addEventListener('change', (e) => actions.setFrontOnly(e.target.checked));
+    $('btn-clear').addEventListener('click', () => actions.clearRole());
+    $('btn-invert').addEventListener('click', () => actions.invertRole());
+    $('btn-clear-all').addEventListener('click', () => actions.clearAll());
+    $('btn-new-group').addEventListener('click', () => actions.newGroup());
+
+    $('btn-undo').addEventListener('click', () => actions.undo());
+    $('btn-redo').addEventListener('click', () => actions.redo());
+    $('btn-reset').addEventListener('click', () => actions.send({ type: 'reset' }));
+    $('btn-apply').addEventListener('click', () => actions.send({ type: 'apply' }));
+
+    const it = $('iterations');
+    it.addEventListener('input', () => ($('iterations-val').textContent = it.value));
+    it.addEventListener('change', () => actions.setParams({ iterations: Number(it.value) }));
+    $('energy').addEventListener('change', (e) => actions.setParams({ energy: e.target.value }));
+    $('weights').addEventListener('change', (e) => actions.setParams({ weights: e.target.value }));
+
+    $('btn-export-obj').addEventListener('click', () => actions.send({ type: 'export', format: 'obj' }));
+    $('btn-export-ply').addEventListener('click', () => actions.send({ type: 'export', format: 'ply' }));
+    $('btn-save-constraints').addEventListener('click', () => actions.send({ type: 'get_constraints' }));
+    $('btn-load-constraints').addEventListener('click', () => $('constraints-input').click());
+    $('constraints-input').addEventListener('change', (e) => {
+      const f = e.target.files?.[0];
+      e.target.value = '';
+      if (f) actions.loadConstraintsFile(f);
+    });
+
+    $('flat-shading').addEventListener('change', (e) => actions.setFlatShading(e.target.checked));
+    $('wireframe').addEventListener('change', (e) => actions.setWireframe(e.target.checked));
+    $('btn-fit').addEventListener('click', () => actions.fit());
+    $('btn-reconnect').addEventListener('click', () => actions.reconnect());
+    $('status-close').addEventListener('click', () => this.hideStatus());
+    $('hud-toggle').addEventListener('click', () => {
+      const hud = $('hud');
+      hud.classList.toggle('collapsed');
+      $('hud-toggle').textContent = hud.classList.contains('collapsed') ? '+' : '–';
+    });
+  }
+
+  _segment(id, key, onPick) {
+    const el = $(id);
+    el.addEventListener('click', (e) => {
+      const b = e.target.closest('button');
+      if (b && !b.disabled) onPick(b.dataset[key]);
+    });
+  }
+
+  setSegment(id, key, value) {
+    for (const b of $(id).querySelectorAll('button')) b.classList.toggle('active', b.dataset[key] === value);
+  }
+
+  setBrushRadius(units, value) {
+    const r = $('brush-radius');
+    if (units === 'world') {
+      r.min = '1';
+      r.max = '25';
+      r.value = String(value);
+      $('brush-radius-val').textContent = `${value}%`;
+      r.title = 'Brush radius, percent of the bounding-box diagonal';
+    } else {
+      r.min = '2';
+      r.max = '120';
+      r.value = String(value);
+      $('brush-radius-val').textContent = `${value} px`;
+      r.title = 'Brush radius on screen, pixels';
+    }
+  }
+
+  setBuiltins(names, current) {
+    const sel = $('builtin-select');
+    sel.innerHTML = '';
+    const head = document.createElement('option');
+    head.value = '';
+    head.textContent = 'Built-in model…';
+    head.disabled = true;
+    sel.appendChild(head);
+    for (const n of names) {
+      const o = document.createElement('option');
+      o.value = n;
+      o.textContent = n;
+      sel.appendChild(o);
+    }
+    this.setCurrentModel(current);
+  }
+
+  setCurrentModel(name) {
+    const sel = $('builtin-select');
+    const known = Array.from(sel.options).some((o) => o.value === name && name);
+    sel.value = known ? name : '';
+  }
+
+  setMeshInfo(text) {
+    $('mesh-info').textContent = text;
+  }
+
+  setParams(p) {
+    if (!p) return;
+    if (Number.isFinite(p.iterations)) {
+      const v = Math.max(1, Math.min(20, p.iterations));
+      $('iterations').value = String(v);
+      $('iterations-val').textContent = String(p.iterations);
+    }
+    if (p.energy) $('energy').value = p.energy;
+    if (p.weights) $('weights').value = p.weights;
+  }
+
+  setHistory(canUndo, canRedo) {
+    $('btn-undo').disabled = !canUndo;
+    $('btn-redo').disabled = !canRedo;
+  }
+
+  setEnabled(on) {
+    for (const b of document.querySelectorAll('#panel button, #panel select, #panel input')) {
+      if (b.id === 'btn-reconnect') continue;
+      b.disabled = !on;
+    }
+  }
+
+  setConnection(state) {
+    const dot = $('conn-dot');
+    dot.className = `dot ${state === 'open' ? 'ok' : state === 'closed' ? 'bad' : ''}`;
+    $('conn-text').textContent = state === 'open' ? 'connected' : state === 'closed' ? 'disconnected' : 'connecting…';
+    $('btn-reconnect').hidden = state !== 'closed';
+  }
+
+  /** groups: [{count}], active: index, roi/fixed counts. */
+  setGroups(groups, active, counts, nVertices) {
+    const ul = $('group-list');
+    ul.innerHTML = '';
+    groups.forEach((g, k) => {
+      const li = document.createElement('li');
+      li.dataset.testid = `group-${k}`;
+      li.classList.toggle('active', k === active);
+      const sw = document.createElement('span');
+      sw.className = 'swatch';
+      sw.style.background = cssColor(groupColor(k));
+      const name = document.createElement('span');
+      name.className = 'name';
+      name.textContent = `Group ${k + 1}`;
+      const count = document.createElement('span');
+      count.className = 'count';
+      count.textContent = `${fmtInt(counts.groups[k] || 0)} v`;
+      const del = document.createElement('button');
+      del.className = 'del';
+      del.title = 'Remove this group';
+      del.textContent = '×';
+      del.dataset.testid = `group-delete-${k}`;
+      del.addEventListener('click', (e) => {
+        e.stopPropagation();
+        this.actions.removeGroup(k);
+      });
+      li.append(sw, name, count, del);
+      li.addEventListener('click', () => this.actions.selectGroup(k));
+      ul.appendChild(li);
+    });
+    const roi = counts.roi ? fmtInt(counts.roi) : `whole mesh (${fmtInt(nVertices)})`;
+    const fixedSw = `<span class="swatch-inline" style="color:${cssColor(FIXED_COLOR)}">■</span>`;
+    $('sel-counts').innerHTML = `ROI: ${roi} · ${fixedSw} anchors: ${fmtInt(counts.fixed)}`;
+  }
+
+  setStats(s) {
+    const set = (id, v) => ($(id).textContent = v);
+    if ('n_vertices' in s) set('st-vertices', fmtInt(s.n_vertices));
+    if ('n_faces' in s) set('st-faces', fmtInt(s.n_faces));
+    if ('roi_size' in s) set('st-roi', fmtInt(s.roi_size));
+    if ('n_free' in s) set('st-free', fmtInt(s.n_free));
+    if ('factor_ms' in s) set('st-factor', fmtMs(s.factor_ms));
+    if ('ms_per_iteration' in s) set('st-iter', fmtMs(s.ms_per_iteration));
+    if ('ups' in s) set('st-ups', Number.isFinite(s.ups) ? s.ups.toFixed(1) : '–');
+    if ('latency_ms' in s) set('st-latency', fmtMs(s.latency_ms));
+  }
+
+  showStatus(text, kind = 'info', timeoutMs = 0) {
+    const bar = $('statusbar');
+    bar.className = kind;
+    $('status-text').textContent = text;
+    bar.hidden = false;
+    clearTimeout(this._statusTimer);
+    if (timeoutMs) this._statusTimer = setTimeout(() => this.hideStatus(), timeoutMs);
+  }
+
+  hideStatus() {
+    clearTimeout(this._statusTimer);
+    $('statusbar').hidden = true;
+  }
+
+  setBusy(text) {
+    $('busy').hidden = !text;
+    if (text) $('busy-text').textContent = text;
+  }
+}

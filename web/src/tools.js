@@ -1,0 +1,213 @@
+// Pointer tools on the 3D view: brush painting (raycast + radius) and box selection.
+import * as THREE from 'three';
+
+export class SelectionTools {
+  /**
+   * @param {import('./viewer.js').Viewer} viewer
+   * @param {object} opts isGizmoActive(): bool, onPaint(indices, subtract), onStrokeEnd()
+   */
+  constructor(viewer, opts) {
+    this.viewer = viewer;
+    this.opts = opts;
+    this.tool = 'brush';
+    this.radiusPx = 24;
+    this.units = 'screen';
+    this.worldRadiusFrac = 0.04;
+    this.frontOnly = true;
+    this.erasing = false;
+    this.painting = false;
+    this.box = null;
+    this.raycaster = new THREE.Raycaster();
+    this.cursorEl = document.getElementById('brush-cursor');
+    this.rectEl = document.getElementById('box-rect');
+    this._lastHit = null;
+    this._queued = null;
+    const c = viewer.canvas;
+    c.addEventListener('pointerdown', (e) => this._down(e));
+    c.addEventListener('pointermove', (e) => this._move(e));
+    c.addEventListener('pointerup', (e) => this._up(e));
+    c.addEventListener('pointercancel', (e) => this._up(e));
+    c.addEventListener('pointerleave', () => this._hideCursor());
+    c.addEventListener('contextmenu', (e) => e.preventDefault());
+  }
+
+  setTool(tool) {
+    this.tool = tool;
+    this._hideCursor();
+  }
+
+  _local(e) {
+    const r = this.viewer.canvas.getBoundingClientRect();
+    return [e.clientX - r.left, e.clientY - r.top];
+  }
+
+  _hit(x, y) {
+    const v = this.viewer;
+    if (!v.mesh) return null;
+    const ndc = new THREE.Vector2((x / v.canvas.clientWidth) * 2 - 1, -(y / v.canvas.clientHeight) * 2 + 1);
+    this.raycaster.setFromCamera(ndc, v.camera);
+    const hits = this.raycaster.intersectObject(v.mesh, false);
+    return hits.length ? hits[0].point : null;
+  }
+
+  /** World-space brush radius at a point. */
+  worldRadius(point) {
+    if (this.units === 'world') {
+      const box = this.viewer.geometry.boundingBox;
+      return this.worldRadiusFrac * box.min.distanceTo(box.max);
+    }
+    return this.radiusPx * this.viewer.worldPerPixel(point);
+  }
+
+  _down(e) {
+    if (e.button !== 0 || !this.viewer.mesh || this.opts.isGizmoActive()) return;
+    const [x, y] = this._local(e);
+    const subtract = e.ctrlKey || e.metaKey || e.altKey;
+    if (e.shiftKey || this.tool === 'box') {
+      this.box = { x0: x, y0: y, x1: x, y1: y, subtract };
+      this._takePointer(e);
+      this._drawRect();
+      return;
+    }
+    if (this.tool !== 'brush') return;
+    const p = this._hit(x, y);
+    if (!p) return; // empty space: let the camera orbit
+    this.painting = true;
+    this.erasing = subtract;
+    this._takePointer(e);
+    this._paintAt(p);
+  }
+
+  _takePointer(e) {
+    e.stopImmediatePropagation();
+    this.viewer.controls.enabled = false;
+    this.viewer.canvas.setPointerCapture(e.pointerId);
+  }
+
+  _move(e) {
+    const [x, y] = this._local(e);
+    if (this.box) {
+      this.box.x1 = x;
+      this.box.y1 = y;
+      this._drawRect();
+      return;
+    }
+    if (this.tool === 'brush' && !this.opts.isGizmoActive()) this._showCursor(x, y, e.ctrlKey || e.metaKey || e.altKey);
+    else this._hideCursor();
+    if (!this.painting) return;
+    // coalesce to one raycast per animation frame
+    if (this._queued) {
+      this._queued = [x, y];
+      return;
+    }
+    this._queued = [x, y];
+    requestAnimationFrame(() => {
+      const q = this._queued;
+      this._queued = null;
+      if (!this.painting || !q) return;
+      const p = this._hit(q[0], q[1]);
+      if (p) this._paintAt(p);
+    });
+  }
+
+  _up(e) {
+    if (this.box) {
+      const b = this.box;
+      this.box = null;
+      this.rectEl.hidden = true;
+      this._release(e);
+      const indices = this.boxIndices(b.x0, b.y0, b.x1, b.y1);
+      this.opts.onPaint(indices, b.subtract);
+      this.opts.onStrokeEnd();
+      return;
+    }
+    if (this.painting) {
+      this.painting = false;
+      this._queued = null;
+      this._release(e);
+      this.opts.onStrokeEnd();
+    }
+  }
+
+  _release(e) {
+    this.viewer.controls.enabled = true;
+    if (this.viewer.canvas.hasPointerCapture(e.pointerId)) this.viewer.canvas.releasePointerCapture(e.pointerId);
+  }
+
+  _paintAt(p) {
+    const r = this.worldRadius(p);
+    const r2 = r * r;
+    const pos = this.viewer.positions;
+    const out = [];
+    for (let i = 0, n = pos.length / 3; i < n; i++) {
+      const dx = pos[3 * i] - p.x;
+      const dy = pos[3 * i + 1] - p.y;
+      const dz = pos[3 * i + 2] - p.z;
+      if (dx * dx + dy * dy + dz * dz <= r2) out.push(i);
+    }
+    this.opts.onPaint(out, this.erasing);
+  }
+
+  /** Vertices whose projection falls inside the screen rectangle (optionally front-facing only). */
+  boxIndices(x0, y0, x1, y1) {
+    const v = this.viewer;
+    const w = v.canvas.clientWidth;
+    const h = v.canvas.clientHeight;
+    const xa = Math.min(x0, x1);
+    const xb = Math.max(x0, x1);
+    const ya = Math.min(y0, y1);
+    const yb = Math.max(y0, y1);
+    if (xb - xa < 2 || yb - ya < 2) return [];
+    const m = new THREE.Matrix4().multiplyMatrices(v.camera.projectionMatrix, v.camera.matrixWorldInverse).elements;
+    const cam = v.camera.position;
+    const pos = v.positions;
+    const nrm = v.geometry.attributes.normal.array;
+    const out = [];
+    for (let i = 0, n = pos.length / 3; i < n; i++) {
+      const px = pos[3 * i];
+      const py = pos[3 * i + 1];
+      const pz = pos[3 * i + 2];
+      const cw = m[3] * px + m[7] * py + m[11] * pz + m[15];
+      if (cw <= 0) continue;
+      const sx = (((m[0] * px + m[4] * py + m[8] * pz + m[12]) / cw + 1) / 2) * w;
+      const sy = ((1 - (m[1] * px + m[5] * py + m[9] * pz + m[13]) / cw) / 2) * h;
+      if (sx < xa || sx > xb || sy < ya || sy > yb) continue;
+      if (this.frontOnly) {
+        const facing = nrm[3 * i] * (cam.x - px) + nrm[3 * i + 1] * (cam.y - py) + nrm[3 * i + 2] * (cam.z - pz);
+        if (facing <= 0) continue;
+      }
+      out.push(i);
+    }
+    return out;
+  }
+
+  _drawRect() {
+    const b = this.box;
+    const s = this.rectEl.style;
+    s.left = `${Math.min(b.x0, b.x1)}px`;
+    s.top = `${Math.min(b.y0, b.y1)}px`;
+    s.width = `${Math.abs(b.x1 - b.x0)}px`;
+    s.height = `${Math.abs(b.y1 - b.y0)}px`;
+    this.rectEl.hidden = false;
+  }
+
+  _showCursor(x, y, erase) {
+    let r = this.radiusPx;
+    if (this.units === 'world' && this.viewer.geometry) {
+      const p = this._hit(x, y);
+      if (!p) return this._hideCursor();
+      r = this.worldRadius(p) / this.viewer.worldPerPixel(p);
+    }
+    const s = this.cursorEl.style;
+    s.left = `${x}px`;
+    s.top = `${y}px`;
+    s.width = `${2 * r}px`;
+    s.height = `${2 * r}px`;
+    this.cursorEl.classList.toggle('erase', erase);
+    this.cursorEl.hidden = false;
+  }
+
+  _hideCursor() {
+    this.cursorEl.hidden = true;
+  }
+}

@@ -1,0 +1,252 @@
+// Three.js scene: the mesh with per-vertex role colours, lights, camera and orbit controls.
+import * as THREE from 'three';
+import { OrbitControls } from 'three/addons/controls/OrbitControls.js';
+
+// Role colours in sRGB (as shown in the panel); the vertex colour attribute holds their linear values.
+export const BASE_COLOR = [0.78, 0.79, 0.81];
+const OUTSIDE_COLOR = [0.55, 0.56, 0.58];
+const ROI_COLOR = [0.55, 0.74, 0.95];
+export const FIXED_COLOR = [0.9, 0.3, 0.27];
+export const GROUP_COLORS = [
+  [1.0, 0.62, 0.1],
+  [0.25, 0.78, 0.42],
+  [0.66, 0.42, 0.96],
+  [0.98, 0.84, 0.16],
+  [0.15, 0.8, 0.84],
+  [0.95, 0.4, 0.68],
+  [0.58, 0.84, 0.2],
+  [0.4, 0.52, 1.0],
+];
+
+export function groupColor(g) {
+  return GROUP_COLORS[g % GROUP_COLORS.length];
+}
+
+export function cssColor(rgb) {
+  return `rgb(${rgb.map((c) => Math.round(c * 255)).join(',')})`;
+}
+
+const srgbToLinear = (c) => (c < 0.04045 ? c / 12.92 : ((c + 0.055) / 1.055) ** 2.4);
+const toLinear = (rgb) => rgb.map(srgbToLinear);
+const BASE_LIN = toLinear(BASE_COLOR);
+const OUTSIDE_LIN = toLinear(OUTSIDE_COLOR);
+const ROI_LIN = toLinear(ROI_COLOR);
+const FIXED_LIN = toLinear(FIXED_COLOR);
+const GROUP_LIN = GROUP_COLORS.map(toLinear);
+
+export class Viewer {
+  constructor(canvas) {
+    this.canvas = canvas;
+    this.renderer = new THREE.WebGLRenderer({ canvas, antialias: true, preserveDrawingBuffer: true });
+    this.renderer.setPixelRatio(Math.min(window.devicePixelRatio, 2));
+    this.renderer.setClearColor(0x000000, 0);
+    this.scene = new THREE.Scene();
+    this.camera = new THREE.PerspectiveCamera(40, 1, 0.01, 1000);
+    this.camera.position.set(0, 0, 3);
+
+    // lights follow the camera, so the side facing the viewer is always lit
+    this.scene.add(new THREE.HemisphereLight(0xeef2ff, 0x2a2622, 0.55));
+    const lights = [
+      [0xffffff, 1.9, [0.6, 0.9, 1]],
+      [0xc8d8ff, 0.55, [-1, -0.2, 0.4]],
+      [0xfff0e0, 0.35, [0.2, -1, 0.3]],
+    ];
+    for (const [color, intensity, p] of lights) {
+      const light = new THREE.DirectionalLight(color, intensity);
+      light.position.set(p[0], p[1], p[2]);
+      light.target.position.set(0, 0, 0);
+      this.camera.add(light, light.target);
+    }
+    this.scene.add(this.camera);
+
+    this.material = new THREE.MeshStandardMaterial({
+      vertexColors: true,
+      roughness: 0.55,
+      metalness: 0.0,
+      side: THREE.DoubleSide,
+      polygonOffset: true,
+      polygonOffsetFactor: 1,
+      polygonOffsetUnits: 1,
+    });
+    this.wireMaterial = new THREE.MeshBasicMaterial({ color: 0x111418, wireframe: true, transparent: true, opacity: 0.28 });
+    this.geometry = null;
+    this.mesh = null;
+    this.wire = null;
+    this.grid = null;
+    this.radius = 1;
+
+    this.controls = null; // created by attachControls so other pointer handlers can be registered first
+    this._renderQueued = false;
+    this._resize = () => this.resize();
+    window.addEventListener('resize', this._resize);
+    new ResizeObserver(this._resize).observe(canvas.parentElement);
+    this.resize();
+  }
+
+  attachControls() {
+    this.controls = new OrbitControls(this.camera, this.canvas);
+    this.controls.enableDamping = false;
+    this.controls.mouseButtons = { LEFT: THREE.MOUSE.ROTATE, MIDDLE: THREE.MOUSE.DOLLY, RIGHT: THREE.MOUSE.PAN };
+    this.controls.addEventListener('change', () => this.requestRender());
+  }
+
+  resize() {
+    const el = this.canvas.parentElement;
+    const w = Math.max(1, el.clientWidth);
+    const h = Math.max(1, el.clientHeight);
+    this.renderer.setSize(w, h, false);
+    this.camera.aspect = w / h;
+    this.camera.updateProjectionMatrix();
+    this.requestRender();
+  }
+
+  /** Replace the mesh. positions: Float32Array (copied), indices: Uint32Array (copied). */
+  setMesh(positions, indices) {
+    if (this.mesh) {
+      this.scene.remove(this.mesh);
+      this.scene.remove(this.wire);
+      this.geometry.dispose();
+    }
+    const g = new THREE.BufferGeometry();
+    g.setAttribute('position', new THREE.BufferAttribute(new Float32Array(positions), 3));
+    g.setIndex(new THREE.BufferAttribute(new Uint32Array(indices), 1));
+    const colors = new Float32Array(positions.length);
+    for (let i = 0; i < colors.length; i += 3) colors.set(BASE_LIN, i);
+    g.setAttribute('color', new THREE.BufferAttribute(colors, 3));
+    g.computeVertexNormals();
+    g.computeBoundingBox();
+    g.computeBoundingSphere();
+    this.geometry = g;
+    this.mesh = new THREE.Mesh(g, this.material);
+    this.wire = new THREE.Mesh(g, this.wireMaterial);
+    this.wire.visible = this.material.wireframeOverlay === true;
+    this.wire.raycast = () => {};
+    this.scene.add(this.mesh);
+    this.scene.add(this.wire);
+    this._placeGrid();
+    this.fit();
+  }
+
+  get nVertices() {
+    return this.geometry ? this.geometry.attributes.position.count : 0;
+  }
+
+  get positions() {
+    return this.geometry ? this.geometry.attributes.position.array : new Float32Array(0);
+  }
+
+  /** Overwrite the vertex positions (a Float32Array of the right length). */
+  updatePositions(array) {
+    if (!this.geometry) return;
+    const attr = this.geometry.attributes.position;
+    if (array.length !== attr.array.length) return;
+    attr.array.set(array);
+    attr.needsUpdate = true;
+    this.geometry.computeVertexNormals();
+    this.geometry.computeBoundingSphere();
+    this.geometry.computeBoundingBox();
+    this.requestRender();
+  }
+
+  /** Colour vertices by role: roi (Uint8Array or null), role (Int16Array: 0 none, 1 fixed, 2+g handle g). */
+  updateColors(roi, role) {
+    if (!this.geometry) return;
+    const attr = this.geometry.attributes.color;
+    const c = attr.array;
+    const hasRoi = roi !== null;
+    for (let i = 0, n = role.length; i < n; i++) {
+      const r = role[i];
+      let rgb;
+      if (r === 1) rgb = FIXED_LIN;
+      else if (r >= 2) rgb = GROUP_LIN[(r - 2) % GROUP_LIN.length];
+      else if (hasRoi) rgb = roi[i] ? ROI_LIN : OUTSIDE_LIN;
+      else rgb = BASE_LIN;
+      c[3 * i] = rgb[0];
+      c[3 * i + 1] = rgb[1];
+      c[3 * i + 2] = rgb[2];
+    }
+    attr.needsUpdate = true;
+    this.requestRender();
+  }
+
+  setFlatShading(flat) {
+    this.material.flatShading = flat;
+    this.material.needsUpdate = true;
+    this.requestRender();
+  }
+
+  setWireframe(on) {
+    this.material.wireframeOverlay = on;
+    if (this.wire) this.wire.visible = on;
+    this.requestRender();
+  }
+
+  _placeGrid() {
+    if (this.grid) {
+      this.scene.remove(this.grid);
+      this.grid.geometry.dispose();
+    }
+    const box = this.geometry.boundingBox;
+    const size = box.getSize(new THREE.Vector3());
+    const center = box.getCenter(new THREE.Vector3());
+    const extent = Math.max(size.x, size.z, size.y) * 2.2;
+    this.grid = new THREE.GridHelper(extent, 16, 0x4f5661, 0x3a4049);
+    this.grid.material.transparent = true;
+    this.grid.material.opacity = 0.45;
+    this.grid.material.depthWrite = false;
+    this.grid.position.set(center.x, box.min.y - 0.002 * extent, center.z);
+    this.grid.raycast = () => {};
+    this.scene.add(this.grid);
+  }
+
+  /** Frame the whole mesh. */
+  fit() {
+    if (!this.geometry) return;
+    this.geometry.computeBoundingSphere();
+    const s = this.geometry.boundingSphere;
+    this.radius = Math.max(s.radius, 1e-6);
+    const fov = THREE.MathUtils.degToRad(this.camera.fov);
+    const fitH = this.radius / Math.sin(fov / 2);
+    const fitW = this.radius / Math.sin(Math.atan(Math.tan(fov / 2) * this.camera.aspect));
+    const dist = Math.max(fitH, fitW) * 1.3;
+    const dir = new THREE.Vector3(0.35, 0.28, 1).normalize();
+    this.camera.position.copy(s.center).addScaledVector(dir, dist);
+    this.camera.near = dist / 100;
+    this.camera.far = dist * 100;
+    this.camera.updateProjectionMatrix();
+    if (this.controls) {
+      this.controls.target.copy(s.center);
+      this.controls.update();
+    } else {
+      this.camera.lookAt(s.center);
+    }
+    this.requestRender();
+  }
+
+  /** World units per CSS pixel at distance `point` from the camera. */
+  worldPerPixel(point) {
+    const d = this.camera.position.distanceTo(point);
+    const h = this.canvas.clientHeight || 1;
+    return (2 * d * Math.tan(THREE.MathUtils.degToRad(this.camera.fov) / 2)) / h;
+  }
+
+  /** CSS pixel coordinates (relative to the canvas) of a world point. */
+  project(p) {
+    const v = new THREE.Vector3(p[0], p[1], p[2]).project(this.camera);
+    return [((v.x + 1) / 2) * this.canvas.clientWidth, ((1 - v.y) / 2) * this.canvas.clientHeight];
+  }
+
+  requestRender() {
+    if (this._renderQueued) return;
+    this._renderQueued = true;
+    requestAnimationFrame(() => {
+      this._renderQueued = false;
+      this.render();
+    });
+  }
+
+  render() {
+    this.renderer.render(this.scene, this.camera);
+    this.onRender?.();
+  }
+}
