@@ -1,0 +1,292 @@
+"""Interactive throughput and latency of the studio server, measured like a user dragging a handle.
+
+Starts the real server (uvicorn in a subprocess on a free loopback port), uploads a mesh through the WebSocket
+(``upload`` message: the server never opens a path a client names), selects the whole mesh as region of interest,
+fixes the lowest 10% of the vertices along y and makes the top 10% one handle group, then drags that handle along
+a smooth path:
+
+* **interactive**: send a drag, wait for its ``vertices`` frame, send the next (a user whose pointer follows the
+  shape);
+* **firehose**: send drags at 60 Hz regardless of answers (pointer events); the server drops stale ones.
+
+It reports updates per second and the latency from sending a drag to receiving its vertices (median, p95) for 1
+and 3 iterations per update, then runs N concurrent dragging sessions and reports how many hold ≥ 10 updates/s.
+
+Usage::
+
+    .venv/bin/python benchmarks/bench_studio.py [--mesh ../shared/meshes/armadillo.obj] [--seconds 5]
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import json
+import math
+import os
+import subprocess
+import sys
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from websockets.asyncio.client import ClientConnection, connect
+
+from arap.server.protocol import decode_binary, encode_binary
+
+ROOT = Path(__file__).resolve().parents[1]
+DEFAULT_MESH = ROOT.parent / "shared" / "meshes" / "armadillo.obj"
+TARGET_UPDATES = 30.0
+TARGET_P95_MS = 50.0
+
+
+@dataclass
+class Run:
+    """Outcome of one dragging run."""
+
+    label: str
+    updates: int = 0
+    sent: int = 0
+    seconds: float = 0.0
+    latencies_ms: list[float] = field(default_factory=list)
+    solve_ms: list[float] = field(default_factory=list)
+
+    @property
+    def rate(self) -> float:
+        return self.updates / self.seconds if self.seconds else 0.0
+
+    def pct(self, values: list[float], q: float) -> float:
+        return float(np.percentile(values, q)) if values else float("nan")
+
+
+# ---------------------------------------------------------------------------------------------- server
+def start_server() -> tuple[subprocess.Popen[str], str]:
+    """Run the studio in a subprocess on a free port; its ws:// URL."""
+    code = ("import sys\nfrom arap.server import serve\n"
+            "serve(port=0, log_level='warning', on_ready=lambda url: print(url, flush=True))\n")
+    proc = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE, text=True, cwd=ROOT)
+    assert proc.stdout is not None
+    line = proc.stdout.readline().strip()
+    if not line.startswith("http://"):
+        proc.kill()
+        raise RuntimeError(f"server did not start (got {line!r})")
+    return proc, line.replace("http://", "ws://") + "ws"
+
+
+# ---------------------------------------------------------------------------------------------- client
+class Studio:
+    """A minimal protocol client."""
+
+    def __init__(self, ws: ClientConnection) -> None:
+        self.ws = ws
+        self.V = np.zeros((0, 3))
+        self.handle: list[int] = []
+        self.center = np.zeros(3)
+        self.height = 1.0
+
+    async def recv(self) -> tuple[dict[str, Any], memoryview | None]:
+        msg = await self.ws.recv()
+        if isinstance(msg, str):
+            return json.loads(msg), None
+        return decode_binary(msg)
+
+    async def expect(self, type_: str) -> tuple[dict[str, Any], memoryview | None]:
+        data, payload = await self.recv()
+        if data["type"] != type_:
+            raise RuntimeError(f"expected {type_}, got {data}")
+        return data, payload
+
+    async def setup(self, mesh: Path) -> None:
+        await self.expect("welcome")
+        await self.expect("mesh")
+        await self.expect("state")
+        await self.ws.send(encode_binary({"type": "upload", "filename": mesh.name}, mesh.read_bytes()))
+        header, payload = await self.expect("mesh")
+        await self.expect("state")
+        n = header["n_vertices"]
+        assert payload is not None
+        self.V = np.frombuffer(bytes(payload[: 12 * n]), dtype="<f4").reshape(n, 3).astype(np.float64)
+        y = self.V[:, 1]
+        fixed = np.flatnonzero(y <= np.quantile(y, 0.1)).tolist()
+        self.handle = np.flatnonzero(y >= np.quantile(y, 0.9)).tolist()
+        self.center = self.V[self.handle].mean(axis=0)
+        self.height = float(np.ptp(y))
+        await self.ws.send(json.dumps({"type": "set_constraints", "roi": None, "fixed": fixed,
+                                       "handle_groups": [self.handle]}))
+        await self.expect("state")
+
+    async def set_iterations(self, k: int) -> None:
+        await self.ws.send(json.dumps({"type": "set_params", "iterations": k}))
+        await self.expect("state")
+
+    def transform(self, t: float) -> list[float]:
+        """Handle transform at time ``t`` (s): a sway and a slight twist, like a hand moving the head."""
+        a = 0.25 * self.height
+        angle = 0.35 * math.sin(2 * math.pi * t / 3.0)
+        c, s = math.cos(angle), math.sin(angle)
+        R = np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]])
+        M = np.eye(4)
+        M[:3, :3] = R
+        shift = np.array([a * math.sin(2 * math.pi * t / 2.0), 0.1 * a * math.sin(2 * math.pi * t / 1.5), 0.0])
+        M[:3, 3] = self.center - R @ self.center + shift
+        return M.T.reshape(16).tolist()
+
+    async def drag(self, seq: int, t: float) -> None:
+        await self.ws.send(json.dumps({"type": "drag", "seq": seq, "transforms": [self.transform(t)]}))
+
+    async def interactive(self, seconds: float, label: str, seq0: int = 0) -> Run:
+        run = Run(label)
+        start = time.perf_counter()
+        seq = seq0
+        while time.perf_counter() - start < seconds:
+            sent = time.perf_counter()
+            await self.drag(seq, sent - start)
+            header, _ = await self.expect("vertices")
+            assert header["seq"] == seq
+            run.latencies_ms.append(1000 * (time.perf_counter() - sent))
+            run.solve_ms.append(header["solve_ms"])
+            run.updates += 1
+            seq += 1
+        run.sent = run.updates
+        run.seconds = time.perf_counter() - start
+        return run
+
+    async def firehose(self, seconds: float, label: str, hz: float = 60.0, seq0: int = 0) -> Run:
+        run = Run(label)
+        sent_at: dict[int, float] = {}
+        start = time.perf_counter()
+        done = asyncio.Event()
+        last_seq = seq0
+
+        async def sender() -> None:
+            nonlocal last_seq
+            seq = seq0
+            while time.perf_counter() - start < seconds:
+                sent_at[seq] = time.perf_counter()
+                await self.drag(seq, sent_at[seq] - start)
+                last_seq = seq
+                seq += 1
+                await asyncio.sleep(max(0.0, start + (seq - seq0) / hz - time.perf_counter()))
+            done.set()
+
+        async def receiver() -> None:
+            while True:
+                header, _ = await self.expect("vertices")
+                run.latencies_ms.append(1000 * (time.perf_counter() - sent_at[header["seq"]]))
+                run.solve_ms.append(header["solve_ms"])
+                run.updates += 1
+                if done.is_set() and header["seq"] == last_seq:
+                    return
+
+        await asyncio.gather(sender(), receiver())
+        run.sent = last_seq - seq0 + 1
+        run.seconds = time.perf_counter() - start
+        return run
+
+
+async def open_session(url: str, mesh: Path) -> tuple[ClientConnection, Studio]:
+    ws = await connect(url, compression=None, max_size=None, open_timeout=60)
+    studio = Studio(ws)
+    await studio.setup(mesh)
+    return ws, studio
+
+
+# ---------------------------------------------------------------------------------------------- scenarios
+async def single(url: str, mesh: Path, seconds: float, iterations: list[int]) -> list[Run]:
+    ws, studio = await open_session(url, mesh)
+    runs = []
+    try:
+        print(f"mesh {mesh.name}: {len(studio.V):,} vertices, handle {len(studio.handle):,} vertices",
+              flush=True)
+        await studio.set_iterations(1)
+        await studio.interactive(1.0, "warm-up")
+        seq = 100_000
+        for k in iterations:
+            await studio.set_iterations(k)
+            runs.append(await studio.interactive(seconds, f"interactive, {k} it", seq))
+            seq += 100_000
+            runs.append(await studio.firehose(seconds, f"firehose 60 Hz, {k} it", seq0=seq))
+            seq += 100_000
+    finally:
+        await ws.close()
+    return runs
+
+
+async def concurrent(url: str, mesh: Path, seconds: float, n: int, iterations: int) -> list[Run]:
+    sessions = [await open_session(url, mesh) for _ in range(n)]
+    try:
+        for _, s in sessions:
+            await s.set_iterations(iterations)
+            await s.interactive(0.5, "warm-up")
+        return list(await asyncio.gather(*(s.interactive(seconds, f"session {i}", 10**6)
+                                           for i, (_, s) in enumerate(sessions))))
+    finally:
+        for ws, _ in sessions:
+            await ws.close()
+
+
+def print_runs(runs: list[Run]) -> None:
+    print(f"\n{'run':<26} {'updates/s':>10} {'sent':>6} {'answered':>9} {'latency med':>12} {'p95':>8} "
+          f"{'solve med':>10}")
+    for r in runs:
+        print(f"{r.label:<26} {r.rate:>10.1f} {r.sent:>6} {r.updates:>9} {r.pct(r.latencies_ms, 50):>10.1f}ms "
+              f"{r.pct(r.latencies_ms, 95):>6.1f}ms {r.pct(r.solve_ms, 50):>8.1f}ms")
+
+
+async def main_async(args: argparse.Namespace) -> dict[str, Any]:
+    proc, url = start_server()
+    results: dict[str, Any] = {"mesh": str(args.mesh), "cpus": os.cpu_count()}
+    try:
+        runs = await single(url, args.mesh, args.seconds, args.iterations)
+        print_runs(runs)
+        one = next(r for r in runs if r.label == "interactive, 1 it")
+        ok = one.rate >= TARGET_UPDATES and one.pct(one.latencies_ms, 95) <= TARGET_P95_MS
+        print(f"\ntarget at 1 iteration (interactive): >= {TARGET_UPDATES:.0f} updates/s and p95 <= "
+              f"{TARGET_P95_MS:.0f} ms: {'met' if ok else 'NOT met'} ({one.rate:.1f} updates/s, p95 "
+              f"{one.pct(one.latencies_ms, 95):.1f} ms)")
+        results["single"] = [{"label": r.label, "updates_per_s": r.rate, "sent": r.sent, "answered": r.updates,
+                              "latency_median_ms": r.pct(r.latencies_ms, 50),
+                              "latency_p95_ms": r.pct(r.latencies_ms, 95),
+                              "solve_median_ms": r.pct(r.solve_ms, 50)} for r in runs]
+        print(f"\nconcurrent sessions ({args.concurrent_iterations} iteration(s) per update, interactive)")
+        print(f"{'sessions':>8} {'updates/s each':>32} {'min':>6} {'>= 10/s':>8} {'p95 latency':>12}")
+        results["concurrent"] = []
+        for n in args.sessions:
+            cr = await concurrent(url, args.mesh, args.seconds, n, args.concurrent_iterations)
+            rates = [r.rate for r in cr]
+            holding = sum(r >= 10.0 for r in rates)
+            p95 = max(r.pct(r.latencies_ms, 95) for r in cr)
+            shown = " ".join(f"{x:.1f}" for x in rates)
+            print(f"{n:>8} {shown:>32} {min(rates):>6.1f} {holding:>5}/{n:<2} {p95:>10.1f}ms", flush=True)
+            results["concurrent"].append({"sessions": n, "updates_per_s": rates, "holding_10": holding,
+                                          "worst_p95_ms": p95})
+    finally:
+        proc.terminate()
+        try:
+            proc.wait(timeout=10)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+    return results
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--mesh", type=Path, default=DEFAULT_MESH, help="mesh file to upload")
+    parser.add_argument("--seconds", type=float, default=5.0, help="duration of each run")
+    parser.add_argument("--iterations", type=int, nargs="+", default=[1, 3], help="iterations per update")
+    parser.add_argument("--sessions", type=int, nargs="+", default=[1, 2, 4, 8], help="concurrent sessions")
+    parser.add_argument("--concurrent-iterations", type=int, default=1, help="iterations per update when "
+                        "several sessions drag at once")
+    parser.add_argument("--json", type=Path, help="also write the figures to this file")
+    args = parser.parse_args()
+    if not args.mesh.is_file():
+        parser.error(f"mesh not found: {args.mesh}")
+    results = asyncio.run(main_async(args))
+    if args.json:
+        args.json.write_text(json.dumps(results, indent=2))
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,155 @@
+"""The studio's web application: the built browser client, the WebSocket endpoint and a health check."""
+
+from __future__ import annotations
+
+import logging
+import os
+from pathlib import Path
+
+from starlette.applications import Starlette
+from starlette.requests import Request
+from starlette.responses import FileResponse, HTMLResponse, JSONResponse, PlainTextResponse, Response
+from starlette.routing import Mount, Route, WebSocketRoute
+from starlette.staticfiles import StaticFiles
+from starlette.types import Receive, Scope, Send
+from starlette.websockets import WebSocket
+
+import arap
+from arap.server.connection import Connection, StudioConfig
+from arap.server.meshdata import MeshData, load_default
+
+__all__ = ["DEFAULT_MAX_UPLOAD_BYTES", "DEFAULT_MAX_VERTICES", "STATIC_DIR", "create_app", "frame_limit"]
+
+logger = logging.getLogger(__name__)
+
+STATIC_DIR = Path(__file__).resolve().parent.parent / "static"
+"""Where ``./dev setup`` (``npm run build`` in ``web/``) puts the built client."""
+
+DEFAULT_MAX_UPLOAD_BYTES = 50 * 2**20
+DEFAULT_MAX_VERTICES = 2_000_000
+
+_NOT_BUILT = """<!doctype html>
+<html lang="en"><head><meta charset="utf-8"><title>ARAP Studio: client not built</title></head>
+<body style="font-family: sans-serif; max-width: 40em; margin: 4em auto">
+<h1>ARAP Studio: the browser client is not built</h1>
+<p>The server is running, but it found no <code>index.html</code> in <code>{static}</code>.</p>
+<p>Build the client with <code>./dev setup</code> (from the repository root), then reload this page.</p>
+</body></html>
+"""
+
+
+def frame_limit(max_upload_bytes: int) -> int:
+    """Largest WebSocket frame accepted for a given upload cap (room for the header and large selections)."""
+    return max(max_upload_bytes, 64 * 2**20) + 2**20
+
+
+class _Studio:
+    """Shared state of the application: configuration, default mesh, live session count."""
+
+    def __init__(self, config: StudioConfig, default_mesh: MeshData, static_dir: Path) -> None:
+        self.config = config
+        self.default_mesh = default_mesh
+        self.static_dir = static_dir
+        self.sessions = 0
+
+
+class _ClientFiles:
+    """Static files of the built client; 404 for everything while the client is not built."""
+
+    def __init__(self, directory: Path) -> None:
+        self.directory = directory
+        self._files: StaticFiles | None = None
+
+    async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
+        if not self.directory.is_dir():
+            response: Response = PlainTextResponse("not found (the studio client is not built)", status_code=404)
+            await response(scope, receive, send)
+            return
+        if self._files is None:
+            self._files = StaticFiles(directory=self.directory, html=True)
+        await self._files(scope, receive, send)
+
+
+def create_app(
+    default_mesh: str | os.PathLike[str] | None = None,
+    *,
+    max_upload_bytes: int = DEFAULT_MAX_UPLOAD_BYTES,
+    max_vertices: int = DEFAULT_MAX_VERTICES,
+    max_history_steps: int = 100,
+    max_history_bytes: int = 512 * 2**20,
+    max_pending: int = 256,
+    static_dir: str | os.PathLike[str] | None = None,
+) -> Starlette:
+    """Build the studio application.
+
+    Parameters
+    ----------
+    default_mesh : str, path-like or None
+        Mesh every new session starts with: a built-in model name (``arap.BUILTIN_MESHES``), a mesh file chosen
+        by whoever runs the server, or None for the first built-in model. Loaded once, here.
+    max_upload_bytes : int
+        Largest mesh file a client may upload.
+    max_vertices : int
+        Largest uploaded mesh, in vertices.
+    max_history_steps, max_history_bytes : int
+        Undo history limits per session.
+    max_pending : int
+        Requests that may wait in one session's queue before more are answered ``busy``.
+    static_dir : path-like or None
+        Built client (default: the package's ``static`` folder).
+
+    Returns
+    -------
+    starlette.applications.Starlette
+        Routes: ``/`` (the client, or a 503 page when it is not built), ``/ws`` (the WebSocket protocol of
+        ``docs/protocol.md``), ``/healthz`` and the client's static files.
+
+    Raises
+    ------
+    arap.errors.ArapError
+        The default mesh cannot be loaded.
+    ValueError
+        A limit is not positive.
+    """
+    for name, value in (("max_upload_bytes", max_upload_bytes), ("max_vertices", max_vertices),
+                        ("max_history_steps", max_history_steps), ("max_pending", max_pending)):
+        if int(value) < 1:
+            raise ValueError(f"{name} must be positive, got {value}")
+    config = StudioConfig(
+        max_upload_bytes=int(max_upload_bytes),
+        max_vertices=int(max_vertices),
+        max_frame_bytes=frame_limit(int(max_upload_bytes)),
+        max_pending=int(max_pending),
+        max_history_steps=int(max_history_steps),
+        max_history_bytes=int(max_history_bytes),
+    )
+    mesh = load_default(default_mesh)
+    logger.info("default mesh %s: %d vertices, %d faces", mesh.name, mesh.n_vertices, mesh.n_faces)
+    static = Path(static_dir) if static_dir is not None else STATIC_DIR
+    studio = _Studio(config, mesh, static)
+
+    async def index(request: Request) -> Response:
+        page = static / "index.html"
+        if not page.is_file():
+            return HTMLResponse(_NOT_BUILT.format(static=static), status_code=503)
+        return FileResponse(page, headers={"Cache-Control": "no-cache"})
+
+    async def healthz(request: Request) -> Response:
+        return JSONResponse({"status": "ok", "version": arap.__version__, "sessions": studio.sessions,
+                             "client_built": (static / "index.html").is_file()})
+
+    async def websocket(ws: WebSocket) -> None:
+        studio.sessions += 1
+        try:
+            await Connection(ws, studio.config, studio.default_mesh).run()
+        finally:
+            studio.sessions -= 1
+
+    app = Starlette(routes=[
+        Route("/", index),
+        Route("/healthz", healthz),
+        WebSocketRoute("/ws", websocket),
+        Mount("/", app=_ClientFiles(static)),
+    ])
+    app.state.studio = studio
+    return app

@@ -1,0 +1,230 @@
+"""A studio constraint set: region of interest, fixed vertices and handle groups, with their target positions.
+
+Constraints refer to a *pose*: the deformed shape at the moment they were accepted (the rest pose on a fresh
+mesh). Fixed vertices stay at their pose positions, handle group ``g`` goes to ``transforms[g]`` applied to its
+pose positions, and vertices outside the region of interest that the pose had moved away from the rest pose stay
+where they are. Changing the selection in the middle of an edit therefore keeps the current shape instead of
+snapping back to the rest pose; the energy is still measured against the rest pose.
+"""
+
+from __future__ import annotations
+
+import hashlib
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from arap.server.protocol import RequestError
+
+__all__ = ["ConstraintSet", "identity_transforms", "matrices_from_json", "matrices_to_json"]
+
+
+def identity_transforms(n_groups: int) -> np.ndarray:
+    """``(n_groups, 4, 4)`` identity matrices."""
+    return np.tile(np.eye(4), (n_groups, 1, 1))
+
+
+def matrices_from_json(matrices: Sequence[Sequence[float]]) -> np.ndarray:
+    """Column-major 16-number lists (Three.js ``Matrix4.elements``) to ``(g, 4, 4)`` row-major matrices."""
+    if not len(matrices):
+        return np.zeros((0, 4, 4))
+    return np.asarray(matrices, dtype=np.float64).reshape(-1, 4, 4).transpose(0, 2, 1).copy()
+
+
+def matrices_to_json(T: np.ndarray) -> list[list[float]]:
+    """Inverse of :func:`matrices_from_json`."""
+    return [m.T.reshape(16).tolist() for m in T]
+
+
+def _digest(*arrays: np.ndarray | None) -> bytes:
+    h = hashlib.blake2b(digest_size=16)
+    for a in arrays:
+        if a is None:
+            h.update(b"none;")
+        else:
+            h.update(np.ascontiguousarray(a, dtype=np.int64).tobytes())
+            h.update(b";")
+    return h.digest()
+
+
+def _find_repeat(arrays: list[tuple[str, np.ndarray]]) -> tuple[int, list[str]] | None:
+    """A vertex listed more than once across the named lists, and the lists naming it."""
+    if not arrays:
+        return None
+    allv = np.concatenate([a for _, a in arrays])
+    uniq, counts = np.unique(allv, return_counts=True)
+    if not np.any(counts > 1):
+        return None
+    v = int(uniq[np.argmax(counts > 1)])
+    return v, [name for name, a in arrays if np.any(a == v)]
+
+
+@dataclass(frozen=True, eq=False)
+class ConstraintSet:
+    """Validated constraints of a session (treat as immutable).
+
+    Attributes
+    ----------
+    roi : (r,) int64 array or None
+        Region of interest; None is the whole mesh.
+    fixed : (f,) int64 array
+    groups : tuple of (h_g,) int64 arrays
+        Handle groups.
+    pose : (n, 3) float64 array
+        Positions the constraints refer to.
+    held : (p,) int64 array
+        Vertices outside the region of interest whose pose differs from the rest pose; held at their pose.
+    constrained : (k,) int64 array
+        ``fixed``, then every group, then ``held``: the solver's constrained vertices in target order.
+    """
+
+    roi: np.ndarray | None
+    fixed: np.ndarray
+    groups: tuple[np.ndarray, ...]
+    pose: np.ndarray
+    held: np.ndarray
+    constrained: np.ndarray
+
+    @classmethod
+    def build(
+        cls,
+        rest: np.ndarray,
+        pose: np.ndarray,
+        roi: Sequence[int] | None,
+        fixed: Sequence[int],
+        groups: Sequence[Sequence[int]],
+    ) -> ConstraintSet:
+        """Validate a constraint set for a mesh.
+
+        Parameters
+        ----------
+        rest : (n, 3) array
+            Rest pose.
+        pose : (n, 3) array
+            Current deformed positions (the constraints' reference).
+        roi : list of int or None
+        fixed : list of int
+        groups : list of lists of int
+
+        Returns
+        -------
+        ConstraintSet
+
+        Raises
+        ------
+        RequestError
+            ``bad_constraints``: index out of range, a vertex repeated within or across ``fixed`` and the
+            groups, a repeated ROI vertex or an empty handle group.
+        """
+        n = len(rest)
+        named: list[tuple[str, np.ndarray]] = [("fixed", np.asarray(fixed, dtype=np.int64).reshape(-1))]
+        named += [(f"handle group {i}", np.asarray(g, dtype=np.int64).reshape(-1)) for i, g in enumerate(groups)]
+        roi_arr = None if roi is None else np.asarray(roi, dtype=np.int64).reshape(-1)
+        checked = [*named, ("roi", roi_arr)] if roi_arr is not None else named
+        for name, a in checked:
+            if len(a) and (a.min() < 0 or a.max() >= n):
+                bad = int(a[(a < 0) | (a >= n)][0])
+                raise RequestError("bad_constraints", f"{name}: vertex index {bad} out of range 0..{n - 1}")
+        for i, (_, g) in enumerate(named[1:]):
+            if not len(g):
+                raise RequestError("bad_constraints", f"handle group {i} is empty")
+        rep = _find_repeat(named)
+        if rep is not None:
+            v, where = rep
+            places = " and ".join(where) if len(where) > 1 else f"{where[0]} (twice)"
+            raise RequestError("bad_constraints",
+                               f"vertex {v} is listed more than once ({places}); a vertex is either fixed or in "
+                               "one handle group")
+        if roi_arr is not None:
+            rep = _find_repeat([("roi", roi_arr)])
+            if rep is not None:
+                raise RequestError("bad_constraints", f"roi lists vertex {rep[0]} more than once")
+        fixed_arr = named[0][1]
+        group_arrs = tuple(a for _, a in named[1:])
+        held = np.zeros(0, dtype=np.int64)
+        if roi_arr is not None:
+            outside = np.ones(n, dtype=bool)
+            outside[roi_arr] = False
+            for _, a in named:
+                outside[a] = False
+            outside &= np.any(pose != rest, axis=1)
+            held = np.flatnonzero(outside).astype(np.int64)
+        constrained = np.concatenate([fixed_arr, *group_arrs, held]).astype(np.int64)
+        for a in (fixed_arr, *group_arrs, held):
+            a.setflags(write=False)
+        return cls(roi_arr, fixed_arr, group_arrs, pose, held, constrained)
+
+    @classmethod
+    def empty(cls, pose: np.ndarray) -> ConstraintSet:
+        """No constraints at all (a fresh mesh)."""
+        z = np.zeros(0, dtype=np.int64)
+        return cls(None, z, (), pose, z, z)
+
+    # ------------------------------------------------------------------ queries
+    @property
+    def n_groups(self) -> int:
+        """Number of handle groups."""
+        return len(self.groups)
+
+    @property
+    def is_empty(self) -> bool:
+        """True when nothing is constrained (no fixed vertex and no handle)."""
+        return not len(self.fixed) and not self.groups
+
+    def same_selection(self, other: ConstraintSet) -> bool:
+        """True if ``other`` selects the same roi, fixed vertices and groups (poses aside)."""
+        return self.selection_digest() == other.selection_digest()
+
+    def selection_digest(self) -> bytes:
+        """Hash of the selection (roi, fixed, groups)."""
+        return _digest(self.roi, self.fixed, *self.groups, np.asarray([len(g) for g in self.groups]))
+
+    def solver_digest(self) -> bytes:
+        """Hash of what the solver's factorisation depends on (constrained vertices and roi)."""
+        return _digest(self.roi, self.constrained)
+
+    def handle_targets(self, transforms: np.ndarray) -> np.ndarray:
+        """Targets of the handle vertices (groups concatenated) under ``transforms`` ``(g, 4, 4)``."""
+        parts = []
+        for g, idx in enumerate(self.groups):
+            M = transforms[g]
+            parts.append(self.pose[idx] @ M[:3, :3].T + M[:3, 3])
+        return np.concatenate(parts) if parts else np.zeros((0, 3))
+
+    def targets(self, transforms: np.ndarray) -> np.ndarray:
+        """Targets of :attr:`constrained`, in order, under ``transforms`` ``(g, 4, 4)``."""
+        return np.concatenate([self.pose[self.fixed], self.handle_targets(transforms), self.pose[self.held]])
+
+    def to_json(self) -> dict[str, Any]:
+        """The selection as sent in ``state`` messages."""
+        return {
+            "roi": None if self.roi is None else self.roi.tolist(),
+            "fixed": self.fixed.tolist(),
+            "handle_groups": [g.tolist() for g in self.groups],
+        }
+
+    def document(self, rest: np.ndarray, transforms: np.ndarray) -> dict[str, Any]:
+        """Constraints document in the command-line format.
+
+        ``handles`` lists the handle groups' vertices in group order with their current ``targets``; fixed
+        vertices and vertices outside the region of interest that the current pose keeps away from the rest pose
+        follow them (with their pose positions as targets), so that the document reproduces the current
+        constraints against the rest pose. ``fixed`` lists the fixed vertices that are at rest.
+        """
+        handles = [np.concatenate(self.groups) if self.groups else np.zeros(0, dtype=np.int64)]
+        targets = [self.handle_targets(transforms)]
+        displaced = np.any(self.pose[self.fixed] != rest[self.fixed], axis=1)
+        extra = np.concatenate([self.fixed[displaced], self.held])
+        handles.append(extra)
+        targets.append(self.pose[extra])
+        doc: dict[str, Any] = {
+            "fixed": self.fixed[~displaced].tolist(),
+            "handles": np.concatenate(handles).tolist(),
+            "targets": np.concatenate(targets).tolist(),
+            "handle_groups": [g.tolist() for g in self.groups],
+        }
+        if self.roi is not None:
+            doc["roi"] = self.roi.tolist()
+        return doc

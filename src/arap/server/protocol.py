@@ -1,0 +1,525 @@
+"""The studio wire protocol: message types, their fields, error codes and the binary frame layout.
+
+This module is the single source of truth of the protocol spoken over the studio's WebSocket (see
+``docs/protocol.md``). The browser client's copy, ``web/src/protocol.js``, is generated from it::
+
+    python -m arap.server.protocol > web/src/protocol.js
+
+Incoming messages are validated in two stages: :func:`parse_text` / :func:`parse_binary` check the
+structure of a frame (JSON object, known type, every field of the right type and range) without knowing the
+session, and :func:`check_against_mesh` checks what depends on the session's current mesh (vertex index bounds,
+number of handle groups). Both raise :class:`RequestError`, which the server turns into an ``error`` reply.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import struct
+from dataclasses import dataclass, field
+from typing import Any
+
+__all__ = [
+    "CLIENT_MESSAGES",
+    "ENERGIES",
+    "ERROR_CODES",
+    "EXPORT_FORMATS",
+    "MAX_HANDLE_GROUPS",
+    "MAX_HEADER_BYTES",
+    "PARAMS",
+    "PROTOCOL_VERSION",
+    "SERVER_MESSAGES",
+    "UPLOAD_EXTENSIONS",
+    "WEIGHTS",
+    "ClientMessage",
+    "Field",
+    "MessageSpec",
+    "RequestError",
+    "check_against_mesh",
+    "decode_binary",
+    "encode_binary",
+    "main",
+    "parse_binary",
+    "parse_text",
+    "validate",
+]
+
+PROTOCOL_VERSION = 1
+"""Bumped on every incompatible change of the messages below."""
+
+MAX_HEADER_BYTES = 65536
+"""Largest JSON header accepted in a binary frame."""
+
+MAX_HANDLE_GROUPS = 256
+"""Most handle groups one constraint set may have."""
+
+MAX_SEQ = 2**53 - 1
+"""Largest ``seq`` of a drag (the largest integer a JavaScript number holds exactly)."""
+
+AFFINE_TOLERANCE = 1e-9
+"""How far the last row of a drag transform may be from (0, 0, 0, 1)."""
+
+ENERGIES = ("spokes", "spokes_and_rims")
+WEIGHTS = ("cotangent", "uniform")
+EXPORT_FORMATS = ("obj", "ply")
+UPLOAD_EXTENSIONS = (".obj", ".off", ".ply", ".stl")
+
+PARAMS: dict[str, dict[str, Any]] = {
+    "iterations": {"min": 1, "max": 100, "default": 2},
+    "energy": {"choices": list(ENERGIES), "default": "spokes"},
+    "weights": {"choices": list(WEIGHTS), "default": "cotangent"},
+}
+"""Solver parameters a client may set, with their ranges and defaults."""
+
+ERROR_CODES: dict[str, str] = {
+    "bad_message": "not JSON, not an object, unknown type, unknown or missing field, wrong field type/range",
+    "bad_mesh": "the mesh could not be read or is unusable",
+    "too_large": "a frame, upload or mesh exceeds the server's limits",
+    "bad_constraints": "indices out of range or repeated, or a region no constraint pins down",
+    "no_mesh": "the request needs a mesh and the session has none",
+    "busy": "too many requests are waiting in this session; the request was dropped",
+    "internal": "an unexpected server error; the session continues",
+}
+"""Error codes of the ``error`` message and what they mean."""
+
+
+class RequestError(Exception):
+    """A request was rejected; becomes an ``error`` message and leaves the session unchanged.
+
+    Parameters
+    ----------
+    code : str
+        One of :data:`ERROR_CODES`.
+    message : str
+        Human-readable explanation (shown to the user).
+    request : str or None
+        Type of the rejected message, when known.
+    """
+
+    def __init__(self, code: str, message: str, request: str | None = None) -> None:
+        if code not in ERROR_CODES:
+            raise ValueError(f"unknown error code {code!r}")
+        super().__init__(message)
+        self.code = code
+        self.message = message
+        self.request = request
+
+    def to_message(self) -> dict[str, Any]:
+        """The ``error`` message to send."""
+        return {"type": "error", "code": self.code, "message": self.message, "request": self.request}
+
+
+# ---------------------------------------------------------------------------------------------- message specs
+@dataclass(frozen=True)
+class Field:
+    """One field of a message.
+
+    Attributes
+    ----------
+    name : str
+    kind : str
+        ``int``, ``number``, ``string``, ``enum``, ``indices`` (list of vertex indices),
+        ``indices_or_null``, ``index_groups`` (list of lists of vertex indices), ``matrices`` (list of 4×4
+        matrices, 16 numbers each, column-major), ``bool``, ``object``, ``list``.
+    doc : str
+        What the field means.
+    required : bool
+    minimum, maximum : int or None
+        Inclusive range of an ``int`` field.
+    choices : tuple of str
+        Allowed values of an ``enum`` field.
+    max_length : int or None
+        Longest allowed ``string``, or most elements of a list field.
+    """
+
+    name: str
+    kind: str
+    doc: str
+    required: bool = True
+    minimum: int | None = None
+    maximum: int | None = None
+    choices: tuple[str, ...] = ()
+    max_length: int | None = None
+
+    def to_json(self) -> dict[str, Any]:
+        """Plain description (for the generated client module)."""
+        out: dict[str, Any] = {"name": self.name, "kind": self.kind, "required": self.required}
+        if self.minimum is not None:
+            out["min"] = self.minimum
+        if self.maximum is not None:
+            out["max"] = self.maximum
+        if self.choices:
+            out["choices"] = list(self.choices)
+        if self.max_length is not None:
+            out["maxLength"] = self.max_length
+        return out
+
+
+@dataclass(frozen=True)
+class MessageSpec:
+    """A message type: its name, whether it travels in a binary frame, its fields and what it does."""
+
+    type: str
+    doc: str
+    fields: tuple[Field, ...] = ()
+    binary: bool = False
+    at_least_one: bool = False
+    field_names: frozenset[str] = field(init=False)
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "field_names", frozenset(f.name for f in self.fields))
+
+
+def _spec(
+    type_: str, doc: str, *fields: Field, binary: bool = False, at_least_one: bool = False
+) -> MessageSpec:
+    return MessageSpec(type_, doc, tuple(fields), binary=binary, at_least_one=at_least_one)
+
+
+CLIENT_MESSAGES: dict[str, MessageSpec] = {
+    s.type: s
+    for s in (
+        _spec("load_builtin", "replace the session's mesh by a built-in model",
+              Field("name", "string", "built-in model name (welcome.builtin_meshes)", max_length=64)),
+        _spec("upload", "load an uploaded OBJ/OFF/PLY/STL file (payload: the file's bytes)",
+              Field("filename", "string", "original file name; only its extension is used", max_length=255),
+              binary=True),
+        _spec("set_constraints", "new constraint set; transforms of all groups reset to identity",
+              Field("roi", "indices_or_null", "region of interest, or null for the whole mesh"),
+              Field("fixed", "indices", "vertices held in place"),
+              Field("handle_groups", "index_groups", "vertices moved together by one transform per group",
+                    max_length=MAX_HANDLE_GROUPS)),
+        _spec("drag", "move the handle groups; only the newest pending drag is solved",
+              Field("seq", "int", "sequence number echoed by the answering vertices frame", minimum=0,
+                    maximum=MAX_SEQ),
+              Field("transforms", "matrices", "one affine 4x4 matrix per handle group, column-major",
+                    max_length=MAX_HANDLE_GROUPS)),
+        _spec("end_drag", "the current deformation becomes one undo step"),
+        _spec("set_params", "change solver parameters (any of the fields)",
+              Field("iterations", "int", "local/global iterations per update", required=False,
+                    minimum=PARAMS["iterations"]["min"], maximum=PARAMS["iterations"]["max"]),
+              Field("energy", "enum", "ARAP energy", required=False, choices=ENERGIES),
+              Field("weights", "enum", "edge weights", required=False, choices=WEIGHTS),
+              at_least_one=True),
+        _spec("undo", "step back in the edit history"),
+        _spec("redo", "step forward in the edit history"),
+        _spec("reset", "back to the rest pose (undoable)"),
+        _spec("apply", "the deformed shape becomes the new rest pose (undoable)"),
+        _spec("export", "ask for the deformed mesh as a file",
+              Field("format", "enum", "file format", choices=EXPORT_FORMATS)),
+        _spec("get_constraints", "ask for the constraints document (command-line format)"),
+    )
+}
+"""Messages a client may send, by type."""
+
+SERVER_MESSAGES: dict[str, MessageSpec] = {
+    s.type: s
+    for s in (
+        _spec("welcome", "sent once on connect, followed by a mesh frame",
+              Field("version", "string", "server package version"),
+              Field("protocol", "int", "PROTOCOL_VERSION"),
+              Field("builtin_meshes", "list", "names accepted by load_builtin"),
+              Field("limits", "object", "max_upload_bytes, max_vertices, max_handle_groups"),
+              Field("params", "object", "current solver parameters")),
+        _spec("mesh", "a new mesh (payload: float32[n_vertices*3], uint32[n_faces*3]); history is cleared",
+              Field("name", "string", "model name"),
+              Field("n_vertices", "int", "number of vertices"),
+              Field("n_faces", "int", "number of triangles"),
+              Field("report", "list", "repairs made while loading, one line each"),
+              binary=True),
+        _spec("vertices", "current deformed positions (payload: float32[n_vertices*3])",
+              Field("seq", "int", "seq of the drag answered, or -1"),
+              Field("skipped", "int", "stale drags dropped since the previous answer"),
+              Field("iterations", "int", "iterations run"),
+              Field("energies", "list", "energy after each iteration"),
+              Field("solve_ms", "number", "solve time"),
+              Field("ms_per_iteration", "number", "solve time per iteration"),
+              binary=True),
+        _spec("state", "session state after any change",
+              Field("can_undo", "bool", ""), Field("can_redo", "bool", ""),
+              Field("params", "object", "solver parameters"),
+              Field("constraints", "object", "roi, fixed, handle_groups as last accepted"),
+              Field("transforms", "matrices", "current transform of each handle group"),
+              Field("stats", "object", "n_vertices, n_faces, roi_size, n_free, factor_ms")),
+        _spec("constraints", "answer to get_constraints",
+              Field("document", "object", "constraints document (command-line format)")),
+        _spec("export", "answer to export (payload: the file's bytes)",
+              Field("filename", "string", "suggested file name"),
+              Field("mime", "string", "media type"),
+              binary=True),
+        _spec("error", "a request was rejected; the session continues unchanged",
+              Field("code", "enum", "error code", choices=tuple(ERROR_CODES)),
+              Field("message", "string", "explanation"),
+              Field("request", "string", "type of the rejected message, or null")),
+    )
+}
+"""Messages the server sends, by type."""
+
+
+# ---------------------------------------------------------------------------------------------- binary frames
+def encode_binary(header: dict[str, Any], *payload: bytes | bytearray | memoryview) -> bytes:
+    """Build a binary frame: ``u32 LE header length | JSON header padded with spaces | payload``.
+
+    The header is padded so that the payload starts at a multiple of 4 bytes.
+
+    Parameters
+    ----------
+    header : dict
+        JSON-serialisable header with a ``type``.
+    *payload : bytes-like
+        Payload parts, concatenated.
+
+    Returns
+    -------
+    bytes
+    """
+    text = json.dumps(header, separators=(",", ":"), allow_nan=False).encode("utf-8")
+    text += b" " * (-(4 + len(text)) % 4)
+    return b"".join([struct.pack("<I", len(text)), text, *payload])
+
+
+def decode_binary(data: bytes | bytearray | memoryview) -> tuple[dict[str, Any], memoryview]:
+    """Split a binary frame into its JSON header and its payload.
+
+    Parameters
+    ----------
+    data : bytes-like
+
+    Returns
+    -------
+    header : dict
+    payload : memoryview
+
+    Raises
+    ------
+    RequestError
+        ``bad_message`` when the frame is truncated or its header is not a JSON object.
+    """
+    view = memoryview(data)
+    if len(view) < 4:
+        raise RequestError("bad_message", "binary frame shorter than its 4-byte header length")
+    (n,) = struct.unpack_from("<I", view, 0)
+    if n > MAX_HEADER_BYTES:
+        raise RequestError("bad_message", f"binary frame header of {n} bytes exceeds {MAX_HEADER_BYTES}")
+    if 4 + n > len(view):
+        raise RequestError("bad_message", f"binary frame header length {n} exceeds the frame ({len(view)} B)")
+    try:
+        header = _loads(bytes(view[4 : 4 + n]).decode("utf-8"))
+    except UnicodeDecodeError as exc:
+        raise RequestError("bad_message", "binary frame header is not UTF-8") from exc
+    if not isinstance(header, dict):
+        raise RequestError("bad_message", "binary frame header must be a JSON object")
+    return header, view[4 + n :]
+
+
+def _reject_constant(name: str) -> float:
+    raise RequestError("bad_message", f"{name} is not a valid JSON number")
+
+
+def _loads(text: str) -> Any:
+    try:
+        return json.loads(text, parse_constant=_reject_constant)
+    except json.JSONDecodeError as exc:
+        raise RequestError("bad_message", f"not valid JSON: {exc.msg} at position {exc.pos}") from exc
+    except RecursionError as exc:
+        raise RequestError("bad_message", "JSON nested too deeply") from exc
+
+
+# ---------------------------------------------------------------------------------------------- validation
+@dataclass
+class ClientMessage:
+    """A structurally valid client message.
+
+    Attributes
+    ----------
+    type : str
+    fields : dict
+        Validated fields (absent optional fields are left out). Index lists are kept as Python lists here;
+        :func:`check_against_mesh` turns them into arrays.
+    payload : memoryview or None
+        Payload of a binary message.
+    """
+
+    type: str
+    fields: dict[str, Any]
+    payload: memoryview | None = None
+
+
+def _is_int(x: Any) -> bool:
+    return type(x) is int
+
+
+def _is_number(x: Any) -> bool:
+    return (type(x) is int or type(x) is float) and math.isfinite(x)
+
+
+def _check_index_list(value: Any, where: str) -> list[int]:
+    if not isinstance(value, list):
+        raise RequestError("bad_message", f"{where} must be a list of vertex indices")
+    if not all(type(x) is int for x in value):
+        bad = next(x for x in value if type(x) is not int)
+        raise RequestError("bad_message", f"{where} must hold integers, found {json.dumps(bad)[:40]}")
+    return value
+
+
+def _check_field(f: Field, value: Any, mtype: str) -> Any:
+    where = f"{mtype}.{f.name}"
+    kind = f.kind
+    if kind == "int":
+        if not _is_int(value):
+            raise RequestError("bad_message", f"{where} must be an integer")
+        if (f.minimum is not None and value < f.minimum) or (f.maximum is not None and value > f.maximum):
+            raise RequestError("bad_message", f"{where} must be in {f.minimum}..{f.maximum}, got {value}")
+        return value
+    if kind in ("string", "enum"):
+        if not isinstance(value, str):
+            raise RequestError("bad_message", f"{where} must be a string")
+        if f.max_length is not None and len(value) > f.max_length:
+            raise RequestError("bad_message", f"{where} is longer than {f.max_length} characters")
+        if kind == "enum" and value not in f.choices:
+            raise RequestError("bad_message", f"{where} must be one of {list(f.choices)}, got {value[:40]!r}")
+        return value
+    if kind == "indices_or_null" and value is None:
+        return None
+    if kind in ("indices", "indices_or_null"):
+        return _check_index_list(value, where)
+    if kind == "index_groups":
+        if not isinstance(value, list):
+            raise RequestError("bad_message", f"{where} must be a list of lists of vertex indices")
+        if f.max_length is not None and len(value) > f.max_length:
+            raise RequestError("bad_message", f"{where} has {len(value)} groups, at most {f.max_length}")
+        return [_check_index_list(g, f"{where}[{i}]") for i, g in enumerate(value)]
+    if kind == "matrices":
+        if not isinstance(value, list):
+            raise RequestError("bad_message", f"{where} must be a list of 4x4 matrices (16 numbers each)")
+        if f.max_length is not None and len(value) > f.max_length:
+            raise RequestError("bad_message", f"{where} has {len(value)} matrices, at most {f.max_length}")
+        for i, m in enumerate(value):
+            if not isinstance(m, list) or len(m) != 16:
+                raise RequestError("bad_message", f"{where}[{i}] must be a list of 16 numbers")
+            if not all(_is_number(x) for x in m):
+                raise RequestError("bad_message", f"{where}[{i}] must hold 16 finite numbers")
+            if max(abs(m[3]), abs(m[7]), abs(m[11]), abs(m[15] - 1)) > AFFINE_TOLERANCE:
+                raise RequestError(
+                    "bad_message", f"{where}[{i}] must be affine (last row 0, 0, 0, 1; column-major elements "
+                    "3, 7, 11, 15)")
+        return value
+    raise AssertionError(f"field kind {kind!r} cannot be received")
+
+
+def _request_name(obj: dict[str, Any]) -> str | None:
+    t = obj.get("type")
+    return t[:64] if isinstance(t, str) else None
+
+
+def validate(obj: Any, binary: bool, payload: memoryview | None = None) -> ClientMessage:
+    """Check a decoded message against :data:`CLIENT_MESSAGES`.
+
+    Parameters
+    ----------
+    obj : Any
+        Decoded JSON (text message) or header (binary message).
+    binary : bool
+        Whether it came in a binary frame.
+    payload : memoryview or None
+        Payload of a binary frame.
+
+    Returns
+    -------
+    ClientMessage
+
+    Raises
+    ------
+    RequestError
+        ``bad_message`` for anything that does not match.
+    """
+    if not isinstance(obj, dict):
+        raise RequestError("bad_message", f"a message must be a JSON object, got {type(obj).__name__}")
+    request = _request_name(obj)
+    if "type" not in obj:
+        raise RequestError("bad_message", "message has no 'type'")
+    if request is None:
+        raise RequestError("bad_message", "'type' must be a string")
+    spec = CLIENT_MESSAGES.get(obj["type"])
+    if spec is None:
+        raise RequestError("bad_message", f"unknown message type {request!r}", request)
+    if spec.binary != binary:
+        how = "a binary frame" if spec.binary else "a text frame"
+        raise RequestError("bad_message", f"{spec.type} must be sent as {how}", request)
+    unknown = sorted(k for k in obj if k != "type" and k not in spec.field_names)
+    if unknown:
+        raise RequestError("bad_message", f"unknown field {unknown[0][:40]!r} in {spec.type}", request)
+    fields: dict[str, Any] = {}
+    try:
+        for f in spec.fields:
+            if f.name not in obj:
+                if f.required:
+                    raise RequestError("bad_message", f"{spec.type} needs field {f.name!r}")
+                continue
+            fields[f.name] = _check_field(f, obj[f.name], spec.type)
+        if spec.at_least_one and not fields:
+            names = ", ".join(f.name for f in spec.fields)
+            raise RequestError("bad_message", f"{spec.type} needs at least one of {names}")
+    except RequestError as exc:
+        exc.request = request
+        raise
+    return ClientMessage(spec.type, fields, payload if binary else None)
+
+
+def parse_text(text: str) -> ClientMessage:
+    """Decode and validate a text frame. Raises :class:`RequestError`."""
+    return validate(_loads(text), binary=False)
+
+
+def parse_binary(data: bytes | bytearray | memoryview) -> ClientMessage:
+    """Decode and validate a binary frame. Raises :class:`RequestError`."""
+    header, payload = decode_binary(data)
+    return validate(header, binary=True, payload=payload)
+
+
+def check_against_mesh(msg: ClientMessage, n_vertices: int, n_groups: int) -> None:
+    """Check what depends on the session: vertex indices in range, one transform per handle group.
+
+    Parameters
+    ----------
+    msg : ClientMessage
+        A message returned by :func:`parse_text` / :func:`parse_binary`.
+    n_vertices : int
+        Vertices of the session's mesh.
+    n_groups : int
+        Handle groups of the session's current constraint set.
+
+    Raises
+    ------
+    RequestError
+        ``bad_constraints`` for an index out of range, ``bad_message`` for a wrong number of transforms.
+    """
+    if msg.type == "set_constraints":
+        lists: list[tuple[str, list[int]]] = [("fixed", msg.fields["fixed"])]
+        if msg.fields["roi"] is not None:
+            lists.append(("roi", msg.fields["roi"]))
+        lists += [(f"handle_groups[{i}]", g) for i, g in enumerate(msg.fields["handle_groups"])]
+        for name, values in lists:
+            bad = next((v for v in values if v < 0 or v >= n_vertices), None)
+            if bad is not None:
+                raise RequestError("bad_constraints",
+                                   f"{name}: vertex index {bad} out of range 0..{n_vertices - 1}", msg.type)
+    elif msg.type == "drag":
+        got = len(msg.fields["transforms"])
+        if got != n_groups:
+            raise RequestError("bad_message",
+                               f"drag has {got} transforms but the constraints have {n_groups} handle groups",
+                               msg.type)
+
+
+def main() -> None:
+    """Write the generated client module (``web/src/protocol.js``) to standard output."""
+    import sys
+
+    from arap.server.jsgen import generate_js
+
+    sys.stdout.write(generate_js())
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,148 @@
+"""Running the studio: bind a socket, report the URL, serve with uvicorn until interrupted."""
+
+from __future__ import annotations
+
+import logging
+import os
+import socket
+import threading
+import webbrowser
+from collections.abc import Callable
+
+import uvicorn
+
+from arap.server.app import DEFAULT_MAX_UPLOAD_BYTES, DEFAULT_MAX_VERTICES, create_app, frame_limit
+
+__all__ = ["bind_socket", "make_server", "serve", "studio_url"]
+
+logger = logging.getLogger(__name__)
+
+
+def studio_url(host: str = "127.0.0.1", port: int = 8000) -> str:
+    """URL a browser on this machine opens for a server bound to ``host:port``.
+
+    A wildcard address (``0.0.0.0``, ``::``) is shown as the loopback address; IPv6 addresses are bracketed.
+
+    Examples
+    --------
+    >>> studio_url("127.0.0.1", 8000)
+    'http://127.0.0.1:8000/'
+    >>> studio_url("::", 9000)
+    'http://[::1]:9000/'
+    """
+    h = host.strip("[]")
+    if h in ("", "0.0.0.0"):
+        h = "127.0.0.1"
+    elif h == "::":
+        h = "::1"
+    if ":" in h:
+        h = f"[{h}]"
+    return f"http://{h}:{int(port)}/"
+
+
+def bind_socket(host: str = "127.0.0.1", port: int = 8000) -> socket.socket:
+    """A listening TCP socket on ``host:port`` (port 0 picks a free one).
+
+    Raises
+    ------
+    OSError
+        The address is in use or cannot be bound.
+    """
+    infos = socket.getaddrinfo(host.strip("[]") or None, port, type=socket.SOCK_STREAM, flags=socket.AI_PASSIVE)
+    family, kind, proto, _, address = infos[0]
+    sock = socket.socket(family, kind, proto)
+    try:
+        sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        sock.bind(address)
+        sock.listen(128)
+    except OSError:
+        sock.close()
+        raise
+    sock.set_inheritable(True)
+    return sock
+
+
+def make_server(
+    mesh: str | os.PathLike[str] | None = None,
+    host: str = "127.0.0.1",
+    port: int = 8000,
+    *,
+    max_upload_bytes: int = DEFAULT_MAX_UPLOAD_BYTES,
+    max_vertices: int = DEFAULT_MAX_VERTICES,
+    log_level: str = "warning",
+) -> tuple[uvicorn.Server, socket.socket, str]:
+    """Build the studio's uvicorn server and bind its socket, without serving yet.
+
+    Run it with ``server.run(sockets=[sock])``; set ``server.should_exit = True`` to stop it. Parameters are
+    those of :func:`serve`.
+
+    Returns
+    -------
+    server : uvicorn.Server
+    sock : socket.socket
+        The bound, listening socket.
+    url : str
+        The studio's URL (with the actual port when ``port`` is 0).
+    """
+    app = create_app(mesh, max_upload_bytes=max_upload_bytes, max_vertices=max_vertices)
+    config = uvicorn.Config(
+        app,
+        log_level=log_level,
+        ws_per_message_deflate=False,
+        ws_max_size=frame_limit(max_upload_bytes),
+        lifespan="off",
+    )
+    sock = bind_socket(host, port)
+    return uvicorn.Server(config), sock, studio_url(host, sock.getsockname()[1])
+
+
+def serve(
+    mesh: str | os.PathLike[str] | None = None,
+    host: str = "127.0.0.1",
+    port: int = 8000,
+    open_browser: bool = False,
+    *,
+    max_upload_bytes: int = DEFAULT_MAX_UPLOAD_BYTES,
+    max_vertices: int = DEFAULT_MAX_VERTICES,
+    log_level: str = "warning",
+    on_ready: Callable[[str], None] | None = None,
+) -> None:
+    """Run the studio until interrupted (Ctrl-C).
+
+    The mesh is loaded and the socket bound before serving starts, so a bad mesh or a busy port raises here.
+
+    Parameters
+    ----------
+    mesh : str, path-like or None
+        Default mesh of new sessions (see :func:`arap.server.create_app`).
+    host : str
+        Address to bind; the default only accepts connections from this machine.
+    port : int
+        TCP port; 0 picks a free one (the URL passed to ``on_ready`` has it).
+    open_browser : bool
+        Open the studio in the default web browser once the server listens.
+    max_upload_bytes, max_vertices : int
+        Upload limits.
+    log_level : str
+        uvicorn's log level.
+    on_ready : callable or None
+        Called with the studio's URL once the socket is bound, before serving (e.g. to print it).
+
+    Raises
+    ------
+    arap.errors.ArapError
+        The mesh cannot be loaded.
+    OSError
+        The address cannot be bound.
+    """
+    server, sock, url = make_server(mesh, host, port, max_upload_bytes=max_upload_bytes,
+                                    max_vertices=max_vertices, log_level=log_level)
+    logger.info("ARAP Studio listening on %s", url)
+    if on_ready is not None:
+        on_ready(url)
+    if open_browser:
+        threading.Timer(0.5, webbrowser.open, args=(url,)).start()
+    try:
+        server.run(sockets=[sock])
+    finally:
+        sock.close()

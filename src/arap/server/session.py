@@ -1,0 +1,350 @@
+"""State of one studio editing session: mesh, constraints, solver, deformed pose, parameters and history.
+
+A :class:`Session` is synchronous and not thread-safe: the server calls it from one worker at a time (on a
+thread, since solves and factorisations take a while). Every request either succeeds or raises
+:class:`~arap.server.protocol.RequestError` and leaves the session unchanged.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections import OrderedDict
+from dataclasses import asdict, dataclass
+from typing import Any
+
+import numpy as np
+
+import arap
+from arap.errors import ArapError
+from arap.server.constraints import ConstraintSet, identity_transforms, matrices_from_json, matrices_to_json
+from arap.server.history import History, Snapshot
+from arap.server.meshdata import MeshData, export_mesh
+from arap.server.protocol import PARAMS, RequestError
+
+__all__ = ["DragOutcome", "Params", "Session"]
+
+logger = logging.getLogger(__name__)
+
+_TARGET_RANGE = 1e6
+"""Handle targets farther from the origin than this times (1 + the mesh's largest coordinate) are rejected."""
+
+_SOLVER_CACHE_VERTICES = 200_000
+"""Meshes up to this size keep two factorised solvers (undo across a selection change is instant)."""
+
+
+@dataclass
+class Params:
+    """Solver parameters of a session."""
+
+    iterations: int = PARAMS["iterations"]["default"]
+    energy: str = PARAMS["energy"]["default"]
+    weights: str = PARAMS["weights"]["default"]
+
+
+@dataclass
+class DragOutcome:
+    """What one solve did (for the ``vertices`` header)."""
+
+    iterations: int
+    energies: list[float]
+    solve_ms: float
+
+    @property
+    def ms_per_iteration(self) -> float:
+        """Solve time per iteration."""
+        return self.solve_ms / max(self.iterations, 1)
+
+
+class Session:
+    """One client's editing session.
+
+    Parameters
+    ----------
+    max_history_steps : int
+        Undo steps kept.
+    max_history_bytes : int
+        Memory budget of the undo history.
+    """
+
+    def __init__(self, max_history_steps: int = 100, max_history_bytes: int = 512 * 2**20) -> None:
+        self.mesh: MeshData | None = None
+        self.params = Params()
+        self.history = History(max_history_steps, max_history_bytes)
+        self._rest_counter = 0
+        self._solvers: OrderedDict[tuple[Any, ...], Any] = OrderedDict()
+        self.solver: Any = None
+        self._warm = False
+        self._dirty = False
+        self.rest_id = 0
+        self.V = np.zeros((0, 3))
+        self.U = self.V
+        self.constraints = ConstraintSet.empty(self.V)
+        self.transforms = identity_transforms(0)
+        self.solves = 0
+
+    # ------------------------------------------------------------------ helpers
+    def _require_mesh(self) -> MeshData:
+        if self.mesh is None:
+            raise RequestError("no_mesh", "no mesh is loaded")
+        return self.mesh
+
+    @property
+    def n_vertices(self) -> int:
+        """Vertices of the current mesh (0 without one)."""
+        return 0 if self.mesh is None else self.mesh.n_vertices
+
+    @property
+    def n_groups(self) -> int:
+        """Handle groups of the current constraint set."""
+        return self.constraints.n_groups
+
+    def _new_rest_id(self) -> int:
+        self._rest_counter += 1
+        return self._rest_counter
+
+    def _solver_for(self, rest_id: int, V: np.ndarray, cs: ConstraintSet, params: Params) -> Any:
+        """A factorised solver for the constraint set (cached), or None when nothing is constrained.
+
+        Raises RequestError (``bad_constraints``) when the solver rejects the constraints.
+        """
+        if cs.is_empty:
+            return None
+        key = (rest_id, params.energy, params.weights, cs.solver_digest())
+        solver = self._solvers.get(key)
+        if solver is not None:
+            self._solvers.move_to_end(key)
+            return solver
+        mesh = self._require_mesh()
+        try:
+            solver = arap.ArapSolver(V, mesh.F, cs.constrained, energy=params.energy, weights=params.weights,
+                                     roi=cs.roi)
+        except ArapError as exc:
+            raise RequestError("bad_constraints", str(exc)) from exc
+        logger.debug("factorised %d free vertices in %.1f ms", solver.n_free, 1000 * solver.factor_seconds)
+        self._solvers[key] = solver
+        keep = 2 if mesh.n_vertices <= _SOLVER_CACHE_VERTICES else 1
+        while len(self._solvers) > keep:
+            self._solvers.popitem(last=False)
+        return solver
+
+    def _snapshot(self) -> Snapshot:
+        return Snapshot(self.rest_id, self.V, self.U, self.constraints, self.transforms)
+
+    def _restore(self, snap: Snapshot) -> None:
+        try:
+            solver = self._solver_for(snap.rest_id, snap.V, snap.constraints, self.params)
+        except RequestError as exc:
+            logger.warning("restored constraints cannot be solved with the current parameters: %s", exc.message)
+            solver = None
+        self.rest_id, self.V, self.U = snap.rest_id, snap.V, snap.U
+        self.constraints, self.transforms = snap.constraints, snap.transforms
+        self.solver = solver
+        self._warm = False
+        self._dirty = False
+
+    def _commit(self) -> None:
+        """Record the current state as a new history step."""
+        self.history.push(self._snapshot())
+        self._dirty = False
+
+    def _commit_pending_drag(self) -> None:
+        if self._dirty:
+            self._commit()
+
+    # ------------------------------------------------------------------ requests
+    def load(self, mesh: MeshData) -> None:
+        """Replace the mesh; constraints, transforms and history start afresh (parameters are kept)."""
+        self.mesh = mesh
+        self._solvers.clear()
+        self.solver = None
+        self.rest_id = self._new_rest_id()
+        self.V = mesh.V
+        self.U = mesh.V
+        self.constraints = ConstraintSet.empty(self.U)
+        self.transforms = identity_transforms(0)
+        self._warm = False
+        self._dirty = False
+        self.history.clear(self._snapshot())
+
+    def set_constraints(self, roi: list[int] | None, fixed: list[int], groups: list[list[int]]) -> None:
+        """New constraint set referring to the current deformed pose; transforms reset to identity.
+
+        Raises
+        ------
+        RequestError
+            ``bad_constraints`` for invalid indices or constraints the solver rejects.
+        """
+        self._require_mesh()
+        cs = ConstraintSet.build(self.V, self.U, roi, fixed, groups)
+        unchanged = (cs.same_selection(self.constraints) and self.constraints.pose is self.U
+                     and np.array_equal(self.transforms, identity_transforms(cs.n_groups)))
+        if unchanged:
+            return
+        solver = self._solver_for(self.rest_id, self.V, cs, self.params)
+        self.constraints = cs
+        self.transforms = identity_transforms(cs.n_groups)
+        self.solver = solver
+        self._warm = False
+        self._commit()
+
+    def drag(self, transforms: list[list[float]]) -> DragOutcome:
+        """Move the handle groups by ``transforms`` (column-major 4×4 each) and solve.
+
+        Raises
+        ------
+        RequestError
+            ``bad_constraints`` when nothing is constrained, ``bad_message`` when the targets are not finite.
+        """
+        self._require_mesh()
+        if len(transforms) != self.n_groups:
+            raise RequestError("bad_message", f"drag has {len(transforms)} transforms but the constraints have "
+                               f"{self.n_groups} handle groups")
+        if self.solver is None:
+            raise RequestError("bad_constraints", "nothing to solve: select fixed vertices or handles first")
+        T = matrices_from_json(transforms)
+        targets = self.constraints.targets(T)
+        limit = _TARGET_RANGE * (1.0 + float(np.abs(self.V).max(initial=0.0)))
+        if not np.all(np.abs(targets) <= limit):
+            raise RequestError("bad_message", "the transforms move handle vertices absurdly far (beyond "
+                               f"{limit:.3g} from the origin)")
+        initial = None if self._warm else self.U
+        try:
+            result = self.solver.solve(targets, initial=initial, max_iterations=self.params.iterations)
+        except ArapError as exc:
+            raise RequestError("bad_message", str(exc)) from exc
+        if not np.all(np.isfinite(result.vertices)):
+            self._warm = False
+            raise RequestError("internal", "the solve produced non-finite positions; the shape is unchanged")
+        self.U = result.vertices
+        self.transforms = T
+        self._warm = True
+        self._dirty = True
+        self.solves += 1
+        return DragOutcome(result.iterations, [float(e) for e in result.energies],
+                           1000.0 * float(result.timings.get("total", 0.0)))
+
+    def end_drag(self) -> bool:
+        """Make the deformation since the last step an undo step; True if there was one."""
+        dirty = self._dirty
+        self._commit_pending_drag()
+        return dirty
+
+    def set_params(self, iterations: int | None = None, energy: str | None = None,
+                   weights: str | None = None) -> None:
+        """Change solver parameters; a new energy or weighting refactorises.
+
+        Raises
+        ------
+        RequestError
+            ``bad_constraints`` when the current constraints cannot be solved with the new parameters.
+        """
+        new = Params(**asdict(self.params))
+        if iterations is not None:
+            new.iterations = iterations
+        if energy is not None:
+            new.energy = energy
+        if weights is not None:
+            new.weights = weights
+        if (new.energy, new.weights) != (self.params.energy, self.params.weights) and self.mesh is not None:
+            self.solver = self._solver_for(self.rest_id, self.V, self.constraints, new)
+            self._warm = False
+        self.params = new
+
+    def undo(self) -> bool:
+        """Step back in the history (an unfinished drag becomes a step first); True if something changed."""
+        self._require_mesh()
+        self._commit_pending_drag()
+        snap = self.history.undo()
+        if snap is None:
+            return False
+        self._restore(snap)
+        return True
+
+    def redo(self) -> bool:
+        """Step forward in the history; True if something changed."""
+        self._require_mesh()
+        if self._dirty:
+            return False
+        snap = self.history.redo()
+        if snap is None:
+            return False
+        self._restore(snap)
+        return True
+
+    def reset(self) -> None:
+        """Back to the rest pose, keeping the selection (an undo step)."""
+        self._require_mesh()
+        self._commit_pending_drag()
+        old = self.constraints
+        at_rest = (self.U is self.V and old.pose is self.V
+                   and np.array_equal(self.transforms, identity_transforms(old.n_groups)))
+        if at_rest:
+            return
+        groups = [g.tolist() for g in old.groups]
+        roi = None if old.roi is None else old.roi.tolist()
+        cs = ConstraintSet.build(self.V, self.V, roi, old.fixed.tolist(), groups)
+        self.solver = self._solver_for(self.rest_id, self.V, cs, self.params)
+        self.U = self.V
+        self.constraints = cs
+        self.transforms = identity_transforms(cs.n_groups)
+        self._warm = False
+        self._commit()
+
+    def apply(self) -> None:
+        """Make the deformed shape the new rest pose, keeping the selection (an undo step)."""
+        mesh = self._require_mesh()
+        self._commit_pending_drag()
+        V = np.array(self.U, dtype=np.float64)
+        V.setflags(write=False)
+        try:
+            arap.check_mesh(V, mesh.F)
+        except ArapError as exc:
+            raise RequestError("bad_mesh", f"the deformed shape cannot become the rest pose: {exc}") from exc
+        old = self.constraints
+        cs = ConstraintSet.build(V, V, None if old.roi is None else old.roi.tolist(), old.fixed.tolist(),
+                                 [g.tolist() for g in old.groups])
+        rest_id = self._new_rest_id()
+        self.solver = self._solver_for(rest_id, V, cs, self.params)
+        self.rest_id, self.V, self.U = rest_id, V, V
+        self.constraints = cs
+        self.transforms = identity_transforms(cs.n_groups)
+        self._warm = False
+        self._commit()
+
+    def export(self, fmt: str) -> tuple[str, str, bytes]:
+        """The deformed mesh as a file: ``(filename, mime, bytes)``."""
+        mesh = self._require_mesh()
+        try:
+            return export_mesh(mesh.name, self.U, mesh.F, fmt)
+        except ArapError as exc:
+            raise RequestError("bad_mesh", f"cannot export: {exc}") from exc
+
+    def constraints_document(self) -> dict[str, Any]:
+        """The current constraints in the command-line format."""
+        self._require_mesh()
+        return self.constraints.document(self.V, self.transforms)
+
+    # ------------------------------------------------------------------ replies
+    def vertices_f32(self) -> bytes:
+        """Deformed positions as little-endian float32 bytes."""
+        return np.ascontiguousarray(self.U, dtype="<f4").tobytes()
+
+    def state(self) -> dict[str, Any]:
+        """The ``state`` message."""
+        n = self.n_vertices
+        cs = self.constraints
+        return {
+            "type": "state",
+            "can_undo": self.history.can_undo or self._dirty,
+            "can_redo": self.history.can_redo and not self._dirty,
+            "params": asdict(self.params),
+            "constraints": cs.to_json(),
+            "transforms": matrices_to_json(self.transforms),
+            "stats": {
+                "n_vertices": n,
+                "n_faces": 0 if self.mesh is None else self.mesh.n_faces,
+                "roi_size": n if cs.roi is None else len(cs.roi),
+                "n_free": 0 if self.solver is None else int(self.solver.n_free),
+                "factor_ms": 0.0 if self.solver is None else 1000.0 * float(self.solver.factor_seconds),
+            },
+        }

@@ -1,0 +1,43 @@
+"""Fixtures of the studio server tests: an in-process app and a greeted protocol client."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import pytest
+from starlette.testclient import TestClient
+
+from arap.server import create_app
+from tests.server.helpers import StudioClient
+
+
+@pytest.fixture
+def static_dir(tmp_path: Path) -> Path:
+    """A folder standing in for the built client."""
+    d = tmp_path / "static"
+    (d / "assets").mkdir(parents=True)
+    (d / "index.html").write_text("<!doctype html><title>studio</title>")
+    (d / "assets" / "app.js").write_text("console.log('studio');")
+    return d
+
+
+@pytest.fixture
+def app(static_dir: Path) -> Any:
+    return create_app("cactus", static_dir=static_dir)
+
+
+@pytest.fixture
+def http(app: Any) -> Iterator[TestClient]:
+    with TestClient(app) as client:
+        yield client
+
+
+@pytest.fixture
+def studio(http: TestClient) -> Iterator[StudioClient]:
+    """A connected, greeted session on the cactus."""
+    with http.websocket_connect("/ws") as ws:
+        client = StudioClient(ws)
+        client.greet()
+        yield client

@@ -1,0 +1,126 @@
+"""A small protocol client around Starlette's TestClient WebSocket, and transform helpers."""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from arap.server.protocol import decode_binary, encode_binary
+
+
+@dataclass
+class Reply:
+    """One server message: JSON fields (text message or binary header) and the payload of a binary one."""
+
+    data: dict[str, Any]
+    payload: bytes | None = None
+
+    @property
+    def type(self) -> str:
+        return self.data["type"]
+
+    def floats(self) -> np.ndarray:
+        assert self.payload is not None
+        return np.frombuffer(self.payload, dtype="<f4").reshape(-1, 3).astype(np.float64)
+
+
+def translation(dx: float, dy: float = 0.0, dz: float = 0.0) -> list[float]:
+    """Column-major 4x4 translation (Three.js Matrix4.elements)."""
+    M = np.eye(4)
+    M[:3, 3] = (dx, dy, dz)
+    return M.T.reshape(16).tolist()
+
+
+def rotation_z(angle: float, center: np.ndarray, shift: tuple[float, float, float] = (0, 0, 0)) -> np.ndarray:
+    """Row-major 4x4: rotate about the z axis through ``center``, then shift."""
+    c, s = np.cos(angle), np.sin(angle)
+    R = np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]])
+    M = np.eye(4)
+    M[:3, :3] = R
+    M[:3, 3] = center - R @ center + np.asarray(shift)
+    return M
+
+
+def column_major(M: np.ndarray) -> list[float]:
+    return M.T.reshape(16).tolist()
+
+
+@dataclass
+class StudioClient:
+    """Protocol-level helper around a TestClient WebSocket session."""
+
+    ws: Any
+    welcome: dict[str, Any] = field(default_factory=dict)
+    V: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+    F: np.ndarray = field(default_factory=lambda: np.zeros((0, 3), dtype=np.int64))
+    state: dict[str, Any] = field(default_factory=dict)
+
+    def recv(self) -> Reply:
+        message = self.ws.receive()
+        assert message["type"] == "websocket.send", message
+        if message.get("text") is not None:
+            return Reply(json.loads(message["text"]))
+        header, payload = decode_binary(message["bytes"])
+        assert (len(message["bytes"]) - len(payload)) % 4 == 0, "payload not 4-byte aligned"
+        return Reply(header, bytes(payload))
+
+    def expect(self, type_: str) -> Reply:
+        reply = self.recv()
+        assert reply.type == type_, f"expected {type_}, got {reply.data}"
+        if type_ == "state":
+            self.state = reply.data
+        return reply
+
+    def error(self, code: str | None = None) -> dict[str, Any]:
+        reply = self.expect("error").data
+        if code is not None:
+            assert reply["code"] == code, reply
+        return reply
+
+    def send(self, message: dict[str, Any] | str) -> None:
+        if isinstance(message, str):
+            self.ws.send_text(message)
+        else:
+            self.ws.send_text(json.dumps(message))
+
+    def send_binary(self, header: dict[str, Any], payload: bytes = b"") -> None:
+        self.ws.send_bytes(encode_binary(header, payload))
+
+    def read_mesh(self) -> Reply:
+        reply = self.expect("mesh")
+        n, m = reply.data["n_vertices"], reply.data["n_faces"]
+        assert reply.payload is not None and len(reply.payload) == 12 * n + 12 * m
+        self.V = np.frombuffer(reply.payload[: 12 * n], dtype="<f4").reshape(n, 3).astype(np.float64)
+        self.F = np.frombuffer(reply.payload[12 * n :], dtype="<u4").reshape(m, 3).astype(np.int64)
+        return reply
+
+    def greet(self) -> None:
+        self.welcome = self.expect("welcome").data
+        self.read_mesh()
+        self.expect("state")
+
+    # ------------------------------------------------------------------ common requests
+    def set_constraints(self, fixed: list[int], groups: list[list[int]], roi: list[int] | None = None) -> dict:
+        self.send({"type": "set_constraints", "roi": roi, "fixed": fixed, "handle_groups": groups})
+        return self.expect("state").data
+
+    def drag(self, seq: int, transforms: list[list[float]]) -> Reply:
+        self.send({"type": "drag", "seq": seq, "transforms": transforms})
+        reply = self.expect("vertices")
+        assert reply.data["seq"] == seq
+        return reply
+
+    def bottom_top(self, share: float = 0.1) -> tuple[list[int], list[int]]:
+        """Lowest and highest ``share`` of the vertices along y."""
+        y = self.V[:, 1]
+        lo = np.flatnonzero(y <= np.quantile(y, share)).tolist()
+        hi = np.flatnonzero(y >= np.quantile(y, 1 - share)).tolist()
+        return lo, hi
+
+    def ping(self) -> None:
+        """Round trip proving the session still answers."""
+        self.send({"type": "get_constraints"})
+        self.expect("constraints")
