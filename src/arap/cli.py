@@ -8,14 +8,13 @@ with exit status 2.
 from __future__ import annotations
 
 import argparse
-import inspect
 import logging
 import statistics
 import sys
 import time
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any, TextIO
+from typing import TextIO
 
 import numpy as np
 
@@ -261,23 +260,13 @@ def _cmd_bench(args: argparse.Namespace) -> int:
 
 # ---------------------------------------------------------------------------------------------- studio
 def _cmd_studio(args: argparse.Namespace) -> int:
-    try:
-        from arap import server
-    except ImportError as exc:
-        raise ArapError(f"the studio is not available: {exc}") from exc
-    serve = server.serve
-    params = inspect.signature(serve).parameters
-    kwargs: dict[str, Any] = {"host": args.host, "port": args.port, "open_browser": args.open}
+    from arap.server import serve
 
     def announce(url: str) -> None:
         _out(f"ARAP Studio running at {url}  (Ctrl-C to stop)")
 
-    if "on_ready" in params:
-        kwargs["on_ready"] = announce
-    else:
-        announce(server.studio_url(args.host, args.port))
     try:
-        serve(args.mesh, **kwargs)
+        serve(args.mesh, host=args.host, port=args.port, open_browser=args.open, on_ready=announce)
     except KeyboardInterrupt:
         _err("stopped")
     return 0
@@ -328,7 +317,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("studio", help="start the browser modeler",
                        description="Serve ARAP Studio; open the printed URL in a browser.")
-    p.add_argument("mesh", metavar="MESH", nargs="?", default=None, help="mesh every session starts with")
+    p.add_argument("mesh", metavar="MESH", nargs="?", default=None, help="mesh every session starts with: a file or a built-in name (default: the first built-in)")
     p.add_argument("--host", default="127.0.0.1", help="address to bind (default: 127.0.0.1, this machine only)")
     p.add_argument("--port", type=int, default=8000, help="TCP port (default: 8000; 0 picks a free one)")
     p.add_argument("--open", action="store_true", help="open the studio in the default browser")

@@ -14,7 +14,7 @@ from arap.cells import Cells, RhsGather
 from arap.rotations import rotation_from_covariance
 
 
-@nb.njit(cache=True, parallel=True)
+@nb.njit(cache=True, parallel=True, nogil=True)
 def _local_kernel(cell_ids, ptr, a, b, w, we, rest_sq, U, R, E):  # pragma: no cover - compiled
     for t in nb.prange(cell_ids.shape[0]):
         c = cell_ids[t]
@@ -49,7 +49,7 @@ def _local_kernel(cell_ids, ptr, a, b, w, we, rest_sq, U, R, E):  # pragma: no c
         E[c] = cur + rest_sq[c] - 2.0 * tr
 
 
-@nb.njit(cache=True, parallel=True)
+@nb.njit(cache=True, parallel=True, nogil=True)
 def _rhs_kernel(ptr, cell, g, R, const, out):  # pragma: no cover - compiled
     for r in nb.prange(ptr.shape[0] - 1):
         b0 = 0.0

@@ -204,7 +204,7 @@ def rotation_from_covariance(sxx: float, sxy: float, sxz: float, syx: float, syy
             + R[2, 0] * sxz + R[2, 1] * syz + R[2, 2] * szz)
 
 
-@nb.njit(cache=True, parallel=True)
+@nb.njit(cache=True, parallel=True, nogil=True)
 def _fit_rotations_kernel(S: np.ndarray, R: np.ndarray) -> None:  # pragma: no cover - compiled
     for i in nb.prange(S.shape[0]):
         best_rotation(S[i], R[i])

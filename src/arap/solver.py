@@ -143,6 +143,7 @@ class ArapSolver:
         self._constrained = self._inv[self.constrained]
         self._free = np.sort(self._inv[self.free])
         self._nonfree = np.sort(self._inv[self.nonfree])
+        self._constrained_slot = np.searchsorted(self._nonfree, self._constrained)
         self._cells = build_cells(self._V, self._inv[F], energy, weights)
         L = system_matrix(self._cells, n)
         L_f = L[self._free]
@@ -175,6 +176,10 @@ class ArapSolver:
         tcell = self._cells.cell_of_term()
         self._inactive_terms = np.flatnonzero(~is_active[tcell])
         self._inactive_term_cell = tcell[self._inactive_terms]
+        self._inactive_a = self._cells.a[self._inactive_terms]
+        self._inactive_b = self._cells.b[self._inactive_terms]
+        self._R_scratch = np.empty((n, 3, 3))
+        self._E_scratch = np.zeros(n)
         rest_E = np.zeros(n)
         inactive = np.flatnonzero(~is_active)
         if len(inactive):
@@ -182,29 +187,28 @@ class ArapSolver:
         self._rest_E = rest_E
         self._rest_inactive_sum = float(rest_E[inactive].sum())
 
-    def _constant_energy(self, fixed_positions: np.ndarray) -> float:
-        """Energy of the inactive cells for the given positions of the non-free vertices."""
+    def _constant_energy(self, U: np.ndarray, targets: np.ndarray) -> float:
+        """Energy of the inactive cells, whose terms see only non-free vertices (``U`` holds them in place).
+
+        Only cells touching a constrained vertex away from its rest position differ from their rest energy.
+        """
         if not len(self._inactive_terms):
             return 0.0
         n = len(self._V)
         moved = np.zeros(n, dtype=bool)
-        moved[self._nonfree] = np.any(fixed_positions != self._V[self._nonfree], axis=1)
-        a = self._cells.a[self._inactive_terms]
-        b = self._cells.b[self._inactive_terms]
-        touched = np.unique(self._inactive_term_cell[moved[a] | moved[b]])
+        moved[self._constrained] = np.any(targets != self._V[self._constrained], axis=1)
+        touched = np.unique(self._inactive_term_cell[moved[self._inactive_a] | moved[self._inactive_b]])
         if not len(touched):
             return self._rest_inactive_sum
-        U = self._V.copy()
-        U[self._nonfree] = fixed_positions
-        E = np.zeros(n)
-        local_step(self._cells, touched, U, np.empty((n, 3, 3)), E)
+        E = self._E_scratch
+        local_step(self._cells, touched, U, self._R_scratch, E)
         return self._rest_inactive_sum - float(self._rest_E[touched].sum()) + float(E[touched].sum())
 
     def _fixed_positions(self, targets: np.ndarray) -> np.ndarray:
         """Positions of the non-free vertices (constrained at targets, held at rest), in ``nonfree`` order."""
-        U = self._V.copy()
-        U[self._constrained] = targets
-        return U[self._nonfree]
+        fixed = self._V[self._nonfree]
+        fixed[self._constrained_slot] = targets
+        return fixed
 
     def _to_internal(self, X: np.ndarray) -> np.ndarray:
         """Rows of a per-vertex array in the solver's internal vertex order."""
@@ -278,16 +282,17 @@ class ArapSolver:
             U = self._to_internal(self._check_positions(initial, "initial"))
         fixed = self._fixed_positions(T)
         timings = {"local": 0.0, "rhs": 0.0, "solve": 0.0}
-        const_E = self._constant_energy(fixed)
         active = self._active
         prev: float | None = None
         if not use_cache:
             t = time.perf_counter()
             local_step(self._cells, active, U, self._R, self._E)
             timings["local"] += time.perf_counter() - t
-        if np.array_equal(U[self._nonfree], fixed):
-            prev = float(self._E[active].sum()) + const_E
+        at_targets = np.array_equal(U[self._nonfree], fixed)
         U[self._nonfree] = fixed
+        const_E = self._constant_energy(U, T)
+        if at_targets:
+            prev = float(self._E[active].sum()) + const_E
         rhs_const = self._L_fn @ fixed
         rhs = np.empty((len(self._free), 3))
         energies: list[float] = []
