@@ -317,7 +317,8 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("studio", help="start the browser modeler",
                        description="Serve ARAP Studio; open the printed URL in a browser.")
-    p.add_argument("mesh", metavar="MESH", nargs="?", default=None, help="mesh every session starts with: a file or a built-in name (default: the first built-in)")
+    p.add_argument("mesh", metavar="MESH", nargs="?", default=None,
+                   help="mesh every session starts with: a file or a built-in name (default: the first built-in)")
     p.add_argument("--host", default="127.0.0.1", help="address to bind (default: 127.0.0.1, this machine only)")
     p.add_argument("--port", type=int, default=8000, help="TCP port (default: 8000; 0 picks a free one)")
     p.add_argument("--open", action="store_true", help="open the studio in the default browser")
