@@ -96,6 +96,39 @@ def run_igl(V: np.ndarray, F: np.ndarray, b: np.ndarray, bc: np.ndarray, iterati
     return {"precompute_ms": 1e3 * precompute, "ms_per_iteration": 1e3 * statistics.median(times), "U": U}
 
 
+def backend_choices(V: np.ndarray, F: np.ndarray, b: np.ndarray, U: np.ndarray, repeats: int) -> list[str]:
+    """Measure what the solver's design chooses between: sparse Cholesky backends and rotation kernels."""
+    from arap.cells import build_cells
+    from arap.covariance import covariances
+    from arap.linsolve import available_backends, factorize
+    from arap.rotations import fit_rotations, fit_rotations_svd
+
+    A = ArapSolver(V, F, b).reduced_matrix()
+    B = np.random.default_rng(0).normal(size=(A.shape[0], 3))
+    lines = [f"sparse Cholesky of the reduced matrix ({A.shape[0]:,} unknowns, 3 right-hand sides):"]
+    for name in available_backends():
+        t = time.perf_counter()
+        factor = factorize(A, name)
+        factor_ms = 1e3 * (time.perf_counter() - t)
+        solves = []
+        for _ in range(max(repeats, 5)):
+            t = time.perf_counter()
+            factor.solve(B)
+            solves.append(1e3 * (time.perf_counter() - t))
+        lines.append(f"  {name:<10} factor {factor_ms:8.1f} ms   solve {statistics.median(solves):6.2f} ms")
+    S = covariances(build_cells(V, F), U)
+    fit_rotations(S[:10])
+    lines.append(f"batched best-fit rotations of {len(S):,} cell covariances:")
+    for label, fn in (("numba Horn/Newton", fit_rotations), ("numpy SVD + fix", fit_rotations_svd)):
+        times = []
+        for _ in range(max(repeats, 5)):
+            t = time.perf_counter()
+            fn(S)
+            times.append(1e3 * (time.perf_counter() - t))
+        lines.append(f"  {label:<18} {statistics.median(times):7.2f} ms")
+    return lines
+
+
 def table(rows: list[tuple[str, str, str]]) -> str:
     widths = [max(len(r[i]) for r in rows) for i in range(3)]
     lines = []
@@ -159,6 +192,8 @@ def main(argv: list[str] | None = None) -> int:
         print(f"libigl / arap: {figures['speedup_iteration']:.2f}x per iteration, "
               f"{figures['speedup_precompute']:.2f}x precompute")
         print(f"max vertex distance between the results: {figures['max_distance_over_diagonal']:.2e} of the diagonal")
+    print()
+    print("\n".join(backend_choices(V, F, b, ours["U"], args.repeats)))
     if args.json:
         args.json.write_text(json.dumps(figures, indent=2) + "\n")
         print(f"wrote {args.json}")
