@@ -318,7 +318,8 @@ class ArapSolver:
             if converged or stop:
                 break
         self._last = U
-        self._rotations_fresh = True
+        # The rotations fit the stored solution only if an iteration ended with a local step on it.
+        self._rotations_fresh = bool(energies)
         timings["total"] = time.perf_counter() - t_start
         return ArapResult(vertices=U[self._inv], energies=energies, iterations=len(energies), converged=converged,
                           timings=timings)
