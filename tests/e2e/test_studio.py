@@ -221,6 +221,45 @@ def test_constraints_file_round_trip(page: Page, tmp_path: Path, shoot: Shoot) -
     assert page.evaluate("() => window.__arap.counts().fixed") == k
 
 
+def test_constraints_file_targets_move_the_handles(page: Page, tmp_path: Path) -> None:
+    rest = positions(page)
+    order = np.argsort(rest[:, 1])
+    k = max(1, len(rest) // 20)
+    fixed, handles = np.sort(order[:k]), np.sort(order[-k:])
+    shift = 0.1 * np.ptp(rest, axis=0).max() * np.array([1.0, 0.5, 0.0])
+    targets = rest[handles] + shift
+    path = tmp_path / "cli-targets.json"
+    path.write_text(json.dumps({"fixed": fixed.tolist(), "handles": handles.tolist(), "targets": targets.tolist()}))
+    page.get_by_test_id("constraints-input").set_input_files(str(path))
+    page.wait_for_function(f"() => window.__arap.counts().fixed === {k}")
+    wait_idle(page)
+    U = positions(page)
+    np.testing.assert_allclose(U[handles], targets, atol=1e-4)
+    np.testing.assert_array_equal(U[fixed], rest[fixed])
+    np.testing.assert_allclose(page.evaluate("() => window.__arap.gizmo().centroid"), targets.mean(axis=0),
+                               atol=1e-4)
+    assert page.evaluate("() => window.__arap.canUndo")
+
+    # a file saved by the studio restores the groups and the deformation
+    with page.expect_download() as info:
+        page.get_by_test_id("save-constraints").click()
+    saved = tmp_path / "saved.json"
+    info.value.save_as(saved)
+    page.get_by_test_id("reset").click()
+    page.wait_for_function("() => !window.__arap.busy")
+    page.wait_for_function(f"() => window.__arap.positions()[{3 * int(handles[0])}] === {float(rest[handles[0], 0])}")
+    wait_idle(page)
+    np.testing.assert_array_equal(positions(page)[handles], rest[handles])
+    page.get_by_test_id("constraints-input").set_input_files(str(saved))
+    page.wait_for_function(
+        f"() => Math.abs(window.__arap.positions()[{3 * int(handles[0])}] - {float(targets[0, 0])}) < 1e-4")
+    wait_idle(page)
+    np.testing.assert_allclose(positions(page)[handles], targets, atol=1e-4)
+    c = page.evaluate("() => window.__arap.constraints()")
+    assert c["handle_groups"] == [handles.tolist()] and c["fixed"] == fixed.tolist()
+    assert not page.evaluate("() => window.__arap.errors"), "the server reported errors"
+
+
 def test_upload_obj_with_file_input(page: Page, tmp_path: Path, shoot: Shoot) -> None:
     text, n = sphere_obj(2)
     path = tmp_path / "small_sphere.obj"

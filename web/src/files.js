@@ -79,9 +79,28 @@ function indexList(v, what) {
   return v;
 }
 
+function targetMap(doc) {
+  if (doc.targets === undefined || doc.targets === null) return null;
+  const handles = indexList(doc.handles, 'handles');
+  const t = doc.targets;
+  if (!Array.isArray(t) || t.length !== handles.length) {
+    throw new Error('"targets" must hold one [x, y, z] per entry of "handles"');
+  }
+  const map = new Map();
+  t.forEach((p, k) => {
+    if (!Array.isArray(p) || p.length !== 3 || !p.every((x) => typeof x === 'number' && Number.isFinite(x))) {
+      throw new Error(`"targets[${k}]" must be three finite numbers`);
+    }
+    map.set(handles[k], p);
+  });
+  return map;
+}
+
 /**
  * Read a constraints document: the studio format {roi, fixed, handle_groups} or the command-line format
- * {fixed, handles, targets, roi} (its handles become one group; targets are not used here).
+ * {fixed, handles, targets, roi} (its handles become one group). With `targets`, the result's `targets` maps each
+ * handle vertex to its [x, y, z]; handles outside `handle_groups` (vertices a saved studio session held in place)
+ * become one more group.
  */
 export function parseConstraints(text) {
   let doc;
@@ -93,9 +112,17 @@ export function parseConstraints(text) {
   if (!doc || typeof doc !== 'object' || Array.isArray(doc)) throw new Error('expected a JSON object');
   const roi = doc.roi === null || doc.roi === undefined ? null : indexList(doc.roi, 'roi');
   const fixed = indexList(doc.fixed, 'fixed');
+  const targets = targetMap(doc);
   let groups;
   if (Array.isArray(doc.handle_groups)) {
     groups = doc.handle_groups.map((g, k) => indexList(g, `handle_groups[${k}]`));
+    if (targets) {
+      const grouped = new Set(groups.flat());
+      const missing = groups.flat().find((i) => !targets.has(i));
+      if (missing !== undefined) throw new Error(`handle vertex ${missing} has no entry in "targets"`);
+      const extra = [...targets.keys()].filter((i) => !grouped.has(i));
+      if (extra.length) groups.push(extra);
+    }
   } else if (doc.handles !== undefined) {
     const h = indexList(doc.handles, 'handles');
     groups = h.length ? [h] : [];
@@ -103,5 +130,5 @@ export function parseConstraints(text) {
     groups = [];
   }
   if (!fixed.length && !groups.length) throw new Error('no "fixed" or handle vertices in the document');
-  return { roi: roi && roi.length ? roi : null, fixed, handle_groups: groups };
+  return { roi: roi && roi.length ? roi : null, fixed, handle_groups: groups, targets };
 }

@@ -132,20 +132,23 @@ function selectionSynced() {
   return false;
 }
 
-/** Send the local selection as the session's constraint set. */
-function commitConstraints() {
+/**
+ * Send the local selection as the session's constraint set; `targets` (a Map from handle vertex to [x, y, z],
+ * from a loaded file) moves the handles there.
+ */
+function commitConstraints(targets = null) {
   updateGroupsUi();
   if (!app.ready) return;
   const c = selection.toConstraints();
   const key = constraintsKey(c);
-  if (key === app.serverKey && app.sentKey === null) return;
+  if (key === app.serverKey && app.sentKey === null && !targets) return;
   app.groupMap = c.groupMap;
   app.sentKey = key;
   app.sentVersion = selection.version;
   gizmo.resetTransforms();
-  if (send({ type: CLIENT.SET_CONSTRAINTS, roi: c.roi, fixed: c.fixed, handle_groups: c.handle_groups })) {
-    setBusy('Updating constraints…', SERVER.STATE);
-  }
+  const msg = { type: CLIENT.SET_CONSTRAINTS, roi: c.roi, fixed: c.fixed, handle_groups: c.handle_groups };
+  if (targets) msg.targets = c.handle_groups.flat().map((i) => targets.get(i));
+  if (send(msg)) setBusy('Updating constraints…', SERVER.STATE);
 }
 
 // ------------------------------------------------------------------ messages
@@ -307,7 +310,7 @@ function loadConstraintsFile(file) {
     }
     selection.fromConstraints(c);
     refreshSelection(true);
-    commitConstraints();
+    commitConstraints(c.targets);
   });
 }
 

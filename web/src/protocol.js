@@ -156,6 +156,11 @@ export const CLIENT_MESSAGES = Object.freeze({
         "kind": "index_groups",
         "required": true,
         "maxLength": 256
+      },
+      {
+        "name": "targets",
+        "kind": "points_or_null",
+        "required": false
       }
     ]
   },

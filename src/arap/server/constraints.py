@@ -73,7 +73,7 @@ class ConstraintSet:
     groups : tuple of (h_g,) int64 arrays
         Handle groups.
     pose : (n, 3) float64 array
-        Positions the constraints refer to.
+        Positions the constraints refer to (with the handle vertices at the targets they were given, if any).
     held : (p,) int64 array
         Vertices outside the region of interest whose pose differs from the rest pose; held at their pose.
     constrained : (k,) int64 array
@@ -95,6 +95,7 @@ class ConstraintSet:
         roi: Sequence[int] | None,
         fixed: Sequence[int],
         groups: Sequence[Sequence[int]],
+        handle_positions: np.ndarray | None = None,
     ) -> ConstraintSet:
         """Validate a constraint set for a mesh.
 
@@ -107,6 +108,9 @@ class ConstraintSet:
         roi : list of int or None
         fixed : list of int
         groups : list of lists of int
+        handle_positions : (h, 3) array or None
+            Positions of the handle vertices (groups concatenated) that the transforms apply to instead of their
+            ``pose`` positions; the set's :attr:`pose` is then a copy of ``pose`` with these positions put in.
 
         Returns
         -------
@@ -143,6 +147,10 @@ class ConstraintSet:
                 raise RequestError("bad_constraints", f"roi lists vertex {rep[0]} more than once")
         fixed_arr = named[0][1]
         group_arrs = tuple(a for _, a in named[1:])
+        if handle_positions is not None and group_arrs:
+            pose = np.array(pose, dtype=np.float64)
+            pose[np.concatenate(group_arrs)] = np.asarray(handle_positions, dtype=np.float64).reshape(-1, 3)
+            pose.setflags(write=False)
         held = np.zeros(0, dtype=np.int64)
         if roi_arr is not None:
             outside = np.ones(n, dtype=bool)

@@ -1,5 +1,8 @@
 """The studio wire protocol: message types, their fields, error codes and the binary frame layout.
 
+Error codes live in :mod:`arap.server.errors` and the binary frame helpers in :mod:`arap.server.frames`; both
+are re-exported here.
+
 This module is the single source of truth of the protocol spoken over the studio's WebSocket (see
 ``docs/protocol.md``). The browser client's copy, ``web/src/protocol.js``, is generated from it::
 
@@ -15,9 +18,11 @@ from __future__ import annotations
 
 import json
 import math
-import struct
 from dataclasses import dataclass, field
 from typing import Any
+
+from arap.server.errors import ERROR_CODES, RequestError
+from arap.server.frames import MAX_HEADER_BYTES, decode_binary, encode_binary, loads_json
 
 __all__ = [
     "CLIENT_MESSAGES",
@@ -47,9 +52,6 @@ __all__ = [
 PROTOCOL_VERSION = 1
 """Bumped on every incompatible change of the messages below."""
 
-MAX_HEADER_BYTES = 65536
-"""Largest JSON header accepted in a binary frame."""
-
 MAX_HANDLE_GROUPS = 256
 """Most handle groups one constraint set may have."""
 
@@ -71,44 +73,6 @@ PARAMS: dict[str, dict[str, Any]] = {
 }
 """Solver parameters a client may set, with their ranges and defaults."""
 
-ERROR_CODES: dict[str, str] = {
-    "bad_message": "not JSON, not an object, unknown type, unknown or missing field, wrong field type/range",
-    "bad_mesh": "the mesh could not be read or is unusable",
-    "too_large": "a frame, upload or mesh exceeds the server's limits",
-    "bad_constraints": "indices out of range or repeated, or a region no constraint pins down",
-    "no_mesh": "the request needs a mesh and the session has none",
-    "busy": "too many requests are waiting in this session; the request was dropped",
-    "internal": "an unexpected server error; the session continues",
-}
-"""Error codes of the ``error`` message and what they mean."""
-
-
-class RequestError(Exception):
-    """A request was rejected; becomes an ``error`` message and leaves the session unchanged.
-
-    Parameters
-    ----------
-    code : str
-        One of :data:`ERROR_CODES`.
-    message : str
-        Human-readable explanation (shown to the user).
-    request : str or None
-        Type of the rejected message, when known.
-    """
-
-    def __init__(self, code: str, message: str, request: str | None = None) -> None:
-        if code not in ERROR_CODES:
-            raise ValueError(f"unknown error code {code!r}")
-        super().__init__(message)
-        self.code = code
-        self.message = message
-        self.request = request
-
-    def to_message(self) -> dict[str, Any]:
-        """The ``error`` message to send."""
-        return {"type": "error", "code": self.code, "message": self.message, "request": self.request}
-
-
 # ---------------------------------------------------------------------------------------------- message specs
 @dataclass(frozen=True)
 class Field:
@@ -120,7 +84,8 @@ class Field:
     kind : str
         ``int``, ``number``, ``string``, ``enum``, ``indices`` (list of vertex indices),
         ``indices_or_null``, ``index_groups`` (list of lists of vertex indices), ``matrices`` (list of 4×4
-        matrices, 16 numbers each, column-major), ``bool``, ``object``, ``list``.
+        matrices, 16 numbers each, column-major), ``points_or_null`` (list of ``[x, y, z]``, or null),
+        ``bool``, ``object``, ``list``.
     doc : str
         What the field means.
     required : bool
@@ -188,7 +153,9 @@ CLIENT_MESSAGES: dict[str, MessageSpec] = {
               Field("roi", "indices_or_null", "region of interest, or null for the whole mesh"),
               Field("fixed", "indices", "vertices held in place"),
               Field("handle_groups", "index_groups", "vertices moved together by one transform per group",
-                    max_length=MAX_HANDLE_GROUPS)),
+                    max_length=MAX_HANDLE_GROUPS),
+              Field("targets", "points_or_null", "positions of the handle vertices (groups concatenated), or null "
+                    "to keep them where they are", required=False)),
         _spec("drag", "move the handle groups; only the newest pending drag is solved",
               Field("seq", "int", "sequence number echoed by the answering vertices frame", minimum=0,
                     maximum=MAX_SEQ),
@@ -254,75 +221,6 @@ SERVER_MESSAGES: dict[str, MessageSpec] = {
     )
 }
 """Messages the server sends, by type."""
-
-
-# ---------------------------------------------------------------------------------------------- binary frames
-def encode_binary(header: dict[str, Any], *payload: bytes | bytearray | memoryview) -> bytes:
-    """Build a binary frame: ``u32 LE header length | JSON header padded with spaces | payload``.
-
-    The header is padded so that the payload starts at a multiple of 4 bytes.
-
-    Parameters
-    ----------
-    header : dict
-        JSON-serialisable header with a ``type``.
-    *payload : bytes-like
-        Payload parts, concatenated.
-
-    Returns
-    -------
-    bytes
-    """
-    text = json.dumps(header, separators=(",", ":"), allow_nan=False).encode("utf-8")
-    text += b" " * (-(4 + len(text)) % 4)
-    return b"".join([struct.pack("<I", len(text)), text, *payload])
-
-
-def decode_binary(data: bytes | bytearray | memoryview) -> tuple[dict[str, Any], memoryview]:
-    """Split a binary frame into its JSON header and its payload.
-
-    Parameters
-    ----------
-    data : bytes-like
-
-    Returns
-    -------
-    header : dict
-    payload : memoryview
-
-    Raises
-    ------
-    RequestError
-        ``bad_message`` when the frame is truncated or its header is not a JSON object.
-    """
-    view = memoryview(data)
-    if len(view) < 4:
-        raise RequestError("bad_message", "binary frame shorter than its 4-byte header length")
-    (n,) = struct.unpack_from("<I", view, 0)
-    if n > MAX_HEADER_BYTES:
-        raise RequestError("bad_message", f"binary frame header of {n} bytes exceeds {MAX_HEADER_BYTES}")
-    if 4 + n > len(view):
-        raise RequestError("bad_message", f"binary frame header length {n} exceeds the frame ({len(view)} B)")
-    try:
-        header = _loads(bytes(view[4 : 4 + n]).decode("utf-8"))
-    except UnicodeDecodeError as exc:
-        raise RequestError("bad_message", "binary frame header is not UTF-8") from exc
-    if not isinstance(header, dict):
-        raise RequestError("bad_message", "binary frame header must be a JSON object")
-    return header, view[4 + n :]
-
-
-def _reject_constant(name: str) -> float:
-    raise RequestError("bad_message", f"{name} is not a valid JSON number")
-
-
-def _loads(text: str) -> Any:
-    try:
-        return json.loads(text, parse_constant=_reject_constant)
-    except json.JSONDecodeError as exc:
-        raise RequestError("bad_message", f"not valid JSON: {exc.msg} at position {exc.pos}") from exc
-    except RecursionError as exc:
-        raise RequestError("bad_message", "JSON nested too deeply") from exc
 
 
 # ---------------------------------------------------------------------------------------------- validation
@@ -404,7 +302,25 @@ def _check_field(f: Field, value: Any, mtype: str) -> Any:
                     "bad_message", f"{where}[{i}] must be affine (last row 0, 0, 0, 1; column-major elements "
                     "3, 7, 11, 15)")
         return value
+    if kind == "points_or_null":
+        if value is None:
+            return None
+        if not isinstance(value, list):
+            raise RequestError("bad_message", f"{where} must be a list of [x, y, z] points or null")
+        for i, p in enumerate(value):
+            if not isinstance(p, list) or len(p) != 3 or not all(_is_number(x) for x in p):
+                raise RequestError("bad_message", f"{where}[{i}] must be a list of 3 finite numbers")
+        return value
     raise AssertionError(f"field kind {kind!r} cannot be received")
+
+
+def _check_fields_together(mtype: str, fields: dict[str, Any]) -> None:
+    """Checks across the fields of one message."""
+    if mtype == "set_constraints" and fields.get("targets") is not None:
+        n_handles = sum(len(g) for g in fields["handle_groups"])
+        if len(fields["targets"]) != n_handles:
+            raise RequestError("bad_message", f"set_constraints.targets has {len(fields['targets'])} points but "
+                               f"the handle groups have {n_handles} vertices")
 
 
 def _request_name(obj: dict[str, Any]) -> str | None:
@@ -460,6 +376,7 @@ def validate(obj: Any, binary: bool, payload: memoryview | None = None) -> Clien
         if spec.at_least_one and not fields:
             names = ", ".join(f.name for f in spec.fields)
             raise RequestError("bad_message", f"{spec.type} needs at least one of {names}")
+        _check_fields_together(spec.type, fields)
     except RequestError as exc:
         exc.request = request
         raise
@@ -468,7 +385,7 @@ def validate(obj: Any, binary: bool, payload: memoryview | None = None) -> Clien
 
 def parse_text(text: str) -> ClientMessage:
     """Decode and validate a text frame. Raises :class:`RequestError`."""
-    return validate(_loads(text), binary=False)
+    return validate(loads_json(text), binary=False)
 
 
 def parse_binary(data: bytes | bytearray | memoryview) -> ClientMessage:

@@ -166,26 +166,81 @@ class Session:
         self._dirty = False
         self.history.clear(self._snapshot())
 
-    def set_constraints(self, roi: list[int] | None, fixed: list[int], groups: list[list[int]]) -> None:
+    def set_constraints(self, roi: list[int] | None, fixed: list[int], groups: list[list[int]],
+                        targets: list[list[float]] | None = None) -> DragOutcome | None:
         """New constraint set referring to the current deformed pose; transforms reset to identity.
+
+        Parameters
+        ----------
+        roi : list of int or None
+        fixed : list of int
+        groups : list of lists of int
+            Handle groups.
+        targets : list of [x, y, z] or None
+            Positions of the handle vertices (groups concatenated) that replace their pose positions as the
+            base of the transforms; the shape is then solved at once.
+
+        Returns
+        -------
+        DragOutcome or None
+            The solve that moved the handles to ``targets``, or None when nothing was solved.
 
         Raises
         ------
         RequestError
-            ``bad_constraints`` for invalid indices or constraints the solver rejects.
+            ``bad_constraints`` for invalid indices or constraints the solver rejects, ``bad_message`` for
+            targets of the wrong shape or absurdly far away.
         """
         self._require_mesh()
-        cs = ConstraintSet.build(self.V, self.U, roi, fixed, groups)
-        unchanged = (cs.same_selection(self.constraints) and self.constraints.pose is self.U
+        positions = None
+        n_handles = sum(len(g) for g in groups)
+        if targets is not None:
+            points = np.asarray(targets, dtype=np.float64)
+            if points.shape != (n_handles, 3) and not (n_handles == 0 and points.size == 0):
+                raise RequestError("bad_message", f"targets must be {n_handles} points [x, y, z], one per handle "
+                                   "vertex")
+            self._check_range(points)
+            positions = points if n_handles else None
+        cs = ConstraintSet.build(self.V, self.U, roi, fixed, groups, handle_positions=positions)
+        unchanged = (positions is None and cs.same_selection(self.constraints) and self.constraints.pose is self.U
                      and np.array_equal(self.transforms, identity_transforms(cs.n_groups)))
         if unchanged:
-            return
+            return None
         solver = self._solver_for(self.rest_id, self.V, cs, self.params)
+        T = identity_transforms(cs.n_groups)
+        outcome = None
+        U = self.U
+        if positions is not None:
+            assert solver is not None
+            U, outcome = self._solve(solver, cs.targets(T), self.U)
         self.constraints = cs
-        self.transforms = identity_transforms(cs.n_groups)
+        self.transforms = T
         self.solver = solver
-        self._warm = False
+        self.U = U
+        self._warm = positions is not None
         self._commit()
+        return outcome
+
+    def _check_range(self, points: np.ndarray) -> None:
+        """Reject target positions absurdly far from the mesh (``bad_message``)."""
+        limit = _TARGET_RANGE * (1.0 + float(np.abs(self.V).max(initial=0.0)))
+        if not np.all(np.abs(points) <= limit):
+            raise RequestError("bad_message", "handle vertices would move absurdly far (beyond "
+                               f"{limit:.3g} from the origin)")
+
+    def _solve(self, solver: Any, targets: np.ndarray,
+               initial: np.ndarray | None) -> tuple[np.ndarray, DragOutcome]:
+        """Solve for ``targets``; returns the positions and the outcome without changing the session."""
+        try:
+            result = solver.solve(targets, initial=initial, max_iterations=self.params.iterations)
+        except ArapError as exc:
+            raise RequestError("bad_message", str(exc)) from exc
+        if not np.all(np.isfinite(result.vertices)):
+            self._warm = False
+            raise RequestError("internal", "the solve produced non-finite positions; the shape is unchanged")
+        self.solves += 1
+        return result.vertices, DragOutcome(result.iterations, [float(e) for e in result.energies],
+                                            1000.0 * float(result.timings.get("total", 0.0)))
 
     def drag(self, transforms: list[list[float]]) -> DragOutcome:
         """Move the handle groups by ``transforms`` (column-major 4×4 each) and solve.
@@ -203,25 +258,13 @@ class Session:
             raise RequestError("bad_constraints", "nothing to solve: select fixed vertices or handles first")
         T = matrices_from_json(transforms)
         targets = self.constraints.targets(T)
-        limit = _TARGET_RANGE * (1.0 + float(np.abs(self.V).max(initial=0.0)))
-        if not np.all(np.abs(targets) <= limit):
-            raise RequestError("bad_message", "the transforms move handle vertices absurdly far (beyond "
-                               f"{limit:.3g} from the origin)")
-        initial = None if self._warm else self.U
-        try:
-            result = self.solver.solve(targets, initial=initial, max_iterations=self.params.iterations)
-        except ArapError as exc:
-            raise RequestError("bad_message", str(exc)) from exc
-        if not np.all(np.isfinite(result.vertices)):
-            self._warm = False
-            raise RequestError("internal", "the solve produced non-finite positions; the shape is unchanged")
-        self.U = result.vertices
+        self._check_range(targets)
+        U, outcome = self._solve(self.solver, targets, None if self._warm else self.U)
+        self.U = U
         self.transforms = T
         self._warm = True
         self._dirty = True
-        self.solves += 1
-        return DragOutcome(result.iterations, [float(e) for e in result.energies],
-                           1000.0 * float(result.timings.get("total", 0.0)))
+        return outcome
 
     def end_drag(self) -> bool:
         """Make the deformation since the last step an undo step; True if there was one."""

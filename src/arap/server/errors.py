@@ -1,0 +1,47 @@
+"""Errors of the studio protocol: the ``error`` codes and the exception a rejected request raises.
+
+Part of the wire protocol; :mod:`arap.server.protocol` re-exports both names.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+__all__ = ["ERROR_CODES", "RequestError"]
+
+ERROR_CODES: dict[str, str] = {
+    "bad_message": "not JSON, not an object, unknown type, unknown or missing field, wrong field type/range",
+    "bad_mesh": "the mesh could not be read or is unusable",
+    "too_large": "a frame, upload or mesh exceeds the server's limits",
+    "bad_constraints": "indices out of range or repeated, or a region no constraint pins down",
+    "no_mesh": "the request needs a mesh and the session has none",
+    "busy": "too many requests are waiting in this session; the request was dropped",
+    "internal": "an unexpected server error; the session continues",
+}
+"""Error codes of the ``error`` message and what they mean."""
+
+
+class RequestError(Exception):
+    """A request was rejected; becomes an ``error`` message and leaves the session unchanged.
+
+    Parameters
+    ----------
+    code : str
+        One of :data:`ERROR_CODES`.
+    message : str
+        Human-readable explanation (shown to the user).
+    request : str or None
+        Type of the rejected message, when known.
+    """
+
+    def __init__(self, code: str, message: str, request: str | None = None) -> None:
+        if code not in ERROR_CODES:
+            raise ValueError(f"unknown error code {code!r}")
+        super().__init__(message)
+        self.code = code
+        self.message = message
+        self.request = request
+
+    def to_message(self) -> dict[str, Any]:
+        """The ``error`` message to send."""
+        return {"type": "error", "code": self.code, "message": self.message, "request": self.request}
