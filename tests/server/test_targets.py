@@ -11,7 +11,7 @@ import pytest
 from arap.server import protocol as P
 from arap.server.meshdata import load_builtin
 from arap.server.protocol import RequestError
-from arap.server.session import Session
+from arap.server.session import SETTLE_ITERATIONS, Session
 from tests.server.helpers import StudioClient, translation
 
 pytestmark = pytest.mark.timeout(120)
@@ -35,8 +35,11 @@ def test_targets_move_the_handles_and_solve(studio: StudioClient) -> None:
     targets = studio.V[top] + SHIFT
     _set_with_targets(studio, fixed, [top], targets.tolist())
     reply = studio.expect("vertices")
-    assert reply.data["seq"] == -1 and reply.data["iterations"] == 2
-    assert reply.data["energies"][-1] > 0
+    # A loaded deformation is iterated until it settles, not for one drag's worth of iterations.
+    assert reply.data["seq"] == -1 and 2 < reply.data["iterations"] <= SETTLE_ITERATIONS
+    energies = reply.data["energies"]
+    assert energies[-1] > 0
+    assert np.all(np.diff(energies) <= 1e-12)
     U = reply.floats()
     np.testing.assert_allclose(U[top], targets, atol=1e-5)
     np.testing.assert_array_equal(U[fixed], studio.V[fixed])

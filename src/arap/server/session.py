@@ -27,6 +27,10 @@ logger = logging.getLogger(__name__)
 
 _TARGET_RANGE = 1e6
 """Handle targets farther from the origin than this times (1 + the mesh's largest coordinate) are rejected."""
+SETTLE_ITERATIONS = 200
+"""Iteration cap of the solve that follows loading constraints with explicit targets."""
+SETTLE_TOLERANCE = 1e-6
+"""Relative energy change at which that solve stops."""
 
 _SOLVER_CACHE_VERTICES = 200_000
 """Meshes up to this size keep two factorised solvers (undo across a selection change is instant)."""
@@ -212,7 +216,8 @@ class Session:
         U = self.U
         if positions is not None:
             assert solver is not None
-            U, outcome = self._solve(solver, cs.targets(T), self.U)
+            # Loaded targets can be far from the current shape: iterate until the energy settles, not one drag's worth.
+            U, outcome = self._solve(solver, cs.targets(T), self.U, settle=True)
         self.constraints = cs
         self.transforms = T
         self.solver = solver
@@ -228,11 +233,17 @@ class Session:
             raise RequestError("bad_message", "handle vertices would move absurdly far (beyond "
                                f"{limit:.3g} from the origin)")
 
-    def _solve(self, solver: Any, targets: np.ndarray,
-               initial: np.ndarray | None) -> tuple[np.ndarray, DragOutcome]:
-        """Solve for ``targets``; returns the positions and the outcome without changing the session."""
+    def _solve(self, solver: Any, targets: np.ndarray, initial: np.ndarray | None,
+               settle: bool = False) -> tuple[np.ndarray, DragOutcome]:
+        """Solve for ``targets``; returns the positions and the outcome without changing the session.
+
+        ``settle`` runs up to :data:`SETTLE_ITERATIONS` iterations until the relative energy change is below
+        :data:`SETTLE_TOLERANCE`, instead of the per-update iteration count.
+        """
+        iterations = max(self.params.iterations, SETTLE_ITERATIONS) if settle else self.params.iterations
+        tolerance = SETTLE_TOLERANCE if settle else 0.0
         try:
-            result = solver.solve(targets, initial=initial, max_iterations=self.params.iterations)
+            result = solver.solve(targets, initial=initial, max_iterations=iterations, tolerance=tolerance)
         except ArapError as exc:
             raise RequestError("bad_message", str(exc)) from exc
         if not np.all(np.isfinite(result.vertices)):
