@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
 from arap.errors import ConstraintError
@@ -53,7 +54,8 @@ def check_index_array(indices: np.ndarray | list[int], n: int, name: str) -> np.
     return arr
 
 
-def find_unconstrained_part(F: np.ndarray, n: int, free: np.ndarray) -> tuple[list[int], int] | None:
+def find_unconstrained_part(F: np.ndarray, n: int, free: np.ndarray,
+                            adjacency: sp.csr_matrix | None = None) -> tuple[list[int], int] | None:
     """Find a connected part of the free vertices with no edge to a non-free vertex.
 
     Such a part has no constraint, so the global step's matrix is singular there.
@@ -64,6 +66,8 @@ def find_unconstrained_part(F: np.ndarray, n: int, free: np.ndarray) -> tuple[li
     n : int
     free : (f,) int array
         Free vertices.
+    adjacency : (n, n) sparse matrix or None
+        The mesh's vertex adjacency, if already computed.
 
     Returns
     -------
@@ -72,7 +76,7 @@ def find_unconstrained_part(F: np.ndarray, n: int, free: np.ndarray) -> tuple[li
     """
     if not len(free):
         return None
-    A = vertex_adjacency(F, n)
+    A = vertex_adjacency(F, n) if adjacency is None else adjacency
     is_free = np.zeros(n, dtype=bool)
     is_free[free] = True
     A_ff = A[free][:, free]

@@ -15,7 +15,7 @@ from arap.errors import ConstraintError, UnconstrainedRegionError
 from arap.indexing import check_index_array, find_unconstrained_part
 from arap.linsolve import NotPositiveDefiniteError, factorize
 from arap.mesh import check_mesh
-from arap.topology import locality_order
+from arap.topology import locality_order, vertex_adjacency
 from arap.weights import WEIGHT_TYPES
 
 IterationCallback = Callable[[int, float], "bool | None"]
@@ -123,7 +123,8 @@ class ArapSolver:
         self.held = np.flatnonzero(held_mask)
         self.free = np.flatnonzero(~fixed_mask & ~held_mask)
         self.nonfree = np.flatnonzero(fixed_mask | held_mask)
-        part = find_unconstrained_part(F, n, self.free)
+        adjacency = vertex_adjacency(F, n)
+        part = find_unconstrained_part(F, n, self.free, adjacency)
         if part is not None:
             sample, size = part
             where = "" if self.roi is None else " (region of interest)"
@@ -136,7 +137,7 @@ class ArapSolver:
 
         # Internally vertices are renumbered for memory locality (reverse Cuthill-McKee): neighbours get nearby
         # indices, so the gathers of the local step and the right-hand side stay in cache.
-        self._perm = locality_order(F, n)
+        self._perm = locality_order(F, n, adjacency)
         self._inv = np.empty_like(self._perm)
         self._inv[self._perm] = np.arange(n)
         self._V = np.ascontiguousarray(V[self._perm])

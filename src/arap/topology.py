@@ -88,7 +88,7 @@ def connected_components(F: np.ndarray, n: int) -> tuple[int, np.ndarray]:
     return int(count), labels
 
 
-def locality_order(F: np.ndarray, n: int) -> np.ndarray:
+def locality_order(F: np.ndarray, n: int, adjacency: sp.csr_matrix | None = None) -> np.ndarray:
     """A vertex order in which mesh neighbours have nearby indices (reverse Cuthill-McKee).
 
     Returns
@@ -96,4 +96,5 @@ def locality_order(F: np.ndarray, n: int) -> np.ndarray:
     (n,) int64 array
         ``order[k]`` is the original index of the vertex placed at position ``k``.
     """
-    return np.asarray(reverse_cuthill_mckee(vertex_adjacency(F, n), symmetric_mode=True), dtype=np.int64)
+    A = vertex_adjacency(F, n) if adjacency is None else adjacency
+    return np.asarray(reverse_cuthill_mckee(A, symmetric_mode=True), dtype=np.int64)
