@@ -19,6 +19,7 @@ from arap.mesh import (
     degenerate_faces,
 )
 from arap.topology import edge_face_counts
+from arap.weights import edge_weight_matrix
 
 __all__ = ["MeshInfo", "inspect_mesh"]
 
@@ -128,22 +129,9 @@ def _negative_weight_share(V: np.ndarray, F: np.ndarray) -> float:
     """Share of undirected edges whose summed cotangent weight is negative."""
     if not len(F):
         return 0.0
-    P = V[F]
-    cots = np.empty((len(F), 3))
-    for k in range(3):
-        a = P[:, (k + 1) % 3] - P[:, k]
-        b = P[:, (k + 2) % 3] - P[:, k]
-        cross = np.linalg.norm(np.cross(a, b), axis=1)
-        cots[:, k] = np.einsum("ij,ij->i", a, b) / np.maximum(cross, np.finfo(float).tiny)
-    # The angle at corner k is opposite the edge (k+1, k+2).
-    i = np.concatenate([F[:, 1], F[:, 2], F[:, 0]])
-    j = np.concatenate([F[:, 2], F[:, 0], F[:, 1]])
-    lo, hi = np.minimum(i, j), np.maximum(i, j)
-    key = lo * (int(V.shape[0]) + 1) + hi
-    uniq, inverse = np.unique(key, return_inverse=True)
-    w = np.zeros(len(uniq))
-    np.add.at(w, inverse.reshape(-1), 0.5 * cots.T.reshape(-1))
-    return float((w < 0).mean())
+    with np.errstate(invalid="ignore"):
+        upper = sp.triu(edge_weight_matrix(V, F), k=1).tocsr()
+    return float((upper.data < 0).mean())
 
 
 def _face_graph(F: np.ndarray, n: int) -> sp.coo_matrix:
