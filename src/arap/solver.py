@@ -5,20 +5,36 @@ from __future__ import annotations
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import Literal
 
 import numpy as np
 import scipy.sparse as sp
+from numpy.typing import NDArray
 
+from arap.anderson import AndersonAccelerator
 from arap.cells import ENERGY_TYPES, build_cells, build_rhs_gather, system_matrix
 from arap.covariance import assemble_rhs, covariances, local_step
-from arap.errors import ConstraintError, UnconstrainedRegionError
+from arap.errors import ArapError, ConstraintError, UnconstrainedRegionError
 from arap.indexing import check_index_array, find_unconstrained_part
 from arap.linsolve import NotPositiveDefiniteError, factorize
 from arap.mesh import check_mesh
+from arap.start import best_rigid_transform, vertex_areas
 from arap.topology import locality_order, vertex_adjacency
 from arap.weights import WEIGHT_TYPES
 
 IterationCallback = Callable[[int, float], "bool | None"]
+Acceleration = Literal["anderson", "none"]
+ACCELERATIONS: tuple[str, ...] = ("anderson", "none")
+StartName = Literal["auto", "rest", "rigid"]
+START_NAMES: tuple[str, ...] = ("auto", "rest", "rigid")
+
+#: Default convergence tolerance of :meth:`ArapSolver.solve`: root-mean-square step of the plain iteration relative
+#: to the bounding-box diagonal.
+DEFAULT_TOLERANCE = 1e-9
+#: Hard cap on iterations when ``max_iterations`` is None.
+MAX_ITERATIONS = 10_000
+#: Default Anderson window.
+DEFAULT_WINDOW = 5
 
 
 @dataclass
@@ -34,17 +50,28 @@ class ArapResult:
     iterations : int
         Iterations run.
     converged : bool
-        True if the relative energy change fell to ``tolerance`` before ``max_iterations``.
+        True if the last iteration's plain step was within ``tolerance`` (see :meth:`ArapSolver.solve`); False when
+        the iteration cap or the callback stopped it first.
     timings : dict of str to float
-        Seconds spent, summed over iterations: ``local`` (covariances, rotations, energy), ``rhs``, ``solve``, and
-        ``total`` for the whole call.
+        Seconds spent, summed over iterations: ``local`` (covariances, rotations, energy), ``rhs``, ``solve``,
+        ``acceleration``, and ``total`` for the whole call.
+    residual : float
+        Root-mean-square step of the plain iteration at the last iterate, relative to the bounding-box diagonal
+        (NaN if no iteration ran).
+    start : {"warm", "rest", "rigid", "given"}
+        Where the iteration started (see ``initial``).
+    rejected : int
+        Anderson extrapolations rejected by the energy safeguard.
     """
 
-    vertices: np.ndarray
+    vertices: NDArray[np.float64]
     energies: list[float]
     iterations: int
     converged: bool
     timings: dict[str, float] = field(default_factory=dict)
+    residual: float = float("nan")
+    start: str = "rest"
+    rejected: int = 0
 
 
 class ArapSolver:
@@ -99,9 +126,9 @@ class ArapSolver:
     ) -> None:
         t0 = time.perf_counter()
         if energy not in ENERGY_TYPES:
-            raise ValueError(f"unknown energy {energy!r}; expected one of {ENERGY_TYPES}")
+            raise ArapError(f"unknown energy {energy!r}; expected one of {ENERGY_TYPES}")
         if weights not in WEIGHT_TYPES:
-            raise ValueError(f"unknown weights {weights!r}; expected one of {WEIGHT_TYPES}")
+            raise ArapError(f"unknown weights {weights!r}; expected one of {WEIGHT_TYPES}")
         V, F = check_mesh(V, F)
         n = len(V)
         self.V = V
@@ -141,6 +168,8 @@ class ArapSolver:
         self._inv = np.empty_like(self._perm)
         self._inv[self._perm] = np.arange(n)
         self._V = np.ascontiguousarray(V[self._perm])
+        self._diagonal = float(np.linalg.norm(V.max(axis=0) - V.min(axis=0))) or 1.0
+        self._areas = vertex_areas(self._V, self._inv[F])
         self._constrained = self._inv[self.constrained]
         self._free = np.sort(self._inv[self.free])
         self._nonfree = np.sort(self._inv[self.nonfree])
@@ -165,7 +194,8 @@ class ArapSolver:
         self.backend = None if self.factor is None else self.factor.backend
         self._R = np.tile(np.eye(3), (n, 1, 1))
         self._E = np.zeros(n)
-        self._last: np.ndarray | None = None
+        self._last: NDArray[np.float64] | None = None
+        self._live: NDArray[np.float64] | None = None
         self._rotations_fresh = False
         self.factor_seconds = time.perf_counter() - t0
 
@@ -219,9 +249,9 @@ class ArapSolver:
         U = np.asarray(U, dtype=np.float64)
         n = self.n_vertices
         if U.shape != (n, 3):
-            raise ValueError(f"{name} must have shape ({n}, 3), got {U.shape}")
+            raise ArapError(f"{name} must have shape ({n}, 3), got {U.shape}")
         if not np.all(np.isfinite(U)):
-            raise ValueError(f"{name} has non-finite coordinates")
+            raise ArapError(f"{name} has non-finite coordinates")
         return U
 
     def _check_targets(self, targets: np.ndarray | list) -> np.ndarray:
@@ -245,85 +275,193 @@ class ArapSolver:
 
     def solve(
         self,
-        targets: np.ndarray | list,
-        initial: np.ndarray | None = None,
-        max_iterations: int = 10,
-        tolerance: float = 0.0,
+        targets: NDArray[np.float64] | list,
+        initial: NDArray[np.float64] | StartName | None = None,
+        max_iterations: int | None = None,
+        tolerance: float = DEFAULT_TOLERANCE,
         callback: IterationCallback | None = None,
+        acceleration: Acceleration = "anderson",
+        window: int = DEFAULT_WINDOW,
     ) -> ArapResult:
-        """Deform the mesh so the constrained vertices reach their targets.
+        """Deform the mesh so the constrained vertices reach their targets; by default, iterate until converged.
 
         Parameters
         ----------
         targets : (k, 3) float array
             Target of each constrained vertex, in the order of ``constrained``.
-        initial : (n, 3) float array or None
-            Initial guess. None: the previous solution of this solver, or the rest pose the first time.
-        max_iterations : int
-            Cap on local/global iterations (≥ 0).
+        initial : (n, 3) float array, {"auto", "rest", "rigid"} or None
+            Where the iteration starts. None: the previous solution of this solver (a warm start, reusing its
+            rotations), or ``"auto"`` the first time (and after :meth:`reset`). ``"rest"``: the rest pose with the
+            constrained vertices at their targets. ``"rigid"``: the rest pose moved by the rigid motion that best
+            maps the constrained vertices to their targets (weighted Procrustes). ``"auto"``: whichever of the two
+            has the lower energy, so that constraints moved together by one rigid motion, however large its angle,
+            give that motion at once. An array: these positions (constrained vertices are moved to their targets).
+        max_iterations : int or None
+            Cap on local/global iterations (≥ 0). None: until converged, at most ``MAX_ITERATIONS``.
         tolerance : float
-            Stop when ``|E_{k-1} − E_k| ≤ tolerance · |E_{k-1}|``. 0 runs all iterations.
+            Converged when the step of the plain local/global iteration from the current iterate, root mean square
+            over the free vertices, is at most ``tolerance`` times the bounding-box diagonal. That step is the
+            energy gradient preconditioned by the system matrix, so it vanishes exactly at a stationary point.
+            0 runs all ``max_iterations``.
         callback : callable or None
             ``callback(iteration, energy)`` after each iteration (1-based); returning False stops early.
+            :meth:`current_vertices` gives the iterate meanwhile.
+        acceleration : {"anderson", "none"}
+            ``anderson``: Anderson acceleration of the local/global fixed point (Peng et al. 2018) with an energy
+            safeguard: an extrapolated iterate is kept only if its energy is not higher than the current one,
+            otherwise the plain step is taken. ``none``: the plain iteration of Sorkine & Alexa 2007.
+        window : int
+            Anderson window ``m`` (previous iterates used).
 
         Returns
         -------
         ArapResult
+            Its ``energies`` never rise from one iteration to the next.
         """
         t_start = time.perf_counter()
         T = self._check_targets(targets)
-        if int(max_iterations) != max_iterations or max_iterations < 0:
-            raise ValueError(f"max_iterations must be a non-negative integer, got {max_iterations!r}")
+        cap = MAX_ITERATIONS if max_iterations is None else max_iterations
+        if int(cap) != cap or cap < 0:
+            raise ArapError(f"max_iterations must be a non-negative integer or None, got {max_iterations!r}")
         if not tolerance >= 0:
-            raise ValueError(f"tolerance must be >= 0, got {tolerance!r}")
-        use_cache = initial is None and self._last is not None and self._rotations_fresh
-        if initial is None:
-            U = self._V.copy() if self._last is None else self._last.copy()
-        else:
-            U = self._to_internal(self._check_positions(initial, "initial"))
+            raise ArapError(f"tolerance must be >= 0, got {tolerance!r}")
+        if acceleration not in ACCELERATIONS:
+            raise ArapError(f"unknown acceleration {acceleration!r}; expected one of {ACCELERATIONS}")
+        if int(window) != window or window < 1:
+            raise ArapError(f"window must be a positive integer, got {window!r}")
         fixed = self._fixed_positions(T)
-        timings = {"local": 0.0, "rhs": 0.0, "solve": 0.0}
-        active = self._active
-        prev: float | None = None
-        if not use_cache:
-            t = time.perf_counter()
-            local_step(self._cells, active, U, self._R, self._E)
-            timings["local"] += time.perf_counter() - t
-        at_targets = np.array_equal(U[self._nonfree], fixed)
-        U[self._nonfree] = fixed
+        timings = {"local": 0.0, "rhs": 0.0, "solve": 0.0, "acceleration": 0.0}
+        U, E_cur, start = self._start(T, fixed, initial, timings)
         const_E = self._constant_energy(U, T)
-        if at_targets:
-            prev = float(self._E[active].sum()) + const_E
+        if E_cur is not None:
+            E_cur += const_E
+        self._live = U
+        free = self._free
+        nf = len(free)
         rhs_const = self._L_fn @ fixed
-        rhs = np.empty((len(self._free), 3))
+        rhs = np.empty((nf, 3))
+        accel = AndersonAccelerator(window, 3 * nf) if acceleration == "anderson" and nf else None
+        step_limit = tolerance * self._diagonal * np.sqrt(max(nf, 1))
         energies: list[float] = []
         converged = False
-        for it in range(int(max_iterations)):
+        residual = float("nan")
+        rejected = 0
+        for it in range(int(cap)):
+            x = U[free]
             if self.factor is not None:
                 t = time.perf_counter()
                 assemble_rhs(self._gather, self._R, rhs_const, rhs)
                 t2 = time.perf_counter()
-                U[self._free] = self.factor.solve(rhs)
-                t3 = time.perf_counter()
+                g = self.factor.solve(rhs)
                 timings["rhs"] += t2 - t
-                timings["solve"] += t3 - t2
-            t = time.perf_counter()
-            local_step(self._cells, active, U, self._R, self._E)
-            timings["local"] += time.perf_counter() - t
-            e = float(self._E[active].sum()) + const_E
+                timings["solve"] += time.perf_counter() - t2
+            else:
+                g = x
+            step = float(np.linalg.norm(g - x))
+            residual = step / (self._diagonal * np.sqrt(max(nf, 1)))
+            last = step <= step_limit
+            candidate = None
+            if accel is not None:
+                t = time.perf_counter()
+                candidate = accel.step(x.ravel(), g.ravel())
+                timings["acceleration"] += time.perf_counter() - t
+            use_candidate = candidate is not None and not last and E_cur is not None
+            U[free] = candidate.reshape(nf, 3) if use_candidate else g
+            e = self._local(U, const_E, timings)
+            if use_candidate and e > E_cur:
+                # Safeguard: the extrapolation raised the energy; take the plain step, which cannot.
+                rejected += 1
+                assert accel is not None
+                accel.reset()
+                U[free] = g
+                e = self._local(U, const_E, timings)
+            E_cur = e
             energies.append(e)
             stop = callback is not None and callback(it + 1, e) is False
-            if prev is not None and abs(prev - e) <= tolerance * max(abs(prev), 1e-300):
+            if tolerance > 0 and last:
                 converged = True
-            prev = e
             if converged or stop:
                 break
         self._last = U
+        self._live = None
         # The rotations fit the stored solution only if an iteration ended with a local step on it.
-        self._rotations_fresh = bool(energies)
+        self._rotations_fresh = bool(energies) or start != "warm"
         timings["total"] = time.perf_counter() - t_start
         return ArapResult(vertices=U[self._inv], energies=energies, iterations=len(energies), converged=converged,
-                          timings=timings)
+                          timings=timings, residual=residual, start=start, rejected=rejected)
+
+    def _local(self, U: NDArray[np.float64], const_E: float, timings: dict[str, float]) -> float:
+        """Local step on the active cells at ``U``; returns the total energy."""
+        t = time.perf_counter()
+        local_step(self._cells, self._active, U, self._R, self._E)
+        timings["local"] += time.perf_counter() - t
+        return float(self._E[self._active].sum()) + const_E
+
+    def _start(
+        self, T: NDArray[np.float64], fixed: NDArray[np.float64], initial: object, timings: dict[str, float]
+    ) -> tuple[NDArray[np.float64], float | None, str]:
+        """Starting positions (internal order, non-free vertices at their fixed positions), their active-cell
+        energy (None when the rotations in ``self._R`` were not fitted to them) and the name of the start.
+
+        Leaves in ``self._R`` the rotations the first global step uses.
+        """
+        if initial is None:
+            if self._last is None:
+                initial = "auto"
+            else:
+                U = self._last.copy()
+                warm_fresh = self._rotations_fresh
+                if not warm_fresh:
+                    self._local(U, 0.0, timings)
+                at_targets = np.array_equal(U[self._nonfree], fixed)
+                U[self._nonfree] = fixed
+                E = float(self._E[self._active].sum()) if at_targets else None
+                return U, E, "warm"
+        if isinstance(initial, str):
+            if initial not in START_NAMES:
+                raise ArapError(f"unknown initial {initial!r}; expected one of {START_NAMES}, an array or None")
+            candidates = []
+            if initial in ("auto", "rest"):
+                U = self._V.copy()
+                U[self._nonfree] = fixed
+                candidates.append(("rest", U))
+            if initial in ("auto", "rigid"):
+                candidates.append(("rigid", self._rigid_start(T, fixed)))
+            best: tuple[float, str, NDArray[np.float64], NDArray[np.float64]] | None = None
+            for name, U in candidates:
+                E = self._local(U, 0.0, timings)
+                if best is None or E < best[0]:
+                    best = (E, name, U, self._R.copy() if len(candidates) > 1 else self._R)
+            assert best is not None
+            E, name, U, R = best
+            if R is not self._R:
+                self._R[:] = R
+            return U, E, name
+        U = self._to_internal(self._check_positions(initial, "initial"))
+        U[self._nonfree] = fixed
+        return U, self._local(U, 0.0, timings), "given"
+
+    def _rigid_start(self, T: NDArray[np.float64], fixed: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Rest pose moved by the best-fit rigid motion of the constrained vertices, non-free vertices fixed."""
+        U = self._V.copy()
+        if len(self._constrained):
+            R, t = best_rigid_transform(self._V[self._constrained], T, self._areas[self._constrained])
+            U[self._free] = self._V[self._free] @ R.T + t
+        U[self._nonfree] = fixed
+        return U
+
+    def current_vertices(self) -> NDArray[np.float64]:
+        """Positions of the current iterate during :meth:`solve` (from its callback), else of the last solution.
+
+        Returns
+        -------
+        (n, 3) float64 array
+            A copy, in the caller's vertex order; the rest pose before any solve.
+        """
+        U = self._live if self._live is not None else self._last
+        if U is None:
+            return self.V.copy()
+        return U[self._inv]
 
     def reset(self) -> None:
         """Forget the previous solution: the next :meth:`solve` without ``initial`` starts from the rest pose."""

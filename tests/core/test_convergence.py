@@ -1,0 +1,148 @@
+"""Converged results: Anderson acceleration with its energy safeguard, the start for large motions, stopping."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from arap import ArapSolver, arap_energy
+from arap.errors import ArapError
+from arap.start import best_rigid_transform
+
+from .scenarios import bend_constraints, random_rigid
+
+
+def _diag(V: np.ndarray) -> float:
+    return float(np.linalg.norm(V.max(0) - V.min(0)))
+
+
+def _rotation_about(axis: np.ndarray, degrees: float) -> np.ndarray:
+    k = axis / np.linalg.norm(axis)
+    K = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
+    t = np.radians(degrees)
+    return np.eye(3) + np.sin(t) * K + (1 - np.cos(t)) * (K @ K)
+
+
+@pytest.mark.parametrize("mesh_name", ["knight", "camelhead"])
+@pytest.mark.parametrize("energy", ["spokes", "spokes_and_rims"])
+def test_anderson_never_reports_a_rising_energy(request: pytest.FixtureRequest, mesh_name: str,
+                                                energy: str) -> None:
+    V, F = request.getfixturevalue(mesh_name)
+    _, _, constrained, targets = bend_constraints(V, angle=1.2, shift=0.25)
+    solver = ArapSolver(V, F, constrained, energy=energy)
+    result = solver.solve(targets, max_iterations=400, tolerance=1e-9)
+    assert result.iterations > 5
+    assert np.all(np.diff(result.energies) <= 0.0)
+    assert result.energies[-1] == pytest.approx(arap_energy(V, F, result.vertices, energy), rel=1e-9, abs=1e-12)
+    # Warm-started drags keep the guarantee from their second iteration on.
+    moved = targets + 0.05 * _diag(V) * np.array([1.0, 0.0, 0.0])
+    drag = solver.solve(moved, max_iterations=60)
+    assert np.all(np.diff(drag.energies) <= 0.0)
+
+
+def test_anderson_reaches_the_plain_minimum_without_obtuse_triangles(
+        icosphere: tuple[np.ndarray, np.ndarray]) -> None:
+    V, F = icosphere
+    _, _, constrained, targets = bend_constraints(V, axis=2, share=0.15, angle=0.8, shift=0.2)
+    solver = ArapSolver(V, F, constrained)
+    plain = solver.solve(targets, initial="rest", acceleration="none", tolerance=1e-11, max_iterations=20_000)
+    fast = solver.solve(targets, initial="rest", tolerance=1e-11)
+    assert plain.converged and fast.converged
+    assert fast.iterations * 3 < plain.iterations
+    assert np.abs(fast.vertices - plain.vertices).max() < 1e-7 * _diag(V)
+    assert fast.energies[-1] == pytest.approx(plain.energies[-1], rel=1e-9)
+
+
+@pytest.mark.parametrize("degrees", [90.0, 170.0, 180.0])
+@pytest.mark.parametrize("case", ["icosphere-spokes", "camelhead-spokes_and_rims"])
+def test_a_rigid_motion_of_the_constraints_is_reached_at_once(request: pytest.FixtureRequest, case: str,
+                                                              degrees: float) -> None:
+    mesh_name, energy = case.split("-")
+    V, F = request.getfixturevalue(mesh_name)
+    R = _rotation_about(np.array([0.3, -1.0, 0.5]), degrees)
+    t = np.array([0.5, -2.0, 1.0]) * _diag(V)
+    moved = V @ R.T + t
+    constrained = np.random.default_rng(0).choice(len(V), 40, replace=False)
+    result = ArapSolver(V, F, constrained, energy=energy).solve(moved[constrained])
+    assert result.start == "rigid"
+    assert result.converged and result.iterations <= 10
+    assert np.abs(result.vertices - moved).max() <= 1e-8 * _diag(V)
+    # From the rest pose the plain iteration does not get there (this is what the start is for).
+    if degrees >= 170.0:
+        stuck = ArapSolver(V, F, constrained, energy=energy).solve(moved[constrained], initial="rest",
+                                                                   max_iterations=10)
+        assert np.abs(stuck.vertices - moved).max() > 1e-3 * _diag(V)
+
+
+def test_the_start_is_chosen_by_energy(knight: tuple[np.ndarray, np.ndarray]) -> None:
+    V, F = knight
+    _, _, constrained, targets = bend_constraints(V)
+    solver = ArapSolver(V, F, constrained)
+    starts = {name: solver.solve(targets, initial=name, max_iterations=0) for name in ("rest", "rigid")}
+    e0 = {name: solver.energy(r.vertices) for name, r in starts.items()}
+    solver.reset()
+    auto = solver.solve(targets, max_iterations=0)
+    assert auto.start == min(e0, key=e0.__getitem__)
+    np.testing.assert_array_equal(auto.vertices, starts[auto.start].vertices)
+
+
+def test_stopping_is_honest(knight: tuple[np.ndarray, np.ndarray]) -> None:
+    V, F = knight
+    _, _, constrained, targets = bend_constraints(V, angle=1.0)
+    solver = ArapSolver(V, F, constrained)
+    short = solver.solve(targets, initial="rest", max_iterations=3)
+    assert not short.converged and short.iterations == 3 and short.residual > 1e-9
+    full = solver.solve(targets, initial="rest")
+    assert full.converged and full.residual <= 1e-9
+    again = solver.solve(targets, initial=full.vertices, tolerance=1e-9)
+    assert again.iterations <= 2
+    fixed_count = solver.solve(targets, initial="rest", tolerance=0.0, max_iterations=25)
+    assert fixed_count.iterations == 25 and not fixed_count.converged
+
+
+def test_current_vertices_during_the_callback(knight: tuple[np.ndarray, np.ndarray]) -> None:
+    V, F = knight
+    _, _, constrained, targets = bend_constraints(V)
+    solver = ArapSolver(V, F, constrained)
+    seen: dict[int, np.ndarray] = {}
+
+    def callback(iteration: int, energy: float) -> None:
+        seen[iteration] = solver.current_vertices()
+        assert solver.energy(seen[iteration]) == pytest.approx(energy, rel=1e-9, abs=1e-12)
+
+    result = solver.solve(targets, initial="rest", max_iterations=12, callback=callback)
+    np.testing.assert_array_equal(seen[12], result.vertices)
+    partial = solver.solve(targets, initial="rest", max_iterations=5)
+    # Equal up to rounding: the rotation fit starts its Newton iteration from the previous call's rotations.
+    np.testing.assert_allclose(seen[5], partial.vertices, rtol=0, atol=1e-12 * _diag(V))
+    np.testing.assert_array_equal(solver.current_vertices(), partial.vertices)
+
+
+def test_bad_options_are_arap_errors(knight: tuple[np.ndarray, np.ndarray]) -> None:
+    V, F = knight
+    solver = ArapSolver(V, F, [0, 1, 2])
+    T = V[[0, 1, 2]]
+    for kwargs in ({"acceleration": "nesterov"}, {"window": 0}, {"initial": "middle"}, {"tolerance": -1.0},
+                   {"max_iterations": 2.5}):
+        with pytest.raises(ArapError):
+            solver.solve(T, **kwargs)
+
+
+def test_best_rigid_transform_handles_degenerate_point_sets() -> None:
+    rng = np.random.default_rng(3)
+    R, t = random_rigid(4)
+    P = rng.normal(size=(10, 3))
+    R_fit, t_fit = best_rigid_transform(P, P @ R.T + t)
+    np.testing.assert_allclose(R_fit, R, atol=1e-12)
+    np.testing.assert_allclose(t_fit, t, atol=1e-12)
+    # Collinear points: the smallest rotation that aligns the line, exact on the points.
+    line = np.outer(np.linspace(-1, 1, 5), [1.0, 2.0, 0.5])
+    R_fit, t_fit = best_rigid_transform(line, line @ R.T + t)
+    np.testing.assert_allclose(line @ R_fit.T + t_fit, line @ R.T + t, atol=1e-12)
+    assert np.linalg.det(R_fit) == pytest.approx(1.0)
+    # Reversed line (half a turn) and a single point (translation only).
+    R_fit, t_fit = best_rigid_transform(line, -line)
+    np.testing.assert_allclose(line @ R_fit.T + t_fit, -line, atol=1e-12)
+    R_fit, t_fit = best_rigid_transform(P[:1], P[:1] + 1.0)
+    np.testing.assert_allclose(R_fit, np.eye(3))
+    np.testing.assert_allclose(t_fit, 1.0)
