@@ -34,6 +34,7 @@ import numpy as np
 from arap.errors import ConstraintError
 from arap.indexing import check_index_array
 from arap.io.atomic import write_atomic
+from arap.mesh import coordinate_problem
 
 __all__ = ["Constraints", "check_selection", "check_targets", "load_constraints", "save_constraints"]
 
@@ -82,8 +83,17 @@ class Constraints:
         indices : (f + h,) int64 array
             ``fixed`` then ``handles``.
         targets : (f + h, 3) float64 array
+
+        Raises
+        ------
+        ConstraintError
+            The targets and the mesh together span more than :data:`arap.mesh.SIZE_RANGE` allows (targets
+            absurdly far away).
         """
         V = np.asarray(V, dtype=np.float64)
+        problem = coordinate_problem(np.concatenate([V, self.targets]).reshape(-1, 3))
+        if problem is not None and coordinate_problem(V) is None:
+            raise ConstraintError(f"the targets lie too far from the mesh: with them, {problem}")
         return self.constrained, np.concatenate([V[self.fixed], self.targets]).reshape(-1, 3)
 
     def remapped(self, vertex_map: np.ndarray) -> Constraints:

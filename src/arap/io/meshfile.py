@@ -387,6 +387,14 @@ def _ply_bytes(V: np.ndarray, F: np.ndarray) -> bytes:
     return header + V.astype("<f8").tobytes() + faces.tobytes()
 
 
+def _text_bytes(V: np.ndarray, F: np.ndarray, header: str, vkey: str, fkey: str, base: int) -> bytes:
+    """OBJ or OFF text: coordinates with 17 significant digits (``%.17g``, exact for every double, tiny and huge
+    ones included), faces counted from ``base``."""
+    vertices = (f"{vkey}%.17g %.17g %.17g\n" * len(V)) % tuple(V.ravel().tolist())
+    faces = (f"{fkey}%d %d %d\n" * len(F)) % tuple((F + base).ravel().tolist())
+    return (header + vertices + faces).encode("ascii")
+
+
 def save_mesh_bytes(V: np.ndarray, F: np.ndarray, file_type: str) -> bytes:
     """Encode a triangle mesh as the bytes of a file.
 
@@ -408,18 +416,14 @@ def save_mesh_bytes(V: np.ndarray, F: np.ndarray, file_type: str) -> bytes:
     V, F = _check_for_saving(V, F)
     if ft == "ply":
         return _ply_bytes(V, F)
+    if ft == "obj":
+        return _text_bytes(V, F, "", "v ", "f ", 1)
+    if ft == "off":
+        return _text_bytes(V, F, f"OFF\n{len(V)} {len(F)} 0\n", "", "3 ", 0)
     import trimesh
 
     mesh = trimesh.Trimesh(vertices=V, faces=F, process=False, validate=False)
-    if ft == "obj":
-        out = trimesh.exchange.obj.export_obj(
-            mesh, include_normals=False, include_color=False, include_texture=False, digits=17, header=None
-        )
-    elif ft == "off":
-        out = trimesh.exchange.off.export_off(mesh, digits=17)
-    else:
-        out = trimesh.exchange.stl.export_stl(mesh)
-    return out.encode("utf-8") if isinstance(out, str) else bytes(out)
+    return bytes(trimesh.exchange.stl.export_stl(mesh))
 
 
 def save_mesh(path: str | os.PathLike[str], V: np.ndarray, F: np.ndarray) -> None:
