@@ -255,7 +255,7 @@ def inspect_mesh(V: np.ndarray, F: np.ndarray) -> MeshInfo:
         bmin, bmax = V[finite].min(axis=0), V[finite].max(axis=0)
     else:
         bmin = bmax = np.zeros(3)
-    with np.errstate(over="ignore"):
+    with np.errstate(over="ignore", under="ignore"):
         diag = float(np.linalg.norm(bmax - bmin))
     scale_problem = coordinate_problem(V[referenced]) if referenced.any() else None
     V = _unit_scaled(V, finite)
