@@ -110,9 +110,9 @@ def test_killed_arap_deform_leaves_the_earlier_output(tmp_path: Path, fmt: str) 
         if child.stderr:
             child.stderr.close()
     assert out.read_bytes() == earlier
-    U, G = load_mesh(out)
+    U, _ = load_mesh(out)
     np.testing.assert_array_equal(U, V)
-    temporary = [p for p in _others(tmp_path, {out.name, "c.json", "marker"})]
+    temporary = _others(tmp_path, {out.name, "c.json", "marker"})
     assert len(temporary) == 1 and temporary[0].endswith(".tmp")
     assert (tmp_path / temporary[0]).stat().st_size > 0
 
