@@ -101,6 +101,11 @@ def test_obj_vertex_zero_is_refused(faces: bytes, line: int) -> None:
         load_mesh_bytes(data, "obj")
 
 
+def test_obj_face_beyond_the_vertices_is_named() -> None:
+    with pytest.raises(MeshFormatError, match="a face refers to a vertex the file does not have"):
+        load_mesh_bytes(b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 9\n", "obj")
+
+
 def test_obj_zeros_elsewhere_are_fine() -> None:
     data = b"# f 0 1 2\nv 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nvt 0 0\nf 1/1 2/1 3/1\nf -4 -3 -1 \n"
     V, F = load_mesh_bytes(data, "obj")

@@ -208,6 +208,9 @@ def _parse(stream: io.BytesIO, file_type: str, label: str) -> tuple[np.ndarray, 
         kwargs.update(skip_materials=True, maintain_order=True)
     try:
         loaded = mesh_loaders[file_type](stream, **kwargs)
+    except IndexError as exc:
+        raise MeshFormatError(f"cannot parse {label} as {file_type.upper()}: a face refers to a vertex the file "
+                              f"does not have ({exc})") from exc
     except Exception as exc:  # the parsers raise anything from ValueError to struct.error
         raise MeshFormatError(f"cannot parse {label} as {file_type.upper()}: {exc}") from exc
     parts = list(loaded["geometry"].values()) if "geometry" in loaded else [loaded]
