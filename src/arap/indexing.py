@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
@@ -23,7 +24,7 @@ def check_index_array(indices: Any, n: int, name: str, *, allow_empty: bool = Tr
 
     Parameters
     ----------
-    indices : list of int or (k,) integer array
+    indices : sequence of int (list, tuple, range) or (k,) integer array
         Python ``int`` or NumPy integers. Floats (even ``1.0``), booleans, strings and nested lists are refused,
         whatever their value; an empty list or array of any dtype is the empty set.
     n : int
@@ -50,12 +51,13 @@ def check_index_array(indices: Any, n: int, name: str, *, allow_empty: bool = Tr
             raise ConstraintError(f"{name} must be a flat list of integer vertex indices, got an array of "
                                   f"{indices.dtype}")
         items: Any = indices.reshape(-1)
-    elif isinstance(indices, list | tuple):
-        for pos, item in enumerate(indices):
-            if isinstance(item, bool | np.bool_) or not isinstance(item, int | np.integer):
-                raise ConstraintError(f"{name} must be a flat list of integer vertex indices; item {pos} is "
-                                      f"{_show(item)}")
+    elif isinstance(indices, Sequence) and not isinstance(indices, str | bytes | bytearray):
         items = indices
+        if set(map(type, items)) - {int}:  # the common all-int list skips this per-item loop
+            for pos, item in enumerate(items):
+                if isinstance(item, bool | np.bool_) or not isinstance(item, int | np.integer):
+                    raise ConstraintError(f"{name} must be a flat list of integer vertex indices; item {pos} is "
+                                          f"{_show(item)}")
     else:
         raise ConstraintError(f"{name} must be a list of vertex indices, got {type(indices).__name__}")
     if not len(items):
@@ -63,20 +65,18 @@ def check_index_array(indices: Any, n: int, name: str, *, allow_empty: bool = Tr
             raise ConstraintError(f"{name} is empty" + ("; leave it out (None, null) to use the whole mesh"
                                                          if name == "roi" else ""))
         return np.zeros(0, dtype=np.int64)
-    if not isinstance(items, np.ndarray):
-        # Compare as Python integers first: a 400-digit index must be refused, not overflow int64.
+    if not isinstance(items, np.ndarray) and not (0 <= min(items) and max(items) < n):
+        # Compared as Python integers: a 400-digit index must be refused, not overflow int64.
         out = [pos for pos, i in enumerate(items) if not 0 <= i < n]
-        if out:
-            raise ConstraintError(f"{name} has {len(out)} indices out of range [0, {n}) "
-                                  f"(first: item {out[0]} = {_show(int(items[out[0]]))})")
-        arr = np.asarray(items, dtype=np.int64)
-    else:
-        bad = (items < 0) | (items >= n)
+        raise ConstraintError(f"{name} has {len(out)} indices out of range [0, {n}) "
+                              f"(first: item {out[0]} = {_show(int(items[out[0]]))})")
+    if isinstance(items, np.ndarray):
+        bad = (items < 0) | (items >= n)  # in the array's own dtype: uint64 beyond int64 must not wrap
         if bad.any():
             first = int(np.flatnonzero(bad)[0])
             raise ConstraintError(f"{name} has {int(bad.sum())} indices out of range [0, {n}) "
                                   f"(first: item {first} = {int(items[first])})")
-        arr = items.astype(np.int64)
+    arr = np.asarray(items, dtype=np.int64)
     uniq, counts = np.unique(arr, return_counts=True)
     if np.any(counts > 1):
         dup = uniq[counts > 1]
