@@ -36,8 +36,9 @@ class UnconstrainedRegionError(ConstraintError):
         self.size = size
 
 
-class MeshFormatError(ArapError):
-    """A mesh file could not be read or written (unknown extension, unparsable content)."""
+class MeshFormatError(MeshError):
+    """A mesh file could not be read or written (unknown extension, unreadable file, binary junk, unparsable
+    content); a kind of :class:`MeshError`, since the mesh it should hold is unusable."""
 
 
 class MeshTooLargeError(MeshFormatError):

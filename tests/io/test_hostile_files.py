@@ -79,8 +79,12 @@ def test_binary_stl_with_a_latin1_header_loads() -> None:
 @pytest.mark.parametrize("seed", [0, 1, 2])
 def test_random_junk_gets_a_clear_message(fmt: str, message: str, seed: int) -> None:
     junk = np.random.default_rng(seed).integers(0, 256, 4000, dtype=np.uint8).tobytes()
-    with pytest.raises(MeshFormatError, match=message):
+    with pytest.raises(MeshError, match=message) as info:  # a MeshError like every unusable mesh
         load_mesh_bytes(junk, fmt)
+    assert isinstance(info.value, MeshFormatError)
+    with pytest.raises(RequestError) as upload:
+        load_upload(junk, f"junk.{fmt}", max_vertices=10_000)
+    assert upload.value.code == "bad_mesh" and message in upload.value.message
 
 
 def test_junk_after_a_plausible_start_is_refused() -> None:
