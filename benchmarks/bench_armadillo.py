@@ -21,6 +21,7 @@ import numpy as np
 
 import arap
 from arap.io import load_mesh
+from arap.io.atomic import write_atomic
 from arap.solver import ArapSolver
 
 DEFAULT_MESH = Path(__file__).resolve().parents[1].parent / "shared" / "meshes" / "armadillo.obj"
@@ -195,7 +196,7 @@ def main(argv: list[str] | None = None) -> int:
     print()
     print("\n".join(backend_choices(V, F, b, ours["U"], args.repeats)))
     if args.json:
-        args.json.write_text(json.dumps(figures, indent=2) + "\n")
+        write_atomic(args.json, json.dumps(figures, indent=2) + "\n")
         print(f"wrote {args.json}")
     if args.plot:
         plot(figures, args.plot)

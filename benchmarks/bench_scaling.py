@@ -21,6 +21,8 @@ from typing import Any
 
 import numpy as np
 
+from arap.io.atomic import write_atomic
+
 SIZES = (10_000, 40_000, 160_000, 400_000, 650_000, 1_000_000)
 
 
@@ -127,7 +129,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"\nlinear solver: {rows[-1]['backend']}; 'solver MiB' is the peak RSS growth while building and "
               "running the solver")
     if args.json:
-        args.json.write_text(json.dumps(rows, indent=2) + "\n")
+        write_atomic(args.json, json.dumps(rows, indent=2) + "\n")
         print(f"wrote {args.json}")
     return 0
 

@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import json
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -127,30 +129,136 @@ def test_bench_constraints_scenario() -> None:
     np.testing.assert_allclose(d1, d0, atol=1e-12)
 
 
+DEEP = "[" * 100_000 + "]" * 100_000
+BAD_FILES: dict[str, str | bytes] = {
+    "huge_target.json": '{"fixed": [0], "handles": [5], "targets": [[' + "9" * 401 + ", 0, 0]]}",
+    "huge_target_300.json": '{"fixed": [0], "handles": [5], "targets": [[' + "9" * 320 + ", 0, 0]]}",
+    "far_target.json": '{"fixed": [0], "handles": [5], "targets": [[1e300, 0, 0]]}',
+    "giant_int.json": '{"fixed": [' + "1" * 5000 + "]}",
+    "huge_index.json": '{"fixed": [' + "9" * 300 + "]}",
+    "deep.json": '{"fixed": ' + DEEP + "}",
+    "deep_top.json": DEEP,
+    "float_index.json": '{"fixed": [1.0]}',
+    "bool_index.json": '{"fixed": [true]}',
+    "string_list.json": '{"fixed": "0 1 2"}',
+    "nested_index.json": '{"fixed": [[0, 1]]}',
+    "object_targets.json": '{"handles": [1], "targets": {"x": 1}}',
+    "short_target.json": '{"handles": [1], "targets": [[1, 2]]}',
+    "string_target.json": '{"handles": [1], "targets": [["1", 2, 3]]}',
+    "nan.json": '{"handles": [1], "targets": [[NaN, 2, 3]]}',
+    "list.json": "[1, 2, 3]",
+    "null.json": "null",
+    "empty.json": "",
+    "truncated.json": '{"fixed": [1, 2',
+    "binary.json": bytes(range(256)) * 4,
+    "unknown_key.json": '{"fixd": [1]}',
+    "nothing.json": '{"fixed": [], "handles": []}',
+    "empty_roi.json": '{"fixed": [0], "roi": []}',
+    "negative.json": '{"fixed": [-1]}',
+    "repeated.json": '{"fixed": [3, 3]}',
+    "both.json": '{"fixed": [3], "handles": [3], "targets": [[0, 0, 0]]}',
+    "bad.off": "OFF\nnot numbers\n",
+    "junk.obj": bytes(np.random.default_rng(0).integers(0, 256, 3000, dtype=np.uint8)),
+    "zero.obj": "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 0 1 2\n",
+    "huge.obj": "v 0 0 0\nv 1e300 0 0\nv 0 1e300 0\nf 1 2 3\n",
+    "tiny.obj": "v 0 0 0\nv 1e-300 0 0\nv 0 1e-300 0\nf 1 2 3\n",
+    "points.obj": "v 0 0 0\nv 1 0 0\n",
+}
+
+
+@pytest.fixture
+def bad_files(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
+    monkeypatch.chdir(tmp_path)
+    bar_constraints(tmp_path / "c.json")
+    (tmp_path / "fixed0.json").write_text(json.dumps({"fixed": [0]}))
+    (tmp_path / "folder.json").mkdir()
+    (tmp_path / "folder.obj").mkdir()
+    (tmp_path / "out.obj").write_text("earlier output\n")
+    for name, content in BAD_FILES.items():
+        path = tmp_path / name
+        if isinstance(content, bytes):
+            path.write_bytes(content)
+        else:
+            path.write_text(content)
+    return tmp_path
+
+
 @pytest.mark.parametrize(
     ("argv", "message"),
     [
         (["deform", "missing.obj", "-c", "c.json", "-o", "o.obj"], "missing.obj: no such file"),
-        (["deform", "bar", "-c", "missing.json", "-o", "o.obj"], "cannot read constraints file"),
+        (["deform", "bar", "-c", "missing.json", "-o", "o.obj"], "cannot read constraints file missing.json"),
+        (["deform", "bar", "-c", "folder.json", "-o", "o.obj"], "cannot read constraints file folder.json"),
+        (["deform", "folder.obj", "-c", "c.json", "-o", "o.obj"], "cannot read folder.obj"),
+        (["deform", "bar", "-c", "c.json", "-o", "folder.obj"], "cannot write folder.obj: it is a folder"),
+        (["deform", "bar", "-c", "c.json", "-o", "nowhere/o.obj"], "the folder nowhere does not exist"),
         (["deform", "bar", "-c", "c.json", "-o", "o.xyz"], "unsupported mesh format 'xyz'"),
-        (["deform", "bar", "-c", "bad.json", "-o", "o.obj"], "out of range"),
+        (["deform", "bar", "-c", "huge_target.json", "-o", "o.obj"], "integer of 401 digits"),
+        (["deform", "bar", "-c", "huge_target_300.json", "-o", "o.obj"], "too large for a coordinate"),
+        (["deform", "bar", "-c", "far_target.json", "-o", "o.obj"], "targets lie too far from the mesh"),
+        (["deform", "bar", "-c", "giant_int.json", "-o", "o.obj"], "integer of 5,000 digits"),
+        (["deform", "bar", "-c", "huge_index.json", "-o", "o.obj"], "out of range [0, 4314) (first: item 0 = 999"),
+        (["deform", "bar", "-c", "deep.json", "-o", "o.obj"], "nests lists or objects too deeply"),
+        (["deform", "bar", "-c", "deep_top.json", "-o", "o.obj"], "nests lists or objects too deeply"),
+        (["deform", "bar", "-c", "float_index.json", "-o", "o.obj"], "integer vertex indices; item 0 is 1.0"),
+        (["deform", "bar", "-c", "bool_index.json", "-o", "o.obj"], "integer vertex indices; item 0 is True"),
+        (["deform", "bar", "-c", "string_list.json", "-o", "o.obj"], "must be a list of vertex indices, got str"),
+        (["deform", "bar", "-c", "nested_index.json", "-o", "o.obj"], "item 0 is [0, 1]"),
+        (["deform", "bar", "-c", "object_targets.json", "-o", "o.obj"], "list of [x, y, z] points, got dict"),
+        (["deform", "bar", "-c", "short_target.json", "-o", "o.obj"], "item 0 must be [x, y, z] numbers"),
+        (["deform", "bar", "-c", "string_target.json", "-o", "o.obj"], "item 0 must be [x, y, z] numbers"),
+        (["deform", "bar", "-c", "nan.json", "-o", "o.obj"], "contains NaN, which is not valid JSON"),
+        (["deform", "bar", "-c", "list.json", "-o", "o.obj"], "must be a JSON object, got list"),
+        (["deform", "bar", "-c", "null.json", "-o", "o.obj"], "must be a JSON object, got NoneType"),
+        (["deform", "bar", "-c", "empty.json", "-o", "o.obj"], "is not valid JSON"),
+        (["deform", "bar", "-c", "truncated.json", "-o", "o.obj"], "is not valid JSON"),
+        (["deform", "bar", "-c", "binary.json", "-o", "o.obj"], "is not UTF-8 text"),
+        (["deform", "bar", "-c", "unknown_key.json", "-o", "o.obj"], "unknown constraint keys ['fixd']"),
+        (["deform", "bar", "-c", "nothing.json", "-o", "o.obj"], "no vertex is constrained"),
+        (["deform", "bar", "-c", "empty_roi.json", "-o", "o.obj"], "roi is empty"),
+        (["deform", "bar", "-c", "negative.json", "-o", "o.obj"], "out of range"),
+        (["deform", "bar", "-c", "repeated.json", "-o", "o.obj"], "more than once"),
+        (["deform", "bar", "-c", "both.json", "-o", "o.obj"], "vertex 3 is in both fixed and handles"),
+        (["deform", "bad.off", "-c", "fixed0.json", "-o", "o.obj"], "cannot parse"),
+        (["deform", "junk.obj", "-c", "fixed0.json", "-o", "o.obj"], "not an OBJ file: it holds binary data"),
+        (["deform", "zero.obj", "-c", "fixed0.json", "-o", "o.obj"], "OBJ vertex indices start at 1"),
+        (["deform", "huge.obj", "-c", "fixed0.json", "-o", "o.obj"], "coordinates are too large"),
+        (["deform", "tiny.obj", "-c", "fixed0.json", "-o", "o.obj"], "coordinates are too small"),
+        (["deform", "points.obj", "-c", "fixed0.json", "-o", "o.obj"], "no faces"),
         (["deform", "bar", "-c", "c.json", "-o", "o.obj", "-n", "-1"], "--iterations must be >= 0"),
+        (["deform", "bar", "-c", "c.json", "-o", "o.obj", "-t", "nan"], "--tolerance must be >= 0"),
         (["info", "bad.off"], "cannot parse"),
+        (["info", "junk.obj"], "binary data"),
+        (["info", "folder.obj"], "cannot read folder.obj"),
         (["bench", "sphere:lots"], "bad sphere size"),
+        (["bench", "bar", "-n", "0"], "must be >= 1"),
+        (["bench", "huge.obj"], "coordinates are too large"),
     ],
 )
-def test_errors_exit_2_with_one_line(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
-                                     capsys: pytest.CaptureFixture[str], argv: list[str], message: str) -> None:
-    monkeypatch.chdir(tmp_path)
-    bar_constraints(tmp_path / "c.json")
-    (tmp_path / "bad.json").write_text(json.dumps({"fixed": [10**9]}))
-    (tmp_path / "bad.off").write_text("OFF\nnot numbers\n")
-    assert main(argv) == 2
-    err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1
+def test_bad_input_exits_1_with_one_line(bad_files: Path, capsys: pytest.CaptureFixture[str], argv: list[str],
+                                         message: str) -> None:
+    assert main(argv) == 1
+    captured = capsys.readouterr()
+    err = captured.err.strip().splitlines()
+    assert len(err) == 1, err
     assert err[0].startswith("arap: error: ") and message in err[0]
-    assert "Traceback" not in err[0]
-    assert not (tmp_path / "o.obj").exists()
+    assert "Traceback" not in captured.err + captured.out
+    assert not (bad_files / "o.obj").exists()
+    assert (bad_files / "out.obj").read_text() == "earlier output\n"
+    assert sorted(p.name for p in bad_files.iterdir() if p.name.startswith(".")) == []
+
+
+def test_real_process_prints_no_traceback(bad_files: Path) -> None:
+    """In a separate interpreter (default recursion limit, real stderr): the 401-digit target and the 100,000-deep
+    nesting end with one line and status 1."""
+    for name in ("huge_target.json", "deep.json", "giant_int.json"):
+        proc = subprocess.run([sys.executable, "-m", "arap.cli", "deform", "bar", "-c", name, "-o", "o.obj"],
+                              capture_output=True, text=True, timeout=120, cwd=bad_files)
+        assert proc.returncode == 1, proc.stderr
+        assert "Traceback" not in proc.stderr and len(proc.stderr.strip().splitlines()) == 1, proc.stderr
+    proc = subprocess.run([sys.executable, "-m", "arap.cli", "deform", "bar"], capture_output=True, text=True,
+                          timeout=120, cwd=bad_files)
+    assert proc.returncode == 2 and "usage:" in proc.stderr and "Traceback" not in proc.stderr
 
 
 def test_unconstrained_part_is_reported(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
@@ -159,13 +267,27 @@ def test_unconstrained_part_is_reported(tmp_path: Path, capsys: pytest.CaptureFi
     save_mesh(two, np.vstack([V, V + np.array([3.0, 0, 0])]), np.vstack([F, F + len(V)]))
     cfile = tmp_path / "c.json"
     cfile.write_text(json.dumps({"fixed": [0]}))
-    assert main(["deform", str(two), "-c", str(cfile), "-o", str(tmp_path / "o.obj")]) == 2
+    assert main(["deform", str(two), "-c", str(cfile), "-o", str(tmp_path / "o.obj")]) == 1
     assert "touches no constrained vertex" in capsys.readouterr().err
+
+
+def test_info_reports_inconsistent_orientation(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    V, F = builtin_mesh("cylinder")
+    F = F.copy()
+    F[:7] = F[:7, ::-1]
+    path = tmp_path / "flipped.ply"
+    save_mesh(path, V, F)
+    assert main(["info", str(path)]) == 0
+    out = capsys.readouterr().out
+    assert "defects: 7 faces oriented against their neighbours" in out
+    assert "ready for ARAP: yes" in out
 
 
 def test_usage_errors_and_help(capsys: pytest.CaptureFixture[str]) -> None:
     assert main([]) == 2
     assert main(["deform", "bar"]) == 2
+    assert main(["deform", "bar", "-c", "c.json", "-o", "o.obj", "-n", "many"]) == 2
+    assert main(["info"]) == 2
     assert "--constraints" in capsys.readouterr().err
     assert main(["--help"]) == 0
     out = capsys.readouterr().out

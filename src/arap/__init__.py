@@ -14,7 +14,14 @@ from __future__ import annotations
 import importlib
 from typing import TYPE_CHECKING, Any
 
-from arap.errors import ArapError, ConstraintError, MeshError, MeshFormatError, UnconstrainedRegionError
+from arap.errors import (
+    ArapError,
+    ConstraintError,
+    MeshError,
+    MeshFormatError,
+    MeshTooLargeError,
+    UnconstrainedRegionError,
+)
 
 __version__ = "0.1.0"
 
@@ -55,6 +62,7 @@ __all__ = [
     "MeshError",
     "MeshFormatError",
     "MeshInfo",
+    "MeshTooLargeError",
     "RepairResult",
     "UnconstrainedRegionError",
     "__version__",

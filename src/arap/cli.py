@@ -1,14 +1,16 @@
 """The ``arap`` command line: deform a mesh file, inspect one, time the solver, start the studio.
 
 Every command takes a mesh file (OBJ, OFF, PLY, STL) or a built-in name (``cactus``, ``bar``, ``cylinder``,
-``sphere`` or ``sphere:N`` for a geodesic sphere of about N vertices). Errors are reported as one line on stderr
-with exit status 2.
+``sphere`` or ``sphere:N`` for a geodesic sphere of about N vertices). Bad input (unreadable, malformed or unusable
+files and values) is reported as one line on stderr with exit status 1, bad usage by argparse with exit status 2;
+never with a traceback.
 """
 
 from __future__ import annotations
 
 import argparse
 import logging
+import os
 import statistics
 import sys
 import time
@@ -122,7 +124,14 @@ def _cmd_deform(args: argparse.Namespace) -> int:
     from arap.io import format_of, save_mesh
     from arap.solver import ArapSolver
 
-    format_of(args.output)  # fail before any work on an unsupported output type
+    format_of(args.output)  # fail before any work on an unsupported output type or a missing folder
+    folder = Path(args.output).parent
+    if not folder.is_dir():
+        raise MeshFormatError(f"cannot write {args.output}: the folder {folder} does not exist")
+    if Path(args.output).is_dir():
+        raise MeshFormatError(f"cannot write {args.output}: it is a folder")
+    if not os.access(folder, os.W_OK):
+        raise MeshFormatError(f"cannot write {args.output}: the folder {folder} is not writable")
     if args.iterations < 0:
         raise ArapError(f"--iterations must be >= 0, got {args.iterations}")
     if not args.tolerance >= 0:
@@ -150,6 +159,8 @@ def _cmd_deform(args: argparse.Namespace) -> int:
     finally:
         progress.close()
     seconds = time.perf_counter() - t0
+    if not np.isfinite(result.vertices).all():
+        raise ArapError("the solve produced non-finite positions; nothing was written")
     save_mesh(args.output, result.vertices, F)
     if not args.quiet:
         if result.energies:
@@ -326,24 +337,45 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+#: Exit statuses: success, bad input (files or values), bad usage (reported by argparse), interrupted.
+EXIT_OK, EXIT_BAD_INPUT, EXIT_USAGE, EXIT_INTERRUPTED = 0, 1, 2, 130
+
+
+def _one_line(exc: BaseException) -> str:
+    text = " ".join(str(exc).split()) or type(exc).__name__
+    return text if len(text) <= 500 else text[:497] + "..."
+
+
 def main(argv: Sequence[str] | None = None) -> int:
-    """Run the ``arap`` command; returns the exit status (0 success, 2 error, 130 interrupted)."""
+    """Run the ``arap`` command; returns the exit status.
+
+    0 on success, 1 for bad input (a file that cannot be read, parsed or used, bad values; one line on stderr),
+    2 for bad usage (argparse's message), 130 when interrupted. No input makes it print a traceback (``-v`` adds
+    one for unexpected internal errors).
+    """
     parser = build_parser()
     try:
         args = parser.parse_args(argv)
     except SystemExit as exc:  # --help, --version, or a usage error already printed by argparse
-        return int(exc.code) if isinstance(exc.code, int) else 2
+        return int(exc.code) if isinstance(exc.code, int) else EXIT_USAGE
     logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING,
                         format="arap: %(message)s", stream=sys.stderr)
     try:
         return int(args.func(args))
-    except (ArapError, ValueError, OSError) as exc:
-        message = str(exc) or type(exc).__name__
-        _err(f"arap: error: {message}")
-        return 2
+    except (ArapError, ValueError, OSError, RecursionError) as exc:
+        _err(f"arap: error: {_one_line(exc)}")
+        return EXIT_BAD_INPUT
+    except MemoryError:
+        _err("arap: error: out of memory (the input is too large for this machine)")
+        return EXIT_BAD_INPUT
     except KeyboardInterrupt:
         _err("arap: interrupted")
-        return 130
+        return EXIT_INTERRUPTED
+    except Exception as exc:  # the command line's last resort: a bug must still not end in a bare traceback
+        if args.verbose:
+            logger.exception("internal error")
+        _err(f"arap: internal error: {type(exc).__name__}: {_one_line(exc)} (run with -v for details)")
+        return EXIT_BAD_INPUT
 
 
 if __name__ == "__main__":

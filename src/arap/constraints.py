@@ -12,6 +12,11 @@ The JSON format::
     }
 
 Indices are 0-based in the mesh file's vertex order. ``fixed`` or ``handles`` may be omitted or empty, but not both.
+Handles may lie outside the region of interest: like every constrained vertex they go to their targets, while the
+unconstrained vertices outside the region stay at rest.
+
+:func:`check_selection` is the one validator of vertex selections: this module, the command line and the studio
+(:mod:`arap.server.constraints`) all use it, so the same bad selection gets the same answer everywhere.
 """
 
 from __future__ import annotations
@@ -19,7 +24,7 @@ from __future__ import annotations
 import json
 import math
 import os
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -27,8 +32,11 @@ from typing import Any
 import numpy as np
 
 from arap.errors import ConstraintError
+from arap.indexing import check_index_array
+from arap.io.atomic import write_atomic
+from arap.mesh import coordinate_problem
 
-__all__ = ["Constraints", "load_constraints", "save_constraints"]
+__all__ = ["Constraints", "check_selection", "check_targets", "load_constraints", "save_constraints"]
 
 _KEYS = ("fixed", "handles", "targets", "roi", "handle_groups", "meta")
 
@@ -75,8 +83,17 @@ class Constraints:
         indices : (f + h,) int64 array
             ``fixed`` then ``handles``.
         targets : (f + h, 3) float64 array
+
+        Raises
+        ------
+        ConstraintError
+            The targets and the mesh together span more than :data:`arap.mesh.SIZE_RANGE` allows (targets
+            absurdly far away).
         """
         V = np.asarray(V, dtype=np.float64)
+        problem = coordinate_problem(np.concatenate([V, self.targets]).reshape(-1, 3))
+        if problem is not None and coordinate_problem(V) is None:
+            raise ConstraintError(f"the targets lie too far from the mesh: with them, {problem}")
         return self.constrained, np.concatenate([V[self.fixed], self.targets]).reshape(-1, 3)
 
     def remapped(self, vertex_map: np.ndarray) -> Constraints:
@@ -124,55 +141,113 @@ class Constraints:
 
 
 # ---------------------------------------------------------------------------------------------- validation
-def _indices(value: Any, name: str, n: int) -> np.ndarray:
-    if isinstance(value, np.ndarray):
-        if value.ndim != 1 or not (value.size == 0 or value.dtype.kind in "iu"):
-            raise ConstraintError(f'"{name}" must be a flat list of integer vertex indices')
-        arr = value.astype(np.int64)
-    else:
-        if not isinstance(value, list | tuple):
-            raise ConstraintError(f'"{name}" must be a list of vertex indices, got {type(value).__name__}')
-        for pos, item in enumerate(value):
-            if isinstance(item, bool) or not isinstance(item, int | np.integer):
-                raise ConstraintError(f'"{name}" must hold integer vertex indices; item {pos} is {item!r}')
-        arr = np.asarray(value, dtype=np.int64).reshape(-1)
-    if len(arr):
-        out = (arr < 0) | (arr >= n)
-        if out.any():
-            first = int(np.flatnonzero(out)[0])
-            raise ConstraintError(f'"{name}" has {int(out.sum())} indices out of range [0, {n}) '
-                                  f"(first: item {first} = {int(arr[first])})")
-        uniq, counts = np.unique(arr, return_counts=True)
-        if (counts > 1).any():
-            dup = uniq[counts > 1]
-            raise ConstraintError(f'"{name}" repeats {len(dup)} vertices (first: {int(dup[0])})')
-    return arr
+def check_selection(
+    n: int,
+    fixed: Any,
+    handle_groups: Sequence[Any],
+    roi: Any = None,
+    *,
+    group_names: Sequence[str] | None = None,
+) -> tuple[np.ndarray, list[np.ndarray], np.ndarray | None]:
+    """Validate a selection of fixed vertices, handle groups and a region of interest against a mesh.
+
+    Parameters
+    ----------
+    n : int
+        Vertex count of the mesh.
+    fixed : list of int or (f,) integer array
+    handle_groups : sequence of lists of int or of integer arrays
+        Handles, group by group (a constraints file's ``handles`` is one group).
+    roi : list of int, (r,) integer array or None
+        Region of interest; None is the whole mesh.
+    group_names : sequence of str or None
+        Names of the groups in messages; default ``"handle group i"``.
+
+    Returns
+    -------
+    fixed : (f,) int64 array
+    groups : list of (h_g,) int64 arrays
+    roi : (r,) int64 array or None
+
+    Raises
+    ------
+    ConstraintError
+        Not lists of integers (floats such as ``1.0`` and booleans included), indices out of range, a vertex
+        repeated within a list or listed in two of ``fixed`` and the groups, an empty group, or an empty region of
+        interest.
+    """
+    fixed_arr = check_index_array(fixed, n, "fixed")
+    if not isinstance(handle_groups, list | tuple):
+        raise ConstraintError(f"handle groups must be a list of lists of vertex indices, got "
+                              f"{type(handle_groups).__name__}")
+    names = list(group_names) if group_names is not None else [f"handle group {i}" for i in range(len(handle_groups))]
+    groups = [check_index_array(g, n, name, allow_empty=False) for g, name in zip(handle_groups, names, strict=True)]
+    named = [("fixed", fixed_arr), *zip(names, groups, strict=True)]
+    everything = np.concatenate([a for _, a in named])
+    uniq, counts = np.unique(everything, return_counts=True)
+    if np.any(counts > 1):
+        v = int(uniq[np.argmax(counts > 1)])
+        where = [name for name, a in named if np.any(a == v)]
+        raise ConstraintError(f"vertex {v} is in both {where[0]} and {where[1]}; a vertex is either fixed or a "
+                              "handle of one group")
+    roi_arr = None if roi is None else check_index_array(roi, n, "roi", allow_empty=False)
+    return fixed_arr, groups, roi_arr
 
 
-def _targets(value: Any, k: int) -> np.ndarray:
+def check_targets(value: Any, k: int) -> np.ndarray:
+    """Validate the target positions of ``k`` handles.
+
+    Parameters
+    ----------
+    value : list of [x, y, z] or (k, 3) array
+    k : int
+        Number of handles.
+
+    Returns
+    -------
+    (k, 3) float64 array
+
+    Raises
+    ------
+    ConstraintError
+        Not ``k`` points of three numbers, or numbers that are not finite doubles (NaN, infinity, or an integer
+        too large for double precision).
+    """
     if isinstance(value, np.ndarray):
         if value.dtype.kind not in "iuf":
-            raise ConstraintError(f'"targets" must hold numbers, got dtype {value.dtype}')
+            raise ConstraintError(f"targets must hold numbers, got dtype {value.dtype}")
         arr = value.astype(np.float64)
     else:
         if not isinstance(value, list | tuple):
-            raise ConstraintError(f'"targets" must be a list of [x, y, z] points, got {type(value).__name__}')
+            raise ConstraintError(f"targets must be a list of [x, y, z] points, got {type(value).__name__}")
+        rows = []
         for pos, row in enumerate(value):
             ok = isinstance(row, list | tuple) and len(row) == 3 and all(
-                isinstance(x, int | float | np.number) and not isinstance(x, bool) for x in row)
+                isinstance(x, int | float | np.number) and not isinstance(x, bool | np.bool_) for x in row)
             if not ok:
-                raise ConstraintError(f'"targets" item {pos} must be [x, y, z] numbers, got {row!r}')
-        arr = np.asarray(value, dtype=np.float64).reshape(-1, 3) if len(value) else np.zeros((0, 3))
+                text = repr(row)
+                raise ConstraintError(f"targets item {pos} must be [x, y, z] numbers, got "
+                                      f"{text if len(text) <= 40 else text[:37] + '...'}")
+            try:
+                rows.append([float(x) for x in row])
+            except OverflowError:
+                raise ConstraintError(f"targets item {pos} holds an integer too large for a coordinate "
+                                      "(beyond ±1.8e308)") from None
+        arr = np.asarray(rows, dtype=np.float64).reshape(-1, 3)
     if arr.ndim != 2 or arr.shape[1] != 3:
-        raise ConstraintError(f'"targets" must have shape (k, 3), got {arr.shape}')
+        raise ConstraintError(f"targets must have shape (k, 3), got {arr.shape}")
     if len(arr) != k:
-        raise ConstraintError(f'"targets" has {len(arr)} points but "handles" has {k} vertices; '
+        raise ConstraintError(f'targets has {len(arr)} points but "handles" has {k} vertices; '
                               "give one target per handle")
     finite = np.all(np.isfinite(arr), axis=1)
     if not finite.all():
-        raise ConstraintError(f'"targets" has {int((~finite).sum())} non-finite points '
+        raise ConstraintError(f"targets has {int((~finite).sum())} non-finite points "
                               f"(first: item {int(np.flatnonzero(~finite)[0])})")
     return arr
+
+
+#: Longest integer literal read from a constraints file (Python refuses to convert more than 4,300 digits).
+_MAX_INT_DIGITS = 400
 
 
 def _read_json(path: Path) -> Any:
@@ -186,11 +261,20 @@ def _read_json(path: Path) -> Any:
     def reject(name: str) -> float:
         raise ConstraintError(f"constraints file {path} contains {name}, which is not valid JSON")
 
+    def integer(digits: str) -> int | float:
+        if len(digits) > _MAX_INT_DIGITS:
+            raise ConstraintError(f"constraints file {path} contains an integer of {len(digits.lstrip('-')):,} "
+                                  "digits, far beyond any vertex index or coordinate")
+        return int(digits)
+
     try:
-        return json.loads(text, parse_constant=reject)
+        return json.loads(text, parse_constant=reject, parse_int=integer)
     except json.JSONDecodeError as exc:
         raise ConstraintError(f"constraints file {path} is not valid JSON: {exc.msg} at line {exc.lineno}, "
                               f"column {exc.colno}") from exc
+    except RecursionError:
+        raise ConstraintError(f"constraints file {path} nests lists or objects too deeply to be a "
+                              "constraints file") from None
 
 
 def load_constraints(source: str | os.PathLike[str] | Mapping[str, Any], n_vertices: int) -> Constraints:
@@ -210,53 +294,41 @@ def load_constraints(source: str | os.PathLike[str] | Mapping[str, Any], n_verti
     Raises
     ------
     ConstraintError
-        Unreadable or invalid JSON, unknown keys, values of the wrong type, non-integer, out-of-range or repeated
-        indices, a vertex both fixed and a handle, a target count different from the handle count, targets not
-        (k, 3) or non-finite, handles outside the region of interest, or no constraint at all.
+        Unreadable or invalid JSON (nested too deeply, integers of hundreds of digits included), unknown keys, and
+        what :func:`check_selection` and :func:`check_targets` refuse, or no constraint at all.
     """
     data = source if isinstance(source, Mapping) else _read_json(Path(source))
     if not isinstance(data, Mapping):
         raise ConstraintError(f"constraints must be a JSON object, got {type(data).__name__}")
-    unknown = sorted(set(data) - set(_KEYS))
+    unknown = sorted(str(key)[:40] for key in set(data) - set(_KEYS))
     if unknown:
         raise ConstraintError(f"unknown constraint keys {unknown}; expected some of {list(_KEYS)}")
     if "fixed" not in data and "handles" not in data:
         raise ConstraintError('constraints need "fixed" and/or "handles" vertex lists')
     n = int(n_vertices)
-    fixed = _indices(data.get("fixed", []), "fixed", n)
-    handles = _indices(data.get("handles", []), "handles", n)
+    handles = check_index_array(data.get("handles", []), n, "handles")
+    fixed, _, roi = check_selection(n, data.get("fixed", []), [handles] if len(handles) else [], data.get("roi"),
+                                    group_names=["handles"] if len(handles) else [])
     if len(handles) and "targets" not in data:
         raise ConstraintError('"handles" are given without "targets"')
-    targets = _targets(data.get("targets", []), len(handles))
+    targets = check_targets(data.get("targets", []), len(handles))
     if not len(fixed) and not len(handles):
         raise ConstraintError("no vertex is constrained: give at least one fixed or handle vertex")
-    both = np.intersect1d(fixed, handles)
-    if len(both):
-        raise ConstraintError(f"{len(both)} vertices are both fixed and handles (first: {int(both[0])})")
 
-    roi = None
-    if data.get("roi") is not None:
-        roi = _indices(data["roi"], "roi", n)
-        if not len(roi):
-            raise ConstraintError('"roi" is empty; omit it to deform the whole mesh')
-        outside = np.setdiff1d(handles, roi)
-        if len(outside):
-            raise ConstraintError(f"{len(outside)} handles lie outside the region of interest "
-                                  f"(first: {int(outside[0])})")
-
-    groups = None
+    handle_groups = None
     if data.get("handle_groups") is not None:
         raw = data["handle_groups"]
         if not isinstance(raw, list | tuple):
-            raise ConstraintError('"handle_groups" must be a list of lists of vertex indices')
-        groups = [[int(i) for i in _indices(g, f"handle_groups[{k}]", n)] for k, g in enumerate(raw)]
+            raise ConstraintError("handle_groups must be a list of lists of vertex indices")
+        handle_groups = [[int(i) for i in check_index_array(g, n, f"handle_groups[{k}]")] for k, g in enumerate(raw)]
     if "meta" in data and not isinstance(data["meta"], Mapping):
-        raise ConstraintError('"meta" must be a JSON object')
-    return Constraints(fixed=fixed, handles=handles, targets=targets, roi=roi, handle_groups=groups)
+        raise ConstraintError("meta must be a JSON object")
+    return Constraints(fixed=fixed, handles=handles, targets=targets, roi=roi, handle_groups=handle_groups)
 
 
 def save_constraints(path: str | os.PathLike[str], constraints: Constraints) -> None:
-    """Write a constraint set as JSON (readable by :func:`load_constraints`).
+    """Write a constraint set as JSON (readable by :func:`load_constraints`), atomically (an earlier file stays
+    intact until the complete new one replaces it).
 
     Raises
     ------
@@ -267,6 +339,6 @@ def save_constraints(path: str | os.PathLike[str], constraints: Constraints) -> 
     if not all(math.isfinite(x) for row in data["targets"] for x in row):
         raise ConstraintError("cannot save non-finite targets")
     try:
-        Path(path).write_text(json.dumps(data) + "\n", encoding="utf-8")
+        write_atomic(path, json.dumps(data) + "\n")
     except OSError as exc:
         raise ConstraintError(f"cannot write constraints file {path}: {exc.strerror or exc}") from exc

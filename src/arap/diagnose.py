@@ -16,9 +16,10 @@ from arap.mesh import (
     _repeated_vertex_faces,
     _unique_face_mask,
     _weld_groups,
+    coordinate_problem,
     degenerate_faces,
 )
-from arap.topology import edge_face_counts
+from arap.topology import directed_half_edges, edge_face_counts
 from arap.weights import edge_weight_matrix
 
 __all__ = ["MeshInfo", "inspect_mesh"]
@@ -41,11 +42,20 @@ class MeshInfo:
         Edges used by one face, and the connected chains they form.
     non_manifold_edges : int
         Edges used by more than two faces.
+    inconsistent_edges : int
+        Edges between two faces that traverse them in the same direction (the faces disagree on orientation).
+    misoriented_faces : int
+        Fewest faces to flip so that every orientable part is consistently oriented.
+    non_orientable_parts : int
+        Connected parts (across manifold edges) that no choice of face orientations makes consistent, such as a
+        Möbius strip.
     duplicate_vertices : int
         Vertices :func:`repair_mesh` would weld into an earlier one.
     repeated_vertex_faces, degenerate_faces, duplicate_faces : int
         Faces repeating a vertex, other zero-area faces, and repeated faces.
     unreferenced_vertices, nonfinite_vertices, out_of_range_faces : int
+    scale_problem : str or None
+        Why the coordinates' scale is unusable (:func:`arap.mesh.check_coordinates`), or None.
     negative_weight_share : float
         Share of edges whose cotangent weight ``½ Σ cot(opposite angles)`` is negative (0 to 1).
     euler_characteristic : int
@@ -62,6 +72,9 @@ class MeshInfo:
     boundary_edges: int
     boundary_loops: int
     non_manifold_edges: int
+    inconsistent_edges: int
+    misoriented_faces: int
+    non_orientable_parts: int
     duplicate_vertices: int
     repeated_vertex_faces: int
     degenerate_faces: int
@@ -69,6 +82,7 @@ class MeshInfo:
     unreferenced_vertices: int
     nonfinite_vertices: int
     out_of_range_faces: int
+    scale_problem: str | None
     negative_weight_share: float
     euler_characteristic: int
 
@@ -84,7 +98,8 @@ class MeshInfo:
 
     @property
     def problems(self) -> list[str]:
-        """Defects that :func:`check_mesh` rejects or that :func:`repair_mesh` fixes, one line each."""
+        """Defects, one line each: what :func:`check_mesh` rejects, what :func:`repair_mesh` fixes, and flaws of the
+        surface (non-manifold edges, inconsistent orientation) that ARAP tolerates but a user should know."""
         items = [
             (self.nonfinite_vertices, "vertices with NaN or infinite coordinates"),
             (self.out_of_range_faces, "faces with out-of-range indices"),
@@ -94,8 +109,16 @@ class MeshInfo:
             (self.duplicate_faces, "duplicate faces"),
             (self.unreferenced_vertices, "vertices used by no face"),
             (self.non_manifold_edges, "non-manifold edges"),
+            (self.misoriented_faces, "faces oriented against their neighbours "
+                                     f"({self.inconsistent_edges:,} edges where adjacent faces disagree)"),
+            (self.non_orientable_parts, "non-orientable parts (like a Möbius strip)"),
         ]
-        return [f"{count:,} {what}" for count, what in items if count]
+        lines = [f"{count:,} {what}" for count, what in items if count]
+        if self.inconsistent_edges and not self.misoriented_faces and not self.non_orientable_parts:
+            lines.append(f"{self.inconsistent_edges:,} edges where adjacent faces disagree on orientation")
+        if self.scale_problem:
+            lines.insert(0, self.scale_problem)
+        return lines
 
     def lines(self) -> list[str]:
         """Human-readable summary, one fact per line."""
@@ -134,6 +157,46 @@ def _negative_weight_share(V: np.ndarray, F: np.ndarray) -> float:
     return float((upper.data < 0).mean())
 
 
+def _orientation(F: np.ndarray) -> tuple[int, int, int]:
+    """Orientation defects across manifold edges: ``(inconsistent_edges, misoriented_faces, non_orientable_parts)``.
+
+    Every face gets two nodes, "as stored" and "flipped"; an edge whose two faces agree links like nodes, one where
+    they disagree links opposite nodes. A part is orientable when no face's two nodes end up connected, and then
+    the smaller of its two node sets is the fewest faces to flip.
+    """
+    m = len(F)
+    if not m:
+        return 0, 0, 0
+    he = directed_half_edges(F)
+    face = np.repeat(np.arange(m, dtype=np.int64), 3)
+    forward = he[:, 0] < he[:, 1]
+    base = int(he.max()) + 1
+    key = np.minimum(he[:, 0], he[:, 1]) * base + np.maximum(he[:, 0], he[:, 1])
+    order = np.argsort(key, kind="stable")
+    _, start, counts = np.unique(key[order], return_index=True, return_counts=True)
+    first = order[start[counts == 2]]
+    second = order[start[counts == 2] + 1]
+    fa, fb = face[first], face[second]
+    disagree = forward[first] == forward[second]
+    rows = np.concatenate([fa, fa + m])
+    cols = np.concatenate([np.where(disagree, fb + m, fb), np.where(disagree, fb, fb + m)])
+    G = sp.coo_matrix((np.ones(len(rows), dtype=np.int8), (rows, cols)), shape=(2 * m, 2 * m))
+    _, labels = _cc(G, directed=False)
+    kept, flipped = labels[:m], labels[m:]
+    twisted = kept == flipped
+    non_orientable = len(np.unique(kept[twisted]))
+    part = np.minimum(kept, flipped)[~twisted]
+    side = (kept < flipped)[~twisted]
+    if len(part):
+        _, part = np.unique(part, return_inverse=True)
+        as_stored = np.bincount(part, weights=side)
+        total = np.bincount(part)
+        misoriented = int(np.minimum(as_stored, total - as_stored).sum())
+    else:
+        misoriented = 0
+    return int(disagree.sum()), misoriented, non_orientable
+
+
 def _face_graph(F: np.ndarray, n: int) -> sp.coo_matrix:
     """Vertex graph with one entry per face side (duplicates are harmless for connectivity)."""
     rows = F.ravel()
@@ -150,6 +213,15 @@ def _boundary_loops(bedges: np.ndarray, n: int) -> int:
     G = sp.coo_matrix((np.ones(len(local), dtype=np.int8), (local[:, 0], local[:, 1])), shape=(k, k))
     count, _ = _cc(G, directed=False)
     return int(count)
+
+
+def _unit_scaled(V: np.ndarray, finite: np.ndarray) -> np.ndarray:
+    """``V`` times a power of two that brings its largest finite coordinate near 1 (exact, so every scale-free
+    count stays the same, while squared lengths and areas of huge or tiny meshes stay representable)."""
+    reach = float(np.abs(V[finite]).max()) if finite.any() else 0.0
+    if not 0.0 < reach < np.inf:
+        return V
+    return V * 2.0 ** -np.frexp(reach)[1]
 
 
 def inspect_mesh(V: np.ndarray, F: np.ndarray) -> MeshInfo:
@@ -183,7 +255,10 @@ def inspect_mesh(V: np.ndarray, F: np.ndarray) -> MeshInfo:
         bmin, bmax = V[finite].min(axis=0), V[finite].max(axis=0)
     else:
         bmin = bmax = np.zeros(3)
-    diag = float(np.linalg.norm(bmax - bmin))
+    with np.errstate(over="ignore", under="ignore"):
+        diag = float(np.linalg.norm(bmax - bmin))
+    scale_problem = coordinate_problem(V[referenced]) if referenced.any() else None
+    V = _unit_scaled(V, finite)
 
     repeated = _repeated_vertex_faces(Fv)
     degenerate = degenerate_faces(V, Fv) & ~repeated if len(Fv) else np.zeros(0, dtype=bool)
@@ -203,6 +278,7 @@ def inspect_mesh(V: np.ndarray, F: np.ndarray) -> MeshInfo:
     else:
         component_sizes = []
     good = Fv[~repeated & ~degenerate] if len(Fv) else Fv
+    inconsistent, misoriented, non_orientable = _orientation(Fv[~repeated & _unique_face_mask(Fv)])
     return MeshInfo(
         n_vertices=n,
         n_faces=m,
@@ -214,6 +290,9 @@ def inspect_mesh(V: np.ndarray, F: np.ndarray) -> MeshInfo:
         boundary_edges=len(bedges),
         boundary_loops=_boundary_loops(bedges, n),
         non_manifold_edges=int((counts > 2).sum()),
+        inconsistent_edges=inconsistent,
+        misoriented_faces=misoriented,
+        non_orientable_parts=non_orientable,
         duplicate_vertices=dup_vertices,
         repeated_vertex_faces=int(repeated.sum()),
         degenerate_faces=int(degenerate.sum()),
@@ -221,6 +300,7 @@ def inspect_mesh(V: np.ndarray, F: np.ndarray) -> MeshInfo:
         unreferenced_vertices=int(n - referenced.sum()),
         nonfinite_vertices=int((~finite).sum()),
         out_of_range_faces=out_of_range,
+        scale_problem=scale_problem,
         negative_weight_share=_negative_weight_share(V, good),
         euler_characteristic=int(referenced.sum()) - len(edges) + len(Fv),
     )

@@ -36,5 +36,23 @@ class UnconstrainedRegionError(ConstraintError):
         self.size = size
 
 
-class MeshFormatError(ArapError):
-    """A mesh file could not be read or written (unknown extension, unparsable content)."""
+class MeshFormatError(MeshError):
+    """A mesh file could not be read or written (unknown extension, unreadable file, binary junk, unparsable
+    content); a kind of :class:`MeshError`, since the mesh it should hold is unusable."""
+
+
+class MeshTooLargeError(MeshFormatError):
+    """A mesh file holds more vertices (or, for STL soups, more triangles) than the caller accepts.
+
+    Attributes
+    ----------
+    count : int
+        Vertices the file holds (for STL: the vertices its triangles need at the least).
+    limit : int
+        Largest accepted vertex count.
+    """
+
+    def __init__(self, message: str, count: int, limit: int) -> None:
+        super().__init__(message)
+        self.count = count
+        self.limit = limit

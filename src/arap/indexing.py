@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+from typing import Any
+
 import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
@@ -10,16 +13,26 @@ from arap.errors import ConstraintError
 from arap.topology import vertex_adjacency
 
 
-def check_index_array(indices: np.ndarray | list[int], n: int, name: str) -> np.ndarray:
-    """Validate a list of vertex indices.
+def _show(value: Any) -> str:
+    """A value for a message, at most 40 characters (a 400-digit integer must not flood it)."""
+    text = repr(value)
+    return text if len(text) <= 40 else text[:37] + "..."
+
+
+def check_index_array(indices: Any, n: int, name: str, *, allow_empty: bool = True) -> np.ndarray:
+    """Validate a list of vertex indices: the one check every caller (library, command line, studio) uses.
 
     Parameters
     ----------
-    indices : array-like of int
+    indices : sequence of int (list, tuple, range) or (k,) integer array
+        Python ``int`` or NumPy integers. Floats (even ``1.0``), booleans, strings and nested lists are refused,
+        whatever their value; an empty list or array of any dtype is the empty set.
     n : int
         Number of vertices.
     name : str
-        What the indices are, for messages.
+        What the indices are, for messages (``"fixed"``, ``"handle group 2"``).
+    allow_empty : bool
+        When False, an empty list is refused.
 
     Returns
     -------
@@ -28,29 +41,46 @@ def check_index_array(indices: np.ndarray | list[int], n: int, name: str) -> np.
     Raises
     ------
     ConstraintError
-        Not a flat list of integers, out of range, or repeated.
+        Not a flat list of integers, out of range ``[0, n)``, repeated, or empty when not allowed.
     """
-    arr = np.asarray(indices)
-    if arr.size == 0:
+    if isinstance(indices, np.ndarray):
+        if indices.ndim != 1 and indices.size:
+            raise ConstraintError(f"{name} must be a flat list of vertex indices, got an array of shape "
+                                  f"{indices.shape}")
+        if indices.size and indices.dtype.kind not in "iu":
+            raise ConstraintError(f"{name} must be a flat list of integer vertex indices, got an array of "
+                                  f"{indices.dtype}")
+        items: Any = indices.reshape(-1)
+    elif isinstance(indices, Sequence) and not isinstance(indices, str | bytes | bytearray):
+        items = indices
+        if set(map(type, items)) - {int}:  # the common all-int list skips this per-item loop
+            for pos, item in enumerate(items):
+                if isinstance(item, bool | np.bool_) or not isinstance(item, int | np.integer):
+                    raise ConstraintError(f"{name} must be a flat list of integer vertex indices; item {pos} is "
+                                          f"{_show(item)}")
+    else:
+        raise ConstraintError(f"{name} must be a list of vertex indices, got {type(indices).__name__}")
+    if not len(items):
+        if not allow_empty:
+            raise ConstraintError(f"{name} is empty" + ("; leave it out (None, null) to use the whole mesh"
+                                                         if name == "roi" else ""))
         return np.zeros(0, dtype=np.int64)
-    if arr.ndim != 1:
-        raise ConstraintError(f"{name} must be a flat list of vertex indices, got an array of shape {arr.shape}")
-    if arr.dtype.kind == "f":
-        if not np.all(np.isfinite(arr)) or np.any(arr != np.round(arr)):
-            raise ConstraintError(f"{name} must hold integer vertex indices")
-    elif arr.dtype.kind not in "iu":
-        raise ConstraintError(f"{name} must hold integer vertex indices, got {arr.dtype}")
-    arr = arr.astype(np.int64)
-    bad = (arr < 0) | (arr >= n)
-    if np.any(bad):
-        first = int(arr[np.flatnonzero(bad)[0]])
-        raise ConstraintError(
-            f"{name}: {int(bad.sum())} indices out of range 0..{n - 1} (the mesh has {n} vertices), e.g. {first}"
-        )
+    if not isinstance(items, np.ndarray) and not (0 <= min(items) and max(items) < n):
+        # Compared as Python integers: a 400-digit index must be refused, not overflow int64.
+        out = [pos for pos, i in enumerate(items) if not 0 <= i < n]
+        raise ConstraintError(f"{name} has {len(out)} indices out of range [0, {n}) "
+                              f"(first: item {out[0]} = {_show(int(items[out[0]]))})")
+    if isinstance(items, np.ndarray):
+        bad = (items < 0) | (items >= n)  # in the array's own dtype: uint64 beyond int64 must not wrap
+        if bad.any():
+            first = int(np.flatnonzero(bad)[0])
+            raise ConstraintError(f"{name} has {int(bad.sum())} indices out of range [0, {n}) "
+                                  f"(first: item {first} = {int(items[first])})")
+    arr = np.asarray(items, dtype=np.int64)
     uniq, counts = np.unique(arr, return_counts=True)
     if np.any(counts > 1):
         dup = uniq[counts > 1]
-        raise ConstraintError(f"{name}: {len(dup)} vertices listed more than once, e.g. {int(dup[0])}")
+        raise ConstraintError(f"{name} lists {len(dup)} vertices more than once (first: {int(dup[0])})")
     return arr
 
 

@@ -20,8 +20,11 @@ from arap.errors import MeshError
 
 __all__ = [
     "DEGENERATE_TOLERANCE",
+    "MIN_RELATIVE_SIZE",
+    "SIZE_RANGE",
     "WELD_TOLERANCE",
     "RepairResult",
+    "check_coordinates",
     "check_mesh",
     "degenerate_faces",
     "repair_mesh",
@@ -34,6 +37,12 @@ logger = logging.getLogger(__name__)
 DEGENERATE_TOLERANCE = 1e-12
 #: Default distance, relative to the bounding-box diagonal, under which :func:`repair_mesh` welds vertices.
 WELD_TOLERANCE = 1e-9
+#: Supported mesh sizes (the longest side of the bounding box). Outside this range squared lengths, areas and the
+#: rotation fit's products of covariances leave the range of double precision (overflow or underflow).
+SIZE_RANGE = (1e-12, 1e12)
+#: Smallest size of a mesh relative to its largest coordinate: a tiny mesh far from the origin has too few
+#: significant digits left for its shape.
+MIN_RELATIVE_SIZE = 1e-10
 
 
 # ---------------------------------------------------------------------------------------------- helpers
@@ -85,6 +94,49 @@ def _double_areas(V: np.ndarray, F: np.ndarray) -> np.ndarray:
     cy = b[:, 2] * c[:, 0] - b[:, 0] * c[:, 2]
     cz = b[:, 0] * c[:, 1] - b[:, 1] * c[:, 0]
     return np.sqrt(cx * cx + cy * cy + cz * cz)
+
+
+def coordinate_problem(V: np.ndarray) -> str | None:
+    """What is wrong with the scale of finite coordinates (see :func:`check_coordinates`), or None."""
+    if not len(V):
+        return None
+    small, large = SIZE_RANGE
+    with np.errstate(over="ignore", invalid="ignore"):
+        size = float(np.max(V.max(axis=0) - V.min(axis=0)))
+    reach = float(np.abs(V).max())
+    where = f"coordinates range from {float(V.min()):.3g} to {float(V.max()):.3g}"
+    supported = f"meshes from {small:g} to {large:g} across are supported"
+    if not size <= large:
+        across = f"{size:.3g}" if np.isfinite(size) else "more than 1.8e308"
+        return (f"the coordinates are too large: the mesh is {across} across ({where}); {supported}, "
+                "so scale it down")
+    if size < small:
+        return (f"the coordinates are too small: the mesh is only {size:.3g} across ({where}); {supported}, "
+                "so scale it up")
+    if size < MIN_RELATIVE_SIZE * reach:
+        return (f"the mesh is too small for its distance from the origin: it is {size:.3g} across at coordinates "
+                f"up to {reach:.3g}, which leaves too few significant digits for its shape (at least "
+                f"{MIN_RELATIVE_SIZE:g} of the largest coordinate is needed); move it towards the origin")
+    return None
+
+
+def check_coordinates(V: np.ndarray) -> None:
+    """Check that finite vertex positions have a scale the computations can represent.
+
+    Parameters
+    ----------
+    V : (n, 3) float array
+        Finite positions (of the vertices that faces use).
+
+    Raises
+    ------
+    MeshError
+        The mesh is larger or smaller than :data:`SIZE_RANGE` across, or smaller than :data:`MIN_RELATIVE_SIZE`
+        times its largest coordinate; the message gives the range of the coordinates.
+    """
+    problem = coordinate_problem(V)
+    if problem is not None:
+        raise MeshError(problem)
 
 
 def _repeated_vertex_faces(F: np.ndarray) -> np.ndarray:
@@ -165,7 +217,8 @@ def check_mesh(V: np.ndarray, F: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     ------
     MeshError
         Wrong shapes or dtypes (quads and other polygons must be triangulated), an empty mesh, non-finite
-        coordinates, face indices out of range, faces repeating a vertex, zero-area faces.
+        coordinates, coordinates of an unsupported scale (:func:`check_coordinates`), face indices out of range,
+        faces repeating a vertex, zero-area faces.
     """
     V = _as_vertices(V)
     F = _as_faces(F)
@@ -175,6 +228,7 @@ def check_mesh(V: np.ndarray, F: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     if not np.isfinite(V).all():
         bad = np.flatnonzero(~np.all(np.isfinite(V), axis=1))
         raise MeshError(f"{len(bad)} vertices have NaN or infinite coordinates (first: vertex {bad[0]})")
+    check_coordinates(V)
     lo, hi = int(F.min()), int(F.max())
     if lo < 0 or hi >= n:
         bad = np.flatnonzero(np.any((F < 0) | (F >= n), axis=1))
@@ -299,7 +353,8 @@ def repair_mesh(
     Raises
     ------
     MeshError
-        Faces use non-finite vertices or out-of-range indices, or no valid face remains.
+        Faces use non-finite vertices or out-of-range indices, the coordinates have an unsupported scale
+        (:func:`check_coordinates`), or no valid face remains.
     """
     V = _as_vertices(V)
     n_polygons = len(polygons)
@@ -330,6 +385,7 @@ def repair_mesh(
 
     referenced = np.zeros(n, dtype=bool)
     referenced[F.ravel()] = True
+    check_coordinates(V[referenced])
     diag = _bbox_diagonal(V[referenced]) if referenced.any() else 0.0
     # Weld among referenced vertices only; unreferenced ones are dropped below anyway.
     ref_idx = np.flatnonzero(referenced)

@@ -136,7 +136,7 @@ class ArapSolver:
         self.energy_type = energy
         self.weight_type = weights
         self.constrained = check_index_array(constrained, n, "constrained")
-        self.roi = None if roi is None else check_index_array(roi, n, "roi")
+        self.roi = None if roi is None else check_index_array(roi, n, "roi", allow_empty=False)
 
         fixed_mask = np.zeros(n, dtype=bool)
         fixed_mask[self.constrained] = True

@@ -11,6 +11,7 @@ import pytest
 
 from arap.constraints import Constraints, load_constraints, save_constraints
 from arap.errors import ArapError, ConstraintError
+from arap.indexing import check_index_array
 
 N = 10
 
@@ -92,7 +93,7 @@ def test_remapped_follows_a_vertex_renumbering() -> None:
         ({"fixed": [[0, 1]]}, "integer vertex indices"),
         ({"fixed": [0, N]}, rf"out of range \[0, {N}\)"),
         ({"fixed": [-1]}, "out of range"),
-        ({"handles": [8, 8], "targets": [[0, 0, 0]] * 2}, "repeats 1 vertices"),
+        ({"handles": [8, 8], "targets": [[0, 0, 0]] * 2}, "lists 1 vertices more than once"),
         ({"fixed": [0, 8]}, "both fixed and handles"),
         ({"targets": [[0, 0, 0]]}, "has 1 points but \"handles\" has 2"),
         ({"targets": [[0, 0], [1, 1]]}, "must be \\[x, y, z\\]"),
@@ -102,9 +103,8 @@ def test_remapped_follows_a_vertex_renumbering() -> None:
         ({"targets": np.zeros((2, 4))}, r"shape \(k, 3\)"),
         ({"targets": {"a": 1}}, "list of \\[x, y, z\\]"),
         ({"fixed": [], "handles": [], "targets": []}, "no vertex is constrained"),
-        ({"roi": [0, 1, 8]}, "outside the region of interest"),
-        ({"roi": []}, "roi\" is empty"),
-        ({"roi": [0, 0, 8, 9]}, "repeats"),
+        ({"roi": []}, "roi is empty"),
+        ({"roi": [0, 0, 8, 9]}, "more than once"),
         ({"handle_groups": [[8, 11]]}, "out of range"),
         ({"handle_groups": 8}, "list of lists"),
         ({"meta": 3}, "JSON object"),
@@ -144,3 +144,34 @@ def test_bad_files(tmp_path: Path) -> None:
 def test_constraint_error_is_an_arap_error() -> None:
     with pytest.raises(ArapError):
         load_constraints({}, N)
+
+
+@pytest.mark.parametrize(
+    ("indices", "message"),
+    [
+        ([1, 2**70], "out of range [0, 10) (first: item 1 = 1180591620717411303424)"),
+        ([1, 10**400], "(first: item 1 = 1000000000000000000000000000000000000..."),
+        (np.array([1, 2**63], dtype=np.uint64), "(first: item 1 = 9223372036854775808)"),
+        (np.array([-2, 1], dtype=np.int8), "(first: item 0 = -2)"),
+        (np.array([1.0, 2.0]), "got an array of float64"),
+        (np.array([True]), "got an array of bool"),
+        ([np.float64(1.0)], "item 0 is np.float64(1.0)"),
+        ([1, np.True_], "item 1 is np.True_"),
+        ("012", "must be a list of vertex indices, got str"),
+        ({1, 2}, "got set"),
+        (3, "got int"),
+        (np.zeros((2, 2), dtype=int), "flat list of vertex indices, got an array of shape (2, 2)"),
+    ],
+)
+def test_index_validator_edge_cases(indices: Any, message: str) -> None:
+    with pytest.raises(ConstraintError) as info:
+        check_index_array(indices, N, "x")
+    assert message in str(info.value)
+
+
+def test_index_validator_accepts_sequences_and_numpy_integers() -> None:
+    assert check_index_array(range(3), N, "x").tolist() == [0, 1, 2]
+    assert check_index_array((np.int32(4), 1), N, "x").tolist() == [4, 1]
+    assert check_index_array(np.array([], dtype=float), N, "x").dtype == np.int64
+    with pytest.raises(ConstraintError, match="roi is empty; leave it out"):
+        check_index_array([], N, "roi", allow_empty=False)

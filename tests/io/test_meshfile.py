@@ -169,7 +169,7 @@ def test_missing_file(tmp_path: Path) -> None:
     ("data", "fmt", "message"),
     [
         (b"garbage", "off", "cannot parse"),
-        (b"garbage", "ply", "cannot parse"),
+        (b"garbage", "ply", "not a PLY file"),
         (b"", "obj", "no vertices"),
         (b"", "stl", "no vertices"),
         (b"v 0 0 0\nv 1 0 0\nv 0 1 0\n", "obj", "no faces"),

@@ -4,6 +4,10 @@ Reading goes through trimesh's format parsers without any processing, so vertice
 indices in constraint files refer to that order). Polygons are fan-triangulated. By default the loaded mesh goes
 through :func:`arap.mesh.repair_mesh`, which welds STL triangle soups and drops degenerate faces; a clean mesh
 comes back unchanged.
+
+Before parsing, :mod:`arap.io.screening` decodes text robustly, refuses binary junk and OBJ faces naming vertex
+0, and reads the vertex count from the header or the lines, so that a caller's ``max_vertices`` refuses a huge file
+before the slow parse. Writing is atomic (:mod:`arap.io.atomic`).
 """
 
 from __future__ import annotations
@@ -16,7 +20,9 @@ from typing import Any
 
 import numpy as np
 
-from arap.errors import MeshError, MeshFormatError
+from arap.errors import MeshError, MeshFormatError, MeshTooLargeError
+from arap.io.atomic import write_atomic
+from arap.io.screening import check_size, screen
 from arap.mesh import RepairResult, repair_mesh, triangulate_polygons
 
 __all__ = [
@@ -65,6 +71,9 @@ def _parse(stream: io.BytesIO, file_type: str, label: str) -> tuple[np.ndarray, 
         kwargs.update(skip_materials=True, maintain_order=True)
     try:
         loaded = mesh_loaders[file_type](stream, **kwargs)
+    except IndexError as exc:
+        raise MeshFormatError(f"cannot parse {label} as {file_type.upper()}: a face refers to a vertex the file "
+                              f"does not have ({exc})") from exc
     except Exception as exc:  # the parsers raise anything from ValueError to struct.error
         raise MeshFormatError(f"cannot parse {label} as {file_type.upper()}: {exc}") from exc
     parts = list(loaded["geometry"].values()) if "geometry" in loaded else [loaded]
@@ -119,7 +128,7 @@ def _finish(
 
 
 def load_mesh_bytes_with_report(
-    data: bytes, file_type: str, *, repair: bool = True, name: str = "uploaded mesh"
+    data: bytes, file_type: str, *, repair: bool = True, name: str = "uploaded mesh", max_vertices: int | None = None
 ) -> tuple[np.ndarray, np.ndarray, RepairResult]:
     """Read a mesh from the bytes of a file, with what repair did.
 
@@ -134,6 +143,10 @@ def load_mesh_bytes_with_report(
         returned as stored, unvalidated, and the result has an identity ``vertex_map``.
     name : str
         Label for messages.
+    max_vertices : int or None
+        Largest accepted vertex count, checked against the file's header (OFF, PLY, binary STL) or its lines (OBJ,
+        ASCII STL) before parsing and against the loaded mesh after repair. An STL soup may hold up to twice as
+        many triangles (a closed surface has about half as many vertices as triangles).
 
     Returns
     -------
@@ -144,14 +157,24 @@ def load_mesh_bytes_with_report(
 
     Raises
     ------
+    MeshTooLargeError
+        More than ``max_vertices`` vertices.
     MeshFormatError
-        Unknown type, unparsable content, no vertices or no faces.
+        Unknown type, binary data where text is expected, unparsable content, an OBJ face naming vertex 0, no
+        vertices or no faces.
     MeshError
-        The content cannot be repaired (faces using NaN vertices or out-of-range indices).
+        The content cannot be repaired (faces using NaN vertices or out-of-range indices, coordinates of an
+        unsupported scale).
     """
     ft = format_of(file_type)
-    V, F = _parse(io.BytesIO(bytes(data)), ft, name)
-    return _finish(V, F, repair, name)
+    data = bytes(data)
+    check_size(data, ft, name, max_vertices)
+    V, F = _parse(io.BytesIO(screen(data, ft, name)), ft, name)
+    V, F, result = _finish(V, F, repair, name)
+    if max_vertices is not None and len(V) > max_vertices:
+        raise MeshTooLargeError(f"{name} has {len(V):,} vertices; at most {max_vertices:,} vertices are accepted",
+                                len(V), max_vertices)
+    return V, F, result
 
 
 def load_mesh_bytes(data: bytes, file_type: str, *, repair: bool = True) -> tuple[np.ndarray, np.ndarray]:
@@ -167,7 +190,7 @@ def load_mesh_bytes(data: bytes, file_type: str, *, repair: bool = True) -> tupl
 
 
 def load_mesh_with_report(
-    path: str | os.PathLike[str], *, repair: bool = True
+    path: str | os.PathLike[str], *, repair: bool = True, max_vertices: int | None = None
 ) -> tuple[np.ndarray, np.ndarray, RepairResult]:
     """Read a mesh file, with what repair did; see :func:`load_mesh_bytes_with_report`.
 
@@ -182,7 +205,7 @@ def load_mesh_with_report(
         data = path.read_bytes()
     except OSError as exc:
         raise MeshFormatError(f"cannot read {path}: {exc.strerror or exc}") from exc
-    return load_mesh_bytes_with_report(data, ft, repair=repair, name=str(path))
+    return load_mesh_bytes_with_report(data, ft, repair=repair, name=str(path), max_vertices=max_vertices)
 
 
 def load_mesh(path: str | os.PathLike[str], *, repair: bool = True) -> tuple[np.ndarray, np.ndarray]:
@@ -230,6 +253,14 @@ def _ply_bytes(V: np.ndarray, F: np.ndarray) -> bytes:
     return header + V.astype("<f8").tobytes() + faces.tobytes()
 
 
+def _text_bytes(V: np.ndarray, F: np.ndarray, header: str, vkey: str, fkey: str, base: int) -> bytes:
+    """OBJ or OFF text: coordinates with 17 significant digits (``%.17g``, exact for every double, tiny and huge
+    ones included), faces counted from ``base``."""
+    vertices = (f"{vkey}%.17g %.17g %.17g\n" * len(V)) % tuple(V.ravel().tolist())
+    faces = (f"{fkey}%d %d %d\n" * len(F)) % tuple((F + base).ravel().tolist())
+    return (header + vertices + faces).encode("ascii")
+
+
 def save_mesh_bytes(V: np.ndarray, F: np.ndarray, file_type: str) -> bytes:
     """Encode a triangle mesh as the bytes of a file.
 
@@ -251,32 +282,31 @@ def save_mesh_bytes(V: np.ndarray, F: np.ndarray, file_type: str) -> bytes:
     V, F = _check_for_saving(V, F)
     if ft == "ply":
         return _ply_bytes(V, F)
+    if ft == "obj":
+        return _text_bytes(V, F, "", "v ", "f ", 1)
+    if ft == "off":
+        return _text_bytes(V, F, f"OFF\n{len(V)} {len(F)} 0\n", "", "3 ", 0)
     import trimesh
 
     mesh = trimesh.Trimesh(vertices=V, faces=F, process=False, validate=False)
-    if ft == "obj":
-        out = trimesh.exchange.obj.export_obj(
-            mesh, include_normals=False, include_color=False, include_texture=False, digits=17, header=None
-        )
-    elif ft == "off":
-        out = trimesh.exchange.off.export_off(mesh, digits=17)
-    else:
-        out = trimesh.exchange.stl.export_stl(mesh)
-    return out.encode("utf-8") if isinstance(out, str) else bytes(out)
+    return bytes(trimesh.exchange.stl.export_stl(mesh))
 
 
 def save_mesh(path: str | os.PathLike[str], V: np.ndarray, F: np.ndarray) -> None:
     """Write a triangle mesh; the format follows the extension (see :func:`save_mesh_bytes`).
 
+    The write is atomic (:func:`arap.io.atomic.write_atomic`): an earlier file at ``path`` stays intact until the
+    complete new one replaces it, even when the writer is killed.
+
     Raises
     ------
     MeshFormatError
-        Unknown extension or the file cannot be written.
+        Unknown extension or the file cannot be written (``path`` is then unchanged).
     """
     path = Path(path)
     data = save_mesh_bytes(V, F, path.name)
     try:
-        path.write_bytes(data)
+        write_atomic(path, data)
     except OSError as exc:
         raise MeshFormatError(f"cannot write {path}: {exc.strerror or exc}") from exc
     logger.debug("wrote %s (%d vertices, %d faces)", path, len(V), len(F))

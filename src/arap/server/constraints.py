@@ -16,6 +16,8 @@ from typing import Any
 
 import numpy as np
 
+from arap.constraints import check_selection
+from arap.errors import ConstraintError
 from arap.server.protocol import RequestError
 
 __all__ = ["ConstraintSet", "identity_transforms", "matrices_from_json", "matrices_to_json"]
@@ -47,18 +49,6 @@ def _digest(*arrays: np.ndarray | None) -> bytes:
             h.update(np.ascontiguousarray(a, dtype=np.int64).tobytes())
             h.update(b";")
     return h.digest()
-
-
-def _find_repeat(arrays: list[tuple[str, np.ndarray]]) -> tuple[int, list[str]] | None:
-    """A vertex listed more than once across the named lists, and the lists naming it."""
-    if not arrays:
-        return None
-    allv = np.concatenate([a for _, a in arrays])
-    uniq, counts = np.unique(allv, return_counts=True)
-    if not np.any(counts > 1):
-        return None
-    v = int(uniq[np.argmax(counts > 1)])
-    return v, [name for name, a in arrays if np.any(a == v)]
 
 
 @dataclass(frozen=True, eq=False)
@@ -119,34 +109,17 @@ class ConstraintSet:
         Raises
         ------
         RequestError
-            ``bad_constraints``: index out of range, a vertex repeated within or across ``fixed`` and the
-            groups, a repeated ROI vertex or an empty handle group.
+            ``bad_constraints`` with the message of :func:`arap.constraints.check_selection` (the validator the
+            library and the command line use): indices that are not integers or out of range, a vertex repeated
+            within or across ``fixed`` and the groups, a repeated ROI vertex, an empty handle group or an empty
+            ROI.
         """
         n = len(rest)
-        named: list[tuple[str, np.ndarray]] = [("fixed", np.asarray(fixed, dtype=np.int64).reshape(-1))]
-        named += [(f"handle group {i}", np.asarray(g, dtype=np.int64).reshape(-1)) for i, g in enumerate(groups)]
-        roi_arr = None if roi is None else np.asarray(roi, dtype=np.int64).reshape(-1)
-        checked = [*named, ("roi", roi_arr)] if roi_arr is not None else named
-        for name, a in checked:
-            if len(a) and (a.min() < 0 or a.max() >= n):
-                bad = int(a[(a < 0) | (a >= n)][0])
-                raise RequestError("bad_constraints", f"{name}: vertex index {bad} out of range 0..{n - 1}")
-        for i, (_, g) in enumerate(named[1:]):
-            if not len(g):
-                raise RequestError("bad_constraints", f"handle group {i} is empty")
-        rep = _find_repeat(named)
-        if rep is not None:
-            v, where = rep
-            places = " and ".join(where) if len(where) > 1 else f"{where[0]} (twice)"
-            raise RequestError("bad_constraints",
-                               f"vertex {v} is listed more than once ({places}); a vertex is either fixed or in "
-                               "one handle group")
-        if roi_arr is not None:
-            rep = _find_repeat([("roi", roi_arr)])
-            if rep is not None:
-                raise RequestError("bad_constraints", f"roi lists vertex {rep[0]} more than once")
-        fixed_arr = named[0][1]
-        group_arrs = tuple(a for _, a in named[1:])
+        try:
+            fixed_arr, group_list, roi_arr = check_selection(n, fixed, groups, roi)
+        except ConstraintError as exc:
+            raise RequestError("bad_constraints", str(exc)) from exc
+        group_arrs = tuple(group_list)
         if handle_positions is not None and group_arrs:
             pose = np.array(pose, dtype=np.float64)
             pose[np.concatenate(group_arrs)] = np.asarray(handle_positions, dtype=np.float64).reshape(-1, 3)
@@ -155,7 +128,7 @@ class ConstraintSet:
         if roi_arr is not None:
             outside = np.ones(n, dtype=bool)
             outside[roi_arr] = False
-            for _, a in named:
+            for a in (fixed_arr, *group_list):
                 outside[a] = False
             outside &= np.any(pose != rest, axis=1)
             held = np.flatnonzero(outside).astype(np.int64)

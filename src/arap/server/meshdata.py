@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 import arap
-from arap.errors import ArapError, MeshFormatError
+from arap.errors import ArapError, MeshFormatError, MeshTooLargeError
 from arap.io import load_mesh_bytes_with_report, load_mesh_with_report, save_mesh_bytes
 from arap.server.protocol import UPLOAD_EXTENSIONS, RequestError
 
@@ -125,7 +125,8 @@ def load_upload(data: bytes | memoryview, filename: str, max_vertices: int) -> M
     filename : str
         The client's file name; only its extension (the format) and a sanitised stem (the display name) are used.
     max_vertices : int
-        Largest accepted mesh.
+        Largest accepted mesh; checked against the file's header or lines before the slow parse (see
+        :func:`arap.io.load_mesh_bytes_with_report`).
 
     Returns
     -------
@@ -143,12 +144,12 @@ def load_upload(data: bytes | memoryview, filename: str, max_vertices: int) -> M
                            f"unsupported file type {ext or '(none)'!r}; expected one of {list(UPLOAD_EXTENSIONS)}")
     name = _display_name(filename)
     try:
-        V, F, repair = load_mesh_bytes_with_report(bytes(data), ext[1:], name=f"{name}{ext}")
+        V, F, repair = load_mesh_bytes_with_report(bytes(data), ext[1:], name=f"{name}{ext}",
+                                                   max_vertices=max_vertices)
+    except MeshTooLargeError as exc:
+        raise RequestError("too_large", str(exc)) from exc
     except ArapError as exc:
         raise RequestError("bad_mesh", str(exc)) from exc
-    if len(V) > max_vertices:
-        raise RequestError("too_large", f"{name}{ext} has {len(V):,} vertices; this server accepts at most "
-                           f"{max_vertices:,}")
     logger.info("loaded upload %s%s: %d vertices, %d faces", name, ext, len(V), len(F))
     return MeshData.make(name, V, F, repair.report)
 

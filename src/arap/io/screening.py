@@ -1,0 +1,168 @@
+"""Screening of mesh file bytes before the format parsers see them.
+
+Text (OBJ, OFF, ASCII STL, the PLY header) is decoded as UTF-8 or, failing that, as Latin-1: every byte is a Latin-1
+character and the numbers are ASCII either way, so a comment or a solid name in a legacy encoding costs nothing.
+Binary junk is refused with a clear message, as are OBJ faces naming vertex 0 (OBJ counts from 1), which the parser
+would silently wrap to the last vertex. The vertex count is read from the header (OFF, PLY, binary STL) or counted
+(OBJ lines, ASCII STL vertices) in a fraction of the parse time.
+"""
+
+from __future__ import annotations
+
+import codecs
+import logging
+import re
+
+import numpy as np
+
+from arap.errors import MeshFormatError, MeshTooLargeError
+
+__all__ = ["check_size", "screen", "vertex_count"]
+
+logger = logging.getLogger(__name__)
+
+#: Bytes that do not occur in text files (ASCII control characters other than tab, line breaks and form feed).
+_CONTROL_BYTES = bytes(sorted(set(range(32)) - {9, 10, 11, 12, 13})) + b"\x7f"
+#: Largest share of control bytes tolerated in a text file (a stray one is not worth refusing a mesh for).
+_CONTROL_SHARE = 0.01
+_PLY_ELEMENT = re.compile(rb"^[ \t]*element[ \t]+(\w+)[ \t]+(\d+)", re.M)
+_STL_HEADER = 84
+_STL_RECORD = 50
+
+
+def _binary_stl_triangles(data: bytes) -> int | None:
+    """Triangle count of a binary STL (its size matches the count in its header), else None."""
+    if len(data) < _STL_HEADER:
+        return None
+    count = int.from_bytes(data[80:84], "little")
+    return count if len(data) == _STL_HEADER + _STL_RECORD * count else None
+
+
+def _obj_zero_index_line(data: bytes) -> int | None:
+    """The first line (from 1) of an OBJ face naming vertex 0, which OBJ does not have (it counts from 1, or back
+    from -1), or None. Vectorised: a token ``0`` (alone or before ``/``) on a line that starts with ``f``."""
+    a = np.frombuffer(b"\n" + data + b"\n", dtype=np.uint8)
+
+    def blank(x: np.ndarray) -> np.ndarray:
+        return (x == 32) | (x == 9)  # space, tab
+
+    zero = np.flatnonzero(a == ord("0"))
+    after = a[zero + 1]
+    zero = zero[blank(a[zero - 1]) & (blank(after) | (after == ord("/")) | (after == 10) | (after == 13)
+                                      | (after == ord("#")))]
+    if not len(zero):
+        return None
+    newlines = np.flatnonzero(a == 10)
+    line = np.searchsorted(newlines, zero)
+    start = newlines[line - 1] + 1
+    while True:  # leading blanks before the keyword
+        indented = blank(a[start]) & (start < zero)
+        if not indented.any():
+            break
+        start = start + indented
+    face = (a[start] == ord("f")) & blank(a[start + 1])
+    hashes = np.flatnonzero(a == ord("#"))
+    if len(hashes):
+        before = np.searchsorted(hashes, zero) - 1
+        face &= ~((before >= 0) & (hashes[np.maximum(before, 0)] >= start))  # inside a comment
+    return int(line[face][0]) if face.any() else None
+
+
+def _as_text(data: bytes, what: str, label: str) -> bytes:
+    """UTF-8 bytes of a text file: decoded as UTF-8, or as Latin-1 when it is not UTF-8 (a byte sequence such as
+    a Latin-1 comment); refuses binary data."""
+    if data.startswith(codecs.BOM_UTF8):
+        data = data[len(codecs.BOM_UTF8):]
+    control = len(data) - len(data.translate(None, _CONTROL_BYTES))
+    if b"\x00" in data or control > _CONTROL_SHARE * len(data):
+        raise MeshFormatError(f"{label} is not {what} file: it holds binary data "
+                              f"({control:,} of its {len(data):,} bytes are control characters)")
+    try:
+        data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        logger.debug("%s is not UTF-8 (%s); reading it as Latin-1", label, exc.reason)
+        return data.decode("latin-1").encode("utf-8")
+    return data
+
+
+def screen(data: bytes, ft: str, label: str) -> bytes:
+    """Bytes the parsers can take: text as UTF-8, binary junk and OBJ faces naming vertex 0 refused.
+
+    Raises
+    ------
+    MeshFormatError
+        An empty file, binary data where text is expected, an STL that is neither binary nor ASCII, a PLY without
+        its header, an OBJ face naming vertex 0.
+    """
+    if not data.strip():
+        raise MeshFormatError(f"{label} contains no vertices (the file is empty)")
+    if ft in ("obj", "off"):
+        data = _as_text(data, f"an {ft.upper()}", label)
+        if ft == "obj":
+            line = _obj_zero_index_line(data)
+            if line is not None:
+                raise MeshFormatError(f"{label}, line {line}: a face names vertex 0, but OBJ vertex indices start "
+                                      "at 1 (or count back from -1 for the last vertex)")
+    elif ft == "stl":
+        if _binary_stl_triangles(data) is None:
+            if not data.lstrip()[:5].lower() == b"solid":
+                raise MeshFormatError(
+                    f"{label} is not an STL file: neither binary (its {len(data):,} bytes do not match the triangle "
+                    "count in its header) nor ASCII (which starts with 'solid')")
+            data = _as_text(data, "an ASCII STL", label)
+    elif ft == "ply":
+        end = data.find(b"end_header", 0, 1 << 20)
+        if not data.startswith(b"ply") or end < 0:
+            raise MeshFormatError(f"{label} is not a PLY file: it does not start with a 'ply' header ending in "
+                                  "'end_header'")
+        data = _as_text(data[:end], "a PLY", label) + data[end:]
+    return data
+
+
+def vertex_count(data: bytes, ft: str) -> tuple[int, str] | None:
+    """The vertices a file holds, read cheaply from its header or its lines before parsing, with what was counted.
+
+    For STL (a triangle soup welded after loading) the count is half the triangles: a closed surface has about
+    that many vertices. None when the header cannot be read (the parser then reports what is wrong).
+    """
+    if ft == "obj":
+        count = data.count(b"\nv ") + data.count(b"\nv\t") + int(data.startswith((b"v ", b"v\t")))
+        return count, f"{count:,} vertices"
+    if ft == "off":
+        tokens: list[bytes] = []
+        for line in data[:1 << 16].splitlines():
+            tokens += line.split(b"#", 1)[0].split()
+            if len(tokens) >= 3:
+                break
+        if len(tokens) < 3 or not tokens[0].upper().endswith(b"OFF"):
+            return None
+        try:
+            count = int(tokens[1])
+        except ValueError:
+            return None
+        return count, f"{count:,} vertices"
+    if ft == "ply":
+        header = data[:data.find(b"end_header", 0, 1 << 20)]
+        counts = {name: int(n) for name, n in _PLY_ELEMENT.findall(header)}
+        if b"vertex" not in counts:
+            return None
+        return counts[b"vertex"], f"{counts[b'vertex']:,} vertices"
+    triangles = _binary_stl_triangles(data)
+    if triangles is None:
+        triangles = (data.count(b"vertex") + data.count(b"VERTEX") + data.count(b"Vertex")) // 3
+    return triangles // 2, f"{triangles:,} triangles (about {triangles // 2:,} vertices once welded)"
+
+
+def check_size(data: bytes, ft: str, label: str, max_vertices: int | None) -> None:
+    """Refuse a file holding more than ``max_vertices`` vertices, from a cheap count (:func:`vertex_count`).
+
+    Raises
+    ------
+    MeshTooLargeError
+    """
+    if max_vertices is None:
+        return
+    found = vertex_count(data, ft)
+    if found is not None and found[0] > max_vertices:
+        raise MeshTooLargeError(f"{label} holds {found[1]}; at most {max_vertices:,} vertices are accepted",
+                                found[0], max_vertices)
