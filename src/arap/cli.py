@@ -328,6 +328,7 @@ def _cmd_studio(args: argparse.Namespace) -> int:
             raise
         raise ArapError(f"the studio needs its server packages, and {missing} is not installed: "
                         f"{STUDIO_EXTRA_HINT}") from None
+    _warm_up_kernels(quiet=False)  # compile before serving, not on the first drag
 
     def announce(url: str) -> None:
         _out(f"ARAP Studio running at {url}  (Ctrl-C to stop)")
