@@ -45,7 +45,7 @@ def ensure_writable_cache(candidates: tuple[Path, ...] | None = None) -> str | N
     str or None
         The folder set, or None when ``NUMBA_CACHE_DIR`` was already set or a candidate is writable.
     """
-    if numba.config.CACHE_DIR:
+    if getattr(numba.config, "CACHE_DIR", ""):  # set from NUMBA_CACHE_DIR when numba starts
         return None
     if candidates is None:
         from numba.misc.appdirs import AppDirs
