@@ -50,9 +50,9 @@ def _clean_copy(dest: Path) -> None:
 
 
 def _pins(dest: Path) -> Path:
-    """``requirements/runtime.txt`` as a constraints file (versions only, hashes dropped)."""
+    """``requirements/runtime.txt`` as a constraints file (versions and markers, hashes dropped)."""
     text = (REPO_ROOT / "requirements" / "runtime.txt").read_text()
-    pins = re.findall(r"^([A-Za-z0-9_.\-]+==[^\s\\;]+)", text, flags=re.MULTILINE)
+    pins = re.findall(r"^([A-Za-z0-9_.\-]+==[^\s;\\]+(?: ; [^\\\n]+?)?)[ \\]*$", text, flags=re.MULTILINE)
     assert pins, "no pins in requirements/runtime.txt"
     dest.write_text("\n".join(pins) + "\n")
     return dest
