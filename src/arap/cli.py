@@ -9,6 +9,8 @@ never with a traceback.
 from __future__ import annotations
 
 import argparse
+import dataclasses
+import json
 import logging
 import os
 import statistics
@@ -16,13 +18,16 @@ import sys
 import time
 from collections.abc import Sequence
 from pathlib import Path
-from typing import TextIO
+from typing import TYPE_CHECKING, Any, TextIO
 
 import numpy as np
 
 from arap import __version__
 from arap.errors import ArapError, MeshError, MeshFormatError
 from arap.mesh import RepairResult
+
+if TYPE_CHECKING:
+    from arap.diagnose import MeshInfo
 
 __all__ = ["main"]
 
@@ -44,6 +49,16 @@ def _err(text: str) -> None:
     """A line of progress or diagnostics on stderr."""
     sys.stderr.write(text + "\n")
     sys.stderr.flush()
+
+
+def _warm_up_kernels(quiet: bool) -> dict[str, object]:
+    """Compile (first run) or load the kernels before anything is timed; says so when it compiled."""
+    from arap.jit import warm_up_kernels
+
+    warm = warm_up_kernels()
+    if warm.compiled and not quiet:
+        _err(f"arap: compiling kernels (first run only)… {warm.seconds:.1f} s (cached in {warm.cache_dir})")
+    return {"compiled": warm.compiled > 0, "seconds": warm.seconds, "cache_dir": warm.cache_dir}
 
 
 # ---------------------------------------------------------------------------------------------- meshes
@@ -148,6 +163,7 @@ def _cmd_deform(args: argparse.Namespace) -> int:
             _err("arap: vertex indices changed by the repair; constraints were renumbered to match")
     indices, targets = constraints.indices_and_targets(V)
 
+    _warm_up_kernels(args.quiet)
     solver = ArapSolver(V, F, indices, energy=args.energy, weights=args.weights, roi=constraints.roi)
     if not args.quiet:
         _err(f"arap: {label}: {len(V):,} vertices, {len(F):,} faces; {len(constraints.fixed):,} fixed, "
@@ -173,32 +189,54 @@ def _cmd_deform(args: argparse.Namespace) -> int:
 
 
 # ---------------------------------------------------------------------------------------------- info
-def _cmd_info(args: argparse.Namespace) -> int:
+def _info_report(V: np.ndarray, F: np.ndarray, label: str) -> tuple[MeshInfo, dict[str, Any]]:
+    """What ``arap info`` reports: the mesh description and the JSON-ready report of ``arap info --json``."""
     from arap.diagnose import inspect_mesh
     from arap.mesh import check_mesh, repair_mesh
 
-    V, F, _, label = load_mesh_argument(args.mesh, repair=False)
     info = inspect_mesh(V, F)
-    _out(label)
-    for line in info.lines():
-        _out(f"  {line}")
+    report: dict[str, Any] = {"mesh": label}
+    for key, value in dataclasses.asdict(info).items():
+        report[key] = value.tolist() if isinstance(value, np.ndarray) else value
+    report.update(n_components=info.n_components, closed=info.closed, problems=info.problems)
     try:
         check_mesh(V, F)
-        note = "" if info.n_components <= 1 else (
-            f" (each of the {info.n_components:,} components needs a constrained vertex of its own)")
-        _out(f"  ready for ARAP: yes{note}")
+        report["ready"], report["not_ready_reason"] = True, None
     except MeshError as exc:
-        _out(f"  ready for ARAP: no ({exc})")
+        report["ready"], report["not_ready_reason"] = False, str(exc)
     try:
         fixed = repair_mesh(V, F)
     except MeshError as exc:
-        _out(f"  repair: impossible ({exc})")
+        report["repair"] = {"possible": False, "reason": str(exc)}
+    else:
+        report["repair"] = {"possible": True, "changes": list(fixed.report), "n_vertices": len(fixed.V),
+                            "n_faces": len(fixed.F)}
+    return info, report
+
+
+def _cmd_info(args: argparse.Namespace) -> int:
+    V, F, _, label = load_mesh_argument(args.mesh, repair=False)
+    info, report = _info_report(V, F, label)
+    if args.json:
+        _out(json.dumps(report, indent=2))
         return 0
-    if not fixed.report:
+    _out(label)
+    for line in info.lines():
+        _out(f"  {line}")
+    if report["ready"]:
+        n = report["n_components"]
+        note = "" if n <= 1 else f" (each of the {n:,} components needs a constrained vertex of its own)"
+        _out(f"  ready for ARAP: yes{note}")
+    else:
+        _out(f"  ready for ARAP: no ({report['not_ready_reason']})")
+    repair = report["repair"]
+    if not repair["possible"]:
+        _out(f"  repair: impossible ({repair['reason']})")
+    elif not repair["changes"]:
         _out("  repair: nothing to do")
     else:
-        _out(f"  repair would: {'; '.join(fixed.report)}")
-        _out(f"  after repair: {len(fixed.V):,} vertices, {len(fixed.F):,} faces (vertex indices change)")
+        _out(f"  repair would: {'; '.join(repair['changes'])}")
+        _out(f"  after repair: {repair['n_vertices']:,} vertices, {repair['n_faces']:,} faces (vertex indices change)")
     return 0
 
 
@@ -239,6 +277,7 @@ def _cmd_bench(args: argparse.Namespace) -> int:
     fixed, handles, targets = bench_constraints(V)
     indices = np.concatenate([fixed, handles])
     all_targets = np.concatenate([V[fixed], targets])
+    kernels = _warm_up_kernels(quiet=args.json)
     t0 = time.perf_counter()
     solver = ArapSolver(V, F, indices, energy=args.energy, weights=args.weights)
     precompute = time.perf_counter() - t0
@@ -251,6 +290,19 @@ def _cmd_bench(args: argparse.Namespace) -> int:
     k = best.iterations
     split = {key: 1e3 * best.timings[key] / k for key in ("local", "rhs", "solve")}
     backend = getattr(solver, "backend", None) or "?"
+    if args.json:
+        _out(json.dumps({
+            "mesh": label, "n_vertices": len(V), "n_faces": len(F),
+            "n_fixed": len(fixed), "n_handles": len(handles),
+            "energy": args.energy, "weights": args.weights, "linear_solver": str(backend),
+            "kernels": kernels,
+            "precompute_ms": 1e3 * precompute,
+            "iterations": k, "repeats": args.repeats,
+            "iteration_ms": statistics.median(per_it), "iteration_ms_runs": per_it,
+            "split_ms": split,
+            "energy_first": best.energies[0], "energy_last": best.energies[-1],
+        }, indent=2))
+        return 0
     rows = [
         ("mesh", f"{label}: {len(V):,} vertices, {len(F):,} faces"),
         ("constraints", f"{len(fixed):,} fixed, {len(handles):,} handles"),
@@ -270,8 +322,24 @@ def _cmd_bench(args: argparse.Namespace) -> int:
 
 
 # ---------------------------------------------------------------------------------------------- studio
+STUDIO_EXTRA_HINT = "pip install 'arap[studio]'"
+"""How to install the studio's server stack (starlette, uvicorn, websockets)."""
+
+
 def _cmd_studio(args: argparse.Namespace) -> int:
-    from arap.server import serve
+    try:
+        import starlette  # noqa: F401
+        import uvicorn  # noqa: F401
+        import websockets  # noqa: F401
+
+        from arap.server import serve
+    except ImportError as exc:
+        missing = exc.name or ""
+        if missing.split(".")[0] in ("", "arap"):
+            raise
+        raise ArapError(f"the studio needs its server packages, and {missing} is not installed: "
+                        f"{STUDIO_EXTRA_HINT}") from None
+    _warm_up_kernels(quiet=False)  # compile before serving, not on the first drag
 
     def announce(url: str) -> None:
         _out(f"ARAP Studio running at {url}  (Ctrl-C to stop)")
@@ -313,6 +381,7 @@ def build_parser() -> argparse.ArgumentParser:
                        description="Counts, components, boundary, defects, negative cotangent weights, and what "
                                    "repair would change.")
     p.add_argument("mesh", metavar="MESH")
+    p.add_argument("--json", action="store_true", help="print one JSON object instead of text")
     p.set_defaults(func=_cmd_info)
 
     p = sub.add_parser("bench", help="time the solver on a mesh",
@@ -324,6 +393,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("-r", "--repeats", type=int, default=3, help="runs; the median is reported (default: 3)")
     p.add_argument("--energy", choices=ENERGIES, default="spokes")
     p.add_argument("--weights", choices=WEIGHTS, default="cotangent")
+    p.add_argument("--json", action="store_true", help="print one JSON object instead of a table")
     p.set_defaults(func=_cmd_bench)
 
     p = sub.add_parser("studio", help="start the browser modeler",

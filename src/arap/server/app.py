@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import html
 import logging
 import os
 from pathlib import Path
@@ -18,12 +19,13 @@ import arap
 from arap.server.connection import Connection, StudioConfig
 from arap.server.meshdata import MeshData, load_default
 
-__all__ = ["DEFAULT_MAX_UPLOAD_BYTES", "DEFAULT_MAX_VERTICES", "STATIC_DIR", "create_app", "frame_limit"]
+__all__ = ["DEFAULT_MAX_UPLOAD_BYTES", "DEFAULT_MAX_VERTICES", "STATIC_DIR", "client_missing_advice", "create_app",
+           "frame_limit"]
 
 logger = logging.getLogger(__name__)
 
 STATIC_DIR = Path(__file__).resolve().parent.parent / "static"
-"""Where ``./dev setup`` (``npm run build`` in ``web/``) puts the built client."""
+"""The built client: packaged in the wheel, or built there by ``./dev setup`` (``npm run build`` in ``web/``)."""
 
 DEFAULT_MAX_UPLOAD_BYTES = 50 * 2**20
 DEFAULT_MAX_VERTICES = 2_000_000
@@ -32,10 +34,26 @@ _NOT_BUILT = """<!doctype html>
 <html lang="en"><head><meta charset="utf-8"><title>ARAP Studio: client not built</title></head>
 <body style="font-family: sans-serif; max-width: 40em; margin: 4em auto">
 <h1>ARAP Studio: the browser client is not built</h1>
-<p>The server is running, but it found no <code>index.html</code> in <code>{static}</code>.</p>
-<p>Build the client with <code>./dev setup</code> (from the repository root), then reload this page.</p>
+<p>{advice}</p>
 </body></html>
 """
+
+
+def client_missing_advice(static_dir: Path = STATIC_DIR) -> str | None:
+    """None when the built client is in ``static_dir``; else what is missing and what to do, for this install.
+
+    A repository checkout (``web/`` beside ``src/``) builds it with ``./dev setup``; an installed package was built
+    without it (no Node.js at build time) and needs a package that carries it.
+    """
+    if (static_dir / "index.html").is_file():
+        return None
+    missing = f"The studio's browser client is missing: no index.html in {static_dir}."
+    root = STATIC_DIR.parents[2]
+    if (root / "web" / "package.json").is_file():
+        return f"{missing} Build it with ./dev setup in {root} (Node.js >= 20 with npm), then reload the page."
+    return (f"{missing} This installation of arap was built without it (Node.js was not available when its wheel "
+            "was built). Install a package that includes it, e.g. pip install --force-reinstall 'arap[studio]' "
+            "from PyPI, or build the wheel from the source with Node.js >= 20 and npm on PATH.")
 
 
 def frame_limit(max_upload_bytes: int) -> int:
@@ -126,12 +144,16 @@ def create_app(
     mesh = load_default(default_mesh)
     logger.info("default mesh %s: %d vertices, %d faces", mesh.name, mesh.n_vertices, mesh.n_faces)
     static = Path(static_dir) if static_dir is not None else STATIC_DIR
+    advice = client_missing_advice(static)
+    if advice is not None:
+        logger.warning("%s The server answers its pages with 503 until then.", advice)
     studio = _Studio(config, mesh, static)
 
     async def index(request: Request) -> Response:
         page = static / "index.html"
-        if not page.is_file():
-            return HTMLResponse(_NOT_BUILT.format(static=static), status_code=503)
+        advice = client_missing_advice(static)
+        if advice is not None:
+            return HTMLResponse(_NOT_BUILT.format(advice=html.escape(advice)), status_code=503)
         return FileResponse(page, headers={"Cache-Control": "no-cache"})
 
     async def healthz(request: Request) -> Response:
