@@ -43,7 +43,7 @@ def test_info_json_reports_defects(tmp_path: Path, capsys: pytest.CaptureFixture
     report = json.loads(capsys.readouterr().out)
     assert report["degenerate_faces"] == 1 and report["ready"] is False
     assert "zero area" in report["not_ready_reason"]
-    assert report["problems"] == ["1 zero-area faces"]
+    assert report["problems"][0] == "1 zero-area faces"
     assert report["repair"]["changes"] == ["dropped 1 zero-area faces", "dropped 1 vertices used by no face"]
     assert report["repair"]["n_faces"] == 1
 

@@ -7,6 +7,7 @@ import pytest
 
 from arap import ArapSolver, arap_energy
 from arap.errors import ArapError
+from arap.scenarios import rotation
 from arap.start import best_rigid_transform
 
 from .scenarios import bend_constraints, random_rigid
@@ -14,13 +15,6 @@ from .scenarios import bend_constraints, random_rigid
 
 def _diag(V: np.ndarray) -> float:
     return float(np.linalg.norm(V.max(0) - V.min(0)))
-
-
-def _rotation_about(axis: np.ndarray, degrees: float) -> np.ndarray:
-    k = axis / np.linalg.norm(axis)
-    K = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
-    t = np.radians(degrees)
-    return np.eye(3) + np.sin(t) * K + (1 - np.cos(t)) * (K @ K)
 
 
 @pytest.mark.parametrize("mesh_name", ["knight", "camelhead"])
@@ -59,7 +53,7 @@ def test_a_rigid_motion_of_the_constraints_is_reached_at_once(request: pytest.Fi
                                                               degrees: float) -> None:
     mesh_name, energy = case.split("-")
     V, F = request.getfixturevalue(mesh_name)
-    R = _rotation_about(np.array([0.3, -1.0, 0.5]), degrees)
+    R = rotation([0.3, -1.0, 0.5], np.radians(degrees))
     t = np.array([0.5, -2.0, 1.0]) * _diag(V)
     moved = V @ R.T + t
     constrained = np.random.default_rng(0).choice(len(V), 40, replace=False)
