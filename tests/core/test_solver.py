@@ -5,8 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from arap.cells import ENERGY_TYPES
 from arap.energy import arap_energy
 from arap.solver import ArapSolver
+from arap.weights import WEIGHT_TYPES
 
 from .scenarios import bend_constraints, random_rigid
 
@@ -15,8 +17,8 @@ def _diag(V: np.ndarray) -> float:
     return float(np.linalg.norm(V.max(0) - V.min(0)))
 
 
-@pytest.mark.parametrize("energy", ["spokes", "spokes_and_rims"])
-@pytest.mark.parametrize("weights", ["cotangent", "uniform"])
+@pytest.mark.parametrize("energy", ENERGY_TYPES)
+@pytest.mark.parametrize("weights", WEIGHT_TYPES)
 def test_rigid_motion_of_all_constraints_moves_the_mesh_rigidly(
     icosphere: tuple[np.ndarray, np.ndarray], energy: str, weights: str
 ) -> None:
