@@ -5,13 +5,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from arap.cells import DEFAULT_ENERGY, build_cells
+from arap.cells import DEFAULT_ENERGY, build_cells, system_matrix
 from arap.energy import arap_energy, cell_energies
 from arap.folds import adjacent_face_pairs, dihedral_turns, folded_pairs, max_dihedral_change
 from arap.scenarios import bend
 from arap.shapes import obtuse_cylinder, scan_blob
 from arap.solver import ArapResult, ArapSolver
-from arap.weights import DEFAULT_WEIGHTS, edge_weight_matrix
+from arap.weights import DEFAULT_WEIGHTS, cotangent_laplacian, edge_weight_matrix
 
 from .scenarios import random_rigid
 
@@ -91,6 +91,9 @@ def test_clamped_weights_are_the_nonnegative_part() -> None:
     np.testing.assert_allclose(C, np.maximum(W, 0.0), atol=1e-15)
     cells = build_cells(V, F, "spokes_and_rims", "clamped")
     assert cells.w.min() >= 0.0
+    # The spokes system matrix is twice the clamped Laplacian, as it is twice the cotangent one.
+    L = system_matrix(build_cells(V, F, "spokes", "clamped"), len(V))
+    assert abs(L - 2.0 * cotangent_laplacian(V, F, "clamped")).max() < 1e-12
 
 
 def test_default_energy_does_not_fold_an_obtuse_mesh() -> None:
