@@ -102,6 +102,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--max-iterations", type=int, default=None, help="cap per solve (default 500; quick 60)")
     parser.add_argument("--tolerance", type=float, default=1e-7, help="relative energy change to stop at")
     parser.add_argument("--scenarios", nargs="+", choices=SCENARIOS, default=list(SCENARIOS))
+    parser.add_argument("--meshes", nargs="+", metavar="NAME", help="only meshes whose name contains one of these")
     parser.add_argument("--igl-max-vertices", type=int, default=15000,
                         help="run libigl only on meshes up to this size (default 15,000; 0: never)")
     parser.add_argument("--json", type=Path, help="write the rows as JSON")
@@ -116,6 +117,8 @@ def main(argv: list[str] | None = None) -> int:
     print("-" * len(header))
     rows: list[dict[str, Any]] = []
     for label, V, F in meshes(args.quick):
+        if args.meshes and not any(part in label for part in args.meshes):
+            continue
         adjacency = adjacent_face_pairs(F)
         rest_folds = folded_pairs(V, F, pairs=adjacency[0])
         share = negative_share(V, F)
