@@ -21,7 +21,6 @@ import numpy as np
 
 import arap
 from arap.io import load_mesh
-from arap.scenarios import bend
 from arap.solver import ArapSolver
 
 DEFAULT_MESH = Path(__file__).resolve().parents[1].parent / "shared" / "meshes" / "armadillo.obj"
@@ -37,9 +36,15 @@ def bend_scenario(V: np.ndarray, share: float = 0.1, angle_deg: float = 45.0
     handles : (h,) int64 array
     targets : (h, 3) float64 array
     """
-    # arap.scenarios.bend rotates from the axis (y) towards the side (x): −45° there is +45° about z.
-    s = bend(V, axis=1, side=0, share=share, angle=-np.radians(angle_deg), shift=0.1)
-    return s.fixed, s.handles, s.targets
+    y = V[:, 1]
+    fixed = np.flatnonzero(y <= np.quantile(y, share))
+    handles = np.flatnonzero(y >= np.quantile(y, 1.0 - share))
+    a = np.radians(angle_deg)
+    R = np.array([[np.cos(a), -np.sin(a), 0.0], [np.sin(a), np.cos(a), 0.0], [0.0, 0.0, 1.0]])
+    centroid = V[handles].mean(axis=0)
+    diag = float(np.linalg.norm(V.max(axis=0) - V.min(axis=0)))
+    targets = (V[handles] - centroid) @ R.T + centroid + np.array([0.1 * diag, 0.0, 0.0])
+    return fixed, handles, targets
 
 
 def run_arap(V: np.ndarray, F: np.ndarray, b: np.ndarray, bc: np.ndarray, iterations: int,

@@ -1,13 +1,7 @@
-"""Constraint scenarios used by the tests, the benchmarks and ``arap bench``: bend, twist and pull.
+"""Named constraint scenarios (bend, twist, pull, rigid) used by the tests, the benchmarks and the command line.
 
-Each scenario works on any mesh along its longest bounding-box axis (or a given one): the lowest ``share`` of the
-vertices along that axis are anchors held at rest, and handles move to their targets.
-
-- ``bend``: the highest ``share`` are rotated by ``angle`` about their centroid, in the plane of the axis and the
-  next one (``side``), then shifted along ``side`` by ``shift`` times the bounding-box diagonal.
-- ``twist``: the highest ``share`` are rotated by ``angle`` about the axis through their centroid.
-- ``pull``: both ends are anchors; the ``share`` of the vertices nearest to the outermost point along ``side`` at
-  mid-height are shifted outwards along ``side`` by ``shift`` times the diagonal.
+Each scenario picks constrained vertices of a mesh from its shape alone (quantiles along its longest axis) and
+gives their targets, so the same scenario applies to any mesh.
 """
 
 from __future__ import annotations
@@ -18,171 +12,118 @@ from typing import Literal
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["SCENARIOS", "Scenario", "ScenarioName", "bend", "make_scenario", "pull", "twist"]
+from arap.errors import ArapError
 
-ScenarioName = Literal["bend", "twist", "pull"]
-SCENARIOS: tuple[str, ...] = ("bend", "twist", "pull")
+__all__ = ["SCENARIO_NAMES", "Scenario", "bend", "make_scenario", "pull", "rigid", "rotation", "twist"]
+
+ScenarioName = Literal["bend", "twist", "pull", "rigid"]
+SCENARIO_NAMES: tuple[str, ...] = ("bend", "twist", "pull", "rigid")
 
 
 @dataclass(frozen=True)
 class Scenario:
-    """Anchors, handles and handle targets.
+    """Constraints of a scenario.
 
     Attributes
     ----------
+    name : str
     fixed : (f,) int64 array
-        Anchors, held at their rest positions.
+        Vertices held at their rest positions.
     handles : (h,) int64 array
-    targets : (h, 3) float64 array
-        Target of each handle.
+        Vertices moved to ``targets[len(fixed):]``.
+    constrained : (f + h,) int64 array
+        ``fixed`` then ``handles``: the order of ``targets``.
+    targets : (f + h, 3) float64 array
     """
 
+    name: str
     fixed: NDArray[np.int64]
     handles: NDArray[np.int64]
+    constrained: NDArray[np.int64]
     targets: NDArray[np.float64]
 
-    @property
-    def constrained(self) -> NDArray[np.int64]:
-        """(f + h,) anchors then handles: the ``constrained`` argument of :class:`arap.ArapSolver`."""
-        return np.concatenate([self.fixed, self.handles])
 
-    def all_targets(self, V: NDArray[np.float64]) -> NDArray[np.float64]:
-        """(f + h, 3) targets of :attr:`constrained`: anchors at their rest positions ``V``, then the handles'."""
-        return np.concatenate([V[self.fixed], self.targets])
+def _diagonal(V: NDArray[np.float64]) -> float:
+    return float(np.linalg.norm(V.max(axis=0) - V.min(axis=0)))
 
 
-def _frame(V: NDArray[np.float64], axis: int | None, side: int | None) -> tuple[int, int, float]:
-    extent = V.max(axis=0) - V.min(axis=0)
-    axis = int(np.argmax(extent)) if axis is None else int(axis)
-    side = (axis + 1) % 3 if side is None else int(side)
-    if axis == side or not (0 <= axis < 3 and 0 <= side < 3):
-        raise ValueError(f"axis and side must be two different coordinates 0..2, got {axis} and {side}")
-    return axis, side, float(np.linalg.norm(extent))
+def _ends(V: NDArray[np.float64], axis: int | None, share: float) -> tuple[int, NDArray[np.int64], NDArray[np.int64]]:
+    """Longest axis (unless given) and the vertices in its lowest and highest ``share``."""
+    if axis is None:
+        axis = int(np.argmax(V.max(axis=0) - V.min(axis=0)))
+    x = V[:, axis]
+    lo, hi = np.quantile(x, [share, 1.0 - share])
+    return axis, np.flatnonzero(x <= lo), np.flatnonzero(x >= hi)
 
 
-def _rotation(angle: float, i: int, j: int) -> NDArray[np.float64]:
-    """Rotation by ``angle`` in the plane of coordinates ``i`` and ``j`` (from ``i`` towards ``j``)."""
-    c, s = np.cos(angle), np.sin(angle)
-    R = np.eye(3)
-    R[i, i], R[i, j], R[j, i], R[j, j] = c, -s, s, c
-    return R
+def rotation(axis: NDArray[np.float64] | list[float], angle: float) -> NDArray[np.float64]:
+    """Rotation by ``angle`` radians about ``axis`` (Rodrigues), shape (3, 3)."""
+    k = np.asarray(axis, dtype=np.float64)
+    k = k / np.linalg.norm(k)
+    K = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
+    return np.eye(3) + np.sin(angle) * K + (1.0 - np.cos(angle)) * (K @ K)
 
 
-def _ends(V: NDArray[np.float64], axis: int, share: float) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
-    if not 0 < share < 0.5:
-        raise ValueError(f"share must be in (0, 0.5), got {share}")
-    t = V[:, axis]
-    lo, hi = np.quantile(t, [share, 1.0 - share])
-    return np.flatnonzero(t <= lo), np.flatnonzero(t >= hi)
+def _build(name: str, V: NDArray[np.float64], fixed: NDArray[np.int64], handles: NDArray[np.int64],
+           moved: NDArray[np.float64]) -> Scenario:
+    return Scenario(name=name, fixed=fixed, handles=handles, constrained=np.concatenate([fixed, handles]),
+                    targets=np.concatenate([V[fixed], moved]))
 
 
-def bend(V: NDArray[np.float64], *, axis: int | None = None, side: int | None = None, share: float = 0.1,
-         angle: float = np.pi / 4, shift: float = 0.1) -> Scenario:
-    """Fix the lowest ``share`` along ``axis``; rotate the highest ``share`` towards ``side`` and shift them.
+def bend(V: NDArray[np.float64], axis: int | None = None, share: float = 0.1, angle: float = 0.6,
+         shift: float = 0.15) -> Scenario:
+    """Fix the lowest ``share`` of the vertices along ``axis`` (default: the longest), rotate the highest ``share``
+    by ``angle`` radians about their centroid in the plane of ``axis`` and the next axis, and shift them along that
+    next axis by ``shift`` bounding-box diagonals.
 
-    Parameters
-    ----------
-    V : (n, 3) float array
-        Rest positions.
-    axis : int or None
-        Coordinate along which the ends are taken; None: the longest bounding-box extent.
-    side : int or None
-        The bending direction; None: ``(axis + 1) % 3``.
-    share : float
-        Share of the vertices in each end (0 < share < 0.5).
-    angle : float
-        Rotation of the handles in radians, in the plane (``axis``, ``side``) about their centroid.
-    shift : float
-        Shift of the handles along ``side``, times the bounding-box diagonal.
-
-    Returns
-    -------
-    Scenario
+    Examples
+    --------
+    >>> import numpy as np
+    >>> V = np.random.default_rng(0).random((100, 3)) * [1, 4, 1]
+    >>> s = bend(V)
+    >>> s.targets.shape == (len(s.constrained), 3), bool(np.all(s.targets[:len(s.fixed)] == V[s.fixed]))
+    (True, True)
     """
-    axis, side, diag = _frame(V, axis, side)
-    fixed, handles = _ends(V, axis, share)
-    R = _rotation(angle, axis, side)
+    axis, fixed, handles = _ends(V, axis, share)
+    other = (axis + 1) % 3
+    R = rotation(np.eye(3)[3 - axis - other], angle)
     centre = V[handles].mean(axis=0)
     offset = np.zeros(3)
-    offset[side] = shift * diag
-    return Scenario(fixed, handles, (V[handles] - centre) @ R.T + centre + offset)
+    offset[other] = shift * _diagonal(V)
+    return _build("bend", V, fixed, handles, (V[handles] - centre) @ R.T + centre + offset)
 
 
-def twist(V: NDArray[np.float64], *, axis: int | None = None, share: float = 0.1,
-          angle: float = np.pi / 2) -> Scenario:
-    """Fix the lowest ``share`` along ``axis``; turn the highest ``share`` by ``angle`` about the axis.
-
-    Parameters
-    ----------
-    V : (n, 3) float array
-    axis : int or None
-        None: the longest bounding-box extent.
-    share : float
-    angle : float
-        Radians, about the line along ``axis`` through the handles' centroid.
-
-    Returns
-    -------
-    Scenario
-    """
-    axis, _, _ = _frame(V, axis, None)
-    fixed, handles = _ends(V, axis, share)
-    i, j = [k for k in range(3) if k != axis]
-    R = _rotation(angle, i, j)
+def twist(V: NDArray[np.float64], axis: int | None = None, share: float = 0.1, angle: float = np.pi / 2) -> Scenario:
+    """Fix the lowest ``share`` along ``axis`` and turn the highest ``share`` by ``angle`` about that axis
+    through their centroid."""
+    axis, fixed, handles = _ends(V, axis, share)
     centre = V[handles].mean(axis=0)
-    return Scenario(fixed, handles, (V[handles] - centre) @ R.T + centre)
+    R = rotation(np.eye(3)[axis], angle)
+    return _build("twist", V, fixed, handles, (V[handles] - centre) @ R.T + centre)
 
 
-def pull(V: NDArray[np.float64], *, axis: int | None = None, side: int | None = None, share: float = 0.1,
-         patch: float = 0.03, shift: float = 0.15) -> Scenario:
-    """Fix both ends; pull a patch at mid-height outwards along ``side``.
-
-    Parameters
-    ----------
-    V : (n, 3) float array
-    axis : int or None
-        None: the longest bounding-box extent.
-    side : int or None
-        None: ``(axis + 1) % 3``.
-    share : float
-        Share of the vertices in each fixed end.
-    patch : float
-        Share of the vertices in the pulled patch: those nearest to the vertex of largest ``side`` coordinate among
-        the vertices in the middle tenth along ``axis``.
-    shift : float
-        Times the bounding-box diagonal.
-
-    Returns
-    -------
-    Scenario
-    """
-    axis, side, diag = _frame(V, axis, side)
-    low, high = _ends(V, axis, share)
-    t = V[:, axis]
-    middle = np.flatnonzero(np.abs(t - np.median(t)) <= 0.05 * (t.max() - t.min()))
-    if not len(middle):
-        middle = np.arange(len(V))
-    apex = middle[np.argmax(V[middle, side])]
-    k = max(1, round(patch * len(V)))
-    handles = np.sort(np.argsort(np.linalg.norm(V - V[apex], axis=1), kind="stable")[:k])
-    fixed = np.setdiff1d(np.concatenate([low, high]), handles)
+def pull(V: NDArray[np.float64], axis: int | None = None, share: float = 0.1, distance: float = 0.2) -> Scenario:
+    """Fix the lowest ``share`` along ``axis`` and pull the single vertex farthest along it by ``distance``
+    bounding-box diagonals along the axis."""
+    axis, fixed, _ = _ends(V, axis, share)
+    tip = np.array([int(np.argmax(V[:, axis]))], dtype=np.int64)
     offset = np.zeros(3)
-    offset[side] = shift * diag
-    return Scenario(fixed, handles, V[handles] + offset)
+    offset[axis] = distance * _diagonal(V)
+    return _build("pull", V, fixed, tip, V[tip] + offset)
 
 
-def make_scenario(name: str, V: NDArray[np.float64]) -> Scenario:
-    """The scenario ``name`` (one of :data:`SCENARIOS`) with its default parameters.
+def rigid(V: NDArray[np.float64], angle: float = np.radians(170.0), count: int = 40, seed: int = 0) -> Scenario:
+    """Move ``count`` scattered vertices (no fixed ones) by one rigid motion rotating ``angle`` radians."""
+    rng = np.random.default_rng(seed)
+    handles = np.sort(rng.choice(len(V), size=min(count, len(V)), replace=False)).astype(np.int64)
+    R = rotation([0.3, -1.0, 0.5], angle)
+    t = np.array([0.5, -0.25, 0.1]) * _diagonal(V)
+    return _build("rigid", V, np.zeros(0, dtype=np.int64), handles, V[handles] @ R.T + t)
 
-    Raises
-    ------
-    ValueError
-        Unknown name.
-    """
-    if name == "bend":
-        return bend(V)
-    if name == "twist":
-        return twist(V)
-    if name == "pull":
-        return pull(V)
-    raise ValueError(f"unknown scenario {name!r}; expected one of {SCENARIOS}")
+
+def make_scenario(name: ScenarioName | str, V: NDArray[np.float64]) -> Scenario:
+    """The scenario ``name`` (one of :data:`SCENARIO_NAMES`) with its default parameters."""
+    makers = {"bend": bend, "twist": twist, "pull": pull, "rigid": rigid}
+    if name not in makers:
+        raise ArapError(f"unknown scenario {name!r}; expected one of {SCENARIO_NAMES}")
+    return makers[name](V)

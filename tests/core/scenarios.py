@@ -9,14 +9,9 @@ from arap.scenarios import bend
 
 def bend_constraints(V: np.ndarray, axis: int | None = None, share: float = 0.1, angle: float = 0.6,
                      shift: float = 0.15) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """:func:`arap.scenarios.bend` with the tests' defaults.
-
-    Returns
-    -------
-    fixed, handle, constrained, targets
-    """
+    """The ``bend`` scenario of :mod:`arap.scenarios` as ``fixed, handle, constrained, targets``."""
     s = bend(V, axis=axis, share=share, angle=angle, shift=shift)
-    return s.fixed, s.handles, s.constrained, s.all_targets(V)
+    return s.fixed, s.handles, s.constrained, s.targets
 
 
 def random_rigid(seed: int) -> tuple[np.ndarray, np.ndarray]:
