@@ -310,3 +310,24 @@ def test_studio_calls_the_server(monkeypatch: pytest.MonkeyPatch, capsys: pytest
     assert main(["studio", "cactus", "--port", "8765"]) == 0
     assert calls == [("cactus", {"host": "127.0.0.1", "port": 8765, "open_browser": False})]
     assert "http://127.0.0.1:8765/" in capsys.readouterr().out
+
+
+def test_deform_explains_a_negative_energy(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    from arap.scenarios import bend
+    from arap.shapes import scan_blob
+
+    V, F = scan_blob(n=400)
+    mesh = tmp_path / "blob.off"
+    save_mesh(mesh, V, F)
+    s = bend(V)
+    cfile = tmp_path / "c.json"
+    cfile.write_text(json.dumps({"fixed": s.fixed.tolist(), "handles": s.handles.tolist(),
+                                 "targets": s.targets[len(s.fixed):].tolist()}))
+    out = tmp_path / "out.off"
+    assert main(["deform", str(mesh), "-c", str(cfile), "-o", str(out), "-n", "3", "--energy", "spokes"]) == 0
+    err = capsys.readouterr().err
+    assert "energy -" in err and "below 0" in err and "README" in err
+    # The default energy is never negative and needs no note.
+    assert main(["deform", str(mesh), "-c", str(cfile), "-o", str(out), "-n", "3"]) == 0
+    err = capsys.readouterr().err
+    assert "energy -" not in err and "below 0" not in err

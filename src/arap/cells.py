@@ -20,10 +20,13 @@ from typing import Literal
 import numpy as np
 import scipy.sparse as sp
 
-from arap.weights import corner_weights, edge_weight_matrix
+from arap.weights import DEFAULT_WEIGHTS, corner_weights, edge_weight_matrix
 
 EnergyType = Literal["spokes", "spokes_and_rims"]
 ENERGY_TYPES: tuple[str, ...] = ("spokes", "spokes_and_rims")
+DEFAULT_ENERGY: EnergyType = "spokes_and_rims"
+"""The default cells: unlike ``spokes`` with cotangent weights, they do not fold meshes with obtuse triangles, and
+their energy is a sum of non-negative per-triangle terms (see ``benchmarks/bench_folds.py``)."""
 
 
 @dataclass(frozen=True)
@@ -60,7 +63,7 @@ class Cells:
         return np.repeat(np.arange(self.n_cells), np.diff(self.ptr))
 
 
-def build_cells(V: np.ndarray, F: np.ndarray, energy: str = "spokes", weights: str = "cotangent") -> Cells:
+def build_cells(V: np.ndarray, F: np.ndarray, energy: str = DEFAULT_ENERGY, weights: str = DEFAULT_WEIGHTS) -> Cells:
     """Build the cell structure of a mesh.
 
     Parameters
@@ -68,7 +71,7 @@ def build_cells(V: np.ndarray, F: np.ndarray, energy: str = "spokes", weights: s
     V : (n, 3) float64 array
     F : (m, 3) int64 array
     energy : {"spokes", "spokes_and_rims"}
-    weights : {"cotangent", "uniform"}
+    weights : {"cotangent", "clamped", "uniform"}
 
     Returns
     -------

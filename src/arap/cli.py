@@ -23,8 +23,10 @@ from typing import TYPE_CHECKING, Any, TextIO
 import numpy as np
 
 from arap import __version__
+from arap.cells import DEFAULT_ENERGY, ENERGY_TYPES
 from arap.errors import ArapError, MeshError, MeshFormatError
 from arap.mesh import RepairResult
+from arap.weights import DEFAULT_WEIGHTS, WEIGHT_TYPES
 
 if TYPE_CHECKING:
     from arap.diagnose import MeshInfo
@@ -33,8 +35,6 @@ __all__ = ["main"]
 
 logger = logging.getLogger("arap.cli")
 
-ENERGIES = ("spokes", "spokes_and_rims")
-WEIGHTS = ("cotangent", "uniform")
 DEFAULT_BENCH_SPHERE = 6  # subdivisions: 40,962 vertices
 
 
@@ -184,6 +184,10 @@ def _cmd_deform(args: argparse.Namespace) -> int:
             status = "converged" if result.converged else "iteration limit reached"
             _err(f"arap: {result.iterations} iterations in {seconds:.2f} s ({per_it:.1f} ms/iteration), "
                  f"energy {result.energies[0]:.6g} -> {result.energies[-1]:.6g}, {status}")
+            if min(result.energies) < 0:
+                _err(f"arap: note: the energy is below 0 because {args.energy} with {args.weights} weights has "
+                     "negative terms on obtuse triangles (see README, 'Energy and weights'); "
+                     "spokes_and_rims is never negative")
         _err(f"arap: wrote {args.output}")
     return 0
 
@@ -242,7 +246,7 @@ def _cmd_info(args: argparse.Namespace) -> int:
 
 # ---------------------------------------------------------------------------------------------- bench
 def bench_constraints(V: np.ndarray, share: float = 0.1) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Bend-like test scenario: fix the lowest ``share`` of vertices along the longest axis, lift the top ones.
+    """The bend scenario of :mod:`arap.scenarios`: fix the lowest ``share`` along the longest axis, move the top.
 
     Returns
     -------
@@ -252,20 +256,10 @@ def bench_constraints(V: np.ndarray, share: float = 0.1) -> tuple[np.ndarray, np
         Handles rotated 30° about their centroid (in the plane of the longest axis and the next one), then
         shifted along that next axis by 10% of the bounding-box diagonal.
     """
-    extent = V.max(axis=0) - V.min(axis=0)
-    axis = int(np.argmax(extent))
-    side = (axis + 1) % 3
-    t = V[:, axis]
-    fixed = np.flatnonzero(t <= np.quantile(t, share))
-    handles = np.flatnonzero(t >= np.quantile(t, 1.0 - share))
-    c, s = np.cos(np.pi / 6), np.sin(np.pi / 6)
-    R = np.eye(3)
-    R[np.ix_([axis, side], [axis, side])] = [[c, -s], [s, c]]
-    centroid = V[handles].mean(axis=0)
-    shift = np.zeros(3)
-    shift[side] = 0.1 * float(np.linalg.norm(extent))
-    targets = (V[handles] - centroid) @ R.T + centroid + shift
-    return fixed, handles, targets
+    from arap.scenarios import bend
+
+    scenario = bend(V, share=share, angle=np.pi / 6, shift=0.1)
+    return scenario.fixed, scenario.handles, scenario.targets[len(scenario.fixed):]
 
 
 def _cmd_bench(args: argparse.Namespace) -> int:
@@ -372,8 +366,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("-n", "--iterations", type=int, default=50, help="maximum iterations (default: 50)")
     p.add_argument("-t", "--tolerance", type=float, default=1e-6,
                    help="stop when the relative energy change is at most this (default: 1e-6; 0 runs all)")
-    p.add_argument("--energy", choices=ENERGIES, default="spokes", help="cell definition (default: spokes)")
-    p.add_argument("--weights", choices=WEIGHTS, default="cotangent", help="edge weights (default: cotangent)")
+    p.add_argument("--energy", choices=ENERGY_TYPES, default=DEFAULT_ENERGY,
+                   help=f"cell definition (default: {DEFAULT_ENERGY}; spokes is the 2007 paper's)")
+    p.add_argument("--weights", choices=WEIGHT_TYPES, default=DEFAULT_WEIGHTS,
+                   help=f"edge weights (default: {DEFAULT_WEIGHTS})")
     p.add_argument("-q", "--quiet", action="store_true", help="print nothing but errors")
     p.set_defaults(func=_cmd_deform)
 
@@ -391,8 +387,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="default: a geodesic sphere of 40,962 vertices")
     p.add_argument("-n", "--iterations", type=int, default=10, help="iterations per run (default: 10)")
     p.add_argument("-r", "--repeats", type=int, default=3, help="runs; the median is reported (default: 3)")
-    p.add_argument("--energy", choices=ENERGIES, default="spokes")
-    p.add_argument("--weights", choices=WEIGHTS, default="cotangent")
+    p.add_argument("--energy", choices=ENERGY_TYPES, default=DEFAULT_ENERGY)
+    p.add_argument("--weights", choices=WEIGHT_TYPES, default=DEFAULT_WEIGHTS)
     p.add_argument("--json", action="store_true", help="print one JSON object instead of a table")
     p.set_defaults(func=_cmd_bench)
 

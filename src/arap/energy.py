@@ -4,13 +4,14 @@ from __future__ import annotations
 
 import numpy as np
 
-from arap.cells import build_cells
+from arap.cells import DEFAULT_ENERGY, build_cells
 from arap.covariance import local_step
 from arap.mesh import check_mesh
+from arap.weights import DEFAULT_WEIGHTS
 
 
 def cell_energies(
-    V: np.ndarray, F: np.ndarray, U: np.ndarray, energy: str = "spokes", weights: str = "cotangent"
+    V: np.ndarray, F: np.ndarray, U: np.ndarray, energy: str = DEFAULT_ENERGY, weights: str = DEFAULT_WEIGHTS
 ) -> np.ndarray:
     """Energy of every cell with its optimal rotation.
 
@@ -21,9 +22,10 @@ def cell_energies(
     F : (m, 3) int array
     U : (n, 3) float array
         Deformed positions.
-    energy : {"spokes", "spokes_and_rims"}
-        Cell definition: the paper's one-ring spokes (Sorkine & Alexa 2007) or spokes and rims (Chao et al. 2010).
-    weights : {"cotangent", "uniform"}
+    energy : {"spokes_and_rims", "spokes"}
+        Cell definition: spokes and rims (Chao et al. 2010, the default) or the paper's one-ring spokes (Sorkine &
+        Alexa 2007).
+    weights : {"cotangent", "clamped", "uniform"}
 
     Returns
     -------
@@ -42,20 +44,23 @@ def cell_energies(
 
 
 def arap_energy(
-    V: np.ndarray, F: np.ndarray, U: np.ndarray, energy: str = "spokes", weights: str = "cotangent"
+    V: np.ndarray, F: np.ndarray, U: np.ndarray, energy: str = DEFAULT_ENERGY, weights: str = DEFAULT_WEIGHTS
 ) -> float:
-    """The ARAP energy of ``U`` against the rest pose ``V``, with optimal rotations (Sorkine & Alexa 2007).
+    """The ARAP energy of ``U`` against the rest pose ``V``, with optimal rotations.
 
-    ``E = Σ_i Σ_{j∈N(i)} w_ij ‖(p'_i − p'_j) − R_i (p_i − p_j)‖²`` with cotangent weights by default. With obtuse
-    triangles some weights are negative and the energy can be below zero, even at rest.
+    ``E = Σ_i Σ_{(a,b)∈cell i} w_ab ‖(p'_a − p'_b) − R_i (p_a − p_b)‖²``. The default cells, spokes and rims (Chao et
+    al. 2010), hold every edge of the triangles around a vertex, weighted by ``½ cot`` of the opposite angle in that
+    triangle; the energy is then a sum of per-triangle Dirichlet energies, never negative, and zero at rest.
+    ``energy="spokes"`` is the paper's (Sorkine & Alexa 2007): the one-ring edges with ``w_ij = ½(cot α + cot β)``.
+    With obtuse triangles some of those weights are negative and that energy can be below zero, even at rest.
 
     Parameters
     ----------
     V : (n, 3) float array
     F : (m, 3) int array
     U : (n, 3) float array
-    energy : {"spokes", "spokes_and_rims"}
-    weights : {"cotangent", "uniform"}
+    energy : {"spokes_and_rims", "spokes"}
+    weights : {"cotangent", "clamped", "uniform"}
 
     Returns
     -------

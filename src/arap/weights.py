@@ -1,4 +1,11 @@
-"""Edge weights: cotangent (Pinkall & Polthier 1993; Meyer et al. 2003) and uniform, and the cotangent Laplacian."""
+"""Edge weights and the cotangent Laplacian.
+
+- ``cotangent``: ``w_ij = ½(cot α_ij + cot β_ij)`` (Pinkall & Polthier 1993; Meyer et al. 2003), the weights of
+  Sorkine & Alexa 2007. Obtuse triangles make some of them negative.
+- ``clamped``: the cotangent weights with negative values replaced by 0, as Open3D's
+  ``TriangleMesh::DeformAsRigidAsPossible`` does (``ComputeEdgeWeightsCot`` with ``min_weight = 0``).
+- ``uniform``: 1 on interior edges, ½ on boundary edges.
+"""
 
 from __future__ import annotations
 
@@ -7,8 +14,10 @@ from typing import Literal
 import numpy as np
 import scipy.sparse as sp
 
-WeightType = Literal["cotangent", "uniform"]
-WEIGHT_TYPES: tuple[str, ...] = ("cotangent", "uniform")
+WeightType = Literal["cotangent", "clamped", "uniform"]
+WEIGHT_TYPES: tuple[str, ...] = ("cotangent", "clamped", "uniform")
+DEFAULT_WEIGHTS: WeightType = "cotangent"
+"""The default edge weights."""
 
 
 def face_cotangents(V: np.ndarray, F: np.ndarray) -> np.ndarray:
@@ -43,13 +52,15 @@ def corner_weights(V: np.ndarray, F: np.ndarray, weights: str = "cotangent") -> 
     """Per-face contribution to the weight of the edge opposite each corner.
 
     ``cotangent``: ``½ cot`` of the corner angle, so an interior edge gets ``½(cot α + cot β)`` and a boundary edge
-    the single term ``½ cot α``. ``uniform``: ``½`` per face, so interior edges get 1 and boundary edges ½.
+    the single term ``½ cot α``. ``clamped``: ``max(½ cot, 0)``, zero at obtuse corners (the per-triangle form of
+    clamping, used by the spokes-and-rims cells, whose terms are per triangle). ``uniform``: ``½`` per face, so
+    interior edges get 1 and boundary edges ½.
 
     Parameters
     ----------
     V : (n, 3) float array
     F : (m, 3) int array
-    weights : {"cotangent", "uniform"}
+    weights : {"cotangent", "clamped", "uniform"}
 
     Returns
     -------
@@ -57,13 +68,23 @@ def corner_weights(V: np.ndarray, F: np.ndarray, weights: str = "cotangent") -> 
     """
     if weights == "cotangent":
         return 0.5 * face_cotangents(V, F)
+    if weights == "clamped":
+        return np.maximum(0.5 * face_cotangents(V, F), 0.0)
     if weights == "uniform":
         return np.full((len(F), 3), 0.5)
     raise ValueError(f"unknown weights {weights!r}; expected one of {WEIGHT_TYPES}")
 
 
 def edge_weight_matrix(V: np.ndarray, F: np.ndarray, weights: str = "cotangent") -> sp.csr_matrix:
-    """Symmetric matrix of edge weights ``W[i, j] = w_ij`` (zero diagonal), shape (n, n)."""
+    """Symmetric matrix of edge weights ``W[i, j] = w_ij`` (zero diagonal), shape (n, n).
+
+    ``clamped`` clamps the summed edge weight, ``max(½(cot α + cot β), 0)``, as Open3D does.
+    """
+    if weights == "clamped":
+        W = edge_weight_matrix(V, F, "cotangent")
+        W.sum_duplicates()
+        np.maximum(W.data, 0.0, out=W.data)
+        return W
     n = len(V)
     F = np.asarray(F, dtype=np.int64)
     cw = corner_weights(V, F, weights)
@@ -81,7 +102,7 @@ def cotangent_laplacian(V: np.ndarray, F: np.ndarray, weights: str = "cotangent"
     ----------
     V : (n, 3) float array
     F : (m, 3) int array
-    weights : {"cotangent", "uniform"}
+    weights : {"cotangent", "clamped", "uniform"}
 
     Returns
     -------

@@ -2,12 +2,14 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 import pytest
 
 from arap.diagnose import inspect_mesh
 from arap.mesh import check_mesh
-from arap.shapes import BUILTIN_MESHES, builtin_mesh, sphere, sphere_frequency_for
+from arap.shapes import BUILTIN_MESHES, builtin_mesh, obtuse_cylinder, scan_blob, sphere, sphere_frequency_for
 
 
 def signed_volume(V: np.ndarray, F: np.ndarray) -> float:
@@ -102,3 +104,30 @@ def test_sphere_by_frequency_and_radius() -> None:
     assert min_angle_degrees(V, F) > 45.0
     with pytest.raises(ValueError, match="frequency"):
         sphere(frequency=0)
+
+
+@pytest.mark.parametrize(("build", "share"), [
+    (lambda seed: obtuse_cylinder(seed, spacing=0.1), 0.185),
+    (lambda seed: scan_blob(seed, n=1500), 0.207),
+])
+def test_obtuse_meshes_are_clean_and_seeded(build: Callable[[int], tuple], share: float) -> None:
+    V, F = build(0)
+    V2, F2 = check_mesh(V, F)
+    np.testing.assert_array_equal(F2, F)
+    np.testing.assert_array_equal(V2, V)
+    info = inspect_mesh(V, F)
+    assert info.n_components == 1 and info.closed and info.euler_characteristic == 2
+    assert info.problems == []
+    assert signed_volume(V, F) > 0  # outward orientation
+    assert info.negative_weight_share == pytest.approx(share, abs=0.001)  # as the docstrings say
+    again = build(0)
+    np.testing.assert_array_equal(again[0], V)
+    np.testing.assert_array_equal(again[1], F)
+    assert not np.array_equal(build(1)[0], V)
+
+
+def test_obtuse_mesh_options_are_checked() -> None:
+    with pytest.raises(ValueError, match="squash"):
+        obtuse_cylinder(squash=0.0)
+    with pytest.raises(ValueError, match="n >= 20"):
+        scan_blob(n=10)

@@ -382,8 +382,8 @@ def test_selection_tools_and_groups(page: Page, shoot: Shoot) -> None:
 
 
 def test_solver_parameters_and_gizmo_modes(page: Page) -> None:
-    page.get_by_test_id("energy").select_option("spokes_and_rims")
-    page.wait_for_function("() => window.__arap.params.energy === 'spokes_and_rims'")
+    page.get_by_test_id("energy").select_option("spokes")
+    page.wait_for_function("() => window.__arap.params.energy === 'spokes'")
     page.get_by_test_id("weights").select_option("uniform")
     page.wait_for_function("() => window.__arap.params.weights === 'uniform'")
     page.get_by_test_id("iterations").evaluate(

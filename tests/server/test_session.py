@@ -9,7 +9,7 @@ from arap.io import load_mesh_bytes
 from arap.server.constraints import matrices_from_json, matrices_to_json
 from arap.server.history import History, Snapshot
 from arap.server.meshdata import MeshData, load_builtin
-from arap.server.protocol import RequestError
+from arap.server.protocol import ENERGIES, WEIGHTS, RequestError
 from arap.server.session import Session
 from tests.server.helpers import column_major, rotation_z, translation
 
@@ -271,8 +271,8 @@ def test_history_step_cap() -> None:
 
 def test_every_energy_and_weighting_solves(cactus: MeshData) -> None:
     fixed, top = _bottom_top(cactus.V)
-    for energy in ("spokes", "spokes_and_rims"):
-        for weights in ("cotangent", "uniform"):
+    for energy in ENERGIES:
+        for weights in WEIGHTS:
             s = Session()
             s.load(cactus)
             s.set_params(energy=energy, weights=weights)

@@ -231,6 +231,7 @@ function onVertices(msg) {
   const energies = (msg.energies || []).filter((e) => e !== null);
   iterPlot.set(energies);
   if (energies.length) timePlot.push(energies[energies.length - 1]);
+  document.getElementById('energy-note').hidden = !energies.some((e) => e < 0);
   panel.setStats({
     ms_per_iteration: msg.ms_per_iteration,
     ups: app.updateTimes.length,

@@ -66,11 +66,12 @@ export const PARAMS = Object.freeze({
       "spokes",
       "spokes_and_rims"
     ],
-    "default": "spokes"
+    "default": "spokes_and_rims"
   },
   "weights": {
     "choices": [
       "cotangent",
+      "clamped",
       "uniform"
     ],
     "default": "cotangent"
@@ -86,6 +87,7 @@ export const ENERGIES = Object.freeze([
 /** Values of the `weights` parameter. */
 export const WEIGHTS = Object.freeze([
   "cotangent",
+  "clamped",
   "uniform"
 ]);
 
@@ -214,6 +216,7 @@ export const CLIENT_MESSAGES = Object.freeze({
         "required": false,
         "choices": [
           "cotangent",
+          "clamped",
           "uniform"
         ]
       }

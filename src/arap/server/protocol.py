@@ -21,8 +21,10 @@ import math
 from dataclasses import dataclass, field
 from typing import Any
 
+from arap.cells import DEFAULT_ENERGY, ENERGY_TYPES
 from arap.server.errors import ERROR_CODES, RequestError
 from arap.server.frames import MAX_HEADER_BYTES, decode_binary, encode_binary, loads_json
+from arap.weights import DEFAULT_WEIGHTS, WEIGHT_TYPES
 
 __all__ = [
     "CLIENT_MESSAGES",
@@ -61,15 +63,15 @@ MAX_SEQ = 2**53 - 1
 AFFINE_TOLERANCE = 1e-9
 """How far the last row of a drag transform may be from (0, 0, 0, 1)."""
 
-ENERGIES = ("spokes", "spokes_and_rims")
-WEIGHTS = ("cotangent", "uniform")
+ENERGIES = ENERGY_TYPES
+WEIGHTS = WEIGHT_TYPES
 EXPORT_FORMATS = ("obj", "ply")
 UPLOAD_EXTENSIONS = (".obj", ".off", ".ply", ".stl")
 
 PARAMS: dict[str, dict[str, Any]] = {
     "iterations": {"min": 1, "max": 100, "default": 2},
-    "energy": {"choices": list(ENERGIES), "default": "spokes"},
-    "weights": {"choices": list(WEIGHTS), "default": "cotangent"},
+    "energy": {"choices": list(ENERGIES), "default": DEFAULT_ENERGY},
+    "weights": {"choices": list(WEIGHTS), "default": DEFAULT_WEIGHTS},
 }
 """Solver parameters a client may set, with their ranges and defaults."""
 
