@@ -313,7 +313,7 @@ class ArapSolver:
             e = float(self._E[active].sum()) + const_E
             energies.append(e)
             stop = callback is not None and callback(it + 1, e) is False
-            if prev is not None and abs(prev - e) <= tolerance * max(abs(prev), 1e-300):
+            if tolerance > 0 and prev is not None and abs(prev - e) <= tolerance * max(abs(prev), 1e-300):
                 converged = True
             prev = e
             if converged or stop:
