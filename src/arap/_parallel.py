@@ -9,10 +9,11 @@ up to a scheduler time slice (milliseconds) when the other cores are busy, becau
 Hence :class:`ThreadPolicy`:
 
 * below :data:`PARALLEL_MIN_WORK` edge terms a kernel always runs serially (measured on a 2-core machine: below it
-  the serial kernel is faster even on idle cores);
+  threads save little even on idle cores, and a busy core makes them cost far more);
 * above it, one thread per :data:`WORK_PER_THREAD` terms, at most numba's thread count;
-* and the parallel launch must keep paying off: the policy times both choices for each kernel and size class (a
-  serial run now and then, as a probe) and runs serially while parallel runs are measured slower, e.g. under load.
+* and the parallel launch must keep paying off: the policy times both choices for each kernel and size class and
+  runs serially while parallel runs are measured slower, e.g. under load (the losing choice is timed again now and
+  then, ever more rarely while it keeps losing).
 
 The kernels are deterministic: the thread count changes the schedule, never the arithmetic, so every choice gives
 bitwise the same result.
@@ -30,21 +31,40 @@ import numba
 
 kernel_lock = threading.Lock()
 
-PARALLEL_MIN_WORK = 60_000
-"""Edge terms below which kernels run on one thread (about 10k vertices with spoke cells)."""
-WORK_PER_THREAD = 30_000
-"""Edge terms per additional thread above :data:`PARALLEL_MIN_WORK`."""
+PARALLEL_MIN_WORK = 50_000
+"""Edge terms below which kernels run on one thread (about 4k vertices with spoke cells, local step and right-hand
+side together). Measured on the 2-core machine: below about 20k terms one thread is faster even on idle cores; at
+50k two threads save about a third on idle cores, while a busy core can make a parallel launch 20-100× slower."""
+WORK_PER_THREAD = 25_000
+"""Edge terms per thread above :data:`PARALLEL_MIN_WORK`."""
 PROBE_EVERY = 16
-"""Every this many calls of a kernel/size class, the choice not currently preferred is timed again."""
+"""Calls between two timings of the choice not currently preferred; doubled after each probe that does not change
+the preference, up to :data:`PROBE_MAX`, so that an expensive choice is retried ever more rarely."""
+PROBE_MAX = 1024
 
 T = TypeVar("T")
+
+
+class _Times:
+    """Measured seconds per unit of work of one kernel and size class, serial and parallel."""
+
+    __slots__ = ("countdown", "interval", "parallel", "serial")
+
+    def __init__(self, interval: int) -> None:
+        self.serial = math.nan
+        self.parallel = math.nan
+        self.countdown = interval
+        self.interval = interval
+
+    def prefers_parallel(self) -> bool:
+        return self.parallel < self.serial
 
 
 class ThreadPolicy:
     """Chooses serial or parallel execution per call from the work size and the measured times of both.
 
-    Times per unit of work are kept per kernel name and size class (powers of two of the work) as exponential moving
-    averages; the state is advisory, so races between Python threads only blur the averages.
+    Times per unit of work are kept per kernel name and size class (powers of two of the work) as moving averages;
+    the state is advisory, so races between Python threads only blur the averages.
 
     Parameters
     ----------
@@ -53,7 +73,7 @@ class ThreadPolicy:
     work_per_thread : int
         Work per thread above ``min_work``.
     probe_every : int
-        Calls between probes of the choice not currently preferred.
+        Initial number of calls between probes of the choice not currently preferred.
     """
 
     def __init__(self, min_work: int = PARALLEL_MIN_WORK, work_per_thread: int = WORK_PER_THREAD,
@@ -61,7 +81,7 @@ class ThreadPolicy:
         self.min_work = min_work
         self.work_per_thread = work_per_thread
         self.probe_every = probe_every
-        self._stats: dict[tuple[str, int], list[float]] = {}
+        self._times: dict[tuple[str, int], _Times] = {}
 
     def threads(self, work: int) -> int:
         """Threads the size rule allows for ``work`` edge terms (1 below ``min_work``)."""
@@ -69,8 +89,42 @@ class ThreadPolicy:
             return 1
         return max(1, min(numba.config.NUMBA_NUM_THREADS, work // self.work_per_thread))
 
+    def choose(self, name: str, work: int) -> int:
+        """Threads for the next call of kernel ``name`` over ``work`` edge terms (1: serial)."""
+        threads = self.threads(work)
+        if threads == 1:
+            return 1
+        times = self._times.setdefault((name, int(math.log2(work))), _Times(self.probe_every))
+        if math.isnan(times.parallel):
+            return threads
+        if math.isnan(times.serial):
+            return 1
+        preferred = times.prefers_parallel()
+        times.countdown -= 1
+        if times.countdown <= 0:
+            preferred = not preferred
+        return threads if preferred else 1
+
+    def record(self, name: str, work: int, threads: int, seconds: float) -> None:
+        """Account a call's wall time (see :meth:`choose`)."""
+        times = self._times.get((name, int(math.log2(max(work, 1)))))
+        if times is None:
+            return
+        per_work = seconds / max(work, 1)
+        before = times.prefers_parallel()
+        probe = times.countdown <= 0
+        # A probe replaces the stale figure of the losing choice; the running choice averages its recent calls.
+        if threads > 1:
+            times.parallel = per_work if probe or math.isnan(times.parallel) else 0.5 * (times.parallel + per_work)
+        else:
+            times.serial = per_work if probe or math.isnan(times.serial) else 0.5 * (times.serial + per_work)
+        if probe:
+            changed = times.prefers_parallel() != before
+            times.interval = self.probe_every if changed else min(2 * times.interval, PROBE_MAX)
+            times.countdown = times.interval
+
     def run(self, name: str, work: int, serial: Callable[[], T], parallel: Callable[[], T]) -> T:
-        """Run ``serial()`` or ``parallel()`` (under :data:`kernel_lock`, with the chosen thread count).
+        """Run ``serial()`` or ``parallel()`` (the latter under :data:`kernel_lock` with the chosen thread count).
 
         Parameters
         ----------
@@ -81,36 +135,22 @@ class ThreadPolicy:
         serial, parallel : callable
             The same computation compiled without and with threads.
         """
-        threads = self.threads(work)
-        if threads == 1:
+        threads = self.choose(name, work)
+        if threads == 1 and work < self.min_work:
             return serial()
-        key = (name, int(math.log2(work)))
-        # [serial seconds per unit of work, parallel seconds per unit of work, calls]
-        stats = self._stats.setdefault(key, [math.nan, math.nan, 0.0])
-        stats[2] += 1
-        if math.isnan(stats[1]):
-            use_parallel = True
-        elif math.isnan(stats[0]):
-            use_parallel = False
-        else:
-            use_parallel = stats[1] < stats[0]
-            if stats[2] % self.probe_every == 0:
-                use_parallel = not use_parallel
         t = time.perf_counter()
-        if use_parallel:
+        if threads > 1:
             with kernel_lock:
                 numba.set_num_threads(threads)
                 result = parallel()
         else:
             result = serial()
-        elapsed = (time.perf_counter() - t) / max(work, 1)
-        slot = 1 if use_parallel else 0
-        stats[slot] = elapsed if math.isnan(stats[slot]) else 0.7 * stats[slot] + 0.3 * elapsed
+        self.record(name, work, threads, time.perf_counter() - t)
         return result
 
     def reset(self) -> None:
         """Forget the measured times."""
-        self._stats.clear()
+        self._times.clear()
 
 
 policy = ThreadPolicy()
