@@ -1,7 +1,7 @@
 """Cell-by-cell kernels of the local step and the right-hand side: the reference for the batched kernels.
 
 These are the straightforward per-cell loops (one covariance, one scalar rotation fit
-(:func:`arap.rotations.rotation_from_covariance`), one energy per cell; one gathered row per vertex), parallel over
+(:func:`arap.horn.rotation_from_covariance`), one energy per cell; one gathered row per vertex), parallel over
 cells with numba's current thread count. :mod:`arap.covariance` computes the same quantities in blocks of cells with
 SIMD rotations; tests check that both agree, and benchmarks time one against the other.
 """
@@ -13,7 +13,7 @@ import numpy as np
 
 from arap._parallel import kernel_lock
 from arap.cells import Cells, RhsGather
-from arap.rotations import rotation_from_covariance
+from arap.horn import rotation_from_covariance
 
 
 @nb.njit(cache=True, parallel=True, nogil=True)
