@@ -29,12 +29,12 @@ def _local_block(lo, hi, cell_ids, ptr, a, b, w, we, rest_sq, U, R, E, sc, flag)
     """Cells ``cell_ids[lo:hi]`` (at most BLOCK): rotations into ``R``, energies into ``E``; returns their sum."""
     m = hi - lo
     for t in range(m):
-        c = cell_ids[lo + t]
+        c = np.uint64(cell_ids[lo + t])  # unsigned indices spare numba's negative-index fix-ups
         s00 = s01 = s02 = s10 = s11 = s12 = s20 = s21 = s22 = 0.0
         cur = 0.0
-        for k in range(ptr[c], ptr[c + 1]):
-            ia = a[k]
-            ib = b[k]
+        for k in range(np.uint64(ptr[c]), np.uint64(ptr[c + np.uint64(1)])):
+            ia = np.uint64(a[k])
+            ib = np.uint64(b[k])
             d0 = U[ia, 0] - U[ib, 0]
             d1 = U[ia, 1] - U[ib, 1]
             d2 = U[ia, 2] - U[ib, 2]
@@ -70,7 +70,7 @@ def _local_block(lo, hi, cell_ids, ptr, a, b, w, we, rest_sq, U, R, E, sc, flag)
     rotations_block(sc, m, flag)
     total = 0.0
     for t in range(m):
-        c = cell_ids[lo + t]
+        c = np.uint64(cell_ids[lo + t])
         for i in range(3):
             for j in range(3):
                 R[c, i, j] = sc[(ROW_R + 3 * i + j) * BLOCK + t]
@@ -118,8 +118,8 @@ def _rhs_rows(r0, r1, ptr, cell, g, R, const, out):  # pragma: no cover - compil
         b0 = 0.0
         b1 = 0.0
         b2 = 0.0
-        for k in range(ptr[r], ptr[r + 1]):
-            c = cell[k]
+        for k in range(np.uint64(ptr[r]), np.uint64(ptr[r + 1])):
+            c = np.uint64(cell[k])  # unsigned indices spare numba's negative-index fix-ups
             g0 = g[k, 0]
             g1 = g[k, 1]
             g2 = g[k, 2]
