@@ -22,8 +22,10 @@ bitwise the same result.
 from __future__ import annotations
 
 import math
+import statistics
 import threading
 import time
+from collections import deque
 from collections.abc import Callable
 from typing import TypeVar
 
@@ -41,30 +43,36 @@ PROBE_EVERY = 16
 """Calls between two timings of the choice not currently preferred; doubled after each probe that does not change
 the preference, up to :data:`PROBE_MAX`, so that an expensive choice is retried ever more rarely."""
 PROBE_MAX = 1024
+SAMPLES = 7
+"""Recent calls whose median times a choice."""
 
 T = TypeVar("T")
 
 
 class _Times:
-    """Measured seconds per unit of work of one kernel and size class, serial and parallel."""
+    """Recent seconds per unit of work of one kernel and size class, serial and parallel.
+
+    The estimate of each choice is the median of its last :data:`SAMPLES` calls: a load spike that stalls one call
+    (a time slice or more) must not flip the choice, a load that stalls most calls must.
+    """
 
     __slots__ = ("countdown", "interval", "parallel", "serial")
 
     def __init__(self, interval: int) -> None:
-        self.serial = math.nan
-        self.parallel = math.nan
+        self.serial: deque[float] = deque(maxlen=SAMPLES)
+        self.parallel: deque[float] = deque(maxlen=SAMPLES)
         self.countdown = interval
         self.interval = interval
 
     def prefers_parallel(self) -> bool:
-        return self.parallel < self.serial
+        return statistics.median(self.parallel) < statistics.median(self.serial)
 
 
 class ThreadPolicy:
     """Chooses serial or parallel execution per call from the work size and the measured times of both.
 
-    Times per unit of work are kept per kernel name and size class (powers of two of the work) as moving averages;
-    the state is advisory, so races between Python threads only blur the averages.
+    Times per unit of work are kept per kernel name and size class (powers of two of the work), the median of the
+    recent calls of each choice; the state is advisory, so races between Python threads only blur the figures.
 
     Parameters
     ----------
@@ -95,9 +103,9 @@ class ThreadPolicy:
         if threads == 1:
             return 1
         times = self._times.setdefault((name, int(math.log2(work))), _Times(self.probe_every))
-        if math.isnan(times.parallel):
+        if not times.parallel:
             return threads
-        if math.isnan(times.serial):
+        if not times.serial:
             return 1
         preferred = times.prefers_parallel()
         times.countdown -= 1
@@ -110,14 +118,15 @@ class ThreadPolicy:
         times = self._times.get((name, int(math.log2(max(work, 1)))))
         if times is None:
             return
-        per_work = seconds / max(work, 1)
+        samples = times.parallel if threads > 1 else times.serial
+        if not (times.parallel and times.serial):
+            samples.append(seconds / max(work, 1))
+            return
         before = times.prefers_parallel()
         probe = times.countdown <= 0
-        # A probe replaces the stale figure of the losing choice; the running choice averages its recent calls.
-        if threads > 1:
-            times.parallel = per_work if probe or math.isnan(times.parallel) else 0.5 * (times.parallel + per_work)
-        else:
-            times.serial = per_work if probe or math.isnan(times.serial) else 0.5 * (times.serial + per_work)
+        if probe:  # the losing choice's figures are stale: the probe replaces them
+            samples.clear()
+        samples.append(seconds / max(work, 1))
         if probe:
             changed = times.prefers_parallel() != before
             times.interval = self.probe_every if changed else min(2 * times.interval, PROBE_MAX)

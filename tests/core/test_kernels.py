@@ -170,3 +170,12 @@ def test_a_load_that_goes_away_brings_the_threads_back(monkeypatch: pytest.Monke
     for _ in range(300):
         policy.run("k", 100_000, lambda: clock.kernel("serial"), lambda: clock.kernel("parallel"))
     assert clock.calls[-20:].count("parallel") >= 19
+
+
+def test_an_occasional_stall_does_not_flip_the_choice(monkeypatch: pytest.MonkeyPatch) -> None:
+    clock = _Clock(monkeypatch, serial_s=1.0, parallel_s=3.0)
+    policy = ThreadPolicy(min_work=50_000, probe_every=1000)  # no probe within the test
+    for i in range(200):
+        clock.cost["serial"] = 50.0 if i % 10 == 5 else 1.0  # one call in ten loses a time slice
+        policy.run("k", 100_000, lambda: clock.kernel("serial"), lambda: clock.kernel("parallel"))
+    assert clock.calls.count("parallel") == 1  # the first call, to measure it
