@@ -102,7 +102,7 @@ def backend_choices(V: np.ndarray, F: np.ndarray, b: np.ndarray, U: np.ndarray, 
     from arap.cells import build_cells
     from arap.covariance import covariances
     from arap.linsolve import available_backends, factorize
-    from arap.rotations import fit_rotations, fit_rotations_svd
+    from arap.rotations import fit_rotations, fit_rotations_scalar, fit_rotations_svd
 
     A = ArapSolver(V, F, b).reduced_matrix()
     B = np.random.default_rng(0).normal(size=(A.shape[0], 3))
@@ -120,14 +120,104 @@ def backend_choices(V: np.ndarray, F: np.ndarray, b: np.ndarray, U: np.ndarray, 
     S = covariances(build_cells(V, F), U)
     fit_rotations(S[:10])
     lines.append(f"batched best-fit rotations of {len(S):,} cell covariances:")
-    for label, fn in (("numba Horn/Newton", fit_rotations), ("numpy SVD + fix", fit_rotations_svd)):
+    def scalar(S: np.ndarray) -> None:
+        fit_rotations_scalar(S, np.empty_like(S))
+
+    scalar(S[:10])
+    for label, fn in (("numba blocks (SIMD)", fit_rotations), ("numba cell by cell", scalar),
+                      ("numpy SVD + fix", fit_rotations_svd)):
         times = []
         for _ in range(max(repeats, 5)):
             t = time.perf_counter()
             fn(S)
             times.append(1e3 * (time.perf_counter() - t))
-        lines.append(f"  {label:<18} {statistics.median(times):7.2f} ms")
+        lines.append(f"  {label:<20} {statistics.median(times):7.2f} ms")
     return lines
+
+
+def kernel_comparison(V: np.ndarray, F: np.ndarray, b: np.ndarray, bc: np.ndarray, repeats: int) -> list[str]:
+    """Time the kernels of one iteration alone, cell-by-cell (before) against batched (after), interleaved.
+
+    The state is the bend after 10 iterations; each repeat times every variant once in turn, so load from other
+    processes falls on all of them alike, and medians are reported. "after" is what the solver runs (serial or
+    parallel as the thread policy chooses); "before" is the cell-by-cell kernels on all of numba's threads.
+    """
+    import numba
+
+    from arap._parallel import policy
+    from arap._reference import assemble_rhs_reference, local_step_reference
+    from arap.covariance import _local_parallel, _local_serial, _rhs_parallel, _rhs_serial, assemble_rhs, local_step
+
+    solver = ArapSolver(V, F, b)
+    solver.solve(bc, max_iterations=10)
+    U, cells, gather, active = solver._last, solver._cells, solver._gather, solver._active
+    const = solver._L_fn @ solver._fixed_positions(bc)
+    R_prev = solver._R.copy()
+    R, E, out = R_prev.copy(), np.zeros(len(U)), np.empty_like(const)
+    threads = numba.config.NUMBA_NUM_THREADS
+    local_args = (active, cells.ptr, cells.a, cells.b, cells.w, cells.we, cells.rest_sq, U, R, E)
+    rhs_args = (gather.ptr, gather.cell, gather.g, R, const, out)
+
+    def with_threads(n: int, fn: Any) -> Any:
+        def run() -> None:
+            numba.set_num_threads(n)
+            fn()
+        return run
+
+    variants: dict[str, dict[str, Any]] = {
+        f"before ({threads} threads)": {
+            "local": with_threads(threads, lambda: local_step_reference(cells, active, U, R, E)),
+            "rhs": with_threads(threads, lambda: assemble_rhs_reference(gather, R, const, out))},
+        "before (1 thread)": {
+            "local": with_threads(1, lambda: local_step_reference(cells, active, U, R, E)),
+            "rhs": with_threads(1, lambda: assemble_rhs_reference(gather, R, const, out))},
+        "after (policy)": {"local": lambda: local_step(cells, active, U, R, E),
+                           "rhs": lambda: assemble_rhs(gather, R, const, out)},
+        "after (serial)": {"local": lambda: _local_serial(*local_args), "rhs": lambda: _rhs_serial(*rhs_args)},
+        f"after ({threads} threads)": {"local": with_threads(threads, lambda: _local_parallel(*local_args)),
+                                       "rhs": with_threads(threads, lambda: _rhs_parallel(*rhs_args))},
+    }
+    times: dict[tuple[str, str], list[float]] = {}
+    solves: list[float] = []
+    B = np.random.default_rng(0).normal(size=const.shape)
+    for rep in range(max(repeats, 5) * 4 + 1):
+        for name, kernels in variants.items():
+            for kind, fn in kernels.items():
+                R[...] = R_prev  # every local step starts from the same previous rotations
+                t = time.perf_counter()
+                fn()
+                if rep:  # the first round compiles or loads the kernels
+                    times.setdefault((name, kind), []).append(1e3 * (time.perf_counter() - t))
+        t = time.perf_counter()
+        solver.factor.solve(B)
+        solves.append(1e3 * (time.perf_counter() - t))
+    numba.set_num_threads(threads)
+    solve = statistics.median(solves[1:])
+    lines = [f"kernels of one iteration alone ({len(active):,} cells, {len(gather.cell):,} right-hand-side terms; "
+             f"median ms of {len(solves) - 1} interleaved repeats; solve {solve:.2f} ms):",
+             f"  {'':<22} {'local':>7} {'rhs':>7} {'(local+rhs+solve)/solve':>24}"]
+    for name in variants:
+        loc = statistics.median(times[(name, "local")])
+        rhs = statistics.median(times[(name, "rhs")])
+        lines.append(f"  {name:<22} {loc:7.2f} {rhs:7.2f} {(loc + rhs + solve) / solve:24.2f}")
+    choices = ", ".join(f"{k[0]}: {'parallel' if v.prefers_parallel() else 'serial'}"
+                        for k, v in policy._times.items())
+    lines.append(f"  thread policy now prefers: {choices or 'serial (below the parallel work size)'}")
+    return lines
+
+
+def fixed_cost(V: np.ndarray, F: np.ndarray, b: np.ndarray, bc: np.ndarray, repeats: int) -> str:
+    """Per-call fixed cost: a warm 1-iteration solve minus the kernels of its iteration."""
+    solver = ArapSolver(V, F, b)
+    solver.solve(bc, max_iterations=3)
+    totals, kernels = [], []
+    for _ in range(max(repeats, 5) * 4):
+        result = solver.solve(bc, max_iterations=1)
+        totals.append(1e3 * result.timings["total"])
+        kernels.append(1e3 * sum(result.timings[k] for k in ("local", "rhs", "solve")))
+    total, kern = statistics.median(totals), statistics.median(kernels)
+    return (f"warm 1-iteration solve: {total:.2f} ms, of which fixed per-call work {total - kern:.2f} ms "
+            f"({100 * (total - kern) / total:.0f}%)")
 
 
 def table(rows: list[tuple[str, str, str]]) -> str:
@@ -193,6 +283,9 @@ def main(argv: list[str] | None = None) -> int:
         print(f"libigl / arap: {figures['speedup_iteration']:.2f}x per iteration, "
               f"{figures['speedup_precompute']:.2f}x precompute")
         print(f"max vertex distance between the results: {figures['max_distance_over_diagonal']:.2e} of the diagonal")
+    print()
+    print("\n".join(kernel_comparison(V, F, b, bc, args.repeats)))
+    print(fixed_cost(V, F, b, bc, args.repeats))
     print()
     print("\n".join(backend_choices(V, F, b, ours["U"], args.repeats)))
     if args.json:

@@ -2,6 +2,13 @@
 
 Covariances are built from rest and deformed **edge vectors** ``e = p_a − p_b`` and ``e' = p'_a − p'_b`` (never from
 absolute positions), so the fitted rotation is translation invariant and the local step cannot raise the energy.
+
+The kernels walk the cells in blocks of :data:`arap.rotations.BLOCK`: the covariances of a block are gathered cell by
+cell into a structure-of-arrays scratch, the rotations of the whole block are fitted in SIMD lanes
+(:func:`arap.rotations.rotations_block`), and rotations and energies are written back. Blocks are grouped in chunks
+of :data:`CHUNK` blocks, the unit of parallel work, and energies are summed per chunk and then over chunks in order,
+so the thread count never changes a result. Each kernel is compiled twice, serial and parallel;
+:data:`arap._parallel.policy` picks one per call from the work size (and the measured times).
 """
 
 from __future__ import annotations
@@ -9,20 +16,25 @@ from __future__ import annotations
 import numba as nb
 import numpy as np
 
-from arap._parallel import kernel_lock
+from arap._parallel import policy
 from arap.cells import Cells, RhsGather
-from arap.rotations import rotation_from_covariance
+from arap.rotations import BLOCK, ROW_LOWER, ROW_R, ROW_TRACE, SCRATCH_ROWS, rotations_block
+
+CHUNK = 8
+"""Blocks per unit of parallel work (``CHUNK * BLOCK`` cells)."""
 
 
-@nb.njit(cache=True, parallel=True, nogil=True)
-def _local_kernel(cell_ids, ptr, a, b, w, we, rest_sq, U, R, E):  # pragma: no cover - compiled
-    for t in nb.prange(cell_ids.shape[0]):
-        c = cell_ids[t]
+@nb.njit(cache=True, nogil=True)
+def _local_block(lo, hi, cell_ids, ptr, a, b, w, we, rest_sq, U, R, E, sc, flag):  # pragma: no cover - compiled
+    """Cells ``cell_ids[lo:hi]`` (at most BLOCK): rotations into ``R``, energies into ``E``; returns their sum."""
+    m = hi - lo
+    for t in range(m):
+        c = np.uint64(cell_ids[lo + t])  # unsigned indices spare numba's negative-index fix-ups
         s00 = s01 = s02 = s10 = s11 = s12 = s20 = s21 = s22 = 0.0
         cur = 0.0
-        for k in range(ptr[c], ptr[c + 1]):
-            ia = a[k]
-            ib = b[k]
+        for k in range(np.uint64(ptr[c]), np.uint64(ptr[c + np.uint64(1)])):
+            ia = np.uint64(a[k])
+            ib = np.uint64(b[k])
             d0 = U[ia, 0] - U[ib, 0]
             d1 = U[ia, 1] - U[ib, 1]
             d2 = U[ia, 2] - U[ib, 2]
@@ -39,24 +51,75 @@ def _local_kernel(cell_ids, ptr, a, b, w, we, rest_sq, U, R, E):  # pragma: no c
             s20 += x2 * d0
             s21 += x2 * d1
             s22 += x2 * d2
-        Rc = R[c]
+        sc[t] = s00
+        sc[BLOCK + t] = s01
+        sc[2 * BLOCK + t] = s02
+        sc[3 * BLOCK + t] = s10
+        sc[4 * BLOCK + t] = s11
+        sc[5 * BLOCK + t] = s12
+        sc[6 * BLOCK + t] = s20
+        sc[7 * BLOCK + t] = s21
+        sc[8 * BLOCK + t] = s22
         # tr(R_prev S): a lower bound of the optimum that makes the rotation fit converge in few steps.
-        lower = (Rc[0, 0] * s00 + Rc[0, 1] * s10 + Rc[0, 2] * s20 + Rc[1, 0] * s01 + Rc[1, 1] * s11
-                 + Rc[1, 2] * s21 + Rc[2, 0] * s02 + Rc[2, 1] * s12 + Rc[2, 2] * s22)
+        lower = (R[c, 0, 0] * s00 + R[c, 0, 1] * s10 + R[c, 0, 2] * s20 + R[c, 1, 0] * s01 + R[c, 1, 1] * s11
+                 + R[c, 1, 2] * s21 + R[c, 2, 0] * s02 + R[c, 2, 1] * s12 + R[c, 2, 2] * s22)
         if not (lower > -np.inf and lower < np.inf):
             lower = -np.inf
-        tr = rotation_from_covariance(s00, s01, s02, s10, s11, s12, s20, s21, s22, lower, Rc)
-        E[c] = cur + rest_sq[c] - 2.0 * tr
+        sc[ROW_LOWER * BLOCK + t] = lower
+        E[c] = cur + rest_sq[c]
+    rotations_block(sc, m, flag)
+    total = 0.0
+    for t in range(m):
+        c = np.uint64(cell_ids[lo + t])
+        for i in range(3):
+            for j in range(3):
+                R[c, i, j] = sc[(ROW_R + 3 * i + j) * BLOCK + t]
+        e = E[c] - 2.0 * sc[ROW_TRACE * BLOCK + t]
+        E[c] = e
+        total += e
+    return total
 
 
-@nb.njit(cache=True, parallel=True, nogil=True)
-def _rhs_kernel(ptr, cell, g, R, const, out):  # pragma: no cover - compiled
-    for r in nb.prange(ptr.shape[0] - 1):
+@nb.njit(cache=True, nogil=True)
+def _local_chunk(ch, cell_ids, ptr, a, b, w, we, rest_sq, U, R, E):  # pragma: no cover - compiled
+    k = cell_ids.shape[0]
+    sc = np.empty(SCRATCH_ROWS * BLOCK)
+    flag = np.empty(BLOCK, np.int64)
+    total = 0.0
+    for lo in range(ch * CHUNK * BLOCK, min(k, (ch + 1) * CHUNK * BLOCK), BLOCK):
+        total += _local_block(lo, min(k, lo + BLOCK), cell_ids, ptr, a, b, w, we, rest_sq, U, R, E, sc, flag)
+    return total
+
+
+@nb.njit(cache=True, nogil=True)
+def _local_serial(cell_ids, ptr, a, b, w, we, rest_sq, U, R, E):  # pragma: no cover - compiled
+    n_chunks = (cell_ids.shape[0] + CHUNK * BLOCK - 1) // (CHUNK * BLOCK)
+    total = 0.0
+    for ch in range(n_chunks):
+        total += _local_chunk(ch, cell_ids, ptr, a, b, w, we, rest_sq, U, R, E)
+    return total
+
+
+@nb.njit(cache=True, nogil=True, parallel=True)
+def _local_parallel(cell_ids, ptr, a, b, w, we, rest_sq, U, R, E):  # pragma: no cover - compiled
+    n_chunks = (cell_ids.shape[0] + CHUNK * BLOCK - 1) // (CHUNK * BLOCK)
+    part = np.empty(n_chunks)
+    for ch in nb.prange(n_chunks):
+        part[ch] = _local_chunk(ch, cell_ids, ptr, a, b, w, we, rest_sq, U, R, E)
+    total = 0.0
+    for ch in range(n_chunks):
+        total += part[ch]
+    return total
+
+
+@nb.njit(cache=True, nogil=True)
+def _rhs_rows(r0, r1, ptr, cell, g, R, const, out):  # pragma: no cover - compiled
+    for r in range(r0, r1):
         b0 = 0.0
         b1 = 0.0
         b2 = 0.0
-        for k in range(ptr[r], ptr[r + 1]):
-            c = cell[k]
+        for k in range(np.uint64(ptr[r]), np.uint64(ptr[r + 1])):
+            c = np.uint64(cell[k])  # unsigned indices spare numba's negative-index fix-ups
             g0 = g[k, 0]
             g1 = g[k, 1]
             g2 = g[k, 2]
@@ -68,7 +131,48 @@ def _rhs_kernel(ptr, cell, g, R, const, out):  # pragma: no cover - compiled
         out[r, 2] = b2 - const[r, 2]
 
 
-def local_step(cells: Cells, cell_ids: np.ndarray, U: np.ndarray, R: np.ndarray, E: np.ndarray) -> None:
+@nb.njit(cache=True, nogil=True)
+def _rhs_serial(ptr, cell, g, R, const, out):  # pragma: no cover - compiled
+    _rhs_rows(0, ptr.shape[0] - 1, ptr, cell, g, R, const, out)
+
+
+@nb.njit(cache=True, nogil=True, parallel=True)
+def _rhs_parallel(ptr, cell, g, R, const, out):  # pragma: no cover - compiled
+    rows = ptr.shape[0] - 1
+    step = CHUNK * BLOCK
+    for ch in nb.prange((rows + step - 1) // step):
+        _rhs_rows(ch * step, min(rows, (ch + 1) * step), ptr, cell, g, R, const, out)
+
+
+@nb.njit(cache=True, nogil=True)
+def _fused_serial(cell_ids, ptr, a, b, w, we, rest_sq, U, R, E, gptr, gcell, g, const, out):  # pragma: no cover
+    total = _local_serial(cell_ids, ptr, a, b, w, we, rest_sq, U, R, E)
+    _rhs_serial(gptr, gcell, g, R, const, out)
+    return total
+
+
+@nb.njit(cache=True, nogil=True, parallel=True)
+def _fused_parallel(cell_ids, ptr, a, b, w, we, rest_sq, U, R, E, gptr, gcell, g, const, out):  # pragma: no cover
+    n_chunks = (cell_ids.shape[0] + CHUNK * BLOCK - 1) // (CHUNK * BLOCK)
+    part = np.empty(n_chunks)
+    for ch in nb.prange(n_chunks):
+        part[ch] = _local_chunk(ch, cell_ids, ptr, a, b, w, we, rest_sq, U, R, E)
+    rows = gptr.shape[0] - 1
+    step = CHUNK * BLOCK
+    for ch in nb.prange((rows + step - 1) // step):
+        _rhs_rows(ch * step, min(rows, (ch + 1) * step), gptr, gcell, g, R, const, out)
+    total = 0.0
+    for ch in range(n_chunks):
+        total += part[ch]
+    return total
+
+
+def _local_work(cells: Cells, cell_ids: np.ndarray) -> int:
+    """Edge terms in ``cell_ids`` (estimated from the mean cell size)."""
+    return len(cell_ids) * len(cells.a) // max(cells.n_cells, 1)
+
+
+def local_step(cells: Cells, cell_ids: np.ndarray, U: np.ndarray, R: np.ndarray, E: np.ndarray) -> float:
     """Fit the rotation of each listed cell to the deformed positions and evaluate its energy, in place.
 
     Parameters
@@ -79,12 +183,19 @@ def local_step(cells: Cells, cell_ids: np.ndarray, U: np.ndarray, R: np.ndarray,
     U : (n, 3) float64 array
         Deformed positions.
     R : (n, 3, 3) float64 array
-        Output: ``R[c]`` maximises ``tr(R S_c)`` over rotations.
+        In: the previous rotations (any values; finite ones close to the optimum speed up the fit). Out: ``R[c]``
+        maximises ``tr(R S_c)`` over rotations.
     E : (n,) float64 array
         Output: ``E[c] = Σ w ‖e' − R_c e‖²``, the cell's energy with its optimal rotation.
+
+    Returns
+    -------
+    float
+        ``Σ E[c]`` over ``cell_ids``, summed in an order that does not depend on the thread count.
     """
-    with kernel_lock:
-        _local_kernel(cell_ids, cells.ptr, cells.a, cells.b, cells.w, cells.we, cells.rest_sq, U, R, E)
+    args = (cell_ids, cells.ptr, cells.a, cells.b, cells.w, cells.we, cells.rest_sq, U, R, E)
+    return float(policy.run("local", _local_work(cells, cell_ids), lambda: _local_serial(*args),
+                            lambda: _local_parallel(*args)))
 
 
 def covariances(cells: Cells, U: np.ndarray) -> np.ndarray:
@@ -118,5 +229,30 @@ def assemble_rhs(gather: RhsGather, R: np.ndarray, const: np.ndarray, out: np.nd
         Contribution of the constrained vertices (``L_fc X_c``).
     out : (r, 3) float64 array
     """
-    with kernel_lock:
-        _rhs_kernel(gather.ptr, gather.cell, gather.g, R, const, out)
+    args = (gather.ptr, gather.cell, gather.g, R, const, out)
+    policy.run("rhs", len(gather.cell), lambda: _rhs_serial(*args), lambda: _rhs_parallel(*args))
+
+
+def local_step_and_rhs(cells: Cells, cell_ids: np.ndarray, U: np.ndarray, R: np.ndarray, E: np.ndarray,
+                       gather: RhsGather, const: np.ndarray, out: np.ndarray) -> float:
+    """:func:`local_step` followed by :func:`assemble_rhs` with the new rotations, in one compiled call.
+
+    One iteration's kernels behind one thread decision and one launch (instead of two), for the solver's loop.
+    ``cell_ids`` must contain every cell that ``gather`` reads (the solver's active cells).
+
+    Parameters
+    ----------
+    cells, cell_ids, U, R, E
+        As in :func:`local_step`.
+    gather, const, out
+        As in :func:`assemble_rhs`.
+
+    Returns
+    -------
+    float
+        ``Σ E[c]`` over ``cell_ids`` (as :func:`local_step`).
+    """
+    args = (cell_ids, cells.ptr, cells.a, cells.b, cells.w, cells.we, cells.rest_sq, U, R, E,
+            gather.ptr, gather.cell, gather.g, const, out)
+    work = _local_work(cells, cell_ids) + len(gather.cell)
+    return float(policy.run("local+rhs", work, lambda: _fused_serial(*args), lambda: _fused_parallel(*args)))

@@ -393,9 +393,9 @@ class ArapSolver:
     def _local(self, U: NDArray[np.float64], const_E: float, timings: dict[str, float]) -> float:
         """Local step on the active cells at ``U``; returns the total energy."""
         t = time.perf_counter()
-        local_step(self._cells, self._active, U, self._R, self._E)
+        e = local_step(self._cells, self._active, U, self._R, self._E)
         timings["local"] += time.perf_counter() - t
-        return float(self._E[self._active].sum()) + const_E
+        return e + const_E
 
     def _start(
         self, T: NDArray[np.float64], fixed: NDArray[np.float64], initial: object, timings: dict[str, float]

@@ -1,0 +1,181 @@
+"""Batched local step and right-hand side: equal to the cell-by-cell kernels, and independent of the thread count."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numba
+import numpy as np
+import pytest
+
+from arap import _parallel, covariance
+from arap._parallel import ThreadPolicy
+from arap._reference import assemble_rhs_reference, local_step_reference
+from arap.cells import Cells, RhsGather
+from arap.solver import ArapSolver
+
+from .scenarios import bend_constraints
+
+
+@dataclass
+class State:
+    """A deformed mesh part-way through a bend, with everything the kernels read."""
+
+    cells: Cells
+    gather: RhsGather
+    active: np.ndarray
+    U: np.ndarray
+    R: np.ndarray
+    const: np.ndarray
+
+
+def _state(V: np.ndarray, F: np.ndarray, energy: str) -> State:
+    _, _, constrained, targets = bend_constraints(V)
+    solver = ArapSolver(V, F, constrained, energy=energy)
+    solver.solve(targets, max_iterations=3)
+    assert solver._last is not None
+    # Rotations of the previous iteration (the lower bounds a real iteration starts from), positions moved on.
+    return State(cells=solver._cells, gather=solver._gather, active=solver._active, U=solver._last.copy(),
+                 R=solver._R.copy(), const=solver._L_fn @ solver._fixed_positions(targets))
+
+
+@pytest.fixture(scope="module", params=["knight", "camelhead", "armadillo"])
+def mesh(request: pytest.FixtureRequest) -> tuple[np.ndarray, np.ndarray]:
+    return request.getfixturevalue(request.param)
+
+
+def _reference(s: State) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    R, E, out = s.R.copy(), np.zeros(len(s.U)), np.empty_like(s.const)
+    local_step_reference(s.cells, s.active, s.U, R, E)
+    assemble_rhs_reference(s.gather, R, s.const, out)
+    return R, E, out
+
+
+def _close(a: np.ndarray, b: np.ndarray, tol: float = 1e-12) -> bool:
+    return bool(np.abs(a - b).max() <= tol * max(np.abs(b).max(), 1.0))
+
+
+@pytest.mark.parametrize("energy", ["spokes", "spokes_and_rims"])
+def test_batched_kernels_agree_with_the_cell_by_cell_ones(mesh: tuple[np.ndarray, np.ndarray], energy: str) -> None:
+    s = _state(*mesh, energy)
+    R_ref, E_ref, out_ref = _reference(s)
+    a = s.active
+    R, E, out = s.R.copy(), np.zeros(len(s.U)), np.empty_like(s.const)
+    total = covariance.local_step(s.cells, a, s.U, R, E)
+    covariance.assemble_rhs(s.gather, R, s.const, out)
+    assert _close(R[a], R_ref[a]) and _close(E[a], E_ref[a]) and _close(out, out_ref)
+    assert total == pytest.approx(E_ref[a].sum(), rel=1e-12, abs=1e-12 * np.abs(E_ref[a]).sum())
+    R2, E2, out2 = s.R.copy(), np.zeros(len(s.U)), np.empty_like(s.const)
+    total2 = covariance.local_step_and_rhs(s.cells, a, s.U, R2, E2, s.gather, s.const, out2)
+    assert np.array_equal(R2[a], R[a]) and np.array_equal(E2[a], E[a]) and np.array_equal(out2, out)
+    assert total2 == total
+
+
+def test_rotations_do_not_depend_on_the_starting_guess(knight: tuple[np.ndarray, np.ndarray]) -> None:
+    """The previous rotation only bounds the Newton start; identity, the optimum or garbage give the same fit."""
+    s = _state(*knight, "spokes")
+    a = s.active
+    results = []
+    for start in (s.R, np.tile(np.eye(3), (len(s.U), 1, 1)), np.full_like(s.R, np.nan), -s.R):
+        R, E = start.copy(), np.zeros(len(s.U))
+        covariance.local_step(s.cells, a, s.U, R, E)
+        results.append((R[a], E[a]))
+    for R, E in results[1:]:
+        assert _close(R, results[0][0]) and _close(E, results[0][1])
+
+
+@pytest.mark.parametrize("energy", ["spokes", "spokes_and_rims"])
+def test_thread_count_does_not_change_results(armadillo: tuple[np.ndarray, np.ndarray], energy: str) -> None:
+    s = _state(*armadillo, energy)
+    args = (s.active, s.cells.ptr, s.cells.a, s.cells.b, s.cells.w, s.cells.we, s.cells.rest_sq, s.U)
+    rhs = (s.gather.ptr, s.gather.cell, s.gather.g)
+    runs = []
+    saved = numba.get_num_threads()
+    try:
+        for kernel, threads in ((covariance._fused_serial, 1), (covariance._fused_parallel, 1),
+                                (covariance._fused_parallel, min(2, numba.config.NUMBA_NUM_THREADS))):
+            numba.set_num_threads(threads)
+            R, E, out = s.R.copy(), np.zeros(len(s.U)), np.empty_like(s.const)
+            total = kernel(*args, R, E, *rhs, s.const, out)
+            runs.append((R, E, out, total))
+    finally:
+        numba.set_num_threads(saved)
+    for R, E, out, total in runs[1:]:
+        assert np.array_equal(R, runs[0][0]) and np.array_equal(E, runs[0][1]) and np.array_equal(out, runs[0][2])
+        assert total == runs[0][3]
+
+
+def test_solver_gives_the_same_shape_serial_and_parallel(camelhead: tuple[np.ndarray, np.ndarray]) -> None:
+    V, F = camelhead
+    _, _, constrained, targets = bend_constraints(V)
+    shapes = []
+    saved = _parallel.policy
+    try:
+        for min_work in (2**62, 0):
+            _parallel.policy = covariance.policy = ThreadPolicy(min_work=min_work)
+            result = ArapSolver(V, F, constrained).solve(targets, max_iterations=20)
+            shapes.append((result.vertices, result.energies))
+    finally:
+        _parallel.policy = covariance.policy = saved
+    assert np.abs(shapes[0][0] - shapes[1][0]).max() <= 1e-12 * np.abs(V).max()
+    assert np.allclose(shapes[0][1], shapes[1][1], rtol=1e-12, atol=0)
+
+
+class _Clock:
+    """Stands in for the kernels: records which version ran and lets the test set how long each takes."""
+
+    def __init__(self, monkeypatch: pytest.MonkeyPatch, serial_s: float, parallel_s: float) -> None:
+        self.now = 0.0
+        self.cost = {"serial": serial_s, "parallel": parallel_s}
+        self.calls: list[str] = []
+        monkeypatch.setattr(_parallel.time, "perf_counter", lambda: self.now)
+        monkeypatch.setattr(_parallel.numba, "set_num_threads", lambda n: None)
+        monkeypatch.setattr(_parallel.numba.config, "NUMBA_NUM_THREADS", 2)
+
+    def kernel(self, kind: str) -> str:
+        self.calls.append(kind)
+        self.now += self.cost[kind]
+        return kind
+
+
+def test_small_problems_always_run_serially(monkeypatch: pytest.MonkeyPatch) -> None:
+    clock = _Clock(monkeypatch, serial_s=1.0, parallel_s=1e-6)
+    policy = ThreadPolicy(min_work=50_000, work_per_thread=25_000)
+    for _ in range(100):
+        policy.run("k", 49_999, lambda: clock.kernel("serial"), lambda: clock.kernel("parallel"))
+    assert clock.calls == ["serial"] * 100
+    assert policy.threads(49_999) == 1 and policy.threads(50_000) == 2 and policy.threads(10**7) == 2
+
+
+@pytest.mark.parametrize(("serial_s", "parallel_s", "winner"), [(1.0, 0.6, "parallel"), (1.0, 20.0, "serial")])
+def test_large_problems_run_the_way_measured_faster(monkeypatch: pytest.MonkeyPatch, serial_s: float,
+                                                    parallel_s: float, winner: str) -> None:
+    clock = _Clock(monkeypatch, serial_s, parallel_s)
+    policy = ThreadPolicy(min_work=50_000, probe_every=8)
+    for _ in range(400):
+        policy.run("k", 100_000, lambda: clock.kernel("serial"), lambda: clock.kernel("parallel"))
+    loser = "serial" if winner == "parallel" else "parallel"
+    # The loser is tried once at first, then probed ever more rarely (8, 16, 32, ... calls apart).
+    assert clock.calls.count(loser) <= 2 + 6
+    assert clock.calls[-50:].count(winner) >= 49
+
+
+def test_a_load_that_goes_away_brings_the_threads_back(monkeypatch: pytest.MonkeyPatch) -> None:
+    clock = _Clock(monkeypatch, serial_s=1.0, parallel_s=30.0)
+    policy = ThreadPolicy(min_work=50_000, probe_every=4)
+    for _ in range(50):
+        policy.run("k", 100_000, lambda: clock.kernel("serial"), lambda: clock.kernel("parallel"))
+    assert clock.calls[-10:] == ["serial"] * 10
+    clock.cost["parallel"] = 0.5
+    for _ in range(300):
+        policy.run("k", 100_000, lambda: clock.kernel("serial"), lambda: clock.kernel("parallel"))
+    assert clock.calls[-20:].count("parallel") >= 19
+
+
+def test_an_occasional_stall_does_not_flip_the_choice(monkeypatch: pytest.MonkeyPatch) -> None:
+    clock = _Clock(monkeypatch, serial_s=1.0, parallel_s=3.0)
+    policy = ThreadPolicy(min_work=50_000, probe_every=1000)  # no probe within the test
+    for i in range(200):
+        clock.cost["serial"] = 50.0 if i % 10 == 5 else 1.0  # one call in ten loses a time slice
+        policy.run("k", 100_000, lambda: clock.kernel("serial"), lambda: clock.kernel("parallel"))
+    assert clock.calls.count("parallel") == 1  # the first call, to measure it
