@@ -303,6 +303,27 @@ def test_autosave_restores_an_uploaded_mesh_with_its_applied_rest_pose(page: Pag
     assert not page.evaluate("() => window.__arap.errors")
 
 
+def test_a_closed_tab_is_offered_but_an_open_one_is_not(page: Page) -> None:
+    _, handle = select_anchor_and_handle(page)
+    fixed = page.evaluate(COUNTS)["fixed"]
+    wait_autosaved(page)
+    other = page.context.new_page()
+    other.goto(page.url)
+    wait_ready(other)
+    other.wait_for_timeout(1000)
+    expect(other.get_by_test_id("restore-offer")).to_be_hidden()  # the first tab is still open
+    page.close()  # gone without a warning, as in a crash
+    later = page.context.new_page()
+    later.goto(other.url)
+    wait_ready(later)
+    offer = later.get_by_test_id("restore-offer")
+    expect(offer).to_be_visible()
+    expect(offer).to_contain_text(f"{fixed} anchors, 1 handle group")
+    later.get_by_test_id("restore-accept").click()
+    later.wait_for_function(f"() => window.__arap.counts().fixed === {fixed} && !window.__arap.busy")
+    assert later.evaluate(COUNTS)["groups"] == [len(handle)]
+
+
 # ---------------------------------------------------------------------------------------------- reconnecting
 
 

@@ -4,7 +4,8 @@ import { deleteSession, putSession } from './sessiondb.js';
 
 export class Autosave {
   /**
-   * @param {object} opts id (this page's record), capture() → snapshot (see snapshot.js), delayMs, onError(err)
+   * @param {object} opts id (this page's record), capture() → snapshot (see snapshot.js), delayMs (a number or a
+   *   function giving one: the longest a change waits to be written), onError(err)
    */
   constructor({ id, capture, delayMs = 500, onError = null }) {
     this.id = id;
@@ -37,7 +38,7 @@ export class Autosave {
     this.timer = setTimeout(() => {
       this.timer = null;
       this.flush();
-    }, this.delayMs);
+    }, typeof this.delayMs === 'function' ? this.delayMs() : this.delayMs);
   }
 
   /** Write now (after a write under way); resolves when written. */

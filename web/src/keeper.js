@@ -17,12 +17,13 @@ export class SessionKeeper {
     this.id = newSessionId();
     this.pendingSource = null; // source of the mesh requested last
     this.applying = 0; // apply requests whose state has not arrived yet
-    this.lost = null; // the session when the connection was lost, put back after reconnecting
+    this.lost = null; // {snap, live}: the session when the connection was lost, put back after reconnecting
     this.queued = null; // {snap, recordId}: a restore chosen before the session was ready
     let failed = false;
     this.autosave = new Autosave({
       id: this.id,
       capture: () => captureSession(deps),
+      delayMs: () => 500 + deps.viewer.nVertices / 200, // large meshes are written less often
       onError: (err) => {
         if (!failed) deps.panel.showStatus(`Autosave failed: ${err.message || err}`, 'error');
         failed = true;
@@ -61,7 +62,15 @@ export class SessionKeeper {
   connectionLost() {
     this.pendingSource = null;
     this.applying = 0;
-    this.lost = this.restore.cancel() ?? this.lost ?? (this.autosave.held ? null : this.autosave.hold());
+    const restoring = this.restore.cancel();
+    if (restoring) this.lost = { snap: restoring, live: false };
+    else if (!this.lost && !this.autosave.held) this.lost = { snap: this.autosave.hold(), live: true };
+  }
+
+  /** The server greeted a new connection (its mesh follows). */
+  welcomed() {
+    // the selection may have been edited while disconnected: take it as it is now
+    if (this.lost?.live) this.lost.snap = captureSession(this.deps);
   }
 
   /** A mesh arrived (positions and faces as sent). */
@@ -72,7 +81,7 @@ export class SessionKeeper {
     this.pendingSource = null;
     if (this.restore.meshArrived(msg, positions)) return;
     if (this.lost) {
-      const snap = this.lost;
+      const { snap } = this.lost;
       this.lost = null;
       if (snap.edits) this.startRestore(snap, null);
       else this.autosave.resume();
@@ -114,6 +123,12 @@ export class SessionKeeper {
     if (!this.autosave.held) this.autosave.hold();
     panel.showStatus(`Restoring ${snap.meshName}…`, 'info');
     this.restore.start(snap, (error) => {
+      if (error && !recordId) {
+        // keep what was saved of this page's session (offered after a reload) and save on under a new id
+        this.id = newSessionId();
+        this.autosave.id = this.id;
+        this.autosave.meshKey = null;
+      }
       this.autosave.resume();
       if (error) {
         panel.showStatus(`Could not restore the saved session: ${error}.`, 'error');

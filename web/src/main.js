@@ -204,6 +204,7 @@ function handleMessage(msg) {
 }
 
 function onWelcome(msg) {
+  keeper.welcomed();
   app.builtins = msg.builtin_meshes || [];
   app.limits = { ...app.limits, ...(msg.limits || {}) };
   panel.setBuiltins(app.builtins, app.meshName);
