@@ -342,6 +342,14 @@ def test_reconnects_and_restores_after_a_server_restart(browser: Browser, own_se
         expect(page.get_by_test_id("status-text")).to_contain_text("reconnecting")
         page.wait_for_timeout(1500)  # a few failed attempts while the server is away
         assert not page.evaluate("() => window.__arap.connected")
+        # more anchors while disconnected: they come back too
+        pts = screen_points(page)
+        cx, cy = pts.mean(axis=0)
+        page.keyboard.press("2")
+        box_select(page, cx - 15, cy - 15, cx + 15, cy + 15)
+        offline = page.evaluate("() => ({ counts: window.__arap.counts(), constraints: window.__arap.constraints() })")
+        assert offline["counts"]["fixed"] > before["counts"]["fixed"]
+        before.update(offline)
         own_server.append(own_server[-1].restarted())
         expect(page.get_by_test_id("conn-text")).to_have_text("connected", timeout=20_000)
         page.wait_for_function(f"() => window.__arap.counts().fixed === {before['counts']['fixed']}",

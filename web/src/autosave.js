@@ -19,6 +19,7 @@ export class Autosave {
     this.savedChanges = 0; // changes covered by the last completed write
     this.saves = 0;
     this.meshKey = null; // source key of the mesh bytes stored with the record
+    this.stored = false; // a record of this id may exist
     window.addEventListener('pagehide', () => this.flush());
   }
 
@@ -69,12 +70,16 @@ export class Autosave {
 
   async _write(snap) {
     if (!snap || !snap.edits || !snap.source) {
+      if (!this.stored) return undefined;
       this.meshKey = null;
-      return deleteSession(this.id);
+      await deleteSession(this.id);
+      this.stored = false;
+      return undefined;
     }
     const { bytes, ...source } = snap.source;
     let mesh = null;
     if (source.kind === 'file' && source.key !== this.meshKey) mesh = { id: this.id, key: source.key, bytes };
+    this.stored = true;
     await putSession({ ...snap, id: this.id, source }, mesh);
     if (mesh) this.meshKey = source.key;
     return undefined;
@@ -92,6 +97,13 @@ export class Autosave {
     const previous = this.writing ?? Promise.resolve();
     this._track(previous.catch(() => {}).then(() => this._write(snap))).catch((err) => this.onError?.(err));
     return snap;
+  }
+
+  /** Save under another id from now on, leaving the record of the old one as it is. */
+  renew(id) {
+    this.id = id;
+    this.meshKey = null;
+    this.stored = false;
   }
 
   /** Save again from now on. */

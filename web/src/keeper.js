@@ -126,8 +126,7 @@ export class SessionKeeper {
       if (error && !recordId) {
         // keep what was saved of this page's session (offered after a reload) and save on under a new id
         this.id = newSessionId();
-        this.autosave.id = this.id;
-        this.autosave.meshKey = null;
+        this.autosave.renew(this.id);
       }
       this.autosave.resume();
       if (error) {
