@@ -157,7 +157,7 @@ export class Panel {
     const text = { open: 'connected', closed: 'disconnected', connecting: 'connecting…', reconnecting: 'reconnecting…' };
     $('conn-text').textContent = text[state] ?? state;
     $('conn-text').title = retry ? `attempt ${retry.attempt}, next in ${(retry.delayMs / 1000).toFixed(1)} s` : '';
-    $('btn-reconnect').hidden = state !== 'closed' && state !== 'reconnecting';
+    $('btn-reconnect').hidden = state !== 'closed'; // while reconnecting, the retries run by themselves
   }
 
   /** groups: [{count}], active: index, roi/fixed counts. */

@@ -2,10 +2,8 @@
 // uploaded again), the shape, then the selection. The shape comes back exactly: one constraint set holds every
 // vertex that had moved at its saved position (the others fixed at rest), then the saved selection replaces it,
 // referring to that shape (as any selection made after a drag does).
-import { CLIENT } from './protocol.js';
+import { CLIENT, PARAMS } from './protocol.js';
 import { mismatch } from './snapshot.js';
-
-const PARAM_NAMES = ['iterations', 'energy', 'weights'];
 
 export class SessionRestore {
   /**
@@ -23,7 +21,8 @@ export class SessionRestore {
 
   /** Start restoring `snap` (its source with the file's bytes); onDone(error or null) is called once. */
   start(snap, onDone) {
-    const params = Object.fromEntries(PARAM_NAMES.filter((k) => snap.params?.[k] !== undefined).map((k) => [k, snap.params[k]]));
+    const names = Object.keys(PARAMS).filter((k) => snap.params?.[k] !== undefined);
+    const params = Object.fromEntries(names.map((k) => [k, snap.params[k]]));
     if (Object.keys(params).length) this.deps.send({ type: CLIENT.SET_PARAMS, ...params });
     this.active = { snap, stage: 'mesh', onDone };
     if (!this.deps.requestMesh(snap.source)) this._finish('not connected to the studio server');
