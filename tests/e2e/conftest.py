@@ -58,12 +58,14 @@ def _build_client() -> str | None:
 
 
 class _ServerThread(threading.Thread):
-    """uvicorn serving the studio app on an already bound socket, in a daemon thread."""
+    """uvicorn serving the studio app on an already bound socket, in a daemon thread (``port`` 0 picks a free
+    port)."""
 
-    def __init__(self) -> None:
+    def __init__(self, port: int = 0) -> None:
         super().__init__(daemon=True, name="studio-server")
         app = create_app(None, max_upload_bytes=MAX_UPLOAD_BYTES)
-        self.sock = bind_socket("127.0.0.1", 0)
+        self.sock = bind_socket("127.0.0.1", port)
+        self.port = int(self.sock.getsockname()[1])
         self.url = studio_url("127.0.0.1", self.sock.getsockname()[1])
         config = uvicorn.Config(app, log_level="warning", ws_per_message_deflate=False,
                                 ws_max_size=frame_limit(MAX_UPLOAD_BYTES), lifespan="off")
@@ -84,6 +86,14 @@ class _ServerThread(threading.Thread):
         self.join(timeout=10)
         self.sock.close()
 
+    def restarted(self) -> _ServerThread:
+        """Stop this server and start a new one on the same port (its sessions are gone)."""
+        self.stop()
+        again = _ServerThread(self.port)
+        again.start()
+        again.wait_started()
+        return again
+
 
 @pytest.fixture(scope="session")
 def server_url() -> Iterator[str]:
@@ -96,6 +106,21 @@ def server_url() -> Iterator[str]:
     server.wait_started()
     yield server.url
     server.stop()
+
+
+@pytest.fixture
+def own_server() -> Iterator[list[_ServerThread]]:
+    """A studio server for one test, which may restart it: ``servers[-1]`` is the one running, append the result
+    of :meth:`_ServerThread.restarted`; all are stopped at the end."""
+    reason = _build_client()
+    if reason is not None:
+        pytest.skip(reason)
+    servers = [_ServerThread()]
+    servers[0].start()
+    servers[0].wait_started()
+    yield servers
+    for server in servers:
+        server.stop()
 
 
 @pytest.fixture(scope="session")

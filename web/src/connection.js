@@ -2,12 +2,15 @@
 import { CLIENT, decodeBinary, encodeBinary, SERVER } from './protocol.js';
 
 const DRAG_REPLY_TIMEOUT_MS = 5000;
+const RETRY_FIRST_MS = 500; // delay before the first reconnection attempt; doubled after each failure
+const RETRY_MAX_MS = 8000;
 
 export class Connection {
   /**
    * @param {string} url WebSocket address
-   * @param {object} handlers onOpen(), onClose(event), onMessage(msg); a binary frame arrives as its header
-   *   fields plus `frame` ({header, payload}, see decodeBinary)
+   * @param {object} handlers onOpen(), onClose(event) (an open connection was lost or closed),
+   *   onRetry({attempt, delayMs}) (a reconnection is scheduled), onMessage(msg); a binary frame arrives as its
+   *   header fields plus `frame` ({header, payload}, see decodeBinary)
    */
   constructor(url, handlers) {
     this.url = url;
@@ -19,14 +22,23 @@ export class Connection {
     this.pending = null; // latest unsent transforms
     this.endDragQueued = false;
     this.lastLatencyMs = null;
+    this.attempt = 0; // failed connection attempts in a row
+    this.retryTimer = null;
+    this.stopped = false;
   }
 
+  /** Connect now (also cancels a scheduled reconnection); a lost connection is retried with backoff. */
   connect() {
+    this.stopped = false;
+    clearTimeout(this.retryTimer);
+    this.retryTimer = null;
     if (this.ws && (this.ws.readyState === WebSocket.OPEN || this.ws.readyState === WebSocket.CONNECTING)) return;
     const ws = new WebSocket(this.url);
     ws.binaryType = 'arraybuffer';
     this.ws = ws;
+    let opened = false;
     ws.addEventListener('open', () => {
+      opened = true;
       this.open = true;
       this.inFlight = null;
       this.pending = null;
@@ -37,13 +49,30 @@ export class Connection {
       this.open = false;
       this.inFlight = null;
       this.pending = null;
-      this.handlers.onClose?.(ev);
+      if (opened) this.handlers.onClose?.(ev);
+      this._scheduleRetry();
     });
     ws.addEventListener('message', (ev) => this._receive(ev.data));
   }
 
+  /** Close for good (no reconnection). */
   close() {
+    this.stopped = true;
+    clearTimeout(this.retryTimer);
+    this.retryTimer = null;
     this.ws?.close();
+  }
+
+  _scheduleRetry() {
+    if (this.stopped) return;
+    const delayMs = Math.min(RETRY_MAX_MS, RETRY_FIRST_MS * 2 ** this.attempt);
+    this.attempt += 1;
+    this.retryTimer = setTimeout(() => this.connect(), delayMs);
+    this.handlers.onRetry?.({ attempt: this.attempt, delayMs });
+  }
+
+  get retrying() {
+    return this.retryTimer !== null;
   }
 
   send(msg) {
@@ -112,6 +141,7 @@ export class Connection {
       this.handlers.onMessage?.({ type: 'error', code: 'bad_message', message: `unreadable frame: ${err}`, request: null });
       return;
     }
+    if (msg.type === SERVER.WELCOME) this.attempt = 0; // a server that accepts and drops at once still backs off
     if (msg.type === SERVER.VERTICES && typeof msg.seq === 'number' && msg.seq >= 0) this._dragAnswered(msg.seq);
     if (msg.type === SERVER.ERROR && msg.request === CLIENT.DRAG && this.inFlight) this._dragAnswered(this.inFlight.seq);
     this.handlers.onMessage?.(msg);

@@ -14,7 +14,7 @@ function gizmoInfo(viewer, gizmo) {
   return { group: gizmo.group, centroid: c, screen: viewer.project(c), axes, mode: gizmo.controls.mode };
 }
 
-export function installTestHook({ app, viewer, selection, gizmo, conn }) {
+export function installTestHook({ app, viewer, selection, gizmo, conn, keeper }) {
   const toPage = ([x, y]) => {
     const r = viewer.canvas.getBoundingClientRect();
     return [x + r.left, y + r.top];
@@ -40,7 +40,7 @@ export function installTestHook({ app, viewer, selection, gizmo, conn }) {
     },
     /** True while a request that changes the view is unanswered. */
     get busy() {
-      return app.busyFor !== null || app.sentKey !== null || app.awaitingState || conn.dragBusy;
+      return app.busyFor !== null || app.sentKey !== null || app.awaitingState || conn.dragBusy || keeper.restore.busy;
     },
     get canUndo() {
       return app.canUndo;
@@ -62,6 +62,14 @@ export function installTestHook({ app, viewer, selection, gizmo, conn }) {
     },
     get messages() {
       return app.messages;
+    },
+    /** Autosave: idle (nothing waits to be written), saves (writes done), held (paused). */
+    get autosave() {
+      const a = keeper.autosave;
+      return { idle: a.idle, saves: a.saves, held: a.held };
+    },
+    get restoring() {
+      return keeper.restore.busy;
     },
     positions: () => Array.from(viewer.positions),
     counts: () => selection.counts(),

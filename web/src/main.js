@@ -4,10 +4,13 @@ import { Connection, defaultSocketUrl } from './connection.js';
 import { checkMeshFile, download, formatBytes, installDropTarget, parseConstraints } from './files.js';
 import { HandleGizmo } from './gizmo.js';
 import { installTestHook } from './hook.js';
+import { SessionKeeper } from './keeper.js';
+import { ignoreTypeAhead, installShortcuts, releaseFocusAfterPointerUse } from './keys.js';
 import { Panel } from './panel.js';
 import { LinePlot } from './plot.js';
 import { CLIENT, meshArrays, SERVER, vertexArray } from './protocol.js';
 import { constraintsKey, Selection } from './selection.js';
+import { builtinSource, fileSource } from './snapshot.js';
 import { SelectionTools } from './tools.js';
 import { Viewer } from './viewer.js';
 
@@ -36,7 +39,21 @@ const app = {
   busyFor: null,
   awaitingState: false, // an end_drag whose state has not arrived yet
   brush: { screen: 24, world: 4 },
+  source: null, // where the current mesh came from (snapshot.js)
 };
+
+const keeper = new SessionKeeper({
+  app,
+  selection,
+  viewer,
+  get panel() {
+    return panel;
+  },
+  send,
+  requestMesh,
+  applySelection: applySavedSelection,
+  offerParent: document.getElementById('viewport'),
+});
 
 const gizmo = new HandleGizmo(viewer, {
   onDragStart: () => {
@@ -76,11 +93,13 @@ const conn = new Connection(defaultSocketUrl(), {
   onClose: () => {
     app.ready = false;
     app.awaitingState = false;
-    panel.setConnection('closed');
+    keeper.connectionLost();
     panel.setEnabled(false);
     panel.setBusy(null);
-    panel.showStatus('The connection to the studio server was closed. Use “Reconnect” to start a new session.', 'error');
+    panel.showStatus('Lost the connection to the studio server; reconnecting… Your work is kept and comes back ' +
+      'when the server does.', 'error');
   },
+  onRetry: ({ attempt, delayMs }) => panel.setConnection('reconnecting', { attempt, delayMs }),
   onMessage: (msg) => handleMessage(msg),
 });
 
@@ -94,6 +113,7 @@ function send(msg) {
     panel.showStatus('Not connected to the studio server.', 'error');
     return false;
   }
+  keeper.sent(msg);
   return true;
 }
 
@@ -117,6 +137,7 @@ function scheduleGroupsUi() {
 }
 
 function updateGroupsUi() {
+  keeper.touch();
   const counts = selection.counts();
   panel.setGroups(selection.groups, selection.activeGroup, counts, viewer.nVertices);
   if (!gizmo.dragging) gizmo.attach(selection.activeGroup, selection.groupIndices(selection.activeGroup));
@@ -134,14 +155,14 @@ function selectionSynced() {
 
 /**
  * Send the local selection as the session's constraint set; `targets` (a Map from handle vertex to [x, y, z],
- * from a loaded file) moves the handles there.
+ * from a loaded file) moves the handles there. `force` sends it even when the server seems to hold it already.
  */
-function commitConstraints(targets = null) {
+function commitConstraints(targets = null, force = false) {
   updateGroupsUi();
   if (!app.ready) return;
   const c = selection.toConstraints();
   const key = constraintsKey(c);
-  if (key === app.serverKey && app.sentKey === null && !targets) return;
+  if (key === app.serverKey && app.sentKey === null && !targets && !force) return;
   app.groupMap = c.groupMap;
   app.sentKey = key;
   app.sentVersion = selection.version;
@@ -155,6 +176,7 @@ function commitConstraints(targets = null) {
 
 function handleMessage(msg) {
   app.messages++;
+  keeper.touch();
   switch (msg.type) {
     case SERVER.WELCOME:
       return onWelcome(msg);
@@ -182,6 +204,7 @@ function handleMessage(msg) {
 }
 
 function onWelcome(msg) {
+  keeper.welcomed();
   app.builtins = msg.builtin_meshes || [];
   app.limits = { ...app.limits, ...(msg.limits || {}) };
   panel.setBuiltins(app.builtins, app.meshName);
@@ -216,6 +239,7 @@ function onMesh(msg) {
   const report = Array.isArray(msg.report) ? msg.report : msg.report ? [String(msg.report)] : [];
   if (report.length) panel.showStatus(`Loaded ${msg.name}. Repairs: ${report.join('; ')}`, 'info', 8000);
   else panel.hideStatus();
+  keeper.meshArrived(msg, positions, faces);
 }
 
 function onVertices(msg) {
@@ -263,6 +287,7 @@ function onState(msg) {
   if (!gizmo.dragging) gizmo.setTransforms(msg.transforms, app.groupMap);
   if (app.busyFor === SERVER.STATE) setBusy(null);
   updateGroupsUi();
+  keeper.stateArrived(app.sentKey === null);
 }
 
 function onError(msg) {
@@ -270,11 +295,26 @@ function onError(msg) {
   if (msg.request === CLIENT.SET_CONSTRAINTS) app.sentKey = null;
   if (app.busyFor) setBusy(null);
   if (msg.request === CLIENT.END_DRAG) app.awaitingState = false;
+  keeper.errorArrived(msg);
   const what = msg.request ? ` (${msg.request})` : '';
   panel.showStatus(`${msg.message || msg.code}${what}`, 'error');
 }
 
 // ------------------------------------------------------------------ actions
+
+/** Load a mesh source (snapshot.js): a built-in model by name, or a mesh file's bytes. */
+function requestMesh(source) {
+  const ok = source.kind === 'builtin'
+    ? conn.send({ type: CLIENT.LOAD_BUILTIN, name: source.name })
+    : conn.sendBinary({ type: CLIENT.UPLOAD, filename: source.filename }, source.bytes);
+  if (!ok) {
+    panel.showStatus('Not connected to the studio server.', 'error');
+    return false;
+  }
+  keeper.meshRequested(source);
+  setBusy(`Loading ${source.kind === 'builtin' ? source.name : source.filename}…`, SERVER.MESH);
+  return true;
+}
 
 function uploadFile(file) {
   const problem = checkMeshFile(file, app.limits.max_upload_bytes);
@@ -283,13 +323,15 @@ function uploadFile(file) {
     panel.showStatus(problem, 'error');
     return;
   }
-  setBusy(`Uploading ${file.name}…`, SERVER.MESH);
-  file.arrayBuffer().then((buf) => {
-    if (!conn.sendBinary({ type: CLIENT.UPLOAD, filename: file.name }, buf)) {
-      setBusy(null);
-      panel.showStatus('Not connected to the studio server.', 'error');
-    }
-  });
+  if (!keeper.confirmReplace(file.name)) return;
+  file.arrayBuffer().then((buf) => requestMesh(fileSource(file.name, buf)));
+}
+
+function applySavedSelection(snap) {
+  selection.fromConstraints({ roi: snap.roi, fixed: snap.fixed, handle_groups: snap.groups });
+  selection.activeGroup = Math.max(0, Math.min(snap.activeGroup ?? 0, selection.groups.length - 1));
+  refreshSelection(true);
+  commitConstraints(null, true);
 }
 
 function loadConstraintsFile(file) {
@@ -339,7 +381,9 @@ function setGizmoMode(mode) {
 const panel = new Panel({
   send,
   loadBuiltin: (name) => {
-    if (name && send({ type: CLIENT.LOAD_BUILTIN, name })) setBusy(`Loading ${name}…`, SERVER.MESH);
+    if (!name || name === app.meshName) return;
+    if (keeper.confirmReplace(name)) requestMesh(builtinSource(name));
+    else panel.setCurrentModel(app.meshName);
   },
   uploadFile,
   loadConstraintsFile,
@@ -400,21 +444,10 @@ const panel = new Panel({
 
 // ------------------------------------------------------------------ keyboard and drop
 
-window.addEventListener('keydown', (e) => {
-  if (e.target instanceof HTMLInputElement || e.target instanceof HTMLSelectElement) return;
-  const k = e.key.toLowerCase();
-  if ((e.ctrlKey || e.metaKey) && k === 'z') {
-    e.preventDefault();
-    send({ type: e.shiftKey ? CLIENT.REDO : CLIENT.UNDO });
-    return;
-  }
-  if ((e.ctrlKey || e.metaKey) && k === 'y') {
-    e.preventDefault();
-    send({ type: CLIENT.REDO });
-    return;
-  }
-  if (e.ctrlKey || e.metaKey || e.altKey) return;
-  const keys = {
+installShortcuts({
+  undo: () => send({ type: CLIENT.UNDO }),
+  redo: () => send({ type: CLIENT.REDO }),
+  keys: {
     w: () => setGizmoMode('translate'),
     e: () => setGizmoMode('rotate'),
     b: () => setTool('brush'),
@@ -427,16 +460,14 @@ window.addEventListener('keydown', (e) => {
     3: () => setRole('handle'),
     4: () => setRole('erase'),
     escape: () => panel.hideStatus(),
-  };
-  if (keys[k]) {
-    keys[k]();
-    e.preventDefault();
-  }
+  },
 });
+ignoreTypeAhead(document.getElementById('builtin-select'));
+releaseFocusAfterPointerUse(document.getElementById('panel'));
 
 installDropTarget(document.getElementById('viewport'), document.getElementById('drop-overlay'), uploadFile);
 
-installTestHook({ app, viewer, selection, gizmo, conn });
+installTestHook({ app, viewer, selection, gizmo, conn, keeper });
 
 // updates per second over the last second; decays to zero once dragging stops
 setInterval(() => {
@@ -456,3 +487,4 @@ setGizmoMode('translate');
 panel.setBrushRadius('screen', app.brush.screen);
 updateGroupsUi();
 conn.connect();
+keeper.offerSaved().catch((err) => panel.showStatus(`Saved sessions cannot be read: ${err.message || err}`, 'error'));

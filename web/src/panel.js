@@ -150,11 +150,14 @@ export class Panel {
     }
   }
 
-  setConnection(state) {
+  /** state: 'open', 'connecting', 'closed' or 'reconnecting' (retry: {attempt, delayMs} of the next try). */
+  setConnection(state, retry = null) {
     const dot = $('conn-dot');
-    dot.className = `dot ${state === 'open' ? 'ok' : state === 'closed' ? 'bad' : ''}`;
-    $('conn-text').textContent = state === 'open' ? 'connected' : state === 'closed' ? 'disconnected' : 'connecting…';
-    $('btn-reconnect').hidden = state !== 'closed';
+    dot.className = `dot ${state === 'open' ? 'ok' : state === 'connecting' ? '' : 'bad'}`;
+    const text = { open: 'connected', closed: 'disconnected', connecting: 'connecting…', reconnecting: 'reconnecting…' };
+    $('conn-text').textContent = text[state] ?? state;
+    $('conn-text').title = retry ? `attempt ${retry.attempt}, next in ${(retry.delayMs / 1000).toFixed(1)} s` : '';
+    $('btn-reconnect').hidden = state !== 'closed'; // while reconnecting, the retries run by themselves
   }
 
   /** groups: [{count}], active: index, roi/fixed counts. */

@@ -1,0 +1,168 @@
+// Keeps the studio's work safe: asks before edits are thrown away, autosaves the session, offers a saved session
+// after a reload or a crash, and puts the session back by itself after the connection to the server was lost.
+import { Autosave, warnBeforeUnload } from './autosave.js';
+import { showRestoreOffer } from './offer.js';
+import { CLIENT } from './protocol.js';
+import { SessionRestore } from './restore.js';
+import { deleteSession, getMesh, newestOrphan, newSessionId } from './sessiondb.js';
+import { builtinSource, captureSession, describe, encodePly, fileSource, hasEdits } from './snapshot.js';
+
+export class SessionKeeper {
+  /**
+   * @param {object} deps app, selection, viewer, panel, send(msg) → bool, requestMesh(source) → bool,
+   *   applySelection(snap) (put a saved selection back and send it), offerParent (element for the offer banner)
+   */
+  constructor(deps) {
+    this.deps = deps;
+    this.id = newSessionId();
+    this.pendingSource = null; // source of the mesh requested last
+    this.applying = 0; // apply requests whose state has not arrived yet
+    this.lost = null; // {snap, live}: the session when the connection was lost, put back after reconnecting
+    this.queued = null; // {snap, recordId}: a restore chosen before the session was ready
+    let failed = false;
+    this.autosave = new Autosave({
+      id: this.id,
+      capture: () => captureSession(deps),
+      delayMs: () => 500 + deps.viewer.nVertices / 200, // large meshes are written less often
+      onError: (err) => {
+        if (!failed) deps.panel.showStatus(`Autosave failed: ${err.message || err}`, 'error');
+        failed = true;
+      },
+    });
+    this.restore = new SessionRestore({ send: deps.send, requestMesh: deps.requestMesh, applySelection: deps.applySelection });
+    warnBeforeUnload(() => this.hasEdits());
+  }
+
+  hasEdits() {
+    return hasEdits(this.deps);
+  }
+
+  /** True when the current session may be replaced: it has no edits, or the user agrees to lose them. */
+  confirmReplace(what) {
+    if (!this.hasEdits()) return true;
+    return window.confirm(`Replace ${this.deps.app.meshName || 'the current mesh'} with ${what}? Its selection, ` +
+      'handle groups, deformation and undo history will be lost.');
+  }
+
+  /** Something in the session changed. */
+  touch() {
+    this.autosave.touch();
+  }
+
+  /** A mesh source (snapshot.js) was requested. */
+  meshRequested(source) {
+    this.pendingSource = source;
+  }
+
+  sent(msg) {
+    if (msg.type === CLIENT.APPLY) this.applying++;
+  }
+
+  /** The open connection was lost: keep the session to put it back once reconnected. */
+  connectionLost() {
+    this.pendingSource = null;
+    this.applying = 0;
+    const restoring = this.restore.cancel();
+    if (restoring) this.lost = { snap: restoring, live: false };
+    else if (!this.lost && !this.autosave.held) this.lost = { snap: this.autosave.hold(), live: true };
+  }
+
+  /** The server greeted a new connection (its mesh follows). */
+  welcomed() {
+    // the selection may have been edited while disconnected: take it as it is now
+    if (this.lost?.live) this.lost.snap = captureSession(this.deps);
+  }
+
+  /** A mesh arrived (positions and faces as sent). */
+  meshArrived(msg, positions, faces) {
+    const { app } = this.deps;
+    app.source = this.pendingSource
+      ?? (app.builtins.includes(msg.name) ? builtinSource(msg.name) : fileSource(`${msg.name}.ply`, encodePly(positions, faces)));
+    this.pendingSource = null;
+    if (this.restore.meshArrived(msg, positions)) return;
+    if (this.lost) {
+      const { snap } = this.lost;
+      this.lost = null;
+      if (snap.edits) this.startRestore(snap, null);
+      else this.autosave.resume();
+    } else if (this.queued) {
+      const { snap, recordId } = this.queued;
+      this.queued = null;
+      this.startRestore(snap, recordId);
+    }
+  }
+
+  /** A state arrived; `synced`: the server holds the local selection. */
+  stateArrived(synced) {
+    const { app, viewer } = this.deps;
+    if (this.applying > 0) {
+      // the deformed shape is now the rest pose: a restore must upload it
+      this.applying--;
+      const bytes = encodePly(viewer.positions, viewer.geometry.index.array);
+      if (!app.limits.max_upload_bytes || bytes.byteLength <= app.limits.max_upload_bytes) {
+        app.source = fileSource(`${app.meshName}.ply`, bytes);
+      }
+    }
+    this.restore.stateArrived(synced);
+  }
+
+  errorArrived(msg) {
+    if (msg.request === CLIENT.LOAD_BUILTIN || msg.request === CLIENT.UPLOAD) this.pendingSource = null;
+    if (msg.request === CLIENT.APPLY) this.applying = Math.max(0, this.applying - 1);
+    this.restore.errorArrived(msg);
+  }
+
+  /** Put a saved session back (`recordId`: its saved record, deleted once restored). */
+  startRestore(snap, recordId) {
+    const { app, panel } = this.deps;
+    if (!app.ready) {
+      this.queued = { snap, recordId };
+      panel.showStatus('The saved session is restored as soon as the studio server answers.', 'info');
+      return;
+    }
+    if (!this.autosave.held) this.autosave.hold();
+    panel.showStatus(`Restoring ${snap.meshName}…`, 'info');
+    this.restore.start(snap, (error) => {
+      if (error && !recordId) {
+        // keep what was saved of this page's session (offered after a reload) and save on under a new id
+        this.id = newSessionId();
+        this.autosave.renew(this.id);
+      }
+      this.autosave.resume();
+      if (error) {
+        panel.showStatus(`Could not restore the saved session: ${error}.`, 'error');
+        return;
+      }
+      if (recordId && recordId !== this.id) deleteSession(recordId).catch(() => {});
+      panel.showStatus(`Restored ${snap.meshName}.`, 'info', 4000);
+    });
+  }
+
+  /** Offer the newest saved session of a page that is gone (a reload, a crash, a closed tab). */
+  async offerSaved() {
+    const record = await newestOrphan(this.id);
+    if (!record || !record.edits) return;
+    showRestoreOffer(this.deps.offerParent, {
+      text: describe(record),
+      onRestore: () => {
+        if (!this.confirmReplace(`the saved ${record.meshName}`)) return false;
+        this._restoreRecord(record).catch((err) => this.deps.panel.showStatus(`Could not restore: ${err.message || err}`, 'error'));
+        return true;
+      },
+      onDiscard: () => deleteSession(record.id).catch(() => {}),
+    });
+  }
+
+  async _restoreRecord(record) {
+    let source = record.source;
+    if (source.kind === 'file') {
+      const mesh = await getMesh(record.id);
+      if (!mesh || mesh.key !== source.key) {
+        this.deps.panel.showStatus('Could not restore the saved session: its mesh is missing.', 'error');
+        return;
+      }
+      source = { ...source, bytes: mesh.bytes };
+    }
+    this.startRestore({ ...record, source }, record.id);
+  }
+}

@@ -1,0 +1,92 @@
+// Restoring a saved session: the solver parameters, the mesh (a built-in model by name, or the mesh file's bytes
+// uploaded again), the shape, then the selection. The shape comes back exactly: one constraint set holds every
+// vertex that had moved at its saved position (the others fixed at rest), then the saved selection replaces it,
+// referring to that shape (as any selection made after a drag does).
+import { CLIENT, PARAMS } from './protocol.js';
+import { mismatch } from './snapshot.js';
+
+export class SessionRestore {
+  /**
+   * @param {object} deps send(msg) → bool, requestMesh(source) → bool (load or upload it), applySelection(snap)
+   *   (put the selection back and send it, even when the server seems to hold it already)
+   */
+  constructor(deps) {
+    this.deps = deps;
+    this.active = null; // {snap, stage: 'mesh' | 'constraints', onDone}
+  }
+
+  get busy() {
+    return this.active !== null;
+  }
+
+  /** Start restoring `snap` (its source with the file's bytes); onDone(error or null) is called once. */
+  start(snap, onDone) {
+    const names = Object.keys(PARAMS).filter((k) => snap.params?.[k] !== undefined);
+    const params = Object.fromEntries(names.map((k) => [k, snap.params[k]]));
+    if (Object.keys(params).length) this.deps.send({ type: CLIENT.SET_PARAMS, ...params });
+    this.active = { snap, stage: 'mesh', onDone };
+    if (!this.deps.requestMesh(snap.source)) this._finish('not connected to the studio server');
+  }
+
+  /** The snapshot being restored (or null), and no longer waited for. */
+  cancel() {
+    const snap = this.active?.snap ?? null;
+    this.active = null;
+    return snap;
+  }
+
+  /**
+   * A mesh arrived (`rest`: its positions): true when it was the restored one (its shape and selection have then
+   * been sent).
+   */
+  meshArrived(msg, rest) {
+    const a = this.active;
+    if (!a || a.stage !== 'mesh') return false;
+    const problem = mismatch(a.snap, msg.n_vertices, msg.n_faces);
+    if (problem) {
+      this._finish(problem);
+      return true;
+    }
+    a.stage = 'constraints';
+    const shape = pinShape(a.snap.positions, rest);
+    if (shape && !this.deps.send(shape)) {
+      this._finish('not connected to the studio server');
+      return true;
+    }
+    this.deps.applySelection(a.snap);
+    return true;
+  }
+
+  /** A state arrived; `synced`: the server holds the local selection. */
+  stateArrived(synced) {
+    if (this.active?.stage === 'constraints' && synced) this._finish(null);
+  }
+
+  /** An error arrived: fatal to the restore when it answers one of its requests. */
+  errorArrived(msg) {
+    const a = this.active;
+    if (!a) return;
+    const fatal = a.stage === 'mesh' ? [CLIENT.LOAD_BUILTIN, CLIENT.UPLOAD] : [CLIENT.SET_CONSTRAINTS];
+    if (fatal.includes(msg.request)) this._finish(msg.message || msg.code);
+  }
+
+  _finish(error) {
+    const a = this.active;
+    this.active = null;
+    a?.onDone(error);
+  }
+}
+
+/** set_constraints holding every vertex of `positions` that differs from `rest` there (others fixed), or null. */
+function pinShape(positions, rest) {
+  const moved = [];
+  const still = [];
+  for (let i = 0, n = rest.length / 3; i < n; i++) {
+    const same = positions[3 * i] === rest[3 * i] && positions[3 * i + 1] === rest[3 * i + 1]
+      && positions[3 * i + 2] === rest[3 * i + 2];
+    (same ? still : moved).push(i);
+  }
+  if (!moved.length) return null;
+  const targets = moved.map((i) => [positions[3 * i], positions[3 * i + 1], positions[3 * i + 2]]);
+  return { type: CLIENT.SET_CONSTRAINTS, roi: null, fixed: still, handle_groups: [moved], targets };
+}

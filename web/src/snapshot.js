@@ -1,0 +1,94 @@
+// A snapshot of the editing session (what autosave stores and restoring puts back): where the mesh came from,
+// the selection with every handle group, the current shape and the solver parameters.
+import { FIXED, HANDLE0 } from './selection.js';
+
+/**
+ * Where the session's rest mesh comes from: a built-in model by name, or the bytes of a mesh file (an upload, or
+ * the vertices and faces the server sent, written as PLY). `key` changes whenever the source does.
+ */
+let sourceKeys = 0;
+
+export function builtinSource(name) {
+  return { kind: 'builtin', name, key: ++sourceKeys };
+}
+
+export function fileSource(filename, bytes) {
+  return { kind: 'file', filename, bytes, key: ++sourceKeys };
+}
+
+/** Binary little-endian PLY of a triangle mesh (float32 positions, uint32 faces). */
+export function encodePly(positions, faces) {
+  const nv = positions.length / 3;
+  const nf = faces.length / 3;
+  const header = new TextEncoder().encode(
+    `ply\nformat binary_little_endian 1.0\nelement vertex ${nv}\nproperty float x\nproperty float y\n` +
+      `property float z\nelement face ${nf}\nproperty list uchar uint vertex_indices\nend_header\n`,
+  );
+  const buf = new ArrayBuffer(header.length + 12 * nv + 13 * nf);
+  new Uint8Array(buf).set(header);
+  const view = new DataView(buf);
+  let o = header.length;
+  for (let i = 0; i < 3 * nv; i++, o += 4) view.setFloat32(o, positions[i], true);
+  for (let f = 0; f < nf; f++) {
+    view.setUint8(o, 3);
+    o += 1;
+    for (let k = 0; k < 3; k++, o += 4) view.setUint32(o, faces[3 * f + k], true);
+  }
+  return buf;
+}
+
+/** True when a session has something to lose: a selection, a deformation or history. */
+export function hasEdits({ app, selection }) {
+  if (app.canUndo || app.canRedo) return true;
+  for (let i = 0; i < selection.n; i++) if (selection.role[i] || selection.roi[i]) return true;
+  return false;
+}
+
+/**
+ * The session as a plain object (structured-cloneable): `source` (with its bytes), mesh counts, `roi`, `fixed`,
+ * `groups` (one vertex list per client handle group, empty ones included), `activeGroup`, `positions`
+ * (Float32Array of the current shape) and `params`.
+ */
+export function captureSession({ app, selection, viewer }) {
+  const groups = selection.groups.map(() => []);
+  const roi = [];
+  const fixed = [];
+  for (let i = 0; i < selection.n; i++) {
+    if (selection.roi[i]) roi.push(i);
+    const r = selection.role[i];
+    if (r === FIXED) fixed.push(i);
+    else if (r >= HANDLE0) groups[r - HANDLE0].push(i);
+  }
+  return {
+    savedAt: Date.now(),
+    source: app.source,
+    meshName: app.meshName,
+    nVertices: viewer.nVertices,
+    nFaces: app.nFaces,
+    roi,
+    fixed,
+    groups,
+    activeGroup: selection.activeGroup,
+    positions: new Float32Array(viewer.positions),
+    params: { ...app.params },
+    edits: hasEdits({ app, selection }),
+  };
+}
+
+/** Why a snapshot does not fit a loaded mesh, or null. */
+export function mismatch(snap, nVertices, nFaces) {
+  if (snap.nVertices === nVertices && snap.nFaces === nFaces) return null;
+  return `the mesh now has ${nVertices.toLocaleString('en-US')} vertices and ${nFaces.toLocaleString('en-US')} ` +
+    `faces, the saved session had ${snap.nVertices.toLocaleString('en-US')} and ${snap.nFaces.toLocaleString('en-US')}`;
+}
+
+/** One line saying what a snapshot holds. */
+export function describe(snap) {
+  const when = new Date(snap.savedAt).toLocaleString([], { dateStyle: 'medium', timeStyle: 'short' });
+  const handles = snap.groups.filter((g) => g.length).length;
+  const parts = [`${snap.meshName}`];
+  if (snap.roi.length) parts.push(`ROI of ${snap.roi.length.toLocaleString('en-US')} vertices`);
+  parts.push(`${snap.fixed.length.toLocaleString('en-US')} anchors`);
+  parts.push(`${handles} handle group${handles === 1 ? '' : 's'}`);
+  return `Unsaved work from ${when}: ${parts.join(', ')}.`;
+}
