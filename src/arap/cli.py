@@ -331,8 +331,9 @@ def _cmd_studio(args: argparse.Namespace) -> int:
         missing = exc.name or ""
         if missing.split(".")[0] in ("", "arap"):
             raise
-        raise ArapError(f"the studio needs its server packages, and {missing} is not installed: "
-                        f"{STUDIO_EXTRA_HINT}") from None
+        _err(f"arap: error: the studio needs its server packages, and {missing} is not installed: "
+             f"{STUDIO_EXTRA_HINT}")
+        return EXIT_USAGE
     _warm_up_kernels(quiet=False)  # compile before serving, not on the first drag
 
     def announce(url: str) -> None:

@@ -12,7 +12,7 @@ import scipy.sparse as sp
 from numpy.typing import NDArray
 
 from arap.anderson import AndersonAccelerator
-from arap.cells import ENERGY_TYPES, build_cells, build_rhs_gather, system_matrix
+from arap.cells import DEFAULT_ENERGY, ENERGY_TYPES, EnergyType, build_cells, build_rhs_gather, system_matrix
 from arap.covariance import assemble_rhs, covariances, local_step
 from arap.errors import ArapError, ConstraintError, UnconstrainedRegionError
 from arap.indexing import check_index_array, find_unconstrained_part
@@ -20,7 +20,7 @@ from arap.linsolve import NotPositiveDefiniteError, factorize
 from arap.mesh import check_mesh
 from arap.start import best_rigid_transform, vertex_areas
 from arap.topology import locality_order, vertex_adjacency
-from arap.weights import WEIGHT_TYPES
+from arap.weights import DEFAULT_WEIGHTS, WEIGHT_TYPES, WeightType
 
 IterationCallback = Callable[[int, float], "bool | None"]
 Acceleration = Literal["anderson", "none"]
@@ -88,12 +88,14 @@ class ArapSolver:
         Triangles. Degenerate faces are rejected (see :func:`arap.repair_mesh`).
     constrained : (k,) int array
         Constrained vertices (anchors and handles, any order, unique). :meth:`solve` takes their targets in this order.
-    energy : {"spokes", "spokes_and_rims"}
-        ``spokes``: the paper's one-ring cells (Sorkine & Alexa 2007). ``spokes_and_rims``: cells over all edges of
-        the triangles around a vertex (Chao et al. 2010).
-    weights : {"cotangent", "uniform"}
+    energy : {"spokes_and_rims", "spokes"}
+        ``spokes_and_rims`` (default): cells over all edges of the triangles around a vertex (Chao et al. 2010); a
+        sum of non-negative per-triangle terms even with obtuse triangles, so it does not fold scans.
+        ``spokes``: the paper's one-ring cells (Sorkine & Alexa 2007); with negative cotangent weights its energy can
+        be negative and its minima fold scans (see the README's "Energy and weights").
+    weights : {"cotangent", "clamped", "uniform"}
         ``cotangent``: ``w_ij = ½(cot α_ij + cot β_ij)``, one term on boundary edges (Pinkall & Polthier 1993).
-        ``uniform``: ½ per incident triangle (1 on interior edges).
+        ``clamped``: the cotangent weights with negative values set to 0. ``uniform``: ½ per incident triangle.
     roi : (r,) int array or None
         Region of interest. Only ROI vertices move; every other vertex is held at its rest position and the linear
         system has the size of the free ROI vertices. None means the whole mesh.
@@ -119,8 +121,8 @@ class ArapSolver:
         V: np.ndarray,
         F: np.ndarray,
         constrained: np.ndarray | list[int],
-        energy: str = "spokes",
-        weights: str = "cotangent",
+        energy: EnergyType = DEFAULT_ENERGY,
+        weights: WeightType = DEFAULT_WEIGHTS,
         roi: np.ndarray | list[int] | None = None,
         backend: str | None = None,
     ) -> None:
