@@ -31,7 +31,8 @@ class AndersonAccelerator:
 
     Notes
     -----
-    The least-squares problem is solved through its ``m × m`` normal equations, whose Gram matrix is updated by
+    The vector products avoid the threaded BLAS, whose thread start-up costs more than these short products when
+    the cores are busy. The least-squares problem is solved through its ``m × m`` normal equations, whose Gram matrix is updated by
     one matrix-vector product per step, so the cost per step is three passes over ``m`` vectors of length ``size``.
 
     Examples
@@ -88,7 +89,7 @@ class AndersonAccelerator:
             np.subtract(g, self._g_prev, out=self._dG[j])
             self._count = min(self._count + 1, self.window)
             self._next = (j + 1) % self.window
-            col = self._dF[: self._count] @ self._dF[j]
+            col = np.einsum("kn,n->k", self._dF[: self._count], self._dF[j])
             self._gram[j, : self._count] = col
             self._gram[: self._count, j] = col
         self._f_prev[:] = f
@@ -98,7 +99,7 @@ class AndersonAccelerator:
             return None
         k = self._count
         gram = self._gram[:k, :k]
-        rhs = self._dF[:k] @ f
+        rhs = np.einsum("kn,n->k", self._dF[:k], f)
         # Scale-aware Tikhonov term: keeps the normal equations solvable when differences are nearly dependent.
         reg = 1e-12 * max(float(np.trace(gram)), 1e-300)
         try:
@@ -108,4 +109,4 @@ class AndersonAccelerator:
         if not np.all(np.isfinite(theta)):
             self.reset()
             return None
-        return g - theta @ self._dG[:k]
+        return g - np.einsum("k,kn->n", theta, self._dG[:k])

@@ -3,9 +3,6 @@
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
-from dataclasses import dataclass, field
-from typing import Literal
 
 import numpy as np
 import scipy.sparse as sp
@@ -18,60 +15,20 @@ from arap.errors import ArapError, ConstraintError, UnconstrainedRegionError
 from arap.indexing import check_index_array, find_unconstrained_part
 from arap.linsolve import NotPositiveDefiniteError, factorize
 from arap.mesh import check_mesh
+from arap.result import (
+    ACCELERATIONS,
+    DEFAULT_TOLERANCE,
+    DEFAULT_WINDOW,
+    MAX_ITERATIONS,
+    START_NAMES,
+    Acceleration,
+    ArapResult,
+    IterationCallback,
+    StartName,
+)
 from arap.start import best_rigid_transform, vertex_areas
 from arap.topology import locality_order, vertex_adjacency
 from arap.weights import DEFAULT_WEIGHTS, WEIGHT_TYPES, WeightType
-
-IterationCallback = Callable[[int, float], "bool | None"]
-Acceleration = Literal["anderson", "none"]
-ACCELERATIONS: tuple[str, ...] = ("anderson", "none")
-StartName = Literal["auto", "rest", "rigid"]
-START_NAMES: tuple[str, ...] = ("auto", "rest", "rigid")
-
-#: Default convergence tolerance of :meth:`ArapSolver.solve`: root-mean-square step of the plain iteration relative
-#: to the bounding-box diagonal.
-DEFAULT_TOLERANCE = 1e-9
-#: Hard cap on iterations when ``max_iterations`` is None.
-MAX_ITERATIONS = 10_000
-#: Default Anderson window.
-DEFAULT_WINDOW = 5
-
-
-@dataclass
-class ArapResult:
-    """Outcome of :meth:`ArapSolver.solve`.
-
-    Attributes
-    ----------
-    vertices : (n, 3) float64 array
-        Deformed positions; constrained vertices are exactly at their targets.
-    energies : list of float
-        ARAP energy (with optimal rotations) after each iteration.
-    iterations : int
-        Iterations run.
-    converged : bool
-        True if the last iteration's plain step was within ``tolerance`` (see :meth:`ArapSolver.solve`); False when
-        the iteration cap or the callback stopped it first.
-    timings : dict of str to float
-        Seconds spent, summed over iterations: ``local`` (covariances, rotations, energy), ``rhs``, ``solve``,
-        ``acceleration``, and ``total`` for the whole call.
-    residual : float
-        Root-mean-square step of the plain iteration at the last iterate, relative to the bounding-box diagonal
-        (NaN if no iteration ran).
-    start : {"warm", "rest", "rigid", "given"}
-        Where the iteration started (see ``initial``).
-    rejected : int
-        Anderson extrapolations rejected by the energy safeguard.
-    """
-
-    vertices: NDArray[np.float64]
-    energies: list[float]
-    iterations: int
-    converged: bool
-    timings: dict[str, float] = field(default_factory=dict)
-    residual: float = float("nan")
-    start: str = "rest"
-    rejected: int = 0
 
 
 class ArapSolver:
@@ -166,15 +123,20 @@ class ArapSolver:
 
         # Internally vertices are renumbered for memory locality (reverse Cuthill-McKee): neighbours get nearby
         # indices, so the gathers of the local step and the right-hand side stay in cache.
-        self._perm = locality_order(F, n, adjacency)
+        # Free vertices come first, so that the free and the non-free rows are two contiguous blocks.
+        order = locality_order(F, n, adjacency)
+        is_free = np.zeros(n, dtype=bool)
+        is_free[self.free] = True
+        self._perm = np.concatenate([order[is_free[order]], order[~is_free[order]]])
         self._inv = np.empty_like(self._perm)
         self._inv[self._perm] = np.arange(n)
         self._V = np.ascontiguousarray(V[self._perm])
         self._diagonal = float(np.linalg.norm(V.max(axis=0) - V.min(axis=0))) or 1.0
         self._areas = vertex_areas(self._V, self._inv[F])
         self._constrained = self._inv[self.constrained]
-        self._free = np.sort(self._inv[self.free])
-        self._nonfree = np.sort(self._inv[self.nonfree])
+        self._nf = len(self.free)
+        self._free = np.arange(self._nf)
+        self._nonfree = np.arange(self._nf, n)
         self._constrained_slot = np.searchsorted(self._nonfree, self._constrained)
         self._cells = build_cells(self._V, self._inv[F], energy, weights)
         L = system_matrix(self._cells, n)
@@ -198,6 +160,7 @@ class ArapSolver:
         self._E = np.zeros(n)
         self._last: NDArray[np.float64] | None = None
         self._live: NDArray[np.float64] | None = None
+        self._accelerator: AndersonAccelerator | None = None
         self._rotations_fresh = False
         self.factor_seconds = time.perf_counter() - t0
 
@@ -219,6 +182,14 @@ class ArapSolver:
             local_step(self._cells, inactive, self._V, np.empty((n, 3, 3)), rest_E)
         self._rest_E = rest_E
         self._rest_inactive_sum = float(rest_E[inactive].sum())
+        is_constrained = np.zeros(n, dtype=bool)
+        is_constrained[self._constrained] = True
+        # Inactive cells that some constrained vertex touches: those whose energy changes when all handles move.
+        self._touched_by_any = np.unique(
+            self._inactive_term_cell[is_constrained[self._inactive_a] | is_constrained[self._inactive_b]])
+        self._constant_cache: tuple[np.ndarray, float] | None = None
+        self._V_constrained = self._V[self._constrained]
+        self._touched_cache: tuple[np.ndarray, np.ndarray] | None = None
 
     def _constant_energy(self, U: np.ndarray, targets: np.ndarray) -> float:
         """Energy of the inactive cells, whose terms see only non-free vertices (``U`` holds them in place).
@@ -227,19 +198,31 @@ class ArapSolver:
         """
         if not len(self._inactive_terms):
             return 0.0
-        n = len(self._V)
-        moved = np.zeros(n, dtype=bool)
-        moved[self._constrained] = np.any(targets != self._V[self._constrained], axis=1)
-        touched = np.unique(self._inactive_term_cell[moved[self._inactive_a] | moved[self._inactive_b]])
-        if not len(touched):
-            return self._rest_inactive_sum
-        E = self._E_scratch
-        local_step(self._cells, touched, U, self._R_scratch, E)
-        return self._rest_inactive_sum - float(self._rest_E[touched].sum()) + float(E[touched].sum())
+        cache = self._constant_cache
+        if cache is not None and np.array_equal(cache[0], targets):
+            return cache[1]
+        moved_slots = np.any(targets != self._V_constrained, axis=1)
+        if moved_slots.all():
+            touched = self._touched_by_any
+        elif self._touched_cache is not None and np.array_equal(self._touched_cache[0], moved_slots):
+            touched = self._touched_cache[1]  # the same handles moved again (a drag)
+        else:
+            moved = np.zeros(len(self._V), dtype=bool)
+            moved[self._constrained[moved_slots]] = True
+            is_touched = np.zeros(len(self._V), dtype=bool)
+            is_touched[self._inactive_term_cell[moved[self._inactive_a] | moved[self._inactive_b]]] = True
+            touched = np.flatnonzero(is_touched)
+            self._touched_cache = (moved_slots, touched)
+        value = self._rest_inactive_sum
+        if len(touched):
+            value += local_step(self._cells, touched, U, self._R_scratch, self._E_scratch)
+            value -= float(self._rest_E[touched].sum())
+        self._constant_cache = (targets.copy(), value)
+        return value
 
     def _fixed_positions(self, targets: np.ndarray) -> np.ndarray:
         """Positions of the non-free vertices (constrained at targets, held at rest), in ``nonfree`` order."""
-        fixed = self._V[self._nonfree]
+        fixed = self._V[self._nf:].copy()
         fixed[self._constrained_slot] = targets
         return fixed
 
@@ -342,14 +325,19 @@ class ArapSolver:
         nf = len(free)
         rhs_const = self._L_fn @ fixed
         rhs = np.empty((nf, 3))
-        accel = AndersonAccelerator(window, 3 * nf) if acceleration == "anderson" and nf else None
+        accel = None
+        if acceleration == "anderson" and nf:
+            if self._accelerator is None or self._accelerator.window != window:
+                self._accelerator = AndersonAccelerator(window, 3 * nf)
+            accel = self._accelerator
+            accel.reset()
         step_limit = tolerance * self._diagonal * np.sqrt(max(nf, 1))
         energies: list[float] = []
         converged = False
         residual = float("nan")
         rejected = 0
         for it in range(int(cap)):
-            x = U[free]
+            x = U[:nf]  # a view: read before the iterate is overwritten below
             if self.factor is not None:
                 t = time.perf_counter()
                 assemble_rhs(self._gather, self._R, rhs_const, rhs)
@@ -359,7 +347,8 @@ class ArapSolver:
                 timings["solve"] += time.perf_counter() - t2
             else:
                 g = x
-            step = float(np.linalg.norm(g - x))
+            d = g - x
+            step = float(np.sqrt(np.einsum("ij,ij->", d, d)))
             residual = step / (self._diagonal * np.sqrt(max(nf, 1)))
             last = step <= step_limit
             candidate = None
@@ -368,14 +357,14 @@ class ArapSolver:
                 candidate = accel.step(x.ravel(), g.ravel())
                 timings["acceleration"] += time.perf_counter() - t
             use_candidate = candidate is not None and not last and E_cur is not None
-            U[free] = candidate.reshape(nf, 3) if use_candidate else g
+            U[:nf] = candidate.reshape(nf, 3) if use_candidate else g
             e = self._local(U, const_E, timings)
             if use_candidate and e > E_cur:
                 # Safeguard: the extrapolation raised the energy; take the plain step, which cannot.
                 rejected += 1
                 assert accel is not None
                 accel.reset()
-                U[free] = g
+                U[:nf] = g
                 e = self._local(U, const_E, timings)
             E_cur = e
             energies.append(e)
@@ -389,7 +378,7 @@ class ArapSolver:
         # The rotations fit the stored solution only if an iteration ended with a local step on it.
         self._rotations_fresh = bool(energies) or start != "warm"
         timings["total"] = time.perf_counter() - t_start
-        return ArapResult(vertices=U[self._inv], energies=energies, iterations=len(energies), converged=converged,
+        return ArapResult(vertices=np.take(U, self._inv, axis=0), energies=energies, iterations=len(energies), converged=converged,
                           timings=timings, residual=residual, start=start, rejected=rejected)
 
     def _local(self, U: NDArray[np.float64], const_E: float, timings: dict[str, float]) -> float:
@@ -415,8 +404,8 @@ class ArapSolver:
                 warm_fresh = self._rotations_fresh
                 if not warm_fresh:
                     self._local(U, 0.0, timings)
-                at_targets = np.array_equal(U[self._nonfree], fixed)
-                U[self._nonfree] = fixed
+                at_targets = np.array_equal(U[self._nf:], fixed)
+                U[self._nf:] = fixed
                 E = float(self._E[self._active].sum()) if at_targets else None
                 return U, E, "warm"
         if isinstance(initial, str):
@@ -425,7 +414,7 @@ class ArapSolver:
             candidates = []
             if initial in ("auto", "rest"):
                 U = self._V.copy()
-                U[self._nonfree] = fixed
+                U[self._nf:] = fixed
                 candidates.append(("rest", U))
             if initial in ("auto", "rigid"):
                 candidates.append(("rigid", self._rigid_start(T, fixed)))
@@ -440,7 +429,7 @@ class ArapSolver:
                 self._R[:] = R
             return U, E, name
         U = self._to_internal(self._check_positions(initial, "initial"))
-        U[self._nonfree] = fixed
+        U[self._nf:] = fixed
         return U, self._local(U, 0.0, timings), "given"
 
     def _rigid_start(self, T: NDArray[np.float64], fixed: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -449,7 +438,7 @@ class ArapSolver:
         if len(self._constrained):
             R, t = best_rigid_transform(self._V[self._constrained], T, self._areas[self._constrained])
             U[self._free] = self._V[self._free] @ R.T + t
-        U[self._nonfree] = fixed
+        U[self._nf:] = fixed
         return U
 
     def current_vertices(self) -> NDArray[np.float64]:
@@ -496,7 +485,7 @@ class ArapSolver:
         T = self._check_targets(targets)
         fixed = self._fixed_positions(T)
         U = self._V.copy()
-        U[self._nonfree] = fixed
+        U[self._nf:] = fixed
         if self.factor is not None:
             rhs = np.empty((len(self._free), 3))
             assemble_rhs(self._gather, self._to_internal(np.asarray(R, dtype=np.float64)), self._L_fn @ fixed, rhs)

@@ -1,0 +1,64 @@
+"""What :meth:`arap.ArapSolver.solve` takes and returns: option names, defaults and the result record."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Literal
+
+import numpy as np
+from numpy.typing import NDArray
+
+__all__ = ["ACCELERATIONS", "DEFAULT_TOLERANCE", "DEFAULT_WINDOW", "MAX_ITERATIONS", "START_NAMES", "Acceleration",
+           "ArapResult", "IterationCallback", "StartName"]
+
+IterationCallback = Callable[[int, float], "bool | None"]
+Acceleration = Literal["anderson", "none"]
+ACCELERATIONS: tuple[str, ...] = ("anderson", "none")
+StartName = Literal["auto", "rest", "rigid"]
+START_NAMES: tuple[str, ...] = ("auto", "rest", "rigid")
+
+#: Default convergence tolerance of :meth:`ArapSolver.solve`: root-mean-square step of the plain iteration relative
+#: to the bounding-box diagonal.
+DEFAULT_TOLERANCE = 1e-9
+#: Hard cap on iterations when ``max_iterations`` is None.
+MAX_ITERATIONS = 10_000
+#: Default Anderson window.
+DEFAULT_WINDOW = 5
+
+
+@dataclass
+class ArapResult:
+    """Outcome of :meth:`ArapSolver.solve`.
+
+    Attributes
+    ----------
+    vertices : (n, 3) float64 array
+        Deformed positions; constrained vertices are exactly at their targets.
+    energies : list of float
+        ARAP energy (with optimal rotations) after each iteration.
+    iterations : int
+        Iterations run.
+    converged : bool
+        True if the last iteration's plain step was within ``tolerance`` (see :meth:`ArapSolver.solve`); False when
+        the iteration cap or the callback stopped it first.
+    timings : dict of str to float
+        Seconds spent, summed over iterations: ``local`` (covariances, rotations, energy), ``rhs``, ``solve``,
+        ``acceleration``, and ``total`` for the whole call.
+    residual : float
+        Root-mean-square step of the plain iteration at the last iterate, relative to the bounding-box diagonal
+        (NaN if no iteration ran).
+    start : {"warm", "rest", "rigid", "given"}
+        Where the iteration started (see ``initial``).
+    rejected : int
+        Anderson extrapolations rejected by the energy safeguard.
+    """
+
+    vertices: NDArray[np.float64]
+    energies: list[float]
+    iterations: int
+    converged: bool
+    timings: dict[str, float] = field(default_factory=dict)
+    residual: float = float("nan")
+    start: str = "rest"
+    rejected: int = 0
