@@ -31,9 +31,9 @@ class AndersonAccelerator:
 
     Notes
     -----
-    The vector products avoid the threaded BLAS, whose thread start-up costs more than these short products when
-    the cores are busy. The least-squares problem is solved through its ``m × m`` normal equations, whose Gram matrix is updated by
-    one matrix-vector product per step, so the cost per step is three passes over ``m`` vectors of length ``size``.
+    The least-squares problem is solved through its ``m × m`` normal equations, whose Gram matrix is updated by one
+    matrix-vector product per step, so the cost per step is three passes over ``m`` vectors of length ``size``. The
+    products avoid the threaded BLAS, whose thread start-up costs more than these short products on busy cores.
 
     Examples
     --------

@@ -378,8 +378,8 @@ class ArapSolver:
         # The rotations fit the stored solution only if an iteration ended with a local step on it.
         self._rotations_fresh = bool(energies) or start != "warm"
         timings["total"] = time.perf_counter() - t_start
-        return ArapResult(vertices=np.take(U, self._inv, axis=0), energies=energies, iterations=len(energies), converged=converged,
-                          timings=timings, residual=residual, start=start, rejected=rejected)
+        return ArapResult(vertices=np.take(U, self._inv, axis=0), energies=energies, iterations=len(energies),
+                          converged=converged, timings=timings, residual=residual, start=start, rejected=rejected)
 
     def _local(self, U: NDArray[np.float64], const_E: float, timings: dict[str, float]) -> float:
         """Local step on the active cells at ``U``; returns the total energy."""
