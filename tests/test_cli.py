@@ -41,8 +41,17 @@ def test_deform_builtin_bar(tmp_path: Path, capsys: pytest.CaptureFixture[str], 
     assert 0.05 < (U[middle, 0] - V[middle, 0]).mean() < 0.95
     assert np.ptp(U[:, 1]) == pytest.approx(5.0, rel=0.1)
     err = capsys.readouterr().err
-    assert "iteration 1/15" in err and "energy" in err and "change" in err
-    assert "ms/iteration" in err and "wrote" in err
+    assert "iteration 1/15" in err and "energy" in err
+    assert "ms/iteration" in err and "wrote" in err and "iteration limit reached" in err
+
+
+def test_deform_runs_until_converged_by_default(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    cfile = tmp_path / "c.json"
+    bar_constraints(cfile)
+    out = tmp_path / "out.obj"
+    assert main(["deform", "bar", "--constraints", str(cfile), "-o", str(out)]) == 0
+    err = capsys.readouterr().err
+    assert "converged" in err and "iteration limit" not in err
 
 
 def test_deform_file_mesh_quiet_with_options(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

@@ -26,6 +26,7 @@ from arap import __version__
 from arap.cells import DEFAULT_ENERGY, ENERGY_TYPES
 from arap.errors import ArapError, MeshError, MeshFormatError
 from arap.mesh import RepairResult
+from arap.result import ACCELERATIONS, DEFAULT_TOLERANCE, MAX_ITERATIONS, START_NAMES
 from arap.weights import DEFAULT_WEIGHTS, WEIGHT_TYPES
 
 if TYPE_CHECKING:
@@ -106,13 +107,14 @@ def load_mesh_argument(spec: str, *, repair: bool = True) -> tuple[np.ndarray, n
 class _Progress:
     """Per-iteration line on a stream: ``iteration k/N  energy E  change r``."""
 
-    def __init__(self, total: int, stream: TextIO, enabled: bool) -> None:
+    def __init__(self, total: int | None, stream: TextIO, enabled: bool) -> None:
         self.total = total
         self.stream = stream
         self.enabled = enabled
         self.tty = enabled and stream.isatty()
         self.previous: float | None = None
         self.start = time.perf_counter()
+        self.last_line = 0.0
 
     def __call__(self, iteration: int, energy: float) -> None:
         if not self.enabled:
@@ -121,7 +123,12 @@ class _Progress:
             f"  change {abs(self.previous - energy) / max(abs(self.previous), 1e-300):.2e}")
         self.previous = energy
         elapsed = time.perf_counter() - self.start
-        line = f"iteration {iteration}/{self.total}  energy {energy:.9g}{change}  ({elapsed:.2f} s)"
+        # Without a terminal, a line per half second at most: a converging solve runs hundreds of iterations.
+        if not self.tty and iteration > 1 and elapsed - self.last_line < 0.5:
+            return
+        self.last_line = elapsed
+        of = "" if self.total is None else f"/{self.total}"
+        line = f"iteration {iteration}{of}  energy {energy:.9g}{change}  ({elapsed:.2f} s)"
         if self.tty:
             self.stream.write("\r" + line.ljust(78))
         else:
@@ -147,7 +154,7 @@ def _cmd_deform(args: argparse.Namespace) -> int:
         raise MeshFormatError(f"cannot write {args.output}: it is a folder")
     if not os.access(folder, os.W_OK):
         raise MeshFormatError(f"cannot write {args.output}: the folder {folder} is not writable")
-    if args.iterations < 0:
+    if args.iterations is not None and args.iterations < 0:
         raise ArapError(f"--iterations must be >= 0, got {args.iterations}")
     if not args.tolerance >= 0:
         raise ArapError(f"--tolerance must be >= 0, got {args.tolerance}")
@@ -171,7 +178,8 @@ def _cmd_deform(args: argparse.Namespace) -> int:
     progress = _Progress(args.iterations, sys.stderr, enabled=not args.quiet)
     t0 = time.perf_counter()
     try:
-        result = solver.solve(targets, max_iterations=args.iterations, tolerance=args.tolerance, callback=progress)
+        result = solver.solve(targets, initial=args.start, max_iterations=args.iterations, tolerance=args.tolerance,
+                              callback=progress, acceleration=args.acceleration)
     finally:
         progress.close()
     seconds = time.perf_counter() - t0
@@ -277,7 +285,8 @@ def _cmd_bench(args: argparse.Namespace) -> int:
     precompute = time.perf_counter() - t0
     runs = []
     for _ in range(args.repeats):
-        result = solver.solve(all_targets, initial=V, max_iterations=args.iterations)
+        result = solver.solve(all_targets, initial=V, max_iterations=args.iterations, tolerance=0.0,
+                              acceleration="none")
         runs.append(result)
     per_it = [1e3 * (r.timings["local"] + r.timings["rhs"] + r.timings["solve"]) / r.iterations for r in runs]
     best = runs[int(np.argsort(per_it)[len(per_it) // 2])]
@@ -364,9 +373,16 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("-c", "--constraints", required=True, metavar="FILE.json",
                    help='JSON with "fixed", "handles", "targets" and optionally "roi" (file vertex indices)')
     p.add_argument("-o", "--output", required=True, metavar="OUT", help="output mesh file (.obj .off .ply .stl)")
-    p.add_argument("-n", "--iterations", type=int, default=50, help="maximum iterations (default: 50)")
-    p.add_argument("-t", "--tolerance", type=float, default=1e-6,
-                   help="stop when the relative energy change is at most this (default: 1e-6; 0 runs all)")
+    p.add_argument("-n", "--iterations", type=int, default=None,
+                   help=f"maximum iterations (default: until converged, at most {MAX_ITERATIONS:,})")
+    p.add_argument("-t", "--tolerance", type=float, default=DEFAULT_TOLERANCE,
+                   help="converged when the plain iteration's step (RMS over the free vertices) is at most this "
+                        f"many bounding-box diagonals (default: {DEFAULT_TOLERANCE:g}; 0 runs all iterations)")
+    p.add_argument("--start", choices=START_NAMES, default="auto",
+                   help="starting pose: the rest pose, its best-fit rigid motion onto the targets, or whichever "
+                        "has the lower energy (default: auto)")
+    p.add_argument("--acceleration", choices=ACCELERATIONS, default="anderson",
+                   help="Anderson acceleration (Peng et al. 2018) or the plain iteration (default: anderson)")
     p.add_argument("--energy", choices=ENERGY_TYPES, default=DEFAULT_ENERGY,
                    help=f"cell definition (default: {DEFAULT_ENERGY}; spokes is the 2007 paper's)")
     p.add_argument("--weights", choices=WEIGHT_TYPES, default=DEFAULT_WEIGHTS,
