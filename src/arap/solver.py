@@ -151,7 +151,7 @@ class ArapSolver:
         self._L_fn = L_f[:, self._nonfree].tocsr()
         L_ff = L_f[:, self._free]
         self._gather = build_rhs_gather(self._cells, self._free, n)
-        self._active = np.unique(self._gather.cell)
+        self._active = np.flatnonzero(np.bincount(self._gather.cell, minlength=n))
         self._prepare_constant_energy(n)
         self.factor = None
         if len(self.free):

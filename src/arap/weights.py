@@ -7,6 +7,8 @@ from typing import Literal
 import numpy as np
 import scipy.sparse as sp
 
+from arap._csr import csr_from_triplets
+
 WeightType = Literal["cotangent", "uniform"]
 WEIGHT_TYPES: tuple[str, ...] = ("cotangent", "uniform")
 
@@ -70,8 +72,7 @@ def edge_weight_matrix(V: np.ndarray, F: np.ndarray, weights: str = "cotangent")
     i = np.concatenate([F[:, 1], F[:, 2], F[:, 0]])
     j = np.concatenate([F[:, 2], F[:, 0], F[:, 1]])
     w = np.concatenate([cw[:, 0], cw[:, 1], cw[:, 2]])
-    W = sp.coo_matrix((np.concatenate([w, w]), (np.concatenate([i, j]), np.concatenate([j, i]))), shape=(n, n))
-    return W.tocsr()
+    return csr_from_triplets(np.concatenate([i, j]), np.concatenate([j, i]), np.concatenate([w, w]), n)
 
 
 def cotangent_laplacian(V: np.ndarray, F: np.ndarray, weights: str = "cotangent") -> sp.csr_matrix:
