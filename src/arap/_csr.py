@@ -28,6 +28,40 @@ def _triplets_to_csr(rows, cols, vals, n):  # pragma: no cover - compiled
         idx[p] = cols[k]
         val[p] = vals[k]
         fill[r] = p + 1
+    return _sort_rows_and_merge(count, idx, val, n)
+
+
+@nb.njit(cache=True, nogil=True)
+def _face_edges_to_csr(F, cw, n):  # pragma: no cover - compiled
+    # Edge opposite corner k of face f joins F[f, k+1] and F[f, k+2]; both directions get cw[f, k].
+    count = np.zeros(n + 1, np.int64)
+    for f in range(F.shape[0]):
+        for k in range(3):
+            count[F[f, k] + 1] += 2
+    for i in range(n):
+        count[i + 1] += count[i]
+    fill = count[:-1].copy()
+    total = count[n]
+    idx = np.empty(total, np.int32)
+    val = np.empty(total, np.float64)
+    for f in range(F.shape[0]):
+        for k in range(3):
+            i = F[f, (k + 1) % 3]
+            j = F[f, (k + 2) % 3]
+            w = cw[f, k] if cw.shape[0] else 1.0
+            p = fill[i]
+            idx[p] = j
+            val[p] = w
+            fill[i] = p + 1
+            p = fill[j]
+            idx[p] = i
+            val[p] = w
+            fill[j] = p + 1
+    return _sort_rows_and_merge(count, idx, val, n)
+
+
+@nb.njit(cache=True, nogil=True)
+def _sort_rows_and_merge(count, idx, val, n):  # pragma: no cover - compiled
     # Sort each row by column (stable insertion sort: rows are short) and sum duplicates in place.
     ptr = np.zeros(n + 1, np.int64)
     out = 0
@@ -56,6 +90,34 @@ def _triplets_to_csr(rows, cols, vals, n):  # pragma: no cover - compiled
     return ptr, idx[:out].copy(), val[:out].copy()
 
 
+def _to_scipy(ptr: np.ndarray, idx: np.ndarray, val: np.ndarray, n: int) -> sp.csr_matrix:
+    if n < np.iinfo(np.int32).max and len(val) < np.iinfo(np.int32).max:
+        ptr = ptr.astype(np.int32)
+    M = sp.csr_matrix((val, idx, ptr), shape=(n, n))
+    M.has_sorted_indices = True
+    return M
+
+
+def csr_from_face_edges(F: np.ndarray, n: int, corner_values: np.ndarray | None = None) -> sp.csr_matrix:
+    """Symmetric matrix over the edges of triangles: ``M[i, j] = Σ`` of ``corner_values[f, k]`` over the faces ``f``
+    whose corner ``k`` is opposite the edge ``(i, j)``; 1 per face if ``corner_values`` is None.
+
+    Parameters
+    ----------
+    F : (m, 3) int array
+    n : int
+        Number of vertices.
+    corner_values : (m, 3) float array or None
+
+    Returns
+    -------
+    (n, n) scipy.sparse.csr_matrix
+        float64 values, sorted int32 column indices, zero diagonal not stored.
+    """
+    cw = np.zeros((0, 3)) if corner_values is None else np.ascontiguousarray(corner_values, dtype=np.float64)
+    return _to_scipy(*_face_edges_to_csr(np.ascontiguousarray(F), cw, int(n)), int(n))
+
+
 def csr_from_triplets(rows: np.ndarray, cols: np.ndarray, vals: np.ndarray, n: int) -> sp.csr_matrix:
     """``sp.coo_matrix((vals, (rows, cols)), shape=(n, n)).tocsr()`` with duplicates summed and indices sorted.
 
@@ -76,8 +138,4 @@ def csr_from_triplets(rows: np.ndarray, cols: np.ndarray, vals: np.ndarray, n: i
     ptr, idx, val = _triplets_to_csr(
         np.asarray(rows), np.asarray(cols), np.ascontiguousarray(vals, dtype=np.float64), int(n)
     )
-    if n < np.iinfo(np.int32).max and len(val) < np.iinfo(np.int32).max:
-        ptr = ptr.astype(np.int32)
-    M = sp.csr_matrix((val, idx, ptr), shape=(n, n))
-    M.has_sorted_indices = True
-    return M
+    return _to_scipy(ptr, idx, val, int(n))

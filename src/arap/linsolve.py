@@ -4,7 +4,7 @@ Backends, fastest first:
 
 * ``sksparse``: CHOLMOD through ``scikit-sparse`` (optional; needs the system's SuiteSparse, which ``./dev setup``
   installs on Debian). The matrix is ordered by nested dissection (METIS), factorised supernodally with the system's
-  optimised BLAS (OpenBLAS), then converted in place to a simplicial LDLᵀ factor, whose triangular solves with three
+  optimised BLAS (OpenBLAS), then converted in place to a simplicial factor, whose triangular solves with three
   right-hand sides are the fastest of CHOLMOD's.
 * ``cholespy``: CHOLMOD through the self-contained ``cholespy`` wheel (nested dissection, simplicial factorisation
   without BLAS: the same solve speed, several times slower to factorise large meshes).
@@ -78,8 +78,10 @@ class _SksparseFactor:
             raise NotPositiveDefiniteError(str(exc)) from exc
         t2 = time.perf_counter()
         # Supernodal triangular solves call BLAS once per supernode, which for three right-hand sides costs more
-        # than it saves; the simplicial LDLᵀ form (same ordering, same fill) solves like cholespy does.
+        # than it saves; the simplicial form (same ordering, same fill) solves like cholespy does. CHOLMOD converts
+        # a supernodal factor to simplicial only as LDLᵀ; the second, in-place step makes it LLᵀ again.
         factor._ensure_L_or_LD_inplace(False)
+        factor._ensure_L_or_LD_inplace(True)
         self._factor = factor
         self.timings.update(analyse=t1 - t0, factor=t2 - t1, convert=time.perf_counter() - t2)
 
