@@ -104,7 +104,7 @@ def build_cells(V: np.ndarray, F: np.ndarray, energy: str = "spokes", weights: s
     cell, a, b = cell[first], a[first], b[first]
     ptr = np.zeros(n + 1, dtype=np.int64)
     np.cumsum(np.bincount(cell, minlength=n), out=ptr[1:])
-    return _finish(V, ptr, cell, a, b, w)
+    return _finish(V, ptr, a, b, w)
 
 
 def _spoke_cells(V: np.ndarray, F: np.ndarray, weights: str) -> Cells:
@@ -114,14 +114,33 @@ def _spoke_cells(V: np.ndarray, F: np.ndarray, weights: str) -> Cells:
     n = len(V)
     ptr = W.indptr.astype(np.int64)
     cell = np.repeat(np.arange(n, dtype=np.int64), np.diff(ptr))
-    return _finish(V, ptr, cell, cell, W.indices.astype(np.int64), W.data.astype(np.float64))
+    return _finish(V, ptr, cell, W.indices, W.data)
 
 
-def _finish(V: np.ndarray, ptr: np.ndarray, cell: np.ndarray, a: np.ndarray, b: np.ndarray, w: np.ndarray) -> Cells:
-    e = V[a] - V[b]
-    we = np.ascontiguousarray(e * w[:, None])
-    rest_sq = np.bincount(cell, weights=w * np.einsum("ij,ij->i", e, e), minlength=len(V))
-    return Cells(ptr=ptr, a=a.astype(np.int32), b=b.astype(np.int32), w=w, we=we, rest_sq=rest_sq)
+def _finish(V: np.ndarray, ptr: np.ndarray, a: np.ndarray, b: np.ndarray, w: np.ndarray) -> Cells:
+    a = a.astype(np.int32)
+    b = b.astype(np.int32)
+    w = np.ascontiguousarray(w, dtype=np.float64)
+    we, rest_sq = _rest_terms(np.ascontiguousarray(V, dtype=np.float64), ptr, a, b, w)
+    return Cells(ptr=ptr, a=a, b=b, w=w, we=we, rest_sq=rest_sq)
+
+
+@nb.njit(cache=True, nogil=True)
+def _rest_terms(V, ptr, a, b, w):  # pragma: no cover - compiled
+    we = np.empty((a.shape[0], 3))
+    rest_sq = np.zeros(ptr.shape[0] - 1)
+    for c in range(ptr.shape[0] - 1):
+        acc = 0.0
+        for k in range(ptr[c], ptr[c + 1]):
+            e0 = V[a[k], 0] - V[b[k], 0]
+            e1 = V[a[k], 1] - V[b[k], 1]
+            e2 = V[a[k], 2] - V[b[k], 2]
+            we[k, 0] = w[k] * e0
+            we[k, 1] = w[k] * e1
+            we[k, 2] = w[k] * e2
+            acc += w[k] * (e0 * e0 + e1 * e1 + e2 * e2)
+        rest_sq[c] = acc
+    return we, rest_sq
 
 
 def system_matrix(cells: Cells, n: int) -> sp.csr_matrix:
