@@ -121,26 +121,22 @@ def _finish(V: np.ndarray, ptr: np.ndarray, a: np.ndarray, b: np.ndarray, w: np.
     a = a.astype(np.int32)
     b = b.astype(np.int32)
     w = np.ascontiguousarray(w, dtype=np.float64)
-    we, rest_sq = _rest_terms(np.ascontiguousarray(V, dtype=np.float64), ptr, a, b, w)
+    e, we = _rest_edges(np.ascontiguousarray(V, dtype=np.float64), a, b, w)
+    rest_sq = np.bincount(np.repeat(np.arange(len(ptr) - 1), np.diff(ptr)), weights=w * np.einsum("ij,ij->i", e, e),
+                          minlength=len(ptr) - 1)
     return Cells(ptr=ptr, a=a, b=b, w=w, we=we, rest_sq=rest_sq)
 
 
 @nb.njit(cache=True, nogil=True)
-def _rest_terms(V, ptr, a, b, w):  # pragma: no cover - compiled
+def _rest_edges(V, a, b, w):  # pragma: no cover - compiled
+    e = np.empty((a.shape[0], 3))
     we = np.empty((a.shape[0], 3))
-    rest_sq = np.zeros(ptr.shape[0] - 1)
-    for c in range(ptr.shape[0] - 1):
-        acc = 0.0
-        for k in range(ptr[c], ptr[c + 1]):
-            e0 = V[a[k], 0] - V[b[k], 0]
-            e1 = V[a[k], 1] - V[b[k], 1]
-            e2 = V[a[k], 2] - V[b[k], 2]
-            we[k, 0] = w[k] * e0
-            we[k, 1] = w[k] * e1
-            we[k, 2] = w[k] * e2
-            acc += w[k] * (e0 * e0 + e1 * e1 + e2 * e2)
-        rest_sq[c] = acc
-    return we, rest_sq
+    for k in range(a.shape[0]):
+        for d in range(3):
+            x = V[a[k], d] - V[b[k], d]
+            e[k, d] = x
+            we[k, d] = x * w[k]
+    return e, we
 
 
 def system_matrix(cells: Cells, n: int) -> sp.csr_matrix:
