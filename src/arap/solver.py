@@ -71,7 +71,8 @@ class ArapSolver:
         Region of interest. Only ROI vertices move; every other vertex is held at its rest position and the linear
         system has the size of the free ROI vertices. None means the whole mesh.
     backend : str or None
-        Sparse Cholesky backend (see :mod:`arap.linsolve`); None picks the fastest installed.
+        Sparse Cholesky backend (see :mod:`arap.linsolve`); None chooses by system size
+        (:func:`arap.linsolve.default_backend`).
 
     Notes
     -----

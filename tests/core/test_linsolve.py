@@ -11,9 +11,11 @@ import scipy.sparse.linalg as spla
 
 from arap.linsolve import (
     BACKENDS,
+    LARGE_SYSTEM,
     ORDERINGS,
     NotPositiveDefiniteError,
     available_backends,
+    default_backend,
     factorize,
 )
 from arap.shapes import sphere, sphere_frequency_for
@@ -117,12 +119,20 @@ def test_unknown_names_are_rejected(reduced: sp.csr_matrix) -> None:
         factorize(reduced, "scipy", ordering="rcm")
 
 
-def test_solver_uses_the_fastest_backend_and_agrees_with_the_fallback() -> None:
+def test_default_backend_follows_the_system_size() -> None:
+    found = available_backends()
+    small = default_backend(1_000)
+    assert small == ("cholespy" if "cholespy" in found else found[0])
+    large = default_backend(LARGE_SYSTEM)
+    assert large == ("sksparse" if HAVE_SKSPARSE else small)
+
+
+def test_solver_uses_the_default_backend_and_agrees_with_the_fallback() -> None:
     V, F = sphere(3)
     constrained = _caps(V, 0.1)
     targets = V[constrained] + np.where(V[constrained, 1:2] > 0, 0.2, 0.0)
     fast = ArapSolver(V, F, constrained)
-    assert fast.backend == available_backends()[0]
+    assert fast.backend == default_backend(fast.system_size)
     a = fast.solve(targets, max_iterations=3).vertices
     b = ArapSolver(V, F, constrained, backend="scipy").solve(targets, max_iterations=3).vertices
     assert np.abs(a - b).max() < 1e-10
