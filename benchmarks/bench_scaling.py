@@ -5,6 +5,11 @@ through its centroid and lifted by 0.3 radius. Each size runs in a fresh subproc
 (resident set size, which also counts the C and C++ allocations of the sparse factorisation) is its own.
 
 Run: ``python benchmarks/bench_scaling.py [--max-vertices 1000000] [--iterations 5] [--repeats 3] [--json OUT]``
+
+``--sizes 400000 1000000 --backends sksparse cholespy`` measures only those sizes, each with each sparse Cholesky
+backend (old and new configuration side by side in one run), and prints where precompute goes: cells (weights and
+edge terms), right-hand-side gather, the rest of the set-up, fill-reducing ordering, symbolic analysis, numeric
+factorisation and conversion to the solving form.
 """
 
 from __future__ import annotations
@@ -50,8 +55,35 @@ def caps_scenario(V: np.ndarray, share: float = 0.05) -> tuple[np.ndarray, np.nd
     return np.concatenate([fixed, handles]), np.concatenate([V[fixed], targets])
 
 
-def child(target_vertices: int, iterations: int, repeats: int) -> dict[str, Any]:
+class _Timed:
+    """Wraps a function of ``arap.solver`` to add its run time to ``sink[key]``."""
+
+    def __init__(self, fn: Any, key: str, sink: dict[str, float]) -> None:
+        self.fn, self.key, self.sink = fn, key, sink
+
+    def __call__(self, *args: Any, **kwargs: Any) -> Any:
+        t = time.perf_counter()
+        try:
+            return self.fn(*args, **kwargs)
+        finally:
+            self.sink[self.key] = self.sink.get(self.key, 0.0) + time.perf_counter() - t
+
+
+def symbolic_seconds(solver: Any) -> float:
+    """Symbolic analysis alone: CHOLMOD analysing the reduced matrix already in its chosen fill-reducing order."""
+    from sksparse.cholmod import analyze
+
+    P = solver.factor._factor.P()
+    A = solver.reduced_matrix()
+    C = A[P][:, P].tocsc()
+    t = time.perf_counter()
+    analyze(C, mode="supernodal", ordering_method="natural")
+    return time.perf_counter() - t
+
+
+def child(target_vertices: int, iterations: int, repeats: int, backend: str | None = None) -> dict[str, Any]:
     """Measure one size in this process (called in a subprocess)."""
+    import arap.solver as solver_module
     from arap.shapes import sphere, sphere_frequency_for
     from arap.solver import ArapSolver
 
@@ -62,9 +94,24 @@ def child(target_vertices: int, iterations: int, repeats: int) -> dict[str, Any]
     bs, bcs = caps_scenario(Vs)
     ArapSolver(Vs, Fs, bs).solve(bcs, max_iterations=1)
     base = current_rss_mb()
+    parts: dict[str, float] = {}
+    for name, key in (("build_cells", "cells"), ("build_rhs_gather", "gather"), ("factorize", "factorize")):
+        setattr(solver_module, name, _Timed(getattr(solver_module, name), key, parts))
     t0 = time.perf_counter()
-    solver = ArapSolver(V, F, b)
+    solver = ArapSolver(V, F, b, backend=backend)
     precompute = time.perf_counter() - t0
+    rss_built = peak_rss_mb()
+    factor_parts = dict(getattr(solver.factor, "timings", {}))
+    split_pre = {"cells": parts.get("cells", 0.0), "gather": parts.get("gather", 0.0)}
+    split_pre["other"] = precompute - split_pre["cells"] - split_pre["gather"] - parts.get("factorize", 0.0)
+    if "analyse" in factor_parts:
+        symbolic = symbolic_seconds(solver)
+        split_pre["ordering"] = max(factor_parts["analyse"] - symbolic, 0.0)
+        split_pre["symbolic"] = symbolic
+        split_pre["factor"] = factor_parts["factor"] + parts.get("factorize", 0.0) - sum(factor_parts.values())
+        split_pre["convert"] = factor_parts["convert"]
+    else:
+        split_pre["factor"] = parts.get("factorize", 0.0)
     per_it: list[float] = []
     split: dict[str, list[float]] = {"local": [], "rhs": [], "solve": []}
     for _ in range(repeats):
@@ -73,12 +120,13 @@ def child(target_vertices: int, iterations: int, repeats: int) -> dict[str, Any]
         per_it.append((time.perf_counter() - t) / result.iterations)
         for key in split:
             split[key].append(result.timings[key] / result.iterations)
-    peak = peak_rss_mb()
+    peak = max(peak_rss_mb(), rss_built)
     return {
         "vertices": len(V),
         "faces": len(F),
         "constrained": len(b),
         "precompute_s": precompute,
+        "precompute_split_s": split_pre,
         "ms_per_iteration": 1e3 * statistics.median(per_it),
         "split_ms": {k: 1e3 * statistics.median(v) for k, v in split.items()},
         "peak_rss_mb": peak,
@@ -87,47 +135,68 @@ def child(target_vertices: int, iterations: int, repeats: int) -> dict[str, Any]
     }
 
 
+SPLIT_KEYS = ("cells", "gather", "other", "ordering", "symbolic", "factor", "convert")
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--max-vertices", type=int, default=1_000_000, help="largest sphere (default: 1,000,000)")
+    parser.add_argument("--sizes", type=int, nargs="+", help="approximate vertex counts to run instead of the "
+                        "default series (at most 2,000,000 each)")
+    parser.add_argument("--backends", nargs="+", help="sparse Cholesky backends to compare (default: the fastest "
+                        "installed); each size runs once per backend")
     parser.add_argument("--iterations", type=int, default=5, help="iterations per run (default: 5)")
     parser.add_argument("--repeats", type=int, default=3, help="runs per size; medians reported (default: 3)")
     parser.add_argument("--timeout", type=float, default=1200.0, help="seconds allowed per size (default: 1200)")
     parser.add_argument("--json", type=Path, help="also write the figures to this JSON file")
     parser.add_argument("--child", type=int, help=argparse.SUPPRESS)
+    parser.add_argument("--backend", help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
     if args.child is not None:
-        print(json.dumps(child(args.child, args.iterations, args.repeats)))
+        print(json.dumps(child(args.child, args.iterations, args.repeats, args.backend)))
         return 0
+    sizes = args.sizes or [s for s in SIZES if s <= args.max_vertices]
+    if any(not 0 < s <= 2_000_000 for s in sizes):
+        parser.error("sizes must be between 1 and 2,000,000 vertices")
+    backends: list[str | None] = list(args.backends or [None])
 
-    header = (f"{'vertices':>10}  {'precompute s':>12}  {'ms/iter':>9}  {'local':>8}  {'rhs':>8}  {'solve':>8}  "
-              f"{'peak RSS MiB':>12}  {'solver MiB':>10}")
+    header = (f"{'vertices':>10}  {'backend':>8}  {'precompute s':>12}  {'ms/iter':>8}  {'local':>6}  {'rhs':>6}  "
+              f"{'solve':>6}  {'peak RSS MiB':>12}  {'solver MiB':>10}")
     print(f"geodesic spheres; {args.iterations} iterations, median of {args.repeats} runs; "
           "times per iteration in ms\n")
     print(header)
     print("-" * len(header))
     rows = []
-    for size in (s for s in SIZES if s <= args.max_vertices):
-        cmd = [sys.executable, __file__, "--child", str(size), "--iterations", str(args.iterations),
-               "--repeats", str(args.repeats)]
-        try:
-            proc = subprocess.run(cmd, capture_output=True, text=True, timeout=args.timeout, check=False)
-        except subprocess.TimeoutExpired:
-            print(f"{size:>10,}  timed out after {args.timeout:.0f} s")
-            break
-        if proc.returncode != 0:
-            last = (proc.stderr.strip().splitlines() or ["(no output)"])[-1]
-            print(f"{size:>10,}  failed: {last}")
-            break
-        r = json.loads(proc.stdout.strip().splitlines()[-1])
-        rows.append(r)
-        s = r["split_ms"]
-        print(f"{r['vertices']:>10,}  {r['precompute_s']:>12.2f}  {r['ms_per_iteration']:>9.1f}  "
-              f"{s['local']:>8.1f}  {s['rhs']:>8.1f}  {s['solve']:>8.1f}  {r['peak_rss_mb']:>12.0f}  "
-              f"{r['solver_rss_mb']:>10.0f}", flush=True)
+    for size in sizes:
+        for backend in backends:
+            cmd = [sys.executable, __file__, "--child", str(size), "--iterations", str(args.iterations),
+                   "--repeats", str(args.repeats)] + ([] if backend is None else ["--backend", backend])
+            try:
+                proc = subprocess.run(cmd, capture_output=True, text=True, timeout=args.timeout, check=False)
+            except subprocess.TimeoutExpired:
+                print(f"{size:>10,}  {backend or '':>8}  timed out after {args.timeout:.0f} s")
+                continue
+            if proc.returncode != 0:
+                last = (proc.stderr.strip().splitlines() or ["(no output)"])[-1]
+                print(f"{size:>10,}  {backend or '':>8}  failed: {last}")
+                continue
+            r = json.loads(proc.stdout.strip().splitlines()[-1])
+            rows.append(r)
+            s = r["split_ms"]
+            print(f"{r['vertices']:>10,}  {r['backend']:>8}  {r['precompute_s']:>12.2f}  "
+                  f"{r['ms_per_iteration']:>8.1f}  {s['local']:>6.1f}  {s['rhs']:>6.1f}  {s['solve']:>6.1f}  "
+                  f"{r['peak_rss_mb']:>12.0f}  {r['solver_rss_mb']:>10.0f}", flush=True)
     if rows:
-        print(f"\nlinear solver: {rows[-1]['backend']}; 'solver MiB' is the peak RSS growth while building and "
-              "running the solver")
+        print("\nprecompute split, seconds (ordering and symbolic only where the backend reports them; 'other': "
+              "validation, adjacency, renumbering, matrices, constant-energy set-up)\n")
+        head = f"{'vertices':>10}  {'backend':>8}  " + "  ".join(f"{k:>8}" for k in SPLIT_KEYS)
+        print(head)
+        print("-" * len(head))
+        for r in rows:
+            sp_ = r["precompute_split_s"]
+            cells = "  ".join(f"{sp_[k]:>8.2f}" if k in sp_ else f"{'-':>8}" for k in SPLIT_KEYS)
+            print(f"{r['vertices']:>10,}  {r['backend']:>8}  {cells}")
+        print("\n'solver MiB' is the peak RSS growth while building and running the solver")
     if args.json:
         write_atomic(args.json, json.dumps(rows, indent=2) + "\n")
         print(f"wrote {args.json}")

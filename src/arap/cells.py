@@ -17,9 +17,11 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Literal
 
+import numba as nb
 import numpy as np
 import scipy.sparse as sp
 
+from arap._csr import csr_from_triplets
 from arap.weights import DEFAULT_WEIGHTS, corner_weights, edge_weight_matrix
 
 EnergyType = Literal["spokes", "spokes_and_rims"]
@@ -105,7 +107,7 @@ def build_cells(V: np.ndarray, F: np.ndarray, energy: str = DEFAULT_ENERGY, weig
     cell, a, b = cell[first], a[first], b[first]
     ptr = np.zeros(n + 1, dtype=np.int64)
     np.cumsum(np.bincount(cell, minlength=n), out=ptr[1:])
-    return _finish(V, ptr, cell, a, b, w)
+    return _finish(V, ptr, a, b, w)
 
 
 def _spoke_cells(V: np.ndarray, F: np.ndarray, weights: str) -> Cells:
@@ -115,14 +117,29 @@ def _spoke_cells(V: np.ndarray, F: np.ndarray, weights: str) -> Cells:
     n = len(V)
     ptr = W.indptr.astype(np.int64)
     cell = np.repeat(np.arange(n, dtype=np.int64), np.diff(ptr))
-    return _finish(V, ptr, cell, cell, W.indices.astype(np.int64), W.data.astype(np.float64))
+    return _finish(V, ptr, cell, W.indices, W.data)
 
 
-def _finish(V: np.ndarray, ptr: np.ndarray, cell: np.ndarray, a: np.ndarray, b: np.ndarray, w: np.ndarray) -> Cells:
-    e = V[a] - V[b]
-    we = np.ascontiguousarray(e * w[:, None])
-    rest_sq = np.bincount(cell, weights=w * np.einsum("ij,ij->i", e, e), minlength=len(V))
-    return Cells(ptr=ptr, a=a.astype(np.int32), b=b.astype(np.int32), w=w, we=we, rest_sq=rest_sq)
+def _finish(V: np.ndarray, ptr: np.ndarray, a: np.ndarray, b: np.ndarray, w: np.ndarray) -> Cells:
+    a = a.astype(np.int32)
+    b = b.astype(np.int32)
+    w = np.ascontiguousarray(w, dtype=np.float64)
+    e, we = _rest_edges(np.ascontiguousarray(V, dtype=np.float64), a, b, w)
+    rest_sq = np.bincount(np.repeat(np.arange(len(ptr) - 1), np.diff(ptr)), weights=w * np.einsum("ij,ij->i", e, e),
+                          minlength=len(ptr) - 1)
+    return Cells(ptr=ptr, a=a, b=b, w=w, we=we, rest_sq=rest_sq)
+
+
+@nb.njit(cache=True, nogil=True)
+def _rest_edges(V, a, b, w):  # pragma: no cover - compiled
+    e = np.empty((a.shape[0], 3))
+    we = np.empty((a.shape[0], 3))
+    for k in range(a.shape[0]):
+        for d in range(3):
+            x = V[a[k], d] - V[b[k], d]
+            e[k, d] = x
+            we[k, d] = x * w[k]
+    return e, we
 
 
 def system_matrix(cells: Cells, n: int) -> sp.csr_matrix:
@@ -131,12 +148,12 @@ def system_matrix(cells: Cells, n: int) -> sp.csr_matrix:
     For ``spokes`` this is twice the cotangent Laplacian; for ``spokes_and_rims`` three times.
     """
     a, b, w = cells.a, cells.b, cells.w
-    rows = np.concatenate([a, b, a, b])
-    cols = np.concatenate([a, b, b, a])
-    vals = np.concatenate([w, w, -w, -w])
-    L = sp.coo_matrix((vals, (rows, cols)), shape=(n, n)).tocsr()
-    L.sum_duplicates()
-    return L
+    diagonal = np.bincount(a, weights=w, minlength=n) + np.bincount(b, weights=w, minlength=n)
+    has = np.flatnonzero(np.bincount(a, minlength=n) + np.bincount(b, minlength=n))
+    rows = np.concatenate([a, b, has])
+    cols = np.concatenate([b, a, has])
+    vals = np.concatenate([-w, -w, diagonal[has]])
+    return csr_from_triplets(rows, cols, vals, n)
 
 
 @dataclass(frozen=True)
@@ -150,6 +167,55 @@ class RhsGather:
     ptr: np.ndarray
     cell: np.ndarray
     g: np.ndarray
+
+
+@nb.njit(cache=True, nogil=True)
+def _gather_kernel(ptr, a, b, we, row_of, n_rows):  # pragma: no cover - compiled
+    # Term k of cell c adds +R_c we_k to the row of a_k and −R_c we_k to the row of b_k.
+    count = np.zeros(n_rows + 1, np.int64)
+    for k in range(a.shape[0]):
+        ra = row_of[a[k]]
+        rb = row_of[b[k]]
+        if ra >= 0:
+            count[ra + 1] += 1
+        if rb >= 0:
+            count[rb + 1] += 1
+    for r in range(n_rows):
+        count[r + 1] += count[r]
+    fill = count[:-1].copy()
+    cell = np.empty(count[n_rows], np.int32)
+    g = np.empty((count[n_rows], 3))
+    for c in range(ptr.shape[0] - 1):
+        for k in range(ptr[c], ptr[c + 1]):
+            for end in range(2):
+                r = row_of[a[k]] if end == 0 else row_of[b[k]]
+                if r < 0:
+                    continue
+                sign = 1.0 if end == 0 else -1.0
+                p = fill[r]
+                cell[p] = c
+                g[p, 0] = sign * we[k, 0]
+                g[p, 1] = sign * we[k, 1]
+                g[p, 2] = sign * we[k, 2]
+                fill[r] = p + 1
+    # Cells arrive in increasing order within each row: merge the entries of a row that share a cell.
+    out_ptr = np.zeros(n_rows + 1, np.int64)
+    out = 0
+    for r in range(n_rows):
+        start = out
+        for p in range(count[r], count[r + 1]):
+            if out > start and cell[out - 1] == cell[p]:
+                g[out - 1, 0] += g[p, 0]
+                g[out - 1, 1] += g[p, 1]
+                g[out - 1, 2] += g[p, 2]
+            else:
+                cell[out] = cell[p]
+                g[out, 0] = g[p, 0]
+                g[out, 1] = g[p, 1]
+                g[out, 2] = g[p, 2]
+                out += 1
+        out_ptr[r + 1] = out
+    return out_ptr, cell[:out].copy(), g[:out].copy()
 
 
 def build_rhs_gather(cells: Cells, rows: np.ndarray, n: int) -> RhsGather:
@@ -166,21 +232,5 @@ def build_rhs_gather(cells: Cells, rows: np.ndarray, n: int) -> RhsGather:
     rows = np.asarray(rows, dtype=np.int64)
     row_of = np.full(n, -1, dtype=np.int64)
     row_of[rows] = np.arange(len(rows))
-    tcell = cells.cell_of_term()
-    # Term (cell c, a, b, we) adds +R_c we to b_a and −R_c we to b_b.
-    v = np.concatenate([cells.a, cells.b])
-    c = np.concatenate([tcell, tcell])
-    g = np.concatenate([cells.we, -cells.we])
-    r = row_of[v]
-    keep = r >= 0
-    r, c, g = r[keep], c[keep], g[keep]
-    order = np.lexsort((c, r))
-    r, c, g = r[order], c[order], g[order]
-    first = np.ones(len(r), dtype=bool)
-    first[1:] = (r[1:] != r[:-1]) | (c[1:] != c[:-1])
-    group = np.cumsum(first) - 1
-    gs = np.stack([np.bincount(group, weights=g[:, k]) for k in range(3)], axis=1) if len(group) else g
-    r, c = r[first], c[first]
-    ptr = np.zeros(len(rows) + 1, dtype=np.int64)
-    np.cumsum(np.bincount(r, minlength=len(rows)), out=ptr[1:])
-    return RhsGather(rows=rows, ptr=ptr, cell=c.astype(np.int32), g=np.ascontiguousarray(gs))
+    ptr, cell, g = _gather_kernel(cells.ptr, cells.a, cells.b, cells.we, row_of, len(rows))
+    return RhsGather(rows=rows, ptr=ptr, cell=cell, g=g)

@@ -57,7 +57,8 @@ class ArapSolver:
         Region of interest. Only ROI vertices move; every other vertex is held at its rest position and the linear
         system has the size of the free ROI vertices. None means the whole mesh.
     backend : str or None
-        Sparse Cholesky backend (see :mod:`arap.linsolve`); None picks the fastest installed.
+        Sparse Cholesky backend (see :mod:`arap.linsolve`); None chooses by system size
+        (:func:`arap.linsolve.default_backend`).
 
     Notes
     -----
@@ -144,7 +145,7 @@ class ArapSolver:
         self._L_fn = L_f[:, self._nonfree].tocsr()
         L_ff = L_f[:, self._free]
         self._gather = build_rhs_gather(self._cells, self._free, n)
-        self._active = np.unique(self._gather.cell)
+        self._active = np.flatnonzero(np.bincount(self._gather.cell, minlength=n))
         self._prepare_constant_energy(n)
         self.factor = None
         if len(self.free):

@@ -7,6 +7,8 @@ import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components as _cc
 from scipy.sparse.csgraph import reverse_cuthill_mckee
 
+from arap._csr import csr_from_face_edges
+
 
 def directed_half_edges(F: np.ndarray) -> np.ndarray:
     """Half-edges of every face, in face order.
@@ -66,12 +68,10 @@ def boundary_edges(F: np.ndarray) -> np.ndarray:
 
 def vertex_adjacency(F: np.ndarray, n: int) -> sp.csr_matrix:
     """Symmetric 0/1 vertex adjacency matrix (no self loops), shape (n, n)."""
-    he = directed_half_edges(F)
-    rows = np.concatenate([he[:, 0], he[:, 1]])
-    cols = np.concatenate([he[:, 1], he[:, 0]])
-    A = sp.coo_matrix((np.ones(len(rows), dtype=np.int32), (rows, cols)), shape=(n, n)).tocsr()
-    A.data[:] = 1
-    return A.astype(np.int8)
+    A = csr_from_face_edges(np.asarray(F, dtype=np.int64), n)
+    M = sp.csr_matrix((np.ones(A.nnz, dtype=np.int8), A.indices, A.indptr), shape=(n, n))
+    M.has_sorted_indices = True
+    return M
 
 
 def connected_components(F: np.ndarray, n: int) -> tuple[int, np.ndarray]:

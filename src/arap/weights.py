@@ -11,8 +11,11 @@ from __future__ import annotations
 
 from typing import Literal
 
+import numba as nb
 import numpy as np
 import scipy.sparse as sp
+
+from arap._csr import csr_from_face_edges
 
 WeightType = Literal["cotangent", "clamped", "uniform"]
 WEIGHT_TYPES: tuple[str, ...] = ("cotangent", "clamped", "uniform")
@@ -34,17 +37,29 @@ def face_cotangents(V: np.ndarray, F: np.ndarray) -> np.ndarray:
         ``C[f, k]`` is the cotangent of the angle of face ``f`` at its corner ``k``, i.e. the angle opposite the edge
         ``(F[f, k+1], F[f, k+2])``. Degenerate (zero-area) faces give ``inf``/``nan``; validate meshes first.
     """
-    V = np.asarray(V, dtype=np.float64)
-    F = np.asarray(F, dtype=np.int64)
-    P0, P1, P2 = V[F[:, 0]], V[F[:, 1]], V[F[:, 2]]
-    cots = np.empty((len(F), 3))
-    for k, (a, b, c) in enumerate(((P0, P1, P2), (P1, P2, P0), (P2, P0, P1))):
-        u = b - a
-        v = c - a
-        dot = np.einsum("ij,ij->i", u, v)
-        cross = np.linalg.norm(np.cross(u, v), axis=1)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            cots[:, k] = dot / cross
+    V = np.ascontiguousarray(V, dtype=np.float64)
+    F = np.ascontiguousarray(F, dtype=np.int64)
+    return _cotangent_kernel(V, F)
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy")
+def _cotangent_kernel(V, F):  # pragma: no cover - compiled
+    cots = np.empty((F.shape[0], 3))
+    for f in range(F.shape[0]):
+        for k in range(3):
+            a = F[f, k]
+            b = F[f, (k + 1) % 3]
+            c = F[f, (k + 2) % 3]
+            u0 = V[b, 0] - V[a, 0]
+            u1 = V[b, 1] - V[a, 1]
+            u2 = V[b, 2] - V[a, 2]
+            v0 = V[c, 0] - V[a, 0]
+            v1 = V[c, 1] - V[a, 1]
+            v2 = V[c, 2] - V[a, 2]
+            x0 = u1 * v2 - u2 * v1
+            x1 = u2 * v0 - u0 * v2
+            x2 = u0 * v1 - u1 * v0
+            cots[f, k] = (u0 * v0 + u1 * v1 + u2 * v2) / np.sqrt(x0 * x0 + x1 * x1 + x2 * x2)
     return cots
 
 
@@ -85,14 +100,8 @@ def edge_weight_matrix(V: np.ndarray, F: np.ndarray, weights: str = "cotangent")
         W.sum_duplicates()
         np.maximum(W.data, 0.0, out=W.data)
         return W
-    n = len(V)
     F = np.asarray(F, dtype=np.int64)
-    cw = corner_weights(V, F, weights)
-    i = np.concatenate([F[:, 1], F[:, 2], F[:, 0]])
-    j = np.concatenate([F[:, 2], F[:, 0], F[:, 1]])
-    w = np.concatenate([cw[:, 0], cw[:, 1], cw[:, 2]])
-    W = sp.coo_matrix((np.concatenate([w, w]), (np.concatenate([i, j]), np.concatenate([j, i]))), shape=(n, n))
-    return W.tocsr()
+    return csr_from_face_edges(F, len(V), corner_weights(V, F, weights))
 
 
 def cotangent_laplacian(V: np.ndarray, F: np.ndarray, weights: str = "cotangent") -> sp.csr_matrix:
