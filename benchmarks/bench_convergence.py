@@ -76,7 +76,7 @@ def scenario_row(mesh: str, name: str, igl_iterations: int) -> dict[str, Any]:
     s = make_scenario(name, V)
     igl_run = run_igl(V, F, s.constrained, s.targets, igl_iterations)
     ours = run_ours(V, F, s.constrained, s.targets)
-    e_igl = arap_energy(V, F, igl_run["U"])
+    e_igl = arap_energy(V, F, igl_run["U"], "spokes")
     times, energies = zip(*ours["trace"], strict=True)
     e_ours = energies[-1]
     reached = next((k for k, e in enumerate(energies) if e <= e_igl), None)
