@@ -69,10 +69,25 @@ class StudioClient:
 
     def expect(self, type_: str) -> Reply:
         reply = self.recv()
+        while reply.type == "settle" and type_ != "settle":  # settling progress, checked in test_settle.py
+            reply = self.recv()
         assert reply.type == type_, f"expected {type_}, got {reply.data}"
         if type_ == "state":
             self.state = reply.data
         return reply
+
+    def settled(self) -> tuple[dict[str, Any], np.ndarray | None]:
+        """Read up to the end of a settling run: its last ``settle`` message and the last frame it streamed."""
+        frame = None
+        while True:
+            reply = self.recv()
+            if reply.type == "vertices":
+                assert reply.data["seq"] == -1, reply.data
+                frame = reply.floats()
+            elif reply.type == "settle" and reply.data["status"] != "settling":
+                return reply.data, frame
+            else:
+                assert reply.type == "settle", f"expected settling, got {reply.data}"
 
     def error(self, code: str | None = None) -> dict[str, Any]:
         reply = self.expect("error").data

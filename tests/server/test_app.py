@@ -54,9 +54,12 @@ def test_constraints_and_drag(studio: StudioClient) -> None:
 def test_undo_redo_reset_apply(studio: StudioClient) -> None:
     fixed, top = studio.bottom_top()
     studio.set_constraints(fixed, [top])
-    dragged = studio.drag(1, [translation(0.4)]).floats()
+    studio.drag(1, [translation(0.4)])
     studio.send({"type": "end_drag"})
     assert studio.expect("state").data["can_undo"]
+    # Released, the shape settles; the settled shape is the undo step.
+    status, dragged = studio.settled()
+    assert status["status"] == "settled" and dragged is not None
 
     studio.send({"type": "undo"})
     reply = studio.expect("vertices")

@@ -77,6 +77,10 @@ def test_live_server_refuses_compression_and_serves_the_protocol(live_url: str) 
         top = np.flatnonzero(y >= np.quantile(y, 0.9)).tolist()
         ws.send(json.dumps({"type": "set_constraints", "roi": None, "fixed": fixed, "handle_groups": [top]}))
         assert json.loads(ws.recv())["type"] == "state"
+        # The new constraints settle (the shape is already at rest, so no frame is needed).
+        while (status := json.loads(ws.recv()))["status"] == "settling":
+            pass
+        assert status == {**status, "type": "settle", "status": "settled"}
         M = np.eye(4)
         M[1, 3] = 0.5
         ws.send(json.dumps({"type": "drag", "seq": 9, "transforms": [M.T.reshape(16).tolist()]}))

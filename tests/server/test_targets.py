@@ -11,7 +11,7 @@ import pytest
 from arap.server import protocol as P
 from arap.server.meshdata import load_builtin
 from arap.server.protocol import RequestError
-from arap.server.session import SETTLE_ITERATIONS, Session
+from arap.server.session import LOAD_ITERATIONS, Session
 from tests.server.helpers import StudioClient, translation
 
 pytestmark = pytest.mark.timeout(120)
@@ -36,7 +36,7 @@ def test_targets_move_the_handles_and_solve(studio: StudioClient) -> None:
     _set_with_targets(studio, fixed, [top], targets.tolist())
     reply = studio.expect("vertices")
     # A loaded deformation is iterated until it settles, not for one drag's worth of iterations.
-    assert reply.data["seq"] == -1 and 2 < reply.data["iterations"] <= SETTLE_ITERATIONS
+    assert reply.data["seq"] == -1 and 2 < reply.data["iterations"] <= LOAD_ITERATIONS
     energies = reply.data["energies"]
     assert energies[-1] > 0
     assert np.all(np.diff(energies) <= 1e-12)
@@ -49,6 +49,7 @@ def test_targets_move_the_handles_and_solve(studio: StudioClient) -> None:
     assert state["constraints"] == {"roi": None, "fixed": fixed, "handle_groups": [top]}
     np.testing.assert_allclose(state["transforms"], [translation(0.0)])
     assert state["can_undo"] and not state["can_redo"]
+    assert studio.settled()[0]["status"] == "settled"
 
     doc = _document(studio)
     assert doc["handles"] == top and doc["fixed"] == fixed
@@ -83,6 +84,9 @@ def test_undo_and_redo_of_a_set_with_targets(studio: StudioClient) -> None:
     _set_with_targets(studio, fixed, [top], targets.tolist())
     solved = studio.expect("vertices").floats()
     studio.expect("state")
+    status, frame = studio.settled()  # the loaded deformation settles; the settled shape is the undo step
+    assert status["status"] == "settled"
+    solved = solved if frame is None else frame
 
     studio.send({"type": "undo"})
     np.testing.assert_array_equal(studio.expect("vertices").floats(), studio.V)

@@ -186,6 +186,8 @@ function handleMessage(msg) {
       return onVertices(msg);
     case SERVER.STATE:
       return onState(msg);
+    case SERVER.SETTLE:
+      return panel.setSettle(msg);
     case SERVER.CONSTRAINTS: {
       const base = (app.meshName || 'mesh').replace(/\.[^.]+$/, '');
       download(JSON.stringify(msg.document, null, 2), `${base}-constraints.json`, 'application/json');

@@ -207,6 +207,16 @@ export class Panel {
     if ('latency_ms' in s) set('st-latency', fmtMs(s.latency_ms));
   }
 
+  /** Settling progress from a `settle` message: "settling…", "settled" or "stopped", with the energy. */
+  setSettle(msg) {
+    const energy = Number.isFinite(msg.energy) ? `, energy ${msg.energy.toPrecision(6)}` : '';
+    const its = msg.iterations ? ` after ${fmtInt(msg.iterations)} iterations` : '';
+    const text = { settling: 'settling…', settled: 'settled', stopped: 'stopped (editing)' }[msg.status] || msg.status;
+    const cell = $('st-settle');
+    cell.textContent = `${text}${its}${energy}`;
+    cell.dataset.status = msg.status;
+  }
+
   showStatus(text, kind = 'info', timeoutMs = 0) {
     const bar = $('statusbar');
     bar.className = kind;

@@ -26,6 +26,7 @@ export const SERVER = Object.freeze({
   "WELCOME": "welcome",
   "MESH": "mesh",
   "VERTICES": "vertices",
+  "SETTLE": "settle",
   "STATE": "state",
   "CONSTRAINTS": "constraints",
   "EXPORT": "export",
@@ -354,6 +355,37 @@ export const SERVER_MESSAGES = Object.freeze({
       },
       {
         "name": "ms_per_iteration",
+        "kind": "number",
+        "required": true
+      }
+    ]
+  },
+  "settle": {
+    "binary": false,
+    "doc": "progress of settling: after a drag ends (and after loading, undo, redo, reset, apply or a parameter change) the server iterates until converged, streaming vertices frames (seq -1, at most 30 per second); any new request stops it at once",
+    "fields": [
+      {
+        "name": "status",
+        "kind": "enum",
+        "required": true,
+        "choices": [
+          "settling",
+          "settled",
+          "stopped"
+        ]
+      },
+      {
+        "name": "iterations",
+        "kind": "int",
+        "required": true
+      },
+      {
+        "name": "energy",
+        "kind": "number",
+        "required": true
+      },
+      {
+        "name": "seconds",
         "kind": "number",
         "required": true
       }

@@ -225,6 +225,52 @@ class Connection:
                     logger.exception("unexpected error while handling %s", item.type)
                     await self._send_error(RequestError("internal", f"unexpected server error in {item.type}; "
                                                         "see the server log", item.type))
+            if not self._queue:
+                await self._settle()
+
+    async def _settle(self) -> None:
+        """Iterate the session's shape until converged, off the event loop; a queued request stops it at once.
+
+        Intermediate shapes are streamed as ``vertices`` frames (seq -1) with a ``settle`` status, at most 30 per
+        second; the settled (or interrupted) shape is sent last.
+        """
+        s = self.session
+        if not s.needs_settle:
+            return
+        loop = asyncio.get_running_loop()
+        streamed = 0
+
+        def on_frame(U: np.ndarray, iteration: int, energy: float) -> None:
+            nonlocal streamed
+            streamed += 1
+            frame = np.ascontiguousarray(U, dtype="<f4").tobytes()
+            asyncio.run_coroutine_threadsafe(self._send_settle_frame(frame, iteration, energy), loop)
+
+        try:
+            await self._send_settle_status("settling", 0, None, 0.0)
+            outcome = await self._off_loop(s.settle, lambda: bool(self._queue), on_frame)
+        except RequestError as exc:
+            await self._send_error(exc)
+            return
+        if outcome is None:
+            return
+        if streamed or outcome.moved > 0:  # the client has not seen this shape yet
+            await self._send_vertices(-1, None)
+        await self._send_settle_status("settled" if outcome.converged else "stopped", outcome.iterations,
+                                       outcome.energy, outcome.seconds)
+
+    async def _send_settle_frame(self, frame: bytes, iteration: int, energy: float) -> None:
+        header = {"type": "vertices", "seq": -1, "skipped": 0, "iterations": 0, "energies": [], "solve_ms": 0.0,
+                  "ms_per_iteration": 0.0}
+        async with self._send_lock:
+            await self.ws.send_bytes(encode_binary(header, frame))
+        await self._send_settle_status("settling", iteration, energy, None)
+
+    async def _send_settle_status(self, status: str, iterations: int, energy: float | None,
+                                  seconds: float | None) -> None:
+        await self._send_json({"type": "settle", "status": status, "iterations": iterations,
+                               "energy": energy if energy is None or np.isfinite(energy) else None,
+                               "seconds": None if seconds is None else round(seconds, 4)})
 
     # ------------------------------------------------------------------ requests
     async def _handle(self, msg: ClientMessage) -> None:

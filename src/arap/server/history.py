@@ -26,6 +26,8 @@ class Snapshot:
     constraints : ConstraintSet
     transforms : (g, 4, 4) array
         Handle group transforms.
+    settled : bool
+        ``U`` is the converged shape of the constraints (no settling needed after restoring it).
     """
 
     rest_id: int
@@ -33,6 +35,7 @@ class Snapshot:
     U: np.ndarray
     constraints: ConstraintSet
     transforms: np.ndarray
+    settled: bool = False
 
 
 class History:
@@ -84,6 +87,10 @@ class History:
         while len(self._items) > 2 and (len(self._items) > self.max_steps or self.nbytes() > self.max_bytes):
             del self._items[0]
             self._pos -= 1
+
+    def replace_current(self, snapshot: Snapshot) -> None:
+        """Replace the snapshot of the current position (a step refined in place, e.g. settled)."""
+        self._items[self._pos] = snapshot
 
     def undo(self) -> Snapshot | None:
         """Step back; the snapshot to restore, or None at the oldest state."""

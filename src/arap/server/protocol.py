@@ -181,6 +181,9 @@ CLIENT_MESSAGES: dict[str, MessageSpec] = {
 }
 """Messages a client may send, by type."""
 
+SETTLE_STATUSES: tuple[str, ...] = ("settling", "settled", "stopped")
+"""Values of the ``status`` field of ``settle`` messages."""
+
 SERVER_MESSAGES: dict[str, MessageSpec] = {
     s.type: s
     for s in (
@@ -204,6 +207,14 @@ SERVER_MESSAGES: dict[str, MessageSpec] = {
               Field("solve_ms", "number", "solve time"),
               Field("ms_per_iteration", "number", "solve time per iteration"),
               binary=True),
+        _spec("settle", "progress of settling: after a drag ends (and after loading, undo, redo, reset, apply or a "
+              "parameter change) the server iterates until converged, streaming vertices frames (seq -1, at most 30 "
+              "per second); any new request stops it at once",
+              Field("status", "enum", "settling, settled, or stopped (a request interrupted it)",
+                    choices=SETTLE_STATUSES),
+              Field("iterations", "int", "iterations run so far in this settling run"),
+              Field("energy", "number", "current energy, or null before the first iteration"),
+              Field("seconds", "number", "time since settling started")),
         _spec("state", "session state after any change",
               Field("can_undo", "bool", ""), Field("can_redo", "bool", ""),
               Field("params", "object", "solver parameters"),

@@ -8,7 +8,9 @@ thread, since solves and factorisations take a while). Every request either succ
 from __future__ import annotations
 
 import logging
+import time
 from collections import OrderedDict
+from collections.abc import Callable
 from dataclasses import asdict, dataclass
 from typing import Any
 
@@ -21,16 +23,16 @@ from arap.server.history import History, Snapshot
 from arap.server.meshdata import MeshData, export_mesh
 from arap.server.protocol import PARAMS, RequestError
 
-__all__ = ["DragOutcome", "Params", "Session"]
+__all__ = ["DragOutcome", "Params", "Session", "SettleOutcome"]
 
 logger = logging.getLogger(__name__)
 
 _TARGET_RANGE = 1e6
 """Handle targets farther from the origin than this times (1 + the mesh's largest coordinate) are rejected."""
-SETTLE_ITERATIONS = 200
-"""Iteration cap of the solve that follows loading constraints with explicit targets."""
-SETTLE_TOLERANCE = 1e-6
-"""Relative energy change at which that solve stops."""
+LOAD_ITERATIONS = 200
+"""Iteration cap of the solve that answers constraints loaded with explicit targets (settling then goes on)."""
+SETTLE_FRAME_SECONDS = 1.0 / 30.0
+"""Least time between two intermediate frames streamed while settling (at most 30 per second)."""
 
 _SOLVER_CACHE_VERTICES = 200_000
 """Meshes up to this size keep two factorised solvers (undo across a selection change is instant)."""
@@ -59,6 +61,18 @@ class DragOutcome:
         return self.solve_ms / max(self.iterations, 1)
 
 
+@dataclass
+class SettleOutcome:
+    """What one settling run did (for the ``settle`` message)."""
+
+    iterations: int
+    energy: float | None
+    converged: bool
+    seconds: float
+    moved: float
+    """Largest coordinate change of the shape (0: the shape was kept as it was)."""
+
+
 class Session:
     """One client's editing session.
 
@@ -85,6 +99,7 @@ class Session:
         self.constraints = ConstraintSet.empty(self.V)
         self.transforms = identity_transforms(0)
         self.solves = 0
+        self.settled = True
 
     # ------------------------------------------------------------------ helpers
     def _require_mesh(self) -> MeshData:
@@ -96,6 +111,11 @@ class Session:
     def n_vertices(self) -> int:
         """Vertices of the current mesh (0 without one)."""
         return 0 if self.mesh is None else self.mesh.n_vertices
+
+    @property
+    def scale(self) -> float:
+        """Largest absolute rest coordinate (1 without a mesh): the size float32 frames resolve against."""
+        return max(float(np.abs(self.V).max(initial=0.0)), 1e-300) if self.mesh is not None else 1.0
 
     @property
     def n_groups(self) -> int:
@@ -132,7 +152,7 @@ class Session:
         return solver
 
     def _snapshot(self) -> Snapshot:
-        return Snapshot(self.rest_id, self.V, self.U, self.constraints, self.transforms)
+        return Snapshot(self.rest_id, self.V, self.U, self.constraints, self.transforms, self.settled)
 
     def _restore(self, snap: Snapshot) -> None:
         try:
@@ -145,6 +165,7 @@ class Session:
         self.solver = solver
         self._warm = False
         self._dirty = False
+        self.settled = snap.settled
 
     def _commit(self) -> None:
         """Record the current state as a new history step."""
@@ -168,6 +189,7 @@ class Session:
         self.transforms = identity_transforms(0)
         self._warm = False
         self._dirty = False
+        self.settled = True
         self.history.clear(self._snapshot())
 
     def set_constraints(self, roi: list[int] | None, fixed: list[int], groups: list[list[int]],
@@ -223,6 +245,7 @@ class Session:
         self.solver = solver
         self.U = U
         self._warm = positions is not None
+        self.settled = False
         self._commit()
         return outcome
 
@@ -237,13 +260,13 @@ class Session:
                settle: bool = False) -> tuple[np.ndarray, DragOutcome]:
         """Solve for ``targets``; returns the positions and the outcome without changing the session.
 
-        ``settle`` runs up to :data:`SETTLE_ITERATIONS` iterations until the relative energy change is below
-        :data:`SETTLE_TOLERANCE`, instead of the per-update iteration count.
+        ``settle`` runs until converged, at most :data:`LOAD_ITERATIONS` iterations, instead of the per-update
+        iteration count (a drag update runs exactly that count).
         """
-        iterations = max(self.params.iterations, SETTLE_ITERATIONS) if settle else self.params.iterations
-        tolerance = SETTLE_TOLERANCE if settle else 0.0
+        iterations = max(self.params.iterations, LOAD_ITERATIONS) if settle else self.params.iterations
+        kwargs: dict[str, Any] = {} if settle else {"tolerance": 0.0}
         try:
-            result = solver.solve(targets, initial=initial, max_iterations=iterations, tolerance=tolerance)
+            result = solver.solve(targets, initial=initial, max_iterations=iterations, **kwargs)
         except ArapError as exc:
             raise RequestError("bad_message", str(exc)) from exc
         if not np.all(np.isfinite(result.vertices)):
@@ -275,7 +298,72 @@ class Session:
         self.transforms = T
         self._warm = True
         self._dirty = True
+        self.settled = False
         return outcome
+
+    @property
+    def needs_settle(self) -> bool:
+        """True when the shape may not be converged and no drag is under way (see :meth:`settle`)."""
+        return not self.settled and not self._dirty and self.solver is not None and self.mesh is not None
+
+    def settle(self, interrupted: Callable[[], bool],
+               on_frame: Callable[[np.ndarray, int, float], None] | None = None) -> SettleOutcome | None:
+        """Iterate the current constraints until converged, unless :attr:`settled` already.
+
+        Parameters
+        ----------
+        interrupted : callable
+            Polled after every iteration; True stops at once (a new request is waiting). The shape reached so far
+            is kept: it is what the client was shown, and settling resumes from it later.
+        on_frame : callable or None
+            ``on_frame(vertices, iteration, energy)``, at most every :data:`SETTLE_FRAME_SECONDS`.
+
+        Returns
+        -------
+        SettleOutcome or None
+            None when there was nothing to settle (or a drag has not ended). A converged shape also replaces the
+            current undo step, so undo and redo come back to settled shapes.
+        """
+        solver = self.solver
+        if self._dirty:
+            return None  # a drag is under way: it settles when it ends
+        if self.settled or solver is None or self.mesh is None:
+            self.settled = True
+            return None
+        targets = self.constraints.targets(self.transforms)
+        t0 = time.perf_counter()
+        last_frame = t0
+
+        def callback(iteration: int, energy: float) -> bool:
+            nonlocal last_frame
+            if interrupted():
+                return False
+            now = time.perf_counter()
+            if on_frame is not None and now - last_frame >= SETTLE_FRAME_SECONDS:
+                last_frame = now
+                on_frame(solver.current_vertices(), iteration, energy)
+            return True
+
+        try:
+            result = solver.solve(targets, initial=None if self._warm else self.U, callback=callback)
+        except ArapError as exc:
+            self.settled = True
+            raise RequestError("bad_message", str(exc)) from exc
+        if not np.all(np.isfinite(result.vertices)):
+            self._warm = False
+            self.settled = True
+            raise RequestError("internal", "settling produced non-finite positions; the shape is unchanged")
+        moved = float(np.abs(result.vertices - self.U).max(initial=0.0))
+        if moved > 1e-12 * self.scale:
+            self.U = result.vertices
+        else:
+            moved = 0.0  # the shape is kept as it was, free of rounding noise
+        self._warm = True
+        self.settled = result.converged
+        if result.converged:
+            self.history.replace_current(self._snapshot())
+        energy = float(result.energies[-1]) if result.energies else None
+        return SettleOutcome(result.iterations, energy, result.converged, time.perf_counter() - t0, moved)
 
     def end_drag(self) -> bool:
         """Make the deformation since the last step an undo step; True if there was one."""
@@ -302,6 +390,7 @@ class Session:
         if (new.energy, new.weights) != (self.params.energy, self.params.weights) and self.mesh is not None:
             self.solver = self._solver_for(self.rest_id, self.V, self.constraints, new)
             self._warm = False
+            self.settled = False
         self.params = new
 
     def undo(self) -> bool:
@@ -342,6 +431,7 @@ class Session:
         self.constraints = cs
         self.transforms = identity_transforms(cs.n_groups)
         self._warm = False
+        self.settled = False
         self._commit()
 
     def apply(self) -> None:

@@ -1,0 +1,129 @@
+"""Settling: after a drag ends the studio iterates until converged, streams frames, and stops for any request."""
+
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from arap import ArapSolver
+from arap.constraints import load_constraints
+from arap.server.meshdata import load_builtin
+from arap.server.session import SETTLE_FRAME_SECONDS, Session
+from arap.shapes import builtin_mesh
+from tests.server.helpers import StudioClient, translation
+
+pytestmark = pytest.mark.timeout(180)
+
+
+def _diag(V: np.ndarray) -> float:
+    return float(np.linalg.norm(V.max(0) - V.min(0)))
+
+
+def _drag_and_release(studio: StudioClient, steps: list[float]) -> tuple[dict, np.ndarray | None]:
+    fixed, top = studio.bottom_top()
+    studio.set_constraints(fixed, [top])
+    studio.settled()
+    for seq, dx in enumerate(steps):
+        studio.drag(seq, [translation(dx, 0.5 * dx)])
+    studio.send({"type": "end_drag"})
+    studio.expect("state")
+    return studio.settled()
+
+
+def test_the_settled_shape_is_what_the_command_line_computes(studio: StudioClient, tmp_path: Path) -> None:
+    status, frame = _drag_and_release(studio, [0.1, 0.3, 0.6, 0.8])
+    assert status["status"] == "settled" and status["iterations"] > 3 and frame is not None
+    studio.send({"type": "get_constraints"})
+    document = studio.expect("constraints").data["document"]
+    path = tmp_path / "c.json"
+    path.write_text(json.dumps(document))
+    # `arap deform` on the saved file: the library's defaults, the session's energy and weights.
+    V, F = builtin_mesh("cactus")
+    constraints = load_constraints(path, len(V))
+    indices, targets = constraints.indices_and_targets(V)
+    params = studio.state["params"]
+    result = ArapSolver(V, F, indices, energy=params["energy"], weights=params["weights"],
+                        roi=constraints.roi).solve(targets)
+    assert result.converged
+    assert np.abs(frame - result.vertices).max() <= 1e-6 * _diag(V)
+    # Export gives the same settled shape.
+    studio.send({"type": "export", "format": "obj"})
+    assert studio.expect("export").payload
+
+
+def test_out_and_back_settles_back_to_rest(studio: StudioClient) -> None:
+    status, frame = _drag_and_release(studio, [0.2, 0.5, 0.7, 0.4, 0.1, 0.0])
+    assert status["status"] == "settled" and frame is not None
+    assert np.abs(frame - studio.V).max() <= 1e-6 * _diag(studio.V)
+    # Undo after release comes back to the settled shape, not to an unsettled one.
+    studio.send({"type": "undo"})
+    studio.expect("vertices")
+    studio.expect("state")
+    studio.send({"type": "redo"})
+    np.testing.assert_array_equal(studio.expect("vertices").floats(), frame)
+
+
+def test_no_settling_while_a_drag_is_under_way(studio: StudioClient) -> None:
+    fixed, top = studio.bottom_top()
+    studio.set_constraints(fixed, [top])
+    studio.settled()
+    studio.drag(1, [translation(0.5)])
+    studio.ping()  # answered directly: no settle messages or frames in between
+    studio.send({"type": "end_drag"})
+    studio.expect("state")
+    assert studio.settled()[0]["status"] == "settled"
+
+
+def _unsettled_session() -> tuple[Session, np.ndarray]:
+    session = Session()
+    session.load(load_builtin("cactus"))
+    V = session.V
+    y = V[:, 1]
+    fixed = np.flatnonzero(y <= np.quantile(y, 0.1)).tolist()
+    top = np.flatnonzero(y >= np.quantile(y, 0.9)).tolist()
+    session.set_constraints(None, fixed, [top])
+    session.settle(lambda: False)
+    session.drag([translation(2.0, 1.0)])
+    session.end_drag()
+    return session, V
+
+
+def test_a_request_interrupts_settling_within_one_iteration() -> None:
+    session, _ = _unsettled_session()
+    polls = 0
+
+    def interrupted() -> bool:
+        nonlocal polls
+        polls += 1
+        return polls >= 3
+
+    outcome = session.settle(interrupted)
+    assert outcome is not None and not outcome.converged and outcome.iterations == 3
+    assert not session.settled and session.needs_settle
+    # Settling resumes from the shape reached and converges.
+    again = session.settle(lambda: False)
+    assert again is not None and again.converged and session.settled
+
+
+def test_frames_are_throttled() -> None:
+    session, _ = _unsettled_session()
+    times: list[float] = []
+    iterations: list[int] = []
+
+    def on_frame(U: np.ndarray, iteration: int, energy: float) -> None:
+        times.append(time.perf_counter())
+        iterations.append(iteration)
+        assert U.shape == session.V.shape and np.isfinite(energy)
+        time.sleep(0.002)
+
+    start = time.perf_counter()
+    outcome = session.settle(lambda: False, on_frame)
+    assert outcome is not None and outcome.converged
+    assert len(times) <= 1 + (time.perf_counter() - start) / SETTLE_FRAME_SECONDS
+    assert np.all(np.diff(times) >= SETTLE_FRAME_SECONDS - 1e-3)
+    assert iterations == sorted(iterations)
+    assert outcome.seconds < 2 * SETTLE_FRAME_SECONDS or times, "a long settle streams frames"
