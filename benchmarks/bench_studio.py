@@ -94,6 +94,8 @@ class Studio:
 
     async def expect(self, type_: str) -> tuple[dict[str, Any], memoryview | None]:
         data, payload = await self.recv()
+        while data["type"] == "settle" and type_ != "settle":  # settling progress between requests
+            data, payload = await self.recv()
         if data["type"] != type_:
             raise RuntimeError(f"expected {type_}, got {data}")
         return data, payload
@@ -116,6 +118,8 @@ class Studio:
         await self.ws.send(json.dumps({"type": "set_constraints", "roi": None, "fixed": fixed,
                                        "handle_groups": [self.handle]}))
         await self.expect("state")
+        while (await self.expect("settle"))[0]["status"] == "settling":
+            pass
 
     async def set_iterations(self, k: int) -> None:
         await self.ws.send(json.dumps({"type": "set_params", "iterations": k}))

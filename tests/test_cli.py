@@ -310,14 +310,17 @@ def test_studio_calls_the_server(monkeypatch: pytest.MonkeyPatch, capsys: pytest
     calls: list[tuple[object, dict[str, object]]] = []
 
     def fake_serve(mesh: object = None, host: str = "127.0.0.1", port: int = 8000, open_browser: bool = False,
-                   *, on_ready: object = None) -> None:
-        calls.append((mesh, {"host": host, "port": port, "open_browser": open_browser}))
+                   *, max_sessions: int = 0, allow_origins: object = None, on_ready: object = None) -> None:
+        calls.append((mesh, {"host": host, "port": port, "open_browser": open_browser,
+                             "max_sessions": max_sessions, "allow_origins": allow_origins}))
         assert callable(on_ready)
         on_ready(f"http://{host}:{port}/")
 
     monkeypatch.setattr(arap.server, "serve", fake_serve, raising=False)
-    assert main(["studio", "cactus", "--port", "8765"]) == 0
-    assert calls == [("cactus", {"host": "127.0.0.1", "port": 8765, "open_browser": False})]
+    assert main(["studio", "cactus", "--port", "8765", "--max-sessions", "4",
+                 "--allow-origin", "http://localhost:5173"]) == 0
+    assert calls == [("cactus", {"host": "127.0.0.1", "port": 8765, "open_browser": False, "max_sessions": 4,
+                                 "allow_origins": ["http://localhost:5173"]})]
     assert "http://127.0.0.1:8765/" in capsys.readouterr().out
 
 

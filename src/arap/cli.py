@@ -349,10 +349,31 @@ def _cmd_studio(args: argparse.Namespace) -> int:
         _out(f"ARAP Studio running at {url}  (Ctrl-C to stop)")
 
     try:
-        serve(args.mesh, host=args.host, port=args.port, open_browser=args.open, on_ready=announce)
+        serve(args.mesh, host=args.host, port=args.port, open_browser=args.open, max_sessions=args.max_sessions,
+              allow_origins=args.allow_origin, on_ready=announce)
     except KeyboardInterrupt:
         _err("stopped")
     return 0
+
+
+def _positive_int(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not an integer: {text!r}") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be at least 1, got {value}")
+    return value
+
+
+def _origin(text: str) -> str:
+    from arap.server.guard import normalize_origin
+
+    try:
+        normalize_origin(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+    return text
 
 
 # ---------------------------------------------------------------------------------------------- parser
@@ -416,6 +437,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--host", default="127.0.0.1", help="address to bind (default: 127.0.0.1, this machine only)")
     p.add_argument("--port", type=int, default=8000, help="TCP port (default: 8000; 0 picks a free one)")
     p.add_argument("--open", action="store_true", help="open the studio in the default browser")
+    p.add_argument("--max-sessions", type=_positive_int, default=32, metavar="N",
+                   help="most sessions (browser tabs) at once; more are refused (default: 32)")
+    p.add_argument("--allow-origin", action="append", default=[], type=_origin, metavar="ORIGIN",
+                   help="let pages from ORIGIN (http(s)://host[:port]) use the studio; repeatable (default: only "
+                        "the studio's own pages)")
     p.set_defaults(func=_cmd_studio)
     return parser
 

@@ -25,7 +25,7 @@ def static_dir(tmp_path: Path) -> Path:
 
 @pytest.fixture
 def app(static_dir: Path) -> Any:
-    return create_app("cactus", static_dir=static_dir)
+    return create_app("cactus", static_dir=static_dir, allowed_hosts=["testserver"])
 
 
 @pytest.fixture

@@ -233,7 +233,8 @@ def test_uploads_never_open_client_named_paths(studio: StudioClient, tmp_path: P
 
 def test_size_limits(static_dir: Path) -> None:
     data, _ = _mesh_bytes("obj")
-    app = create_app("bar", max_upload_bytes=len(data) - 1, max_vertices=10_000, static_dir=static_dir)
+    app = create_app("bar", max_upload_bytes=len(data) - 1, max_vertices=10_000, static_dir=static_dir,
+                     allowed_hosts=["testserver"])
     with TestClient(app) as http, http.websocket_connect("/ws") as ws:
         c = StudioClient(ws)
         c.greet()
@@ -241,7 +242,7 @@ def test_size_limits(static_dir: Path) -> None:
         c.send_binary({"type": "upload", "filename": "ball.obj"}, data)
         assert c.error("too_large")["request"] == "upload"
         c.ping()
-    small = create_app("bar", max_vertices=100, static_dir=static_dir)
+    small = create_app("bar", max_vertices=100, static_dir=static_dir, allowed_hosts=["testserver"])
     with TestClient(small) as http, http.websocket_connect("/ws") as ws:
         c = StudioClient(ws)
         c.greet()
@@ -316,7 +317,7 @@ def test_drags_are_coalesced(studio: StudioClient) -> None:
 
 
 def test_full_queue_answers_busy(static_dir: Path) -> None:
-    app = create_app("cactus", max_pending=2, static_dir=static_dir)
+    app = create_app("cactus", max_pending=2, static_dir=static_dir, allowed_hosts=["testserver"])
     with TestClient(app) as http, http.websocket_connect("/ws") as ws:
         c = StudioClient(ws)
         c.greet()
@@ -347,7 +348,7 @@ def test_static_client_and_health(http: TestClient) -> None:
 
 
 def test_unbuilt_client_page(tmp_path: Path) -> None:
-    app = create_app("bar", static_dir=tmp_path / "nothing")
+    app = create_app("bar", static_dir=tmp_path / "nothing", allowed_hosts=["testserver"])
     with TestClient(app) as http:
         page = http.get("/")
         assert page.status_code == 503 and "./dev setup" in page.text

@@ -5,22 +5,27 @@ from __future__ import annotations
 import html
 import logging
 import os
+import weakref
+from collections.abc import Iterable
 from pathlib import Path
 
 from starlette.applications import Starlette
+from starlette.middleware import Middleware
 from starlette.requests import Request
 from starlette.responses import FileResponse, HTMLResponse, JSONResponse, PlainTextResponse, Response
 from starlette.routing import Mount, Route, WebSocketRoute
 from starlette.staticfiles import StaticFiles
 from starlette.types import Receive, Scope, Send
-from starlette.websockets import WebSocket
+from starlette.websockets import WebSocket, WebSocketDisconnect
 
 import arap
 from arap.server.connection import Connection, StudioConfig
+from arap.server.errors import RequestError
+from arap.server.guard import RequestGuard, normalize_origin
 from arap.server.meshdata import MeshData, load_default
 
-__all__ = ["DEFAULT_MAX_UPLOAD_BYTES", "DEFAULT_MAX_VERTICES", "STATIC_DIR", "client_missing_advice", "create_app",
-           "frame_limit"]
+__all__ = ["DEFAULT_MAX_SESSIONS", "DEFAULT_MAX_UPLOAD_BYTES", "DEFAULT_MAX_VERTICES", "STATIC_DIR",
+           "client_missing_advice", "create_app", "frame_limit"]
 
 logger = logging.getLogger(__name__)
 
@@ -29,6 +34,10 @@ STATIC_DIR = Path(__file__).resolve().parent.parent / "static"
 
 DEFAULT_MAX_UPLOAD_BYTES = 50 * 2**20
 DEFAULT_MAX_VERTICES = 2_000_000
+DEFAULT_MAX_SESSIONS = 32
+
+SESSION_LIMIT_CLOSE_CODE = 1013
+"""WebSocket close code ("try again later") of a connection refused because the server is full."""
 
 _NOT_BUILT = """<!doctype html>
 <html lang="en"><head><meta charset="utf-8"><title>ARAP Studio: client not built</title></head>
@@ -62,13 +71,15 @@ def frame_limit(max_upload_bytes: int) -> int:
 
 
 class _Studio:
-    """Shared state of the application: configuration, default mesh, live session count."""
+    """Shared state of the application: configuration, default mesh, live sessions."""
 
-    def __init__(self, config: StudioConfig, default_mesh: MeshData, static_dir: Path) -> None:
+    def __init__(self, config: StudioConfig, default_mesh: MeshData, static_dir: Path, max_sessions: int) -> None:
         self.config = config
         self.default_mesh = default_mesh
         self.static_dir = static_dir
+        self.max_sessions = max_sessions
         self.sessions = 0
+        self.connections: weakref.WeakSet[Connection] = weakref.WeakSet()
 
 
 class _ClientFiles:
@@ -96,6 +107,12 @@ def create_app(
     max_history_steps: int = 100,
     max_history_bytes: int = 512 * 2**20,
     max_pending: int = 256,
+    max_sessions: int = DEFAULT_MAX_SESSIONS,
+    max_queued_bytes: int = 64 * 2**20,
+    max_unsent_bytes: int = 64 * 2**20,
+    allow_origins: Iterable[str] = (),
+    bind_host: str | None = None,
+    allowed_hosts: Iterable[str] = (),
     static_dir: str | os.PathLike[str] | None = None,
 ) -> Starlette:
     """Build the studio application.
@@ -113,6 +130,19 @@ def create_app(
         Undo history limits per session.
     max_pending : int
         Requests that may wait in one session's queue before more are answered ``busy``.
+    max_sessions : int
+        Most sessions at once; one more is accepted, sent a ``busy`` error and closed with code 1013 and a reason.
+    max_queued_bytes, max_unsent_bytes : int
+        Byte budgets of one session (requests waiting, answers not yet sent): past them its frames are not read
+        until the worker catches up (see :class:`arap.server.connection.StudioConfig`).
+    allow_origins : iterable of str
+        Web origins (``http(s)://host[:port]``) allowed to use the studio besides its own pages. Requests from
+        any other origin, ``null`` included, are refused with 403 (see :mod:`arap.server.guard`).
+    bind_host : str or None
+        Address the server is bound to; requests must name it, a loopback name or an allowed host in ``Host``
+        (a wildcard address accepts any IP address). None: loopback names only.
+    allowed_hosts : iterable of str
+        More host names accepted in ``Host``.
     static_dir : path-like or None
         Built client (default: the package's ``static`` folder).
 
@@ -127,10 +157,12 @@ def create_app(
     arap.errors.ArapError
         The default mesh cannot be loaded.
     ValueError
-        A limit is not positive.
+        A limit is not positive, or an allowed origin is not an http(s) origin.
     """
     for name, value in (("max_upload_bytes", max_upload_bytes), ("max_vertices", max_vertices),
-                        ("max_history_steps", max_history_steps), ("max_pending", max_pending)):
+                        ("max_history_steps", max_history_steps), ("max_pending", max_pending),
+                        ("max_sessions", max_sessions), ("max_queued_bytes", max_queued_bytes),
+                        ("max_unsent_bytes", max_unsent_bytes)):
         if int(value) < 1:
             raise ValueError(f"{name} must be positive, got {value}")
     config = StudioConfig(
@@ -140,14 +172,20 @@ def create_app(
         max_pending=int(max_pending),
         max_history_steps=int(max_history_steps),
         max_history_bytes=int(max_history_bytes),
+        max_queued_bytes=int(max_queued_bytes),
+        max_unsent_bytes=int(max_unsent_bytes),
     )
+    origins = tuple(allow_origins)
+    for origin in origins:
+        normalize_origin(origin)  # a mistyped origin fails here, not on the first request
+    guard = Middleware(RequestGuard, bind_host=bind_host, allowed_hosts=tuple(allowed_hosts), allow_origins=origins)
     mesh = load_default(default_mesh)
     logger.info("default mesh %s: %d vertices, %d faces", mesh.name, mesh.n_vertices, mesh.n_faces)
     static = Path(static_dir) if static_dir is not None else STATIC_DIR
     advice = client_missing_advice(static)
     if advice is not None:
         logger.warning("%s The server answers its pages with 503 until then.", advice)
-    studio = _Studio(config, mesh, static)
+    studio = _Studio(config, mesh, static, int(max_sessions))
 
     async def index(request: Request) -> Response:
         page = static / "index.html"
@@ -161,9 +199,14 @@ def create_app(
                              "client_built": (static / "index.html").is_file()})
 
     async def websocket(ws: WebSocket) -> None:
+        if studio.sessions >= studio.max_sessions:
+            await _refuse_full(ws, studio.max_sessions)
+            return
         studio.sessions += 1
         try:
-            await Connection(ws, studio.config, studio.default_mesh).run()
+            connection = Connection(ws, studio.config, studio.default_mesh)
+            studio.connections.add(connection)
+            await connection.run()
         finally:
             studio.sessions -= 1
 
@@ -172,6 +215,17 @@ def create_app(
         Route("/healthz", healthz),
         WebSocketRoute("/ws", websocket),
         Mount("/", app=_ClientFiles(static)),
-    ])
+    ], middleware=[guard])
     app.state.studio = studio
     return app
+
+
+async def _refuse_full(ws: WebSocket, limit: int) -> None:
+    """Tell a client the server is full (an ``error`` it can show, then a close with the reason)."""
+    reason = f"the studio already serves {limit} sessions; close one and reconnect"
+    await ws.accept()
+    try:
+        await ws.send_json(RequestError("busy", reason).to_message())
+        await ws.close(SESSION_LIMIT_CLOSE_CODE, reason)
+    except (WebSocketDisconnect, RuntimeError, OSError) as exc:
+        logger.debug("refused client left first: %r", exc)

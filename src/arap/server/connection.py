@@ -3,7 +3,10 @@
 The reader task validates every frame and puts it in the session's queue; a ``drag`` replaces a ``drag`` already
 waiting at the end of the queue instead of queueing behind it, so the worker always solves the newest target and
 never works through a backlog. The worker handles one request at a time, running solves, factorisations and
-file parsing on a thread so that the event loop (and the other sessions) keep going.
+file parsing on a thread so that the event loop (and the other sessions) keep going. Large frames are decoded
+and validated on a thread too; the reader stops reading while the session's byte budgets
+(:mod:`arap.server.budget`) are exhausted, and no frame, however malformed, ends the session: every failure
+becomes an ``error`` answer.
 """
 
 from __future__ import annotations
@@ -12,7 +15,6 @@ import asyncio
 import contextlib
 import json
 import logging
-from collections import deque
 from collections.abc import Callable
 from dataclasses import asdict, dataclass
 from typing import Any, TypeVar
@@ -22,6 +24,7 @@ import numpy as np
 from starlette.websockets import WebSocket, WebSocketDisconnect
 
 import arap
+from arap.server.budget import ByteBudget, RequestQueue, request_cost
 from arap.server.meshdata import MeshData, builtin_names, load_builtin, load_upload
 from arap.server.protocol import (
     MAX_HANDLE_GROUPS,
@@ -41,6 +44,9 @@ logger = logging.getLogger(__name__)
 
 T = TypeVar("T")
 
+OFF_LOOP_BYTES = 256 * 1024
+"""Frames at least this large are decoded and validated on a thread, not on the event loop."""
+
 
 @dataclass(frozen=True)
 class StudioConfig:
@@ -58,6 +64,12 @@ class StudioConfig:
         Most requests waiting in one session's queue; more are answered ``busy``.
     max_history_steps, max_history_bytes : int
         Undo history limits per session.
+    max_queued_bytes : int
+        Estimated memory of the requests waiting in one session's queue past which its frames are no longer
+        read (see :func:`arap.server.budget.request_cost`).
+    max_unsent_bytes : int
+        Bytes of one session's answers waiting to be handed to the socket past which its frames are no longer
+        read.
     """
 
     max_upload_bytes: int = 50 * 2**20
@@ -66,6 +78,19 @@ class StudioConfig:
     max_pending: int = 256
     max_history_steps: int = 100
     max_history_bytes: int = 512 * 2**20
+    max_queued_bytes: int = 64 * 2**20
+    max_unsent_bytes: int = 64 * 2**20
+
+
+def _dumps(message: dict[str, Any]) -> str:
+    return json.dumps(message, separators=(",", ":"), allow_nan=False)
+
+
+def _mesh_frame(mesh: MeshData) -> bytes:
+    header = {"type": "mesh", "name": mesh.name, "n_vertices": mesh.n_vertices, "n_faces": mesh.n_faces,
+              "report": mesh.report}
+    return encode_binary(header, np.ascontiguousarray(mesh.V, dtype="<f4").tobytes(),
+                         np.ascontiguousarray(mesh.F, dtype="<u4").tobytes())
 
 
 class Connection:
@@ -84,26 +109,34 @@ class Connection:
         self.config = config
         self.default_mesh = default_mesh
         self.session = Session(config.max_history_steps, config.max_history_bytes)
-        self._queue: deque[ClientMessage | RequestError] = deque()
+        self.budget = ByteBudget(config.max_queued_bytes, config.max_unsent_bytes)
+        self._queue: RequestQueue[ClientMessage | RequestError] = RequestQueue(self.budget)
         self._wakeup = asyncio.Event()
         self._send_lock = asyncio.Lock()
         self._skipped = 0
 
     # ------------------------------------------------------------------ sending
+    async def _send_frame(self, frame: str | bytes) -> None:
+        """Send one frame; its bytes count against the unsent budget until the socket has taken them."""
+        size = len(frame)
+        self.budget.add_unsent(size)
+        try:
+            async with self._send_lock:
+                if isinstance(frame, str):
+                    await self.ws.send_text(frame)
+                else:
+                    await self.ws.send_bytes(frame)
+        finally:
+            self.budget.add_unsent(-size)
+
     async def _send_json(self, message: dict[str, Any]) -> None:
-        async with self._send_lock:
-            await self.ws.send_text(json.dumps(message, separators=(",", ":"), allow_nan=False))
+        await self._send_frame(_dumps(message))
 
     async def _send_binary(self, header: dict[str, Any], *payload: bytes) -> None:
-        frame = encode_binary(header, *payload)
-        async with self._send_lock:
-            await self.ws.send_bytes(frame)
+        await self._send_frame(encode_binary(header, *payload))
 
     async def _send_mesh(self, mesh: MeshData) -> None:
-        header = {"type": "mesh", "name": mesh.name, "n_vertices": mesh.n_vertices, "n_faces": mesh.n_faces,
-                  "report": mesh.report}
-        await self._send_binary(header, np.ascontiguousarray(mesh.V, dtype="<f4").tobytes(),
-                                np.ascontiguousarray(mesh.F, dtype="<u4").tobytes())
+        await self._send_frame(await self._off_loop(_mesh_frame, mesh))
 
     async def _send_vertices(self, seq: int, outcome: DragOutcome | None) -> None:
         header: dict[str, Any] = {"type": "vertices", "seq": seq, "skipped": 0, "iterations": 0,
@@ -116,7 +149,8 @@ class Connection:
         await self._send_binary(header, self.session.vertices_f32())
 
     async def _send_state(self) -> None:
-        await self._send_json(self.session.state())
+        # the state echoes the constraints, which can hold millions of indices: encoded off the event loop
+        await self._send_frame(await self._off_loop(lambda: _dumps(self.session.state())))
 
     async def _send_error(self, exc: RequestError) -> None:
         await self._send_json(exc.to_message())
@@ -144,50 +178,75 @@ class Connection:
             })
             await self._send_mesh(self.default_mesh)
             await self._send_state()
-        except (WebSocketDisconnect, RuntimeError) as exc:
+        except (WebSocketDisconnect, RuntimeError, OSError) as exc:
             logger.debug("connection closed during the greeting: %r", exc)
             return
+        reader = asyncio.create_task(self._read_all())
         worker = asyncio.create_task(self._worker())
         try:
-            await self._reader()
-        except (WebSocketDisconnect, RuntimeError) as exc:
-            logger.debug("connection closed: %r", exc)
+            # the worker ends early only when the client is gone (a failed send): then stop reading too
+            await asyncio.wait({reader, worker}, return_when=asyncio.FIRST_COMPLETED)
         finally:
-            worker.cancel()
-            with contextlib.suppress(asyncio.CancelledError):
-                await worker
+            for task in (reader, worker):
+                task.cancel()
+            for task in (reader, worker):
+                with contextlib.suppress(asyncio.CancelledError):
+                    await task
+            self._queue.clear()
+
+    async def _read_all(self) -> None:
+        try:
+            await self._reader()
+        except (WebSocketDisconnect, RuntimeError, OSError) as exc:
+            logger.debug("connection closed: %r", exc)
 
     async def _reader(self) -> None:
         while True:
+            await self.budget.wait_for_room()
             message = await self.ws.receive()
             if message["type"] == "websocket.disconnect":
                 return
             text = message.get("text")
             data = message.get("bytes")
-            item: ClientMessage | RequestError
             size = len(text) if text is not None else len(data or b"")
-            try:
-                if size > self.config.max_frame_bytes:
-                    raise RequestError("too_large", f"frame of {size:,} bytes exceeds the limit of "
-                                       f"{self.config.max_frame_bytes:,}")
-                if text is not None:
-                    item = parse_text(text)
-                elif data is not None:
-                    item = parse_binary(data)
-                    if item.payload is not None and len(item.payload) > self.config.max_upload_bytes:
-                        raise RequestError("too_large", f"upload of {len(item.payload):,} bytes exceeds the "
-                                           f"limit of {self.config.max_upload_bytes:,}", item.type)
-                else:
-                    raise RequestError("bad_message", "empty frame")
-            except RequestError as exc:
-                item = exc
-            await self._enqueue(item)
+            if size >= OFF_LOOP_BYTES:
+                item = await self._off_loop(self._decode, text, data, True)
+            else:
+                item = self._decode(text, data, False)
+            del message, text, data
+            cost = request_cost(size, item.payload is None) if isinstance(item, ClientMessage) else 0
+            await self._enqueue(item, cost)
 
-    async def _enqueue(self, item: ClientMessage | RequestError) -> None:
+    def _decode(self, text: str | None, data: bytes | None, large: bool) -> ClientMessage | RequestError:
+        """Decode and validate one frame; never raises (a failure becomes the ``error`` to answer)."""
+        size = len(text) if text is not None else len(data or b"")
+        try:
+            if size > self.config.max_frame_bytes:
+                raise RequestError("too_large", f"frame of {size:,} bytes exceeds the limit of "
+                                   f"{self.config.max_frame_bytes:,}")
+            if text is not None:
+                return parse_text(text, cooperative=large)
+            if data is None:
+                raise RequestError("bad_message", "empty frame")
+            item = parse_binary(data)
+            if item.payload is not None and len(item.payload) > self.config.max_upload_bytes:
+                raise RequestError("too_large", f"upload of {len(item.payload):,} bytes exceeds the "
+                                   f"limit of {self.config.max_upload_bytes:,}", item.type)
+            return item
+        except RequestError as exc:
+            return exc
+        except MemoryError:
+            return RequestError("too_large", f"not enough memory to decode a frame of {size:,} bytes")
+        except Exception:
+            logger.exception("unexpected error while decoding a frame of %d bytes", size)
+            return RequestError("internal", "unexpected server error while reading a message; see the server log")
+
+    async def _enqueue(self, item: ClientMessage | RequestError, cost: int = 0) -> None:
         if isinstance(item, ClientMessage) and item.type == "drag":
             last = self._queue[-1] if self._queue else None
             if isinstance(last, ClientMessage) and last.type == "drag":
-                self._queue[-1] = item
+                # the replaced drag is never answered; the answer to this one reports it in ``skipped``
+                self._queue.replace_last(item, cost)
                 self._skipped += 1
                 return
         if len(self._queue) >= self.config.max_pending:
@@ -195,13 +254,21 @@ class Connection:
             await self._send_error(RequestError("busy", f"{len(self._queue)} requests are already waiting",
                                                 request))
             return
-        self._queue.append(item)
+        self._queue.append(item, cost)
         self._wakeup.set()
+
+    async def _check(self, msg: ClientMessage) -> None:
+        """:func:`check_against_mesh`; off the event loop for constraint sets (they can list millions of indices)."""
+        args = (msg, self.session.n_vertices, self.session.n_groups)
+        if msg.type == "set_constraints":
+            await self._off_loop(check_against_mesh, *args)
+        else:
+            check_against_mesh(*args)
 
     async def _worker(self) -> None:
         try:
             await self._work()
-        except (WebSocketDisconnect, RuntimeError) as exc:
+        except (WebSocketDisconnect, RuntimeError, OSError) as exc:
             logger.debug("connection closed while answering: %r", exc)
 
     async def _work(self) -> None:
@@ -214,7 +281,7 @@ class Connection:
                     await self._send_error(item)
                     continue
                 try:
-                    check_against_mesh(item, self.session.n_vertices, self.session.n_groups)
+                    await self._check(item)
                     await self._handle(item)
                 except RequestError as exc:
                     exc.request = exc.request or item.type

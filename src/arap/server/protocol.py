@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import json
 import math
+import sys
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -260,8 +261,14 @@ def _is_int(x: Any) -> bool:
     return type(x) is int
 
 
+_FLOAT_MAX = sys.float_info.max
+
+
 def _is_number(x: Any) -> bool:
-    return (type(x) is int or type(x) is float) and math.isfinite(x)
+    """A finite float, or an integer a float64 can hold (comparing an int with a float is exact in Python)."""
+    if type(x) is float:
+        return math.isfinite(x)
+    return type(x) is int and -_FLOAT_MAX <= x <= _FLOAT_MAX
 
 
 def _check_index_list(value: Any, where: str) -> list[int]:
@@ -280,7 +287,7 @@ def _check_field(f: Field, value: Any, mtype: str) -> Any:
         if not _is_int(value):
             raise RequestError("bad_message", f"{where} must be an integer")
         if (f.minimum is not None and value < f.minimum) or (f.maximum is not None and value > f.maximum):
-            raise RequestError("bad_message", f"{where} must be in {f.minimum}..{f.maximum}, got {value}")
+            raise RequestError("bad_message", f"{where} must be in {f.minimum}..{f.maximum}, got {str(value)[:40]}")
         return value
     if kind in ("string", "enum"):
         if not isinstance(value, str):
@@ -396,9 +403,13 @@ def validate(obj: Any, binary: bool, payload: memoryview | None = None) -> Clien
     return ClientMessage(spec.type, fields, payload if binary else None)
 
 
-def parse_text(text: str) -> ClientMessage:
-    """Decode and validate a text frame. Raises :class:`RequestError`."""
-    return validate(loads_json(text), binary=False)
+def parse_text(text: str, *, cooperative: bool = False) -> ClientMessage:
+    """Decode and validate a text frame. Raises :class:`RequestError`.
+
+    ``cooperative`` decodes numbers through Python-level hooks, so that a thread parsing a large frame lets other
+    threads run (see :func:`arap.server.frames.loads_json`).
+    """
+    return validate(loads_json(text, cooperative=cooperative), binary=False)
 
 
 def parse_binary(data: bytes | bytearray | memoryview) -> ClientMessage:
@@ -433,7 +444,7 @@ def check_against_mesh(msg: ClientMessage, n_vertices: int, n_groups: int) -> No
             bad = next((v for v in values if v < 0 or v >= n_vertices), None)
             if bad is not None:
                 raise RequestError("bad_constraints",
-                                   f"{name}: vertex index {bad} out of range 0..{n_vertices - 1}", msg.type)
+                                   f"{name}: vertex index {str(bad)[:40]} out of range 0..{n_vertices - 1}", msg.type)
     elif msg.type == "drag":
         got = len(msg.fields["transforms"])
         if got != n_groups:

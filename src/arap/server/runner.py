@@ -7,11 +7,17 @@ import os
 import socket
 import threading
 import webbrowser
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 
 import uvicorn
 
-from arap.server.app import DEFAULT_MAX_UPLOAD_BYTES, DEFAULT_MAX_VERTICES, create_app, frame_limit
+from arap.server.app import (
+    DEFAULT_MAX_SESSIONS,
+    DEFAULT_MAX_UPLOAD_BYTES,
+    DEFAULT_MAX_VERTICES,
+    create_app,
+    frame_limit,
+)
 
 __all__ = ["bind_socket", "make_server", "serve", "studio_url"]
 
@@ -69,6 +75,8 @@ def make_server(
     *,
     max_upload_bytes: int = DEFAULT_MAX_UPLOAD_BYTES,
     max_vertices: int = DEFAULT_MAX_VERTICES,
+    max_sessions: int = DEFAULT_MAX_SESSIONS,
+    allow_origins: Iterable[str] = (),
     log_level: str = "warning",
 ) -> tuple[uvicorn.Server, socket.socket, str]:
     """Build the studio's uvicorn server and bind its socket, without serving yet.
@@ -84,7 +92,8 @@ def make_server(
     url : str
         The studio's URL (with the actual port when ``port`` is 0).
     """
-    app = create_app(mesh, max_upload_bytes=max_upload_bytes, max_vertices=max_vertices)
+    app = create_app(mesh, max_upload_bytes=max_upload_bytes, max_vertices=max_vertices, max_sessions=max_sessions,
+                     allow_origins=allow_origins, bind_host=host)
     config = uvicorn.Config(
         app,
         log_level=log_level,
@@ -104,6 +113,8 @@ def serve(
     *,
     max_upload_bytes: int = DEFAULT_MAX_UPLOAD_BYTES,
     max_vertices: int = DEFAULT_MAX_VERTICES,
+    max_sessions: int = DEFAULT_MAX_SESSIONS,
+    allow_origins: Iterable[str] = (),
     log_level: str = "warning",
     on_ready: Callable[[str], None] | None = None,
 ) -> None:
@@ -123,6 +134,11 @@ def serve(
         Open the studio in the default web browser once the server listens.
     max_upload_bytes, max_vertices : int
         Upload limits.
+    max_sessions : int
+        Most sessions (browser tabs) at once; more are refused with a reason.
+    allow_origins : iterable of str
+        Web origins (``http(s)://host[:port]``) allowed to use the studio besides its own pages; requests from any
+        other origin, and requests whose ``Host`` is not this server, are refused (see :mod:`arap.server.guard`).
     log_level : str
         uvicorn's log level.
     on_ready : callable or None
@@ -136,7 +152,8 @@ def serve(
         The address cannot be bound.
     """
     server, sock, url = make_server(mesh, host, port, max_upload_bytes=max_upload_bytes,
-                                    max_vertices=max_vertices, log_level=log_level)
+                                    max_vertices=max_vertices, max_sessions=max_sessions,
+                                    allow_origins=allow_origins, log_level=log_level)
     logger.info("ARAP Studio listening on %s", url)
     if on_ready is not None:
         on_ready(url)

@@ -1,0 +1,186 @@
+"""Who may talk to the studio: the ``Host`` and ``Origin`` checks in front of every request.
+
+A web page on another site must not drive the studio (cross-site WebSocket hijacking): a request whose
+``Origin`` header is not the studio's own origin (``http://`` + the ``Host`` it was sent to) or a deliberately
+allowed one is refused, ``Origin: null`` included. Requests without an ``Origin`` (command-line and Python
+clients; browsers always send one with a WebSocket upgrade) are let through. A request whose ``Host`` names
+neither a loopback name, the bound address nor an allowed name is refused too: that is what a page on a
+domain re-pointed at 127.0.0.1 (DNS rebinding) sends.
+"""
+
+from __future__ import annotations
+
+import ipaddress
+from collections.abc import Iterable
+from urllib.parse import urlsplit
+
+from starlette.responses import PlainTextResponse
+from starlette.types import ASGIApp, Receive, Scope, Send
+
+__all__ = ["LOOPBACK_NAMES", "RequestGuard", "normalize_origin", "split_host"]
+
+LOOPBACK_NAMES = frozenset({"localhost", "127.0.0.1", "::1"})
+"""Host names that always reach this machine only."""
+
+WILDCARD_ADDRESSES = frozenset({"", "0.0.0.0", "::"})
+
+_DEFAULT_PORTS = {"http": 80, "https": 443, "ws": 80, "wss": 443}
+
+
+def split_host(value: str) -> tuple[str, int | None]:
+    """Host name (lower case, IPv6 unbracketed) and port of a ``Host`` header value.
+
+    Examples
+    --------
+    >>> split_host("LocalHost:8000")
+    ('localhost', 8000)
+    >>> split_host("[::1]:9000")
+    ('::1', 9000)
+    >>> split_host("example.org.")
+    ('example.org', None)
+    """
+    value = value.strip().lower()
+    port: int | None = None
+    if value.startswith("["):
+        name, _, rest = value[1:].partition("]")
+        if rest.startswith(":") and rest[1:].isdigit():
+            port = int(rest[1:])
+    elif value.count(":") == 1:
+        name, _, p = value.partition(":")
+        port = int(p) if p.isdigit() else -1
+    else:
+        name = value
+    return name.rstrip("."), port
+
+
+def normalize_origin(origin: str) -> str:
+    """``scheme://host:port`` with the default port spelled out and the host in lower case.
+
+    Raises
+    ------
+    ValueError
+        ``origin`` is not an ``http``/``https`` origin.
+
+    Examples
+    --------
+    >>> normalize_origin("HTTP://Example.org")
+    'http://example.org:80'
+    """
+    parts = urlsplit(origin.strip())
+    scheme = parts.scheme.lower()
+    if scheme not in ("http", "https") or not parts.hostname:
+        raise ValueError(f"not an http(s) origin: {origin!r}")
+    host = parts.hostname.lower().rstrip(".")
+    if ":" in host:
+        host = f"[{host}]"
+    return f"{scheme}://{host}:{parts.port or _DEFAULT_PORTS[scheme]}"
+
+
+def _is_ip(name: str) -> bool:
+    try:
+        ipaddress.ip_address(name)
+    except ValueError:
+        return False
+    return True
+
+
+class RequestGuard:
+    """ASGI middleware refusing requests with a foreign ``Host`` or ``Origin`` (403; before any WebSocket accept).
+
+    Parameters
+    ----------
+    app : ASGI application
+    bind_host : str or None
+        Address the server is bound to. A wildcard (``0.0.0.0``, ``::``) accepts any IP address as host (an IP
+        address cannot be re-pointed); None or a loopback address accepts loopback names only.
+    allowed_hosts : iterable of str
+        More host names to accept (e.g. the machine's name when it serves a network).
+    allow_origins : iterable of str
+        Origins allowed besides the studio's own (``http(s)://host[:port]``); their host names are accepted as
+        hosts too (a reverse proxy in front of the studio).
+
+    Raises
+    ------
+    ValueError
+        An entry of ``allow_origins`` is not an http(s) origin.
+    """
+
+    def __init__(self, app: ASGIApp, *, bind_host: str | None = None, allowed_hosts: Iterable[str] = (),
+                 allow_origins: Iterable[str] = ()) -> None:
+        self.app = app
+        self.origins = frozenset(normalize_origin(o) for o in allow_origins)
+        names = set(LOOPBACK_NAMES) | {split_host(h)[0] for h in allowed_hosts}
+        names |= {urlsplit(o).hostname or "" for o in self.origins} - {""}
+        self.any_ip = False
+        if bind_host is not None:
+            bound = bind_host.strip("[]").lower()
+            if bound in WILDCARD_ADDRESSES:
+                self.any_ip = True
+            else:
+                names.add(bound)
+        self.hosts = frozenset(names)
+
+    def host_allowed(self, host: str | None) -> bool:
+        """Whether a ``Host`` header value names this server."""
+        if not host:
+            return False
+        name, port = split_host(host)
+        if port == -1:
+            return False
+        return name in self.hosts or (self.any_ip and _is_ip(name))
+
+    def origin_allowed(self, origin: str | None, host: str, scheme: str) -> bool:
+        """Whether an ``Origin`` header value is the studio's own origin or an allowed one (absent: allowed)."""
+        if origin is None:
+            return True
+        try:
+            got = normalize_origin(origin)
+        except ValueError:
+            return False  # "null" (sandboxed pages, file: URLs) and anything that is not an http(s) origin
+        if got in self.origins:
+            return True
+        own_scheme = "https" if scheme in ("https", "wss") else "http"
+        try:
+            own = normalize_origin(f"{own_scheme}://{host}")
+        except ValueError:
+            return False
+        return got == own
+
+    def refusal(self, scope: Scope) -> str | None:
+        """Why a request is refused, or None when it may go on."""
+        headers: dict[str, str] = {}
+        for key, value in scope.get("headers", []):
+            name = key.decode("latin-1").lower()
+            if name in ("host", "origin"):
+                if name in headers:
+                    return f"more than one {name} header"
+                headers[name] = value.decode("latin-1")
+        host = headers.get("host")
+        if not self.host_allowed(host):
+            return f"host {(host or '')[:100]!r} is not this server (start the studio with --host to serve a network)"
+        assert host is not None
+        if not self.origin_allowed(headers.get("origin"), host, scope.get("scheme", "http")):
+            return (f"origin {headers['origin'][:100]!r} may not use the studio (start it with --allow-origin to "
+                    "allow it)")
+        return None
+
+    async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
+        if scope["type"] not in ("http", "websocket"):
+            await self.app(scope, receive, send)
+            return
+        reason = self.refusal(scope)
+        if reason is None:
+            await self.app(scope, receive, send)
+            return
+        if scope["type"] == "http":
+            await PlainTextResponse(f"forbidden: {reason}", status_code=403)(scope, receive, send)
+            return
+        await receive()  # websocket.connect
+        if "websocket.http.response" in scope.get("extensions", {}):
+            body = f"forbidden: {reason}".encode()
+            await send({"type": "websocket.http.response.start", "status": 403,
+                        "headers": [(b"content-type", b"text/plain; charset=utf-8"),
+                                    (b"content-length", str(len(body)).encode())]})
+            await send({"type": "websocket.http.response.body", "body": body})
+        else:
+            await send({"type": "websocket.close", "code": 1008, "reason": reason[:120]})
