@@ -323,12 +323,17 @@ def test_full_queue_answers_busy(static_dir: Path) -> None:
         c.greet()
         fixed, top = c.bottom_top()
         c.set_constraints(fixed, [top])
+        c.settled()
         c.send({"type": "set_params", "iterations": 100})
         c.expect("state")
         c.send({"type": "drag", "seq": 0, "transforms": [translation(0.3)]})
         for _ in range(6):
             c.send({"type": "get_constraints"})
-        replies = [c.recv() for _ in range(7)]
+        replies: list = []
+        while len(replies) < 7:
+            reply = c.recv()
+            if reply.type != "settle":
+                replies.append(reply)
         kinds = [r.type for r in replies]
         assert kinds.count("vertices") == 1
         busy = [r.data for r in replies if r.type == "error"]

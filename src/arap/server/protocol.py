@@ -211,7 +211,8 @@ SERVER_MESSAGES: dict[str, MessageSpec] = {
         _spec("settle", "progress of settling: after a drag ends (and after loading, undo, redo, reset, apply or a "
               "parameter change) the server iterates until converged, streaming vertices frames (seq -1, at most 30 "
               "per second); any new request stops it at once",
-              Field("status", "enum", "settling, settled, or stopped (a request interrupted it)",
+              Field("status", "enum", "settling, settled (converged), or stopped (a request interrupted it, or "
+                    "the iteration cap was reached)",
                     choices=SETTLE_STATUSES),
               Field("iterations", "int", "iterations run so far in this settling run"),
               Field("energy", "number", "current energy, or null before the first iteration"),

@@ -33,6 +33,8 @@ LOAD_ITERATIONS = 200
 """Iteration cap of the solve that answers constraints loaded with explicit targets (settling then goes on)."""
 SETTLE_FRAME_SECONDS = 1.0 / 30.0
 """Least time between two intermediate frames streamed while settling (at most 30 per second)."""
+SETTLE_ITERATIONS = 3000
+"""Most iterations of one settling run: past them the shape is left as reached (reported not converged)."""
 
 _SOLVER_CACHE_VERTICES = 200_000
 """Meshes up to this size keep two factorised solvers (undo across a selection change is instant)."""
@@ -334,9 +336,12 @@ class Session:
         t0 = time.perf_counter()
         last_frame = t0
 
+        stopped = False
+
         def callback(iteration: int, energy: float) -> bool:
-            nonlocal last_frame
+            nonlocal last_frame, stopped
             if interrupted():
+                stopped = True
                 return False
             now = time.perf_counter()
             if on_frame is not None and now - last_frame >= SETTLE_FRAME_SECONDS:
@@ -345,7 +350,8 @@ class Session:
             return True
 
         try:
-            result = solver.solve(targets, initial=None if self._warm else self.U, callback=callback)
+            result = solver.solve(targets, initial=None if self._warm else self.U, callback=callback,
+                                  max_iterations=SETTLE_ITERATIONS)
         except ArapError as exc:
             self.settled = True
             raise RequestError("bad_message", str(exc)) from exc
@@ -359,7 +365,8 @@ class Session:
         else:
             moved = 0.0  # the shape is kept as it was, free of rounding noise
         self._warm = True
-        self.settled = result.converged
+        # Settling resumes after an interruption; a run that used up its iterations is not repeated.
+        self.settled = not stopped
         if result.converged:
             self.history.replace_current(self._snapshot())
         energy = float(result.energies[-1]) if result.energies else None
