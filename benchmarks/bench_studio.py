@@ -176,13 +176,20 @@ class Studio:
             done.set()
 
         async def receiver() -> None:
-            while True:
-                header, _ = await self.expect("vertices")
+            # The server answers the newest drag and drops stale ones, so the last answer may arrive before the
+            # sender has finished sleeping: stop on the newest seq answered, whichever side finishes last.
+            answered = seq0 - 1
+            while not (done.is_set() and answered >= last_seq):
+                if time.perf_counter() > start + seconds + 30.0:
+                    raise RuntimeError(f"no answer to drag {last_seq} within 30 s (newest answered: {answered})")
+                try:
+                    header, _ = await asyncio.wait_for(self.expect("vertices"), 0.05)
+                except TimeoutError:
+                    continue
+                answered = max(answered, header["seq"])
                 run.latencies_ms.append(1000 * (time.perf_counter() - sent_at[header["seq"]]))
                 run.solve_ms.append(header["solve_ms"])
                 run.updates += 1
-                if done.is_set() and header["seq"] == last_seq:
-                    return
 
         await asyncio.gather(sender(), receiver())
         run.sent = last_seq - seq0 + 1

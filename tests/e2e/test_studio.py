@@ -169,9 +169,13 @@ def test_select_drag_export_undo(page: Page, shoot: Shoot, tmp_path: Path) -> No
     assert np.abs(exported[fixed] - rest[fixed]).max() < 1e-4 * diag
     assert np.linalg.norm(exported[handle] - rest[handle], axis=1).min() > 0.02 * diag
 
+    # after the release the server settled the shape, and the statistics say so
+    expect(page.get_by_test_id("settle-status")).to_have_attribute("data-status", "settled", timeout=30_000)
+    expect(page.get_by_test_id("settle-status")).to_contain_text("settled")
+
     # undo restores the rest pose, redo (keyboard) the deformation
     page.get_by_test_id("undo").click()
-    page.wait_for_function("() => window.__arap.lastSeq === -1")
+    page.wait_for_function("() => window.__arap.canRedo === true")
     wait_idle(page)
     assert np.abs(positions(page) - rest).max() < 1e-6
     shoot("04-undone")

@@ -248,7 +248,7 @@ function onVertices(msg) {
   const pos = vertexArray(msg.frame);
   if (pos.length !== viewer.nVertices * 3) return;
   viewer.updatePositions(pos);
-  app.lastSeq = msg.seq;
+  if (msg.seq >= 0) app.lastSeq = msg.seq; // -1: a frame the server sent on its own (settling, undo)
   gizmo.recenter();
   if (!(msg.iterations > 0)) return; // a pose change without a solve (undo, reset)
   const now = performance.now();

@@ -114,6 +114,7 @@ class Connection:
         self._wakeup = asyncio.Event()
         self._send_lock = asyncio.Lock()
         self._skipped = 0
+        self._frame_tasks: set[asyncio.Task[None]] = set()
 
     # ------------------------------------------------------------------ sending
     async def _send_frame(self, frame: str | bytes) -> None:
@@ -311,7 +312,8 @@ class Connection:
             nonlocal streamed
             streamed += 1
             frame = np.ascontiguousarray(U, dtype="<f4").tobytes()
-            asyncio.run_coroutine_threadsafe(self._send_settle_frame(frame, iteration, energy), loop)
+            with contextlib.suppress(RuntimeError):  # the loop has closed: the connection is gone
+                loop.call_soon_threadsafe(self._spawn_settle_frame, frame, iteration, energy)
 
         try:
             await self._send_settle_status("settling", 0, None, 0.0)
@@ -326,12 +328,17 @@ class Connection:
         await self._send_settle_status("settled" if outcome.converged else "stopped", outcome.iterations,
                                        outcome.energy, outcome.seconds)
 
+    def _spawn_settle_frame(self, frame: bytes, iteration: int, energy: float) -> None:
+        task = asyncio.ensure_future(self._send_settle_frame(frame, iteration, energy))
+        self._frame_tasks.add(task)
+        task.add_done_callback(self._frame_tasks.discard)
+
     async def _send_settle_frame(self, frame: bytes, iteration: int, energy: float) -> None:
         header = {"type": "vertices", "seq": -1, "skipped": 0, "iterations": 0, "energies": [], "solve_ms": 0.0,
                   "ms_per_iteration": 0.0}
-        async with self._send_lock:
-            await self.ws.send_bytes(encode_binary(header, frame))
-        await self._send_settle_status("settling", iteration, energy, None)
+        with contextlib.suppress(WebSocketDisconnect, RuntimeError, OSError):
+            await self._send_binary(header, frame)
+            await self._send_settle_status("settling", iteration, energy, None)
 
     async def _send_settle_status(self, status: str, iterations: int, energy: float | None,
                                   seconds: float | None) -> None:
