@@ -118,8 +118,10 @@ class Studio:
         await self.ws.send(json.dumps({"type": "set_constraints", "roi": None, "fixed": fixed,
                                        "handle_groups": [self.handle]}))
         await self.expect("state")
-        while (await self.expect("settle"))[0]["status"] == "settling":
-            pass
+        while True:  # the new constraints settle (frames may come) before the drags start
+            data, _ = await asyncio.wait_for(self.recv(), 120.0)
+            if data["type"] == "settle" and data["status"] != "settling":
+                break
 
     async def set_iterations(self, k: int) -> None:
         await self.ws.send(json.dumps({"type": "set_params", "iterations": k}))
