@@ -1,13 +1,18 @@
-"""A small protocol client around Starlette's TestClient WebSocket, and transform helpers."""
+"""A small protocol client around Starlette's TestClient WebSocket, transform helpers, and a live server."""
 
 from __future__ import annotations
 
 import json
+import threading
+import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
+from arap.server import make_server
 from arap.server.protocol import decode_binary, encode_binary
 
 
@@ -139,3 +144,22 @@ class StudioClient:
         """Round trip proving the session still answers."""
         self.send({"type": "get_constraints"})
         self.expect("constraints")
+
+
+@contextmanager
+def running_server(**options: Any) -> Iterator[str]:
+    """The studio served on a free loopback port in a thread (``make_server`` options); yields its URL."""
+    server, sock, url = make_server("bar", port=0, **options)
+    thread = threading.Thread(target=server.run, kwargs={"sockets": [sock]}, daemon=True)
+    thread.start()
+    deadline = time.monotonic() + 30
+    while not server.started:
+        assert time.monotonic() < deadline, "server did not start"
+        time.sleep(0.02)
+    try:
+        yield url
+    finally:
+        server.should_exit = True
+        thread.join(timeout=30)
+        sock.close()
+

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import contextlib
 import json
-import threading
 import time
 from collections.abc import Iterator
 from pathlib import Path
@@ -17,9 +16,9 @@ from websockets.exceptions import ConnectionClosed, InvalidStatus
 from websockets.sync.client import connect
 
 from arap.cli import build_parser
-from arap.server import create_app, make_server
+from arap.server import create_app
 from arap.server.guard import RequestGuard, normalize_origin, split_host
-from tests.server.helpers import StudioClient
+from tests.server.helpers import StudioClient, running_server
 
 pytestmark = pytest.mark.timeout(120)
 
@@ -175,19 +174,8 @@ def test_cli_options() -> None:
 # ---------------------------------------------------------------------------------------------- real server
 @pytest.fixture
 def live_url() -> Iterator[str]:
-    server, sock, url = make_server("bar", port=0, max_sessions=3)
-    thread = threading.Thread(target=server.run, kwargs={"sockets": [sock]}, daemon=True)
-    thread.start()
-    deadline = time.monotonic() + 30
-    while not server.started:
-        assert time.monotonic() < deadline, "server did not start"
-        time.sleep(0.02)
-    try:
+    with running_server(max_sessions=3) as url:
         yield url
-    finally:
-        server.should_exit = True
-        thread.join(timeout=30)
-        sock.close()
 
 
 def test_live_server_refuses_cross_site_and_rebound_requests(live_url: str) -> None:

@@ -3,16 +3,15 @@
 from __future__ import annotations
 
 import json
-import threading
-import time
 from collections.abc import Iterator
 
 import numpy as np
 import pytest
 from websockets.sync.client import connect
 
-from arap.server import bind_socket, make_server, studio_url
+from arap.server import bind_socket, studio_url
 from arap.server.protocol import decode_binary, encode_binary
+from tests.server.helpers import running_server
 
 pytestmark = pytest.mark.timeout(120)
 
@@ -45,19 +44,8 @@ def test_bind_socket_picks_a_free_port_and_reports_a_busy_one() -> None:
 
 @pytest.fixture
 def live_url() -> Iterator[str]:
-    server, sock, url = make_server("bar", port=0, max_upload_bytes=100_000)
-    thread = threading.Thread(target=server.run, kwargs={"sockets": [sock]}, daemon=True)
-    thread.start()
-    deadline = time.monotonic() + 30
-    while not server.started:
-        assert time.monotonic() < deadline, "server did not start"
-        time.sleep(0.02)
-    try:
+    with running_server(max_upload_bytes=100_000) as url:
         yield url
-    finally:
-        server.should_exit = True
-        thread.join(timeout=30)
-        sock.close()
 
 
 def test_live_server_refuses_compression_and_serves_the_protocol(live_url: str) -> None:
