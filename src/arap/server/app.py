@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import ctypes
 import ctypes.util
 import gc
@@ -9,7 +10,7 @@ import html
 import logging
 import os
 import weakref
-from collections.abc import Iterable
+from collections.abc import AsyncIterator, Iterable
 from pathlib import Path
 
 import anyio.to_thread
@@ -24,6 +25,7 @@ from starlette.websockets import WebSocket, WebSocketDisconnect
 
 import arap
 from arap.server.connection import Connection, StudioConfig
+from arap.server.decoder import FrameDecoder
 from arap.server.errors import RequestError
 from arap.server.guard import RequestGuard, normalize_origin
 from arap.server.meshdata import MeshData, load_default
@@ -84,6 +86,7 @@ class _Studio:
         self.max_sessions = max_sessions
         self.sessions = 0
         self.connections: weakref.WeakSet[Connection] = weakref.WeakSet()
+        self.decoder = FrameDecoder()
 
 
 class _ClientFiles:
@@ -208,7 +211,7 @@ def create_app(
             return
         studio.sessions += 1
         try:
-            connection = Connection(ws, studio.config, studio.default_mesh)
+            connection = Connection(ws, studio.config, studio.default_mesh, studio.decoder)
             studio.connections.add(connection)
             await connection.run()
         finally:
@@ -217,7 +220,14 @@ def create_app(
         del connection
         await anyio.to_thread.run_sync(release_memory)
 
-    app = Starlette(routes=[
+    @contextlib.asynccontextmanager
+    async def lifespan(app: Starlette) -> AsyncIterator[None]:
+        try:
+            yield
+        finally:
+            await anyio.to_thread.run_sync(studio.decoder.close)
+
+    app = Starlette(lifespan=lifespan, routes=[
         Route("/", index),
         Route("/healthz", healthz),
         WebSocketRoute("/ws", websocket),

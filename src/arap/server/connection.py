@@ -25,6 +25,7 @@ from starlette.websockets import WebSocket, WebSocketDisconnect
 
 import arap
 from arap.server.budget import ByteBudget, RequestQueue, request_cost
+from arap.server.decoder import PROCESS_BYTES, FrameDecoder
 from arap.server.meshdata import MeshData, builtin_names, load_builtin, load_upload
 from arap.server.protocol import (
     MAX_HANDLE_GROUPS,
@@ -102,12 +103,17 @@ class Connection:
     config : StudioConfig
     default_mesh : MeshData
         Mesh the session starts with.
+    decoder : FrameDecoder or None
+        Decodes text frames of :data:`~arap.server.decoder.PROCESS_BYTES` or more in a worker process; None decodes
+        them on a thread.
     """
 
-    def __init__(self, ws: WebSocket, config: StudioConfig, default_mesh: MeshData) -> None:
+    def __init__(self, ws: WebSocket, config: StudioConfig, default_mesh: MeshData,
+                 decoder: FrameDecoder | None = None) -> None:
         self.ws = ws
         self.config = config
         self.default_mesh = default_mesh
+        self.decoder = decoder
         self.session = Session(config.max_history_steps, config.max_history_bytes)
         self.budget = ByteBudget(config.max_queued_bytes, config.max_unsent_bytes)
         self._queue: RequestQueue[ClientMessage | RequestError] = RequestQueue(self.budget)
@@ -210,13 +216,29 @@ class Connection:
             text = message.get("text")
             data = message.get("bytes")
             size = len(text) if text is not None else len(data or b"")
-            if size >= OFF_LOOP_BYTES:
+            if (text is not None and self.decoder is not None
+                    and PROCESS_BYTES <= size <= self.config.max_frame_bytes):
+                item = await self._decode_in_process(self.decoder, text)
+            elif size >= OFF_LOOP_BYTES:
                 item = await self._off_loop(self._decode, text, data, True)
             else:
                 item = self._decode(text, data, False)
             del message, text, data
             cost = request_cost(size, item.payload is None) if isinstance(item, ClientMessage) else 0
             await self._enqueue(item, cost)
+
+    @staticmethod
+    async def _decode_in_process(decoder: FrameDecoder, text: str) -> ClientMessage | RequestError:
+        """Decode a large text frame in the decoder process; never raises (a failure becomes the ``error``)."""
+        try:
+            return await decoder.decode(text)
+        except RequestError as exc:
+            return exc
+        except MemoryError:
+            return RequestError("too_large", f"not enough memory to decode a frame of {len(text):,} characters")
+        except Exception:
+            logger.exception("unexpected error while decoding a frame of %d characters", len(text))
+            return RequestError("internal", "unexpected server error while reading a message; see the server log")
 
     def _decode(self, text: str | None, data: bytes | None, large: bool) -> ClientMessage | RequestError:
         """Decode and validate one frame; never raises (a failure becomes the ``error`` to answer)."""

@@ -42,6 +42,10 @@ class RequestError(Exception):
         self.message = message
         self.request = request
 
+    def __reduce__(self) -> tuple[type[RequestError], tuple[str, str, str | None]]:
+        # Pickled with its fields (a request decoded in another process raises it there).
+        return (RequestError, (self.code, self.message, self.request))
+
     def to_message(self) -> dict[str, Any]:
         """The ``error`` message to send."""
         return {"type": "error", "code": self.code, "message": self.message, "request": self.request}

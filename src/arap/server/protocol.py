@@ -22,6 +22,8 @@ import sys
 from dataclasses import dataclass, field
 from typing import Any
 
+import numpy as np
+
 from arap.cells import DEFAULT_ENERGY, ENERGY_TYPES
 from arap.server.errors import ERROR_CODES, RequestError
 from arap.server.frames import MAX_HEADER_BYTES, decode_binary, encode_binary, loads_json
@@ -247,8 +249,8 @@ class ClientMessage:
     ----------
     type : str
     fields : dict
-        Validated fields (absent optional fields are left out). Index lists are kept as Python lists here;
-        :func:`check_against_mesh` turns them into arrays.
+        Validated fields (absent optional fields are left out). Index and point lists are Python lists, or NumPy
+        arrays when the frame was decoded by :mod:`arap.server.decoder`.
     payload : memoryview or None
         Payload of a binary message.
     """
@@ -419,6 +421,13 @@ def parse_binary(data: bytes | bytearray | memoryview) -> ClientMessage:
     return validate(header, binary=True, payload=payload)
 
 
+def _first_out_of_range(values: list[int] | np.ndarray, n: int) -> int | None:
+    if isinstance(values, np.ndarray):
+        bad = np.flatnonzero((values < 0) | (values >= n))
+        return int(values[bad[0]]) if bad.size else None
+    return next((v for v in values if v < 0 or v >= n), None)
+
+
 def check_against_mesh(msg: ClientMessage, n_vertices: int, n_groups: int) -> None:
     """Check what depends on the session: vertex indices in range, one transform per handle group.
 
@@ -437,12 +446,12 @@ def check_against_mesh(msg: ClientMessage, n_vertices: int, n_groups: int) -> No
         ``bad_constraints`` for an index out of range, ``bad_message`` for a wrong number of transforms.
     """
     if msg.type == "set_constraints":
-        lists: list[tuple[str, list[int]]] = [("fixed", msg.fields["fixed"])]
+        lists: list[tuple[str, list[int] | np.ndarray]] = [("fixed", msg.fields["fixed"])]
         if msg.fields["roi"] is not None:
             lists.append(("roi", msg.fields["roi"]))
         lists += [(f"handle_groups[{i}]", g) for i, g in enumerate(msg.fields["handle_groups"])]
         for name, values in lists:
-            bad = next((v for v in values if v < 0 or v >= n_vertices), None)
+            bad = _first_out_of_range(values, n_vertices)
             if bad is not None:
                 raise RequestError("bad_constraints",
                                    f"{name}: vertex index {str(bad)[:40]} out of range 0..{n_vertices - 1}", msg.type)

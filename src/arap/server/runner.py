@@ -99,7 +99,7 @@ def make_server(
         log_level=log_level,
         ws_per_message_deflate=False,
         ws_max_size=frame_limit(max_upload_bytes),
-        lifespan="off",
+        lifespan="on",
     )
     sock = bind_socket(host, port)
     return uvicorn.Server(config), sock, studio_url(host, sock.getsockname()[1])
