@@ -115,7 +115,8 @@ def csr_from_face_edges(F: np.ndarray, n: int, corner_values: np.ndarray | None 
         float64 values, sorted int32 column indices, zero diagonal not stored.
     """
     cw = np.zeros((0, 3)) if corner_values is None else np.ascontiguousarray(corner_values, dtype=np.float64)
-    return _to_scipy(*_face_edges_to_csr(np.ascontiguousarray(F), cw, int(n)), int(n))
+    ptr, idx, val = _face_edges_to_csr(np.ascontiguousarray(F), cw, int(n))
+    return _to_scipy(ptr, idx, val, int(n))
 
 
 def csr_from_triplets(rows: np.ndarray, cols: np.ndarray, vals: np.ndarray, n: int) -> sp.csr_matrix:

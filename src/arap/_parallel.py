@@ -52,6 +52,9 @@ SAMPLES = 7
 
 T = TypeVar("T")
 
+MAX_THREADS: int = numba.config.NUMBA_NUM_THREADS  # type: ignore[attr-defined]
+"""Most threads numba's parallel kernels may use (``NUMBA_NUM_THREADS``, fixed when numba starts)."""
+
 
 class _Times:
     """Recent seconds per unit of work of one kernel and size class, serial and parallel.
@@ -99,7 +102,7 @@ class ThreadPolicy:
         """Threads the size rule allows for ``work`` edge terms (1 below ``min_work``)."""
         if work < self.min_work:
             return 1
-        return max(1, min(numba.config.NUMBA_NUM_THREADS, work // self.work_per_thread))
+        return max(1, min(MAX_THREADS, work // self.work_per_thread))
 
     def choose(self, name: str, work: int) -> int:
         """Threads for the next call of kernel ``name`` over ``work`` edge terms (1: serial)."""

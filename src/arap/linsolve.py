@@ -174,7 +174,8 @@ def default_backend(size: int) -> str:
     return "cholespy" if "cholespy" in found else found[0]
 
 
-def factorize(A: sp.spmatrix, backend: str | None = None, ordering: str = DEFAULT_ORDERING) -> Factor:
+def factorize(A: sp.csr_matrix | sp.csc_matrix | sp.coo_matrix, backend: str | None = None,
+              ordering: str = DEFAULT_ORDERING) -> Factor:
     """Cholesky-factorise a symmetric positive definite sparse matrix.
 
     Parameters

@@ -357,10 +357,11 @@ class ArapSolver:
                 t = time.perf_counter()
                 candidate = accel.step(x.ravel(), g.ravel())
                 timings["acceleration"] += time.perf_counter() - t
-            use_candidate = candidate is not None and not last and E_cur is not None
-            U[:nf] = candidate.reshape(nf, 3) if use_candidate else g
+            if last or E_cur is None:
+                candidate = None
+            U[:nf] = g if candidate is None else candidate.reshape(nf, 3)
             e = self._local(U, const_E, timings)
-            if use_candidate and e > E_cur:
+            if candidate is not None and E_cur is not None and e > E_cur:
                 # Safeguard: the extrapolation raised the energy; take the plain step, which cannot.
                 rejected += 1
                 assert accel is not None
@@ -390,7 +391,8 @@ class ArapSolver:
         return e + const_E
 
     def _start(
-        self, T: NDArray[np.float64], fixed: NDArray[np.float64], initial: object, timings: dict[str, float]
+        self, T: NDArray[np.float64], fixed: NDArray[np.float64],
+        initial: NDArray[np.float64] | str | None, timings: dict[str, float]
     ) -> tuple[NDArray[np.float64], float | None, str]:
         """Starting positions (internal order, non-free vertices at their fixed positions), their active-cell
         energy (None when the rotations in ``self._R`` were not fitted to them) and the name of the start.

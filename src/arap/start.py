@@ -99,4 +99,4 @@ def vertex_areas(V: NDArray[np.float64], F: NDArray[np.integer]) -> NDArray[np.f
     V = np.asarray(V, dtype=np.float64)
     F = np.asarray(F)
     area = 0.5 * np.linalg.norm(np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]]), axis=1)
-    return np.bincount(F.ravel(), weights=np.repeat(area / 3.0, 3), minlength=len(V))
+    return np.bincount(F.ravel(), weights=np.repeat(area / 3.0, 3), minlength=len(V)).astype(np.float64, copy=False)

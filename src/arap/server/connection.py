@@ -390,10 +390,10 @@ class Connection:
             await self._send_mesh(mesh)
             await self._send_state()
         elif t == "set_constraints":
-            outcome = await self._off_loop(s.set_constraints, f["roi"], f["fixed"], f["handle_groups"],
-                                           f.get("targets"))
-            if outcome is not None:
-                await self._send_vertices(-1, outcome)
+            solved = await self._off_loop(s.set_constraints, f["roi"], f["fixed"], f["handle_groups"],
+                                          f.get("targets"))
+            if solved is not None:
+                await self._send_vertices(-1, solved)
             await self._send_state()
         elif t == "set_params":
             await self._off_loop(lambda: s.set_params(**f))

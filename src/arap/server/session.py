@@ -17,11 +17,13 @@ from typing import Any
 import numpy as np
 
 import arap
+from arap.cells import EnergyType
 from arap.errors import ArapError
 from arap.server.constraints import ConstraintSet, identity_transforms, matrices_from_json, matrices_to_json
 from arap.server.history import History, Snapshot
 from arap.server.meshdata import MeshData, export_mesh
 from arap.server.protocol import PARAMS, RequestError
+from arap.weights import WeightType
 
 __all__ = ["DragOutcome", "Params", "Session", "SettleOutcome"]
 
@@ -45,8 +47,8 @@ class Params:
     """Solver parameters of a session."""
 
     iterations: int = PARAMS["iterations"]["default"]
-    energy: str = PARAMS["energy"]["default"]
-    weights: str = PARAMS["weights"]["default"]
+    energy: EnergyType = PARAMS["energy"]["default"]
+    weights: WeightType = PARAMS["weights"]["default"]
 
 
 @dataclass
@@ -378,8 +380,8 @@ class Session:
         self._commit_pending_drag()
         return dirty
 
-    def set_params(self, iterations: int | None = None, energy: str | None = None,
-                   weights: str | None = None) -> None:
+    def set_params(self, iterations: int | None = None, energy: EnergyType | None = None,
+                   weights: WeightType | None = None) -> None:
         """Change solver parameters; a new energy or weighting refactorises.
 
         Raises
