@@ -20,6 +20,7 @@ from arap.errors import (
     MeshError,
     MeshFormatError,
     MeshTooLargeError,
+    OptionError,
     UnconstrainedRegionError,
 )
 
@@ -33,6 +34,8 @@ _LAZY: dict[str, str] = {
     "fit_rotations": "arap.rotations",
     "cotangent_laplacian": "arap.weights",
     "check_mesh": "arap.mesh",
+    "mesh_arrays": "arap.mesh",
+    "MeshLike": "arap.mesh",
     "repair_mesh": "arap.mesh",
     "inspect_mesh": "arap.diagnose",
     "load_mesh": "arap.io",
@@ -62,7 +65,9 @@ __all__ = [
     "MeshError",
     "MeshFormatError",
     "MeshInfo",
+    "MeshLike",
     "MeshTooLargeError",
+    "OptionError",
     "RepairResult",
     "UnconstrainedRegionError",
     "__version__",
@@ -77,6 +82,7 @@ __all__ = [
     "load_mesh",
     "load_mesh_bytes",
     "load_mesh_with_report",
+    "mesh_arrays",
     "repair_mesh",
     "save_constraints",
     "save_mesh",
@@ -89,7 +95,7 @@ if TYPE_CHECKING:
     from arap.diagnose import MeshInfo, inspect_mesh
     from arap.energy import arap_energy, cell_energies
     from arap.io import MESH_FORMATS, load_mesh, load_mesh_bytes, load_mesh_with_report, save_mesh, save_mesh_bytes
-    from arap.mesh import RepairResult, check_mesh, repair_mesh
+    from arap.mesh import MeshLike, RepairResult, check_mesh, mesh_arrays, repair_mesh
     from arap.rotations import fit_rotations
     from arap.shapes import BUILTIN_MESHES, builtin_mesh, sphere
     from arap.solver import ArapResult, ArapSolver

@@ -22,6 +22,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from arap._csr import csr_from_triplets
+from arap.errors import OptionError
 from arap.weights import DEFAULT_WEIGHTS, corner_weights, edge_weight_matrix
 
 EnergyType = Literal["spokes", "spokes_and_rims"]
@@ -80,7 +81,7 @@ def build_cells(V: np.ndarray, F: np.ndarray, energy: str = DEFAULT_ENERGY, weig
     Cells
     """
     if energy not in ENERGY_TYPES:
-        raise ValueError(f"unknown energy {energy!r}; expected one of {ENERGY_TYPES}")
+        raise OptionError(f"unknown energy {energy!r}; expected one of {ENERGY_TYPES}")
     n = len(V)
     F = np.asarray(F, dtype=np.int64)
     if energy == "spokes":

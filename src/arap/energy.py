@@ -2,26 +2,52 @@
 
 from __future__ import annotations
 
-import numpy as np
+from typing import Any
 
-from arap.cells import DEFAULT_ENERGY, build_cells
+import numpy as np
+from numpy.typing import NDArray
+
+from arap.cells import DEFAULT_ENERGY, ENERGY_TYPES, EnergyType, build_cells
 from arap.covariance import local_step
-from arap.mesh import check_mesh
-from arap.weights import DEFAULT_WEIGHTS
+from arap.errors import ArapError, OptionError
+from arap.mesh import MeshLike, check_mesh, is_mesh_like, mesh_arrays
+from arap.weights import DEFAULT_WEIGHTS, WEIGHT_TYPES, WeightType
+
+__all__ = ["arap_energy", "cell_energies"]
+
+
+def _inputs(V: Any, F: Any, U: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Rest mesh and deformed positions from arrays or mesh objects (``f(mesh, U)`` leaves out ``F``)."""
+    if U is None and is_mesh_like(V) and F is not None:
+        F, U = None, F
+    if U is None:
+        raise ArapError("U (the deformed positions) is missing")
+    V, F = check_mesh(*mesh_arrays(V, F))
+    U = np.ascontiguousarray(U.vertices if is_mesh_like(U) else U, dtype=np.float64)
+    if U.shape != V.shape:
+        raise ArapError(f"U must have the shape of V {V.shape}, got {U.shape}")
+    if not np.isfinite(U).all():
+        raise ArapError("U has non-finite coordinates")
+    return V, F, U
 
 
 def cell_energies(
-    V: np.ndarray, F: np.ndarray, U: np.ndarray, energy: str = DEFAULT_ENERGY, weights: str = DEFAULT_WEIGHTS
-) -> np.ndarray:
+    V: NDArray[np.floating] | MeshLike,
+    F: NDArray[np.integer] | None = None,
+    U: NDArray[np.floating] | MeshLike | None = None,
+    energy: EnergyType = DEFAULT_ENERGY,
+    weights: WeightType = DEFAULT_WEIGHTS,
+) -> NDArray[np.float64]:
     """Energy of every cell with its optimal rotation.
 
     Parameters
     ----------
-    V : (n, 3) float array
-        Rest positions.
+    V : (n, 3) float array or MeshLike
+        Rest positions, or the rest mesh as an object with ``vertices`` and ``faces`` (then leave out ``F``:
+        ``cell_energies(mesh, U)``).
     F : (m, 3) int array
-    U : (n, 3) float array
-        Deformed positions.
+    U : (n, 3) float array or MeshLike
+        Deformed positions (or a mesh object holding them).
     energy : {"spokes_and_rims", "spokes"}
         Cell definition: spokes and rims (Chao et al. 2010, the default) or the paper's one-ring spokes (Sorkine &
         Alexa 2007).
@@ -31,11 +57,28 @@ def cell_energies(
     -------
     (n,) float64 array
         ``E_i = min_R Σ w ‖(p'_a − p'_b) − R (p_a − p_b)‖²`` over the cell's terms.
+
+    Raises
+    ------
+    MeshError
+        The rest mesh is unusable.
+    ArapError
+        ``U`` is missing, of another shape than ``V`` or not finite.
+    OptionError
+        Unknown energy or weights.
+
+    Example
+    -------
+    >>> import arap
+    >>> V, F = arap.builtin_mesh("bar")
+    >>> bool(abs(cell_energies(V, F, V)).max() < 1e-9)
+    True
     """
-    V, F = check_mesh(V, F)
-    U = np.ascontiguousarray(U, dtype=np.float64)
-    if U.shape != V.shape:
-        raise ValueError(f"U must have the shape of V {V.shape}, got {U.shape}")
+    if energy not in ENERGY_TYPES:
+        raise OptionError(f"unknown energy {energy!r}; expected one of {ENERGY_TYPES}")
+    if weights not in WEIGHT_TYPES:
+        raise OptionError(f"unknown weights {weights!r}; expected one of {WEIGHT_TYPES}")
+    V, F, U = _inputs(V, F, U)
     cells = build_cells(V, F, energy, weights)
     n = len(V)
     E = np.empty(n)
@@ -44,7 +87,11 @@ def cell_energies(
 
 
 def arap_energy(
-    V: np.ndarray, F: np.ndarray, U: np.ndarray, energy: str = DEFAULT_ENERGY, weights: str = DEFAULT_WEIGHTS
+    V: NDArray[np.floating] | MeshLike,
+    F: NDArray[np.integer] | None = None,
+    U: NDArray[np.floating] | MeshLike | None = None,
+    energy: EnergyType = DEFAULT_ENERGY,
+    weights: WeightType = DEFAULT_WEIGHTS,
 ) -> float:
     """The ARAP energy of ``U`` against the rest pose ``V``, with optimal rotations.
 
@@ -56,14 +103,21 @@ def arap_energy(
 
     Parameters
     ----------
-    V : (n, 3) float array
+    V : (n, 3) float array or MeshLike
+        Rest positions, or the rest mesh object (then leave out ``F``: ``arap_energy(mesh, U)``).
     F : (m, 3) int array
-    U : (n, 3) float array
+    U : (n, 3) float array or MeshLike
+        Deformed positions.
     energy : {"spokes_and_rims", "spokes"}
     weights : {"cotangent", "clamped", "uniform"}
 
     Returns
     -------
     float
+
+    Raises
+    ------
+    MeshError, ArapError, OptionError
+        As :func:`cell_energies`.
     """
     return float(cell_energies(V, F, U, energy, weights).sum())

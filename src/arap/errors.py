@@ -11,6 +11,11 @@ class ArapError(ValueError):
     """Base class of every input error raised by arap."""
 
 
+class OptionError(ArapError):
+    """An option names no known choice or is out of range: an energy, weights, start, acceleration, backend or
+    ordering name, or the size of a built-in shape."""
+
+
 class MeshError(ArapError):
     """The mesh itself is unusable: wrong shapes, non-finite coordinates, bad or degenerate faces."""
 

@@ -27,6 +27,8 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from arap.errors import OptionError
+
 logger = logging.getLogger(__name__)
 
 BackendName = Literal["sksparse", "cholespy", "scipy"]
@@ -206,9 +208,9 @@ def factorize(A: sp.csr_matrix | sp.csc_matrix | sp.coo_matrix, backend: str | N
     A.sort_indices()
     name = backend or default_backend(A.shape[0])
     if name not in BACKENDS:
-        raise ValueError(f"unknown backend {name!r}; expected one of {BACKENDS}")
+        raise OptionError(f"unknown backend {name!r}; expected one of {BACKENDS}")
     if ordering not in ORDERINGS:
-        raise ValueError(f"unknown ordering {ordering!r}; expected one of {ORDERINGS}")
+        raise OptionError(f"unknown ordering {ordering!r}; expected one of {ORDERINGS}")
     if name == "sksparse":
         factor: Factor = _SksparseFactor(A, ordering)
     elif name == "cholespy":

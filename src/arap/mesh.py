@@ -10,9 +10,11 @@ from __future__ import annotations
 
 import logging
 from dataclasses import dataclass, field
+from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 import scipy.sparse as sp
+from numpy.typing import NDArray
 from scipy.sparse.csgraph import connected_components as _cc
 from scipy.spatial import cKDTree
 
@@ -23,10 +25,12 @@ __all__ = [
     "MIN_RELATIVE_SIZE",
     "SIZE_RANGE",
     "WELD_TOLERANCE",
+    "MeshLike",
     "RepairResult",
     "check_coordinates",
     "check_mesh",
     "degenerate_faces",
+    "mesh_arrays",
     "repair_mesh",
     "triangulate_polygons",
 ]
@@ -196,7 +200,61 @@ def degenerate_faces(V: np.ndarray, F: np.ndarray, tolerance: float = DEGENERATE
 
 
 # ---------------------------------------------------------------------------------------------- check
-def check_mesh(V: np.ndarray, F: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+@runtime_checkable
+class MeshLike(Protocol):
+    """Any triangle mesh object with ``vertices`` (n, 3) and ``faces`` (m, 3), e.g. a ``trimesh.Trimesh``."""
+
+    @property
+    def vertices(self) -> Any: ...
+
+    @property
+    def faces(self) -> Any: ...
+
+
+def is_mesh_like(obj: object) -> bool:
+    """Whether ``obj`` is a mesh object (has ``vertices`` and ``faces``) rather than an array."""
+    return not isinstance(obj, np.ndarray) and isinstance(obj, MeshLike)
+
+
+def mesh_arrays(V: np.ndarray | MeshLike, F: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """The ``(V, F)`` arrays of a mesh given as arrays or as a mesh object.
+
+    Parameters
+    ----------
+    V : (n, 3) float array or MeshLike
+        Vertex positions, or a mesh object (``trimesh.Trimesh`` or anything with ``vertices`` and ``faces``).
+    F : (m, 3) int array or None
+        Triangles; None when ``V`` is a mesh object.
+
+    Returns
+    -------
+    V : (n, 3) array
+    F : (m, 3) array
+        Not yet checked (see :func:`check_mesh`).
+
+    Raises
+    ------
+    MeshError
+        A mesh object together with ``F``, or arrays without ``F``.
+
+    Example
+    -------
+    >>> import trimesh
+    >>> V, F = mesh_arrays(trimesh.creation.box())
+    >>> V.shape, F.shape
+    ((8, 3), (12, 3))
+    """
+    if is_mesh_like(V):
+        if F is not None:
+            raise MeshError("give either a mesh object or the arrays V and F, not both")
+        mesh: Any = V
+        return np.asarray(mesh.vertices), np.asarray(mesh.faces)
+    if F is None:
+        raise MeshError("F (the triangles) is missing: give V and F, or a mesh object with vertices and faces")
+    return np.asarray(V), np.asarray(F)
+
+
+def check_mesh(V: np.ndarray, F: np.ndarray) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
     """Validate a triangle mesh strictly and return it with canonical types.
 
     Runs in O(n + m) with vectorised NumPy, so it is cheap next to any solve.

@@ -17,6 +17,7 @@ import numba as nb
 import numpy as np
 
 from arap._parallel import policy
+from arap.errors import ArapError
 from arap.horn import _det3, best_rotation, rotation_from_covariance
 
 # Scratch layout of a block of cells for :func:`rotations_block`.
@@ -288,7 +289,7 @@ def fit_rotations(S: np.ndarray) -> np.ndarray:
     """
     S = np.ascontiguousarray(S, dtype=np.float64)
     if S.ndim != 3 or S.shape[1:] != (3, 3):
-        raise ValueError(f"expected a (k, 3, 3) stack of matrices, got shape {S.shape}")
+        raise ArapError(f"expected a (k, 3, 3) stack of matrices, got shape {S.shape}")
     R = np.empty_like(S)
     # About 20 operations per matrix entry: weigh a matrix like two edge terms of a cell.
     policy.run("fit_rotations", 2 * len(S), lambda: _fit_serial(S, R), lambda: _fit_parallel(S, R))

@@ -20,11 +20,15 @@ from collections.abc import Callable
 import numpy as np
 from numpy.typing import NDArray
 
+from arap.errors import OptionError
 from arap.mesh import repair_mesh
 
 __all__ = ["BUILTIN_MESHES", "builtin_mesh", "obtuse_cylinder", "scan_blob", "sphere", "sphere_frequency_for"]
 
 BUILTIN_MESHES = ("cactus", "bar", "cylinder")
+
+MAX_SPHERE_VERTICES = 20_000_000
+"""Largest sphere :func:`sphere` builds (about 4 GB of arrays and more to solve on it)."""
 
 
 # ---------------------------------------------------------------------------------------------- helpers
@@ -264,10 +268,18 @@ def sphere(subdivisions: int = 4, *, frequency: int | None = None, radius: float
     V : (10 k² + 2, 3) float64 array
     F : (20 k², 3) int64 array
         Counter-clockwise seen from outside.
+
+    Raises
+    ------
+    OptionError
+        ``k < 1``, or more than :data:`MAX_SPHERE_VERTICES` vertices.
     """
     k = int(frequency) if frequency is not None else 2 ** int(subdivisions)
     if k < 1:
-        raise ValueError(f"sphere frequency must be >= 1, got {k}")
+        raise OptionError(f"sphere frequency must be >= 1, got {k}")
+    if 10 * k * k + 2 > MAX_SPHERE_VERTICES:
+        raise OptionError(f"a sphere of frequency {k} would have {10 * k * k + 2:,} vertices, more than "
+                          f"{MAX_SPHERE_VERTICES:,}")
     edges = {tuple(sorted((int(f[i]), int(f[(i + 1) % 3])))) for f in _ICO_F for i in range(3)}
     edge_index = {e: i for i, e in enumerate(sorted(edges))}
     n_edge_pts = k - 1
@@ -339,7 +351,7 @@ def obtuse_cylinder(seed: int = 0, *, spacing: float = 0.05, squash: float = 0.5
         Closed, counter-clockwise seen from outside.
     """
     if not 0 < squash <= 1 or not 0 <= jitter < 0.5 or not spacing > 0:
-        raise ValueError(f"need 0 < squash <= 1, 0 <= jitter < 0.5, spacing > 0; got {squash}, {jitter}, {spacing}")
+        raise OptionError(f"need 0 < squash <= 1, 0 <= jitter < 0.5, spacing > 0; got {squash}, {jitter}, {spacing}")
     rng = np.random.default_rng(seed)
     height = 4.0
     V, F = _cylinder(0.5, height / squash, spacing)
@@ -385,7 +397,7 @@ def scan_blob(seed: int = 0, *, n: int = 4000, stretch: float = 3.0, jitter: flo
     from scipy.spatial import ConvexHull
 
     if n < 20 or not stretch > 0:
-        raise ValueError(f"need n >= 20 and stretch > 0; got {n}, {stretch}")
+        raise OptionError(f"need n >= 20 and stretch > 0; got {n}, {stretch}")
     rng = np.random.default_rng(seed)
     k = np.arange(n) + 0.5
     polar = np.arccos(1.0 - 2.0 * k / n)
@@ -426,6 +438,6 @@ def builtin_mesh(name: str) -> tuple[np.ndarray, np.ndarray]:
     try:
         build = _BUILDERS[name]
     except KeyError:
-        raise ValueError(f"unknown built-in mesh {name!r}; choose one of {', '.join(BUILTIN_MESHES)}") from None
+        raise OptionError(f"unknown built-in mesh {name!r}; choose one of {', '.join(BUILTIN_MESHES)}") from None
     V, F = build()
     return np.ascontiguousarray(V, dtype=np.float64), np.ascontiguousarray(F, dtype=np.int64)

@@ -11,10 +11,10 @@ from numpy.typing import NDArray
 from arap.anderson import AndersonAccelerator
 from arap.cells import DEFAULT_ENERGY, ENERGY_TYPES, EnergyType, build_cells, build_rhs_gather, system_matrix
 from arap.covariance import assemble_rhs, covariances, local_step
-from arap.errors import ArapError, ConstraintError, UnconstrainedRegionError
+from arap.errors import ArapError, ConstraintError, OptionError, UnconstrainedRegionError
 from arap.indexing import check_index_array, find_unconstrained_part
 from arap.linsolve import NotPositiveDefiniteError, factorize
-from arap.mesh import check_mesh
+from arap.mesh import MeshLike, check_mesh, is_mesh_like, mesh_arrays
 from arap.result import (
     ACCELERATIONS,
     DEFAULT_TOLERANCE,
@@ -39,8 +39,9 @@ class ArapSolver:
 
     Parameters
     ----------
-    V : (n, 3) float array
-        Rest positions.
+    V : (n, 3) float array or MeshLike
+        Rest positions, or a mesh object with ``vertices`` and ``faces`` (e.g. ``trimesh.Trimesh``; then leave out
+        ``F``: ``ArapSolver(mesh, constrained)``).
     F : (m, 3) int array
         Triangles. Degenerate faces are rejected (see :func:`arap.repair_mesh`).
     constrained : (k,) int array
@@ -72,24 +73,30 @@ class ArapSolver:
         Out-of-range or duplicate indices.
     UnconstrainedRegionError
         A connected part of the free vertices touches no constrained or held vertex (its system is singular).
+    OptionError
+        An unknown energy, weights or backend name.
     """
 
     def __init__(
         self,
-        V: np.ndarray,
-        F: np.ndarray,
-        constrained: np.ndarray | list[int],
+        V: NDArray[np.floating] | MeshLike,
+        F: NDArray[np.integer] | None = None,
+        constrained: NDArray[np.integer] | list[int] | None = None,
         energy: EnergyType = DEFAULT_ENERGY,
         weights: WeightType = DEFAULT_WEIGHTS,
-        roi: np.ndarray | list[int] | None = None,
+        roi: NDArray[np.integer] | list[int] | None = None,
         backend: str | None = None,
     ) -> None:
         t0 = time.perf_counter()
         if energy not in ENERGY_TYPES:
-            raise ArapError(f"unknown energy {energy!r}; expected one of {ENERGY_TYPES}")
+            raise OptionError(f"unknown energy {energy!r}; expected one of {ENERGY_TYPES}")
         if weights not in WEIGHT_TYPES:
-            raise ArapError(f"unknown weights {weights!r}; expected one of {WEIGHT_TYPES}")
-        V, F = check_mesh(V, F)
+            raise OptionError(f"unknown weights {weights!r}; expected one of {WEIGHT_TYPES}")
+        if constrained is None and is_mesh_like(V) and F is not None:
+            F, constrained = None, F  # ArapSolver(mesh, constrained)
+        if constrained is None:
+            raise ConstraintError("constrained (the anchor and handle vertices) is missing")
+        V, F = check_mesh(*mesh_arrays(V, F))
         n = len(V)
         self.V = V
         self.F = F
@@ -308,13 +315,13 @@ class ArapSolver:
         T = self._check_targets(targets)
         cap = MAX_ITERATIONS if max_iterations is None else max_iterations
         if int(cap) != cap or cap < 0:
-            raise ArapError(f"max_iterations must be a non-negative integer or None, got {max_iterations!r}")
+            raise OptionError(f"max_iterations must be a non-negative integer or None, got {max_iterations!r}")
         if not tolerance >= 0:
-            raise ArapError(f"tolerance must be >= 0, got {tolerance!r}")
+            raise OptionError(f"tolerance must be >= 0, got {tolerance!r}")
         if acceleration not in ACCELERATIONS:
-            raise ArapError(f"unknown acceleration {acceleration!r}; expected one of {ACCELERATIONS}")
+            raise OptionError(f"unknown acceleration {acceleration!r}; expected one of {ACCELERATIONS}")
         if int(window) != window or window < 1:
-            raise ArapError(f"window must be a positive integer, got {window!r}")
+            raise OptionError(f"window must be a positive integer, got {window!r}")
         fixed = self._fixed_positions(T)
         timings = {"local": 0.0, "rhs": 0.0, "solve": 0.0, "acceleration": 0.0}
         U, E_cur, start = self._start(T, fixed, initial, timings)
@@ -413,7 +420,7 @@ class ArapSolver:
                 return U, E, "warm"
         if isinstance(initial, str):
             if initial not in START_NAMES:
-                raise ArapError(f"unknown initial {initial!r}; expected one of {START_NAMES}, an array or None")
+                raise OptionError(f"unknown initial {initial!r}; expected one of {START_NAMES}, an array or None")
             candidates = []
             if initial in ("auto", "rest"):
                 U = self._V.copy()

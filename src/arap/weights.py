@@ -16,6 +16,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from arap._csr import csr_from_face_edges
+from arap.errors import OptionError
 
 WeightType = Literal["cotangent", "clamped", "uniform"]
 WEIGHT_TYPES: tuple[str, ...] = ("cotangent", "clamped", "uniform")
@@ -87,7 +88,7 @@ def corner_weights(V: np.ndarray, F: np.ndarray, weights: str = "cotangent") -> 
         return np.maximum(0.5 * face_cotangents(V, F), 0.0)
     if weights == "uniform":
         return np.full((len(F), 3), 0.5)
-    raise ValueError(f"unknown weights {weights!r}; expected one of {WEIGHT_TYPES}")
+    raise OptionError(f"unknown weights {weights!r}; expected one of {WEIGHT_TYPES}")
 
 
 def edge_weight_matrix(V: np.ndarray, F: np.ndarray, weights: str = "cotangent") -> sp.csr_matrix:

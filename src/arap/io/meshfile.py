@@ -19,11 +19,12 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
 
 from arap.errors import MeshError, MeshFormatError, MeshTooLargeError
 from arap.io.atomic import write_atomic
 from arap.io.screening import check_size, screen
-from arap.mesh import RepairResult, repair_mesh, triangulate_polygons
+from arap.mesh import MeshLike, RepairResult, mesh_arrays, repair_mesh, triangulate_polygons
 
 __all__ = [
     "MESH_FORMATS",
@@ -292,18 +293,31 @@ def save_mesh_bytes(V: np.ndarray, F: np.ndarray, file_type: str) -> bytes:
     return bytes(trimesh.exchange.stl.export_stl(mesh))
 
 
-def save_mesh(path: str | os.PathLike[str], V: np.ndarray, F: np.ndarray) -> None:
+def save_mesh(path: str | os.PathLike[str], V: NDArray[np.floating] | MeshLike,
+              F: NDArray[np.integer] | None = None) -> None:
     """Write a triangle mesh; the format follows the extension (see :func:`save_mesh_bytes`).
 
     The write is atomic (:func:`arap.io.atomic.write_atomic`): an earlier file at ``path`` stays intact until the
     complete new one replaces it, even when the writer is killed.
 
+    Parameters
+    ----------
+    path : path-like
+        ``.obj``, ``.off``, ``.ply`` or ``.stl``.
+    V : (n, 3) float array or MeshLike
+        Vertex positions, or a mesh object with ``vertices`` and ``faces`` (``save_mesh(path, mesh)``).
+    F : (m, 3) int array or None
+        Triangles; None with a mesh object.
+
     Raises
     ------
     MeshFormatError
         Unknown extension or the file cannot be written (``path`` is then unchanged).
+    MeshError
+        Unusable arrays.
     """
     path = Path(path)
+    V, F = mesh_arrays(V, F)
     data = save_mesh_bytes(V, F, path.name)
     try:
         write_atomic(path, data)
