@@ -52,6 +52,8 @@ _LAZY: dict[str, str] = {
     "builtin_mesh": "arap.shapes",
     "BUILTIN_MESHES": "arap.shapes",
     "load_constraints": "arap.constraints",
+    "studio": "arap.notebook",
+    "Studio": "arap.notebook",
 }
 
 __all__ = [
@@ -69,6 +71,7 @@ __all__ = [
     "MeshTooLargeError",
     "OptionError",
     "RepairResult",
+    "Studio",
     "UnconstrainedRegionError",
     "__version__",
     "arap_energy",
@@ -88,6 +91,7 @@ __all__ = [
     "save_mesh",
     "save_mesh_bytes",
     "sphere",
+    "studio",
 ]
 
 if TYPE_CHECKING:
@@ -96,6 +100,7 @@ if TYPE_CHECKING:
     from arap.energy import arap_energy, cell_energies
     from arap.io import MESH_FORMATS, load_mesh, load_mesh_bytes, load_mesh_with_report, save_mesh, save_mesh_bytes
     from arap.mesh import MeshLike, RepairResult, check_mesh, mesh_arrays, repair_mesh
+    from arap.notebook import Studio, studio
     from arap.rotations import fit_rotations
     from arap.shapes import BUILTIN_MESHES, builtin_mesh, sphere
     from arap.solver import ArapResult, ArapSolver

@@ -29,6 +29,7 @@ from arap.server.decoder import FrameDecoder
 from arap.server.errors import RequestError
 from arap.server.guard import RequestGuard, normalize_origin
 from arap.server.meshdata import MeshData, load_default
+from arap.server.session import Session
 
 __all__ = ["DEFAULT_MAX_SESSIONS", "DEFAULT_MAX_UPLOAD_BYTES", "DEFAULT_MAX_VERTICES", "STATIC_DIR",
            "client_missing_advice", "create_app", "frame_limit"]
@@ -87,6 +88,9 @@ class _Studio:
         self.sessions = 0
         self.connections: weakref.WeakSet[Connection] = weakref.WeakSet()
         self.decoder = FrameDecoder()
+        self.keep_latest = False
+        """Keep the most recently opened session in :attr:`latest`, even after it closed (for a notebook)."""
+        self.latest: Session | None = None
 
 
 class _ClientFiles:
@@ -107,7 +111,7 @@ class _ClientFiles:
 
 
 def create_app(
-    default_mesh: str | os.PathLike[str] | None = None,
+    default_mesh: str | os.PathLike[str] | MeshData | None = None,
     *,
     max_upload_bytes: int = DEFAULT_MAX_UPLOAD_BYTES,
     max_vertices: int = DEFAULT_MAX_VERTICES,
@@ -126,9 +130,10 @@ def create_app(
 
     Parameters
     ----------
-    default_mesh : str, path-like or None
+    default_mesh : str, path-like, MeshData or None
         Mesh every new session starts with: a built-in model name (``arap.BUILTIN_MESHES``), a mesh file chosen
-        by whoever runs the server, or None for the first built-in model. Loaded once, here.
+        by whoever runs the server, arrays wrapped in a :class:`~arap.server.meshdata.MeshData`, or None for the
+        first built-in model. Loaded once, here.
     max_upload_bytes : int
         Largest mesh file a client may upload.
     max_vertices : int
@@ -213,6 +218,8 @@ def create_app(
         try:
             connection = Connection(ws, studio.config, studio.default_mesh, studio.decoder)
             studio.connections.add(connection)
+            if studio.keep_latest:
+                studio.latest = connection.session
             await connection.run()
         finally:
             studio.sessions -= 1

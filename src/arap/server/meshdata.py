@@ -85,9 +85,9 @@ def load_builtin(name: str) -> MeshData:
     return MeshData.make(name, V, F)
 
 
-def load_default(spec: str | os.PathLike[str] | None) -> MeshData:
+def load_default(spec: str | os.PathLike[str] | MeshData | None) -> MeshData:
     """The mesh every new session starts with: a file given by the server's operator, a built-in name (when no
-    such file exists), or None for the first built-in model.
+    such file exists), a :class:`MeshData` (e.g. arrays from a notebook), or None for the first built-in model.
 
     Raises
     ------
@@ -96,6 +96,8 @@ def load_default(spec: str | os.PathLike[str] | None) -> MeshData:
     """
     if spec is None:
         return load_builtin(builtin_names()[0])
+    if isinstance(spec, MeshData):
+        return spec
     path = Path(spec)
     if not path.exists() and str(spec) in builtin_names():
         return load_builtin(str(spec))

@@ -18,6 +18,7 @@ from arap.server.app import (
     create_app,
     frame_limit,
 )
+from arap.server.meshdata import MeshData
 
 __all__ = ["bind_socket", "make_server", "serve", "studio_url"]
 
@@ -69,7 +70,7 @@ def bind_socket(host: str = "127.0.0.1", port: int = 8000) -> socket.socket:
 
 
 def make_server(
-    mesh: str | os.PathLike[str] | None = None,
+    mesh: str | os.PathLike[str] | MeshData | None = None,
     host: str = "127.0.0.1",
     port: int = 8000,
     *,

@@ -1,0 +1,242 @@
+"""The studio from Python: serve a mesh in the background, edit it in the browser, read the result back as arrays.
+
+>>> import arap
+>>> V, F = arap.builtin_mesh("cactus")
+>>> s = arap.studio(V, F)          # doctest: +SKIP
+>>> # ... anchor, handle and drag in the page shown inline (Jupyter) or at s.url ...
+>>> s.vertices, s.constraints      # doctest: +SKIP
+>>> s.stop()                       # doctest: +SKIP
+
+The server is the one ``arap studio`` runs (:mod:`arap.server`), on a free port of 127.0.0.1, in a thread of the
+calling process. The handle reads the shape and the selection of the most recently opened browser session; they stay
+readable after the page is closed, until :meth:`Studio.stop`.
+"""
+
+from __future__ import annotations
+
+import html
+import threading
+import time
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from arap.errors import ArapError
+from arap.mesh import MeshLike, check_mesh, mesh_arrays
+
+if TYPE_CHECKING:
+    import socket
+
+    import uvicorn
+
+    from arap.server.session import Session
+
+__all__ = ["Selection", "Studio", "studio"]
+
+START_TIMEOUT = 30.0
+"""Seconds :func:`studio` waits for the server to listen."""
+
+
+@dataclass(frozen=True)
+class Selection:
+    """What the user selected in the studio.
+
+    Attributes
+    ----------
+    roi : (r,) int64 array or None
+        Region of interest; None is the whole mesh.
+    fixed : (f,) int64 array
+        Anchors.
+    handle_groups : list of (h_g,) int64 arrays
+        Handle groups.
+    targets : (h, 3) float64 array
+        Current positions of the handle vertices, groups concatenated in order.
+    document : dict
+        The same constraints in the command-line format (``arap deform MESH CONSTRAINTS``; see
+        :func:`arap.save_constraints`).
+    """
+
+    roi: NDArray[np.int64] | None
+    fixed: NDArray[np.int64]
+    handle_groups: list[NDArray[np.int64]]
+    targets: NDArray[np.float64]
+    document: dict[str, Any]
+
+
+class Studio:
+    """A studio server running in the background; see :func:`studio`.
+
+    Attributes
+    ----------
+    url : str
+        The page to open (``http://127.0.0.1:PORT/``).
+    """
+
+    def __init__(self, server: uvicorn.Server, sock: socket.socket, url: str, V: NDArray[np.float64],
+                 F: NDArray[np.int64], height: int) -> None:
+        self.url = url
+        app: Any = server.config.app
+        self._shared = app.state.studio
+        self._shared.keep_latest = True
+        self._server = server
+        self._sock = sock
+        self._V = V
+        self._F = F
+        self._height = height
+        self._thread = threading.Thread(target=self._serve, name="arap-studio", daemon=True)
+        self._error: OSError | RuntimeError | SystemExit | None = None
+
+    def _serve(self) -> None:
+        try:
+            self._server.run(sockets=[self._sock])
+        except (OSError, RuntimeError, SystemExit) as exc:  # reported by _start(), not lost in the thread
+            self._error = exc
+
+    def _start(self) -> None:
+        self._thread.start()
+        deadline = time.monotonic() + START_TIMEOUT
+        while not self._server.started:
+            if not self._thread.is_alive() or time.monotonic() > deadline:
+                self.stop()
+                raise ArapError(f"the studio server did not start: {self._error!r}")
+            time.sleep(0.01)
+
+    @property
+    def _session(self) -> Session | None:
+        session: Session | None = self._shared.latest
+        return session
+
+    @property
+    def running(self) -> bool:
+        """Whether the server is serving."""
+        return self._thread.is_alive()
+
+    @property
+    def faces(self) -> NDArray[np.int64]:
+        """(m, 3) int64 array: the triangles of the session's mesh (the mesh given to :func:`studio` until the
+        user loads another one in the page)."""
+        session = self._session
+        if session is None or session.mesh is None:
+            return self._F.copy()
+        return np.array(session.mesh.F, dtype=np.int64)
+
+    @property
+    def vertices(self) -> NDArray[np.float64]:
+        """(n, 3) float64 array: the current deformed shape of the most recent browser session (the given mesh
+        before any page has connected)."""
+        session = self._session
+        if session is None or session.mesh is None:
+            return self._V.copy()
+        return np.array(session.U, dtype=np.float64)
+
+    @property
+    def constraints(self) -> Selection:
+        """The selection of the most recent browser session (empty before any page has connected)."""
+        session = self._session
+        if session is None or session.mesh is None:
+            empty = np.zeros(0, dtype=np.int64)
+            return Selection(None, empty, [], np.zeros((0, 3)), {"fixed": [], "handles": [], "targets": []})
+        cs, transforms = session.constraints, session.transforms
+        return Selection(
+            roi=None if cs.roi is None else cs.roi.copy(),
+            fixed=cs.fixed.copy(),
+            handle_groups=[g.copy() for g in cs.groups],
+            targets=np.array(cs.handle_targets(transforms), dtype=np.float64).reshape(-1, 3),
+            document=session.constraints_document(),
+        )
+
+    def stop(self, timeout: float = 10.0) -> None:
+        """Stop the server and wait for its thread (open pages lose their connection); idempotent."""
+        self._server.should_exit = True
+        if self._thread.is_alive():
+            self._thread.join(timeout)
+        self._sock.close()
+
+    def __enter__(self) -> Studio:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.stop()
+
+    def _repr_html_(self) -> str:
+        url = html.escape(self.url, quote=True)
+        if not self.running:
+            return f"<p>ARAP Studio stopped (it served {url}).</p>"
+        return (f'<iframe src="{url}" width="100%" height="{self._height}" style="border:0" '
+                f'title="ARAP Studio"></iframe><p><a href="{url}" target="_blank">Open the studio in a new tab</a></p>')
+
+    def __repr__(self) -> str:
+        state = "running" if self.running else "stopped"
+        return f"<arap.Studio {state} at {self.url}>"
+
+
+def studio(
+    V: NDArray[np.floating] | MeshLike,
+    F: NDArray[np.integer] | None = None,
+    *,
+    name: str = "mesh",
+    port: int = 0,
+    show: bool = True,
+    height: int = 640,
+) -> Studio:
+    """Serve a mesh in the studio in the background and show it inline in Jupyter.
+
+    Parameters
+    ----------
+    V : (n, 3) float array or MeshLike
+        Rest positions, or a mesh object with ``vertices`` and ``faces`` (then leave out ``F``).
+    F : (m, 3) int array or None
+    name : str
+        Name shown in the page and used for exports.
+    port : int
+        TCP port on 127.0.0.1; 0 picks a free one.
+    show : bool
+        Display the page inline when running under IPython/Jupyter (an IFrame); elsewhere open :attr:`Studio.url`.
+    height : int
+        Height of the inline page in pixels.
+
+    Returns
+    -------
+    Studio
+        Handle with ``url``, ``vertices``, ``faces``, ``constraints`` and ``stop()`` (also a context manager).
+
+    Raises
+    ------
+    MeshError
+        The mesh is unusable (as :func:`arap.check_mesh`).
+    ArapError
+        The studio's server stack is not installed (``pip install "arap[studio]"``), or the server did not start.
+    OSError
+        The port cannot be bound.
+
+    Example
+    -------
+    >>> import arap
+    >>> with arap.studio(*arap.builtin_mesh("bar"), show=False) as s:   # doctest: +SKIP
+    ...     print(s.url)
+    """
+    V, F = check_mesh(*mesh_arrays(V, F))
+    try:
+        from arap.server.meshdata import MeshData
+        from arap.server.runner import make_server
+    except ImportError as exc:
+        raise ArapError(f'the studio needs its server stack: pip install "arap[studio]" ({exc.name} is missing)'
+                        ) from exc
+    server, sock, url = make_server(MeshData.make(name, V, F), "127.0.0.1", port, log_level="warning")
+    handle = Studio(server, sock, url, V, F, height)
+    handle._start()
+    if show:
+        _display(handle)
+    return handle
+
+
+def _display(handle: Studio) -> None:
+    try:
+        from IPython import get_ipython
+        from IPython.display import display
+    except ImportError:
+        return
+    if get_ipython() is not None:
+        display(handle)

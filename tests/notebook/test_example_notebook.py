@@ -1,0 +1,26 @@
+"""The example notebook runs from top to bottom in a fresh kernel, the inline studio included."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import nbformat
+import pytest
+from nbclient import NotebookClient
+
+pytestmark = pytest.mark.timeout(240)
+
+NOTEBOOK = Path(__file__).resolve().parents[2] / "docs" / "notebooks" / "first-deformation.ipynb"
+
+
+def test_example_notebook_runs(tmp_path: Path) -> None:
+    nb = nbformat.read(NOTEBOOK, as_version=4)
+    NotebookClient(nb, timeout=180, kernel_name="python3", resources={"metadata": {"path": str(tmp_path)}}).execute()
+    outputs = [o for cell in nb.cells if cell.cell_type == "code" for o in cell.outputs]
+    assert not [o for o in outputs if o.output_type == "error"]
+    text = "\n".join(str(o.get("text", "")) + str(o.get("data", {}).get("text/plain", "")) for o in outputs)
+    assert "converged: True" in text
+    assert "(True," in text  # the energies never rose
+    html = [o["data"]["text/html"] for o in outputs if "text/html" in o.get("data", {})]
+    assert any("<iframe" in h and "127.0.0.1" in h for h in html)  # the studio was shown inline
+    assert "<arap.Studio stopped" in text and any("ARAP Studio stopped" in h for h in html)

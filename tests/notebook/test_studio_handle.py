@@ -1,0 +1,103 @@
+"""``arap.studio``: a background studio on the given arrays, driven over its WebSocket as the page would, read back as
+arrays, stopped cleanly."""
+
+from __future__ import annotations
+
+import json
+import socket
+from typing import Any
+
+import numpy as np
+import pytest
+import trimesh
+from websockets.sync.client import ClientConnection, connect
+
+import arap
+from arap.server.protocol import decode_binary
+
+pytestmark = pytest.mark.timeout(120)
+
+
+def _recv(ws: ClientConnection) -> tuple[dict[str, Any], bytes | None]:
+    message = ws.recv(timeout=60)
+    if isinstance(message, str):
+        return json.loads(message), None
+    header, payload = decode_binary(message)
+    return header, bytes(payload)
+
+
+def _expect(ws: ClientConnection, kind: str) -> tuple[dict[str, Any], bytes | None]:
+    while True:
+        header, payload = _recv(ws)
+        assert header["type"] != "error", header
+        if header["type"] == kind:
+            return header, payload
+
+
+def _origin(url: str) -> str:
+    return url.rstrip("/")
+
+
+def test_studio_serves_the_arrays_and_reads_the_session_back() -> None:
+    V, F = arap.builtin_mesh("bar")
+    s = arap.studio(V, F, name="bar", show=False)
+    try:
+        assert s.running and s.url.startswith("http://127.0.0.1:")
+        np.testing.assert_array_equal(s.vertices, V)  # no page yet: the given mesh
+        assert s.constraints.fixed.size == 0 and s.constraints.handle_groups == []
+        with connect(s.url.replace("http://", "ws://") + "ws", origin=_origin(s.url), max_size=None) as ws:
+            _expect(ws, "welcome")
+            header, payload = _expect(ws, "mesh")
+            assert header["name"] == "bar" and header["n_vertices"] == len(V)
+            assert payload is not None
+            sent = np.frombuffer(payload[: 12 * len(V)], dtype="<f4").reshape(-1, 3)
+            np.testing.assert_allclose(sent, V, rtol=0, atol=1e-6 * np.abs(V).max())
+            _expect(ws, "state")
+            y = V[:, 1]
+            fixed = np.flatnonzero(y <= y.min() + 0.05 * np.ptp(y)).tolist()
+            top = np.flatnonzero(y >= y.max() - 0.05 * np.ptp(y)).tolist()
+            ws.send(json.dumps({"type": "set_constraints", "roi": None, "fixed": fixed, "handle_groups": [top]}))
+            _expect(ws, "state")
+            M = np.eye(4)
+            M[:3, 3] = (0.4, 0.0, 0.1)
+            ws.send(json.dumps({"type": "drag", "seq": 1, "transforms": [M.T.reshape(16).tolist()]}))
+            header, payload = _expect(ws, "vertices")
+            assert payload is not None
+            shown = np.frombuffer(payload, dtype="<f4").reshape(-1, 3)
+            ws.send(json.dumps({"type": "end_drag"}))
+            _expect(ws, "state")
+        U = s.vertices  # read after the page closed: the session's last shape is kept
+        assert U.shape == V.shape and U.dtype == np.float64
+        np.testing.assert_allclose(U[top], V[top] + [0.4, 0.0, 0.1], atol=1e-9)
+        np.testing.assert_allclose(U[fixed], V[fixed], atol=1e-12)
+        assert np.abs(U - V).max() > 0.1
+        if header["seq"] == 1:
+            assert np.abs(shown - U).max() < 0.5  # settled since, but the frame was this drag's shape
+        sel = s.constraints
+        assert sel.fixed.tolist() == fixed and [g.tolist() for g in sel.handle_groups] == [top]
+        assert sel.roi is None
+        np.testing.assert_allclose(sel.targets, V[top] + [0.4, 0.0, 0.1], atol=1e-12)
+        assert sel.document["fixed"] == fixed
+        np.testing.assert_array_equal(s.faces, F)
+        port = int(s.url.rsplit(":", 1)[1].strip("/"))
+    finally:
+        s.stop()
+    assert not s.running
+    with socket.socket() as probe:  # nothing listens on the port any more (closed connections may linger)
+        probe.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        probe.bind(("127.0.0.1", port))
+        probe.listen()
+
+
+def test_studio_takes_a_mesh_object_and_is_a_context_manager() -> None:
+    mesh = trimesh.creation.icosphere(subdivisions=2)
+    with arap.studio(mesh, show=False) as s:
+        assert "iframe" in s._repr_html_() and s.url in s._repr_html_()
+        np.testing.assert_array_equal(s.faces, mesh.faces)
+        assert "running" in repr(s)
+    assert not s.running and "stopped" in repr(s)
+
+
+def test_studio_rejects_a_bad_mesh_before_starting() -> None:
+    with pytest.raises(arap.MeshError):
+        arap.studio(np.zeros((3, 3)), np.array([[0, 1, 1]]), show=False)
