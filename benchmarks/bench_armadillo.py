@@ -22,30 +22,10 @@ import numpy as np
 import arap
 from arap.io import load_mesh
 from arap.io.atomic import write_atomic
+from arap.scenarios import bend
 from arap.solver import ArapSolver
 
 DEFAULT_MESH = Path(__file__).resolve().parents[1].parent / "shared" / "meshes" / "armadillo.obj"
-
-
-def bend_scenario(V: np.ndarray, share: float = 0.1, angle_deg: float = 45.0
-                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Fixed and handle vertices along y, and the handle targets (rotation about z through the centroid + shift).
-
-    Returns
-    -------
-    fixed : (f,) int64 array
-    handles : (h,) int64 array
-    targets : (h, 3) float64 array
-    """
-    y = V[:, 1]
-    fixed = np.flatnonzero(y <= np.quantile(y, share))
-    handles = np.flatnonzero(y >= np.quantile(y, 1.0 - share))
-    a = np.radians(angle_deg)
-    R = np.array([[np.cos(a), -np.sin(a), 0.0], [np.sin(a), np.cos(a), 0.0], [0.0, 0.0, 1.0]])
-    centroid = V[handles].mean(axis=0)
-    diag = float(np.linalg.norm(V.max(axis=0) - V.min(axis=0)))
-    targets = (V[handles] - centroid) @ R.T + centroid + np.array([0.1 * diag, 0.0, 0.0])
-    return fixed, handles, targets
 
 
 def run_arap(V: np.ndarray, F: np.ndarray, b: np.ndarray, bc: np.ndarray, iterations: int,
@@ -255,9 +235,9 @@ def main(argv: list[str] | None = None) -> int:
 
     V, F = load_mesh(args.mesh)
     diag = float(np.linalg.norm(V.max(axis=0) - V.min(axis=0)))
-    fixed, handles, targets = bend_scenario(V)
-    b = np.concatenate([fixed, handles])
-    bc = np.concatenate([V[fixed], targets])
+    scenario = bend(V, axis=1, angle=np.radians(45.0), shift=0.1)
+    fixed, handles = scenario.fixed, scenario.handles
+    b, bc = scenario.constrained, scenario.targets
     print(f"{args.mesh.name}: {len(V):,} vertices, {len(F):,} faces; {len(fixed):,} fixed, {len(handles):,} "
           f"handles; {args.iterations} iterations, median of {args.repeats} runs\n")
 

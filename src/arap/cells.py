@@ -15,7 +15,7 @@ right-hand side of vertex ``v`` gathers ``R_c g_vc`` over the cells ``c`` of ``v
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Literal
+from typing import Literal, get_args
 
 import numba as nb
 import numpy as np
@@ -26,7 +26,10 @@ from arap.errors import OptionError
 from arap.weights import DEFAULT_WEIGHTS, corner_weights, edge_weight_matrix
 
 EnergyType = Literal["spokes", "spokes_and_rims"]
-ENERGY_TYPES: tuple[str, ...] = ("spokes", "spokes_and_rims")
+ENERGY_TYPES: tuple[str, ...] = get_args(EnergyType)
+"""Energy names: the one list the library, the command line, the studio protocol and its client use."""
+ENERGY_LABELS: dict[str, str] = {"spokes": "spokes (2007 paper)", "spokes_and_rims": "spokes and rims"}
+"""How the studio names each energy."""
 DEFAULT_ENERGY: EnergyType = "spokes_and_rims"
 """The default cells: unlike ``spokes`` with cotangent weights, they do not fold meshes with obtuse triangles, and
 their energy is a sum of non-negative per-triangle terms (see ``benchmarks/bench_folds.py``)."""

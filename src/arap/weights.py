@@ -9,7 +9,7 @@
 
 from __future__ import annotations
 
-from typing import Literal
+from typing import Literal, get_args
 
 import numba as nb
 import numpy as np
@@ -19,7 +19,10 @@ from arap._csr import csr_from_face_edges
 from arap.errors import OptionError
 
 WeightType = Literal["cotangent", "clamped", "uniform"]
-WEIGHT_TYPES: tuple[str, ...] = ("cotangent", "clamped", "uniform")
+WEIGHT_TYPES: tuple[str, ...] = get_args(WeightType)
+"""Weight names: the one list the library, the command line, the studio protocol and its client use."""
+WEIGHT_LABELS: dict[str, str] = {"cotangent": "cotangent", "clamped": "cotangent, clamped at 0", "uniform": "uniform"}
+"""How the studio names each weighting."""
 DEFAULT_WEIGHTS: WeightType = "cotangent"
 """The default edge weights."""
 

@@ -75,12 +75,23 @@ export class Connection {
     return this.retryTimer !== null;
   }
 
+  /**
+   * Send a text message; false when the connection is not open.
+   * @param {import('./protocol.js').ClientMessage} msg
+   * @returns {boolean}
+   */
   send(msg) {
     if (!this.open) return false;
     this.ws.send(JSON.stringify(msg));
     return true;
   }
 
+  /**
+   * Send a binary message (header and payload); false when the connection is not open.
+   * @param {import('./protocol.js').UploadClientMessage} header
+   * @param {ArrayBuffer|ArrayBufferView} bytes
+   * @returns {boolean}
+   */
   sendBinary(header, bytes) {
     if (!this.open) return false;
     this.ws.send(encodeBinary(header, bytes));

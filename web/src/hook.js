@@ -19,7 +19,7 @@ export function installTestHook({ app, viewer, selection, gizmo, conn, keeper })
     const r = viewer.canvas.getBoundingClientRect();
     return [x + r.left, y + r.top];
   };
-  window.__arap = Object.freeze({
+  /** @type {any} */ (window).__arap = Object.freeze({
     get ready() {
       return app.ready;
     },

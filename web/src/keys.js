@@ -60,7 +60,7 @@ export function releaseFocusAfterPointerUse(root) {
       const el = document.activeElement;
       if (!el || !root.contains(el) || !el.matches(CONTROLS)) return;
       if (takesKeys(el) && !(el instanceof HTMLSelectElement)) return;
-      el.blur();
+      /** @type {HTMLElement} */ (el).blur();
     }, 0);
   };
   root.addEventListener('click', release);

@@ -8,7 +8,7 @@ import { SessionKeeper } from './keeper.js';
 import { ignoreTypeAhead, installShortcuts, releaseFocusAfterPointerUse } from './keys.js';
 import { Panel } from './panel.js';
 import { LinePlot } from './plot.js';
-import { CLIENT, meshArrays, SERVER, vertexArray } from './protocol.js';
+import { CLIENT, meshArrays, PROTOCOL_VERSION, SERVER, vertexArray } from './protocol.js';
 import { constraintsKey, Selection } from './selection.js';
 import { builtinSource, fileSource } from './snapshot.js';
 import { SelectionTools } from './tools.js';
@@ -18,6 +18,7 @@ const viewer = new Viewer(document.getElementById('view'));
 const selection = new Selection();
 const app = {
   ready: false,
+  incompatible: false, // the server speaks another protocol version
   meshName: null,
   nFaces: 0,
   limits: { max_upload_bytes: 0, max_vertices: 0 },
@@ -108,6 +109,7 @@ function setBusy(text, forType) {
   panel.setBusy(text);
 }
 
+/** @param {import('./protocol.js').ClientMessage} msg @returns {boolean} */
 function send(msg) {
   if (!conn.send(msg)) {
     panel.showStatus('Not connected to the studio server.', 'error');
@@ -176,6 +178,7 @@ function commitConstraints(targets = null, force = false) {
 
 function handleMessage(msg) {
   app.messages++;
+  if (msg.type !== SERVER.WELCOME && app.incompatible) return undefined;
   keeper.touch();
   switch (msg.type) {
     case SERVER.WELCOME:
@@ -206,6 +209,15 @@ function handleMessage(msg) {
 }
 
 function onWelcome(msg) {
+  app.incompatible = msg.protocol !== PROTOCOL_VERSION;
+  if (app.incompatible) {
+    // a page left open across an upgrade of the server: its messages would be misread
+    app.ready = false;
+    panel.setEnabled(false);
+    panel.showStatus(`This page speaks version ${PROTOCOL_VERSION} of the studio protocol and the server `
+      + `version ${msg.protocol}: reload the page.`, 'error');
+    return;
+  }
   keeper.welcomed();
   app.builtins = msg.builtin_meshes || [];
   app.limits = { ...app.limits, ...(msg.limits || {}) };
@@ -362,7 +374,7 @@ function loadConstraintsFile(file) {
 function setRole(role) {
   app.role = role;
   panel.setSegment('role-seg', 'role', role);
-  document.getElementById('btn-invert').disabled = role === 'erase';
+  /** @type {HTMLButtonElement} */ (document.getElementById('btn-invert')).disabled = role === 'erase';
 }
 
 function setTool(tool) {

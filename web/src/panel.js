@@ -1,7 +1,16 @@
 // Side panel: controls bound to studio actions, and the read-outs (groups, counts, statistics, status).
+import { EXPORT_FORMATS, PARAMS } from './protocol.js';
 import { cssColor, FIXED_COLOR, groupColor } from './viewer.js';
 
+/**
+ * A panel element by id (form controls of several kinds: typed loosely).
+ * @param {string} id
+ * @returns {any}
+ */
 const $ = (id) => document.getElementById(id);
+
+/** The control an event came from. @param {Event} e @returns {any} */
+const source = (e) => e.target;
 
 function fmtMs(v) {
   if (v === null || v === undefined || !Number.isFinite(v)) return '–';
@@ -12,17 +21,33 @@ function fmtInt(v) {
   return Number.isFinite(v) ? v.toLocaleString('en-US') : '–';
 }
 
+/**
+ * Fill a drop-down with the choices of a solver parameter, labelled as the protocol names them.
+ * @param {HTMLSelectElement} select
+ * @param {{choices: readonly string[], labels: Object<string, string>, default: string}} param
+ */
+function fillChoices(select, param) {
+  select.innerHTML = '';
+  for (const value of param.choices) {
+    const o = document.createElement('option');
+    o.value = value;
+    o.textContent = param.labels[value] ?? value;
+    select.appendChild(o);
+  }
+  select.value = param.default;
+}
+
 export class Panel {
   /** @param {object} actions callbacks invoked by the controls (see main.js) */
   constructor(actions) {
     this.actions = actions;
     this._statusTimer = null;
 
-    $('builtin-select').addEventListener('change', (e) => actions.loadBuiltin(e.target.value));
+    $('builtin-select').addEventListener('change', (e) => actions.loadBuiltin(source(e).value));
     $('btn-open').addEventListener('click', () => $('file-input').click());
     $('file-input').addEventListener('change', (e) => {
-      const f = e.target.files?.[0];
-      e.target.value = '';
+      const f = source(e).files?.[0];
+      source(e).value = '';
       if (f) actions.uploadFile(f);
     });
     this._segment('tool-seg', 'tool', (v) => actions.setTool(v));
@@ -31,8 +56,8 @@ export class Panel {
 
     const radius = $('brush-radius');
     radius.addEventListener('input', () => actions.setBrushRadius(Number(radius.value)));
-    $('brush-units').addEventListener('change', (e) => actions.setBrushUnits(e.target.value));
-    $('front-only').addEventListener('change', (e) => actions.setFrontOnly(e.target.checked));
+    $('brush-units').addEventListener('change', (e) => actions.setBrushUnits(source(e).value));
+    $('front-only').addEventListener('change', (e) => actions.setFrontOnly(source(e).checked));
     $('btn-clear').addEventListener('click', () => actions.clearRole());
     $('btn-invert').addEventListener('click', () => actions.invertRole());
     $('btn-clear-all').addEventListener('click', () => actions.clearAll());
@@ -44,23 +69,35 @@ export class Panel {
     $('btn-apply').addEventListener('click', () => actions.send({ type: 'apply' }));
 
     const it = $('iterations');
+    it.min = String(PARAMS.iterations.min);
+    it.max = String(PARAMS.iterations.max);
+    it.value = String(PARAMS.iterations.default);
+    $('iterations-val').textContent = it.value;
+    fillChoices($('energy'), PARAMS.energy);
+    fillChoices($('weights'), PARAMS.weights);
     it.addEventListener('input', () => ($('iterations-val').textContent = it.value));
     it.addEventListener('change', () => actions.setParams({ iterations: Number(it.value) }));
-    $('energy').addEventListener('change', (e) => actions.setParams({ energy: e.target.value }));
-    $('weights').addEventListener('change', (e) => actions.setParams({ weights: e.target.value }));
+    $('energy').addEventListener('change', (e) => actions.setParams({ energy: source(e).value }));
+    $('weights').addEventListener('change', (e) => actions.setParams({ weights: source(e).value }));
 
-    $('btn-export-obj').addEventListener('click', () => actions.send({ type: 'export', format: 'obj' }));
-    $('btn-export-ply').addEventListener('click', () => actions.send({ type: 'export', format: 'ply' }));
+    for (const format of EXPORT_FORMATS) {
+      const b = document.createElement('button');
+      b.id = `btn-export-${format}`;
+      b.dataset.testid = `export-${format}`;
+      b.textContent = `Export ${format.toUpperCase()}`;
+      b.addEventListener('click', () => actions.send({ type: 'export', format }));
+      $('export-buttons').appendChild(b);
+    }
     $('btn-save-constraints').addEventListener('click', () => actions.send({ type: 'get_constraints' }));
     $('btn-load-constraints').addEventListener('click', () => $('constraints-input').click());
     $('constraints-input').addEventListener('change', (e) => {
-      const f = e.target.files?.[0];
-      e.target.value = '';
+      const f = source(e).files?.[0];
+      source(e).value = '';
       if (f) actions.loadConstraintsFile(f);
     });
 
-    $('flat-shading').addEventListener('change', (e) => actions.setFlatShading(e.target.checked));
-    $('wireframe').addEventListener('change', (e) => actions.setWireframe(e.target.checked));
+    $('flat-shading').addEventListener('change', (e) => actions.setFlatShading(source(e).checked));
+    $('wireframe').addEventListener('change', (e) => actions.setWireframe(source(e).checked));
     $('btn-fit').addEventListener('click', () => actions.fit());
     $('btn-reconnect').addEventListener('click', () => actions.reconnect());
     $('status-close').addEventListener('click', () => this.hideStatus());
@@ -74,7 +111,7 @@ export class Panel {
   _segment(id, key, onPick) {
     const el = $(id);
     el.addEventListener('click', (e) => {
-      const b = e.target.closest('button');
+      const b = source(e).closest('button');
       if (b && !b.disabled) onPick(b.dataset[key]);
     });
   }
@@ -130,7 +167,7 @@ export class Panel {
   setParams(p) {
     if (!p) return;
     if (Number.isFinite(p.iterations)) {
-      const v = Math.max(1, Math.min(20, p.iterations));
+      const v = Math.max(PARAMS.iterations.min, Math.min(PARAMS.iterations.max, p.iterations));
       $('iterations').value = String(v);
       $('iterations-val').textContent = String(p.iterations);
     }
@@ -145,6 +182,7 @@ export class Panel {
 
   setEnabled(on) {
     for (const b of document.querySelectorAll('#panel button, #panel select, #panel input')) {
+      if (!(b instanceof HTMLButtonElement || b instanceof HTMLSelectElement || b instanceof HTMLInputElement)) continue;
       if (b.id === 'btn-reconnect') continue;
       b.disabled = !on;
     }

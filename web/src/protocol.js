@@ -6,7 +6,7 @@
 export const PROTOCOL_VERSION = 1;
 
 /** Types of the messages a client sends. */
-export const CLIENT = Object.freeze({
+export const CLIENT = Object.freeze(/** @type {const} */ ({
   "LOAD_BUILTIN": "load_builtin",
   "UPLOAD": "upload",
   "SET_CONSTRAINTS": "set_constraints",
@@ -19,10 +19,10 @@ export const CLIENT = Object.freeze({
   "APPLY": "apply",
   "EXPORT": "export",
   "GET_CONSTRAINTS": "get_constraints"
-});
+}));
 
 /** Types of the messages the server sends. */
-export const SERVER = Object.freeze({
+export const SERVER = Object.freeze(/** @type {const} */ ({
   "WELCOME": "welcome",
   "MESH": "mesh",
   "VERTICES": "vertices",
@@ -31,10 +31,10 @@ export const SERVER = Object.freeze({
   "CONSTRAINTS": "constraints",
   "EXPORT": "export",
   "ERROR": "error"
-});
+}));
 
 /** Error codes of `error` messages. */
-export const ERROR = Object.freeze({
+export const ERROR = Object.freeze(/** @type {const} */ ({
   "BAD_MESSAGE": "bad_message",
   "BAD_MESH": "bad_mesh",
   "TOO_LARGE": "too_large",
@@ -42,7 +42,7 @@ export const ERROR = Object.freeze({
   "NO_MESH": "no_mesh",
   "BUSY": "busy",
   "INTERNAL": "internal"
-});
+}));
 
 /** What each error code means. */
 export const ERROR_DESCRIPTIONS = Object.freeze({
@@ -67,6 +67,10 @@ export const PARAMS = Object.freeze({
       "spokes",
       "spokes_and_rims"
     ],
+    "labels": {
+      "spokes": "spokes (2007 paper)",
+      "spokes_and_rims": "spokes and rims"
+    },
     "default": "spokes_and_rims"
   },
   "weights": {
@@ -75,6 +79,11 @@ export const PARAMS = Object.freeze({
       "clamped",
       "uniform"
     ],
+    "labels": {
+      "cotangent": "cotangent",
+      "clamped": "cotangent, clamped at 0",
+      "uniform": "uniform"
+    },
     "default": "cotangent"
   }
 });
@@ -486,6 +495,173 @@ export const SERVER_MESSAGES = Object.freeze({
   }
 });
 
+/**
+ * replace the session's mesh by a built-in model
+ * @typedef {object} LoadBuiltinClientMessage
+ * @property {"load_builtin"} type
+ * @property {string} name built-in model name (welcome.builtin_meshes)
+ */
+
+/**
+ * load an uploaded OBJ/OFF/PLY/STL file (payload: the file's bytes)
+ * @typedef {object} UploadClientMessage
+ * @property {"upload"} type
+ * @property {string} filename original file name; only its extension is used
+ */
+
+/**
+ * new constraint set; transforms of all groups reset to identity
+ * @typedef {object} SetConstraintsClientMessage
+ * @property {"set_constraints"} type
+ * @property {number[]|null} roi region of interest, or null for the whole mesh
+ * @property {number[]} fixed vertices held in place
+ * @property {number[][]} handle_groups vertices moved together by one transform per group
+ * @property {number[][]|null} [targets] positions of the handle vertices (groups concatenated), or null to keep them where they are
+ */
+
+/**
+ * move the handle groups; only the newest pending drag is solved
+ * @typedef {object} DragClientMessage
+ * @property {"drag"} type
+ * @property {number} seq sequence number echoed by the answering vertices frame
+ * @property {number[][]} transforms one affine 4x4 matrix per handle group, column-major
+ */
+
+/**
+ * the current deformation becomes one undo step
+ * @typedef {object} EndDragClientMessage
+ * @property {"end_drag"} type
+ */
+
+/**
+ * change solver parameters (any of the fields)
+ * @typedef {object} SetParamsClientMessage
+ * @property {"set_params"} type
+ * @property {number} [iterations] local/global iterations per update
+ * @property {"spokes"|"spokes_and_rims"} [energy] ARAP energy
+ * @property {"cotangent"|"clamped"|"uniform"} [weights] edge weights
+ */
+
+/**
+ * step back in the edit history
+ * @typedef {object} UndoClientMessage
+ * @property {"undo"} type
+ */
+
+/**
+ * step forward in the edit history
+ * @typedef {object} RedoClientMessage
+ * @property {"redo"} type
+ */
+
+/**
+ * back to the rest pose (undoable)
+ * @typedef {object} ResetClientMessage
+ * @property {"reset"} type
+ */
+
+/**
+ * the deformed shape becomes the new rest pose (undoable)
+ * @typedef {object} ApplyClientMessage
+ * @property {"apply"} type
+ */
+
+/**
+ * ask for the deformed mesh as a file
+ * @typedef {object} ExportClientMessage
+ * @property {"export"} type
+ * @property {"obj"|"ply"} format file format
+ */
+
+/**
+ * ask for the constraints document (command-line format)
+ * @typedef {object} GetConstraintsClientMessage
+ * @property {"get_constraints"} type
+ */
+
+/** Any message a client sends. @typedef {LoadBuiltinClientMessage|UploadClientMessage|SetConstraintsClientMessage|DragClientMessage|EndDragClientMessage|SetParamsClientMessage|UndoClientMessage|RedoClientMessage|ResetClientMessage|ApplyClientMessage|ExportClientMessage|GetConstraintsClientMessage} ClientMessage */
+
+/**
+ * sent once on connect, followed by a mesh frame
+ * @typedef {object} WelcomeServerMessage
+ * @property {"welcome"} type
+ * @property {string} version server package version
+ * @property {number} protocol PROTOCOL_VERSION
+ * @property {Array<any>} builtin_meshes names accepted by load_builtin
+ * @property {Object<string, any>} limits max_upload_bytes, max_vertices, max_frame_bytes, max_handle_groups
+ * @property {Object<string, any>} params current solver parameters
+ */
+
+/**
+ * a new mesh (payload: float32[n_vertices*3], uint32[n_faces*3]); history is cleared
+ * @typedef {object} MeshServerMessage
+ * @property {"mesh"} type
+ * @property {string} name model name
+ * @property {number} n_vertices number of vertices
+ * @property {number} n_faces number of triangles
+ * @property {Array<any>} report repairs made while loading, one line each
+ */
+
+/**
+ * current deformed positions (payload: float32[n_vertices*3])
+ * @typedef {object} VerticesServerMessage
+ * @property {"vertices"} type
+ * @property {number} seq seq of the drag answered, or -1
+ * @property {number} skipped stale drags dropped since the previous answer
+ * @property {number} iterations iterations run
+ * @property {Array<any>} energies energy after each iteration
+ * @property {number} solve_ms solve time
+ * @property {number} ms_per_iteration solve time per iteration
+ */
+
+/**
+ * progress of settling: after a drag ends (and after loading, undo, redo, reset, apply or a parameter change) the server iterates until converged, streaming vertices frames (seq -1, at most 30 per second); any new request stops it at once
+ * @typedef {object} SettleServerMessage
+ * @property {"settle"} type
+ * @property {"settling"|"settled"|"stopped"} status settling, settled (converged), or stopped (a request interrupted it, or the iteration cap was reached)
+ * @property {number} iterations iterations run so far in this settling run
+ * @property {number} energy current energy, or null before the first iteration
+ * @property {number} seconds time since settling started
+ */
+
+/**
+ * session state after any change
+ * @typedef {object} StateServerMessage
+ * @property {"state"} type
+ * @property {boolean} can_undo
+ * @property {boolean} can_redo
+ * @property {Object<string, any>} params solver parameters
+ * @property {Object<string, any>} constraints roi, fixed, handle_groups as last accepted
+ * @property {number[][]} transforms current transform of each handle group
+ * @property {Object<string, any>} stats n_vertices, n_faces, roi_size, n_free, factor_ms
+ */
+
+/**
+ * answer to get_constraints
+ * @typedef {object} ConstraintsServerMessage
+ * @property {"constraints"} type
+ * @property {Object<string, any>} document constraints document (command-line format)
+ */
+
+/**
+ * answer to export (payload: the file's bytes)
+ * @typedef {object} ExportServerMessage
+ * @property {"export"} type
+ * @property {string} filename suggested file name
+ * @property {string} mime media type
+ */
+
+/**
+ * a request was rejected; the session continues unchanged
+ * @typedef {object} ErrorServerMessage
+ * @property {"error"} type
+ * @property {"bad_message"|"bad_mesh"|"too_large"|"bad_constraints"|"no_mesh"|"busy"|"internal"} code error code
+ * @property {string} message explanation
+ * @property {string} request type of the rejected message, or null
+ */
+
+/** Any message the server sends (of a binary one: its header). @typedef {WelcomeServerMessage|MeshServerMessage|VerticesServerMessage|SettleServerMessage|StateServerMessage|ConstraintsServerMessage|ExportServerMessage|ErrorServerMessage} ServerMessage */
+
 const textEncoder = new TextEncoder();
 const textDecoder = new TextDecoder();
 
@@ -504,6 +680,7 @@ export function encodeBinary(header, payload) {
     json += ' '.repeat(pad);
     head = textEncoder.encode(json);
   }
+  /** @type {Uint8Array} */
   let body = new Uint8Array(0);
   if (payload instanceof ArrayBuffer) {
     body = new Uint8Array(payload);

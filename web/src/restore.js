@@ -66,6 +66,7 @@ export class SessionRestore {
   errorArrived(msg) {
     const a = this.active;
     if (!a) return;
+    /** @type {string[]} */
     const fatal = a.stage === 'mesh' ? [CLIENT.LOAD_BUILTIN, CLIENT.UPLOAD] : [CLIENT.SET_CONSTRAINTS];
     if (fatal.includes(msg.request)) this._finish(msg.message || msg.code);
   }

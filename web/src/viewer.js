@@ -37,6 +37,7 @@ const GROUP_LIN = GROUP_COLORS.map(toLinear);
 export class Viewer {
   constructor(canvas) {
     this.canvas = canvas;
+    this.wireOverlay = false;
     this.renderer = new THREE.WebGLRenderer({ canvas, antialias: true, preserveDrawingBuffer: true });
     this.renderer.setPixelRatio(Math.min(window.devicePixelRatio, 2));
     this.renderer.setClearColor(0x000000, 0);
@@ -46,6 +47,7 @@ export class Viewer {
 
     // lights follow the camera, so the side facing the viewer is always lit
     this.scene.add(new THREE.HemisphereLight(0xeef2ff, 0x2a2622, 0.55));
+    /** @type {Array<[number, number, number[]]>} */
     const lights = [
       [0xffffff, 1.9, [0.6, 0.9, 1]],
       [0xc8d8ff, 0.55, [-1, -0.2, 0.4]],
@@ -119,7 +121,7 @@ export class Viewer {
     this.geometry = g;
     this.mesh = new THREE.Mesh(g, this.material);
     this.wire = new THREE.Mesh(g, this.wireMaterial);
-    this.wire.visible = this.material.wireframeOverlay === true;
+    this.wire.visible = this.wireOverlay;
     this.wire.raycast = () => {};
     this.scene.add(this.mesh);
     this.scene.add(this.wire);
@@ -176,7 +178,7 @@ export class Viewer {
   }
 
   setWireframe(on) {
-    this.material.wireframeOverlay = on;
+    this.wireOverlay = on;
     if (this.wire) this.wire.visible = on;
     this.requestRender();
   }
@@ -247,6 +249,5 @@ export class Viewer {
 
   render() {
     this.renderer.render(this.scene, this.camera);
-    this.onRender?.();
   }
 }

@@ -36,6 +36,7 @@ from arap.server.protocol import (
     encode_binary,
     parse_binary,
     parse_text,
+    server_message,
 )
 from arap.server.session import DragOutcome, Session
 
@@ -87,9 +88,15 @@ def _dumps(message: dict[str, Any]) -> str:
     return json.dumps(message, separators=(",", ":"), allow_nan=False)
 
 
+def _still_frame_header(seq: int) -> dict[str, Any]:
+    """Header of a ``vertices`` frame that ran no solve (a settling frame, or the pose after a change)."""
+    return server_message("vertices", seq=seq, skipped=0, iterations=0, energies=[], solve_ms=0.0,
+                          ms_per_iteration=0.0)
+
+
 def _mesh_frame(mesh: MeshData) -> bytes:
-    header = {"type": "mesh", "name": mesh.name, "n_vertices": mesh.n_vertices, "n_faces": mesh.n_faces,
-              "report": mesh.report}
+    header = server_message("mesh", name=mesh.name, n_vertices=mesh.n_vertices, n_faces=mesh.n_faces,
+                            report=mesh.report)
     return encode_binary(header, np.ascontiguousarray(mesh.V, dtype="<f4").tobytes(),
                          np.ascontiguousarray(mesh.F, dtype="<u4").tobytes())
 
@@ -146,12 +153,13 @@ class Connection:
         await self._send_frame(await self._off_loop(_mesh_frame, mesh))
 
     async def _send_vertices(self, seq: int, outcome: DragOutcome | None) -> None:
-        header: dict[str, Any] = {"type": "vertices", "seq": seq, "skipped": 0, "iterations": 0,
-                                  "energies": [], "solve_ms": 0.0, "ms_per_iteration": 0.0}
-        if outcome is not None:
-            header.update(skipped=self._skipped, iterations=outcome.iterations,
-                          energies=[e if np.isfinite(e) else None for e in outcome.energies],
-                          solve_ms=round(outcome.solve_ms, 3), ms_per_iteration=round(outcome.ms_per_iteration, 3))
+        if outcome is None:
+            header = _still_frame_header(seq)
+        else:
+            header = server_message("vertices", seq=seq, skipped=self._skipped, iterations=outcome.iterations,
+                                    energies=[e if np.isfinite(e) else None for e in outcome.energies],
+                                    solve_ms=round(outcome.solve_ms, 3),
+                                    ms_per_iteration=round(outcome.ms_per_iteration, 3))
             self._skipped = 0
         await self._send_binary(header, self.session.vertices_f32())
 
@@ -172,17 +180,17 @@ class Connection:
         await self.ws.accept()
         try:
             await self._off_loop(self.session.load, self.default_mesh)
-            await self._send_json({
-                "type": "welcome",
-                "version": arap.__version__,
-                "protocol": PROTOCOL_VERSION,
-                "builtin_meshes": builtin_names(),
-                "limits": {"max_upload_bytes": self.config.max_upload_bytes,
-                           "max_vertices": self.config.max_vertices,
-                           "max_frame_bytes": self.config.max_frame_bytes,
-                           "max_handle_groups": MAX_HANDLE_GROUPS},
-                "params": asdict(self.session.params),
-            })
+            await self._send_json(server_message(
+                "welcome",
+                version=arap.__version__,
+                protocol=PROTOCOL_VERSION,
+                builtin_meshes=builtin_names(),
+                limits={"max_upload_bytes": self.config.max_upload_bytes,
+                        "max_vertices": self.config.max_vertices,
+                        "max_frame_bytes": self.config.max_frame_bytes,
+                        "max_handle_groups": MAX_HANDLE_GROUPS},
+                params=asdict(self.session.params),
+            ))
             await self._send_mesh(self.default_mesh)
             await self._send_state()
         except (WebSocketDisconnect, RuntimeError, OSError) as exc:
@@ -356,17 +364,16 @@ class Connection:
         task.add_done_callback(self._frame_tasks.discard)
 
     async def _send_settle_frame(self, frame: bytes, iteration: int, energy: float) -> None:
-        header = {"type": "vertices", "seq": -1, "skipped": 0, "iterations": 0, "energies": [], "solve_ms": 0.0,
-                  "ms_per_iteration": 0.0}
+        header = _still_frame_header(-1)
         with contextlib.suppress(WebSocketDisconnect, RuntimeError, OSError):
             await self._send_binary(header, frame)
             await self._send_settle_status("settling", iteration, energy, None)
 
     async def _send_settle_status(self, status: str, iterations: int, energy: float | None,
                                   seconds: float | None) -> None:
-        await self._send_json({"type": "settle", "status": status, "iterations": iterations,
-                               "energy": energy if energy is None or np.isfinite(energy) else None,
-                               "seconds": None if seconds is None else round(seconds, 4)})
+        await self._send_json(server_message("settle", status=status, iterations=iterations,
+                                             energy=energy if energy is None or np.isfinite(energy) else None,
+                                             seconds=None if seconds is None else round(seconds, 4)))
 
     # ------------------------------------------------------------------ requests
     async def _handle(self, msg: ClientMessage) -> None:
@@ -406,8 +413,8 @@ class Connection:
             await self._send_state()
         elif t == "export":
             filename, mime, data = await self._off_loop(s.export, f["format"])
-            await self._send_binary({"type": "export", "filename": filename, "mime": mime}, data)
+            await self._send_binary(server_message("export", filename=filename, mime=mime), data)
         elif t == "get_constraints":
-            await self._send_json({"type": "constraints", "document": s.constraints_document()})
+            await self._send_json(server_message("constraints", document=s.constraints_document()))
         else:
             raise RequestError("bad_message", f"unhandled message type {t!r}")

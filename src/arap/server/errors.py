@@ -48,4 +48,6 @@ class RequestError(Exception):
 
     def to_message(self) -> dict[str, Any]:
         """The ``error`` message to send."""
-        return {"type": "error", "code": self.code, "message": self.message, "request": self.request}
+        from arap.server.protocol import server_message  # the protocol module imports this one
+
+        return server_message("error", code=self.code, message=self.message, request=self.request)

@@ -34,6 +34,7 @@ export function encodeBinary(header, payload) {
     json += ' '.repeat(pad);
     head = textEncoder.encode(json);
   }
+  /** @type {Uint8Array} */
   let body = new Uint8Array(0);
   if (payload instanceof ArrayBuffer) {
     body = new Uint8Array(payload);
@@ -99,12 +100,54 @@ export function vertexArray(frame) {
 """
 
 
+_TS_TYPES = {
+    "int": "number",
+    "number": "number",
+    "string": "string",
+    "bool": "boolean",
+    "object": "Object<string, any>",
+    "list": "Array<any>",
+    "indices": "number[]",
+    "indices_or_null": "number[]|null",
+    "index_groups": "number[][]",
+    "matrices": "number[][]",
+    "points_or_null": "number[][]|null",
+}
+"""JSDoc type of each field kind (``enum`` fields get the union of their choices)."""
+
+
 def _js(value: Any) -> str:
     return json.dumps(value, indent=2, ensure_ascii=False)
 
 
-def _const(name: str, value: Any, doc: str) -> str:
-    return f"/** {doc} */\nexport const {name} = Object.freeze({_js(value)});\n"
+def _const(name: str, value: Any, doc: str, *, literal: bool = False) -> str:
+    body = f"/** @type {{const}} */ ({_js(value)})" if literal else _js(value)
+    return f"/** {doc} */\nexport const {name} = Object.freeze({body});\n"
+
+
+def _type_name(message_type: str, side: str) -> str:
+    return "".join(w.capitalize() for w in message_type.split("_")) + side + "Message"
+
+
+def _field_type(f: P.Field) -> str:
+    if f.kind == "enum":
+        return "|".join(json.dumps(c) for c in f.choices)
+    return _TS_TYPES[f.kind]
+
+
+def _typedefs(specs: dict[str, P.MessageSpec], side: str, union: str, doc: str) -> str:
+    out = []
+    for t, s in specs.items():
+        lines = ["/**", f" * {s.doc}", f" * @typedef {{object}} {_type_name(t, side)}",
+                 f" * @property {{{json.dumps(t)}}} type"]
+        for f in s.fields:
+            name = f.name if f.required else f"[{f.name}]"
+            lines.append(f" * @property {{{_field_type(f)}}} {name} {f.doc}".rstrip())
+        lines.append(" */")
+        out.append("\n".join(lines))
+    names = "|".join(_type_name(t, side) for t in specs)
+    out.append(f"/** {doc} @typedef {{{names}}} {union} */")
+    return "\n\n".join(out) + "\n"
 
 
 def _messages(specs: dict[str, P.MessageSpec]) -> dict[str, Any]:
@@ -128,9 +171,11 @@ def generate_js() -> str:
         _HEADER,
         "/** Bumped on every incompatible protocol change. */\n"
         f"export const PROTOCOL_VERSION = {P.PROTOCOL_VERSION};\n",
-        _const("CLIENT", {t.upper(): t for t in P.CLIENT_MESSAGES}, "Types of the messages a client sends."),
-        _const("SERVER", {t.upper(): t for t in P.SERVER_MESSAGES}, "Types of the messages the server sends."),
-        _const("ERROR", {c.upper(): c for c in P.ERROR_CODES}, "Error codes of `error` messages."),
+        _const("CLIENT", {t.upper(): t for t in P.CLIENT_MESSAGES}, "Types of the messages a client sends.",
+               literal=True),
+        _const("SERVER", {t.upper(): t for t in P.SERVER_MESSAGES}, "Types of the messages the server sends.",
+               literal=True),
+        _const("ERROR", {c.upper(): c for c in P.ERROR_CODES}, "Error codes of `error` messages.", literal=True),
         _const("ERROR_DESCRIPTIONS", P.ERROR_CODES, "What each error code means."),
         _const("PARAMS", P.PARAMS, "Solver parameters (`set_params`), with ranges and defaults."),
         _const("ENERGIES", list(P.ENERGIES), "Values of the `energy` parameter."),
@@ -142,6 +187,9 @@ def generate_js() -> str:
                "Fixed protocol limits (size limits of the server are in `welcome.limits`)."),
         _const("CLIENT_MESSAGES", _messages(P.CLIENT_MESSAGES), "Fields of each client message."),
         _const("SERVER_MESSAGES", _messages(P.SERVER_MESSAGES), "Fields of each server message."),
+        _typedefs(P.CLIENT_MESSAGES, "Client", "ClientMessage", "Any message a client sends."),
+        _typedefs(P.SERVER_MESSAGES, "Server", "ServerMessage",
+                  "Any message the server sends (of a binary one: its header)."),
         _HELPERS,
     ]
     return "\n".join(parts)

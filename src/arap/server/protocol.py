@@ -24,10 +24,10 @@ from typing import Any
 
 import numpy as np
 
-from arap.cells import DEFAULT_ENERGY, ENERGY_TYPES
+from arap.cells import DEFAULT_ENERGY, ENERGY_LABELS, ENERGY_TYPES
 from arap.server.errors import ERROR_CODES, RequestError
 from arap.server.frames import MAX_HEADER_BYTES, decode_binary, encode_binary, loads_json
-from arap.weights import DEFAULT_WEIGHTS, WEIGHT_TYPES
+from arap.weights import DEFAULT_WEIGHTS, WEIGHT_LABELS, WEIGHT_TYPES
 
 __all__ = [
     "CLIENT_MESSAGES",
@@ -51,6 +51,7 @@ __all__ = [
     "main",
     "parse_binary",
     "parse_text",
+    "server_message",
     "validate",
 ]
 
@@ -73,10 +74,10 @@ UPLOAD_EXTENSIONS = (".obj", ".off", ".ply", ".stl")
 
 PARAMS: dict[str, dict[str, Any]] = {
     "iterations": {"min": 1, "max": 100, "default": 2},
-    "energy": {"choices": list(ENERGIES), "default": DEFAULT_ENERGY},
-    "weights": {"choices": list(WEIGHTS), "default": DEFAULT_WEIGHTS},
+    "energy": {"choices": list(ENERGIES), "labels": dict(ENERGY_LABELS), "default": DEFAULT_ENERGY},
+    "weights": {"choices": list(WEIGHTS), "labels": dict(WEIGHT_LABELS), "default": DEFAULT_WEIGHTS},
 }
-"""Solver parameters a client may set, with their ranges and defaults."""
+"""Solver parameters a client may set, with their ranges, display labels and defaults."""
 
 # ---------------------------------------------------------------------------------------------- message specs
 @dataclass(frozen=True)
@@ -194,7 +195,7 @@ SERVER_MESSAGES: dict[str, MessageSpec] = {
               Field("version", "string", "server package version"),
               Field("protocol", "int", "PROTOCOL_VERSION"),
               Field("builtin_meshes", "list", "names accepted by load_builtin"),
-              Field("limits", "object", "max_upload_bytes, max_vertices, max_handle_groups"),
+              Field("limits", "object", "max_upload_bytes, max_vertices, max_frame_bytes, max_handle_groups"),
               Field("params", "object", "current solver parameters")),
         _spec("mesh", "a new mesh (payload: float32[n_vertices*3], uint32[n_faces*3]); history is cleared",
               Field("name", "string", "model name"),
@@ -238,6 +239,45 @@ SERVER_MESSAGES: dict[str, MessageSpec] = {
     )
 }
 """Messages the server sends, by type."""
+
+
+def server_message(type_: str, **fields: Any) -> dict[str, Any]:
+    """Build a message the server sends (a text message, or the header of a binary one) from its specification.
+
+    Every field of :data:`SERVER_MESSAGES` ``[type_]`` must be given and no other, so the messages the server
+    builds cannot drift from the specification, the generated client module and ``docs/protocol.md``.
+
+    Parameters
+    ----------
+    type_ : str
+        A key of :data:`SERVER_MESSAGES`.
+    **fields
+        Its fields.
+
+    Returns
+    -------
+    dict
+        ``{"type": type_, **fields}``.
+
+    Raises
+    ------
+    KeyError
+        An unknown message type.
+    TypeError
+        A missing or unknown field (a bug in the server, not a client's fault).
+
+    Example
+    -------
+    >>> server_message("constraints", document={"fixed": []})
+    {'type': 'constraints', 'document': {'fixed': []}}
+    """
+    spec = SERVER_MESSAGES[type_]
+    given = fields.keys()
+    if given != spec.field_names:
+        missing = sorted(spec.field_names - given)
+        unknown = sorted(given - spec.field_names)
+        raise TypeError(f"server message {type_!r}: missing fields {missing}, unknown fields {unknown}")
+    return {"type": type_, **fields}
 
 
 # ---------------------------------------------------------------------------------------------- validation

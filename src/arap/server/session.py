@@ -22,7 +22,7 @@ from arap.errors import ArapError
 from arap.server.constraints import ConstraintSet, identity_transforms, matrices_from_json, matrices_to_json
 from arap.server.history import History, Snapshot
 from arap.server.meshdata import MeshData, export_mesh
-from arap.server.protocol import PARAMS, RequestError
+from arap.server.protocol import PARAMS, RequestError, server_message
 from arap.weights import WeightType
 
 __all__ = ["DragOutcome", "Params", "Session", "SettleOutcome"]
@@ -486,18 +486,18 @@ class Session:
         """The ``state`` message."""
         n = self.n_vertices
         cs = self.constraints
-        return {
-            "type": "state",
-            "can_undo": self.history.can_undo or self._dirty,
-            "can_redo": self.history.can_redo and not self._dirty,
-            "params": asdict(self.params),
-            "constraints": cs.to_json(),
-            "transforms": matrices_to_json(self.transforms),
-            "stats": {
+        return server_message(
+            "state",
+            can_undo=self.history.can_undo or self._dirty,
+            can_redo=self.history.can_redo and not self._dirty,
+            params=asdict(self.params),
+            constraints=cs.to_json(),
+            transforms=matrices_to_json(self.transforms),
+            stats={
                 "n_vertices": n,
                 "n_faces": 0 if self.mesh is None else self.mesh.n_faces,
                 "roi_size": n if cs.roi is None else len(cs.roi),
                 "n_free": 0 if self.solver is None else int(self.solver.n_free),
                 "factor_ms": 0.0 if self.solver is None else 1000.0 * float(self.solver.factor_seconds),
             },
-        }
+        )

@@ -1,0 +1,56 @@
+"""The page takes its controls from the generated protocol module and refuses a server of another protocol
+version."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+from playwright.sync_api import Browser, Page, WebSocketRoute, expect
+
+from arap.server.protocol import EXPORT_FORMATS, PARAMS
+from tests.e2e.conftest import VIEWPORT
+
+pytestmark = pytest.mark.e2e
+
+
+def test_controls_follow_the_protocol(page: Page) -> None:
+    slider = page.get_by_test_id("iterations")
+    assert slider.get_attribute("min") == str(PARAMS["iterations"]["min"])
+    assert slider.get_attribute("max") == str(PARAMS["iterations"]["max"])  # the server's range, not 20
+    for name in ("energy", "weights"):
+        options = page.get_by_test_id(name).locator("option")
+        assert options.evaluate_all("os => os.map(o => o.value)") == PARAMS[name]["choices"]
+        assert options.evaluate_all("os => os.map(o => o.textContent)") == [
+            PARAMS[name]["labels"][c] for c in PARAMS[name]["choices"]]
+    for fmt in EXPORT_FORMATS:
+        expect(page.get_by_test_id(f"export-{fmt}")).to_have_text(f"Export {fmt.upper()}")
+    slider.evaluate("e => { e.value = '60'; e.dispatchEvent(new Event('input'));"
+                    " e.dispatchEvent(new Event('change')); }")
+    page.wait_for_function("() => window.__arap.params.iterations === 60")  # beyond the old cap of 20
+    expect(page.locator("#iterations-val")).to_have_text("60")
+
+
+def test_a_server_of_another_protocol_version_is_refused(browser: Browser, server_url: str) -> None:
+    context = browser.new_context(viewport=VIEWPORT)
+    page = context.new_page()
+
+    def relay(ws: WebSocketRoute) -> None:
+        server = ws.connect_to_server()
+
+        def from_server(message: str | bytes) -> None:
+            if isinstance(message, str) and json.loads(message).get("type") == "welcome":
+                message = json.dumps(json.loads(message) | {"protocol": 999})
+            ws.send(message)
+
+        server.on_message(from_server)
+        ws.on_message(lambda message: server.send(message))
+
+    page.route_web_socket("**/ws", relay)
+    page.goto(server_url)
+    expect(page.get_by_test_id("status-text")).to_contain_text("reload the page", timeout=30_000)
+    expect(page.get_by_test_id("status-text")).to_contain_text("version 999")
+    page.wait_for_timeout(500)  # the mesh and state that follow the welcome are ignored
+    assert not page.evaluate("() => window.__arap.ready")
+    assert page.evaluate("() => window.__arap.nVertices") == 0
+    context.close()
