@@ -68,7 +68,8 @@ def _counts() -> tuple[int, int]:
 
 
 def warm_up_kernels() -> KernelWarmUp:
-    """Compile (or load from the cache) every kernel a solve uses, with a tiny solve on a 42-vertex sphere.
+    """Compile (or load from the cache) every kernel a solve uses, with tiny solves on a 42-vertex sphere (serial,
+    then with the threaded variants that large meshes use).
 
     The kernels take the same argument types for every mesh, energy and weighting, so after this no solve
     compiles anything and its timings are those of the iterations alone. The lower half of the sphere is fixed,
@@ -78,6 +79,7 @@ def warm_up_kernels() -> KernelWarmUp:
     -------
     KernelWarmUp
     """
+    from arap._parallel import policy
     from arap.shapes import sphere
     from arap.solver import ArapSolver
 
@@ -86,8 +88,18 @@ def warm_up_kernels() -> KernelWarmUp:
     V, F = sphere(frequency=2)
     fixed = np.flatnonzero(V[:, 2] < 0.0)
     handle = np.array([int(np.argmax(V[:, 2]))])
-    solver = ArapSolver(V, F, np.concatenate([fixed, handle]))
-    solver.solve(np.concatenate([V[fixed], V[handle] + [0.1, 0.0, 0.0]]), max_iterations=2)
+    constrained = np.concatenate([fixed, handle])
+    targets = np.concatenate([V[fixed], V[handle] + [0.1, 0.0, 0.0]])
+    ArapSolver(V, F, constrained).solve(targets, max_iterations=2)
+    # Large meshes run the threaded variants: make the size rule pick them for this tiny solve too.
+    saved = policy.min_work, policy.work_per_thread
+    try:
+        policy.min_work, policy.work_per_thread = 0, 1
+        policy.reset()
+        ArapSolver(V, F, constrained).solve(targets, max_iterations=2)
+    finally:
+        policy.min_work, policy.work_per_thread = saved
+        policy.reset()
     hits, misses = _counts()
     paths = [d.stats.cache_path for d in _dispatchers() if d.stats.cache_path]
     return KernelWarmUp(seconds=time.perf_counter() - t0, compiled=misses - misses0, loaded=hits - hits0,
