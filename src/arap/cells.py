@@ -20,6 +20,7 @@ from typing import Literal, get_args
 import numba as nb
 import numpy as np
 import scipy.sparse as sp
+from numpy.typing import NDArray
 
 from arap._csr import csr_from_triplets
 from arap.errors import OptionError
@@ -112,6 +113,75 @@ def build_cells(V: np.ndarray, F: np.ndarray, energy: str = DEFAULT_ENERGY, weig
     ptr = np.zeros(n + 1, dtype=np.int64)
     np.cumsum(np.bincount(cell, minlength=n), out=ptr[1:])
     return _finish(V, ptr, a, b, w)
+
+
+RIGID_STIFFNESS = 1e8
+"""Cell weight that stands for an infinite stiffness (``np.inf``): relative to the finite weights around it, large
+enough to keep a region rigid to about 1e-8 of the mesh size, small enough for the factorisation to stay accurate."""
+
+
+def check_stiffness(stiffness: object, n: int) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
+    """Validate per-vertex stiffness (the paper's cell weights ``w_i``) and map ``inf`` to :data:`RIGID_STIFFNESS`.
+
+    Parameters
+    ----------
+    stiffness : (n,) array-like of float
+        Positive weight of each vertex's cell: 1 is the plain energy, larger values make the cell stiffer, ``np.inf``
+        (or the string ``"rigid"`` in files) keeps it rigid.
+    n : int
+        Number of vertices.
+
+    Returns
+    -------
+    weights : (n,) float64 array
+        The finite weights as given; rigid cells at :data:`RIGID_STIFFNESS` times the largest finite weight (at
+        least 1).
+    rigid : (n,) bool array
+        The vertices given ``inf``.
+
+    Raises
+    ------
+    OptionError
+        Wrong shape, not numbers, zero, negative or NaN values.
+
+    Example
+    -------
+    >>> weights, rigid = check_stiffness([1.0, 2.0, np.inf], 3)
+    >>> weights.tolist(), rigid.tolist()
+    ([1.0, 2.0, 200000000.0], [False, False, True])
+    """
+    try:
+        s = np.array(stiffness, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise OptionError(f"stiffness must be an array of {n} positive numbers ({exc})") from exc
+    if s.shape != (n,):
+        raise OptionError(f"stiffness must have shape ({n},), one value per vertex, got {s.shape}")
+    if np.isnan(s).any() or (s <= 0).any():
+        bad = int(np.flatnonzero(np.isnan(s) | (s <= 0))[0])
+        raise OptionError(f"stiffness must be positive (vertex {bad} has {s[bad]})")
+    rigid = np.isinf(s)
+    finite_max = float(s[~rigid].max(initial=1.0))
+    s[rigid] = RIGID_STIFFNESS * max(finite_max, 1.0)
+    return s, rigid
+
+
+def scale_cells(cells: Cells, stiffness: NDArray[np.float64]) -> Cells:
+    """Cells whose terms are multiplied by their cell's stiffness: the energy ``Σ_i w_i E_i`` (Sorkine & Alexa 2007).
+
+    Parameters
+    ----------
+    cells : Cells
+    stiffness : (n,) float64 array
+        Validated weights (see :func:`check_stiffness`).
+
+    Returns
+    -------
+    Cells
+        The rotations they fit are unchanged; the system matrix and the right-hand side follow from the weights.
+    """
+    per_term = stiffness[cells.cell_of_term()]
+    return Cells(ptr=cells.ptr, a=cells.a, b=cells.b, w=cells.w * per_term, we=cells.we * per_term[:, None],
+                 rest_sq=cells.rest_sq * stiffness)
 
 
 def _spoke_cells(V: np.ndarray, F: np.ndarray, weights: str) -> Cells:

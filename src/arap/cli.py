@@ -171,7 +171,8 @@ def _cmd_deform(args: argparse.Namespace) -> int:
     indices, targets = constraints.indices_and_targets(V)
 
     _warm_up_kernels(args.quiet)
-    solver = ArapSolver(V, F, indices, energy=args.energy, weights=args.weights, roi=constraints.roi)
+    solver = ArapSolver(V, F, indices, energy=args.energy, weights=args.weights, roi=constraints.roi,
+                        stiffness=constraints.stiffness)
     if not args.quiet:
         _err(f"arap: {label}: {len(V):,} vertices, {len(F):,} faces; {len(constraints.fixed):,} fixed, "
              f"{len(constraints.handles):,} handles; precompute {1e3 * solver.factor_seconds:.0f} ms")

@@ -8,8 +8,14 @@ The JSON format::
       "targets": [[0.0, 5.2, 0.1], [0.1, 5.2, 0.0]],   # one [x, y, z] per handle, same order
       "roi":     [0, 1, 2, 3, ...],             # optional region of interest (only these vertices move)
       "handle_groups": [[40, 41]],              # optional, informative (how an editor grouped the handles)
+      "stiffness": [{"vertices": [7, 8], "value": 10.0},      # optional (version 2): per-vertex cell weights,
+                    {"vertices": [9], "value": "rigid"}],     # 1 where not given; "rigid" keeps a region rigid
+      "version": 2,                             # optional: 1 (the default) or 2 (needed for "stiffness")
       "meta": {...}                             # optional, free-form, ignored
     }
+
+``stiffness`` may also be a list of one number (or ``"rigid"``) per vertex. Files without ``version`` are version 1
+and load as before.
 
 Indices are 0-based in the mesh file's vertex order. ``fixed`` or ``handles`` may be omitted or empty, but not both.
 Handles may lie outside the region of interest: like every constrained vertex they go to their targets, while the
@@ -36,9 +42,13 @@ from arap.indexing import check_index_array
 from arap.io.atomic import write_atomic
 from arap.mesh import coordinate_problem
 
-__all__ = ["Constraints", "check_selection", "check_targets", "load_constraints", "save_constraints"]
+__all__ = ["FORMAT_VERSION", "Constraints", "check_selection", "check_targets", "load_constraints",
+           "save_constraints"]
 
-_KEYS = ("fixed", "handles", "targets", "roi", "handle_groups", "meta")
+_KEYS = ("fixed", "handles", "targets", "roi", "handle_groups", "stiffness", "version", "meta")
+
+FORMAT_VERSION = 2
+"""Newest constraints file format (2 added ``stiffness``); files of every version up to it load."""
 
 
 @dataclass
@@ -57,6 +67,8 @@ class Constraints:
         Region of interest, or None for the whole mesh.
     handle_groups : list of list of int or None
         Optional grouping of the handles (kept for round trips, not used by the solver).
+    stiffness : (n,) float64 array or None
+        Per-vertex cell weights for :class:`arap.ArapSolver` (``inf``: rigid), or None for all 1.
     """
 
     fixed: np.ndarray
@@ -64,6 +76,7 @@ class Constraints:
     targets: np.ndarray
     roi: np.ndarray | None = None
     handle_groups: list[list[int]] | None = None
+    stiffness: np.ndarray | None = None
 
     @property
     def constrained(self) -> np.ndarray:
@@ -124,7 +137,12 @@ class Constraints:
         groups = None if self.handle_groups is None else [
             [int(vertex_map[i]) for i in g] for g in self.handle_groups
         ]
-        return Constraints(fixed, handles, self.targets.copy(), roi, groups)
+        stiffness = None
+        if self.stiffness is not None:
+            kept = vertex_map >= 0
+            stiffness = np.ones(int(vertex_map.max(initial=-1)) + 1)
+            stiffness[vertex_map[kept]] = self.stiffness[kept]
+        return Constraints(fixed, handles, self.targets.copy(), roi, groups, stiffness)
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready dictionary in the file format."""
@@ -137,6 +155,13 @@ class Constraints:
             out["roi"] = [int(i) for i in self.roi]
         if self.handle_groups is not None:
             out["handle_groups"] = [[int(i) for i in g] for g in self.handle_groups]
+        if self.stiffness is not None:
+            out["version"] = FORMAT_VERSION
+            out["stiffness"] = [
+                {"vertices": np.flatnonzero(self.stiffness == value).tolist(),
+                 "value": "rigid" if math.isinf(value) else float(value)}
+                for value in np.unique(self.stiffness[self.stiffness != 1.0])
+            ]
         return out
 
 
@@ -323,7 +348,46 @@ def load_constraints(source: str | os.PathLike[str] | Mapping[str, Any], n_verti
         handle_groups = [[int(i) for i in check_index_array(g, n, f"handle_groups[{k}]")] for k, g in enumerate(raw)]
     if "meta" in data and not isinstance(data["meta"], Mapping):
         raise ConstraintError("meta must be a JSON object")
-    return Constraints(fixed=fixed, handles=handles, targets=targets, roi=roi, handle_groups=handle_groups)
+    version = data.get("version", 1)
+    if type(version) is not int or not 1 <= version <= FORMAT_VERSION:
+        raise ConstraintError(f"unsupported constraints file version {str(version)[:20]}; this arap reads versions "
+                              f"1 to {FORMAT_VERSION}")
+    stiffness = None
+    if data.get("stiffness") is not None:
+        if version < 2:
+            raise ConstraintError('"stiffness" needs "version": 2')
+        stiffness = _stiffness(data["stiffness"], n)
+    return Constraints(fixed=fixed, handles=handles, targets=targets, roi=roi, handle_groups=handle_groups,
+                       stiffness=stiffness)
+
+
+def _stiffness_value(value: Any, where: str) -> float:
+    if value == "rigid":
+        return math.inf
+    if type(value) not in (int, float) or not math.isfinite(value) or value <= 0:
+        raise ConstraintError(f'{where} must be a positive number or "rigid", got {json.dumps(value)[:40]}')
+    return float(value)
+
+
+def _stiffness(raw: Any, n: int) -> np.ndarray:
+    """Per-vertex stiffness from a file: n values, or ``[{"vertices": [...], "value": v}, ...]`` (1 elsewhere)."""
+    if not isinstance(raw, list):
+        raise ConstraintError("stiffness must be a list")
+    if all(not isinstance(item, Mapping) for item in raw):
+        if len(raw) != n:
+            raise ConstraintError(f"stiffness lists one value per vertex: {n} expected, {len(raw)} given")
+        return np.array([_stiffness_value(v, f"stiffness[{i}]") for i, v in enumerate(raw)])
+    out = np.ones(n)
+    seen = np.zeros(n, dtype=bool)
+    for k, item in enumerate(raw):
+        if not isinstance(item, Mapping) or set(item) != {"vertices", "value"}:
+            raise ConstraintError(f'stiffness[{k}] must be an object with "vertices" and "value"')
+        idx = check_index_array(item["vertices"], n, f"stiffness[{k}].vertices")
+        if seen[idx].any():
+            raise ConstraintError(f"vertex {int(idx[seen[idx]][0])} is given two stiffness values")
+        seen[idx] = True
+        out[idx] = _stiffness_value(item["value"], f"stiffness[{k}].value")
+    return out
 
 
 def save_constraints(path: str | os.PathLike[str], constraints: Constraints) -> None:

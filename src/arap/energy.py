@@ -5,18 +5,19 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
-from arap.cells import DEFAULT_ENERGY, ENERGY_TYPES, EnergyType, build_cells
+from arap.cells import DEFAULT_ENERGY, ENERGY_TYPES, EnergyType, build_cells, check_stiffness
 from arap.covariance import local_step
 from arap.errors import ArapError, OptionError
 from arap.mesh import MeshLike, check_mesh, is_mesh_like, mesh_arrays
+from arap.rigid import RigidRegions, rigid_regions
 from arap.weights import DEFAULT_WEIGHTS, WEIGHT_TYPES, WeightType
 
 __all__ = ["arap_energy", "cell_energies"]
 
 
-def _inputs(V: Any, F: Any, U: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _inputs(V: Any, F: Any, U: Any) -> tuple[NDArray[np.float64], NDArray[np.int64], NDArray[np.float64]]:
     """Rest mesh and deformed positions from arrays or mesh objects (``f(mesh, U)`` leaves out ``F``)."""
     if U is None and is_mesh_like(V) and F is not None:
         F, U = None, F
@@ -37,6 +38,7 @@ def cell_energies(
     U: NDArray[np.floating] | MeshLike | None = None,
     energy: EnergyType = DEFAULT_ENERGY,
     weights: WeightType = DEFAULT_WEIGHTS,
+    stiffness: ArrayLike | None = None,
 ) -> NDArray[np.float64]:
     """Energy of every cell with its optimal rotation.
 
@@ -52,11 +54,14 @@ def cell_energies(
         Cell definition: spokes and rims (Chao et al. 2010, the default) or the paper's one-ring spokes (Sorkine &
         Alexa 2007).
     weights : {"cotangent", "clamped", "uniform"}
+    stiffness : (n,) array of float or None
+        Cell weights ``w_i`` (see :class:`arap.ArapSolver`): each cell's energy is multiplied by its weight, and
+        the cells of a rigid region (``inf``) share one rotation.
 
     Returns
     -------
     (n,) float64 array
-        ``E_i = min_R Σ w ‖(p'_a − p'_b) − R (p_a − p_b)‖²`` over the cell's terms.
+        ``E_i = w_i min_R Σ w ‖(p'_a − p'_b) − R (p_a − p_b)‖²`` over the cell's terms.
 
     Raises
     ------
@@ -78,11 +83,17 @@ def cell_energies(
         raise OptionError(f"unknown energy {energy!r}; expected one of {ENERGY_TYPES}")
     if weights not in WEIGHT_TYPES:
         raise OptionError(f"unknown weights {weights!r}; expected one of {WEIGHT_TYPES}")
-    V, F, U = _inputs(V, F, U)
-    cells = build_cells(V, F, energy, weights)
-    n = len(V)
+    Vc, Fc, Uc = _inputs(V, F, U)
+    scale, rigid = (None, None) if stiffness is None else check_stiffness(stiffness, len(Vc))
+    cells = build_cells(Vc, Fc, energy, weights)
+    n = len(Vc)
     E = np.empty(n)
-    local_step(cells, np.arange(n), U, np.empty((n, 3, 3)), E)
+    R = np.empty((n, 3, 3))
+    local_step(cells, np.arange(n), Uc, R, E)
+    if scale is not None and rigid is not None:
+        if rigid.any():
+            RigidRegions(cells, rigid_regions(Fc, rigid), np.arange(n)).share(Uc, R, E)
+        E *= scale
     return E
 
 
@@ -92,6 +103,7 @@ def arap_energy(
     U: NDArray[np.floating] | MeshLike | None = None,
     energy: EnergyType = DEFAULT_ENERGY,
     weights: WeightType = DEFAULT_WEIGHTS,
+    stiffness: ArrayLike | None = None,
 ) -> float:
     """The ARAP energy of ``U`` against the rest pose ``V``, with optimal rotations.
 
@@ -110,6 +122,8 @@ def arap_energy(
         Deformed positions.
     energy : {"spokes_and_rims", "spokes"}
     weights : {"cotangent", "clamped", "uniform"}
+    stiffness : (n,) array of float or None
+        Cell weights (see :func:`cell_energies`).
 
     Returns
     -------
@@ -120,4 +134,4 @@ def arap_energy(
     MeshError, ArapError, OptionError
         As :func:`cell_energies`.
     """
-    return float(cell_energies(V, F, U, energy, weights).sum())
+    return float(cell_energies(V, F, U, energy, weights, stiffness).sum())

@@ -6,10 +6,19 @@ import time
 
 import numpy as np
 import scipy.sparse as sp
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 from arap.anderson import AndersonAccelerator
-from arap.cells import DEFAULT_ENERGY, ENERGY_TYPES, EnergyType, build_cells, build_rhs_gather, system_matrix
+from arap.cells import (
+    DEFAULT_ENERGY,
+    ENERGY_TYPES,
+    EnergyType,
+    build_cells,
+    build_rhs_gather,
+    check_stiffness,
+    scale_cells,
+    system_matrix,
+)
 from arap.covariance import assemble_rhs, covariances, local_step
 from arap.errors import ArapError, ConstraintError, OptionError, UnconstrainedRegionError
 from arap.indexing import check_index_array, find_unconstrained_part
@@ -26,6 +35,7 @@ from arap.result import (
     IterationCallback,
     StartName,
 )
+from arap.rigid import RigidRegions, rigid_regions
 from arap.start import best_rigid_transform, vertex_areas
 from arap.topology import locality_order, vertex_adjacency
 from arap.weights import DEFAULT_WEIGHTS, WEIGHT_TYPES, WeightType
@@ -57,6 +67,11 @@ class ArapSolver:
     roi : (r,) int array or None
         Region of interest. Only ROI vertices move; every other vertex is held at its rest position and the linear
         system has the size of the free ROI vertices. None means the whole mesh.
+    stiffness : (n,) array of float or None
+        Per-vertex cell weights ``w_i`` of the paper's energy ``Σ_i w_i Σ_j w_ij ‖…‖²`` (Sorkine & Alexa 2007):
+        1 is the plain energy (None: all 1), larger values make a vertex's cell stiffer, so a region painted stiff
+        moves almost rigidly while softer parts bend; ``np.inf`` keeps a region rigid (to about 1e-8 of its size;
+        see :data:`arap.cells.RIGID_STIFFNESS`). The energies reported include the weights.
     backend : str or None
         Sparse Cholesky backend (see :mod:`arap.linsolve`); None chooses by system size
         (:func:`arap.linsolve.default_backend`).
@@ -86,6 +101,7 @@ class ArapSolver:
         weights: WeightType = DEFAULT_WEIGHTS,
         roi: NDArray[np.integer] | list[int] | None = None,
         backend: str | None = None,
+        stiffness: ArrayLike | None = None,
     ) -> None:
         t0 = time.perf_counter()
         if energy not in ENERGY_TYPES:
@@ -104,6 +120,10 @@ class ArapSolver:
         self.weight_type = weights
         self.constrained = check_index_array(constrained, n, "constrained")
         self.roi = None if roi is None else check_index_array(roi, n, "roi", allow_empty=False)
+        rigid: NDArray[np.bool_] | None = None
+        self.stiffness: NDArray[np.float64] | None = None
+        if stiffness is not None:
+            self.stiffness, rigid = check_stiffness(stiffness, n)
 
         fixed_mask = np.zeros(n, dtype=bool)
         fixed_mask[self.constrained] = True
@@ -147,12 +167,20 @@ class ArapSolver:
         self._nonfree = np.arange(self._nf, n)
         self._constrained_slot = np.searchsorted(self._nonfree, self._constrained)
         self._cells = build_cells(self._V, self._inv[F], energy, weights)
+        if self.stiffness is not None:
+            self._cells = scale_cells(self._cells, self.stiffness[self._perm])
         L = system_matrix(self._cells, n)
         L_f = L[self._free]
         self._L_fn = L_f[:, self._nonfree].tocsr()
         L_ff = L_f[:, self._free]
         self._gather = build_rhs_gather(self._cells, self._free, n)
         self._active = np.flatnonzero(np.bincount(self._gather.cell, minlength=n))
+        self._rigid: RigidRegions | None = None
+        self._rigid_all: RigidRegions | None = None
+        if rigid is not None and rigid.any():
+            region = rigid_regions(self._inv[F], rigid[self._perm])
+            self._rigid = RigidRegions(self._cells, region, self._active)
+            self._rigid_all = RigidRegions(self._cells, region, np.arange(n))
         self._prepare_constant_energy(n)
         self.factor = None
         if len(self.free):
@@ -394,6 +422,8 @@ class ArapSolver:
         """Local step on the active cells at ``U``; returns the total energy."""
         t = time.perf_counter()
         e = local_step(self._cells, self._active, U, self._R, self._E)
+        if self._rigid is not None:
+            e += self._rigid.share(U, self._R, self._E)
         timings["local"] += time.perf_counter() - t
         return e + const_E
 
@@ -474,7 +504,10 @@ class ArapSolver:
         """Local step alone: the optimal rotation of every cell for positions ``U``, shape (n, 3, 3)."""
         U = self._to_internal(self._check_positions(U, "U"))
         R = np.empty((self.n_vertices, 3, 3))
-        local_step(self._cells, np.arange(self.n_vertices), U, R, np.empty(self.n_vertices))
+        E = np.empty(self.n_vertices)
+        local_step(self._cells, np.arange(self.n_vertices), U, R, E)
+        if self._rigid_all is not None:
+            self._rigid_all.share(U, R, E)
         return R[self._inv]
 
     def energy(self, U: np.ndarray, R: np.ndarray | None = None) -> float:
@@ -482,7 +515,10 @@ class ArapSolver:
         U = self._to_internal(self._check_positions(U, "U"))
         if R is None:
             E = np.empty(self.n_vertices)
-            local_step(self._cells, np.arange(self.n_vertices), U, np.empty((self.n_vertices, 3, 3)), E)
+            R_opt = np.empty((self.n_vertices, 3, 3))
+            local_step(self._cells, np.arange(self.n_vertices), U, R_opt, E)
+            if self._rigid_all is not None:
+                self._rigid_all.share(U, R_opt, E)
             return float(E.sum())
         d = U[self._cells.a] - U[self._cells.b]
         cur = float(np.dot(self._cells.w, np.einsum("ij,ij->i", d, d)))

@@ -1,0 +1,88 @@
+"""Constraints files of version 2 carry stiffness; version-1 files still load; `arap deform` honours it."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from arap.cli import main
+from arap.constraints import FORMAT_VERSION, load_constraints, save_constraints
+from arap.errors import ConstraintError
+from arap.io import load_mesh
+from arap.shapes import builtin_mesh
+from tests.core.test_stiffness import _rigid_misfit
+
+
+def _bar_document() -> tuple[np.ndarray, dict]:
+    V, _ = builtin_mesh("bar")
+    fixed = np.flatnonzero(V[:, 1] < 0.3)
+    handles = np.flatnonzero(V[:, 1] > 4.7)
+    doc = {"fixed": fixed.tolist(), "handles": handles.tolist(),
+           "targets": (V[handles] + [1.5, 0.0, 0.0]).tolist()}
+    return V, doc
+
+
+def test_version_1_files_load_unchanged(tmp_path: Path) -> None:
+    V, doc = _bar_document()
+    (tmp_path / "v1.json").write_text(json.dumps(doc))
+    c = load_constraints(tmp_path / "v1.json", len(V))
+    assert c.stiffness is None and c.fixed.tolist() == doc["fixed"]
+    assert "version" not in c.to_dict() and "stiffness" not in c.to_dict()
+    assert load_constraints(doc | {"version": 1}, len(V)).stiffness is None
+
+
+def test_stiffness_round_trip(tmp_path: Path) -> None:
+    V, doc = _bar_document()
+    middle = np.flatnonzero(np.abs(V[:, 1] - 2.5) < 0.5)
+    doc |= {"version": 2, "stiffness": [{"vertices": middle[:10].tolist(), "value": 25},
+                                        {"vertices": middle[10:].tolist(), "value": "rigid"}]}
+    c = load_constraints(doc, len(V))
+    assert c.stiffness is not None and c.stiffness[middle[0]] == 25.0 and np.isinf(c.stiffness[middle[-1]])
+    assert np.count_nonzero(c.stiffness != 1.0) == len(middle)
+    save_constraints(tmp_path / "c.json", c)
+    saved = json.loads((tmp_path / "c.json").read_text())
+    assert saved["version"] == FORMAT_VERSION
+    again = load_constraints(tmp_path / "c.json", len(V))
+    np.testing.assert_array_equal(again.stiffness, c.stiffness)
+    per_vertex = load_constraints(doc | {"stiffness": ["rigid" if np.isinf(x) else x for x in c.stiffness.tolist()]},
+                                  len(V))
+    np.testing.assert_array_equal(per_vertex.stiffness, c.stiffness)
+
+
+@pytest.mark.parametrize(
+    ("change", "match"),
+    [
+        ({"stiffness": [{"vertices": [0], "value": 2}]}, "version"),
+        ({"version": 3}, "version 3"),
+        ({"version": "2"}, "version"),
+        ({"version": 2, "stiffness": [{"vertices": [0], "value": 0}]}, "positive"),
+        ({"version": 2, "stiffness": [{"vertices": [0], "value": "soft"}]}, "rigid"),
+        ({"version": 2, "stiffness": [{"vertices": [0], "value": True}]}, "positive"),
+        ({"version": 2, "stiffness": [{"vertices": [0, 1], "value": 2}, {"vertices": [1], "value": 3}]}, "two"),
+        ({"version": 2, "stiffness": [{"vertices": [10**9], "value": 2}]}, "out of range"),
+        ({"version": 2, "stiffness": [1.0, 2.0]}, "one value per vertex"),
+        ({"version": 2, "stiffness": {"0": 2}}, "list"),
+    ],
+)
+def test_bad_stiffness_is_refused(change: dict, match: str) -> None:
+    V, doc = _bar_document()
+    with pytest.raises(ConstraintError, match=match):
+        load_constraints(doc | change, len(V))
+
+
+def test_deform_keeps_a_rigid_region_rigid(tmp_path: Path) -> None:
+    V, doc = _bar_document()
+    middle = np.flatnonzero(np.abs(V[:, 1] - 2.5) < 0.6)
+    doc |= {"version": 2, "stiffness": [{"vertices": middle.tolist(), "value": "rigid"}]}
+    (tmp_path / "c.json").write_text(json.dumps(doc))
+    plain = {k: v for k, v in doc.items() if k not in ("version", "stiffness")}
+    (tmp_path / "plain.json").write_text(json.dumps(plain))
+    assert main(["deform", "bar", "-c", str(tmp_path / "c.json"), "-o", str(tmp_path / "rigid.obj"), "-q"]) == 0
+    assert main(["deform", "bar", "-c", str(tmp_path / "plain.json"), "-o", str(tmp_path / "plain.obj"), "-q"]) == 0
+    rigid, _ = load_mesh(tmp_path / "rigid.obj")
+    bent, _ = load_mesh(tmp_path / "plain.obj")
+    assert _rigid_misfit(V, rigid, middle) < 1e-6
+    assert _rigid_misfit(V, bent, middle) > 1e-3
