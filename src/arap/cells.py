@@ -26,10 +26,11 @@ from arap._csr import csr_from_triplets
 from arap.errors import OptionError
 from arap.weights import DEFAULT_WEIGHTS, corner_weights, edge_weight_matrix
 
-EnergyType = Literal["spokes", "spokes_and_rims"]
+EnergyType = Literal["spokes", "spokes_and_rims", "smooth_rotations"]
 ENERGY_TYPES: tuple[str, ...] = get_args(EnergyType)
 """Energy names: the one list the library, the command line, the studio protocol and its client use."""
-ENERGY_LABELS: dict[str, str] = {"spokes": "spokes (2007 paper)", "spokes_and_rims": "spokes and rims"}
+ENERGY_LABELS: dict[str, str] = {"spokes": "spokes (2007 paper)", "spokes_and_rims": "spokes and rims",
+                                 "smooth_rotations": "smooth rotations (SR-ARAP)"}
 """How the studio names each energy."""
 DEFAULT_ENERGY: EnergyType = "spokes_and_rims"
 """The default cells: unlike ``spokes`` with cotangent weights, they do not fold meshes with obtuse triangles, and
@@ -77,7 +78,8 @@ def build_cells(V: np.ndarray, F: np.ndarray, energy: str = DEFAULT_ENERGY, weig
     ----------
     V : (n, 3) float64 array
     F : (m, 3) int64 array
-    energy : {"spokes", "spokes_and_rims"}
+    energy : {"spokes", "spokes_and_rims", "smooth_rotations"}
+        ``smooth_rotations`` uses the spoke cells (its rotation term lives in :mod:`arap.smooth`).
     weights : {"cotangent", "clamped", "uniform"}
 
     Returns
@@ -88,7 +90,7 @@ def build_cells(V: np.ndarray, F: np.ndarray, energy: str = DEFAULT_ENERGY, weig
         raise OptionError(f"unknown energy {energy!r}; expected one of {ENERGY_TYPES}")
     n = len(V)
     F = np.asarray(F, dtype=np.int64)
-    if energy == "spokes":
+    if energy in ("spokes", "smooth_rotations"):  # SR-ARAP adds a rotation term to the spoke cells
         return _spoke_cells(V, F, weights)
     cw = corner_weights(V, F, weights)
     # Edge opposite corner k of each face: (F[:, k+1], F[:, k+2]) with weight cw[:, k].

@@ -27,6 +27,7 @@ from arap.cells import DEFAULT_ENERGY, ENERGY_TYPES
 from arap.errors import ArapError, MeshError, MeshFormatError
 from arap.mesh import RepairResult
 from arap.result import ACCELERATIONS, DEFAULT_TOLERANCE, MAX_ITERATIONS, START_NAMES
+from arap.smooth import DEFAULT_ALPHA
 from arap.weights import DEFAULT_WEIGHTS, WEIGHT_TYPES
 
 if TYPE_CHECKING:
@@ -172,7 +173,7 @@ def _cmd_deform(args: argparse.Namespace) -> int:
 
     _warm_up_kernels(args.quiet)
     solver = ArapSolver(V, F, indices, energy=args.energy, weights=args.weights, roi=constraints.roi,
-                        stiffness=constraints.stiffness)
+                        stiffness=constraints.stiffness, alpha=args.alpha)
     if not args.quiet:
         _err(f"arap: {label}: {len(V):,} vertices, {len(F):,} faces; {len(constraints.fixed):,} fixed, "
              f"{len(constraints.handles):,} handles; precompute {1e3 * solver.factor_seconds:.0f} ms")
@@ -282,7 +283,7 @@ def _cmd_bench(args: argparse.Namespace) -> int:
     all_targets = np.concatenate([V[fixed], targets])
     kernels = _warm_up_kernels(quiet=args.json)
     t0 = time.perf_counter()
-    solver = ArapSolver(V, F, indices, energy=args.energy, weights=args.weights)
+    solver = ArapSolver(V, F, indices, energy=args.energy, weights=args.weights, alpha=args.alpha)
     precompute = time.perf_counter() - t0
     runs = []
     for _ in range(args.repeats):
@@ -357,6 +358,16 @@ def _cmd_studio(args: argparse.Namespace) -> int:
     return 0
 
 
+def _alpha(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+    if not (value >= 0 and value != float("inf")):
+        raise argparse.ArgumentTypeError(f"must be a finite number >= 0, got {text}")
+    return value
+
+
 def _positive_int(text: str) -> int:
     try:
         value = int(text)
@@ -409,6 +420,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help=f"cell definition (default: {DEFAULT_ENERGY}; spokes is the 2007 paper's)")
     p.add_argument("--weights", choices=WEIGHT_TYPES, default=DEFAULT_WEIGHTS,
                    help=f"edge weights (default: {DEFAULT_WEIGHTS})")
+    p.add_argument("--alpha", type=_alpha, default=DEFAULT_ALPHA,
+                   help=f"weight of the rotation term of smooth_rotations (SR-ARAP), relative to the surface area "
+                        f"(default: {DEFAULT_ALPHA})")
     p.add_argument("-q", "--quiet", action="store_true", help="print nothing but errors")
     p.set_defaults(func=_cmd_deform)
 
@@ -428,6 +442,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("-r", "--repeats", type=int, default=3, help="runs; the median is reported (default: 3)")
     p.add_argument("--energy", choices=ENERGY_TYPES, default=DEFAULT_ENERGY)
     p.add_argument("--weights", choices=WEIGHT_TYPES, default=DEFAULT_WEIGHTS)
+    p.add_argument("--alpha", type=_alpha, default=DEFAULT_ALPHA, help="rotation term weight of smooth_rotations")
     p.add_argument("--json", action="store_true", help="print one JSON object instead of a table")
     p.set_defaults(func=_cmd_bench)
 

@@ -2,16 +2,27 @@
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from arap.cells import DEFAULT_ENERGY, ENERGY_TYPES, EnergyType, build_cells, check_stiffness
+from arap.cells import (
+    DEFAULT_ENERGY,
+    ENERGY_TYPES,
+    Cells,
+    EnergyType,
+    build_cells,
+    check_stiffness,
+    scale_cells,
+)
 from arap.covariance import local_step
 from arap.errors import ArapError, OptionError
 from arap.mesh import MeshLike, check_mesh, is_mesh_like, mesh_arrays
 from arap.rigid import RigidRegions, rigid_regions
+from arap.smooth import DEFAULT_ALPHA, SmoothRotations
+from arap.start import vertex_areas
 from arap.weights import DEFAULT_WEIGHTS, WEIGHT_TYPES, WeightType
 
 __all__ = ["arap_energy", "cell_energies"]
@@ -32,6 +43,27 @@ def _inputs(V: Any, F: Any, U: Any) -> tuple[NDArray[np.float64], NDArray[np.int
     return V, F, U
 
 
+SWEEPS = 1000
+"""Most block-coordinate sweeps :func:`cell_energies` runs for the rotations of ``smooth_rotations``."""
+
+
+def _settle_rotations(cells: Cells, V: NDArray[np.float64], F: NDArray[np.int64], U: NDArray[np.float64],
+                      R: NDArray[np.float64], E: NDArray[np.float64], alpha: float) -> None:
+    """Sweep the SR-ARAP local step from the per-cell rotations in ``R`` until the energy stops falling; ``E`` gets
+    each cell's data energy plus its rotation term."""
+    if not (isinstance(alpha, int | float) and math.isfinite(alpha) and alpha >= 0):
+        raise OptionError(f"alpha must be a finite number >= 0, got {alpha!r}")
+    smooth = SmoothRotations(cells, float(vertex_areas(V, F).sum()), alpha)
+    term = np.zeros(len(V))
+    previous = np.inf
+    for _ in range(SWEEPS):
+        value = smooth.local_step(U, R, E, term)
+        if previous - value <= 1e-14 * abs(value):
+            break
+        previous = value
+    E += term
+
+
 def cell_energies(
     V: NDArray[np.floating] | MeshLike,
     F: NDArray[np.integer] | None = None,
@@ -39,6 +71,7 @@ def cell_energies(
     energy: EnergyType = DEFAULT_ENERGY,
     weights: WeightType = DEFAULT_WEIGHTS,
     stiffness: ArrayLike | None = None,
+    alpha: float = DEFAULT_ALPHA,
 ) -> NDArray[np.float64]:
     """Energy of every cell with its optimal rotation.
 
@@ -57,6 +90,9 @@ def cell_energies(
     stiffness : (n,) array of float or None
         Cell weights ``w_i`` (see :class:`arap.ArapSolver`): each cell's energy is multiplied by its weight, and
         the cells of a rigid region (``inf``) share one rotation.
+    alpha : float
+        Weight of the rotation term of ``smooth_rotations`` (see :mod:`arap.smooth`); each cell then also carries
+        ``αA Σ_j w⁺_ij ‖R_i − R_j‖²``, with rotations found by block-coordinate sweeps until the energy settles.
 
     Returns
     -------
@@ -86,14 +122,16 @@ def cell_energies(
     Vc, Fc, Uc = _inputs(V, F, U)
     scale, rigid = (None, None) if stiffness is None else check_stiffness(stiffness, len(Vc))
     cells = build_cells(Vc, Fc, energy, weights)
+    if scale is not None:
+        cells = scale_cells(cells, scale)
     n = len(Vc)
     E = np.empty(n)
     R = np.empty((n, 3, 3))
     local_step(cells, np.arange(n), Uc, R, E)
-    if scale is not None and rigid is not None:
-        if rigid.any():
-            RigidRegions(cells, rigid_regions(Fc, rigid), np.arange(n)).share(Uc, R, E)
-        E *= scale
+    if energy == "smooth_rotations":
+        _settle_rotations(cells, Vc, Fc, Uc, R, E, alpha)
+    if rigid is not None and rigid.any():
+        RigidRegions(cells, rigid_regions(Fc, rigid), np.arange(n)).share(Uc, R, E)
     return E
 
 
@@ -104,6 +142,7 @@ def arap_energy(
     energy: EnergyType = DEFAULT_ENERGY,
     weights: WeightType = DEFAULT_WEIGHTS,
     stiffness: ArrayLike | None = None,
+    alpha: float = DEFAULT_ALPHA,
 ) -> float:
     """The ARAP energy of ``U`` against the rest pose ``V``, with optimal rotations.
 
@@ -124,6 +163,8 @@ def arap_energy(
     weights : {"cotangent", "clamped", "uniform"}
     stiffness : (n,) array of float or None
         Cell weights (see :func:`cell_energies`).
+    alpha : float
+        Weight of the rotation term of ``smooth_rotations`` (see :func:`cell_energies`).
 
     Returns
     -------
@@ -134,4 +175,4 @@ def arap_energy(
     MeshError, ArapError, OptionError
         As :func:`cell_energies`.
     """
-    return float(cell_energies(V, F, U, energy, weights, stiffness).sum())
+    return float(cell_energies(V, F, U, energy, weights, stiffness, alpha).sum())

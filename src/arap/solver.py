@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import time
 
 import numpy as np
@@ -36,6 +37,7 @@ from arap.result import (
     StartName,
 )
 from arap.rigid import RigidRegions, rigid_regions
+from arap.smooth import DEFAULT_ALPHA, SmoothRotations
 from arap.start import best_rigid_transform, vertex_areas
 from arap.topology import locality_order, vertex_adjacency
 from arap.weights import DEFAULT_WEIGHTS, WEIGHT_TYPES, WeightType
@@ -56,17 +58,23 @@ class ArapSolver:
         Triangles. Degenerate faces are rejected (see :func:`arap.repair_mesh`).
     constrained : (k,) int array
         Constrained vertices (anchors and handles, any order, unique). :meth:`solve` takes their targets in this order.
-    energy : {"spokes_and_rims", "spokes"}
+    energy : {"spokes_and_rims", "spokes", "smooth_rotations"}
         ``spokes_and_rims`` (default): cells over all edges of the triangles around a vertex (Chao et al. 2010); a
         sum of non-negative per-triangle terms even with obtuse triangles, so it does not fold scans.
         ``spokes``: the paper's one-ring cells (Sorkine & Alexa 2007); with negative cotangent weights its energy can
         be negative and its minima fold scans (see the README's "Energy and weights").
+        ``smooth_rotations``: SR-ARAP (Levi & Gotsman 2015), the spokes energy plus ``α A Σ_i Σ_j w⁺_ij ‖R_i −
+        R_j‖²`` that makes neighbouring rotations agree (see :mod:`arap.smooth`).
     weights : {"cotangent", "clamped", "uniform"}
         ``cotangent``: ``w_ij = ½(cot α_ij + cot β_ij)``, one term on boundary edges (Pinkall & Polthier 1993).
         ``clamped``: the cotangent weights with negative values set to 0. ``uniform``: ½ per incident triangle.
     roi : (r,) int array or None
         Region of interest. Only ROI vertices move; every other vertex is held at its rest position and the linear
         system has the size of the free ROI vertices. None means the whole mesh.
+    alpha : float
+        Weight of the rotation term of ``energy="smooth_rotations"`` (SR-ARAP, Levi & Gotsman 2015), relative to
+        the surface area so that it does not depend on the mesh's size; 0.02 by default (CGAL's default). Ignored by
+        the other energies.
     stiffness : (n,) array of float or None
         Per-vertex cell weights ``w_i`` of the paper's energy ``Σ_i w_i Σ_j w_ij ‖…‖²`` (Sorkine & Alexa 2007):
         1 is the plain energy (None: all 1), larger values make a vertex's cell stiffer, so a region painted stiff
@@ -102,12 +110,15 @@ class ArapSolver:
         roi: NDArray[np.integer] | list[int] | None = None,
         backend: str | None = None,
         stiffness: ArrayLike | None = None,
+        alpha: float = DEFAULT_ALPHA,
     ) -> None:
         t0 = time.perf_counter()
         if energy not in ENERGY_TYPES:
             raise OptionError(f"unknown energy {energy!r}; expected one of {ENERGY_TYPES}")
         if weights not in WEIGHT_TYPES:
             raise OptionError(f"unknown weights {weights!r}; expected one of {WEIGHT_TYPES}")
+        if not (isinstance(alpha, int | float) and math.isfinite(alpha) and alpha >= 0):
+            raise OptionError(f"alpha must be a finite number >= 0, got {alpha!r}")
         if constrained is None and is_mesh_like(V) and F is not None:
             F, constrained = None, F  # ArapSolver(mesh, constrained)
         if constrained is None:
@@ -175,6 +186,13 @@ class ArapSolver:
         L_ff = L_f[:, self._free]
         self._gather = build_rhs_gather(self._cells, self._free, n)
         self._active = np.flatnonzero(np.bincount(self._gather.cell, minlength=n))
+        self.alpha = float(alpha)
+        self._smooth: SmoothRotations | None = None
+        if energy == "smooth_rotations":
+            # every rotation is coupled to its neighbours': all cells take part in the local step
+            self._smooth = SmoothRotations(self._cells, float(self._areas.sum()), self.alpha)
+            self._active = np.arange(n)
+            self._term = np.zeros(n)
         self._rigid: RigidRegions | None = None
         self._rigid_all: RigidRegions | None = None
         if rigid is not None and rigid.any():
@@ -421,7 +439,10 @@ class ArapSolver:
     def _local(self, U: NDArray[np.float64], const_E: float, timings: dict[str, float]) -> float:
         """Local step on the active cells at ``U``; returns the total energy."""
         t = time.perf_counter()
-        e = local_step(self._cells, self._active, U, self._R, self._E)
+        if self._smooth is not None:
+            e = self._smooth.local_step(U, self._R, self._E, self._term)
+        else:
+            e = local_step(self._cells, self._active, U, self._R, self._E)
         if self._rigid is not None:
             e += self._rigid.share(U, self._R, self._E)
         timings["local"] += time.perf_counter() - t
@@ -446,7 +467,7 @@ class ArapSolver:
                     self._local(U, 0.0, timings)
                 at_targets = np.array_equal(U[self._nf:], fixed)
                 U[self._nf:] = fixed
-                E = float(self._E[self._active].sum()) if at_targets else None
+                E = self._stored_energy() if at_targets else None
                 return U, E, "warm"
         if isinstance(initial, str):
             if initial not in START_NAMES:
@@ -460,6 +481,7 @@ class ArapSolver:
                 candidates.append(("rigid", self._rigid_start(T, fixed)))
             best: tuple[float, str, NDArray[np.float64], NDArray[np.float64]] | None = None
             for name, U in candidates:
+                self._fit_each_rotation(U)
                 E = self._local(U, 0.0, timings)
                 if best is None or E < best[0]:
                     best = (E, name, U, self._R.copy() if len(candidates) > 1 else self._R)
@@ -470,7 +492,21 @@ class ArapSolver:
             return U, E, name
         U = self._to_internal(self._check_positions(initial, "initial"))
         U[self._nf:] = fixed
+        self._fit_each_rotation(U)
         return U, self._local(U, 0.0, timings), "given"
+
+    def _fit_each_rotation(self, U: NDArray[np.float64]) -> None:
+        """Before a cold start of ``smooth_rotations``: every cell's own best rotation, from which the coupled
+        sweeps go on (the rotations of an earlier shape, or the identity, would hold a moved start back)."""
+        if self._smooth is not None:
+            local_step(self._cells, self._active, U, self._R, self._E)
+
+    def _stored_energy(self) -> float:
+        """Energy of the active cells from the last local step."""
+        value = float(self._E[self._active].sum())
+        if self._smooth is not None:
+            value += float(self._term.sum())
+        return value
 
     def _rigid_start(self, T: NDArray[np.float64], fixed: NDArray[np.float64]) -> NDArray[np.float64]:
         """Rest pose moved by the best-fit rigid motion of the constrained vertices, non-free vertices fixed."""
@@ -500,18 +536,29 @@ class ArapSolver:
         self._rotations_fresh = False
 
     # ------------------------------------------------------------------ single steps (for analysis and tests)
-    def fit_rotations(self, U: np.ndarray) -> np.ndarray:
-        """Local step alone: the optimal rotation of every cell for positions ``U``, shape (n, 3, 3)."""
+    def fit_rotations(self, U: np.ndarray, start: np.ndarray | None = None) -> np.ndarray:
+        """Local step alone: the optimal rotation of every cell for positions ``U``, shape (n, 3, 3).
+
+        For ``smooth_rotations`` the rotations are coupled: this is one block-coordinate sweep from ``start``
+        (n, 3, 3) (None: the solver's current rotations), which never raises the energy.
+        """
         U = self._to_internal(self._check_positions(U, "U"))
         R = np.empty((self.n_vertices, 3, 3))
         E = np.empty(self.n_vertices)
-        local_step(self._cells, np.arange(self.n_vertices), U, R, E)
+        if self._smooth is not None:
+            R[:] = self._R if start is None else self._to_internal(np.asarray(start, dtype=np.float64))
+            self._smooth.local_step(U, R, E, np.empty(self.n_vertices))
+        else:
+            local_step(self._cells, np.arange(self.n_vertices), U, R, E)
         if self._rigid_all is not None:
             self._rigid_all.share(U, R, E)
         return R[self._inv]
 
     def energy(self, U: np.ndarray, R: np.ndarray | None = None) -> float:
-        """Energy of positions ``U`` with rotations ``R`` (None: the optimal ones), summed over all cells."""
+        """Energy of positions ``U`` with rotations ``R`` (None: the optimal ones; for ``smooth_rotations``, those
+        of :meth:`fit_rotations`), summed over all cells."""
+        if R is None and self._smooth is not None:
+            R = self.fit_rotations(U)
         U = self._to_internal(self._check_positions(U, "U"))
         if R is None:
             E = np.empty(self.n_vertices)
@@ -524,7 +571,10 @@ class ArapSolver:
         cur = float(np.dot(self._cells.w, np.einsum("ij,ij->i", d, d)))
         S = covariances(self._cells, U)
         R = self._to_internal(np.asarray(R, dtype=np.float64))
-        return cur + float(self._cells.rest_sq.sum()) - 2.0 * float(np.einsum("cij,cji->", R, S))
+        value = cur + float(self._cells.rest_sq.sum()) - 2.0 * float(np.einsum("cij,cji->", R, S))
+        if self._smooth is not None:
+            value += self._smooth.rotation_term(np.ascontiguousarray(R), np.empty(self.n_vertices))
+        return value
 
     def global_step(self, R: np.ndarray, targets: np.ndarray | list) -> np.ndarray:
         """Global step alone: positions minimising the energy for fixed rotations ``R`` (n, 3, 3), shape (n, 3)."""

@@ -65,11 +65,13 @@ export const PARAMS = Object.freeze({
   "energy": {
     "choices": [
       "spokes",
-      "spokes_and_rims"
+      "spokes_and_rims",
+      "smooth_rotations"
     ],
     "labels": {
       "spokes": "spokes (2007 paper)",
-      "spokes_and_rims": "spokes and rims"
+      "spokes_and_rims": "spokes and rims",
+      "smooth_rotations": "smooth rotations (SR-ARAP)"
     },
     "default": "spokes_and_rims"
   },
@@ -91,7 +93,8 @@ export const PARAMS = Object.freeze({
 /** Values of the `energy` parameter. */
 export const ENERGIES = Object.freeze([
   "spokes",
-  "spokes_and_rims"
+  "spokes_and_rims",
+  "smooth_rotations"
 ]);
 
 /** Values of the `weights` parameter. */
@@ -217,7 +220,8 @@ export const CLIENT_MESSAGES = Object.freeze({
         "required": false,
         "choices": [
           "spokes",
-          "spokes_and_rims"
+          "spokes_and_rims",
+          "smooth_rotations"
         ]
       },
       {
@@ -538,7 +542,7 @@ export const SERVER_MESSAGES = Object.freeze({
  * @typedef {object} SetParamsClientMessage
  * @property {"set_params"} type
  * @property {number} [iterations] local/global iterations per update
- * @property {"spokes"|"spokes_and_rims"} [energy] ARAP energy
+ * @property {"spokes"|"spokes_and_rims"|"smooth_rotations"} [energy] ARAP energy
  * @property {"cotangent"|"clamped"|"uniform"} [weights] edge weights
  */
 
