@@ -29,6 +29,14 @@ def test_controls_follow_the_protocol(page: Page) -> None:
                     " e.dispatchEvent(new Event('change')); }")
     page.wait_for_function("() => window.__arap.params.iterations === 60")  # beyond the old cap of 20
     expect(page.locator("#iterations-val")).to_have_text("60")
+    alpha = page.get_by_test_id("alpha")
+    expect(alpha).to_be_hidden()  # only smooth rotations has a rotation term
+    page.get_by_test_id("energy").select_option("smooth_rotations")
+    expect(alpha).to_be_visible()
+    assert alpha.get_attribute("max") == str(PARAMS["alpha"]["max"])
+    alpha.evaluate("e => { e.value = '0.1'; e.dispatchEvent(new Event('input'));"
+                   " e.dispatchEvent(new Event('change')); }")
+    page.wait_for_function("() => window.__arap.params.alpha === 0.1")
 
 
 def test_a_server_of_another_protocol_version_is_refused(browser: Browser, server_url: str) -> None:

@@ -266,8 +266,25 @@ def test_set_params(studio: StudioClient) -> None:
     studio.set_constraints(fixed, [top])
     studio.send({"type": "set_params", "iterations": 5, "energy": "spokes_and_rims"})
     assert studio.expect("state").data["params"] == {"iterations": 5, "energy": "spokes_and_rims",
-                                                     "weights": "cotangent"}
+                                                     "weights": "cotangent", "alpha": 0.02}
     assert studio.drag(1, [translation(0.1)]).data["iterations"] == 5
+
+
+def test_smooth_rotations_and_alpha(studio: StudioClient) -> None:
+    fixed, top = studio.bottom_top()
+    studio.set_constraints(fixed, [top])
+    studio.send({"type": "set_params", "energy": "smooth_rotations", "alpha": 0.1})
+    assert studio.expect("state").data["params"]["alpha"] == 0.1
+    first = studio.drag(1, [translation(0.3)]).floats()
+    studio.send({"type": "set_params", "alpha": 0.5})
+    assert studio.expect("state").data["params"] == {"iterations": 2, "energy": "smooth_rotations",
+                                                     "weights": "cotangent", "alpha": 0.5}
+    studio.send({"type": "drag", "seq": 2, "transforms": [translation(0.3)]})
+    second = studio.expect("vertices").floats()
+    assert abs(second - first).max() > 1e-6  # a stiffer rotation term gives another shape
+    for bad in (-0.1, 2, "0.5", None):
+        studio.send({"type": "set_params", "alpha": bad})
+        assert "alpha" in studio.error("bad_message")["message"]
 
 
 def test_sessions_are_independent(http: TestClient) -> None:

@@ -207,7 +207,8 @@ def test_params_change_refactors_and_validates(session: Session) -> None:
     assert out.iterations == 7
     session.set_params(energy="spokes_and_rims", weights="uniform")
     assert session.solver is not first and session.solver.energy_type == "spokes_and_rims"
-    assert session.state()["params"] == {"iterations": 7, "energy": "spokes_and_rims", "weights": "uniform"}
+    assert session.state()["params"] == {"iterations": 7, "energy": "spokes_and_rims", "weights": "uniform",
+                                         "alpha": 0.02}
 
 
 def test_export_round_trips(session: Session) -> None:

@@ -75,6 +75,14 @@ export class Panel {
     $('iterations-val').textContent = it.value;
     fillChoices($('energy'), PARAMS.energy);
     fillChoices($('weights'), PARAMS.weights);
+    const alpha = $('alpha');
+    alpha.min = String(PARAMS.alpha.min);
+    alpha.max = String(PARAMS.alpha.max);
+    alpha.step = String(PARAMS.alpha.step);
+    alpha.value = String(PARAMS.alpha.default);
+    $('alpha-val').textContent = alpha.value;
+    alpha.addEventListener('input', () => ($('alpha-val').textContent = alpha.value));
+    alpha.addEventListener('change', () => actions.setParams({ alpha: Number(alpha.value) }));
     it.addEventListener('input', () => ($('iterations-val').textContent = it.value));
     it.addEventListener('change', () => actions.setParams({ iterations: Number(it.value) }));
     $('energy').addEventListener('change', (e) => actions.setParams({ energy: source(e).value }));
@@ -171,7 +179,14 @@ export class Panel {
       $('iterations').value = String(v);
       $('iterations-val').textContent = String(p.iterations);
     }
-    if (p.energy) $('energy').value = p.energy;
+    if (p.energy) {
+      $('energy').value = p.energy;
+      $('alpha-row').hidden = p.energy !== 'smooth_rotations';
+    }
+    if (Number.isFinite(p.alpha)) {
+      $('alpha').value = String(p.alpha);
+      $('alpha-val').textContent = String(p.alpha);
+    }
     if (p.weights) $('weights').value = p.weights;
   }
 

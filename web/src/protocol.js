@@ -87,6 +87,12 @@ export const PARAMS = Object.freeze({
       "uniform": "uniform"
     },
     "default": "cotangent"
+  },
+  "alpha": {
+    "min": 0,
+    "max": 1,
+    "step": 0.005,
+    "default": 0.02
   }
 });
 
@@ -233,6 +239,13 @@ export const CLIENT_MESSAGES = Object.freeze({
           "clamped",
           "uniform"
         ]
+      },
+      {
+        "name": "alpha",
+        "kind": "number",
+        "required": false,
+        "min": 0,
+        "max": 1
       }
     ]
   },
@@ -544,6 +557,7 @@ export const SERVER_MESSAGES = Object.freeze({
  * @property {number} [iterations] local/global iterations per update
  * @property {"spokes"|"spokes_and_rims"|"smooth_rotations"} [energy] ARAP energy
  * @property {"cotangent"|"clamped"|"uniform"} [weights] edge weights
+ * @property {number} [alpha] weight of the rotation term of smooth_rotations (SR-ARAP)
  */
 
 /**

@@ -27,6 +27,7 @@ import numpy as np
 from arap.cells import DEFAULT_ENERGY, ENERGY_LABELS, ENERGY_TYPES
 from arap.server.errors import ERROR_CODES, RequestError
 from arap.server.frames import MAX_HEADER_BYTES, decode_binary, encode_binary, loads_json
+from arap.smooth import DEFAULT_ALPHA
 from arap.weights import DEFAULT_WEIGHTS, WEIGHT_LABELS, WEIGHT_TYPES
 
 __all__ = [
@@ -76,6 +77,7 @@ PARAMS: dict[str, dict[str, Any]] = {
     "iterations": {"min": 1, "max": 100, "default": 2},
     "energy": {"choices": list(ENERGIES), "labels": dict(ENERGY_LABELS), "default": DEFAULT_ENERGY},
     "weights": {"choices": list(WEIGHTS), "labels": dict(WEIGHT_LABELS), "default": DEFAULT_WEIGHTS},
+    "alpha": {"min": 0, "max": 1, "step": 0.005, "default": DEFAULT_ALPHA},
 }
 """Solver parameters a client may set, with their ranges, display labels and defaults."""
 
@@ -173,6 +175,8 @@ CLIENT_MESSAGES: dict[str, MessageSpec] = {
                     minimum=PARAMS["iterations"]["min"], maximum=PARAMS["iterations"]["max"]),
               Field("energy", "enum", "ARAP energy", required=False, choices=ENERGIES),
               Field("weights", "enum", "edge weights", required=False, choices=WEIGHTS),
+              Field("alpha", "number", "weight of the rotation term of smooth_rotations (SR-ARAP)", required=False,
+                    minimum=PARAMS["alpha"]["min"], maximum=PARAMS["alpha"]["max"]),
               at_least_one=True),
         _spec("undo", "step back in the edit history"),
         _spec("redo", "step forward in the edit history"),
@@ -332,6 +336,12 @@ def _check_field(f: Field, value: Any, mtype: str) -> Any:
         if (f.minimum is not None and value < f.minimum) or (f.maximum is not None and value > f.maximum):
             raise RequestError("bad_message", f"{where} must be in {f.minimum}..{f.maximum}, got {str(value)[:40]}")
         return value
+    if kind == "number":
+        if not _is_number(value):
+            raise RequestError("bad_message", f"{where} must be a finite number")
+        if (f.minimum is not None and value < f.minimum) or (f.maximum is not None and value > f.maximum):
+            raise RequestError("bad_message", f"{where} must be in {f.minimum}..{f.maximum}, got {str(value)[:40]}")
+        return float(value)
     if kind in ("string", "enum"):
         if not isinstance(value, str):
             raise RequestError("bad_message", f"{where} must be a string")

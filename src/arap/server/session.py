@@ -49,6 +49,7 @@ class Params:
     iterations: int = PARAMS["iterations"]["default"]
     energy: EnergyType = PARAMS["energy"]["default"]
     weights: WeightType = PARAMS["weights"]["default"]
+    alpha: float = PARAMS["alpha"]["default"]
 
 
 @dataclass
@@ -137,7 +138,8 @@ class Session:
         """
         if cs.is_empty:
             return None
-        key = (rest_id, params.energy, params.weights, cs.solver_digest())
+        alpha = params.alpha if params.energy == "smooth_rotations" else None  # other energies ignore it
+        key = (rest_id, params.energy, params.weights, alpha, cs.solver_digest())
         solver = self._solvers.get(key)
         if solver is not None:
             self._solvers.move_to_end(key)
@@ -145,7 +147,7 @@ class Session:
         mesh = self._require_mesh()
         try:
             solver = arap.ArapSolver(V, mesh.F, cs.constrained, energy=params.energy, weights=params.weights,
-                                     roi=cs.roi)
+                                     roi=cs.roi, alpha=params.alpha)
         except ArapError as exc:
             raise RequestError("bad_constraints", str(exc)) from exc
         logger.debug("factorised %d free vertices in %.1f ms", solver.n_free, 1000 * solver.factor_seconds)
@@ -381,7 +383,7 @@ class Session:
         return dirty
 
     def set_params(self, iterations: int | None = None, energy: EnergyType | None = None,
-                   weights: WeightType | None = None) -> None:
+                   weights: WeightType | None = None, alpha: float | None = None) -> None:
         """Change solver parameters; a new energy or weighting refactorises.
 
         Raises
@@ -396,7 +398,11 @@ class Session:
             new.energy = energy
         if weights is not None:
             new.weights = weights
-        if (new.energy, new.weights) != (self.params.energy, self.params.weights) and self.mesh is not None:
+        if alpha is not None:
+            new.alpha = float(alpha)
+        changed = (new.energy, new.weights) != (self.params.energy, self.params.weights) or (
+            new.energy == "smooth_rotations" and new.alpha != self.params.alpha)
+        if changed and self.mesh is not None:
             self.solver = self._solver_for(self.rest_id, self.V, self.constraints, new)
             self._warm = False
             self.settled = False
