@@ -24,7 +24,7 @@ import numpy as np
 
 from arap import __version__
 from arap.cells import DEFAULT_ENERGY, ENERGY_TYPES
-from arap.errors import ArapError, MeshError, MeshFormatError
+from arap.errors import ArapError, ConstraintError, MeshError, MeshFormatError
 from arap.mesh import RepairResult
 from arap.result import ACCELERATIONS, DEFAULT_TOLERANCE, MAX_ITERATIONS, START_NAMES
 from arap.smooth import DEFAULT_ALPHA
@@ -161,8 +161,11 @@ def _cmd_deform(args: argparse.Namespace) -> int:
         raise ArapError(f"--tolerance must be >= 0, got {args.tolerance}")
     V, F, repair, label = load_mesh_argument(args.mesh)
     n_file = len(repair.vertex_map)
-    constraints = load_constraints(args.constraints, n_file)
+    constraints = load_constraints(args.constraints, n_file, len(F))
     renumbered = len(V) != n_file or not np.array_equal(repair.vertex_map, np.arange(n_file))
+    if repair.report and constraints.points is not None and len(constraints.points):
+        raise ConstraintError("point handles refer to the file's triangles, which mesh repair changed; repair the "
+                              "mesh file first (arap info shows what repair changes)")
     if repair.report and not args.quiet:
         _err(f"arap: repaired {label}: {'; '.join(repair.report)}")
     if renumbered:
@@ -173,7 +176,7 @@ def _cmd_deform(args: argparse.Namespace) -> int:
 
     _warm_up_kernels(args.quiet)
     solver = ArapSolver(V, F, indices, energy=args.energy, weights=args.weights, roi=constraints.roi,
-                        stiffness=constraints.stiffness, alpha=args.alpha)
+                        stiffness=constraints.stiffness, alpha=args.alpha, points=constraints.points)
     if not args.quiet:
         _err(f"arap: {label}: {len(V):,} vertices, {len(F):,} faces; {len(constraints.fixed):,} fixed, "
              f"{len(constraints.handles):,} handles; precompute {1e3 * solver.factor_seconds:.0f} ms")
@@ -181,7 +184,8 @@ def _cmd_deform(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
     try:
         result = solver.solve(targets, initial=args.start, max_iterations=args.iterations, tolerance=args.tolerance,
-                              callback=progress, acceleration=args.acceleration)
+                              callback=progress, acceleration=args.acceleration,
+                              point_targets=constraints.point_targets)
     finally:
         progress.close()
     seconds = time.perf_counter() - t0

@@ -10,7 +10,9 @@ The JSON format::
       "handle_groups": [[40, 41]],              # optional, informative (how an editor grouped the handles)
       "stiffness": [{"vertices": [7, 8], "value": 10.0},      # optional (version 2): per-vertex cell weights,
                     {"vertices": [9], "value": "rigid"}],     # 1 where not given; "rigid" keeps a region rigid
-      "version": 2,                             # optional: 1 (the default) or 2 (needed for "stiffness")
+      "points": [{"face": 12, "barycentric": [0.2, 0.3, 0.5],        # optional (version 2): handles inside
+                  "target": [0.0, 5.0, 0.1], "weight": 10.0}],       # triangles; no "weight": a hard one
+      "version": 2,                             # optional: 1 (the default) or 2 (for "stiffness", "points")
       "meta": {...}                             # optional, free-form, ignored
     }
 
@@ -41,11 +43,12 @@ from arap.errors import ConstraintError
 from arap.indexing import check_index_array
 from arap.io.atomic import write_atomic
 from arap.mesh import coordinate_problem
+from arap.points import PointConstraints, check_points
 
 __all__ = ["FORMAT_VERSION", "Constraints", "check_selection", "check_targets", "load_constraints",
            "save_constraints"]
 
-_KEYS = ("fixed", "handles", "targets", "roi", "handle_groups", "stiffness", "version", "meta")
+_KEYS = ("fixed", "handles", "targets", "roi", "handle_groups", "stiffness", "points", "version", "meta")
 
 FORMAT_VERSION = 2
 """Newest constraints file format (2 added ``stiffness``); files of every version up to it load."""
@@ -69,6 +72,10 @@ class Constraints:
         Optional grouping of the handles (kept for round trips, not used by the solver).
     stiffness : (n,) float64 array or None
         Per-vertex cell weights for :class:`arap.ArapSolver` (``inf``: rigid), or None for all 1.
+    points : PointConstraints or None
+        Handles inside triangles (:mod:`arap.points`).
+    point_targets : (p, 3) float64 array or None
+        Their targets.
     """
 
     fixed: np.ndarray
@@ -77,6 +84,8 @@ class Constraints:
     roi: np.ndarray | None = None
     handle_groups: list[list[int]] | None = None
     stiffness: np.ndarray | None = None
+    points: PointConstraints | None = None
+    point_targets: np.ndarray | None = None
 
     @property
     def constrained(self) -> np.ndarray:
@@ -127,6 +136,9 @@ class Constraints:
                                       f"(unused or invalid), first: {int(bad[0])}")
             return out
 
+        if self.points is not None and len(self.points):
+            raise ConstraintError("point handles refer to the file's triangles, which mesh repair changed; repair the "
+                                  "mesh file first (arap info shows what repair changes)")
         fixed = remap("fixed", self.fixed)
         handles = remap("handle", self.handles)
         merged = np.concatenate([fixed, handles])
@@ -155,6 +167,14 @@ class Constraints:
             out["roi"] = [int(i) for i in self.roi]
         if self.handle_groups is not None:
             out["handle_groups"] = [[int(i) for i in g] for g in self.handle_groups]
+        if self.points is not None and self.point_targets is not None and len(self.points):
+            out["version"] = FORMAT_VERSION
+            out["points"] = [
+                {"face": int(f), "barycentric": [float(x) for x in b], "target": [float(x) for x in t]}
+                | ({} if np.isinf(w) else {"weight": float(w)})
+                for f, b, t, w in zip(self.points.faces, self.points.barycentric, self.point_targets,
+                                      self.points.weights, strict=True)
+            ]
         if self.stiffness is not None:
             out["version"] = FORMAT_VERSION
             out["stiffness"] = [
@@ -302,7 +322,8 @@ def _read_json(path: Path) -> Any:
                               "constraints file") from None
 
 
-def load_constraints(source: str | os.PathLike[str] | Mapping[str, Any], n_vertices: int) -> Constraints:
+def load_constraints(source: str | os.PathLike[str] | Mapping[str, Any], n_vertices: int,
+                     n_faces: int | None = None) -> Constraints:
     """Read and validate a constraint set against a mesh of ``n_vertices`` vertices.
 
     Parameters
@@ -311,6 +332,8 @@ def load_constraints(source: str | os.PathLike[str] | Mapping[str, Any], n_verti
         A JSON file in the format of this module, or the already parsed object.
     n_vertices : int
         Vertex count of the mesh the indices refer to.
+    n_faces : int or None
+        Triangle count of that mesh; needed for files with point handles.
 
     Returns
     -------
@@ -328,8 +351,8 @@ def load_constraints(source: str | os.PathLike[str] | Mapping[str, Any], n_verti
     unknown = sorted(str(key)[:40] for key in set(data) - set(_KEYS))
     if unknown:
         raise ConstraintError(f"unknown constraint keys {unknown}; expected some of {list(_KEYS)}")
-    if "fixed" not in data and "handles" not in data:
-        raise ConstraintError('constraints need "fixed" and/or "handles" vertex lists')
+    if "fixed" not in data and "handles" not in data and not data.get("points"):
+        raise ConstraintError('constraints need "fixed" and/or "handles" vertex lists (or "points")')
     n = int(n_vertices)
     handles = check_index_array(data.get("handles", []), n, "handles")
     fixed, _, roi = check_selection(n, data.get("fixed", []), [handles] if len(handles) else [], data.get("roi"),
@@ -337,7 +360,7 @@ def load_constraints(source: str | os.PathLike[str] | Mapping[str, Any], n_verti
     if len(handles) and "targets" not in data:
         raise ConstraintError('"handles" are given without "targets"')
     targets = check_targets(data.get("targets", []), len(handles))
-    if not len(fixed) and not len(handles):
+    if not len(fixed) and not len(handles) and not data.get("points"):
         raise ConstraintError("no vertex is constrained: give at least one fixed or handle vertex")
 
     handle_groups = None
@@ -357,8 +380,38 @@ def load_constraints(source: str | os.PathLike[str] | Mapping[str, Any], n_verti
         if version < 2:
             raise ConstraintError('"stiffness" needs "version": 2')
         stiffness = _stiffness(data["stiffness"], n)
+    points, point_targets = None, None
+    if data.get("points") is not None:
+        if version < 2:
+            raise ConstraintError('"points" needs "version": 2')
+        if n_faces is None:
+            raise ConstraintError("point handles need the mesh's triangle count")
+        points, point_targets = _points(data["points"], int(n_faces))
     return Constraints(fixed=fixed, handles=handles, targets=targets, roi=roi, handle_groups=handle_groups,
-                       stiffness=stiffness)
+                       stiffness=stiffness, points=points, point_targets=point_targets)
+
+
+def _points(raw: Any, n_faces: int) -> tuple[PointConstraints, np.ndarray]:
+    """Point handles of a file: ``[{"face", "barycentric", "target", optional "weight"}, ...]``."""
+    if not isinstance(raw, list):
+        raise ConstraintError("points must be a list")
+    faces, bary, targets, weights = [], [], [], []
+    for k, item in enumerate(raw):
+        if not isinstance(item, Mapping) or not {"face", "barycentric", "target"} <= set(item) or \
+                not set(item) <= {"face", "barycentric", "target", "weight"}:
+            raise ConstraintError(f'points[{k}] must be an object with "face", "barycentric", "target" and '
+                                  'optionally "weight"')
+        if type(item["face"]) is not int:
+            raise ConstraintError(f"points[{k}].face must be an integer triangle index")
+        faces.append(item["face"])
+        bary.append(item["barycentric"])
+        targets.append(item["target"])
+        w = item.get("weight", math.inf)
+        if type(w) not in (int, float):
+            raise ConstraintError(f"points[{k}].weight must be a positive number")
+        weights.append(float(w))
+    points = check_points(np.asarray(faces, dtype=np.int64), bary, weights, n_faces)
+    return points, check_targets(targets, len(faces))
 
 
 def _stiffness_value(value: Any, where: str) -> float:

@@ -25,6 +25,7 @@ from arap.errors import ArapError, ConstraintError, OptionError, UnconstrainedRe
 from arap.indexing import check_index_array, find_unconstrained_part
 from arap.linsolve import NotPositiveDefiniteError, factorize
 from arap.mesh import MeshLike, check_mesh, is_mesh_like, mesh_arrays
+from arap.points import PointConstraints, PointSystem, check_points
 from arap.result import (
     ACCELERATIONS,
     DEFAULT_TOLERANCE,
@@ -75,6 +76,12 @@ class ArapSolver:
         Weight of the rotation term of ``energy="smooth_rotations"`` (SR-ARAP, Levi & Gotsman 2015), relative to
         the surface area so that it does not depend on the mesh's size; 0.02 by default (CGAL's default). Ignored by
         the other energies.
+    points : PointConstraints, (faces, barycentric) or (faces, barycentric, weights), or None
+        Handles anywhere on the surface (see :mod:`arap.points`): point ``k`` lies in triangle ``faces[k]`` at
+        ``barycentric[k]`` (3 coordinates ≥ 0 summing to 1, corners in the order of ``F``); its weight is ``inf``
+        (default) for a hard constraint, met exactly, or a positive weight for a soft one that pulls with that
+        strength. :meth:`solve` then takes their targets as ``point_targets``. The factorisation stays once per
+        constraint set.
     stiffness : (n,) array of float or None
         Per-vertex cell weights ``w_i`` of the paper's energy ``Σ_i w_i Σ_j w_ij ‖…‖²`` (Sorkine & Alexa 2007):
         1 is the plain energy (None: all 1), larger values make a vertex's cell stiffer, so a region painted stiff
@@ -111,6 +118,7 @@ class ArapSolver:
         backend: str | None = None,
         stiffness: ArrayLike | None = None,
         alpha: float = DEFAULT_ALPHA,
+        points: PointConstraints | tuple[ArrayLike, ArrayLike] | tuple[ArrayLike, ArrayLike, ArrayLike] | None = None,
     ) -> None:
         t0 = time.perf_counter()
         if energy not in ENERGY_TYPES:
@@ -149,7 +157,16 @@ class ArapSolver:
         self.free = np.flatnonzero(~fixed_mask & ~held_mask)
         self.nonfree = np.flatnonzero(fixed_mask | held_mask)
         adjacency = vertex_adjacency(F, n)
-        part = find_unconstrained_part(F, n, self.free, adjacency)
+        self.points: PointConstraints | None = None
+        if points is not None:
+            p = (points.faces, points.barycentric, points.weights) if isinstance(points, PointConstraints) \
+                else tuple(points)
+            self.points = check_points(p[0], p[1], p[2] if len(p) > 2 else None, len(F))
+        # A free part that holds a point handle's corner is pinned by it.
+        pinned = np.zeros(n, dtype=bool)
+        if self.points is not None:
+            pinned[F[self.points.faces].ravel()] = True
+        part = find_unconstrained_part(F, n, self.free[~pinned[self.free]], adjacency)
         if part is not None:
             sample, size = part
             where = "" if self.roi is None else " (region of interest)"
@@ -184,6 +201,12 @@ class ArapSolver:
         L_f = L[self._free]
         self._L_fn = L_f[:, self._nonfree].tocsr()
         L_ff = L_f[:, self._free]
+        self._points: PointSystem | None = None
+        if self.points is not None and len(self.points) and len(self.free):
+            mu = float(L_ff.diagonal().mean())
+            self._points = PointSystem(self.points, self._inv[F[self.points.faces]], self._nf, n, mu)
+            L_ff = (L_ff + self._points.matrix()).tocsr()
+        self._point_state: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None
         self._gather = build_rhs_gather(self._cells, self._free, n)
         self._active = np.flatnonzero(np.bincount(self._gather.cell, minlength=n))
         self.alpha = float(alpha)
@@ -204,6 +227,8 @@ class ArapSolver:
         if len(self.free):
             try:
                 self.factor = factorize(L_ff, backend)
+                if self._points is not None:
+                    self._points.prepare(self.factor.solve)
             except NotPositiveDefiniteError as exc:
                 raise ConstraintError(
                     "the reduced ARAP system is singular: some free vertices are connected to the constraints only "
@@ -274,6 +299,20 @@ class ArapSolver:
         self._constant_cache = (targets.copy(), value)
         return value
 
+    def _check_point_targets(self, point_targets: object) -> NDArray[np.float64] | None:
+        """Targets of the point constraints, shape (p, 3); required exactly when there are point constraints."""
+        p = 0 if self.points is None else len(self.points)
+        if point_targets is None:
+            if p:
+                raise ConstraintError(f"point_targets is missing: the solver has {p} point constraints")
+            return None
+        P = np.asarray(point_targets, dtype=np.float64)
+        if P.shape != (p, 3):
+            raise ConstraintError(f"point_targets must have shape ({p}, 3), got {P.shape}")
+        if not np.isfinite(P).all():
+            raise ConstraintError("point_targets must be finite")
+        return P
+
     def _fixed_positions(self, targets: np.ndarray) -> np.ndarray:
         """Positions of the non-free vertices (constrained at targets, held at rest), in ``nonfree`` order."""
         fixed = self._V[self._nf:].copy()
@@ -321,6 +360,7 @@ class ArapSolver:
         callback: IterationCallback | None = None,
         acceleration: Acceleration = "anderson",
         window: int = DEFAULT_WINDOW,
+        point_targets: NDArray[np.float64] | list | None = None,
     ) -> ArapResult:
         """Deform the mesh so the constrained vertices reach their targets; by default, iterate until converged.
 
@@ -369,6 +409,8 @@ class ArapSolver:
         if int(window) != window or window < 1:
             raise OptionError(f"window must be a positive integer, got {window!r}")
         fixed = self._fixed_positions(T)
+        P = self._check_point_targets(point_targets)
+        self._point_state = None if P is None else (P, fixed)
         timings = {"local": 0.0, "rhs": 0.0, "solve": 0.0, "acceleration": 0.0}
         U, E_cur, start = self._start(T, fixed, initial, timings)
         const_E = self._constant_energy(U, T)
@@ -378,6 +420,8 @@ class ArapSolver:
         free = self._free
         nf = len(free)
         rhs_const = self._L_fn @ fixed
+        if self._points is not None and P is not None:
+            rhs_const = rhs_const - self._points.rhs(P, fixed)  # assemble_rhs subtracts its constant
         rhs = np.empty((nf, 3))
         accel = None
         if acceleration == "anderson" and nf:
@@ -397,6 +441,8 @@ class ArapSolver:
                 assemble_rhs(self._gather, self._R, rhs_const, rhs)
                 t2 = time.perf_counter()
                 g = self.factor.solve(rhs)
+                if self._points is not None and P is not None:
+                    g = self._points.correct(g, P, fixed)
                 timings["rhs"] += t2 - t
                 timings["solve"] += time.perf_counter() - t2
             else:
@@ -445,6 +491,8 @@ class ArapSolver:
             e = local_step(self._cells, self._active, U, self._R, self._E)
         if self._rigid is not None:
             e += self._rigid.share(U, self._R, self._E)
+        if self._points is not None and self._point_state is not None:
+            e += self._points.penalty(U[:self._nf], *self._point_state)
         timings["local"] += time.perf_counter() - t
         return e + const_E
 
@@ -576,16 +624,24 @@ class ArapSolver:
             value += self._smooth.rotation_term(np.ascontiguousarray(R), np.empty(self.n_vertices))
         return value
 
-    def global_step(self, R: np.ndarray, targets: np.ndarray | list) -> np.ndarray:
+    def global_step(self, R: np.ndarray, targets: np.ndarray | list,
+                    point_targets: np.ndarray | list | None = None) -> np.ndarray:
         """Global step alone: positions minimising the energy for fixed rotations ``R`` (n, 3, 3), shape (n, 3)."""
         T = self._check_targets(targets)
         fixed = self._fixed_positions(T)
+        P = self._check_point_targets(point_targets)
         U = self._V.copy()
         U[self._nf:] = fixed
         if self.factor is not None:
             rhs = np.empty((len(self._free), 3))
-            assemble_rhs(self._gather, self._to_internal(np.asarray(R, dtype=np.float64)), self._L_fn @ fixed, rhs)
-            U[self._free] = self.factor.solve(rhs)
+            const = self._L_fn @ fixed
+            if self._points is not None and P is not None:
+                const = const - self._points.rhs(P, fixed)  # assemble_rhs subtracts its constant
+            assemble_rhs(self._gather, self._to_internal(np.asarray(R, dtype=np.float64)), const, rhs)
+            g = self.factor.solve(rhs)
+            if self._points is not None and P is not None:
+                g = self._points.correct(g, P, fixed)
+            U[self._free] = g
         return U[self._inv]
 
     @property

@@ -86,3 +86,29 @@ def test_deform_keeps_a_rigid_region_rigid(tmp_path: Path) -> None:
     bent, _ = load_mesh(tmp_path / "plain.obj")
     assert _rigid_misfit(V, rigid, middle) < 1e-6
     assert _rigid_misfit(V, bent, middle) > 1e-3
+
+
+def test_point_handles_in_files_and_deform(tmp_path: Path) -> None:
+    V, doc = _bar_document()
+    _, F = builtin_mesh("bar")
+    top_face = int(np.argmax(V[F].mean(axis=1)[:, 1]))
+    target = (V[F[top_face]].mean(axis=0) + np.array([1.0, 0.0, 0.0])).tolist()
+    doc = {"fixed": doc["fixed"], "version": 2,
+           "points": [{"face": top_face, "barycentric": [1 / 3, 1 / 3, 1 / 3], "target": target}]}
+    c = load_constraints(doc, len(V), len(F))
+    assert c.points is not None and c.points.hard.all() and c.point_targets is not None
+    save_constraints(tmp_path / "c.json", c)
+    again = load_constraints(tmp_path / "c.json", len(V), len(F))
+    np.testing.assert_array_equal(again.point_targets, c.point_targets)
+    assert main(["deform", "bar", "-c", str(tmp_path / "c.json"), "-o", str(tmp_path / "out.obj"), "-q"]) == 0
+    U, _ = load_mesh(tmp_path / "out.obj")
+    assert np.abs(U[F[top_face]].mean(axis=0) - target).max() < 1e-9 * np.linalg.norm(np.ptp(V, axis=0))
+    soft = doc | {"points": [doc["points"][0] | {"weight": 5.0}]}
+    assert load_constraints(soft, len(V), len(F)).points.weights.tolist() == [5.0]
+    for bad, match in (({"version": 1}, "version"), ({"points": [{"face": 0}]}, "barycentric"),
+                       ({"points": [doc["points"][0] | {"face": 10**7}]}, "out of range"),
+                       ({"points": [doc["points"][0] | {"weight": -1}]}, "positive")):
+        with pytest.raises(ConstraintError, match=match):
+            load_constraints(doc | bad, len(V), len(F))
+    with pytest.raises(ConstraintError, match="triangle count"):
+        load_constraints(doc, len(V))
