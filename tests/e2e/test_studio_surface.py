@@ -80,7 +80,7 @@ def clear_roi(page: Page) -> None:
 
 
 def test_surface_brush_and_connected_patch_stay_on_their_prong(page: Page, tmp_path: Path) -> None:
-    V, F = load_fork(page, tmp_path)
+    V, _ = load_fork(page, tmp_path)
     slot_left = SLOT_COLUMN * SPACING
     right = V[:, 0] > slot_left + 0.5 * SPACING
     left_prong = (V[:, 0] < slot_left + 0.5 * SPACING) & (V[:, 1] > (SLOT_FLOOR + 2) * SPACING)
