@@ -89,31 +89,38 @@ class MinHeap {
 }
 
 /**
- * Distances along the edges from seeds (Dijkstra), up to a radius.
- * @param {{ptr: Int32Array, adj: Int32Array}} graph from buildAdjacency
+ * Vertices within a distance along the edges from seeds (Dijkstra), nearest first. Scratch arrays are kept on the
+ * graph, so a call allocates little and costs in proportion to the vertices it reaches.
+ * @param {{ptr: Int32Array, adj: Int32Array, dist?: Float64Array}} graph from buildAdjacency
  * @param {ArrayLike<number>} positions (n*3)
  * @param {Array<[number, number]>} seeds [vertex, starting distance] pairs (e.g. the corners of a hit triangle with
  *   their distance to the hit point)
  * @param {number} radius largest distance kept
- * @returns {Map<number, number>} vertex → distance, for every vertex within the radius
+ * @returns {{vertices: number[], distances: number[]}} every vertex within the radius and its distance
  */
 export function geodesicDistances(graph, positions, seeds, radius) {
   const { ptr, adj } = graph;
-  const dist = new Map();
+  const n = ptr.length - 1;
+  if (!graph.dist || graph.dist.length !== n) graph.dist = new Float64Array(n).fill(Infinity);
+  const dist = graph.dist; // Infinity everywhere between calls
+  const vertices = [];
+  const distances = [];
   const heap = new MinHeap();
   for (const [v, d] of seeds) if (d <= radius) heap.push(d, v);
   while (heap.size) {
     heap.pop();
     const v = heap.topVal;
     const d = heap.topKey;
-    if (dist.has(v)) continue;
-    dist.set(v, d);
+    if (dist[v] !== Infinity) continue;
+    dist[v] = d;
+    vertices.push(v);
+    distances.push(d);
     const x = positions[3 * v];
     const y = positions[3 * v + 1];
     const z = positions[3 * v + 2];
     for (let k = ptr[v]; k < ptr[v + 1]; k++) {
       const w = adj[k];
-      if (dist.has(w)) continue;
+      if (dist[w] !== Infinity) continue;
       const dx = positions[3 * w] - x;
       const dy = positions[3 * w + 1] - y;
       const dz = positions[3 * w + 2] - z;
@@ -121,7 +128,8 @@ export function geodesicDistances(graph, positions, seeds, radius) {
       if (dw <= radius) heap.push(dw, w);
     }
   }
-  return dist;
+  for (const v of vertices) dist[v] = Infinity;
+  return { vertices, distances };
 }
 
 /**

@@ -67,7 +67,7 @@ export class SurfaceSelection {
     else {
       const box = this.viewer.geometry.boundingBox;
       const radius = (amount / 100) * box.min.distanceTo(box.max);
-      region = [...geodesicDistances(this.graph(), this.viewer.positions, handles.map((v) => [v, 0]), radius).keys()];
+      region = geodesicDistances(this.graph(), this.viewer.positions, handles.map((v) => [v, 0]), radius).vertices;
     }
     s.roi.fill(0);
     for (const i of region) s.roi[i] = 1;

@@ -149,7 +149,7 @@ export class SelectionTools {
       const seeds = triangleSeeds(pos, this._hitFace, p);
       const graph = this.opts.graph();
       const out = this.metric === 'surface'
-        ? [...geodesicDistances(graph, pos, seeds, r).keys()]
+        ? geodesicDistances(graph, pos, seeds, r).vertices
         : connectedPatch(graph, pos, seeds.map(([v]) => v), p, r);
       this.opts.onPaint(out, this.erasing);
       return;
