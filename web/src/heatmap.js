@@ -13,6 +13,9 @@ const STOPS = [
   [1.0, [0.86, 0.19, 0.15]],
 ];
 
+/** Least time between two requests while the shape keeps changing (a drag), so the map does not slow the solve. */
+export const MIN_INTERVAL_MS = 250;
+
 const srgbToLinear = (c) => (c < 0.04045 ? c / 12.92 : ((c + 0.055) / 1.055) ** 2.4);
 
 /** The sRGB colour of a scale position `t` in [0, 1]. */
@@ -58,6 +61,8 @@ export class HeatMap {
     this.high = 0;
     this.inFlight = false;
     this.stale = false;
+    this.lastRequest = -Infinity;
+    this.timer = 0;
     this.legend.querySelector('.heat-bar').style.background = cssGradient();
   }
 
@@ -84,11 +89,21 @@ export class HeatMap {
   }
 
   request() {
-    if (this.inFlight) {
+    if (this.inFlight || this.timer) {
       this.stale = true;
       return;
     }
+    const wait = this.lastRequest + MIN_INTERVAL_MS - performance.now();
+    if (wait > 0) {
+      this.stale = true;
+      this.timer = window.setTimeout(() => {
+        this.timer = 0;
+        if (this.stale && this.on) this.request();
+      }, wait);
+      return;
+    }
     this.stale = false;
+    this.lastRequest = performance.now();
     this.inFlight = this.send({ type: CLIENT.GET_DISTORTION });
   }
 
@@ -104,7 +119,7 @@ export class HeatMap {
       this.legend.querySelector('.heat-max').textContent = `max ${fmt(msg.max)}`;
       this.paint();
     }
-    if (this.stale) this.request();
+    if (this.stale && this.on) this.request();
   }
 
   /** The request failed: let the next shape ask again. */
