@@ -25,7 +25,7 @@ from arap.smooth import DEFAULT_ALPHA, SmoothRotations
 from arap.start import vertex_areas
 from arap.weights import DEFAULT_WEIGHTS, WEIGHT_TYPES, WeightType
 
-__all__ = ["arap_energy", "cell_distortion", "cell_energies"]
+__all__ = ["arap_energy", "cell_distortion", "cell_energies", "distortion_from_cells"]
 
 
 def _inputs(V: Any, F: Any, U: Any) -> tuple[NDArray[np.float64], NDArray[np.int64], NDArray[np.float64]]:
@@ -190,6 +190,41 @@ def cell_distortion(
     out = np.zeros_like(E)
     ok = rest.rest_sq > 0
     out[ok] = E[ok] / rest.rest_sq[ok]
+    return out
+
+
+def distortion_from_cells(cells: Cells, V: NDArray[np.float64], F: NDArray[np.int64], U: NDArray[np.float64],
+                          energy: EnergyType = DEFAULT_ENERGY, alpha: float = DEFAULT_ALPHA) -> NDArray[np.float64]:
+    """:func:`cell_distortion` (without stiffness) from cells built beforehand, for repeated evaluation on one rest
+    mesh (building the cells costs far more than the rotations).
+
+    Parameters
+    ----------
+    cells : Cells
+        ``build_cells(V, F, energy, weights)`` of the checked rest mesh.
+    V : (n, 3) float64 array
+        Rest positions, as checked by :func:`arap.check_mesh`.
+    F : (m, 3) int64 array
+    U : (n, 3) float64 array
+        Deformed positions (finite, of the shape of ``V``).
+    energy : {"spokes_and_rims", "spokes", "smooth_rotations"}
+        The energy ``cells`` were built for.
+    alpha : float
+        Weight of the rotation term of ``smooth_rotations``.
+
+    Returns
+    -------
+    (n,) float64 array
+    """
+    n = len(V)
+    E = np.empty(n)
+    R = np.empty((n, 3, 3))
+    local_step(cells, np.arange(n), U, R, E)
+    if energy == "smooth_rotations":
+        _settle_rotations(cells, V, F, U, R, E, alpha)
+    out = np.zeros_like(E)
+    ok = cells.rest_sq > 0
+    out[ok] = E[ok] / cells.rest_sq[ok]
     return out
 
 

@@ -3,15 +3,29 @@
 from __future__ import annotations
 
 from typing import Any
+from weakref import WeakKeyDictionary
 
 import numpy as np
 
-from arap.energy import cell_distortion
+from arap.cells import Cells, build_cells
+from arap.energy import distortion_from_cells
 from arap.server.protocol import RequestError, server_message
 from arap.server.session import Session
 
 HIGH_PERCENTILE = 98.0
 """Percentile of the values sent as the top of the colour scale (a few extreme cells would wash out the rest)."""
+
+_CELLS: WeakKeyDictionary[Session, tuple[tuple[Any, ...], Cells]] = WeakKeyDictionary()
+"""Per session: the cells of its rest pose for the current energy and weights (rebuilt when any of them changes)."""
+
+
+def _cells(session: Session, F: np.ndarray) -> Cells:
+    key = (id(session.V), session.rest_id, session.params.energy, session.params.weights)
+    held = _CELLS.get(session)
+    if held is None or held[0] != key:
+        held = (key, build_cells(session.V, F, session.params.energy, session.params.weights))
+        _CELLS[session] = held
+    return held[1]
 
 
 def distortion_frame(session: Session) -> tuple[dict[str, Any], bytes]:
@@ -37,7 +51,8 @@ def distortion_frame(session: Session) -> tuple[dict[str, Any], bytes]:
     if session.mesh is None:
         raise RequestError("no_mesh", "no mesh is loaded")
     p = session.params
-    D = cell_distortion(session.V, session.mesh.F, session.U, energy=p.energy, weights=p.weights, alpha=p.alpha)
+    F = session.mesh.F
+    D = distortion_from_cells(_cells(session, F), session.V, F, session.U, p.energy, p.alpha)
     high = float(np.percentile(D, HIGH_PERCENTILE)) if len(D) else 0.0
     top = float(D.max(initial=0.0))
     return server_message("distortion", high=high, max=top), np.ascontiguousarray(D, dtype="<f4").tobytes()
