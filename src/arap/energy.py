@@ -25,7 +25,7 @@ from arap.smooth import DEFAULT_ALPHA, SmoothRotations
 from arap.start import vertex_areas
 from arap.weights import DEFAULT_WEIGHTS, WEIGHT_TYPES, WeightType
 
-__all__ = ["arap_energy", "cell_energies"]
+__all__ = ["arap_energy", "cell_distortion", "cell_energies", "distortion_from_cells"]
 
 
 def _inputs(V: Any, F: Any, U: Any) -> tuple[NDArray[np.float64], NDArray[np.int64], NDArray[np.float64]]:
@@ -115,15 +115,20 @@ def cell_energies(
     >>> bool(abs(cell_energies(V, F, V)).max() < 1e-9)
     True
     """
+    return _cells_and_energies(V, F, U, energy, weights, stiffness, alpha)[1]
+
+
+def _cells_and_energies(V: Any, F: Any, U: Any, energy: EnergyType, weights: WeightType, stiffness: ArrayLike | None,
+                        alpha: float) -> tuple[Cells, NDArray[np.float64]]:
+    """The (unscaled) cells of the rest mesh and :func:`cell_energies` of ``U``."""
     if energy not in ENERGY_TYPES:
         raise OptionError(f"unknown energy {energy!r}; expected one of {ENERGY_TYPES}")
     if weights not in WEIGHT_TYPES:
         raise OptionError(f"unknown weights {weights!r}; expected one of {WEIGHT_TYPES}")
     Vc, Fc, Uc = _inputs(V, F, U)
     scale, rigid = (None, None) if stiffness is None else check_stiffness(stiffness, len(Vc))
-    cells = build_cells(Vc, Fc, energy, weights)
-    if scale is not None:
-        cells = scale_cells(cells, scale)
+    rest = build_cells(Vc, Fc, energy, weights)
+    cells = rest if scale is None else scale_cells(rest, scale)
     n = len(Vc)
     E = np.empty(n)
     R = np.empty((n, 3, 3))
@@ -132,7 +137,95 @@ def cell_energies(
         _settle_rotations(cells, Vc, Fc, Uc, R, E, alpha)
     if rigid is not None and rigid.any():
         RigidRegions(cells, rigid_regions(Fc, rigid), np.arange(n)).share(Uc, R, E)
-    return E
+    return rest, E
+
+
+def cell_distortion(
+    V: NDArray[np.floating] | MeshLike,
+    F: NDArray[np.integer] | None = None,
+    U: NDArray[np.floating] | MeshLike | None = None,
+    energy: EnergyType = DEFAULT_ENERGY,
+    weights: WeightType = DEFAULT_WEIGHTS,
+    stiffness: ArrayLike | None = None,
+    alpha: float = DEFAULT_ALPHA,
+) -> NDArray[np.float64]:
+    """How far every cell is from rigid: its energy over its weighted rest size.
+
+    ``D_i = E_i / Σ w ‖p_a − p_b‖²`` over the terms of cell ``i``, with ``E_i`` from :func:`cell_energies`. The
+    ratio does not depend on the mesh's scale or resolution: 0 for a rigid motion of the cell, about ``s²`` for a
+    cell whose edges all stretched or shrank by a relative ``s``. Cells whose rest sum is not positive (possible
+    with ``energy="spokes"`` on obtuse triangles) get 0.
+
+    Parameters
+    ----------
+    V : (n, 3) float array or MeshLike
+        Rest positions, or the rest mesh object (then leave out ``F``: ``cell_distortion(mesh, U)``).
+    F : (m, 3) int array
+    U : (n, 3) float array or MeshLike
+        Deformed positions.
+    energy : {"spokes_and_rims", "spokes", "smooth_rotations"}
+    weights : {"cotangent", "clamped", "uniform"}
+    stiffness : (n,) array of float or None
+        Cell weights (see :func:`cell_energies`); they scale the energy, not the rest size.
+    alpha : float
+        Weight of the rotation term of ``smooth_rotations`` (see :func:`cell_energies`).
+
+    Returns
+    -------
+    (n,) float64 array
+
+    Raises
+    ------
+    MeshError, ArapError, OptionError
+        As :func:`cell_energies`.
+
+    Example
+    -------
+    >>> import arap
+    >>> V, F = arap.builtin_mesh("bar")
+    >>> bool(cell_distortion(V, F, 2.0 * V).max() > 0.5)
+    True
+    """
+    rest, E = _cells_and_energies(V, F, U, energy, weights, stiffness, alpha)
+    out = np.zeros_like(E)
+    ok = rest.rest_sq > 0
+    out[ok] = E[ok] / rest.rest_sq[ok]
+    return out
+
+
+def distortion_from_cells(cells: Cells, V: NDArray[np.float64], F: NDArray[np.int64], U: NDArray[np.float64],
+                          energy: EnergyType = DEFAULT_ENERGY, alpha: float = DEFAULT_ALPHA) -> NDArray[np.float64]:
+    """:func:`cell_distortion` (without stiffness) from cells built beforehand, for repeated evaluation on one rest
+    mesh (building the cells costs far more than the rotations).
+
+    Parameters
+    ----------
+    cells : Cells
+        ``build_cells(V, F, energy, weights)`` of the checked rest mesh.
+    V : (n, 3) float64 array
+        Rest positions, as checked by :func:`arap.check_mesh`.
+    F : (m, 3) int64 array
+    U : (n, 3) float64 array
+        Deformed positions (finite, of the shape of ``V``).
+    energy : {"spokes_and_rims", "spokes", "smooth_rotations"}
+        The energy ``cells`` were built for.
+    alpha : float
+        Weight of the rotation term of ``smooth_rotations``.
+
+    Returns
+    -------
+    (n,) float64 array
+    """
+    n = len(V)
+    E = np.empty(n)
+    R = np.empty((n, 3, 3))
+    local_step(cells, np.arange(n), U, R, E)
+    if energy == "smooth_rotations":
+        _settle_rotations(cells, V, F, U, R, E, alpha)
+    out = np.zeros_like(E)
+    ok = cells.rest_sq > 0
+    out[ok] = E[ok] / cells.rest_sq[ok]
+    return out
 
 
 def arap_energy(

@@ -5,7 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from arap.energy import arap_energy, cell_energies
+from arap.cells import build_cells
+from arap.energy import arap_energy, cell_distortion, cell_energies, distortion_from_cells
 from arap.rotations import fit_rotations_svd
 
 
@@ -43,6 +44,30 @@ def test_cell_energies_match_the_definition(knight: tuple[np.ndarray, np.ndarray
     ])
     got = cell_energies(V, F, U, energy=energy)
     np.testing.assert_allclose(got, expected, rtol=1e-8, atol=1e-12)
+    rest = np.array([sum(w * np.sum((V[a] - V[b]) ** 2) for a, b, w in terms) for terms in cells])
+    ok = rest > 0
+    distortion = cell_distortion(V, F, U, energy=energy)
+    np.testing.assert_allclose(distortion[ok], expected[ok] / rest[ok], rtol=1e-8, atol=1e-12)
+    assert (distortion[~ok] == 0).all()
+
+
+def test_distortion_is_the_squared_stretch_and_does_not_depend_on_scale(
+    icosphere: tuple[np.ndarray, np.ndarray],
+) -> None:
+    V, F = icosphere
+    np.testing.assert_allclose(cell_distortion(V, F, 1.1 * V), 0.01, rtol=1e-9)
+    U = V + 0.05 * np.random.default_rng(3).normal(size=V.shape)
+    np.testing.assert_allclose(cell_distortion(7.0 * V, F, 7.0 * U), cell_distortion(V, F, U), rtol=1e-9)
+    assert cell_distortion(V, F, U).max() > 0
+
+
+@pytest.mark.parametrize("energy", ["spokes", "spokes_and_rims", "smooth_rotations"])
+def test_distortion_from_prebuilt_cells_is_cell_distortion(knight: tuple[np.ndarray, np.ndarray], energy: str) -> None:
+    V, F = knight
+    U = V + 0.02 * np.random.default_rng(7).normal(size=V.shape)
+    cells = build_cells(V, F, energy, "cotangent")
+    np.testing.assert_allclose(distortion_from_cells(cells, V, F, U, energy, 0.05),
+                               cell_distortion(V, F, U, energy=energy, alpha=0.05), rtol=1e-10, atol=1e-14)
 
 
 def test_energy_is_translation_invariant_and_zero_at_rest_without_obtuse_angles(

@@ -11,6 +11,7 @@ import pytest
 import trimesh
 from starlette.testclient import TestClient
 
+from arap.energy import cell_distortion
 from arap.io import load_mesh_bytes
 from arap.server import create_app
 from arap.server.protocol import PARAMS, PROTOCOL_VERSION
@@ -116,6 +117,22 @@ def test_get_constraints(studio: StudioClient) -> None:
     assert doc["fixed"] == fixed and doc["handles"] == top and doc["handle_groups"] == [top]
     np.testing.assert_allclose(doc["targets"], studio.V[top] + [0.25, 0, 0], atol=1e-6)
     assert "roi" not in doc
+
+
+def test_get_distortion(studio: StudioClient) -> None:
+    studio.send({"type": "get_distortion"})
+    rest = studio.expect("distortion")
+    values = np.frombuffer(rest.payload or b"", dtype="<f4")
+    assert values.shape == (5250,) and rest.data["max"] == pytest.approx(float(values.max()))
+    assert values.max() < 1e-5  # the rest pose is rigid
+    fixed, top = studio.bottom_top()
+    studio.set_constraints(fixed, [top])
+    U = studio.drag(1, [translation(0.25)]).floats().reshape(-1, 3)
+    studio.send({"type": "get_distortion"})
+    bent = studio.expect("distortion")
+    values = np.frombuffer(bent.payload or b"", dtype="<f4")
+    np.testing.assert_allclose(values, cell_distortion(studio.V, studio.F, U), rtol=1e-3, atol=1e-6)
+    assert 0 < bent.data["high"] <= bent.data["max"] == pytest.approx(float(values.max()))
 
 
 MALFORMED_TEXT = [

@@ -72,6 +72,8 @@ export function installTestHook({ app, viewer, selection, gizmo, conn, keeper })
       return keeper.restore.busy;
     },
     positions: () => Array.from(viewer.positions),
+    /** Vertex colours (linear RGB, 3 per vertex) as drawn. */
+    colors: () => (viewer.geometry ? Array.from(viewer.geometry.attributes.color.array) : []),
     counts: () => selection.counts(),
     constraints: () => {
       const c = selection.toConstraints();

@@ -3,7 +3,10 @@ import './style.css';
 import { Connection, defaultSocketUrl } from './connection.js';
 import { checkMeshFile, download, formatBytes, installDropTarget, parseConstraints } from './files.js';
 import { HandleGizmo } from './gizmo.js';
+import { HeatMap } from './heatmap.js';
+import { describedKeys, Help } from './help.js';
 import { installTestHook } from './hook.js';
+import { installHud } from './hud.js';
 import { SessionKeeper } from './keeper.js';
 import { ignoreTypeAhead, installShortcuts, releaseFocusAfterPointerUse } from './keys.js';
 import { Panel } from './panel.js';
@@ -11,6 +14,7 @@ import { LinePlot } from './plot.js';
 import { CLIENT, meshArrays, PROTOCOL_VERSION, SERVER, vertexArray } from './protocol.js';
 import { constraintsKey, Selection } from './selection.js';
 import { builtinSource, fileSource } from './snapshot.js';
+import { installSurfaceControls, SurfaceSelection } from './surface.js';
 import { SelectionTools } from './tools.js';
 import { Viewer } from './viewer.js';
 
@@ -79,7 +83,11 @@ const tools = new SelectionTools(viewer, {
     if (selection.paint(indices, app.role, subtract)) refreshSelection(false);
   },
   onStrokeEnd: () => commitConstraints(),
+  graph: () => surface.graph(),
 });
+const surface = new SurfaceSelection({ viewer, selection, role: () => app.role, changed: selectionEdited });
+const heat = new HeatMap({ viewer, send, role: () => selection.role, restore: () => refreshSelection(false) });
+const help = new Help();
 viewer.attachControls(); // after the gizmo and the tools, so they see pointer events first
 
 const iterPlot = new LinePlot(document.getElementById('plot-iter'), { color: '#4c9aff', xLabel: 'iterations' });
@@ -121,8 +129,14 @@ function send(msg) {
 
 // ------------------------------------------------------------------ selection
 
+function selectionEdited() {
+  refreshSelection(true);
+  commitConstraints();
+}
+
 function refreshSelection(full = true) {
   viewer.updateColors(selection.roiCount ? selection.roi : null, selection.role);
+  heat.paint();
   gizmo.syncGroups(selection.groups.length);
   if (full) updateGroupsUi();
   else scheduleGroupsUi();
@@ -201,6 +215,8 @@ function handleMessage(msg) {
       download(new Blob([p], { type: msg.mime || 'application/octet-stream' }), msg.filename || 'mesh');
       return panel.showStatus(`Exported ${msg.filename} (${formatBytes(p.byteLength)}).`, 'info', 3000);
     }
+    case SERVER.DISTORTION:
+      return heat.received(msg);
     case SERVER.ERROR:
       return onError(msg);
     default:
@@ -249,6 +265,7 @@ function onMesh(msg) {
   panel.setMeshInfo(`${msg.name}: ${msg.n_vertices.toLocaleString('en-US')} vertices, ${msg.n_faces.toLocaleString('en-US')} faces`);
   panel.setStats({ n_vertices: msg.n_vertices, n_faces: msg.n_faces, ups: NaN, latency_ms: null, ms_per_iteration: null });
   refreshSelection(true);
+  heat.meshChanged();
   setBusy(null);
   const report = Array.isArray(msg.report) ? msg.report : msg.report ? [String(msg.report)] : [];
   if (report.length) panel.showStatus(`Loaded ${msg.name}. Repairs: ${report.join('; ')}`, 'info', 8000);
@@ -260,6 +277,7 @@ function onVertices(msg) {
   const pos = vertexArray(msg.frame);
   if (pos.length !== viewer.nVertices * 3) return;
   viewer.updatePositions(pos);
+  heat.shapeChanged();
   if (msg.seq >= 0) app.lastSeq = msg.seq; // -1: a frame the server sent on its own (settling, undo)
   gizmo.recenter();
   if (!(msg.iterations > 0)) return; // a pose change without a solve (undo, reset)
@@ -309,6 +327,7 @@ function onError(msg) {
   if (msg.request === CLIENT.SET_CONSTRAINTS) app.sentKey = null;
   if (app.busyFor) setBusy(null);
   if (msg.request === CLIENT.END_DRAG) app.awaitingState = false;
+  if (msg.request === CLIENT.GET_DISTORTION) heat.failed();
   keeper.errorArrived(msg);
   const what = msg.request ? ` (${msg.request})` : '';
   panel.showStatus(`${msg.message || msg.code}${what}`, 'error');
@@ -461,7 +480,7 @@ const panel = new Panel({
 installShortcuts({
   undo: () => send({ type: CLIENT.UNDO }),
   redo: () => send({ type: CLIENT.REDO }),
-  keys: {
+  keys: describedKeys({
     w: () => setGizmoMode('translate'),
     e: () => setGizmoMode('rotate'),
     b: () => setTool('brush'),
@@ -473,9 +492,16 @@ installShortcuts({
     2: () => setRole('fixed'),
     3: () => setRole('handle'),
     4: () => setRole('erase'),
-    escape: () => panel.hideStatus(),
-  },
+    '+': () => surface.ring(false),
+    '=': () => surface.ring(false),
+    '-': () => surface.ring(true),
+    h: () => heat.setOn(!heat.on),
+    '?': () => help.toggle(),
+    escape: () => (help.shown ? help.hide() : panel.hideStatus()),
+  }),
 });
+installSurfaceControls(surface, tools, (text) => panel.showStatus(text, 'info', 3000));
+installHud(document.getElementById('hud'), document.querySelector('#hud .hud-head'), document.getElementById('hud-toggle'));
 ignoreTypeAhead(document.getElementById('builtin-select'));
 releaseFocusAfterPointerUse(document.getElementById('panel'));
 

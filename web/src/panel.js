@@ -109,11 +109,6 @@ export class Panel {
     $('btn-fit').addEventListener('click', () => actions.fit());
     $('btn-reconnect').addEventListener('click', () => actions.reconnect());
     $('status-close').addEventListener('click', () => this.hideStatus());
-    $('hud-toggle').addEventListener('click', () => {
-      const hud = $('hud');
-      hud.classList.toggle('collapsed');
-      $('hud-toggle').textContent = hud.classList.contains('collapsed') ? '+' : '–';
-    });
   }
 
   _segment(id, key, onPick) {
@@ -198,7 +193,7 @@ export class Panel {
   setEnabled(on) {
     for (const b of document.querySelectorAll('#panel button, #panel select, #panel input')) {
       if (!(b instanceof HTMLButtonElement || b instanceof HTMLSelectElement || b instanceof HTMLInputElement)) continue;
-      if (b.id === 'btn-reconnect') continue;
+      if (b.id === 'btn-reconnect' || b.id === 'btn-help') continue;
       b.disabled = !on;
     }
   }

@@ -18,7 +18,8 @@ export const CLIENT = Object.freeze(/** @type {const} */ ({
   "RESET": "reset",
   "APPLY": "apply",
   "EXPORT": "export",
-  "GET_CONSTRAINTS": "get_constraints"
+  "GET_CONSTRAINTS": "get_constraints",
+  "GET_DISTORTION": "get_distortion"
 }));
 
 /** Types of the messages the server sends. */
@@ -30,6 +31,7 @@ export const SERVER = Object.freeze(/** @type {const} */ ({
   "STATE": "state",
   "CONSTRAINTS": "constraints",
   "EXPORT": "export",
+  "DISTORTION": "distortion",
   "ERROR": "error"
 }));
 
@@ -288,6 +290,11 @@ export const CLIENT_MESSAGES = Object.freeze({
     "binary": false,
     "doc": "ask for the constraints document (command-line format)",
     "fields": []
+  },
+  "get_distortion": {
+    "binary": false,
+    "doc": "ask for the per-vertex distortion of the current shape (the heat map)",
+    "fields": []
   }
 });
 
@@ -480,6 +487,22 @@ export const SERVER_MESSAGES = Object.freeze({
       }
     ]
   },
+  "distortion": {
+    "binary": true,
+    "doc": "answer to get_distortion: how far each cell is from rigid, its energy over its weighted rest size (payload: float32[n_vertices])",
+    "fields": [
+      {
+        "name": "high",
+        "kind": "number",
+        "required": true
+      },
+      {
+        "name": "max",
+        "kind": "number",
+        "required": true
+      }
+    ]
+  },
   "error": {
     "binary": false,
     "doc": "a request was rejected; the session continues unchanged",
@@ -597,7 +620,13 @@ export const SERVER_MESSAGES = Object.freeze({
  * @property {"get_constraints"} type
  */
 
-/** Any message a client sends. @typedef {LoadBuiltinClientMessage|UploadClientMessage|SetConstraintsClientMessage|DragClientMessage|EndDragClientMessage|SetParamsClientMessage|UndoClientMessage|RedoClientMessage|ResetClientMessage|ApplyClientMessage|ExportClientMessage|GetConstraintsClientMessage} ClientMessage */
+/**
+ * ask for the per-vertex distortion of the current shape (the heat map)
+ * @typedef {object} GetDistortionClientMessage
+ * @property {"get_distortion"} type
+ */
+
+/** Any message a client sends. @typedef {LoadBuiltinClientMessage|UploadClientMessage|SetConstraintsClientMessage|DragClientMessage|EndDragClientMessage|SetParamsClientMessage|UndoClientMessage|RedoClientMessage|ResetClientMessage|ApplyClientMessage|ExportClientMessage|GetConstraintsClientMessage|GetDistortionClientMessage} ClientMessage */
 
 /**
  * sent once on connect, followed by a mesh frame
@@ -670,6 +699,14 @@ export const SERVER_MESSAGES = Object.freeze({
  */
 
 /**
+ * answer to get_distortion: how far each cell is from rigid, its energy over its weighted rest size (payload: float32[n_vertices])
+ * @typedef {object} DistortionServerMessage
+ * @property {"distortion"} type
+ * @property {number} high 98th percentile of the values: the top of the colour scale
+ * @property {number} max largest value
+ */
+
+/**
  * a request was rejected; the session continues unchanged
  * @typedef {object} ErrorServerMessage
  * @property {"error"} type
@@ -678,7 +715,7 @@ export const SERVER_MESSAGES = Object.freeze({
  * @property {string} request type of the rejected message, or null
  */
 
-/** Any message the server sends (of a binary one: its header). @typedef {WelcomeServerMessage|MeshServerMessage|VerticesServerMessage|SettleServerMessage|StateServerMessage|ConstraintsServerMessage|ExportServerMessage|ErrorServerMessage} ServerMessage */
+/** Any message the server sends (of a binary one: its header). @typedef {WelcomeServerMessage|MeshServerMessage|VerticesServerMessage|SettleServerMessage|StateServerMessage|ConstraintsServerMessage|ExportServerMessage|DistortionServerMessage|ErrorServerMessage} ServerMessage */
 
 const textEncoder = new TextEncoder();
 const textDecoder = new TextDecoder();

@@ -1,10 +1,15 @@
 // Pointer tools on the 3D view: brush painting (raycast + radius) and box selection.
 import * as THREE from 'three';
+import { connectedPatch, geodesicDistances, triangleSeeds } from './geodesic.js';
+
+/** How the brush measures its radius: straight distance, distance along the surface, or the connected patch. */
+export const BRUSH_METRICS = ['straight', 'surface', 'patch'];
 
 export class SelectionTools {
   /**
    * @param {import('./viewer.js').Viewer} viewer
-   * @param {object} opts isGizmoActive(): bool, onPaint(indices, subtract), onStrokeEnd()
+   * @param {object} opts isGizmoActive(): bool, onPaint(indices, subtract), onStrokeEnd(), graph(): the mesh's
+   *   adjacency (geodesic.js buildAdjacency)
    */
   constructor(viewer, opts) {
     this.viewer = viewer;
@@ -14,6 +19,8 @@ export class SelectionTools {
     this.units = 'screen';
     this.worldRadiusFrac = 0.04;
     this.frontOnly = true;
+    this.metric = 'straight';
+    this._hitFace = null;
     this.erasing = false;
     this.painting = false;
     this.box = null;
@@ -47,6 +54,7 @@ export class SelectionTools {
     const ndc = new THREE.Vector2((x / v.canvas.clientWidth) * 2 - 1, -(y / v.canvas.clientHeight) * 2 + 1);
     this.raycaster.setFromCamera(ndc, v.camera);
     const hits = this.raycaster.intersectObject(v.mesh, false);
+    this._hitFace = hits.length ? hits[0].face : null;
     return hits.length ? hits[0].point : null;
   }
 
@@ -136,8 +144,17 @@ export class SelectionTools {
 
   _paintAt(p) {
     const r = this.worldRadius(p);
-    const r2 = r * r;
     const pos = this.viewer.positions;
+    if (this.metric !== 'straight' && this._hitFace) {
+      const seeds = triangleSeeds(pos, this._hitFace, p);
+      const graph = this.opts.graph();
+      const out = this.metric === 'surface'
+        ? geodesicDistances(graph, pos, seeds, r).vertices
+        : connectedPatch(graph, pos, seeds.map(([v]) => v), p, r);
+      this.opts.onPaint(out, this.erasing);
+      return;
+    }
+    const r2 = r * r;
     const out = [];
     for (let i = 0, n = pos.length / 3; i < n; i++) {
       const dx = pos[3 * i] - p.x;

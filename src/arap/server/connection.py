@@ -26,6 +26,7 @@ from starlette.websockets import WebSocket, WebSocketDisconnect
 import arap
 from arap.server.budget import ByteBudget, RequestQueue, request_cost
 from arap.server.decoder import PROCESS_BYTES, FrameDecoder
+from arap.server.heatmap import distortion_frame
 from arap.server.meshdata import MeshData, builtin_names, load_builtin, load_upload
 from arap.server.protocol import (
     MAX_HANDLE_GROUPS,
@@ -414,6 +415,9 @@ class Connection:
         elif t == "export":
             filename, mime, data = await self._off_loop(s.export, f["format"])
             await self._send_binary(server_message("export", filename=filename, mime=mime), data)
+        elif t == "get_distortion":
+            header, data = await self._off_loop(distortion_frame, s)
+            await self._send_binary(header, data)
         elif t == "get_constraints":
             await self._send_json(server_message("constraints", document=s.constraints_document()))
         else:

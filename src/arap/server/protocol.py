@@ -185,6 +185,7 @@ CLIENT_MESSAGES: dict[str, MessageSpec] = {
         _spec("export", "ask for the deformed mesh as a file",
               Field("format", "enum", "file format", choices=EXPORT_FORMATS)),
         _spec("get_constraints", "ask for the constraints document (command-line format)"),
+        _spec("get_distortion", "ask for the per-vertex distortion of the current shape (the heat map)"),
     )
 }
 """Messages a client may send, by type."""
@@ -235,6 +236,11 @@ SERVER_MESSAGES: dict[str, MessageSpec] = {
         _spec("export", "answer to export (payload: the file's bytes)",
               Field("filename", "string", "suggested file name"),
               Field("mime", "string", "media type"),
+              binary=True),
+        _spec("distortion", "answer to get_distortion: how far each cell is from rigid, its energy over its "
+              "weighted rest size (payload: float32[n_vertices])",
+              Field("high", "number", "98th percentile of the values: the top of the colour scale"),
+              Field("max", "number", "largest value"),
               binary=True),
         _spec("error", "a request was rejected; the session continues unchanged",
               Field("code", "enum", "error code", choices=tuple(ERROR_CODES)),

@@ -1,0 +1,98 @@
+// Selection along the surface in the panel: the brush metric, growing and shrinking the current role by one ring,
+// and a region of interest grown from the handles by k rings or a distance along the surface.
+import { buildAdjacency, geodesicDistances, kRing, ringAround } from './geodesic.js';
+import { FIXED, HANDLE0 } from './selection.js';
+
+/** How a region of interest is grown from the handles: rings of edges, or distance along the surface. */
+export const ROI_GROW_MODES = ['rings', 'distance'];
+
+export class SurfaceSelection {
+  /**
+   * @param {object} opts viewer, selection, role(): the role being painted, changed(): after the selection
+   *   changed (refresh and send it)
+   */
+  constructor({ viewer, selection, role, changed }) {
+    this.viewer = viewer;
+    this.selection = selection;
+    this.role = role;
+    this.changed = changed;
+    this._graph = null;
+    this._graphFor = null;
+  }
+
+  /** The vertex adjacency of the current mesh, built on first use after each new mesh. */
+  graph() {
+    const faces = this.viewer.geometry.index.array;
+    if (this._graphFor !== faces) {
+      const t0 = performance.now();
+      this._graph = buildAdjacency(faces, this.viewer.nVertices);
+      this.buildMs = performance.now() - t0;
+      this._graphFor = faces;
+    }
+    return this._graph;
+  }
+
+  /** Membership test of the role being painted, or null for erase. */
+  _member() {
+    const s = this.selection;
+    const role = this.role();
+    if (role === 'roi') return (i) => s.roi[i] === 1;
+    const value = s.roleValue(role);
+    if (value === null || value === 0) return null;
+    return (i) => s.role[i] === value;
+  }
+
+  /** Grow (or shrink) the role being painted by one ring of edges; false when nothing changed. */
+  ring(shrink) {
+    const member = this._member();
+    if (!member || !this.viewer.nVertices) return false;
+    const ring = ringAround(this.graph(), this.viewer.nVertices, member, shrink);
+    if (!this.selection.paint(ring, this.role(), shrink)) return false;
+    this.changed();
+    return true;
+  }
+
+  /**
+   * The region of interest becomes the handles' surroundings: every vertex within `amount` rings (mode "rings")
+   * or within `amount` percent of the bounding-box diagonal along the surface (mode "distance") of a handle
+   * vertex, anchors included. False when there are no handles.
+   */
+  roiFromHandles(mode, amount) {
+    const s = this.selection;
+    const handles = [];
+    for (let i = 0; i < s.n; i++) if (s.role[i] >= HANDLE0) handles.push(i);
+    if (!handles.length) return false;
+    let region;
+    if (mode === 'rings') region = kRing(this.graph(), handles, Math.max(0, Math.round(amount)));
+    else {
+      const box = this.viewer.geometry.boundingBox;
+      const radius = (amount / 100) * box.min.distanceTo(box.max);
+      region = geodesicDistances(this.graph(), this.viewer.positions, handles.map((v) => [v, 0]), radius).vertices;
+    }
+    s.roi.fill(0);
+    for (const i of region) s.roi[i] = 1;
+    for (let i = 0; i < s.n; i++) if (s.role[i] === FIXED || s.role[i] >= HANDLE0) s.roi[i] = 1;
+    s.version++;
+    this.changed();
+    return true;
+  }
+}
+
+/**
+ * Wire the panel's controls: the brush metric drop-down, the grow/shrink buttons and the region-of-interest row.
+ * @param {SurfaceSelection} surface
+ * @param {import('./tools.js').SelectionTools} tools
+ * @param {(text: string) => void} tell shows a short message
+ */
+export function installSurfaceControls(surface, tools, tell) {
+  const $ = (id) => /** @type {HTMLInputElement} */ (document.getElementById(id));
+  $('brush-metric').addEventListener('change', () => (tools.metric = $('brush-metric').value));
+  $('btn-grow').addEventListener('click', () => surface.ring(false));
+  $('btn-shrink').addEventListener('click', () => surface.ring(true));
+  $('btn-roi-from-handles').addEventListener('click', () => {
+    const amount = Number($('roi-amount').value);
+    if (!(amount >= 0)) return tell('Give a number of rings or a distance of at least 0.');
+    if (!surface.roiFromHandles($('roi-mode').value, amount)) tell('Paint a handle first: the region grows from it.');
+    return undefined;
+  });
+}
