@@ -120,6 +120,7 @@ def test_studio_opens_pages_with_initial_constraints_solved() -> None:
             assert state["constraints"]["fixed"] == fixed.tolist()
             assert state["constraints"]["handle_groups"] == groups  # the page adopts these
             header, payload = _expect(ws, "vertices")
+            assert header["seq"] == -1  # a shape the server sent by itself, not an answer to a drag
             assert payload is not None
             shown = np.frombuffer(payload, dtype="<f4").reshape(-1, 3)
             np.testing.assert_allclose(shown[top], moved, atol=1e-5)  # the page is sent the solved shape
