@@ -15,15 +15,18 @@ readable after the page is closed, until :meth:`Studio.stop`.
 from __future__ import annotations
 
 import html
+import os
 import threading
 import time
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
 
-from arap.errors import ArapError
+from arap.constraints import Constraints, load_constraints
+from arap.errors import ArapError, ConstraintError
 from arap.mesh import MeshLike, check_mesh, mesh_arrays
 
 if TYPE_CHECKING:
@@ -180,6 +183,7 @@ def studio(
     port: int = 0,
     show: bool = True,
     height: int = 640,
+    constraints: Constraints | Mapping[str, Any] | str | os.PathLike[str] | None = None,
 ) -> Studio:
     """Serve a mesh in the studio in the background and show it inline in Jupyter.
 
@@ -196,6 +200,10 @@ def studio(
         Display the page inline when running under IPython/Jupyter (an IFrame); elsewhere open :attr:`Studio.url`.
     height : int
         Height of the inline page in pixels.
+    constraints : Constraints, mapping, path or None
+        Initial constraints of every page opened (the ``arap deform`` format, see :func:`arap.load_constraints`):
+        the page shows the anchors, region and handle groups (one group per ``handle_groups`` entry, else one),
+        and the shape solved with the handles at their targets.
 
     Returns
     -------
@@ -206,6 +214,8 @@ def studio(
     ------
     MeshError
         The mesh is unusable (as :func:`arap.check_mesh`).
+    ConstraintError
+        ``constraints`` is invalid for this mesh, or holds stiffness (not edited in the studio).
     ArapError
         The studio's server stack is not installed (``pip install "arap[studio]"``), or the server did not start.
     OSError
@@ -218,6 +228,7 @@ def studio(
     ...     print(s.url)
     """
     V, F = check_mesh(*mesh_arrays(V, F))
+    prepare = None if constraints is None else _initial_constraints(constraints, len(V))
     try:
         from arap.server.meshdata import MeshData
         from arap.server.runner import make_server
@@ -225,11 +236,36 @@ def studio(
         raise ArapError(f'the studio needs its server stack: pip install "arap[studio]" ({exc.name} is missing)'
                         ) from exc
     server, sock, url = make_server(MeshData.make(name, V, F), "127.0.0.1", port, log_level="warning")
+    if prepare is not None:
+        app: Any = server.config.app
+        app.state.studio.prepare_session = prepare
     handle = Studio(server, sock, url, V, F, height)
     handle._start()
     if show:
         _display(handle)
     return handle
+
+
+def _initial_constraints(source: Constraints | Mapping[str, Any] | str | os.PathLike[str],
+                         n_vertices: int) -> Callable[[Session], object]:
+    """Validate initial constraints; return what sets them on a new session."""
+    c = load_constraints(source.to_dict() if isinstance(source, Constraints) else source, n_vertices)
+    if c.stiffness is not None:
+        raise ConstraintError("the studio does not edit stiffness; give constraints without it")
+    handles = c.handles.tolist()
+    groups = [list(map(int, g)) for g in c.handle_groups] if c.handle_groups else ([handles] if handles else [])
+    grouped = [i for g in groups for i in g]
+    if sorted(grouped) != sorted(handles):
+        raise ConstraintError("handle_groups must hold exactly the handles, each once")
+    row = {int(v): k for k, v in enumerate(handles)}
+    targets = c.targets[[row[i] for i in grouped]].tolist() if grouped else None
+    roi = None if c.roi is None else c.roi.tolist()
+    fixed = c.fixed.tolist()
+
+    def prepare(session: Session) -> object:
+        return session.set_constraints(roi, fixed, groups, targets)
+
+    return prepare
 
 
 def _display(handle: Studio) -> None:

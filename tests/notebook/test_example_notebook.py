@@ -21,6 +21,8 @@ def test_example_notebook_runs(tmp_path: Path) -> None:
     text = "\n".join(str(o.get("text", "")) + str(o.get("data", {}).get("text/plain", "")) for o in outputs)
     assert "converged: True" in text
     assert "(True," in text  # the energies never rose
+    plots = [o for o in outputs if "image/png" in o.get("data", {})]
+    assert len(plots) == 1 and len(plots[0]["data"]["image/png"]) > 5_000  # the energy and shape figure was drawn
     html = [o["data"]["text/html"] for o in outputs if "text/html" in o.get("data", {})]
     assert any("<iframe" in h and "127.0.0.1" in h for h in html)  # the studio was shown inline
     assert "<arap.Studio stopped" in text and any("ARAP Studio stopped" in h for h in html)

@@ -101,3 +101,42 @@ def test_studio_takes_a_mesh_object_and_is_a_context_manager() -> None:
 def test_studio_rejects_a_bad_mesh_before_starting() -> None:
     with pytest.raises(arap.MeshError):
         arap.studio(np.zeros((3, 3)), np.array([[0, 1, 1]]), show=False)
+
+
+def test_studio_opens_pages_with_initial_constraints_solved() -> None:
+    V, F = arap.builtin_mesh("bar")
+    y = V[:, 1]
+    fixed = np.flatnonzero(y <= y.min() + 0.05 * np.ptp(y))
+    top = np.flatnonzero(y >= y.max() - 0.05 * np.ptp(y))
+    half = len(top) // 2
+    groups = [top[half:].tolist(), top[:half].tolist()]  # group order differs from the handles' order
+    moved = V[top] + [0.5, -0.2, 0.0]
+    document = {"fixed": fixed.tolist(), "handles": top.tolist(), "targets": moved.tolist(), "handle_groups": groups}
+    with arap.studio(V, F, show=False, constraints=document) as s:
+        with connect(s.url.replace("http://", "ws://") + "ws", origin=_origin(s.url), max_size=None) as ws:
+            _expect(ws, "welcome")
+            _expect(ws, "mesh")
+            state, _ = _expect(ws, "state")
+            assert state["constraints"]["fixed"] == fixed.tolist()
+            assert state["constraints"]["handle_groups"] == groups  # the page adopts these
+            header, payload = _expect(ws, "vertices")
+            assert header["seq"] == -1  # a shape the server sent by itself, not an answer to a drag
+            assert payload is not None
+            shown = np.frombuffer(payload, dtype="<f4").reshape(-1, 3)
+            np.testing.assert_allclose(shown[top], moved, atol=1e-5)  # the page is sent the solved shape
+        U = s.vertices
+        np.testing.assert_allclose(U[top], moved, atol=1e-9)
+        np.testing.assert_allclose(U[fixed], V[fixed], atol=1e-12)
+        sel = s.constraints
+        assert [g.tolist() for g in sel.handle_groups] == groups
+        order = {v: k for k, v in enumerate(top.tolist())}
+        np.testing.assert_allclose(sel.targets, moved[[order[i] for i in groups[0] + groups[1]]], atol=1e-12)
+
+
+def test_studio_refuses_bad_initial_constraints_before_starting() -> None:
+    V, F = arap.builtin_mesh("bar")
+    with pytest.raises(arap.ConstraintError, match="handles"):
+        arap.studio(V, F, show=False, constraints={"fixed": [0], "handles": [len(V)], "targets": [[0, 0, 0]]})
+    with pytest.raises(arap.ConstraintError, match="handle_groups"):
+        arap.studio(V, F, show=False, constraints={"fixed": [0], "handles": [1, 2], "targets": [[0, 0, 0]] * 2,
+                                                   "handle_groups": [[1]]})

@@ -10,7 +10,7 @@ import html
 import logging
 import os
 import weakref
-from collections.abc import AsyncIterator, Iterable
+from collections.abc import AsyncIterator, Callable, Iterable
 from pathlib import Path
 
 import anyio.to_thread
@@ -91,6 +91,8 @@ class _Studio:
         self.keep_latest = False
         """Keep the most recently opened session in :attr:`latest`, even after it closed (for a notebook)."""
         self.latest: Session | None = None
+        self.prepare_session: Callable[[Session], object] | None = None
+        """Called with each new session once it holds the default mesh (initial constraints, for a notebook)."""
 
 
 class _ClientFiles:
@@ -216,7 +218,7 @@ def create_app(
             return
         studio.sessions += 1
         try:
-            connection = Connection(ws, studio.config, studio.default_mesh, studio.decoder)
+            connection = Connection(ws, studio.config, studio.default_mesh, studio.decoder, studio.prepare_session)
             studio.connections.add(connection)
             if studio.keep_latest:
                 studio.latest = connection.session

@@ -114,14 +114,18 @@ class Connection:
     decoder : FrameDecoder or None
         Decodes text frames of :data:`~arap.server.decoder.PROCESS_BYTES` or more in a worker process; None decodes
         them on a thread.
+    prepare : callable or None
+        Called with the session once it holds the default mesh, before the page receives it (e.g. to set initial
+        constraints); the page then adopts the session's constraints and shape.
     """
 
     def __init__(self, ws: WebSocket, config: StudioConfig, default_mesh: MeshData,
-                 decoder: FrameDecoder | None = None) -> None:
+                 decoder: FrameDecoder | None = None, prepare: Callable[[Session], object] | None = None) -> None:
         self.ws = ws
         self.config = config
         self.default_mesh = default_mesh
         self.decoder = decoder
+        self.prepare = prepare
         self.session = Session(config.max_history_steps, config.max_history_bytes)
         self.budget = ByteBudget(config.max_queued_bytes, config.max_unsent_bytes)
         self._queue: RequestQueue[ClientMessage | RequestError] = RequestQueue(self.budget)
@@ -181,6 +185,8 @@ class Connection:
         await self.ws.accept()
         try:
             await self._off_loop(self.session.load, self.default_mesh)
+            if self.prepare is not None:
+                await self._off_loop(self.prepare, self.session)
             await self._send_json(server_message(
                 "welcome",
                 version=arap.__version__,
@@ -194,6 +200,8 @@ class Connection:
             ))
             await self._send_mesh(self.default_mesh)
             await self._send_state()
+            if self.prepare is not None:
+                await self._send_vertices(-1, None)
         except (WebSocketDisconnect, RuntimeError, OSError) as exc:
             logger.debug("connection closed during the greeting: %r", exc)
             return
