@@ -165,6 +165,13 @@ def wait_ready(page: Page, timeout_ms: float = 30_000) -> None:
     page.wait_for_function("() => window.__arap && window.__arap.ready && !window.__arap.busy", timeout=timeout_ms)
 
 
+def wait_settled(page: Page, timeout_ms: float = 60_000) -> None:
+    """Wait until the server reports the shape settled (after a drag ends it keeps iterating and streaming frames)."""
+    page.wait_for_function(
+        "() => document.querySelector('[data-testid=settle-status]')?.dataset.status === 'settled'"
+        " && !window.__arap.busy", timeout=timeout_ms)
+
+
 def wait_idle(page: Page, timeout_ms: float = 30_000) -> None:
     """Wait until no request that changes the view is unanswered, then for one more frame to be drawn."""
     page.wait_for_function("() => !window.__arap.busy", timeout=timeout_ms)

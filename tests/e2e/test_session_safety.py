@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from playwright.sync_api import Browser, Dialog, Page, expect
 
-from tests.e2e.conftest import VIEWPORT, positions, screen_points, wait_idle, wait_ready
+from tests.e2e.conftest import VIEWPORT, positions, screen_points, wait_idle, wait_ready, wait_settled
 from tests.e2e.test_studio import box_select, drag_gizmo_x, select_anchor_and_handle, sphere_obj
 
 pytestmark = pytest.mark.e2e
@@ -71,6 +71,7 @@ def edit_session(page: Page) -> dict:
     page.get_by_test_id("energy").select_option("spokes_and_rims")
     page.wait_for_function("() => window.__arap.params.energy === 'spokes_and_rims'")
     wait_idle(page)
+    wait_settled(page)  # the shape goes on changing until it has settled
     state = page.evaluate("() => ({ counts: window.__arap.counts(), constraints: window.__arap.constraints(), "
                           "name: window.__arap.meshName, canUndo: window.__arap.canUndo })")
     counts = state["counts"]
@@ -146,6 +147,7 @@ def test_shortcuts_work_after_clicking_checkboxes_buttons_and_sliders(page: Page
 def test_replacing_an_edited_mesh_asks_first(page: Page, tmp_path: Path) -> None:
     select_anchor_and_handle(page)
     drag_gizmo_x(page, 80)
+    wait_settled(page)
     name = page.evaluate("() => window.__arap.meshName")
     counts = page.evaluate(COUNTS)
     shape = positions(page)
