@@ -7,14 +7,16 @@ import { installTestHook } from './hook.js';
 import { SessionKeeper } from './keeper.js';
 import { ignoreTypeAhead, installShortcuts, releaseFocusAfterPointerUse } from './keys.js';
 import { Panel } from './panel.js';
+import { LivePose } from './livepose.js';
 import { LinePlot } from './plot.js';
-import { CLIENT, meshArrays, PROTOCOL_VERSION, SERVER, vertexArray } from './protocol.js';
+import { CLIENT, meshArrays, PROTOCOL_VERSION, SERVER } from './protocol.js';
 import { constraintsKey, Selection } from './selection.js';
 import { builtinSource, fileSource } from './snapshot.js';
 import { SelectionTools } from './tools.js';
 import { Viewer } from './viewer.js';
 
 const viewer = new Viewer(document.getElementById('view'));
+const livePose = new LivePose(viewer);
 const selection = new Selection();
 const app = {
   ready: false,
@@ -230,6 +232,7 @@ function onWelcome(msg) {
 function onMesh(msg) {
   const { positions, faces } = meshArrays(msg.frame);
   viewer.setMesh(positions, faces);
+  livePose.reset();
   selection.reset(msg.n_vertices);
   gizmo.syncGroups(1);
   gizmo.resetTransforms();
@@ -257,9 +260,7 @@ function onMesh(msg) {
 }
 
 function onVertices(msg) {
-  const pos = vertexArray(msg.frame);
-  if (pos.length !== viewer.nVertices * 3) return;
-  viewer.updatePositions(pos);
+  if (!livePose.apply(msg.frame)) return;
   if (msg.seq >= 0) app.lastSeq = msg.seq; // -1: a frame the server sent on its own (settling, undo)
   gizmo.recenter();
   if (!(msg.iterations > 0)) return; // a pose change without a solve (undo, reset)

@@ -143,6 +143,24 @@ export class Viewer {
     const attr = this.geometry.attributes.position;
     if (array.length !== attr.array.length) return;
     attr.array.set(array);
+    this._positionsChanged(attr);
+  }
+
+  /** Overwrite the positions of vertices `indices` (Uint32Array) by `values` (Float32Array, 3 per index). */
+  updateSubset(indices, values) {
+    if (!this.geometry) return;
+    const attr = this.geometry.attributes.position;
+    const a = attr.array;
+    for (let k = 0, o = 0; k < indices.length; k++, o += 3) {
+      const i = 3 * indices[k];
+      a[i] = values[o];
+      a[i + 1] = values[o + 1];
+      a[i + 2] = values[o + 2];
+    }
+    this._positionsChanged(attr);
+  }
+
+  _positionsChanged(attr) {
     attr.needsUpdate = true;
     this.geometry.computeVertexNormals();
     this.geometry.computeBoundingSphere();
