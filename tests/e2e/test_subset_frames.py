@@ -63,6 +63,8 @@ def test_the_page_holds_the_full_frame_positions_after_subset_frames(browser: Br
         server.send(json.dumps({"type": "drag", "seq": seq, "transforms": [translation(0.2 * seq, 0.1 * seq)]}))
         page.wait_for_function(f"() => window.__arap.lastSeq === {seq}", timeout=30_000)
     held = positions(page).astype("<f4")
+    normals = np.asarray(page.evaluate("() => window.__arap.normals()")).reshape(-1, 3)
+    faces = np.asarray(page.evaluate("() => window.__arap.faces()")).reshape(-1, 3)
     server.send(json.dumps({"type": "export", "format": "ply"}))
     page.wait_for_timeout(50)
     deadline = 300
@@ -74,4 +76,12 @@ def test_the_page_holds_the_full_frame_positions_after_subset_frames(browser: Br
     full = _ply_vertices(exported[0]).astype("<f4")  # what a full frame of this shape carries
     assert not np.array_equal(full, V.astype("<f4")), "the shape did not move"
     np.testing.assert_array_equal(held.view("<u4"), full.view("<u4"))
+    # the normals updated around the moved region are those of the whole shape
+    P = held.astype(np.float64)
+    face_normals = np.cross(P[faces[:, 2]] - P[faces[:, 1]], P[faces[:, 0]] - P[faces[:, 1]])
+    expected = np.zeros_like(P)
+    for k in range(3):
+        np.add.at(expected, faces[:, k], face_normals)
+    expected /= np.maximum(np.linalg.norm(expected, axis=1, keepdims=True), 1e-300)
+    assert np.abs(normals - expected).max() < 1e-3
     context.close()

@@ -72,6 +72,8 @@ export function installTestHook({ app, viewer, selection, gizmo, conn, keeper })
       return keeper.restore.busy;
     },
     positions: () => Array.from(viewer.positions),
+    faces: () => Array.from(viewer.geometry ? viewer.geometry.index.array : []),
+    normals: () => Array.from(viewer.geometry ? viewer.geometry.attributes.normal.array : []),
     counts: () => selection.counts(),
     constraints: () => {
       const c = selection.toConstraints();
