@@ -60,6 +60,10 @@ export function installTestHook({ app, viewer, selection, gizmo, conn, keeper })
     get errors() {
       return app.errors.map((e) => ({ ...e }));
     },
+    /** Milliseconds of JavaScript per vertices frame (the newest 256; drawing excluded). */
+    get frameMs() {
+      return app.frameMs.slice();
+    },
     get messages() {
       return app.messages;
     },

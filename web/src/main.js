@@ -24,6 +24,7 @@ const app = {
   meshName: null,
   nFaces: 0,
   limits: { max_upload_bytes: 0, max_vertices: 0 },
+  frameMs: [], // JavaScript time spent applying each vertices frame (drawing excluded)
   builtins: [],
   role: 'handle',
   lastSeq: -1,
@@ -260,7 +261,11 @@ function onMesh(msg) {
 }
 
 function onVertices(msg) {
-  if (!livePose.apply(msg.frame)) return;
+  const t0 = performance.now();
+  const applied = livePose.apply(msg.frame);
+  app.frameMs.push(performance.now() - t0);
+  if (app.frameMs.length > 256) app.frameMs.shift();
+  if (!applied) return;
   if (msg.seq >= 0) app.lastSeq = msg.seq; // -1: a frame the server sent on its own (settling, undo)
   gizmo.recenter();
   if (!(msg.iterations > 0)) return; // a pose change without a solve (undo, reset)
