@@ -141,23 +141,23 @@ export class Viewer {
   /** Overwrite the vertex positions (a Float32Array of the right length). */
   updatePositions(array) {
     if (!this.geometry) return;
-    const attr = this.geometry.attributes.position;
+    const attr = /** @type {THREE.BufferAttribute} */ (this.geometry.attributes.position);
     if (array.length !== attr.array.length) return;
     attr.array.set(array);
     attr.clearUpdateRanges();
     this.geometry.computeVertexNormals();
-    this.geometry.attributes.normal.clearUpdateRanges();
+    /** @type {THREE.BufferAttribute} */ (this.geometry.attributes.normal).clearUpdateRanges();
     this._positionsChanged(attr);
   }
 
   /** Overwrite the positions of vertices `indices` (Uint32Array) by `values` (Float32Array, 3 per index). */
   updateSubset(indices, values) {
     if (!this.geometry || !indices.length) return;
-    const attr = this.geometry.attributes.position;
+    const attr = /** @type {THREE.BufferAttribute} */ (this.geometry.attributes.position);
     const a = attr.array;
-    if (this._subsetNormals?.movable !== indices || this._subsetNormals.geometry !== this.geometry) {
+    if (this._subsetNormals?.movable !== indices || this._subsetGeometry !== this.geometry) {
       this._subsetNormals = new SubsetNormals(this.geometry.index.array, this.nVertices, indices);
-      this._subsetNormals.geometry = this.geometry;
+      this._subsetGeometry = this.geometry;
     }
     for (let k = 0, o = 0; k < indices.length; k++, o += 3) {
       const i = 3 * indices[k];
@@ -169,7 +169,7 @@ export class Viewer {
     attr.clearUpdateRanges();
     attr.addUpdateRange(3 * first, 3 * (last - first + 1));
     const sn = this._subsetNormals;
-    const normal = this.geometry.attributes.normal;
+    const normal = /** @type {THREE.BufferAttribute} */ (this.geometry.attributes.normal);
     sn.update(a, normal.array);
     normal.clearUpdateRanges();
     normal.addUpdateRange(3 * sn.first, 3 * (sn.last - sn.first + 1));
