@@ -12,9 +12,16 @@ a smooth path:
 It reports updates per second and the latency from sending a drag to receiving its vertices (median, p95) for 1
 and 3 iterations per update, then runs N concurrent dragging sessions and reports how many hold ≥ 10 updates/s.
 
+With ``--payload`` it reports instead, per mesh, upload-to-ready (upload sent until the mesh and state arrived,
+and until the first drag of a constraint set was answered, first factorisation included) and the bytes and
+server time per update for the whole mesh as region of interest (full frames) and for a region of the top 20%
+along y (subset frames). ``--subdivide`` also runs it on the mesh subdivided once (``trimesh.remesh.subdivide``:
+about 4 times the vertices, 172k for the armadillo), written to a temporary folder.
+
 Usage::
 
     .venv/bin/python benchmarks/bench_studio.py [--mesh ../shared/meshes/armadillo.obj] [--seconds 5]
+    .venv/bin/python benchmarks/bench_studio.py --payload --subdivide [--updates 30]
 """
 
 from __future__ import annotations
@@ -26,6 +33,7 @@ import math
 import os
 import subprocess
 import sys
+import tempfile
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -248,7 +256,103 @@ def print_runs(runs: list[Run]) -> None:
               f"{r.pct(r.latencies_ms, 95):>6.1f}ms {r.pct(r.solve_ms, 50):>8.1f}ms")
 
 
+# ---------------------------------------------------------------------------------------------- payload
+async def _drags(studio: Studio, roi: list[int] | None, fixed: list[int], updates: int) -> dict[str, float]:
+    """Set a constraint set, then ``updates`` interactive drags; first-answer time, bytes and server time."""
+    ws = studio.ws
+    t0 = time.perf_counter()
+    await ws.send(json.dumps({"type": "set_constraints", "roi": roi, "fixed": fixed,
+                              "handle_groups": [studio.handle]}))
+    await studio.drag(1, 0.0)
+    sizes: list[int] = []
+    solve: list[float] = []
+    first_ms = math.nan
+    for seq in range(1, updates + 1):
+        if seq > 1:
+            await studio.drag(seq, 0.05 * seq)
+        while True:
+            msg = await asyncio.wait_for(ws.recv(), 120.0)
+            if isinstance(msg, bytes):
+                header, _ = decode_binary(msg)
+                if header["type"] == "vertices" and header["seq"] == seq:
+                    break
+        if seq == 1:
+            first_ms = 1000 * (time.perf_counter() - t0)
+        sizes.append(len(msg))
+        solve.append(float(header["solve_ms"]))
+    await ws.send(json.dumps({"type": "end_drag"}))
+    return {"first_answer_ms": first_ms, "first_bytes": sizes[0], "bytes_per_update": float(np.median(sizes[1:])),
+            "server_solve_ms": float(np.median(solve[1:]))}
+
+
+async def payload_report(url: str, mesh: Path, updates: int) -> dict[str, Any]:
+    """Upload-to-ready, and bytes and server time per update with full frames and with a 20% region."""
+    ws = await connect(url, compression=None, max_size=None, open_timeout=60)
+    try:
+        studio = Studio(ws)
+        await studio.expect("welcome")
+        await studio.expect("mesh")
+        await studio.expect("state")
+        data = mesh.read_bytes()
+        t0 = time.perf_counter()
+        await ws.send(encode_binary({"type": "upload", "filename": mesh.name}, data))
+        header, payload = await asyncio.wait_for(studio.expect("mesh"), 300.0)
+        await studio.expect("state")
+        shown_ms = 1000 * (time.perf_counter() - t0)
+        n = header["n_vertices"]
+        assert payload is not None
+        studio.V = np.frombuffer(bytes(payload[: 12 * n]), dtype="<f4").reshape(n, 3).astype(np.float64)
+        y = studio.V[:, 1]
+        studio.handle = np.flatnonzero(y >= np.quantile(y, 0.9)).tolist()
+        studio.center = studio.V[studio.handle].mean(axis=0)
+        studio.height = float(np.ptp(y))
+        await studio.set_iterations(1)
+        whole = await _drags(studio, None, np.flatnonzero(y <= np.quantile(y, 0.1)).tolist(), updates)
+        ready_ms = shown_ms + whole["first_answer_ms"]
+        band = (y >= np.quantile(y, 0.8)) & (y <= np.quantile(y, 0.82))
+        region = await _drags(studio, np.flatnonzero(y >= np.quantile(y, 0.8)).tolist(),
+                              np.flatnonzero(band).tolist(), updates)
+    finally:
+        await ws.close()
+    out = {"mesh": mesh.name, "n_vertices": n, "upload_bytes": len(data), "upload_to_mesh_ms": shown_ms,
+           "upload_to_first_answer_ms": ready_ms, "whole": whole, "roi20": region}
+    print(f"\n{mesh.name}: {n:,} vertices, upload {len(data) / 2**20:.1f} MiB", flush=True)
+    print(f"  upload to mesh shown {shown_ms:.0f} ms; to the first drag answered (factorisation included) "
+          f"{ready_ms:.0f} ms")
+    for label, r in (("whole mesh (full frames)", whole), ("20% region (subset frames)", region)):
+        print(f"  {label:<28} {r['bytes_per_update'] / 1024:>9.1f} KiB/update (first frame "
+              f"{r['first_bytes'] / 1024:.1f} KiB), server solve {r['server_solve_ms']:.1f} ms/update")
+    return out
+
+
+def subdivided(mesh: Path, folder: Path) -> Path:
+    """The mesh subdivided once (every triangle split in four), written as PLY into ``folder``."""
+    import trimesh
+
+    loaded = trimesh.load(mesh, force="mesh", process=False)
+    V, F = trimesh.remesh.subdivide(np.asarray(loaded.vertices), np.asarray(loaded.faces))
+    out = folder / f"{mesh.stem}-subdivided.ply"
+    trimesh.Trimesh(V, F, process=False).export(out)
+    return out
+
+
+async def payload_main(args: argparse.Namespace) -> dict[str, Any]:
+    proc, url = start_server()
+    try:
+        with tempfile.TemporaryDirectory() as tmp:
+            meshes = [args.mesh] + ([subdivided(args.mesh, Path(tmp))] if args.subdivide else [])
+            return {"payload": [await payload_report(url, m, args.updates) for m in meshes]}
+    finally:
+        proc.terminate()
+        try:
+            proc.wait(timeout=10)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+
+
 async def main_async(args: argparse.Namespace) -> dict[str, Any]:
+    if args.payload:
+        return await payload_main(args)
     proc, url = start_server()
     results: dict[str, Any] = {"mesh": str(args.mesh), "cpus": os.cpu_count()}
     try:
@@ -293,6 +397,10 @@ def main() -> None:
     parser.add_argument("--concurrent-iterations", type=int, default=1, help="iterations per update when "
                         "several sessions drag at once")
     parser.add_argument("--json", type=Path, help="also write the figures to this file")
+    parser.add_argument("--payload", action="store_true", help="report upload-to-ready and bytes per update "
+                        "(full frames vs a 20%% region) instead of throughput")
+    parser.add_argument("--subdivide", action="store_true", help="with --payload, also the mesh subdivided once")
+    parser.add_argument("--updates", type=int, default=30, help="drags per constraint set with --payload")
     args = parser.parse_args()
     if not args.mesh.is_file():
         parser.error(f"mesh not found: {args.mesh}")

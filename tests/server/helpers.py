@@ -22,14 +22,32 @@ class Reply:
 
     data: dict[str, Any]
     payload: bytes | None = None
+    positions: np.ndarray | None = None
+    """All positions (float32) after a ``vertices`` frame, subset frames applied to the ones before."""
 
     @property
     def type(self) -> str:
         return self.data["type"]
 
     def floats(self) -> np.ndarray:
+        if self.positions is not None:
+            return self.positions.astype(np.float64)
         assert self.payload is not None
         return np.frombuffer(self.payload, dtype="<f4").reshape(-1, 3).astype(np.float64)
+
+
+def apply_vertices(held: np.ndarray, movable: np.ndarray | None, header: dict[str, Any],
+                   payload: bytes) -> tuple[np.ndarray, np.ndarray | None]:
+    """A client's float32 positions ``(n, 3)`` and movable list after one ``vertices`` frame, as the browser does."""
+    if header["subset"] < 0:
+        k = header["movable"]
+        cut = len(payload) - 4 * k
+        held = np.frombuffer(payload[:cut], dtype="<f4").reshape(-1, 3).copy()
+        return held, (np.frombuffer(payload[cut:], dtype="<u4").astype(np.int64) if k else None)
+    assert movable is not None and len(movable) == header["subset"], "subset frame without its movable list"
+    held = held.copy()
+    held[movable] = np.frombuffer(payload, dtype="<f4").reshape(-1, 3)
+    return held, movable
 
 
 def translation(dx: float, dy: float = 0.0, dz: float = 0.0) -> list[float]:
@@ -62,6 +80,8 @@ class StudioClient:
     V: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
     F: np.ndarray = field(default_factory=lambda: np.zeros((0, 3), dtype=np.int64))
     state: dict[str, Any] = field(default_factory=dict)
+    held: np.ndarray = field(default_factory=lambda: np.zeros((0, 3), dtype="<f4"))
+    movable: np.ndarray | None = None
 
     def recv(self) -> Reply:
         message = self.ws.receive()
@@ -70,7 +90,11 @@ class StudioClient:
             return Reply(json.loads(message["text"]))
         header, payload = decode_binary(message["bytes"])
         assert (len(message["bytes"]) - len(payload)) % 4 == 0, "payload not 4-byte aligned"
-        return Reply(header, bytes(payload))
+        reply = Reply(header, bytes(payload))
+        if header["type"] == "vertices":
+            self.held, self.movable = apply_vertices(self.held, self.movable, header, reply.payload)
+            reply.positions = self.held
+        return reply
 
     def expect(self, type_: str) -> Reply:
         reply = self.recv()
@@ -115,6 +139,8 @@ class StudioClient:
         assert reply.payload is not None and len(reply.payload) == 12 * n + 12 * m
         self.V = np.frombuffer(reply.payload[: 12 * n], dtype="<f4").reshape(n, 3).astype(np.float64)
         self.F = np.frombuffer(reply.payload[12 * n :], dtype="<u4").reshape(m, 3).astype(np.int64)
+        self.held = np.frombuffer(reply.payload[: 12 * n], dtype="<f4").reshape(n, 3).copy()
+        self.movable = None
         return reply
 
     def greet(self) -> None:

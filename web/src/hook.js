@@ -60,6 +60,10 @@ export function installTestHook({ app, viewer, selection, gizmo, conn, keeper })
     get errors() {
       return app.errors.map((e) => ({ ...e }));
     },
+    /** Milliseconds of JavaScript per vertices frame (the newest 256; drawing excluded). */
+    get frameMs() {
+      return app.frameMs.slice();
+    },
     get messages() {
       return app.messages;
     },
@@ -74,6 +78,8 @@ export function installTestHook({ app, viewer, selection, gizmo, conn, keeper })
     positions: () => Array.from(viewer.positions),
     /** Vertex colours (linear RGB, 3 per vertex) as drawn. */
     colors: () => (viewer.geometry ? Array.from(viewer.geometry.attributes.color.array) : []),
+    faces: () => Array.from(viewer.geometry ? viewer.geometry.index.array : []),
+    normals: () => Array.from(viewer.geometry ? viewer.geometry.attributes.normal.array : []),
     counts: () => selection.counts(),
     constraints: () => {
       const c = selection.toConstraints();

@@ -10,8 +10,9 @@ import { installHud } from './hud.js';
 import { SessionKeeper } from './keeper.js';
 import { ignoreTypeAhead, installShortcuts, releaseFocusAfterPointerUse } from './keys.js';
 import { Panel } from './panel.js';
+import { LivePose } from './livepose.js';
 import { LinePlot } from './plot.js';
-import { CLIENT, meshArrays, PROTOCOL_VERSION, SERVER, vertexArray } from './protocol.js';
+import { CLIENT, meshArrays, PROTOCOL_VERSION, SERVER } from './protocol.js';
 import { constraintsKey, Selection } from './selection.js';
 import { builtinSource, fileSource } from './snapshot.js';
 import { installSurfaceControls, SurfaceSelection } from './surface.js';
@@ -19,6 +20,7 @@ import { SelectionTools } from './tools.js';
 import { Viewer } from './viewer.js';
 
 const viewer = new Viewer(document.getElementById('view'));
+const livePose = new LivePose(viewer);
 const selection = new Selection();
 const app = {
   ready: false,
@@ -26,6 +28,7 @@ const app = {
   meshName: null,
   nFaces: 0,
   limits: { max_upload_bytes: 0, max_vertices: 0 },
+  frameMs: [], // JavaScript time spent applying each vertices frame (drawing excluded)
   builtins: [],
   role: 'handle',
   lastSeq: -1,
@@ -246,6 +249,7 @@ function onWelcome(msg) {
 function onMesh(msg) {
   const { positions, faces } = meshArrays(msg.frame);
   viewer.setMesh(positions, faces);
+  livePose.reset();
   selection.reset(msg.n_vertices);
   gizmo.syncGroups(1);
   gizmo.resetTransforms();
@@ -274,9 +278,11 @@ function onMesh(msg) {
 }
 
 function onVertices(msg) {
-  const pos = vertexArray(msg.frame);
-  if (pos.length !== viewer.nVertices * 3) return;
-  viewer.updatePositions(pos);
+  const t0 = performance.now();
+  const applied = livePose.apply(msg.frame);
+  app.frameMs.push(performance.now() - t0);
+  if (app.frameMs.length > 256) app.frameMs.shift();
+  if (!applied) return;
   heat.shapeChanged();
   if (msg.seq >= 0) app.lastSeq = msg.seq; // -1: a frame the server sent on its own (settling, undo)
   gizmo.recenter();

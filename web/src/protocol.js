@@ -3,7 +3,7 @@
 // The protocol is described in docs/protocol.md.
 
 /** Bumped on every incompatible protocol change. */
-export const PROTOCOL_VERSION = 1;
+export const PROTOCOL_VERSION = 2;
 
 /** Types of the messages a client sends. */
 export const CLIENT = Object.freeze(/** @type {const} */ ({
@@ -359,7 +359,7 @@ export const SERVER_MESSAGES = Object.freeze({
   },
   "vertices": {
     "binary": true,
-    "doc": "current deformed positions (payload: float32[n_vertices*3])",
+    "doc": "current deformed positions (payload: float32[n_vertices*3] then uint32[movable] in a full frame, float32[subset*3] in a subset frame)",
     "fields": [
       {
         "name": "seq",
@@ -389,6 +389,16 @@ export const SERVER_MESSAGES = Object.freeze({
       {
         "name": "ms_per_iteration",
         "kind": "number",
+        "required": true
+      },
+      {
+        "name": "subset",
+        "kind": "int",
+        "required": true
+      },
+      {
+        "name": "movable",
+        "kind": "int",
         "required": true
       }
     ]
@@ -650,7 +660,7 @@ export const SERVER_MESSAGES = Object.freeze({
  */
 
 /**
- * current deformed positions (payload: float32[n_vertices*3])
+ * current deformed positions (payload: float32[n_vertices*3] then uint32[movable] in a full frame, float32[subset*3] in a subset frame)
  * @typedef {object} VerticesServerMessage
  * @property {"vertices"} type
  * @property {number} seq seq of the drag answered, or -1
@@ -659,6 +669,8 @@ export const SERVER_MESSAGES = Object.freeze({
  * @property {Array<any>} energies energy after each iteration
  * @property {number} solve_ms solve time
  * @property {number} ms_per_iteration solve time per iteration
+ * @property {number} subset -1: a full frame, the positions of all vertices; k >= 0: a subset frame, the positions of the k movable vertices listed by the last full frame, in its order (the others keep their positions)
+ * @property {number} movable in a full frame, length of the list of movable vertices appended to the positions (0: none, and no subset frame follows until the next full frame); 0 in a subset frame
  */
 
 /**
@@ -791,10 +803,23 @@ export function meshArrays(frame) {
 }
 
 /**
- * Positions of a `vertices` frame.
+ * Positions of a `vertices` frame: of every vertex (a full frame, `subset` -1) or of the movable vertices only.
  * @param {{header: object, payload: Uint8Array}} frame result of decodeBinary.
  * @returns {Float32Array}
  */
 export function vertexArray(frame) {
-  return floatView(frame.payload, 0, frame.payload.byteLength / 4);
+  const movable = frame.header.subset < 0 ? (frame.header.movable | 0) : 0;
+  return floatView(frame.payload, 0, frame.payload.byteLength / 4 - movable);
+}
+
+/**
+ * Movable vertices listed by a full `vertices` frame (a copy), or null when it lists none.
+ * @param {{header: object, payload: Uint8Array}} frame result of decodeBinary.
+ * @returns {Uint32Array|null}
+ */
+export function movableArray(frame) {
+  const k = frame.header.subset < 0 ? (frame.header.movable | 0) : 0;
+  if (k <= 0) return null;
+  const start = frame.payload.byteLength - 4 * k;
+  return new Uint32Array(frame.payload.slice(start, start + 4 * k).buffer);
 }

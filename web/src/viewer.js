@@ -1,6 +1,7 @@
 // Three.js scene: the mesh with per-vertex role colours, lights, camera and orbit controls.
 import * as THREE from 'three';
 import { OrbitControls } from 'three/addons/controls/OrbitControls.js';
+import { SubsetNormals } from './subsetnormals.js';
 
 // Role colours in sRGB (as shown in the panel); the vertex colour attribute holds their linear values.
 export const BASE_COLOR = [0.78, 0.79, 0.81];
@@ -140,11 +141,44 @@ export class Viewer {
   /** Overwrite the vertex positions (a Float32Array of the right length). */
   updatePositions(array) {
     if (!this.geometry) return;
-    const attr = this.geometry.attributes.position;
+    const attr = /** @type {THREE.BufferAttribute} */ (this.geometry.attributes.position);
     if (array.length !== attr.array.length) return;
     attr.array.set(array);
-    attr.needsUpdate = true;
+    attr.clearUpdateRanges();
     this.geometry.computeVertexNormals();
+    /** @type {THREE.BufferAttribute} */ (this.geometry.attributes.normal).clearUpdateRanges();
+    this._positionsChanged(attr);
+  }
+
+  /** Overwrite the positions of vertices `indices` (Uint32Array) by `values` (Float32Array, 3 per index). */
+  updateSubset(indices, values) {
+    if (!this.geometry || !indices.length) return;
+    const attr = /** @type {THREE.BufferAttribute} */ (this.geometry.attributes.position);
+    const a = attr.array;
+    if (this._subsetNormals?.movable !== indices || this._subsetGeometry !== this.geometry) {
+      this._subsetNormals = new SubsetNormals(this.geometry.index.array, this.nVertices, indices);
+      this._subsetGeometry = this.geometry;
+    }
+    for (let k = 0, o = 0; k < indices.length; k++, o += 3) {
+      const i = 3 * indices[k];
+      a[i] = values[o];
+      a[i + 1] = values[o + 1];
+      a[i + 2] = values[o + 2];
+    }
+    const first = indices[0], last = indices[indices.length - 1];
+    attr.clearUpdateRanges();
+    attr.addUpdateRange(3 * first, 3 * (last - first + 1));
+    const sn = this._subsetNormals;
+    const normal = /** @type {THREE.BufferAttribute} */ (this.geometry.attributes.normal);
+    sn.update(a, normal.array);
+    normal.clearUpdateRanges();
+    normal.addUpdateRange(3 * sn.first, 3 * (sn.last - sn.first + 1));
+    normal.needsUpdate = true;
+    this._positionsChanged(attr);
+  }
+
+  _positionsChanged(attr) {
+    attr.needsUpdate = true;
     this.geometry.computeBoundingSphere();
     this.geometry.computeBoundingBox();
     this.requestRender();

@@ -23,6 +23,7 @@ from numpy.typing import NDArray
 
 from arap.errors import MeshError, MeshFormatError, MeshTooLargeError
 from arap.io.atomic import write_atomic
+from arap.io.fastobj import parse_plain_obj
 from arap.io.screening import check_size, screen
 from arap.mesh import MeshLike, RepairResult, mesh_arrays, repair_mesh, triangulate_polygons
 
@@ -170,7 +171,9 @@ def load_mesh_bytes_with_report(
     ft = format_of(file_type)
     data = bytes(data)
     check_size(data, ft, name, max_vertices)
-    V, F = _parse(io.BytesIO(screen(data, ft, name)), ft, name)
+    screened = screen(data, ft, name)
+    plain = parse_plain_obj(screened) if ft == "obj" else None
+    V, F = plain if plain is not None else _parse(io.BytesIO(screened), ft, name)
     V, F, result = _finish(V, F, repair, name)
     if max_vertices is not None and len(V) > max_vertices:
         raise MeshTooLargeError(f"{name} has {len(V):,} vertices; at most {max_vertices:,} vertices are accepted",

@@ -123,6 +123,7 @@ def create_app(
     max_sessions: int = DEFAULT_MAX_SESSIONS,
     max_queued_bytes: int = 64 * 2**20,
     max_unsent_bytes: int = 64 * 2**20,
+    subset_frames: bool = True,
     allow_origins: Iterable[str] = (),
     bind_host: str | None = None,
     allowed_hosts: Iterable[str] = (),
@@ -149,6 +150,9 @@ def create_app(
     max_queued_bytes, max_unsent_bytes : int
         Byte budgets of one session (requests waiting, answers not yet sent): past them its frames are not read
         until the worker catches up (see :class:`arap.server.connection.StudioConfig`).
+    subset_frames : bool
+        While a constraint set with a region of interest is dragged, send only the movable vertices' positions
+        (see :mod:`arap.server.liveframes`); False sends every frame in full.
     allow_origins : iterable of str
         Web origins (``http(s)://host[:port]``) allowed to use the studio besides its own pages. Requests from
         any other origin, ``null`` included, are refused with 403 (see :mod:`arap.server.guard`).
@@ -188,6 +192,7 @@ def create_app(
         max_history_bytes=int(max_history_bytes),
         max_queued_bytes=int(max_queued_bytes),
         max_unsent_bytes=int(max_unsent_bytes),
+        subset_frames=bool(subset_frames),
     )
     origins = tuple(allow_origins)
     for origin in origins:

@@ -27,6 +27,7 @@ import arap
 from arap.server.budget import ByteBudget, RequestQueue, request_cost
 from arap.server.decoder import PROCESS_BYTES, FrameDecoder
 from arap.server.heatmap import distortion_frame
+from arap.server.liveframes import VertexPayload, VertexStream
 from arap.server.meshdata import MeshData, builtin_names, load_builtin, load_upload
 from arap.server.protocol import (
     MAX_HANDLE_GROUPS,
@@ -73,6 +74,9 @@ class StudioConfig:
     max_unsent_bytes : int
         Bytes of one session's answers waiting to be handed to the socket past which its frames are no longer
         read.
+    subset_frames : bool
+        Send only the movable vertices' positions while a constraint set with a region of interest is dragged
+        (see :mod:`arap.server.liveframes`); False sends every ``vertices`` frame in full.
     """
 
     max_upload_bytes: int = 50 * 2**20
@@ -83,16 +87,17 @@ class StudioConfig:
     max_history_bytes: int = 512 * 2**20
     max_queued_bytes: int = 64 * 2**20
     max_unsent_bytes: int = 64 * 2**20
+    subset_frames: bool = True
 
 
 def _dumps(message: dict[str, Any]) -> str:
     return json.dumps(message, separators=(",", ":"), allow_nan=False)
 
 
-def _still_frame_header(seq: int) -> dict[str, Any]:
+def _still_frame_header(seq: int, subset: int, movable: int) -> dict[str, Any]:
     """Header of a ``vertices`` frame that ran no solve (a settling frame, or the pose after a change)."""
     return server_message("vertices", seq=seq, skipped=0, iterations=0, energies=[], solve_ms=0.0,
-                          ms_per_iteration=0.0)
+                          ms_per_iteration=0.0, subset=subset, movable=movable)
 
 
 def _mesh_frame(mesh: MeshData) -> bytes:
@@ -133,6 +138,7 @@ class Connection:
         self._send_lock = asyncio.Lock()
         self._skipped = 0
         self._frame_tasks: set[asyncio.Task[None]] = set()
+        self._stream = VertexStream(config.subset_frames)
 
     # ------------------------------------------------------------------ sending
     async def _send_frame(self, frame: str | bytes) -> None:
@@ -155,18 +161,21 @@ class Connection:
         await self._send_frame(encode_binary(header, *payload))
 
     async def _send_mesh(self, mesh: MeshData) -> None:
+        self._stream.reset(mesh.V)
         await self._send_frame(await self._off_loop(_mesh_frame, mesh))
 
     async def _send_vertices(self, seq: int, outcome: DragOutcome | None) -> None:
+        subset, movable, parts = self._stream.encode(self.session.U, self.session.constraints)
         if outcome is None:
-            header = _still_frame_header(seq)
+            header = _still_frame_header(seq, subset, movable)
         else:
             header = server_message("vertices", seq=seq, skipped=self._skipped, iterations=outcome.iterations,
                                     energies=[e if np.isfinite(e) else None for e in outcome.energies],
                                     solve_ms=round(outcome.solve_ms, 3),
-                                    ms_per_iteration=round(outcome.ms_per_iteration, 3))
+                                    ms_per_iteration=round(outcome.ms_per_iteration, 3),
+                                    subset=subset, movable=movable)
             self._skipped = 0
-        await self._send_binary(header, self.session.vertices_f32())
+        await self._send_binary(header, *parts)
 
     async def _send_state(self) -> None:
         # the state echoes the constraints, which can hold millions of indices: encoded off the event loop
@@ -350,7 +359,7 @@ class Connection:
         def on_frame(U: np.ndarray, iteration: int, energy: float) -> None:
             nonlocal streamed
             streamed += 1
-            frame = np.ascontiguousarray(U, dtype="<f4").tobytes()
+            frame = self._stream.encode(U, s.constraints)
             with contextlib.suppress(RuntimeError):  # the loop has closed: the connection is gone
                 loop.call_soon_threadsafe(self._spawn_settle_frame, frame, iteration, energy)
 
@@ -367,15 +376,16 @@ class Connection:
         await self._send_settle_status("settled" if outcome.converged else "stopped", outcome.iterations,
                                        outcome.energy, outcome.seconds)
 
-    def _spawn_settle_frame(self, frame: bytes, iteration: int, energy: float) -> None:
+    def _spawn_settle_frame(self, frame: VertexPayload, iteration: int, energy: float) -> None:
         task = asyncio.ensure_future(self._send_settle_frame(frame, iteration, energy))
         self._frame_tasks.add(task)
         task.add_done_callback(self._frame_tasks.discard)
 
-    async def _send_settle_frame(self, frame: bytes, iteration: int, energy: float) -> None:
-        header = _still_frame_header(-1)
+    async def _send_settle_frame(self, frame: VertexPayload, iteration: int, energy: float) -> None:
+        subset, movable, parts = frame
+        header = _still_frame_header(-1, subset, movable)
         with contextlib.suppress(WebSocketDisconnect, RuntimeError, OSError):
-            await self._send_binary(header, frame)
+            await self._send_binary(header, *parts)
             await self._send_settle_status("settling", iteration, energy, None)
 
     async def _send_settle_status(self, status: str, iterations: int, energy: float | None,
@@ -417,6 +427,7 @@ class Connection:
         elif t in ("undo", "redo", "reset", "apply"):
             before = s.U
             await self._off_loop(getattr(s, t))
+            self._stream.reset(None)  # everything may have changed: the next frame is full
             if s.U is not before and not np.array_equal(s.U, before):
                 await self._send_vertices(-1, None)
             await self._send_state()

@@ -90,12 +90,25 @@ export function meshArrays(frame) {
 }
 
 /**
- * Positions of a `vertices` frame.
+ * Positions of a `vertices` frame: of every vertex (a full frame, `subset` -1) or of the movable vertices only.
  * @param {{header: object, payload: Uint8Array}} frame result of decodeBinary.
  * @returns {Float32Array}
  */
 export function vertexArray(frame) {
-  return floatView(frame.payload, 0, frame.payload.byteLength / 4);
+  const movable = frame.header.subset < 0 ? (frame.header.movable | 0) : 0;
+  return floatView(frame.payload, 0, frame.payload.byteLength / 4 - movable);
+}
+
+/**
+ * Movable vertices listed by a full `vertices` frame (a copy), or null when it lists none.
+ * @param {{header: object, payload: Uint8Array}} frame result of decodeBinary.
+ * @returns {Uint32Array|null}
+ */
+export function movableArray(frame) {
+  const k = frame.header.subset < 0 ? (frame.header.movable | 0) : 0;
+  if (k <= 0) return null;
+  const start = frame.payload.byteLength - 4 * k;
+  return new Uint32Array(frame.payload.slice(start, start + 4 * k).buffer);
 }
 """
 
@@ -165,7 +178,7 @@ def generate_js() -> str:
     str
         An ES module exporting the message type names (``CLIENT``, ``SERVER``), error codes (``ERROR``),
         parameter ranges (``PARAMS``), limits and the message field descriptions, plus ``encodeBinary``,
-        ``decodeBinary``, ``meshArrays`` and ``vertexArray``.
+        ``decodeBinary``, ``meshArrays``, ``vertexArray`` and ``movableArray``.
     """
     parts = [
         _HEADER,

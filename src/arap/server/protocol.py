@@ -56,7 +56,7 @@ __all__ = [
     "validate",
 ]
 
-PROTOCOL_VERSION = 1
+PROTOCOL_VERSION = 2
 """Bumped on every incompatible change of the messages below."""
 
 MAX_HANDLE_GROUPS = 256
@@ -208,13 +208,20 @@ SERVER_MESSAGES: dict[str, MessageSpec] = {
               Field("n_faces", "int", "number of triangles"),
               Field("report", "list", "repairs made while loading, one line each"),
               binary=True),
-        _spec("vertices", "current deformed positions (payload: float32[n_vertices*3])",
+        _spec("vertices", "current deformed positions (payload: float32[n_vertices*3] then uint32[movable] in a "
+              "full frame, float32[subset*3] in a subset frame)",
               Field("seq", "int", "seq of the drag answered, or -1"),
               Field("skipped", "int", "stale drags dropped since the previous answer"),
               Field("iterations", "int", "iterations run"),
               Field("energies", "list", "energy after each iteration"),
               Field("solve_ms", "number", "solve time"),
               Field("ms_per_iteration", "number", "solve time per iteration"),
+              Field("subset", "int", "-1: a full frame, the positions of all vertices; k >= 0: a subset frame, the "
+                    "positions of the k movable vertices listed by the last full frame, in its order (the others "
+                    "keep their positions)"),
+              Field("movable", "int", "in a full frame, length of the list of movable vertices appended to the "
+                    "positions (0: none, and no subset frame follows until the next full frame); 0 in a subset "
+                    "frame"),
               binary=True),
         _spec("settle", "progress of settling: after a drag ends (and after loading, undo, redo, reset, apply or a "
               "parameter change) the server iterates until converged, streaming vertices frames (seq -1, at most 30 "
