@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import numba as nb
 import numpy as np
+import scipy.sparse as sp
 from numpy.typing import NDArray
 
 from arap._parallel import policy
@@ -29,10 +30,13 @@ from arap.cells import Cells
 from arap.covariance import CHUNK
 from arap.rotations import BLOCK, ROW_LOWER, ROW_R, ROW_TRACE, SCRATCH_ROWS, rotations_block
 
-__all__ = ["DEFAULT_ALPHA", "SmoothRotations", "colour_vertices"]
+__all__ = ["DEFAULT_ALPHA", "WINDOW", "SmoothRotations", "colour_vertices"]
 
 DEFAULT_ALPHA = 0.02
 """Default weight of the rotation term (CGAL's ``SRE_ARAP`` default), relative to the surface area."""
+
+WINDOW = 2048
+"""Consecutive cells whose colours are swept before the next window's (so that a sweep stays in cache)."""
 
 
 @nb.njit(cache=True, nogil=True)
@@ -80,9 +84,12 @@ def colour_vertices(ptr: NDArray[np.int64], nbr: NDArray[np.int32]) -> NDArray[n
 
 
 @nb.njit(cache=True, nogil=True)
-def _smooth_block(lo, hi, cell_ids, ptr, a, b, w, we, rest_sq, q, coef, U, R, E, sc, flag):  # pragma: no cover
-    """Like the spokes local step, with ``2·coef·Σ_j q_ij R_jᵀ`` added to each covariance; ``E`` gets the data
-    energy of each cell (without the rotation term)."""
+def _smooth_block(lo, hi, cell_ids, ptr, a, b, w, we, rest_sq, q, rank, coef, U, R, E, term, sc,
+                  flag):  # pragma: no cover - compiled
+    """Like the spokes local step, with ``2·coef·Σ_j q_ij R_jᵀ`` added to each covariance. ``E`` gets the data
+    energy of each cell (without the rotation term), ``term`` the rotation term of the pairs whose other end has a
+    lower colour (final by now: the pairs to higher colours are counted when those are updated); returns the sum
+    of both."""
     m = hi - lo
     k2 = 2.0 * coef
     for t in range(m):
@@ -138,55 +145,99 @@ def _smooth_block(lo, hi, cell_ids, ptr, a, b, w, we, rest_sq, q, coef, U, R, E,
     total = 0.0
     for t in range(m):
         c = cell_ids[lo + t]
-        for i in range(3):
-            for j in range(3):
-                R[c, i, j] = sc[(ROW_R + 3 * i + j) * BLOCK + t]
+        r00 = sc[ROW_R * BLOCK + t]
+        R[c, 0, 0] = r00
+        r01 = sc[(ROW_R + 1) * BLOCK + t]
+        R[c, 0, 1] = r01
+        r02 = sc[(ROW_R + 2) * BLOCK + t]
+        R[c, 0, 2] = r02
+        r10 = sc[(ROW_R + 3) * BLOCK + t]
+        R[c, 1, 0] = r10
+        r11 = sc[(ROW_R + 4) * BLOCK + t]
+        R[c, 1, 1] = r11
+        r12 = sc[(ROW_R + 5) * BLOCK + t]
+        R[c, 1, 2] = r12
+        r20 = sc[(ROW_R + 6) * BLOCK + t]
+        R[c, 2, 0] = r20
+        r21 = sc[(ROW_R + 7) * BLOCK + t]
+        R[c, 2, 1] = r21
+        r22 = sc[(ROW_R + 8) * BLOCK + t]
+        R[c, 2, 2] = r22
         # tr(R M) = tr(R S) + 2αA Σ q ⟨R, R_j⟩: take the rotation term back out of the cell's data energy
         agree = 0.0
+        pairs = 0.0
+        mine = rank[c]
         for k in range(ptr[c], ptr[c + 1]):
             if q[k] != 0.0:
                 j = b[k]
-                dot = 0.0
-                for r in range(3):
-                    for s in range(3):
-                        dot += R[c, r, s] * R[j, r, s]
-                agree += q[k] * dot
+                x0 = R[j, 0, 0]
+                x1 = R[j, 0, 1]
+                x2 = R[j, 0, 2]
+                x3 = R[j, 1, 0]
+                x4 = R[j, 1, 1]
+                x5 = R[j, 1, 2]
+                x6 = R[j, 2, 0]
+                x7 = R[j, 2, 1]
+                x8 = R[j, 2, 2]
+                agree += q[k] * (r00 * x0 + r01 * x1 + r02 * x2 + r10 * x3 + r11 * x4 + r12 * x5 + r20 * x6
+                                 + r21 * x7 + r22 * x8)
+                if rank[j] < mine:  # j is final: the pair (c, j) and (j, c), with symmetric q
+                    y0 = r00 - x0
+                    y1 = r01 - x1
+                    y2 = r02 - x2
+                    y3 = r10 - x3
+                    y4 = r11 - x4
+                    y5 = r12 - x5
+                    y6 = r20 - x6
+                    y7 = r21 - x7
+                    y8 = r22 - x8
+                    pairs += q[k] * (y0 * y0 + y1 * y1 + y2 * y2 + y3 * y3 + y4 * y4 + y5 * y5 + y6 * y6
+                                     + y7 * y7 + y8 * y8)
         e = E[c] - 2.0 * (sc[ROW_TRACE * BLOCK + t] - k2 * agree)
         E[c] = e
-        total += e
+        term[c] = k2 * pairs
+        total += e + k2 * pairs
     return total
 
 
 @nb.njit(cache=True, nogil=True)
-def _smooth_chunk(ch, cell_ids, ptr, a, b, w, we, rest_sq, q, coef, U, R, E):  # pragma: no cover - compiled
-    k = cell_ids.shape[0]
+def _smooth_window(wi, win_ptr, run_ptr, cell_ids, ptr, a, b, w, we, rest_sq, q, rank, coef, U, R, E,
+                   term):  # pragma: no cover - compiled
+    """The runs of one window, one after the other, each in blocks of BLOCK cells."""
     sc = np.empty(SCRATCH_ROWS * BLOCK)
     flag = np.empty(BLOCK, np.int64)
     total = 0.0
-    for lo in range(ch * CHUNK * BLOCK, min(k, (ch + 1) * CHUNK * BLOCK), BLOCK):
-        total += _smooth_block(lo, min(k, lo + BLOCK), cell_ids, ptr, a, b, w, we, rest_sq, q, coef, U, R, E, sc,
-                               flag)
+    for r in range(win_ptr[wi], win_ptr[wi + 1]):
+        for lo in range(run_ptr[r], run_ptr[r + 1], BLOCK):
+            total += _smooth_block(lo, min(run_ptr[r + 1], lo + BLOCK), cell_ids, ptr, a, b, w, we, rest_sq, q,
+                                   rank, coef, U, R, E, term, sc, flag)
     return total
 
 
 @nb.njit(cache=True, nogil=True)
-def _smooth_serial(cell_ids, ptr, a, b, w, we, rest_sq, q, coef, U, R, E):  # pragma: no cover - compiled
-    n_chunks = (cell_ids.shape[0] + CHUNK * BLOCK - 1) // (CHUNK * BLOCK)
+def _sweep_serial(group_ptr, win_ptr, run_ptr, cell_ids, ptr, a, b, w, we, rest_sq, q, rank, coef, U, R, E,
+                  term):  # pragma: no cover - compiled
+    """One sweep: the windows group by group (see :class:`SmoothRotations`)."""
     total = 0.0
-    for ch in range(n_chunks):
-        total += _smooth_chunk(ch, cell_ids, ptr, a, b, w, we, rest_sq, q, coef, U, R, E)
+    for g in range(group_ptr.shape[0] - 1):
+        for wi in range(group_ptr[g], group_ptr[g + 1]):
+            total += _smooth_window(wi, win_ptr, run_ptr, cell_ids, ptr, a, b, w, we, rest_sq, q, rank, coef, U,
+                                    R, E, term)
     return total
 
 
 @nb.njit(cache=True, nogil=True, parallel=True)
-def _smooth_parallel(cell_ids, ptr, a, b, w, we, rest_sq, q, coef, U, R, E):  # pragma: no cover - compiled
-    n_chunks = (cell_ids.shape[0] + CHUNK * BLOCK - 1) // (CHUNK * BLOCK)
-    part = np.empty(n_chunks)
-    for ch in nb.prange(n_chunks):
-        part[ch] = _smooth_chunk(ch, cell_ids, ptr, a, b, w, we, rest_sq, q, coef, U, R, E)
+def _sweep_parallel(group_ptr, win_ptr, run_ptr, cell_ids, ptr, a, b, w, we, rest_sq, q, rank, coef, U, R, E,
+                    term):  # pragma: no cover - compiled
     total = 0.0
-    for ch in range(n_chunks):
-        total += part[ch]
+    for g in range(group_ptr.shape[0] - 1):  # windows of one group share no edge: they run at once
+        lo = group_ptr[g]
+        part = np.empty(group_ptr[g + 1] - lo)
+        for i in nb.prange(group_ptr[g + 1] - lo):
+            part[i] = _smooth_window(lo + i, win_ptr, run_ptr, cell_ids, ptr, a, b, w, we, rest_sq, q, rank, coef,
+                                     U, R, E, term)
+        for i in range(part.shape[0]):
+            total += part[i]
     return total
 
 
@@ -240,16 +291,41 @@ class SmoothRotations:
         Surface area ``A``.
     alpha : float
         Weight of the rotation term, ``≥ 0``.
+    weights : (t,) float array, optional
+        Weight of each term's pair in the rotation term, aligned with ``cells.w``; must be symmetric (the weight of
+        ``(i, j)`` equals that of ``(j, i)``). Default ``max(cells.w, 0)`` (cells whose terms were scaled by a
+        per-cell stiffness would not be symmetric: pass the unscaled clamped weights).
     """
 
-    def __init__(self, cells: Cells, area: float, alpha: float) -> None:
+    def __init__(self, cells: Cells, area: float, alpha: float, weights: NDArray[np.float64] | None = None) -> None:
         self.cells = cells
         self.coef = float(alpha) * float(area)
-        self.q = np.ascontiguousarray(np.maximum(cells.w, 0.0))
+        q = np.maximum(cells.w, 0.0) if weights is None else np.asarray(weights, dtype=np.float64)
+        self.q = np.ascontiguousarray(q)
+        n = len(cells.ptr) - 1
         colour = colour_vertices(cells.ptr, cells.b)
-        order = np.argsort(colour, kind="stable")
-        bounds = np.searchsorted(colour[order], np.arange(int(colour.max(initial=-1)) + 2))
-        self.colours = [order[bounds[k]:bounds[k + 1]].astype(np.int64) for k in range(len(bounds) - 1)]
+        rows = cells.cell_of_term()
+        # Windows of WINDOW consecutive cells (the solver numbers vertices for locality), coloured so that two
+        # windows of one group share no edge; within a window, one run per vertex colour.
+        window = np.arange(n, dtype=np.int64) // WINDOW
+        n_win = int(window[-1]) + 1 if n else 0
+        cross = window[rows] != window[cells.b]
+        wgraph = sp.coo_matrix((np.ones(int(cross.sum())), (window[rows[cross]], window[cells.b[cross]])),
+                               shape=(n_win, n_win)).tocsr()
+        group = colour_vertices(wgraph.indptr.astype(np.int64), wgraph.indices)
+        order = np.lexsort((colour, window, group[window])).astype(np.int64)
+        key = (group[window] * (n_win + 1) + window) * (int(colour.max(initial=0)) + 1) + colour
+        starts = np.flatnonzero(np.r_[True, key[order][1:] != key[order][:-1]]) if n else np.zeros(0, np.int64)
+        self._run_ptr = np.r_[starts, n].astype(np.int64)
+        run_window = window[order[starts]]
+        wstarts = np.flatnonzero(np.r_[True, run_window[1:] != run_window[:-1]]) if n else np.zeros(0, np.int64)
+        self._win_ptr = np.r_[wstarts, len(starts)].astype(np.int64)
+        win_group = group[run_window[wstarts]]
+        self._group_ptr = np.searchsorted(win_group, np.arange(int(win_group.max(initial=-1)) + 2)).astype(np.int64)
+        self._order = order
+        # rank: when a cell is updated in a sweep (its run's place); neighbours never share a run
+        self.rank = np.empty(n, np.int64)
+        self.rank[order] = np.repeat(np.arange(len(starts)), np.diff(self._run_ptr))
         self._a = cells.a.astype(np.int64)
         self._b = cells.b.astype(np.int64)
 
@@ -265,7 +341,9 @@ class SmoothRotations:
         E : (n,) float array
             Out: each cell's data energy ``Σ_j w_ij ‖e'_ij − R_i e_ij‖²``.
         term : (n,) float array
-            Out: each cell's rotation term ``αA Σ_j w⁺_ij ‖R_i − R_j‖²``.
+            Out: the rotation term ``αA (w⁺_ij + w⁺_ji) ‖R_i − R_j‖²`` of each pair, counted at the endpoint of
+            the higher colour (so ``term.sum()`` is the rotation term; :meth:`rotation_term` gives each cell its
+            own sum ``αA Σ_j w⁺_ij ‖R_i − R_j‖²``).
 
         Returns
         -------
@@ -273,17 +351,9 @@ class SmoothRotations:
             The energy: data plus rotation terms, over all cells.
         """
         c = self.cells
-        data = 0.0
-        work = len(c.a)  # threads are chosen for the whole sweep: one colour alone is a fraction of it
-        for ids in self.colours:
-            data += self._colour(ids, work, U, R, E)
-        return data + self.rotation_term(R, term)
-
-    def _colour(self, ids: NDArray[np.int64], work: int, U: NDArray[np.float64], R: NDArray[np.float64],
-                E: NDArray[np.float64]) -> float:
-        c = self.cells
-        args = (ids, c.ptr, self._a, self._b, c.w, c.we, c.rest_sq, self.q, self.coef, U, R, E)
-        return float(policy.run("smooth", work, lambda: _smooth_serial(*args), lambda: _smooth_parallel(*args)))
+        args = (self._group_ptr, self._win_ptr, self._run_ptr, self._order, c.ptr, self._a, self._b, c.w, c.we,
+                c.rest_sq, self.q, self.rank, self.coef, U, R, E, term)
+        return float(policy.run("smooth", len(c.a), lambda: _sweep_serial(*args), lambda: _sweep_parallel(*args)))
 
     def rotation_term(self, R: NDArray[np.float64], term: NDArray[np.float64]) -> float:
         """``αA Σ_i Σ_j w⁺_ij ‖R_i − R_j‖²`` per cell into ``term``; returns the total."""

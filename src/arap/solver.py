@@ -178,6 +178,7 @@ class ArapSolver:
         self._nonfree = np.arange(self._nf, n)
         self._constrained_slot = np.searchsorted(self._nonfree, self._constrained)
         self._cells = build_cells(self._V, self._inv[F], energy, weights)
+        pair_weights = np.maximum(self._cells.w, 0.0)  # the rotation term of smooth_rotations: not scaled by stiffness
         if self.stiffness is not None:
             self._cells = scale_cells(self._cells, self.stiffness[self._perm])
         L = system_matrix(self._cells, n)
@@ -190,7 +191,7 @@ class ArapSolver:
         self._smooth: SmoothRotations | None = None
         if energy == "smooth_rotations":
             # every rotation is coupled to its neighbours': all cells take part in the local step
-            self._smooth = SmoothRotations(self._cells, float(self._areas.sum()), self.alpha)
+            self._smooth = SmoothRotations(self._cells, float(self._areas.sum()), self.alpha, pair_weights)
             self._active = np.arange(n)
             self._term = np.zeros(n)
         self._rigid: RigidRegions | None = None
@@ -439,12 +440,16 @@ class ArapSolver:
     def _local(self, U: NDArray[np.float64], const_E: float, timings: dict[str, float]) -> float:
         """Local step on the active cells at ``U``; returns the total energy."""
         t = time.perf_counter()
+        e_term = 0.0
         if self._smooth is not None:
             e = self._smooth.local_step(U, self._R, self._E, self._term)
+            e_term = float(self._term.sum())
         else:
             e = local_step(self._cells, self._active, U, self._R, self._E)
         if self._rigid is not None:
             e += self._rigid.share(U, self._R, self._E)
+            if self._smooth is not None:  # the shared rotations change the rotation term
+                e += self._smooth.rotation_term(self._R, self._term) - e_term
         timings["local"] += time.perf_counter() - t
         return e + const_E
 
