@@ -30,7 +30,7 @@ from arap.cells import Cells
 from arap.covariance import CHUNK
 from arap.rotations import BLOCK, ROW_LOWER, ROW_R, ROW_TRACE, SCRATCH_ROWS, rotations_block
 
-__all__ = ["DEFAULT_ALPHA", "WINDOW", "SmoothRotations", "colour_vertices"]
+__all__ = ["DEFAULT_ALPHA", "WINDOW", "SmoothRotations", "colour_order", "colour_vertices"]
 
 DEFAULT_ALPHA = 0.02
 """Default weight of the rotation term (CGAL's ``SRE_ARAP`` default), relative to the surface area."""
@@ -83,6 +83,33 @@ def colour_vertices(ptr: NDArray[np.int64], nbr: NDArray[np.int32]) -> NDArray[n
     return _greedy_colours(np.ascontiguousarray(ptr, dtype=np.int64), np.ascontiguousarray(nbr, dtype=np.int64))
 
 
+def colour_order(order: NDArray[np.int64], adjacency: sp.csr_matrix) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+    """Refine a locality order for the coloured sweep: within each window of :data:`WINDOW` positions, the vertices
+    of one colour become consecutive, so that each run of the sweep reads contiguous memory.
+
+    Parameters
+    ----------
+    order : (n,) int array
+        ``order[k]`` is the vertex at position ``k`` (e.g. :func:`arap.topology.locality_order`).
+    adjacency : (n, n) sparse matrix
+        Symmetric vertex adjacency.
+
+    Returns
+    -------
+    order : (n,) int64 array
+        The refined order.
+    colour : (n,) int64 array
+        A colouring of the vertices (indexed by vertex): no two neighbours share a colour.
+    """
+    n = len(order)
+    A = sp.csr_matrix(adjacency)[order][:, order].tocsr()
+    colour_at = colour_vertices(A.indptr.astype(np.int64), A.indices)
+    positions = np.lexsort((colour_at, np.arange(n) // WINDOW))
+    colour = np.empty(n, np.int64)
+    colour[order] = colour_at
+    return np.asarray(order, dtype=np.int64)[positions], colour
+
+
 @nb.njit(cache=True, nogil=True)
 def _smooth_block(lo, hi, cell_ids, ptr, a, b, w, we, rest_sq, q, rank, coef, U, R, E, term, sc,
                   flag):  # pragma: no cover - compiled
@@ -93,12 +120,12 @@ def _smooth_block(lo, hi, cell_ids, ptr, a, b, w, we, rest_sq, q, rank, coef, U,
     m = hi - lo
     k2 = 2.0 * coef
     for t in range(m):
-        c = cell_ids[lo + t]
+        c = np.uint64(cell_ids[lo + t])  # unsigned indices spare numba's negative-index fix-ups
         s00 = s01 = s02 = s10 = s11 = s12 = s20 = s21 = s22 = 0.0
         cur = 0.0
-        for k in range(ptr[c], ptr[c + 1]):
-            ia = a[k]
-            ib = b[k]
+        for k in range(np.uint64(ptr[c]), np.uint64(ptr[c + np.uint64(1)])):
+            ia = np.uint64(a[k])
+            ib = np.uint64(b[k])
             d0 = U[ia, 0] - U[ib, 0]
             d1 = U[ia, 1] - U[ib, 1]
             d2 = U[ia, 2] - U[ib, 2]
@@ -144,7 +171,7 @@ def _smooth_block(lo, hi, cell_ids, ptr, a, b, w, we, rest_sq, q, rank, coef, U,
     rotations_block(sc, m, flag)
     total = 0.0
     for t in range(m):
-        c = cell_ids[lo + t]
+        c = np.uint64(cell_ids[lo + t])
         r00 = sc[ROW_R * BLOCK + t]
         R[c, 0, 0] = r00
         r01 = sc[(ROW_R + 1) * BLOCK + t]
@@ -167,9 +194,9 @@ def _smooth_block(lo, hi, cell_ids, ptr, a, b, w, we, rest_sq, q, rank, coef, U,
         agree = 0.0
         pairs = 0.0
         mine = rank[c]
-        for k in range(ptr[c], ptr[c + 1]):
+        for k in range(np.uint64(ptr[c]), np.uint64(ptr[c + np.uint64(1)])):
             if q[k] != 0.0:
-                j = b[k]
+                j = np.uint64(b[k])
                 x0 = R[j, 0, 0]
                 x1 = R[j, 0, 1]
                 x2 = R[j, 0, 2]
@@ -295,15 +322,19 @@ class SmoothRotations:
         Weight of each term's pair in the rotation term, aligned with ``cells.w``; must be symmetric (the weight of
         ``(i, j)`` equals that of ``(j, i)``). Default ``max(cells.w, 0)`` (cells whose terms were scaled by a
         per-cell stiffness would not be symmetric: pass the unscaled clamped weights).
+    colour : (n,) int array, optional
+        A colouring of the cells' graph (see :func:`colour_order`); default a greedy one.
     """
 
-    def __init__(self, cells: Cells, area: float, alpha: float, weights: NDArray[np.float64] | None = None) -> None:
+    def __init__(self, cells: Cells, area: float, alpha: float, weights: NDArray[np.float64] | None = None,
+                 colour: NDArray[np.int64] | None = None) -> None:
         self.cells = cells
         self.coef = float(alpha) * float(area)
         q = np.maximum(cells.w, 0.0) if weights is None else np.asarray(weights, dtype=np.float64)
         self.q = np.ascontiguousarray(q)
         n = len(cells.ptr) - 1
-        colour = colour_vertices(cells.ptr, cells.b)
+        if colour is None:
+            colour = colour_vertices(cells.ptr, cells.b)
         rows = cells.cell_of_term()
         # Windows of WINDOW consecutive cells (the solver numbers vertices for locality), coloured so that two
         # windows of one group share no edge; within a window, one run per vertex colour.

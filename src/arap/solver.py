@@ -37,7 +37,7 @@ from arap.result import (
     StartName,
 )
 from arap.rigid import RigidRegions, rigid_regions
-from arap.smooth import DEFAULT_ALPHA, SmoothRotations
+from arap.smooth import DEFAULT_ALPHA, SmoothRotations, colour_order
 from arap.start import best_rigid_transform, vertex_areas
 from arap.topology import locality_order, vertex_adjacency
 from arap.weights import DEFAULT_WEIGHTS, WEIGHT_TYPES, WeightType
@@ -164,6 +164,9 @@ class ArapSolver:
         # indices, so the gathers of the local step and the right-hand side stay in cache.
         # Free vertices come first, so that the free and the non-free rows are two contiguous blocks.
         order = locality_order(F, n, adjacency)
+        colour = None
+        if energy == "smooth_rotations":  # each colour's cells consecutive, window by window, for the sweep
+            order, colour = colour_order(order, adjacency)
         is_free = np.zeros(n, dtype=bool)
         is_free[self.free] = True
         self._perm = np.concatenate([order[is_free[order]], order[~is_free[order]]])
@@ -191,7 +194,8 @@ class ArapSolver:
         self._smooth: SmoothRotations | None = None
         if energy == "smooth_rotations":
             # every rotation is coupled to its neighbours': all cells take part in the local step
-            self._smooth = SmoothRotations(self._cells, float(self._areas.sum()), self.alpha, pair_weights)
+            self._smooth = SmoothRotations(self._cells, float(self._areas.sum()), self.alpha, pair_weights,
+                                           None if colour is None else colour[self._perm])
             self._active = np.arange(n)
             self._term = np.zeros(n)
         self._rigid: RigidRegions | None = None
