@@ -73,7 +73,8 @@ class ArapSolver:
         system has the size of the free ROI vertices. None means the whole mesh.
     alpha : float
         Weight of the rotation term of ``energy="smooth_rotations"`` (SR-ARAP, Levi & Gotsman 2015), relative to
-        the surface area so that it does not depend on the mesh's size; 0.02 by default (CGAL's default). Ignored by
+        the surface area so that it does not depend on the mesh's size; 0.02 by default (CGAL's default; at the same
+        value this term couples rotations about 7 times as strongly as CGAL's, see :mod:`arap.smooth`). Ignored by
         the other energies.
     stiffness : (n,) array of float or None
         Per-vertex cell weights ``w_i`` of the paper's energy ``Σ_i w_i Σ_j w_ij ‖…‖²`` (Sorkine & Alexa 2007):
