@@ -40,7 +40,7 @@ from numpy.typing import NDArray
 from arap._parallel import policy
 from arap.cells import Cells
 from arap.covariance import CHUNK
-from arap.rotations import BLOCK, ROW_LOWER, ROW_R, ROW_TRACE, SCRATCH_ROWS, rotations_block
+from arap.rotations import BLOCK, ROW_LOWER, ROW_R, SCRATCH_ROWS, rotations_block
 
 __all__ = ["DEFAULT_ALPHA", "WINDOW", "SmoothRotations", "colour_order", "colour_vertices"]
 
@@ -123,17 +123,18 @@ def colour_order(order: NDArray[np.int64], adjacency: sp.csr_matrix) -> tuple[ND
 
 
 @nb.njit(cache=True, nogil=True)
-def _smooth_block(lo, hi, cell_ids, ptr, a, b, w, we, rest_sq, q, rank, coef, U, R, E, term, sc,
+def _smooth_block(lo, hi, cell_ids, ptr, a, b, w, we, rest_sq, q, rank, coef, U, R, E, term, sc, ss,
                   flag):  # pragma: no cover - compiled
     """Like the spokes local step, with ``2·coef·Σ_j q_ij R_jᵀ`` added to each covariance. ``E`` gets the data
-    energy of each cell (without the rotation term), ``term`` the rotation term of the pairs whose other end has a
-    lower colour (final by now: the pairs to higher colours are counted when those are updated); returns the sum
-    of both."""
+    energy of each cell (without the rotation term), ``term`` the rotation term of the pairs whose other end was
+    updated earlier in the sweep (final by now: the other pairs are counted when their other end is updated);
+    returns the sum of both. ``ss`` keeps the plain covariances of the block."""
     m = hi - lo
     k2 = 2.0 * coef
     for t in range(m):
         c = np.uint64(cell_ids[lo + t])  # unsigned indices spare numba's negative-index fix-ups
         s00 = s01 = s02 = s10 = s11 = s12 = s20 = s21 = s22 = 0.0
+        m00 = m01 = m02 = m10 = m11 = m12 = m20 = m21 = m22 = 0.0
         cur = 0.0
         for k in range(np.uint64(ptr[c]), np.uint64(ptr[c + np.uint64(1)])):
             ia = np.uint64(a[k])
@@ -154,17 +155,34 @@ def _smooth_block(lo, hi, cell_ids, ptr, a, b, w, we, rest_sq, q, rank, coef, U,
             s20 += x2 * d0
             s21 += x2 * d1
             s22 += x2 * d2
-            f = k2 * q[k]
-            if f != 0.0:  # M = S + 2αA Σ q R_jᵀ: entry (i, l) gets R_j[l, i]
-                s00 += f * R[ib, 0, 0]
-                s01 += f * R[ib, 1, 0]
-                s02 += f * R[ib, 2, 0]
-                s10 += f * R[ib, 0, 1]
-                s11 += f * R[ib, 1, 1]
-                s12 += f * R[ib, 2, 1]
-                s20 += f * R[ib, 0, 2]
-                s21 += f * R[ib, 1, 2]
-                s22 += f * R[ib, 2, 2]
+            f = q[k]  # Σ q R_jᵀ: entry (i, l) gets R_j[l, i]
+            m00 += f * R[ib, 0, 0]
+            m01 += f * R[ib, 1, 0]
+            m02 += f * R[ib, 2, 0]
+            m10 += f * R[ib, 0, 1]
+            m11 += f * R[ib, 1, 1]
+            m12 += f * R[ib, 2, 1]
+            m20 += f * R[ib, 0, 2]
+            m21 += f * R[ib, 1, 2]
+            m22 += f * R[ib, 2, 2]
+        ss[t] = s00
+        ss[BLOCK + t] = s01
+        ss[2 * BLOCK + t] = s02
+        ss[3 * BLOCK + t] = s10
+        ss[4 * BLOCK + t] = s11
+        ss[5 * BLOCK + t] = s12
+        ss[6 * BLOCK + t] = s20
+        ss[7 * BLOCK + t] = s21
+        ss[8 * BLOCK + t] = s22
+        s00 += k2 * m00  # M = S + 2αA Σ q R_jᵀ
+        s01 += k2 * m01
+        s02 += k2 * m02
+        s10 += k2 * m10
+        s11 += k2 * m11
+        s12 += k2 * m12
+        s20 += k2 * m20
+        s21 += k2 * m21
+        s22 += k2 * m22
         sc[t] = s00
         sc[BLOCK + t] = s01
         sc[2 * BLOCK + t] = s02
@@ -184,55 +202,24 @@ def _smooth_block(lo, hi, cell_ids, ptr, a, b, w, we, rest_sq, q, rank, coef, U,
     total = 0.0
     for t in range(m):
         c = np.uint64(cell_ids[lo + t])
-        r00 = sc[ROW_R * BLOCK + t]
-        R[c, 0, 0] = r00
-        r01 = sc[(ROW_R + 1) * BLOCK + t]
-        R[c, 0, 1] = r01
-        r02 = sc[(ROW_R + 2) * BLOCK + t]
-        R[c, 0, 2] = r02
-        r10 = sc[(ROW_R + 3) * BLOCK + t]
-        R[c, 1, 0] = r10
-        r11 = sc[(ROW_R + 4) * BLOCK + t]
-        R[c, 1, 1] = r11
-        r12 = sc[(ROW_R + 5) * BLOCK + t]
-        R[c, 1, 2] = r12
-        r20 = sc[(ROW_R + 6) * BLOCK + t]
-        R[c, 2, 0] = r20
-        r21 = sc[(ROW_R + 7) * BLOCK + t]
-        R[c, 2, 1] = r21
-        r22 = sc[(ROW_R + 8) * BLOCK + t]
-        R[c, 2, 2] = r22
-        # tr(R M) = tr(R S) + 2αA Σ q ⟨R, R_j⟩: take the rotation term back out of the cell's data energy
-        agree = 0.0
+        trace = 0.0  # tr(R S) with the plain covariance: the data energy is cur + rest − 2 tr(R S)
+        for i in range(3):
+            for j in range(3):
+                r = sc[(ROW_R + 3 * i + j) * BLOCK + t]
+                R[c, i, j] = r
+                trace += r * ss[(3 * j + i) * BLOCK + t]
         pairs = 0.0
         mine = rank[c]
         for k in range(np.uint64(ptr[c]), np.uint64(ptr[c + np.uint64(1)])):
-            if q[k] != 0.0:
-                j = np.uint64(b[k])
-                x0 = R[j, 0, 0]
-                x1 = R[j, 0, 1]
-                x2 = R[j, 0, 2]
-                x3 = R[j, 1, 0]
-                x4 = R[j, 1, 1]
-                x5 = R[j, 1, 2]
-                x6 = R[j, 2, 0]
-                x7 = R[j, 2, 1]
-                x8 = R[j, 2, 2]
-                agree += q[k] * (r00 * x0 + r01 * x1 + r02 * x2 + r10 * x3 + r11 * x4 + r12 * x5 + r20 * x6
-                                 + r21 * x7 + r22 * x8)
-                if rank[j] < mine:  # j is final: the pair (c, j) and (j, c), with symmetric q
-                    y0 = r00 - x0
-                    y1 = r01 - x1
-                    y2 = r02 - x2
-                    y3 = r10 - x3
-                    y4 = r11 - x4
-                    y5 = r12 - x5
-                    y6 = r20 - x6
-                    y7 = r21 - x7
-                    y8 = r22 - x8
-                    pairs += q[k] * (y0 * y0 + y1 * y1 + y2 * y2 + y3 * y3 + y4 * y4 + y5 * y5 + y6 * y6
-                                     + y7 * y7 + y8 * y8)
-        e = E[c] - 2.0 * (sc[ROW_TRACE * BLOCK + t] - k2 * agree)
+            j = np.uint64(b[k])
+            if q[k] != 0.0 and rank[j] < mine:  # j is final: the pair (c, j) and (j, c), with symmetric q
+                d = 0.0
+                for u in range(3):
+                    for v in range(3):
+                        y = R[c, u, v] - R[j, u, v]
+                        d += y * y
+                pairs += q[k] * d
+        e = E[c] - 2.0 * trace
         E[c] = e
         term[c] = k2 * pairs
         total += e + k2 * pairs
@@ -244,12 +231,13 @@ def _smooth_window(wi, win_ptr, run_ptr, cell_ids, ptr, a, b, w, we, rest_sq, q,
                    term):  # pragma: no cover - compiled
     """The runs of one window, one after the other, each in blocks of BLOCK cells."""
     sc = np.empty(SCRATCH_ROWS * BLOCK)
+    ss = np.empty(9 * BLOCK)
     flag = np.empty(BLOCK, np.int64)
     total = 0.0
     for r in range(win_ptr[wi], win_ptr[wi + 1]):
         for lo in range(run_ptr[r], run_ptr[r + 1], BLOCK):
             total += _smooth_block(lo, min(run_ptr[r + 1], lo + BLOCK), cell_ids, ptr, a, b, w, we, rest_sq, q,
-                                   rank, coef, U, R, E, term, sc, flag)
+                                   rank, coef, U, R, E, term, sc, ss, flag)
     return total
 
 
