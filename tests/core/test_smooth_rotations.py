@@ -104,9 +104,11 @@ def test_bad_alpha() -> None:
             arap.ArapSolver(V, F, [0], energy="smooth_rotations", alpha=alpha)  # type: ignore[arg-type]
 
 
-def test_energy_never_rises_with_painted_stiffness(knight: tuple[np.ndarray, np.ndarray]) -> None:
-    """Stiffness scales the spokes term of each cell, not the (symmetric) rotation term: the local step stays exact."""
-    V, F = knight
+def test_energy_never_rises_with_painted_stiffness(icosphere: tuple[np.ndarray, np.ndarray]) -> None:
+    """Stiffness scales the spokes term of each cell, not the (symmetric) rotation term: the local step stays exact.
+    (All cotangent weights of the icosphere are positive: with negative ones, a per-cell stiffness can make the
+    spokes system indefinite.)"""
+    V, F = icosphere
     s = pull(V)
     stiffness = np.where(V[:, 1] > np.median(V[:, 1]), 2.0, 1.0)
     solver = arap.ArapSolver(V, F, s.constrained, energy="smooth_rotations", stiffness=stiffness)
