@@ -3,10 +3,12 @@ and global steps, and makes neighbouring rotations agree."""
 
 from __future__ import annotations
 
+import numba
 import numpy as np
 import pytest
 
 import arap
+from arap import smooth
 from arap.errors import OptionError
 from arap.scenarios import bend, pull
 from arap.shapes import obtuse_cylinder
@@ -124,3 +126,30 @@ def test_energy_never_rises_with_painted_stiffness(icosphere: tuple[np.ndarray, 
         assert solver.energy(U, R) <= after_local + 1e-12 * scale
     result = solver.solve(s.targets, max_iterations=100)
     assert np.all(np.diff(result.energies) <= 1e-12 * abs(result.energies[0]))
+
+
+def test_sweep_does_not_depend_on_the_thread_count(camelhead: tuple[np.ndarray, np.ndarray]) -> None:
+    """Windows that run at once share no edge, so threads change neither rotations, energies nor their sum."""
+    V, F = camelhead
+    s = pull(V, distance=0.2)
+    solver = arap.ArapSolver(V, F, s.constrained, energy="smooth_rotations")
+    U = solver._to_internal(solver.solve(s.targets, max_iterations=3, acceleration="none").vertices)
+    sm, c = solver._smooth, solver._cells
+    assert sm is not None and len(sm._group_ptr) > 2  # several windows, in more than one group
+    runs = []
+    saved = numba.get_num_threads()
+    try:
+        for kernel, threads in ((smooth._sweep_serial, 1), (smooth._sweep_parallel, 1),
+                                (smooth._sweep_parallel, min(2, numba.config.NUMBA_NUM_THREADS))):
+            numba.set_num_threads(threads)
+            R, E, term = solver._R.copy(), np.zeros(len(V)), np.zeros(len(V))
+            total = kernel(sm._group_ptr, sm._win_ptr, sm._run_ptr, sm._order, c.ptr, sm._a, sm._b, c.w, c.we,
+                           c.rest_sq, sm.q, sm.rank, sm.coef, U, R, E, term)
+            runs.append((R, E, term, total))
+    finally:
+        numba.set_num_threads(saved)
+    for R, E, term, total in runs[1:]:
+        assert np.array_equal(R, runs[0][0]) and np.array_equal(E, runs[0][1]) and np.array_equal(term, runs[0][2])
+        assert total == runs[0][3]
+    # the rotation term summed during the sweep is the one evaluated afterwards
+    assert runs[0][2].sum() == pytest.approx(sm.rotation_term(runs[0][0], np.empty(len(V))), rel=1e-10)
