@@ -37,7 +37,7 @@ from arap.result import (
     StartName,
 )
 from arap.rigid import RigidRegions, rigid_regions
-from arap.smooth import DEFAULT_ALPHA, SmoothRotations, colour_order
+from arap.smooth import DEFAULT_ALPHA, SWEEP_GAIN, SWEEPS, SmoothRotations, colour_order
 from arap.start import best_rigid_transform, vertex_areas
 from arap.topology import locality_order, vertex_adjacency
 from arap.weights import DEFAULT_WEIGHTS, WEIGHT_TYPES, WeightType
@@ -419,6 +419,8 @@ class ArapSolver:
             if last or E_cur is None:
                 candidate = None
             U[:nf] = g if candidate is None else candidate.reshape(nf, 3)
+            # The coupled sweep of smooth_rotations starts from the current rotations: keep them for the fallback
+            saved = self._R.copy() if candidate is not None and self._smooth is not None else None
             e = self._local(U, const_E, timings)
             if candidate is not None and E_cur is not None and e > E_cur:
                 # Safeguard: the extrapolation raised the energy; take the plain step, which cannot.
@@ -426,6 +428,8 @@ class ArapSolver:
                 assert accel is not None
                 accel.reset()
                 U[:nf] = g
+                if saved is not None:
+                    self._R[...] = saved
                 e = self._local(U, const_E, timings)
             E_cur = e
             energies.append(e)
@@ -448,6 +452,10 @@ class ArapSolver:
         e_term = 0.0
         if self._smooth is not None:
             e = self._smooth.local_step(U, self._R, self._E, self._term)
+            for _ in range(SWEEPS - 1):  # the coupled rotations settle slowly: sweep again while it pays
+                previous, e = e, self._smooth.local_step(U, self._R, self._E, self._term)
+                if previous - e <= SWEEP_GAIN * abs(e):
+                    break
             e_term = float(self._term.sum())
         else:
             e = local_step(self._cells, self._active, U, self._R, self._E)
