@@ -48,12 +48,13 @@ SWEEPS = 1000
 
 
 def _settle_rotations(cells: Cells, V: NDArray[np.float64], F: NDArray[np.int64], U: NDArray[np.float64],
-                      R: NDArray[np.float64], E: NDArray[np.float64], alpha: float) -> None:
+                      R: NDArray[np.float64], E: NDArray[np.float64], alpha: float,
+                      pair_weights: NDArray[np.float64]) -> None:
     """Sweep the SR-ARAP local step from the per-cell rotations in ``R`` until the energy stops falling; ``E`` gets
     each cell's data energy plus its rotation term."""
     if not (isinstance(alpha, int | float) and math.isfinite(alpha) and alpha >= 0):
         raise OptionError(f"alpha must be a finite number >= 0, got {alpha!r}")
-    smooth = SmoothRotations(cells, float(vertex_areas(V, F).sum()), alpha)
+    smooth = SmoothRotations(cells, float(vertex_areas(V, F).sum()), alpha, pair_weights)
     term = np.zeros(len(V))
     previous = np.inf
     for _ in range(SWEEPS):
@@ -61,6 +62,7 @@ def _settle_rotations(cells: Cells, V: NDArray[np.float64], F: NDArray[np.int64]
         if previous - value <= 1e-14 * abs(value):
             break
         previous = value
+    smooth.rotation_term(R, term)  # each cell's own sum
     E += term
 
 
@@ -128,13 +130,14 @@ def _cells_and_energies(V: Any, F: Any, U: Any, energy: EnergyType, weights: Wei
     Vc, Fc, Uc = _inputs(V, F, U)
     scale, rigid = (None, None) if stiffness is None else check_stiffness(stiffness, len(Vc))
     rest = build_cells(Vc, Fc, energy, weights)
+    pair_weights = np.maximum(rest.w, 0.0)  # the rotation term of smooth_rotations: not scaled by stiffness
     cells = rest if scale is None else scale_cells(rest, scale)
     n = len(Vc)
     E = np.empty(n)
     R = np.empty((n, 3, 3))
     local_step(cells, np.arange(n), Uc, R, E)
     if energy == "smooth_rotations":
-        _settle_rotations(cells, Vc, Fc, Uc, R, E, alpha)
+        _settle_rotations(cells, Vc, Fc, Uc, R, E, alpha, pair_weights)
     if rigid is not None and rigid.any():
         RigidRegions(cells, rigid_regions(Fc, rigid), np.arange(n)).share(Uc, R, E)
     return rest, E
@@ -221,7 +224,7 @@ def distortion_from_cells(cells: Cells, V: NDArray[np.float64], F: NDArray[np.in
     R = np.empty((n, 3, 3))
     local_step(cells, np.arange(n), U, R, E)
     if energy == "smooth_rotations":
-        _settle_rotations(cells, V, F, U, R, E, alpha)
+        _settle_rotations(cells, V, F, U, R, E, alpha, np.maximum(cells.w, 0.0))
     out = np.zeros_like(E)
     ok = cells.rest_sq > 0
     out[ok] = E[ok] / cells.rest_sq[ok]

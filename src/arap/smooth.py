@@ -7,32 +7,58 @@ The energy adds to the spokes energy a term that makes neighbouring rotations ag
 
 with ``A`` the surface area (so that ``α`` is scale-free: both terms scale with the square of the mesh size) and
 ``w⁺_ij = max(w_ij, 0)``: with a negative cotangent weight the rotation term would reward neighbours for
-disagreeing, so it uses the clamped weights. ``α = 0`` is the spokes energy.
+disagreeing, so it uses the clamped weights. ``α = 0`` is the spokes energy. A painted stiffness (per-cell weights)
+scales the spokes term only; the rotation term keeps the symmetric weights ``w⁺_ij``.
+
+Scaling of α. CGAL's ``SRE_ARAP`` (default α = 0.02) adds ``α A R_jᵀ / deg_i`` to cell ``i``'s covariance for every
+neighbour ``j`` (``A`` the total surface area, ``deg_i`` the valence, no cotangent weight, no factor 2). Here the
+term is the paper's, with cotangent weights, and its exact minimiser adds ``2αA w⁺_ij R_jᵀ``: at the same α it
+couples neighbours about ``2 w⁺_ij deg_i`` ≈ 7 times as strongly as CGAL does (``w⁺ ≈ 0.58`` on equilateral
+triangles, valence 6). In both, the rotation term grows against the spokes term with the number of vertices (the
+spokes term of a cell scales with its own area, ``A`` with the whole surface's), so on dense scans the default
+couples rotations strongly and the sweeps settle slowly.
 
 Local step. With the positions and the other rotations fixed, the terms that hold ``R_i`` are
 ``−2 tr(R_i S_i) − 4αA Σ_j w⁺_ij ⟨R_i, R_j⟩`` (plus constants; each pair appears in both cells' sums), so the best
 ``R_i`` is the rotation fit of ``M_i = S_i + 2αA Σ_j w⁺_ij R_jᵀ``. Neighbouring rotations depend on each other, so
 the vertices are coloured (no two neighbours share a colour) and the colours are updated one after the other, each
 from the current rotations of the others: block-coordinate descent, exact per block, so the energy never rises.
-Cells of one colour are independent and run in parallel. The global step is the spokes one (the rotation term does
-not involve positions).
+The sweep goes window by window (:data:`WINDOW` consecutive cells; the solver numbers the vertices so that each
+colour's cells in a window are consecutive) so that it stays in cache; windows that share no edge run in parallel,
+and the result does not depend on the thread count. The rotation term is summed during the sweep: a pair is counted
+when its later endpoint is updated. The global step is the spokes one (the rotation term does not involve
+positions).
 """
 
 from __future__ import annotations
 
 import numba as nb
 import numpy as np
+import scipy.sparse as sp
 from numpy.typing import NDArray
 
 from arap._parallel import policy
 from arap.cells import Cells
 from arap.covariance import CHUNK
-from arap.rotations import BLOCK, ROW_LOWER, ROW_R, ROW_TRACE, SCRATCH_ROWS, rotations_block
+from arap.rotations import BLOCK, ROW_LOWER, ROW_R, SCRATCH_ROWS, rotations_block
 
-__all__ = ["DEFAULT_ALPHA", "SmoothRotations", "colour_vertices"]
+__all__ = ["DEFAULT_ALPHA", "SWEEPS", "SWEEP_GAIN", "WINDOW", "SmoothRotations", "colour_order", "colour_vertices"]
 
 DEFAULT_ALPHA = 0.02
 """Default weight of the rotation term (CGAL's ``SRE_ARAP`` default), relative to the surface area."""
+
+SWEEPS = 8
+"""Most sweeps of one local step of the solver (see :data:`SWEEP_GAIN`)."""
+
+SWEEP_GAIN = 1e-13
+"""The solver sweeps again while the last sweep lowered the energy by more than this fraction of it. One sweep moves
+each rotation towards its neighbours' only, and at the default ``alpha`` the rotation term outweighs the spokes term
+by far on dense meshes, so with one sweep per iteration the rotations lag behind the positions for thousands of
+iterations (the knight pulled by one vertex: not converged at 2,000 iterations with one sweep, 1,991 with 4, about
+1,100 with 8 or 16)."""
+
+WINDOW = 2048
+"""Consecutive cells whose colours are swept before the next window's (so that a sweep stays in cache)."""
 
 
 @nb.njit(cache=True, nogil=True)
@@ -79,19 +105,50 @@ def colour_vertices(ptr: NDArray[np.int64], nbr: NDArray[np.int32]) -> NDArray[n
     return _greedy_colours(np.ascontiguousarray(ptr, dtype=np.int64), np.ascontiguousarray(nbr, dtype=np.int64))
 
 
+def colour_order(order: NDArray[np.int64], adjacency: sp.csr_matrix) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+    """Refine a locality order for the coloured sweep: within each window of :data:`WINDOW` positions, the vertices
+    of one colour become consecutive, so that each run of the sweep reads contiguous memory.
+
+    Parameters
+    ----------
+    order : (n,) int array
+        ``order[k]`` is the vertex at position ``k`` (e.g. :func:`arap.topology.locality_order`).
+    adjacency : (n, n) sparse matrix
+        Symmetric vertex adjacency.
+
+    Returns
+    -------
+    order : (n,) int64 array
+        The refined order.
+    colour : (n,) int64 array
+        A colouring of the vertices (indexed by vertex): no two neighbours share a colour.
+    """
+    n = len(order)
+    A = sp.csr_matrix(adjacency)[order][:, order].tocsr()
+    colour_at = colour_vertices(A.indptr.astype(np.int64), A.indices)
+    positions = np.lexsort((colour_at, np.arange(n) // WINDOW))
+    colour = np.empty(n, np.int64)
+    colour[order] = colour_at
+    return np.asarray(order, dtype=np.int64)[positions], colour
+
+
 @nb.njit(cache=True, nogil=True)
-def _smooth_block(lo, hi, cell_ids, ptr, a, b, w, we, rest_sq, q, coef, U, R, E, sc, flag):  # pragma: no cover
-    """Like the spokes local step, with ``2·coef·Σ_j q_ij R_jᵀ`` added to each covariance; ``E`` gets the data
-    energy of each cell (without the rotation term)."""
+def _smooth_block(lo, hi, cell_ids, ptr, a, b, w, we, rest_sq, q, rank, coef, U, R, E, term, sc, ss,
+                  flag):  # pragma: no cover - compiled
+    """Like the spokes local step, with ``2·coef·Σ_j q_ij R_jᵀ`` added to each covariance. ``E`` gets the data
+    energy of each cell (without the rotation term), ``term`` the rotation term of the pairs whose other end was
+    updated earlier in the sweep (final by now: the other pairs are counted when their other end is updated);
+    returns the sum of both. ``ss`` keeps the plain covariances of the block."""
     m = hi - lo
     k2 = 2.0 * coef
     for t in range(m):
-        c = cell_ids[lo + t]
+        c = np.uint64(cell_ids[lo + t])  # unsigned indices spare numba's negative-index fix-ups
         s00 = s01 = s02 = s10 = s11 = s12 = s20 = s21 = s22 = 0.0
+        m00 = m01 = m02 = m10 = m11 = m12 = m20 = m21 = m22 = 0.0
         cur = 0.0
-        for k in range(ptr[c], ptr[c + 1]):
-            ia = a[k]
-            ib = b[k]
+        for k in range(np.uint64(ptr[c]), np.uint64(ptr[c + np.uint64(1)])):
+            ia = np.uint64(a[k])
+            ib = np.uint64(b[k])
             d0 = U[ia, 0] - U[ib, 0]
             d1 = U[ia, 1] - U[ib, 1]
             d2 = U[ia, 2] - U[ib, 2]
@@ -108,17 +165,34 @@ def _smooth_block(lo, hi, cell_ids, ptr, a, b, w, we, rest_sq, q, coef, U, R, E,
             s20 += x2 * d0
             s21 += x2 * d1
             s22 += x2 * d2
-            f = k2 * q[k]
-            if f != 0.0:  # M = S + 2αA Σ q R_jᵀ: entry (i, l) gets R_j[l, i]
-                s00 += f * R[ib, 0, 0]
-                s01 += f * R[ib, 1, 0]
-                s02 += f * R[ib, 2, 0]
-                s10 += f * R[ib, 0, 1]
-                s11 += f * R[ib, 1, 1]
-                s12 += f * R[ib, 2, 1]
-                s20 += f * R[ib, 0, 2]
-                s21 += f * R[ib, 1, 2]
-                s22 += f * R[ib, 2, 2]
+            f = q[k]  # Σ q R_jᵀ: entry (i, l) gets R_j[l, i]
+            m00 += f * R[ib, 0, 0]
+            m01 += f * R[ib, 1, 0]
+            m02 += f * R[ib, 2, 0]
+            m10 += f * R[ib, 0, 1]
+            m11 += f * R[ib, 1, 1]
+            m12 += f * R[ib, 2, 1]
+            m20 += f * R[ib, 0, 2]
+            m21 += f * R[ib, 1, 2]
+            m22 += f * R[ib, 2, 2]
+        ss[t] = s00
+        ss[BLOCK + t] = s01
+        ss[2 * BLOCK + t] = s02
+        ss[3 * BLOCK + t] = s10
+        ss[4 * BLOCK + t] = s11
+        ss[5 * BLOCK + t] = s12
+        ss[6 * BLOCK + t] = s20
+        ss[7 * BLOCK + t] = s21
+        ss[8 * BLOCK + t] = s22
+        s00 += k2 * m00  # M = S + 2αA Σ q R_jᵀ
+        s01 += k2 * m01
+        s02 += k2 * m02
+        s10 += k2 * m10
+        s11 += k2 * m11
+        s12 += k2 * m12
+        s20 += k2 * m20
+        s21 += k2 * m21
+        s22 += k2 * m22
         sc[t] = s00
         sc[BLOCK + t] = s01
         sc[2 * BLOCK + t] = s02
@@ -137,56 +211,70 @@ def _smooth_block(lo, hi, cell_ids, ptr, a, b, w, we, rest_sq, q, coef, U, R, E,
     rotations_block(sc, m, flag)
     total = 0.0
     for t in range(m):
-        c = cell_ids[lo + t]
+        c = np.uint64(cell_ids[lo + t])
+        trace = 0.0  # tr(R S) with the plain covariance: the data energy is cur + rest − 2 tr(R S)
         for i in range(3):
             for j in range(3):
-                R[c, i, j] = sc[(ROW_R + 3 * i + j) * BLOCK + t]
-        # tr(R M) = tr(R S) + 2αA Σ q ⟨R, R_j⟩: take the rotation term back out of the cell's data energy
-        agree = 0.0
-        for k in range(ptr[c], ptr[c + 1]):
-            if q[k] != 0.0:
-                j = b[k]
-                dot = 0.0
-                for r in range(3):
-                    for s in range(3):
-                        dot += R[c, r, s] * R[j, r, s]
-                agree += q[k] * dot
-        e = E[c] - 2.0 * (sc[ROW_TRACE * BLOCK + t] - k2 * agree)
+                r = sc[(ROW_R + 3 * i + j) * BLOCK + t]
+                R[c, i, j] = r
+                trace += r * ss[(3 * j + i) * BLOCK + t]
+        pairs = 0.0
+        mine = rank[c]
+        for k in range(np.uint64(ptr[c]), np.uint64(ptr[c + np.uint64(1)])):
+            j = np.uint64(b[k])
+            if q[k] != 0.0 and rank[j] < mine:  # j is final: the pair (c, j) and (j, c), with symmetric q
+                d = 0.0
+                for u in range(3):
+                    for v in range(3):
+                        y = R[c, u, v] - R[j, u, v]
+                        d += y * y
+                pairs += q[k] * d
+        e = E[c] - 2.0 * trace
         E[c] = e
-        total += e
+        term[c] = k2 * pairs
+        total += e + k2 * pairs
     return total
 
 
 @nb.njit(cache=True, nogil=True)
-def _smooth_chunk(ch, cell_ids, ptr, a, b, w, we, rest_sq, q, coef, U, R, E):  # pragma: no cover - compiled
-    k = cell_ids.shape[0]
+def _smooth_window(wi, win_ptr, run_ptr, cell_ids, ptr, a, b, w, we, rest_sq, q, rank, coef, U, R, E,
+                   term):  # pragma: no cover - compiled
+    """The runs of one window, one after the other, each in blocks of BLOCK cells."""
     sc = np.empty(SCRATCH_ROWS * BLOCK)
+    ss = np.empty(9 * BLOCK)
     flag = np.empty(BLOCK, np.int64)
     total = 0.0
-    for lo in range(ch * CHUNK * BLOCK, min(k, (ch + 1) * CHUNK * BLOCK), BLOCK):
-        total += _smooth_block(lo, min(k, lo + BLOCK), cell_ids, ptr, a, b, w, we, rest_sq, q, coef, U, R, E, sc,
-                               flag)
+    for r in range(win_ptr[wi], win_ptr[wi + 1]):
+        for lo in range(run_ptr[r], run_ptr[r + 1], BLOCK):
+            total += _smooth_block(lo, min(run_ptr[r + 1], lo + BLOCK), cell_ids, ptr, a, b, w, we, rest_sq, q,
+                                   rank, coef, U, R, E, term, sc, ss, flag)
     return total
 
 
 @nb.njit(cache=True, nogil=True)
-def _smooth_serial(cell_ids, ptr, a, b, w, we, rest_sq, q, coef, U, R, E):  # pragma: no cover - compiled
-    n_chunks = (cell_ids.shape[0] + CHUNK * BLOCK - 1) // (CHUNK * BLOCK)
+def _sweep_serial(group_ptr, win_ptr, run_ptr, cell_ids, ptr, a, b, w, we, rest_sq, q, rank, coef, U, R, E,
+                  term):  # pragma: no cover - compiled
+    """One sweep: the windows group by group (see :class:`SmoothRotations`)."""
     total = 0.0
-    for ch in range(n_chunks):
-        total += _smooth_chunk(ch, cell_ids, ptr, a, b, w, we, rest_sq, q, coef, U, R, E)
+    for g in range(group_ptr.shape[0] - 1):
+        for wi in range(group_ptr[g], group_ptr[g + 1]):
+            total += _smooth_window(wi, win_ptr, run_ptr, cell_ids, ptr, a, b, w, we, rest_sq, q, rank, coef, U,
+                                    R, E, term)
     return total
 
 
 @nb.njit(cache=True, nogil=True, parallel=True)
-def _smooth_parallel(cell_ids, ptr, a, b, w, we, rest_sq, q, coef, U, R, E):  # pragma: no cover - compiled
-    n_chunks = (cell_ids.shape[0] + CHUNK * BLOCK - 1) // (CHUNK * BLOCK)
-    part = np.empty(n_chunks)
-    for ch in nb.prange(n_chunks):
-        part[ch] = _smooth_chunk(ch, cell_ids, ptr, a, b, w, we, rest_sq, q, coef, U, R, E)
+def _sweep_parallel(group_ptr, win_ptr, run_ptr, cell_ids, ptr, a, b, w, we, rest_sq, q, rank, coef, U, R, E,
+                    term):  # pragma: no cover - compiled
     total = 0.0
-    for ch in range(n_chunks):
-        total += part[ch]
+    for g in range(group_ptr.shape[0] - 1):  # windows of one group share no edge: they run at once
+        lo = group_ptr[g]
+        part = np.empty(group_ptr[g + 1] - lo)
+        for i in nb.prange(group_ptr[g + 1] - lo):
+            part[i] = _smooth_window(lo + i, win_ptr, run_ptr, cell_ids, ptr, a, b, w, we, rest_sq, q, rank, coef,
+                                     U, R, E, term)
+        for i in range(part.shape[0]):
+            total += part[i]
     return total
 
 
@@ -240,16 +328,45 @@ class SmoothRotations:
         Surface area ``A``.
     alpha : float
         Weight of the rotation term, ``≥ 0``.
+    weights : (t,) float array, optional
+        Weight of each term's pair in the rotation term, aligned with ``cells.w``; must be symmetric (the weight of
+        ``(i, j)`` equals that of ``(j, i)``). Default ``max(cells.w, 0)`` (cells whose terms were scaled by a
+        per-cell stiffness would not be symmetric: pass the unscaled clamped weights).
+    colour : (n,) int array, optional
+        A colouring of the cells' graph (see :func:`colour_order`); default a greedy one.
     """
 
-    def __init__(self, cells: Cells, area: float, alpha: float) -> None:
+    def __init__(self, cells: Cells, area: float, alpha: float, weights: NDArray[np.float64] | None = None,
+                 colour: NDArray[np.int64] | None = None) -> None:
         self.cells = cells
         self.coef = float(alpha) * float(area)
-        self.q = np.ascontiguousarray(np.maximum(cells.w, 0.0))
-        colour = colour_vertices(cells.ptr, cells.b)
-        order = np.argsort(colour, kind="stable")
-        bounds = np.searchsorted(colour[order], np.arange(int(colour.max(initial=-1)) + 2))
-        self.colours = [order[bounds[k]:bounds[k + 1]].astype(np.int64) for k in range(len(bounds) - 1)]
+        q = np.maximum(cells.w, 0.0) if weights is None else np.asarray(weights, dtype=np.float64)
+        self.q = np.ascontiguousarray(q)
+        n = len(cells.ptr) - 1
+        if colour is None:
+            colour = colour_vertices(cells.ptr, cells.b)
+        rows = cells.cell_of_term()
+        # Windows of WINDOW consecutive cells (the solver numbers vertices for locality), coloured so that two
+        # windows of one group share no edge; within a window, one run per vertex colour.
+        window = np.arange(n, dtype=np.int64) // WINDOW
+        n_win = int(window[-1]) + 1 if n else 0
+        cross = window[rows] != window[cells.b]
+        wgraph = sp.coo_matrix((np.ones(int(cross.sum())), (window[rows[cross]], window[cells.b[cross]])),
+                               shape=(n_win, n_win)).tocsr()
+        group = colour_vertices(wgraph.indptr.astype(np.int64), wgraph.indices)
+        order = np.lexsort((colour, window, group[window])).astype(np.int64)
+        key = (group[window] * (n_win + 1) + window) * (int(colour.max(initial=0)) + 1) + colour
+        starts = np.flatnonzero(np.r_[True, key[order][1:] != key[order][:-1]]) if n else np.zeros(0, np.int64)
+        self._run_ptr = np.r_[starts, n].astype(np.int64)
+        run_window = window[order[starts]]
+        wstarts = np.flatnonzero(np.r_[True, run_window[1:] != run_window[:-1]]) if n else np.zeros(0, np.int64)
+        self._win_ptr = np.r_[wstarts, len(starts)].astype(np.int64)
+        win_group = group[run_window[wstarts]]
+        self._group_ptr = np.searchsorted(win_group, np.arange(int(win_group.max(initial=-1)) + 2)).astype(np.int64)
+        self._order = order
+        # rank: when a cell is updated in a sweep (its run's place); neighbours never share a run
+        self.rank = np.empty(n, np.int64)
+        self.rank[order] = np.repeat(np.arange(len(starts)), np.diff(self._run_ptr))
         self._a = cells.a.astype(np.int64)
         self._b = cells.b.astype(np.int64)
 
@@ -265,7 +382,9 @@ class SmoothRotations:
         E : (n,) float array
             Out: each cell's data energy ``Σ_j w_ij ‖e'_ij − R_i e_ij‖²``.
         term : (n,) float array
-            Out: each cell's rotation term ``αA Σ_j w⁺_ij ‖R_i − R_j‖²``.
+            Out: the rotation term ``αA (w⁺_ij + w⁺_ji) ‖R_i − R_j‖²`` of each pair, counted at the endpoint of
+            the higher colour (so ``term.sum()`` is the rotation term; :meth:`rotation_term` gives each cell its
+            own sum ``αA Σ_j w⁺_ij ‖R_i − R_j‖²``).
 
         Returns
         -------
@@ -273,17 +392,9 @@ class SmoothRotations:
             The energy: data plus rotation terms, over all cells.
         """
         c = self.cells
-        data = 0.0
-        work = len(c.a)  # threads are chosen for the whole sweep: one colour alone is a fraction of it
-        for ids in self.colours:
-            data += self._colour(ids, work, U, R, E)
-        return data + self.rotation_term(R, term)
-
-    def _colour(self, ids: NDArray[np.int64], work: int, U: NDArray[np.float64], R: NDArray[np.float64],
-                E: NDArray[np.float64]) -> float:
-        c = self.cells
-        args = (ids, c.ptr, self._a, self._b, c.w, c.we, c.rest_sq, self.q, self.coef, U, R, E)
-        return float(policy.run("smooth", work, lambda: _smooth_serial(*args), lambda: _smooth_parallel(*args)))
+        args = (self._group_ptr, self._win_ptr, self._run_ptr, self._order, c.ptr, self._a, self._b, c.w, c.we,
+                c.rest_sq, self.q, self.rank, self.coef, U, R, E, term)
+        return float(policy.run("smooth", len(c.a), lambda: _sweep_serial(*args), lambda: _sweep_parallel(*args)))
 
     def rotation_term(self, R: NDArray[np.float64], term: NDArray[np.float64]) -> float:
         """``αA Σ_i Σ_j w⁺_ij ‖R_i − R_j‖²`` per cell into ``term``; returns the total."""

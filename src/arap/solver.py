@@ -38,7 +38,7 @@ from arap.result import (
     StartName,
 )
 from arap.rigid import RigidRegions, rigid_regions
-from arap.smooth import DEFAULT_ALPHA, SmoothRotations
+from arap.smooth import DEFAULT_ALPHA, SWEEP_GAIN, SWEEPS, SmoothRotations, colour_order
 from arap.start import best_rigid_transform, vertex_areas
 from arap.topology import locality_order, vertex_adjacency
 from arap.weights import DEFAULT_WEIGHTS, WEIGHT_TYPES, WeightType
@@ -74,7 +74,8 @@ class ArapSolver:
         system has the size of the free ROI vertices. None means the whole mesh.
     alpha : float
         Weight of the rotation term of ``energy="smooth_rotations"`` (SR-ARAP, Levi & Gotsman 2015), relative to
-        the surface area so that it does not depend on the mesh's size; 0.02 by default (CGAL's default). Ignored by
+        the surface area so that it does not depend on the mesh's size; 0.02 by default (CGAL's default; at the same
+        value this term couples rotations about 7 times as strongly as CGAL's, see :mod:`arap.smooth`). Ignored by
         the other energies.
     points : PointConstraints, (faces, barycentric) or (faces, barycentric, weights), or None
         Handles anywhere on the surface (see :mod:`arap.points`): point ``k`` lies in triangle ``faces[k]`` at
@@ -181,6 +182,9 @@ class ArapSolver:
         # indices, so the gathers of the local step and the right-hand side stay in cache.
         # Free vertices come first, so that the free and the non-free rows are two contiguous blocks.
         order = locality_order(F, n, adjacency)
+        colour = None
+        if energy == "smooth_rotations":  # each colour's cells consecutive, window by window, for the sweep
+            order, colour = colour_order(order, adjacency)
         is_free = np.zeros(n, dtype=bool)
         is_free[self.free] = True
         self._perm = np.concatenate([order[is_free[order]], order[~is_free[order]]])
@@ -195,6 +199,7 @@ class ArapSolver:
         self._nonfree = np.arange(self._nf, n)
         self._constrained_slot = np.searchsorted(self._nonfree, self._constrained)
         self._cells = build_cells(self._V, self._inv[F], energy, weights)
+        pair_weights = np.maximum(self._cells.w, 0.0)  # the rotation term of smooth_rotations: not scaled by stiffness
         if self.stiffness is not None:
             self._cells = scale_cells(self._cells, self.stiffness[self._perm])
         L = system_matrix(self._cells, n)
@@ -213,7 +218,8 @@ class ArapSolver:
         self._smooth: SmoothRotations | None = None
         if energy == "smooth_rotations":
             # every rotation is coupled to its neighbours': all cells take part in the local step
-            self._smooth = SmoothRotations(self._cells, float(self._areas.sum()), self.alpha)
+            self._smooth = SmoothRotations(self._cells, float(self._areas.sum()), self.alpha, pair_weights,
+                                           None if colour is None else colour[self._perm])
             self._active = np.arange(n)
             self._term = np.zeros(n)
         self._rigid: RigidRegions | None = None
@@ -459,6 +465,8 @@ class ArapSolver:
             if last or E_cur is None:
                 candidate = None
             U[:nf] = g if candidate is None else candidate.reshape(nf, 3)
+            # The coupled sweep of smooth_rotations starts from the current rotations: keep them for the fallback
+            saved = self._R.copy() if candidate is not None and self._smooth is not None else None
             e = self._local(U, const_E, timings)
             if candidate is not None and E_cur is not None and e > E_cur:
                 # Safeguard: the extrapolation raised the energy; take the plain step, which cannot.
@@ -466,6 +474,8 @@ class ArapSolver:
                 assert accel is not None
                 accel.reset()
                 U[:nf] = g
+                if saved is not None:
+                    self._R[...] = saved
                 e = self._local(U, const_E, timings)
             E_cur = e
             energies.append(e)
@@ -485,12 +495,20 @@ class ArapSolver:
     def _local(self, U: NDArray[np.float64], const_E: float, timings: dict[str, float]) -> float:
         """Local step on the active cells at ``U``; returns the total energy."""
         t = time.perf_counter()
+        e_term = 0.0
         if self._smooth is not None:
             e = self._smooth.local_step(U, self._R, self._E, self._term)
+            for _ in range(SWEEPS - 1):  # the coupled rotations settle slowly: sweep again while it pays
+                previous, e = e, self._smooth.local_step(U, self._R, self._E, self._term)
+                if previous - e <= SWEEP_GAIN * abs(e):
+                    break
+            e_term = float(self._term.sum())
         else:
             e = local_step(self._cells, self._active, U, self._R, self._E)
         if self._rigid is not None:
             e += self._rigid.share(U, self._R, self._E)
+            if self._smooth is not None:  # the shared rotations change the rotation term
+                e += self._smooth.rotation_term(self._R, self._term) - e_term
         if self._points is not None and self._point_state is not None:
             e += self._points.penalty(U[:self._nf], *self._point_state)
         timings["local"] += time.perf_counter() - t

@@ -3,10 +3,12 @@ and global steps, and makes neighbouring rotations agree."""
 
 from __future__ import annotations
 
+import numba
 import numpy as np
 import pytest
 
 import arap
+from arap import smooth
 from arap.errors import OptionError
 from arap.scenarios import bend, pull
 from arap.shapes import obtuse_cylinder
@@ -102,3 +104,64 @@ def test_bad_alpha() -> None:
     for alpha in (-1.0, np.nan, np.inf, "big"):
         with pytest.raises(OptionError, match="alpha"):
             arap.ArapSolver(V, F, [0], energy="smooth_rotations", alpha=alpha)  # type: ignore[arg-type]
+
+
+def test_energy_never_rises_with_painted_stiffness(icosphere: tuple[np.ndarray, np.ndarray]) -> None:
+    """Stiffness scales the spokes term of each cell, not the (symmetric) rotation term: the local step stays exact.
+    (All cotangent weights of the icosphere are positive: with negative ones, a per-cell stiffness can make the
+    spokes system indefinite.)"""
+    V, F = icosphere
+    s = pull(V)
+    stiffness = np.where(V[:, 1] > np.median(V[:, 1]), 2.0, 1.0)
+    solver = arap.ArapSolver(V, F, s.constrained, energy="smooth_rotations", stiffness=stiffness)
+    U = solver.solve(s.targets, max_iterations=1, acceleration="none").vertices
+    R = solver.fit_rotations(U)
+    scale = abs(solver.energy(U, R))
+    for _ in range(6):
+        before = solver.energy(U, R)
+        R = solver.fit_rotations(U, start=R)
+        after_local = solver.energy(U, R)
+        U = solver.global_step(R, s.targets)
+        assert after_local <= before + 1e-12 * scale
+        assert solver.energy(U, R) <= after_local + 1e-12 * scale
+    result = solver.solve(s.targets, max_iterations=100)
+    assert np.all(np.diff(result.energies) <= 1e-12 * abs(result.energies[0]))
+
+
+def test_sweep_does_not_depend_on_the_thread_count(camelhead: tuple[np.ndarray, np.ndarray]) -> None:
+    """Windows that run at once share no edge, so threads change neither rotations, energies nor their sum."""
+    V, F = camelhead
+    s = pull(V, distance=0.2)
+    solver = arap.ArapSolver(V, F, s.constrained, energy="smooth_rotations")
+    U = solver._to_internal(solver.solve(s.targets, max_iterations=3, acceleration="none").vertices)
+    sm, c = solver._smooth, solver._cells
+    assert sm is not None and len(sm._group_ptr) > 2  # several windows, in more than one group
+    runs = []
+    saved = numba.get_num_threads()
+    try:
+        for kernel, threads in ((smooth._sweep_serial, 1), (smooth._sweep_parallel, 1),
+                                (smooth._sweep_parallel, min(2, numba.config.NUMBA_NUM_THREADS))):
+            numba.set_num_threads(threads)
+            R, E, term = solver._R.copy(), np.zeros(len(V)), np.zeros(len(V))
+            total = kernel(sm._group_ptr, sm._win_ptr, sm._run_ptr, sm._order, c.ptr, sm._a, sm._b, c.w, c.we,
+                           c.rest_sq, sm.q, sm.rank, sm.coef, U, R, E, term)
+            runs.append((R, E, term, total))
+    finally:
+        numba.set_num_threads(saved)
+    for R, E, term, total in runs[1:]:
+        assert np.array_equal(R, runs[0][0]) and np.array_equal(E, runs[0][1]) and np.array_equal(term, runs[0][2])
+        assert total == runs[0][3]
+    # the rotation term summed during the sweep is the one evaluated afterwards
+    assert runs[0][2].sum() == pytest.approx(sm.rotation_term(runs[0][0], np.empty(len(V))), rel=1e-10)
+
+
+def test_solve_converges_and_anderson_never_raises_the_energy(knight: tuple[np.ndarray, np.ndarray]) -> None:
+    """Several sweeps per local step let the coupled rotations keep up with the positions, so a single-vertex pull
+    converges at the default tolerance; a rejected Anderson step restarts the sweep from the rotations it had."""
+    V, F = knight
+    s = pull(V)
+    for acceleration in ("anderson", "none"):
+        solver = arap.ArapSolver(V, F, s.constrained, energy="smooth_rotations")
+        result = solver.solve(s.targets, max_iterations=2000, acceleration=acceleration)
+        assert result.converged, (acceleration, result.iterations, result.residual)
+        assert np.all(np.diff(result.energies) <= 1e-12 * abs(result.energies[0]))
