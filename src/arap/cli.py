@@ -24,7 +24,7 @@ import numpy as np
 
 from arap import __version__
 from arap.cells import DEFAULT_ENERGY, ENERGY_TYPES
-from arap.errors import ArapError, ConstraintError, MeshError, MeshFormatError
+from arap.errors import ArapError, MeshError, MeshFormatError
 from arap.mesh import RepairResult
 from arap.result import ACCELERATIONS, DEFAULT_TOLERANCE, MAX_ITERATIONS, START_NAMES
 from arap.smooth import DEFAULT_ALPHA
@@ -161,13 +161,10 @@ def _cmd_deform(args: argparse.Namespace) -> int:
         raise ArapError(f"--tolerance must be >= 0, got {args.tolerance}")
     V, F, repair, label = load_mesh_argument(args.mesh)
     n_file = len(repair.vertex_map)
-    constraints = load_constraints(args.constraints, n_file, len(F))
+    constraints = load_constraints(args.constraints, n_file)
     renumbered = len(V) != n_file or not np.array_equal(repair.vertex_map, np.arange(n_file))
     if repair.report and not args.quiet:
         _err(f"arap: repaired {label}: {'; '.join(repair.report)}")
-    if repair.report and len(constraints.point_faces):
-        raise ConstraintError(f"{label} needed repairs ({'; '.join(repair.report)}), which renumber its faces; "
-                              "point handles refer to faces: save the repaired mesh and place the points on it")
     if renumbered:
         constraints = constraints.remapped(repair.vertex_map)
         if not args.quiet:
@@ -176,17 +173,15 @@ def _cmd_deform(args: argparse.Namespace) -> int:
 
     _warm_up_kernels(args.quiet)
     solver = ArapSolver(V, F, indices, energy=args.energy, weights=args.weights, roi=constraints.roi,
-                        stiffness=constraints.stiffness, alpha=args.alpha, points=constraints.point_handles(len(F)))
+                        stiffness=constraints.stiffness, alpha=args.alpha)
     if not args.quiet:
         _err(f"arap: {label}: {len(V):,} vertices, {len(F):,} faces; {len(constraints.fixed):,} fixed, "
-             f"{len(constraints.handles):,} handles, {len(constraints.point_faces):,} points; "
-             f"precompute {1e3 * solver.factor_seconds:.0f} ms")
+             f"{len(constraints.handles):,} handles; precompute {1e3 * solver.factor_seconds:.0f} ms")
     progress = _Progress(args.iterations, sys.stderr, enabled=not args.quiet)
     t0 = time.perf_counter()
     try:
         result = solver.solve(targets, initial=args.start, max_iterations=args.iterations, tolerance=args.tolerance,
-                              callback=progress, acceleration=args.acceleration,
-                              point_targets=constraints.point_targets if len(constraints.point_faces) else None)
+                              callback=progress, acceleration=args.acceleration)
     finally:
         progress.close()
     seconds = time.perf_counter() - t0

@@ -10,20 +10,14 @@ The JSON format::
       "handle_groups": [[40, 41]],              # optional, informative (how an editor grouped the handles)
       "stiffness": [{"vertices": [7, 8], "value": 10.0},      # optional (version 2): per-vertex cell weights,
                     {"vertices": [9], "value": "rigid"}],     # 1 where not given; "rigid" keeps a region rigid
-      "points": [{"face": 12, "barycentric": [0.2, 0.3, 0.5],   # optional (version 3): handles anywhere on
-                  "target": [0.0, 1.0, 0.5]},                   # the surface, a face and barycentric coordinates
-                 {"face": 40, "barycentric": [1, 0, 0],         # in it (in the order of the face's vertices);
-                  "target": [0.3, 1.0, 0.5], "weight": 10.0}],  # "weight": soft (absent or "hard": met exactly)
-      "version": 3,                             # optional: 1 (the default), 2 (needed for "stiffness") or 3
+      "version": 2,                             # optional: 1 (the default) or 2 (needed for "stiffness")
       "meta": {...}                             # optional, free-form, ignored
     }
 
 ``stiffness`` may also be a list of one number (or ``"rigid"``) per vertex. Files without ``version`` are version 1
-and load as before. Faces are 0-based in the mesh file's face order; a soft point adds ``weight ‖p − target‖²`` to
-the energy (see :mod:`arap.pointhandles`).
+and load as before.
 
-Indices are 0-based in the mesh file's vertex order. ``fixed``, ``handles`` or ``points`` may be omitted or empty,
-but not all of them.
+Indices are 0-based in the mesh file's vertex order. ``fixed`` or ``handles`` may be omitted or empty, but not both.
 Handles may lie outside the region of interest: like every constrained vertex they go to their targets, while the
 unconstrained vertices outside the region stay at rest.
 
@@ -37,26 +31,24 @@ import json
 import math
 import os
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from arap.errors import ConstraintError
-from arap.indexing import check_index_array, check_point_constraints
+from arap.indexing import check_index_array
 from arap.io.atomic import write_atomic
 from arap.mesh import coordinate_problem
-from arap.pointhandles import PointHandles
 
 __all__ = ["FORMAT_VERSION", "Constraints", "check_selection", "check_targets", "load_constraints",
            "save_constraints"]
 
-_KEYS = ("fixed", "handles", "targets", "roi", "handle_groups", "stiffness", "points", "version", "meta")
-_POINT_KEYS = ("face", "barycentric", "target", "weight")
+_KEYS = ("fixed", "handles", "targets", "roi", "handle_groups", "stiffness", "version", "meta")
 
-FORMAT_VERSION = 3
-"""Newest constraints file format (2 added ``stiffness``, 3 ``points``); files of every version up to it load."""
+FORMAT_VERSION = 2
+"""Newest constraints file format (2 added ``stiffness``); files of every version up to it load."""
 
 
 @dataclass
@@ -77,14 +69,6 @@ class Constraints:
         Optional grouping of the handles (kept for round trips, not used by the solver).
     stiffness : (n,) float64 array or None
         Per-vertex cell weights for :class:`arap.ArapSolver` (``inf``: rigid), or None for all 1.
-    point_faces : (p,) int64 array
-        Faces of the point handles (empty without points).
-    point_barycentric : (p, 3) float64 array
-        Barycentric coordinates of each point in its face.
-    point_targets : (p, 3) float64 array
-        Target of each point.
-    point_weights : (p,) float64 array
-        ``inf`` for a hard point, else the soft point's weight.
     """
 
     fixed: np.ndarray
@@ -93,16 +77,6 @@ class Constraints:
     roi: np.ndarray | None = None
     handle_groups: list[list[int]] | None = None
     stiffness: np.ndarray | None = None
-    point_faces: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
-    point_barycentric: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
-    point_targets: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
-    point_weights: np.ndarray = field(default_factory=lambda: np.zeros(0))
-
-    def point_handles(self, n_faces: int) -> PointHandles | None:
-        """The points for :class:`arap.ArapSolver` (``points=``), validated against ``n_faces``; None without."""
-        if not len(self.point_faces):
-            return None
-        return PointHandles.create(self.point_faces, self.point_barycentric, self.point_weights, n_faces=n_faces)
 
     @property
     def constrained(self) -> np.ndarray:
@@ -144,9 +118,6 @@ class Constraints:
             A constrained vertex was dropped (maps to -1) or two constrained vertices were merged.
         """
         vertex_map = np.asarray(vertex_map, dtype=np.int64)
-        if len(self.point_faces):
-            raise ConstraintError("point handles refer to faces, which a mesh repair renumbers: repair the mesh "
-                                  "first (save it repaired) and place the points on the repaired mesh")
 
         def remap(name: str, idx: np.ndarray) -> np.ndarray:
             out = vertex_map[idx]
@@ -184,14 +155,6 @@ class Constraints:
             out["roi"] = [int(i) for i in self.roi]
         if self.handle_groups is not None:
             out["handle_groups"] = [[int(i) for i in g] for g in self.handle_groups]
-        if len(self.point_faces):
-            out["version"] = FORMAT_VERSION
-            out["points"] = [
-                {"face": int(f), "barycentric": [float(x) for x in b], "target": [float(x) for x in t]}
-                | ({} if math.isinf(w) else {"weight": float(w)})
-                for f, b, t, w in zip(self.point_faces, self.point_barycentric, self.point_targets,
-                                      self.point_weights, strict=True)
-            ]
         if self.stiffness is not None:
             out["version"] = FORMAT_VERSION
             out["stiffness"] = [
@@ -339,8 +302,7 @@ def _read_json(path: Path) -> Any:
                               "constraints file") from None
 
 
-def load_constraints(source: str | os.PathLike[str] | Mapping[str, Any], n_vertices: int,
-                     n_faces: int | None = None) -> Constraints:
+def load_constraints(source: str | os.PathLike[str] | Mapping[str, Any], n_vertices: int) -> Constraints:
     """Read and validate a constraint set against a mesh of ``n_vertices`` vertices.
 
     Parameters
@@ -349,8 +311,6 @@ def load_constraints(source: str | os.PathLike[str] | Mapping[str, Any], n_verti
         A JSON file in the format of this module, or the already parsed object.
     n_vertices : int
         Vertex count of the mesh the indices refer to.
-    n_faces : int or None
-        Face count of that mesh, needed to check the faces of ``points`` (None: a file with points is refused).
 
     Returns
     -------
@@ -368,8 +328,8 @@ def load_constraints(source: str | os.PathLike[str] | Mapping[str, Any], n_verti
     unknown = sorted(str(key)[:40] for key in set(data) - set(_KEYS))
     if unknown:
         raise ConstraintError(f"unknown constraint keys {unknown}; expected some of {list(_KEYS)}")
-    if "fixed" not in data and "handles" not in data and not data.get("points"):
-        raise ConstraintError('constraints need "fixed" and/or "handles" vertex lists, or "points"')
+    if "fixed" not in data and "handles" not in data:
+        raise ConstraintError('constraints need "fixed" and/or "handles" vertex lists')
     n = int(n_vertices)
     handles = check_index_array(data.get("handles", []), n, "handles")
     fixed, _, roi = check_selection(n, data.get("fixed", []), [handles] if len(handles) else [], data.get("roi"),
@@ -377,8 +337,8 @@ def load_constraints(source: str | os.PathLike[str] | Mapping[str, Any], n_verti
     if len(handles) and "targets" not in data:
         raise ConstraintError('"handles" are given without "targets"')
     targets = check_targets(data.get("targets", []), len(handles))
-    if not len(fixed) and not len(handles) and not data.get("points"):
-        raise ConstraintError("no vertex is constrained: give at least one fixed or handle vertex, or a point")
+    if not len(fixed) and not len(handles):
+        raise ConstraintError("no vertex is constrained: give at least one fixed or handle vertex")
 
     handle_groups = None
     if data.get("handle_groups") is not None:
@@ -397,35 +357,8 @@ def load_constraints(source: str | os.PathLike[str] | Mapping[str, Any], n_verti
         if version < 2:
             raise ConstraintError('"stiffness" needs "version": 2')
         stiffness = _stiffness(data["stiffness"], n)
-    points: dict[str, np.ndarray] = {}
-    if data.get("points") is not None:
-        if version < 3:
-            raise ConstraintError('"points" needs "version": 3')
-        points = _points(data["points"], n_faces)
     return Constraints(fixed=fixed, handles=handles, targets=targets, roi=roi, handle_groups=handle_groups,
-                       stiffness=stiffness, **points)
-
-
-def _points(raw: Any, n_faces: int | None) -> dict[str, np.ndarray]:
-    """Point handles from a file: ``[{"face": f, "barycentric": [a, b, c], "target": [x, y, z], "weight": w}]``."""
-    if n_faces is None:
-        raise ConstraintError("this constraints file has point handles, which need the mesh's face count")
-    if not isinstance(raw, list):
-        raise ConstraintError("points must be a list of objects")
-    weights = []
-    for k, item in enumerate(raw):
-        if not isinstance(item, Mapping) or not {"face", "barycentric", "target"} <= set(item) <= set(_POINT_KEYS):
-            raise ConstraintError(f'points[{k}] must be an object with "face", "barycentric", "target" and '
-                                  'optionally "weight"')
-        w = item.get("weight", "hard")
-        if w != "hard" and (type(w) not in (int, float) or not math.isfinite(w) or w <= 0):
-            raise ConstraintError(f'points[{k}].weight must be a positive number or "hard", got '
-                                  f"{json.dumps(w)[:40]}")
-        weights.append(math.inf if w == "hard" else float(w))
-    faces, bary, w_arr = check_point_constraints([item["face"] for item in raw],
-                                                 [item["barycentric"] for item in raw], weights, n_faces)
-    targets = check_targets([item["target"] for item in raw], len(raw))
-    return {"point_faces": faces, "point_barycentric": bary, "point_targets": targets, "point_weights": w_arr}
+                       stiffness=stiffness)
 
 
 def _stiffness_value(value: Any, where: str) -> float:
