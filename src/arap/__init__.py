@@ -29,7 +29,6 @@ __version__ = "0.1.0"
 _LAZY: dict[str, str] = {
     "ArapSolver": "arap.solver",
     "ArapResult": "arap.solver",
-    "PointHandles": "arap.pointhandles",
     "arap_energy": "arap.energy",
     "cell_energies": "arap.energy",
     "fit_rotations": "arap.rotations",
@@ -71,7 +70,6 @@ __all__ = [
     "MeshLike",
     "MeshTooLargeError",
     "OptionError",
-    "PointHandles",
     "RepairResult",
     "Studio",
     "UnconstrainedRegionError",
@@ -103,7 +101,6 @@ if TYPE_CHECKING:
     from arap.io import MESH_FORMATS, load_mesh, load_mesh_bytes, load_mesh_with_report, save_mesh, save_mesh_bytes
     from arap.mesh import MeshLike, RepairResult, check_mesh, mesh_arrays, repair_mesh
     from arap.notebook import Studio, studio
-    from arap.pointhandles import PointHandles
     from arap.rotations import fit_rotations
     from arap.shapes import BUILTIN_MESHES, builtin_mesh, sphere
     from arap.solver import ArapResult, ArapSolver

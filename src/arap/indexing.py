@@ -85,8 +85,7 @@ def check_index_array(indices: Any, n: int, name: str, *, allow_empty: bool = Tr
 
 
 def find_unconstrained_part(F: np.ndarray, n: int, free: np.ndarray,
-                            adjacency: sp.csr_matrix | None = None,
-                            pinned_free: np.ndarray | None = None) -> tuple[list[int], int] | None:
+                            adjacency: sp.csr_matrix | None = None) -> tuple[list[int], int] | None:
     """Find a connected part of the free vertices with no edge to a non-free vertex.
 
     Such a part has no constraint, so the global step's matrix is singular there.
@@ -99,8 +98,6 @@ def find_unconstrained_part(F: np.ndarray, n: int, free: np.ndarray,
         Free vertices.
     adjacency : (n, n) sparse matrix or None
         The mesh's vertex adjacency, if already computed.
-    pinned_free : (q,) int array or None
-        Free vertices that pin their part by themselves (those a point constraint holds).
 
     Returns
     -------
@@ -116,11 +113,6 @@ def find_unconstrained_part(F: np.ndarray, n: int, free: np.ndarray,
     count, labels = connected_components(A_ff, directed=False)
     # A part is pinned if one of its vertices has a non-free neighbour.
     pinned_vertex = np.asarray(A[free].astype(np.int64) @ (~is_free).astype(np.int64)).ravel() > 0
-    if pinned_free is not None and len(pinned_free):
-        slot = np.full(n, -1)
-        slot[free] = np.arange(len(free))
-        held = slot[pinned_free]
-        pinned_vertex[held[held >= 0]] = True
     pinned = np.zeros(count, dtype=bool)
     pinned[labels[pinned_vertex]] = True
     if pinned.all():
@@ -130,89 +122,3 @@ def find_unconstrained_part(F: np.ndarray, n: int, free: np.ndarray,
     worst = bad[np.argmax(sizes[bad])]
     members = free[labels == worst]
     return [int(v) for v in members[:5]], int(sizes[worst])
-
-
-BARYCENTRIC_TOLERANCE = 1e-6
-"""How far barycentric coordinates may stray below 0 or their sum from 1 (rounding in a client's raycast)."""
-
-
-def check_point_constraints(
-    faces: Any, barycentric: Any, weights: Any, n_faces: int
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Validate point constraints (a point inside a face, given by barycentric coordinates): the one check that the
-    library, the command line and the studio use.
-
-    Parameters
-    ----------
-    faces : (p,) sequence of int
-        Face of each point.
-    barycentric : (p, 3) array-like of float
-        Barycentric coordinates of each point in its face (in the order of the face's vertices): finite, each at
-        least ``-BARYCENTRIC_TOLERANCE`` and summing to 1 within ``BARYCENTRIC_TOLERANCE``.
-    weights : (p,) array-like of float or None
-        ``inf`` for a hard constraint (met exactly), a positive finite weight for a soft one (a penalty
-        ``w ‖p − t‖²``). None: all hard.
-    n_faces : int
-        Number of faces of the mesh.
-
-    Returns
-    -------
-    faces : (p,) int64 array
-    barycentric : (p, 3) float64 array
-        Clipped at 0 and normalised to sum exactly to 1.
-    weights : (p,) float64 array
-
-    Raises
-    ------
-    ConstraintError
-        A face index out of range or not an integer, barycentric coordinates of the wrong shape, not finite,
-        negative or not summing to 1, or a weight that is not positive (NaN included).
-    """
-    if isinstance(faces, np.ndarray) and faces.size and faces.dtype.kind not in "iu":
-        raise ConstraintError(f"point faces must be integer face indices, got an array of {faces.dtype}")
-    if not isinstance(faces, np.ndarray):
-        if not isinstance(faces, Sequence) or isinstance(faces, str | bytes | bytearray):
-            raise ConstraintError(f"point faces must be a list of face indices, got {type(faces).__name__}")
-        for pos, item in enumerate(faces):
-            if isinstance(item, bool | np.bool_) or not isinstance(item, int | np.integer):
-                raise ConstraintError(f"point faces must be integer face indices; item {pos} is {_show(item)}")
-            if not 0 <= item < n_faces:
-                raise ConstraintError(f"point {pos}: face {_show(item)} is out of range [0, {n_faces})")
-    f = np.asarray(faces).reshape(-1)
-    bad = np.flatnonzero((f < 0) | (f >= n_faces))
-    if len(bad):
-        raise ConstraintError(f"point {int(bad[0])}: face {int(f[bad[0]])} is out of range [0, {n_faces})")
-    p = len(f)
-    try:
-        b = np.array(barycentric, dtype=np.float64)
-    except (TypeError, ValueError) as exc:
-        raise ConstraintError(f"point barycentric coordinates must be numbers ({exc})") from exc
-    if b.shape != (p, 3) and not (p == 0 and b.size == 0):
-        raise ConstraintError(f"point barycentric coordinates must have shape ({p}, 3), got {b.shape}")
-    b = b.reshape(p, 3)
-    if not np.all(np.isfinite(b)):
-        bad_row = int(np.flatnonzero(~np.all(np.isfinite(b), axis=1))[0])
-        raise ConstraintError(f"point {bad_row}: barycentric coordinates must be finite, got {b[bad_row].tolist()}")
-    low = np.flatnonzero(np.any(b < -BARYCENTRIC_TOLERANCE, axis=1))
-    if len(low):
-        raise ConstraintError(f"point {int(low[0])}: barycentric coordinates must be >= 0 (the point lies in its "
-                              f"face), got {b[low[0]].tolist()}")
-    off = np.flatnonzero(np.abs(b.sum(axis=1) - 1.0) > BARYCENTRIC_TOLERANCE)
-    if len(off):
-        raise ConstraintError(f"point {int(off[0])}: barycentric coordinates must sum to 1, got "
-                              f"{b[off[0]].tolist()} (sum {float(b[off[0]].sum())})")
-    b = np.clip(b, 0.0, None)
-    b /= b.sum(axis=1, keepdims=True)
-    if weights is None:
-        w = np.full(p, np.inf)
-    else:
-        try:
-            w = np.array(weights, dtype=np.float64).reshape(-1)
-        except (TypeError, ValueError) as exc:
-            raise ConstraintError(f"point weights must be numbers ({exc})") from exc
-        if w.shape != (p,):
-            raise ConstraintError(f"point weights must have shape ({p},), one per point, got {w.shape}")
-        bad = np.flatnonzero(~(w > 0))
-        if len(bad):
-            raise ConstraintError(f"point {int(bad[0])}: weight must be > 0 (inf: hard), got {w[bad[0]]}")
-    return f.astype(np.int64), b, w

@@ -25,7 +25,6 @@ from arap.errors import ArapError, ConstraintError, OptionError, UnconstrainedRe
 from arap.indexing import check_index_array, find_unconstrained_part
 from arap.linsolve import NotPositiveDefiniteError, factorize
 from arap.mesh import MeshLike, check_mesh, is_mesh_like, mesh_arrays
-from arap.pointhandles import PointHandles, PointSystem
 from arap.result import (
     ACCELERATIONS,
     DEFAULT_TOLERANCE,
@@ -84,12 +83,6 @@ class ArapSolver:
     backend : str or None
         Sparse Cholesky backend (see :mod:`arap.linsolve`); None chooses by system size
         (:func:`arap.linsolve.default_backend`).
-    points : PointHandles or None
-        Handles anywhere on the surface: a face and barycentric coordinates each, hard (weight ``inf``, met
-        exactly) or soft (finite weight ``w``: the penalty ``w ‖p − t‖²`` joins the energy, and the reported
-        energies include it). Build them with :meth:`arap.PointHandles.create`; :meth:`solve` takes their targets as
-        ``point_targets``. Vertex constraints stay the fast path (they leave the system); points keep the one
-        factorisation per constraint set (see :mod:`arap.pointhandles`). With points, ``constrained`` may be empty.
 
     Notes
     -----
@@ -118,7 +111,6 @@ class ArapSolver:
         backend: str | None = None,
         stiffness: ArrayLike | None = None,
         alpha: float = DEFAULT_ALPHA,
-        points: PointHandles | None = None,
     ) -> None:
         t0 = time.perf_counter()
         if energy not in ENERGY_TYPES:
@@ -133,12 +125,6 @@ class ArapSolver:
             raise ConstraintError("constrained (the anchor and handle vertices) is missing")
         V, F = check_mesh(*mesh_arrays(V, F))
         n = len(V)
-        if points is not None and not isinstance(points, PointHandles):
-            raise ConstraintError(f"points must be arap.PointHandles (PointHandles.create(faces, barycentric, "
-                                  f"weights, n_faces=...)), got {type(points).__name__}")
-        if points is not None and len(points) and int(points.faces.max()) >= len(F):
-            raise ConstraintError(f"point faces must be below {len(F)} (the mesh's faces)")
-        self.points = points if points is not None and len(points) else None
         self.V = V
         self.F = F
         self.energy_type = energy
@@ -163,8 +149,7 @@ class ArapSolver:
         self.free = np.flatnonzero(~fixed_mask & ~held_mask)
         self.nonfree = np.flatnonzero(fixed_mask | held_mask)
         adjacency = vertex_adjacency(F, n)
-        part = find_unconstrained_part(F, n, self.free, adjacency,
-                                       None if self.points is None else self.points.vertices(F))
+        part = find_unconstrained_part(F, n, self.free, adjacency)
         if part is not None:
             sample, size = part
             where = "" if self.roi is None else " (region of interest)"
@@ -215,12 +200,6 @@ class ArapSolver:
             self._rigid = RigidRegions(self._cells, region, self._active)
             self._rigid_all = RigidRegions(self._cells, region, np.arange(n))
         self._prepare_constant_energy(n)
-        self._points: PointSystem | None = None
-        if self.points is not None:
-            self._points = PointSystem(self.points, self._inv[F], n, self._nf, L_ff)
-            L_ff = self._points.matrix
-        self._point_T: NDArray[np.float64] | None = None
-        self._last_point_T: NDArray[np.float64] | None = None
         self.factor = None
         if len(self.free):
             try:
@@ -230,8 +209,6 @@ class ArapSolver:
                     "the reduced ARAP system is singular: some free vertices are connected to the constraints only "
                     f"through zero-weight edges ({exc})"
                 ) from exc
-            if self._points is not None:
-                self._points.finish(self.factor)
         self.backend = None if self.factor is None else self.factor.backend
         self._R = np.tile(np.eye(3), (n, 1, 1))
         self._E = np.zeros(n)
@@ -316,35 +293,9 @@ class ArapSolver:
             raise ArapError(f"{name} has non-finite coordinates")
         return U
 
-    def _check_point_targets(self, point_targets: ArrayLike | None) -> np.ndarray | None:
-        """Targets of the points, shape (p, 3) (None: where the points lie at rest); None without points."""
-        if self.points is None:
-            if point_targets is not None and np.size(point_targets):
-                raise ConstraintError("point_targets given, but this solver has no points (ArapSolver(points=...))")
-            return None
-        if point_targets is None:
-            return self.points.positions(self.V, self.F)
-        T = np.asarray(point_targets, dtype=np.float64)
-        p = len(self.points)
-        if T.shape != (p, 3):
-            raise ConstraintError(f"point_targets must have shape ({p}, 3), one row per point; got {T.shape}")
-        if not np.all(np.isfinite(T)):
-            bad = int(np.flatnonzero(~np.all(np.isfinite(T), axis=1))[0])
-            raise ConstraintError(f"point_targets must be finite; row {bad} is {T[bad].tolist()}")
-        return T
-
-    def _global(self, rhs: NDArray[np.float64]) -> NDArray[np.float64]:
-        """Global step's free positions for the right-hand side ``rhs`` (the factor exists)."""
-        assert self.factor is not None
-        if self._points is not None:
-            return self._points.solve(self.factor, rhs)
-        return self.factor.solve(rhs)
-
     def _check_targets(self, targets: np.ndarray | list) -> np.ndarray:
         T = np.asarray(targets, dtype=np.float64)
         k = len(self._constrained)
-        if k == 0 and T.size == 0:
-            T = T.reshape(0, 3)
         if T.shape != (k, 3):
             raise ConstraintError(f"targets must have shape ({k}, 3), one row per constrained vertex; got {T.shape}")
         if not np.all(np.isfinite(T)):
@@ -370,7 +321,6 @@ class ArapSolver:
         callback: IterationCallback | None = None,
         acceleration: Acceleration = "anderson",
         window: int = DEFAULT_WINDOW,
-        point_targets: ArrayLike | None = None,
     ) -> ArapResult:
         """Deform the mesh so the constrained vertices reach their targets; by default, iterate until converged.
 
@@ -401,18 +351,14 @@ class ArapSolver:
             otherwise the plain step is taken. ``none``: the plain iteration of Sorkine & Alexa 2007.
         window : int
             Anderson window ``m`` (previous iterates used).
-        point_targets : (p, 3) float array or None
-            Target of each point of ``points`` (None: where the points lie at rest). Hard points end exactly there
-            (to rounding); soft ones are pulled there by their weight.
 
         Returns
         -------
         ArapResult
-            Its ``energies`` (with the soft points' penalty) never rise from one iteration to the next.
+            Its ``energies`` never rise from one iteration to the next.
         """
         t_start = time.perf_counter()
         T = self._check_targets(targets)
-        self._point_T = self._check_point_targets(point_targets)
         cap = MAX_ITERATIONS if max_iterations is None else max_iterations
         if int(cap) != cap or cap < 0:
             raise OptionError(f"max_iterations must be a non-negative integer or None, got {max_iterations!r}")
@@ -432,8 +378,6 @@ class ArapSolver:
         free = self._free
         nf = len(free)
         rhs_const = self._L_fn @ fixed
-        if self._points is not None and self._point_T is not None:
-            rhs_const = rhs_const - self._points.rhs_constant(self._point_T, fixed)
         rhs = np.empty((nf, 3))
         accel = None
         if acceleration == "anderson" and nf:
@@ -452,7 +396,7 @@ class ArapSolver:
                 t = time.perf_counter()
                 assemble_rhs(self._gather, self._R, rhs_const, rhs)
                 t2 = time.perf_counter()
-                g = self._global(rhs)
+                g = self.factor.solve(rhs)
                 timings["rhs"] += t2 - t
                 timings["solve"] += time.perf_counter() - t2
             else:
@@ -485,7 +429,6 @@ class ArapSolver:
             if converged or stop:
                 break
         self._last = U
-        self._last_point_T = self._point_T
         self._live = None
         # The rotations fit the stored solution only if an iteration ended with a local step on it.
         self._rotations_fresh = bool(energies) or start != "warm"
@@ -503,13 +446,7 @@ class ArapSolver:
         if self._rigid is not None:
             e += self._rigid.share(U, self._R, self._E)
         timings["local"] += time.perf_counter() - t
-        return e + const_E + self._penalty(U)
-
-    def _penalty(self, U: NDArray[np.float64]) -> float:
-        """The soft points' penalty at ``U`` (internal order) for the current point targets; 0 without points."""
-        if self._points is None or self._point_T is None:
-            return 0.0
-        return self._points.penalty(U, self._point_T)
+        return e + const_E
 
     def _start(
         self, T: NDArray[np.float64], fixed: NDArray[np.float64],
@@ -528,11 +465,9 @@ class ArapSolver:
                 warm_fresh = self._rotations_fresh
                 if not warm_fresh:
                     self._local(U, 0.0, timings)
-                at_targets = np.array_equal(U[self._nf:], fixed) and (
-                    self._point_T is None or (self._last_point_T is not None
-                                              and np.array_equal(self._last_point_T, self._point_T)))
+                at_targets = np.array_equal(U[self._nf:], fixed)
                 U[self._nf:] = fixed
-                E = self._stored_energy() + self._penalty(U) if at_targets else None
+                E = self._stored_energy() if at_targets else None
                 return U, E, "warm"
         if isinstance(initial, str):
             if initial not in START_NAMES:
@@ -576,14 +511,8 @@ class ArapSolver:
     def _rigid_start(self, T: NDArray[np.float64], fixed: NDArray[np.float64]) -> NDArray[np.float64]:
         """Rest pose moved by the best-fit rigid motion of the constrained vertices, non-free vertices fixed."""
         U = self._V.copy()
-        P, Q, w = self._V[self._constrained], T, self._areas[self._constrained]
-        if self._points is not None and self._point_T is not None:
-            # each point weighs as the vertex areas it interpolates
-            P = np.concatenate([P, np.asarray(self._points.C @ self._V)])
-            Q = np.concatenate([Q, self._point_T])
-            w = np.concatenate([w, np.asarray(self._points.C @ self._areas)])
-        if len(P):
-            R, t = best_rigid_transform(P, Q, w)
+        if len(self._constrained):
+            R, t = best_rigid_transform(self._V[self._constrained], T, self._areas[self._constrained])
             U[self._free] = self._V[self._free] @ R.T + t
         U[self._nf:] = fixed
         return U
@@ -647,22 +576,16 @@ class ArapSolver:
             value += self._smooth.rotation_term(np.ascontiguousarray(R), np.empty(self.n_vertices))
         return value
 
-    def global_step(self, R: np.ndarray, targets: np.ndarray | list,
-                    point_targets: ArrayLike | None = None) -> np.ndarray:
-        """Global step alone: positions minimising the energy for fixed rotations ``R`` (n, 3, 3) (and the points'
-        targets, see :meth:`solve`), shape (n, 3)."""
+    def global_step(self, R: np.ndarray, targets: np.ndarray | list) -> np.ndarray:
+        """Global step alone: positions minimising the energy for fixed rotations ``R`` (n, 3, 3), shape (n, 3)."""
         T = self._check_targets(targets)
-        self._point_T = self._check_point_targets(point_targets)
         fixed = self._fixed_positions(T)
         U = self._V.copy()
         U[self._nf:] = fixed
         if self.factor is not None:
             rhs = np.empty((len(self._free), 3))
-            rhs_const = self._L_fn @ fixed
-            if self._points is not None and self._point_T is not None:
-                rhs_const = rhs_const - self._points.rhs_constant(self._point_T, fixed)
-            assemble_rhs(self._gather, self._to_internal(np.asarray(R, dtype=np.float64)), rhs_const, rhs)
-            U[self._free] = self._global(rhs)
+            assemble_rhs(self._gather, self._to_internal(np.asarray(R, dtype=np.float64)), self._L_fn @ fixed, rhs)
+            U[self._free] = self.factor.solve(rhs)
         return U[self._inv]
 
     @property
