@@ -143,9 +143,9 @@ class ConstraintSet:
         constrained = np.concatenate([fixed_arr, *group_arrs, held]).astype(np.int64)
         if painted is not None and np.all(painted == 1.0):
             painted = None
-        for a in (fixed_arr, *group_arrs, held, painted):
-            if a is not None:
-                a.setflags(write=False)
+        for frozen in (fixed_arr, *group_arrs, held, painted):
+            if frozen is not None:
+                frozen.setflags(write=False)
         return cls(roi_arr, fixed_arr, group_arrs, pose, held, constrained, painted)
 
     @classmethod
