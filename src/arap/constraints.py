@@ -46,7 +46,7 @@ from arap.mesh import coordinate_problem
 from arap.points import PointConstraints, check_points
 
 __all__ = ["FORMAT_VERSION", "Constraints", "check_selection", "check_targets", "load_constraints",
-           "save_constraints"]
+           "save_constraints", "stiffness_from_json", "stiffness_to_json"]
 
 _KEYS = ("fixed", "handles", "targets", "roi", "handle_groups", "stiffness", "points", "version", "meta")
 
@@ -177,11 +177,7 @@ class Constraints:
             ]
         if self.stiffness is not None:
             out["version"] = FORMAT_VERSION
-            out["stiffness"] = [
-                {"vertices": np.flatnonzero(self.stiffness == value).tolist(),
-                 "value": "rigid" if math.isinf(value) else float(value)}
-                for value in np.unique(self.stiffness[self.stiffness != 1.0])
-            ]
+            out["stiffness"] = stiffness_to_json(self.stiffness)
         return out
 
 
@@ -379,7 +375,7 @@ def load_constraints(source: str | os.PathLike[str] | Mapping[str, Any], n_verti
     if data.get("stiffness") is not None:
         if version < 2:
             raise ConstraintError('"stiffness" needs "version": 2')
-        stiffness = _stiffness(data["stiffness"], n)
+        stiffness = stiffness_from_json(data["stiffness"], n)
     points, point_targets = None, None
     if data.get("points") is not None:
         if version < 2:
@@ -422,11 +418,30 @@ def _stiffness_value(value: Any, where: str) -> float:
     return float(value)
 
 
-def _stiffness(raw: Any, n: int) -> np.ndarray:
-    """Per-vertex stiffness from a file: n values, or ``[{"vertices": [...], "value": v}, ...]`` (1 elsewhere)."""
+def stiffness_to_json(stiffness: np.ndarray) -> list[dict[str, Any]]:
+    """Per-vertex stiffness (n,) as ``[{"vertices": [...], "value": v}, ...]`` (vertices at 1 left out, ``inf`` as
+    ``"rigid"``): the form of constraints files and of the studio's messages."""
+    return [
+        {"vertices": np.flatnonzero(stiffness == value).tolist(),
+         "value": "rigid" if math.isinf(value) else float(value)}
+        for value in np.unique(stiffness[stiffness != 1.0])
+    ]
+
+
+def stiffness_from_json(raw: Any, n: int) -> np.ndarray:
+    """Per-vertex stiffness, shape (n,), from n values or ``[{"vertices": [...], "value": v}, ...]`` (1 elsewhere,
+    so ``[]`` is all 1; ``"rigid"`` is ``inf``): the one validator of painted stiffness (files, command line,
+    studio).
+
+    Raises
+    ------
+    ConstraintError
+        Not such a list, a value that is not a positive number or ``"rigid"``, bad vertex indices, or a vertex
+        given two values.
+    """
     if not isinstance(raw, list):
         raise ConstraintError("stiffness must be a list")
-    if all(not isinstance(item, Mapping) for item in raw):
+    if raw and all(not isinstance(item, Mapping) for item in raw):
         if len(raw) != n:
             raise ConstraintError(f"stiffness lists one value per vertex: {n} expected, {len(raw)} given")
         return np.array([_stiffness_value(v, f"stiffness[{i}]") for i, v in enumerate(raw)])

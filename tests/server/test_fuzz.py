@@ -55,6 +55,10 @@ def _valid(f: Field) -> st.SearchStrategy[Any]:
         return st.lists(matrix, max_size=3)
     if f.kind == "points_or_null":
         return st.one_of(st.none(), st.lists(st.lists(number, min_size=3, max_size=3), max_size=6))
+    if f.kind == "stiffness_or_null":
+        value = st.one_of(st.just("rigid"), st.floats(min_value=1e-3, max_value=1e6))
+        return st.one_of(st.none(), st.lists(st.fixed_dictionaries(
+            {"vertices": st.lists(index, max_size=6), "value": value}), max_size=3))
     raise AssertionError(f"no strategy for field kind {f.kind!r}")
 
 

@@ -184,6 +184,12 @@ export const CLIENT_MESSAGES = Object.freeze({
         "name": "targets",
         "kind": "points_or_null",
         "required": false
+      },
+      {
+        "name": "stiffness",
+        "kind": "stiffness_or_null",
+        "required": false,
+        "maxLength": 256
       }
     ]
   },
@@ -567,6 +573,7 @@ export const SERVER_MESSAGES = Object.freeze({
  * @property {number[]} fixed vertices held in place
  * @property {number[][]} handle_groups vertices moved together by one transform per group
  * @property {number[][]|null} [targets] positions of the handle vertices (groups concatenated), or null to keep them where they are
+ * @property {Array<{vertices: number[], value: number|"rigid"}>|null} [stiffness] painted stiffness (cell weights) as [{vertices, value}], value > 0 or "rigid", 1 elsewhere; null or absent: all 1
  */
 
 /**
@@ -690,7 +697,7 @@ export const SERVER_MESSAGES = Object.freeze({
  * @property {boolean} can_undo
  * @property {boolean} can_redo
  * @property {Object<string, any>} params solver parameters
- * @property {Object<string, any>} constraints roi, fixed, handle_groups as last accepted
+ * @property {Object<string, any>} constraints roi, fixed, handle_groups, stiffness as last accepted
  * @property {number[][]} transforms current transform of each handle group
  * @property {Object<string, any>} stats n_vertices, n_faces, roi_size, n_free, factor_ms
  */

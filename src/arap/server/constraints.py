@@ -16,7 +16,7 @@ from typing import Any
 
 import numpy as np
 
-from arap.constraints import check_selection
+from arap.constraints import check_selection, stiffness_from_json, stiffness_to_json
 from arap.errors import ConstraintError
 from arap.server.protocol import RequestError
 
@@ -40,8 +40,9 @@ def matrices_to_json(T: np.ndarray) -> list[list[float]]:
     return [m.T.reshape(16).tolist() for m in T]
 
 
-def _digest(*arrays: np.ndarray | None) -> bytes:
+def _digest(*arrays: np.ndarray | None, stiffness: np.ndarray | None = None) -> bytes:
     h = hashlib.blake2b(digest_size=16)
+    h.update(b"s:none;" if stiffness is None else b"s:" + np.ascontiguousarray(stiffness, dtype=np.float64).tobytes())
     for a in arrays:
         if a is None:
             h.update(b"none;")
@@ -68,6 +69,8 @@ class ConstraintSet:
         Vertices outside the region of interest whose pose differs from the rest pose; held at their pose.
     constrained : (k,) int64 array
         ``fixed``, then every group, then ``held``: the solver's constrained vertices in target order.
+    stiffness : (n,) float64 array or None
+        Painted stiffness (the cell weights of :class:`arap.ArapSolver`; ``inf``: rigid), or None for all 1.
     """
 
     roi: np.ndarray | None
@@ -76,6 +79,7 @@ class ConstraintSet:
     pose: np.ndarray
     held: np.ndarray
     constrained: np.ndarray
+    stiffness: np.ndarray | None = None
 
     @classmethod
     def build(
@@ -86,6 +90,7 @@ class ConstraintSet:
         fixed: Sequence[int],
         groups: Sequence[Sequence[int]],
         handle_positions: np.ndarray | None = None,
+        stiffness: Any = None,
     ) -> ConstraintSet:
         """Validate a constraint set for a mesh.
 
@@ -101,6 +106,8 @@ class ConstraintSet:
         handle_positions : (h, 3) array or None
             Positions of the handle vertices (groups concatenated) that the transforms apply to instead of their
             ``pose`` positions; the set's :attr:`pose` is then a copy of ``pose`` with these positions put in.
+        stiffness : list of {"vertices": [...], "value": v} or None
+            Painted stiffness (v > 0 or ``"rigid"``; 1 elsewhere), as in constraints files; None: all 1.
 
         Returns
         -------
@@ -112,11 +119,12 @@ class ConstraintSet:
             ``bad_constraints`` with the message of :func:`arap.constraints.check_selection` (the validator the
             library and the command line use): indices that are not integers or out of range, a vertex repeated
             within or across ``fixed`` and the groups, a repeated ROI vertex, an empty handle group or an empty
-            ROI.
+            ROI; or the message of :func:`arap.constraints.stiffness_from_json` for bad stiffness.
         """
         n = len(rest)
         try:
             fixed_arr, group_list, roi_arr = check_selection(n, fixed, groups, roi)
+            painted = None if stiffness is None else stiffness_from_json(list(stiffness), n)
         except ConstraintError as exc:
             raise RequestError("bad_constraints", str(exc)) from exc
         group_arrs = tuple(group_list)
@@ -133,9 +141,12 @@ class ConstraintSet:
             outside &= np.any(pose != rest, axis=1)
             held = np.flatnonzero(outside).astype(np.int64)
         constrained = np.concatenate([fixed_arr, *group_arrs, held]).astype(np.int64)
-        for a in (fixed_arr, *group_arrs, held):
-            a.setflags(write=False)
-        return cls(roi_arr, fixed_arr, group_arrs, pose, held, constrained)
+        if painted is not None and np.all(painted == 1.0):
+            painted = None
+        for frozen in (fixed_arr, *group_arrs, held, painted):
+            if frozen is not None:
+                frozen.setflags(write=False)
+        return cls(roi_arr, fixed_arr, group_arrs, pose, held, constrained, painted)
 
     @classmethod
     def empty(cls, pose: np.ndarray) -> ConstraintSet:
@@ -159,12 +170,13 @@ class ConstraintSet:
         return self.selection_digest() == other.selection_digest()
 
     def selection_digest(self) -> bytes:
-        """Hash of the selection (roi, fixed, groups)."""
-        return _digest(self.roi, self.fixed, *self.groups, np.asarray([len(g) for g in self.groups]))
+        """Hash of the selection (roi, fixed, groups, stiffness)."""
+        return _digest(self.roi, self.fixed, *self.groups, np.asarray([len(g) for g in self.groups]),
+                       stiffness=self.stiffness)
 
     def solver_digest(self) -> bytes:
-        """Hash of what the solver's factorisation depends on (constrained vertices and roi)."""
-        return _digest(self.roi, self.constrained)
+        """Hash of what the solver's factorisation depends on (constrained vertices, roi and stiffness)."""
+        return _digest(self.roi, self.constrained, stiffness=self.stiffness)
 
     def handle_targets(self, transforms: np.ndarray) -> np.ndarray:
         """Targets of the handle vertices (groups concatenated) under ``transforms`` ``(g, 4, 4)``."""
@@ -178,12 +190,17 @@ class ConstraintSet:
         """Targets of :attr:`constrained`, in order, under ``transforms`` ``(g, 4, 4)``."""
         return np.concatenate([self.pose[self.fixed], self.handle_targets(transforms), self.pose[self.held]])
 
+    def stiffness_json(self) -> list[dict[str, Any]] | None:
+        """The painted stiffness as ``[{"vertices": [...], "value": v}]`` (None when all 1)."""
+        return None if self.stiffness is None else stiffness_to_json(self.stiffness)
+
     def to_json(self) -> dict[str, Any]:
         """The selection as sent in ``state`` messages."""
         return {
             "roi": None if self.roi is None else self.roi.tolist(),
             "fixed": self.fixed.tolist(),
             "handle_groups": [g.tolist() for g in self.groups],
+            "stiffness": self.stiffness_json(),
         }
 
     def document(self, rest: np.ndarray, transforms: np.ndarray) -> dict[str, Any]:
@@ -208,4 +225,7 @@ class ConstraintSet:
         }
         if self.roi is not None:
             doc["roi"] = self.roi.tolist()
+        if self.stiffness is not None:
+            doc["version"] = 2
+            doc["stiffness"] = self.stiffness_json()
         return doc

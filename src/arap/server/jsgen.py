@@ -125,6 +125,7 @@ _TS_TYPES = {
     "index_groups": "number[][]",
     "matrices": "number[][]",
     "points_or_null": "number[][]|null",
+    "stiffness_or_null": "Array<{vertices: number[], value: number|\"rigid\"}>|null",
 }
 """JSDoc type of each field kind (``enum`` fields get the union of their choices)."""
 

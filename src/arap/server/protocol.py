@@ -62,6 +62,9 @@ PROTOCOL_VERSION = 2
 MAX_HANDLE_GROUPS = 256
 """Most handle groups one constraint set may have."""
 
+MAX_STIFFNESS_GROUPS = 256
+"""Most stiffness groups (distinct painted values) in one set_constraints."""
+
 MAX_SEQ = 2**53 - 1
 """Largest ``seq`` of a drag (the largest integer a JavaScript number holds exactly)."""
 
@@ -93,7 +96,8 @@ class Field:
         ``int``, ``number``, ``string``, ``enum``, ``indices`` (list of vertex indices),
         ``indices_or_null``, ``index_groups`` (list of lists of vertex indices), ``matrices`` (list of 4×4
         matrices, 16 numbers each, column-major), ``points_or_null`` (list of ``[x, y, z]``, or null),
-        ``bool``, ``object``, ``list``.
+        ``stiffness_or_null`` (list of ``{"vertices": [...], "value": v}``, v a positive number or ``"rigid"``,
+        or null), ``bool``, ``object``, ``list``.
     doc : str
         What the field means.
     required : bool
@@ -163,7 +167,10 @@ CLIENT_MESSAGES: dict[str, MessageSpec] = {
               Field("handle_groups", "index_groups", "vertices moved together by one transform per group",
                     max_length=MAX_HANDLE_GROUPS),
               Field("targets", "points_or_null", "positions of the handle vertices (groups concatenated), or null "
-                    "to keep them where they are", required=False)),
+                    "to keep them where they are", required=False),
+              Field("stiffness", "stiffness_or_null", "painted stiffness (cell weights) as [{vertices, value}], "
+                    'value > 0 or "rigid", 1 elsewhere; null or absent: all 1', required=False,
+                    max_length=MAX_STIFFNESS_GROUPS)),
         _spec("drag", "move the handle groups; only the newest pending drag is solved",
               Field("seq", "int", "sequence number echoed by the answering vertices frame", minimum=0,
                     maximum=MAX_SEQ),
@@ -235,7 +242,7 @@ SERVER_MESSAGES: dict[str, MessageSpec] = {
         _spec("state", "session state after any change",
               Field("can_undo", "bool", ""), Field("can_redo", "bool", ""),
               Field("params", "object", "solver parameters"),
-              Field("constraints", "object", "roi, fixed, handle_groups as last accepted"),
+              Field("constraints", "object", "roi, fixed, handle_groups, stiffness as last accepted"),
               Field("transforms", "matrices", "current transform of each handle group"),
               Field("stats", "object", "n_vertices, n_faces, roi_size, n_free, factor_ms")),
         _spec("constraints", "answer to get_constraints",
@@ -396,6 +403,21 @@ def _check_field(f: Field, value: Any, mtype: str) -> Any:
         for i, p in enumerate(value):
             if not isinstance(p, list) or len(p) != 3 or not all(_is_number(x) for x in p):
                 raise RequestError("bad_message", f"{where}[{i}] must be a list of 3 finite numbers")
+        return value
+    if kind == "stiffness_or_null":
+        if value is None:
+            return None
+        if not isinstance(value, list):
+            raise RequestError("bad_message", f"{where} must be a list of {{vertices, value}} objects or null")
+        if f.max_length is not None and len(value) > f.max_length:
+            raise RequestError("bad_message", f"{where} has {len(value)} groups, at most {f.max_length}")
+        for i, item in enumerate(value):
+            if not isinstance(item, dict) or set(item) != {"vertices", "value"}:
+                raise RequestError("bad_message", f'{where}[{i}] must be an object with "vertices" and "value"')
+            _check_index_list(item["vertices"], f"{where}[{i}].vertices")
+            v = item["value"]
+            if v != "rigid" and not (_is_number(v) and v > 0):
+                raise RequestError("bad_message", f'{where}[{i}].value must be a positive number or "rigid"')
         return value
     raise AssertionError(f"field kind {kind!r} cannot be received")
 

@@ -147,7 +147,7 @@ class Session:
         mesh = self._require_mesh()
         try:
             solver = arap.ArapSolver(V, mesh.F, cs.constrained, energy=params.energy, weights=params.weights,
-                                     roi=cs.roi, alpha=params.alpha)
+                                     roi=cs.roi, alpha=params.alpha, stiffness=cs.stiffness)
         except ArapError as exc:
             raise RequestError("bad_constraints", str(exc)) from exc
         logger.debug("factorised %d free vertices in %.1f ms", solver.n_free, 1000 * solver.factor_seconds)
@@ -199,7 +199,8 @@ class Session:
         self.history.clear(self._snapshot())
 
     def set_constraints(self, roi: list[int] | None, fixed: list[int], groups: list[list[int]],
-                        targets: list[list[float]] | None = None) -> DragOutcome | None:
+                        targets: list[list[float]] | None = None,
+                        stiffness: list[dict[str, Any]] | None = None) -> DragOutcome | None:
         """New constraint set referring to the current deformed pose; transforms reset to identity.
 
         Parameters
@@ -211,6 +212,8 @@ class Session:
         targets : list of [x, y, z] or None
             Positions of the handle vertices (groups concatenated) that replace their pose positions as the
             base of the transforms; the shape is then solved at once.
+        stiffness : list of {"vertices": [...], "value": v} or None
+            Painted stiffness (v > 0 or ``"rigid"``, 1 elsewhere), as in constraints files; None: all 1.
 
         Returns
         -------
@@ -233,7 +236,8 @@ class Session:
                                    "vertex")
             self._check_range(points)
             positions = points if n_handles else None
-        cs = ConstraintSet.build(self.V, self.U, roi, fixed, groups, handle_positions=positions)
+        cs = ConstraintSet.build(self.V, self.U, roi, fixed, groups, handle_positions=positions,
+                                 stiffness=stiffness)
         unchanged = (positions is None and cs.same_selection(self.constraints) and self.constraints.pose is self.U
                      and np.array_equal(self.transforms, identity_transforms(cs.n_groups)))
         if unchanged:
@@ -440,7 +444,7 @@ class Session:
             return
         groups = [g.tolist() for g in old.groups]
         roi = None if old.roi is None else old.roi.tolist()
-        cs = ConstraintSet.build(self.V, self.V, roi, old.fixed.tolist(), groups)
+        cs = ConstraintSet.build(self.V, self.V, roi, old.fixed.tolist(), groups, stiffness=old.stiffness_json())
         self.solver = self._solver_for(self.rest_id, self.V, cs, self.params)
         self.U = self.V
         self.constraints = cs
@@ -461,7 +465,7 @@ class Session:
             raise RequestError("bad_mesh", f"the deformed shape cannot become the rest pose: {exc}") from exc
         old = self.constraints
         cs = ConstraintSet.build(V, V, None if old.roi is None else old.roi.tolist(), old.fixed.tolist(),
-                                 [g.tolist() for g in old.groups])
+                                 [g.tolist() for g in old.groups], stiffness=old.stiffness_json())
         rest_id = self._new_rest_id()
         self.solver = self._solver_for(rest_id, V, cs, self.params)
         self.rest_id, self.V, self.U = rest_id, V, V

@@ -1,0 +1,120 @@
+"""Painted stiffness in the studio's session: it reaches the solver (a rigid band stays rigid under a drag), it is
+part of the constraint set (state, constraints document, undo and redo, reset and apply), and bad paint is
+refused with the session unchanged."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from arap.constraints import load_constraints
+from arap.server.meshdata import MeshData, load_builtin
+from arap.server.protocol import RequestError, parse_text
+from arap.server.session import Session
+from tests.core.test_stiffness import _rigid_misfit
+from tests.server.helpers import column_major, rotation_z
+
+
+@pytest.fixture(scope="module")
+def bar() -> MeshData:
+    return load_builtin("bar")
+
+
+@pytest.fixture
+def session(bar: MeshData) -> Session:
+    s = Session()
+    s.load(bar)
+    return s
+
+
+def _setup(V: np.ndarray) -> tuple[list[int], list[int], np.ndarray]:
+    y = V[:, 1]
+    fixed = np.flatnonzero(y <= np.quantile(y, 0.08)).tolist()
+    top = np.flatnonzero(y >= np.quantile(y, 0.92)).tolist()
+    middle = np.flatnonzero(np.abs(y - np.median(y)) < 0.12 * np.ptp(y))
+    return fixed, top, middle
+
+
+def _bend(session: Session, top: list[int]) -> np.ndarray:
+    V = session.V
+    M = rotation_z(0.6, V[top].mean(axis=0), shift=(1.0, 0.0, 0.0))
+    session.drag([column_major(M)])
+    return session.U
+
+
+def test_a_rigid_band_stays_rigid(session: Session) -> None:
+    V = session.V
+    fixed, top, middle = _setup(V)
+    session.set_constraints(None, fixed, [top])
+    assert _rigid_misfit(V, _bend(session, top), middle) > 1e-3
+    session.reset()
+    session.set_constraints(None, fixed, [top], stiffness=[{"vertices": middle.tolist(), "value": "rigid"}])
+    assert np.isinf(session.constraints.stiffness[middle]).sum() == len(middle)
+    assert session.solver.stiffness is not None
+    assert _rigid_misfit(V, _bend(session, top), middle) < 1e-6
+
+
+def test_stiffness_in_state_document_and_history(session: Session) -> None:
+    V = session.V
+    fixed, top, middle = _setup(V)
+    session.set_constraints(None, fixed, [top])
+    paint = [{"vertices": middle[:5].tolist(), "value": 20.0}, {"vertices": middle[5:].tolist(), "value": "rigid"}]
+    session.set_constraints(None, fixed, [top], stiffness=paint)
+    assert session.state()["constraints"]["stiffness"] == paint
+    doc = session.constraints_document()
+    assert doc["version"] == 2 and doc["stiffness"] == paint
+    loaded = load_constraints(json.loads(json.dumps(doc)), len(V))
+    np.testing.assert_array_equal(loaded.stiffness, session.constraints.stiffness)
+    assert session.undo() and session.constraints.stiffness is None
+    assert session.state()["constraints"]["stiffness"] is None and "stiffness" not in session.constraints_document()
+    assert session.redo() and session.state()["constraints"]["stiffness"] == paint
+    _bend(session, top)
+    session.end_drag()
+    session.reset()
+    assert session.state()["constraints"]["stiffness"] == paint
+    _bend(session, top)
+    session.apply()
+    assert session.state()["constraints"]["stiffness"] == paint
+
+
+def test_unpainted_stiffness_is_no_stiffness(session: Session) -> None:
+    fixed, top, middle = _setup(session.V)
+    session.set_constraints(None, fixed, [top], stiffness=[{"vertices": middle.tolist(), "value": 1.0}])
+    assert session.constraints.stiffness is None and session.solver.stiffness is None
+    assert session.set_constraints(None, fixed, [top], stiffness=[]) is None  # the same selection: nothing to do
+    assert not session.history.can_redo
+
+
+@pytest.mark.parametrize(("paint", "match"), [
+    ([{"vertices": [10**6], "value": 2.0}], "out of range"),
+    ([{"vertices": [3], "value": 2.0}, {"vertices": [3], "value": 4.0}], "two stiffness values"),
+])
+def test_bad_paint_leaves_the_session_unchanged(session: Session, paint: list, match: str) -> None:
+    fixed, top, _ = _setup(session.V)
+    session.set_constraints(None, fixed, [top])
+    before = session.constraints
+    with pytest.raises(RequestError, match=match) as err:
+        session.set_constraints(None, fixed, [top], stiffness=paint)
+    assert err.value.code == "bad_constraints" and session.constraints is before
+
+
+@pytest.mark.parametrize(("stiffness", "ok"), [
+    (None, True),
+    ([{"vertices": [1, 2], "value": 3.5}, {"vertices": [4], "value": "rigid"}], True),
+    ([{"vertices": [1], "value": 0}], False),
+    ([{"vertices": [1], "value": "soft"}], False),
+    ([{"vertices": [1.5], "value": 2}], False),
+    ([{"vertices": [1]}], False),
+    ({"vertices": [1], "value": 2}, False),
+])
+def test_protocol_checks_the_paint(stiffness: object, ok: bool) -> None:
+    text = json.dumps({"type": "set_constraints", "roi": None, "fixed": [0], "handle_groups": [[1]],
+                       "stiffness": stiffness})
+    if ok:
+        assert parse_text(text).fields["stiffness"] == stiffness
+    else:
+        with pytest.raises(RequestError) as err:
+            parse_text(text)
+        assert err.value.code == "bad_message"
