@@ -56,9 +56,11 @@ export function releaseFocusAfterPointerUse(root) {
     if (!byPointer) return;
     // a click on a drop-down opens it; only its change is the end of its use
     if (e.type === 'click' && e.target instanceof HTMLSelectElement) return;
+    const used = document.activeElement; // the control the pointer just used
     setTimeout(() => {
       const el = document.activeElement;
-      if (!el || !root.contains(el) || !el.matches(CONTROLS)) return;
+      // only that control: the focus may have moved on meanwhile (e.g. to a drop-down the user now types in)
+      if (!el || el !== used || !root.contains(el) || !el.matches(CONTROLS)) return;
       if (takesKeys(el) && !(el instanceof HTMLSelectElement)) return;
       /** @type {HTMLElement} */ (el).blur();
     }, 0);
