@@ -24,7 +24,7 @@ from numpy.typing import NDArray
 
 from arap._csr import csr_from_triplets
 from arap.errors import OptionError
-from arap.weights import DEFAULT_WEIGHTS, corner_weights, edge_weight_matrix
+from arap.weights import DEFAULT_WEIGHTS, WEIGHT_TYPES, corner_weights, edge_weight_matrix
 
 EnergyType = Literal["spokes", "spokes_and_rims", "smooth_rotations"]
 ENERGY_TYPES: tuple[str, ...] = get_args(EnergyType)
@@ -71,6 +71,14 @@ class Cells:
         return np.repeat(np.arange(self.n_cells), np.diff(self.ptr))
 
 
+def check_energy_and_weights(energy: str, weights: str) -> None:
+    """Refuse an unknown energy or weights name (:class:`~arap.errors.OptionError`): the one check of both names."""
+    if energy not in ENERGY_TYPES:
+        raise OptionError(f"unknown energy {energy!r}; expected one of {ENERGY_TYPES}")
+    if weights not in WEIGHT_TYPES:
+        raise OptionError(f"unknown weights {weights!r}; expected one of {WEIGHT_TYPES}")
+
+
 def build_cells(V: np.ndarray, F: np.ndarray, energy: str = DEFAULT_ENERGY, weights: str = DEFAULT_WEIGHTS) -> Cells:
     """Build the cell structure of a mesh.
 
@@ -86,8 +94,7 @@ def build_cells(V: np.ndarray, F: np.ndarray, energy: str = DEFAULT_ENERGY, weig
     -------
     Cells
     """
-    if energy not in ENERGY_TYPES:
-        raise OptionError(f"unknown energy {energy!r}; expected one of {ENERGY_TYPES}")
+    check_energy_and_weights(energy, weights)
     n = len(V)
     F = np.asarray(F, dtype=np.int64)
     if energy in ("spokes", "smooth_rotations"):  # SR-ARAP adds a rotation term to the spoke cells

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import math
 from typing import Any
 
 import numpy as np
@@ -10,20 +9,20 @@ from numpy.typing import ArrayLike, NDArray
 
 from arap.cells import (
     DEFAULT_ENERGY,
-    ENERGY_TYPES,
     Cells,
     EnergyType,
     build_cells,
+    check_energy_and_weights,
     check_stiffness,
     scale_cells,
 )
 from arap.covariance import local_step
-from arap.errors import ArapError, OptionError
+from arap.errors import ArapError
 from arap.mesh import MeshLike, check_mesh, is_mesh_like, mesh_arrays
 from arap.rigid import RigidRegions, rigid_regions
-from arap.smooth import DEFAULT_ALPHA, SmoothRotations
+from arap.smooth import DEFAULT_ALPHA, SmoothRotations, check_alpha
 from arap.start import vertex_areas
-from arap.weights import DEFAULT_WEIGHTS, WEIGHT_TYPES, WeightType
+from arap.weights import DEFAULT_WEIGHTS, WeightType
 
 __all__ = ["arap_energy", "cell_distortion", "cell_energies", "distortion_from_cells"]
 
@@ -52,9 +51,7 @@ def _settle_rotations(cells: Cells, V: NDArray[np.float64], F: NDArray[np.int64]
                       pair_weights: NDArray[np.float64]) -> None:
     """Sweep the SR-ARAP local step from the per-cell rotations in ``R`` until the energy stops falling; ``E`` gets
     each cell's data energy plus its rotation term."""
-    if not (isinstance(alpha, int | float) and math.isfinite(alpha) and alpha >= 0):
-        raise OptionError(f"alpha must be a finite number >= 0, got {alpha!r}")
-    smooth = SmoothRotations(cells, float(vertex_areas(V, F).sum()), alpha, pair_weights)
+    smooth = SmoothRotations(cells, float(vertex_areas(V, F).sum()), check_alpha(alpha), pair_weights)
     term = np.zeros(len(V))
     previous = np.inf
     for _ in range(SWEEPS):
@@ -123,10 +120,7 @@ def cell_energies(
 def _cells_and_energies(V: Any, F: Any, U: Any, energy: EnergyType, weights: WeightType, stiffness: ArrayLike | None,
                         alpha: float) -> tuple[Cells, NDArray[np.float64]]:
     """The (unscaled) cells of the rest mesh and :func:`cell_energies` of ``U``."""
-    if energy not in ENERGY_TYPES:
-        raise OptionError(f"unknown energy {energy!r}; expected one of {ENERGY_TYPES}")
-    if weights not in WEIGHT_TYPES:
-        raise OptionError(f"unknown weights {weights!r}; expected one of {WEIGHT_TYPES}")
+    check_energy_and_weights(energy, weights)
     Vc, Fc, Uc = _inputs(V, F, U)
     scale, rigid = (None, None) if stiffness is None else check_stiffness(stiffness, len(Vc))
     rest = build_cells(Vc, Fc, energy, weights)

@@ -32,6 +32,8 @@ positions).
 
 from __future__ import annotations
 
+import math
+
 import numba as nb
 import numpy as np
 import scipy.sparse as sp
@@ -40,6 +42,7 @@ from numpy.typing import NDArray
 from arap._parallel import policy
 from arap.cells import Cells
 from arap.covariance import CHUNK
+from arap.errors import OptionError
 from arap.rotations import BLOCK, ROW_LOWER, ROW_R, SCRATCH_ROWS, rotations_block
 
 __all__ = ["DEFAULT_ALPHA", "SWEEPS", "SWEEP_GAIN", "WINDOW", "SmoothRotations", "colour_order", "colour_vertices"]
@@ -315,6 +318,13 @@ def _rotation_term_parallel(ptr, b, q, coef, R, out):  # pragma: no cover - comp
     for ch in range(n_chunks):
         total += part[ch]
     return total
+
+
+def check_alpha(alpha: object) -> float:
+    """Refuse an ``alpha`` that is not a finite number ``>= 0`` (:class:`~arap.errors.OptionError`)."""
+    if not (isinstance(alpha, int | float) and math.isfinite(alpha) and alpha >= 0):
+        raise OptionError(f"alpha must be a finite number >= 0, got {alpha!r}")
+    return float(alpha)
 
 
 class SmoothRotations:

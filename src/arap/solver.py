@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import math
 import time
 
 import numpy as np
@@ -12,10 +11,10 @@ from numpy.typing import ArrayLike, NDArray
 from arap.anderson import AndersonAccelerator
 from arap.cells import (
     DEFAULT_ENERGY,
-    ENERGY_TYPES,
     EnergyType,
     build_cells,
     build_rhs_gather,
+    check_energy_and_weights,
     check_stiffness,
     scale_cells,
     system_matrix,
@@ -38,10 +37,10 @@ from arap.result import (
     StartName,
 )
 from arap.rigid import RigidRegions, rigid_regions
-from arap.smooth import DEFAULT_ALPHA, SWEEP_GAIN, SWEEPS, SmoothRotations, colour_order
+from arap.smooth import DEFAULT_ALPHA, SWEEP_GAIN, SWEEPS, SmoothRotations, check_alpha, colour_order
 from arap.start import best_rigid_transform, vertex_areas
 from arap.topology import locality_order, vertex_adjacency
-from arap.weights import DEFAULT_WEIGHTS, WEIGHT_TYPES, WeightType
+from arap.weights import DEFAULT_WEIGHTS, WeightType
 
 
 class ArapSolver:
@@ -122,12 +121,8 @@ class ArapSolver:
         points: PointConstraints | tuple[ArrayLike, ArrayLike] | tuple[ArrayLike, ArrayLike, ArrayLike] | None = None,
     ) -> None:
         t0 = time.perf_counter()
-        if energy not in ENERGY_TYPES:
-            raise OptionError(f"unknown energy {energy!r}; expected one of {ENERGY_TYPES}")
-        if weights not in WEIGHT_TYPES:
-            raise OptionError(f"unknown weights {weights!r}; expected one of {WEIGHT_TYPES}")
-        if not (isinstance(alpha, int | float) and math.isfinite(alpha) and alpha >= 0):
-            raise OptionError(f"alpha must be a finite number >= 0, got {alpha!r}")
+        check_energy_and_weights(energy, weights)
+        alpha = check_alpha(alpha)
         if constrained is None and is_mesh_like(V) and F is not None:
             F, constrained = None, F  # ArapSolver(mesh, constrained)
         if constrained is None:
