@@ -126,6 +126,7 @@ _TS_TYPES = {
     "matrices": "number[][]",
     "points_or_null": "number[][]|null",
     "stiffness_or_null": "Array<{vertices: number[], value: number|\"rigid\"}>|null",
+    "point_handles_or_null": "Array<{face: number, barycentric: number[], weight?: number, target?: number[]}>|null",
 }
 """JSDoc type of each field kind (``enum`` fields get the union of their choices)."""
 

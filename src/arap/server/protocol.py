@@ -97,7 +97,8 @@ class Field:
         ``indices_or_null``, ``index_groups`` (list of lists of vertex indices), ``matrices`` (list of 4×4
         matrices, 16 numbers each, column-major), ``points_or_null`` (list of ``[x, y, z]``, or null),
         ``stiffness_or_null`` (list of ``{"vertices": [...], "value": v}``, v a positive number or ``"rigid"``,
-        or null), ``bool``, ``object``, ``list``.
+        or null), ``point_handles_or_null`` (list of ``{"face": f, "barycentric": [a, b, c]}`` with optional
+        ``"weight"`` and ``"target"``, or null), ``bool``, ``object``, ``list``.
     doc : str
         What the field means.
     required : bool
@@ -170,11 +171,15 @@ CLIENT_MESSAGES: dict[str, MessageSpec] = {
                     "to keep them where they are", required=False),
               Field("stiffness", "stiffness_or_null", "painted stiffness (cell weights) as [{vertices, value}], "
                     'value > 0 or "rigid", 1 elsewhere; null or absent: all 1', required=False,
-                    max_length=MAX_STIFFNESS_GROUPS)),
+                    max_length=MAX_STIFFNESS_GROUPS),
+              Field("points", "point_handles_or_null", "point handles as [{face, barycentric, weight?, target?}] "
+                    "(no weight: hard); each is a handle group of its own, after handle_groups; null or absent: none",
+                    required=False, max_length=MAX_HANDLE_GROUPS)),
         _spec("drag", "move the handle groups; only the newest pending drag is solved",
               Field("seq", "int", "sequence number echoed by the answering vertices frame", minimum=0,
                     maximum=MAX_SEQ),
-              Field("transforms", "matrices", "one affine 4x4 matrix per handle group, column-major",
+              Field("transforms", "matrices", "one affine 4x4 matrix per handle group, then per point handle, "
+                    "column-major",
                     max_length=MAX_HANDLE_GROUPS)),
         _spec("end_drag", "the current deformation becomes one undo step"),
         _spec("set_params", "change solver parameters (any of the fields)",
@@ -242,7 +247,7 @@ SERVER_MESSAGES: dict[str, MessageSpec] = {
         _spec("state", "session state after any change",
               Field("can_undo", "bool", ""), Field("can_redo", "bool", ""),
               Field("params", "object", "solver parameters"),
-              Field("constraints", "object", "roi, fixed, handle_groups, stiffness as last accepted"),
+              Field("constraints", "object", "roi, fixed, handle_groups, stiffness, points as last accepted"),
               Field("transforms", "matrices", "current transform of each handle group"),
               Field("stats", "object", "n_vertices, n_faces, roi_size, n_free, factor_ms")),
         _spec("constraints", "answer to get_constraints",
@@ -419,11 +424,47 @@ def _check_field(f: Field, value: Any, mtype: str) -> Any:
             if v != "rigid" and not (_is_number(v) and v > 0):
                 raise RequestError("bad_message", f'{where}[{i}].value must be a positive number or "rigid"')
         return value
+    if kind == "point_handles_or_null":
+        return _check_point_handles(f, value, where)
     raise AssertionError(f"field kind {kind!r} cannot be received")
+
+
+_POINT_KEYS = frozenset({"face", "barycentric", "weight", "target"})
+
+
+def _check_point_handles(f: Field, value: Any, where: str) -> Any:
+    """The form of ``set_constraints.points``; ranges and coordinates are checked against the mesh by
+    :func:`arap.constraints.points_from_json` (``bad_constraints``)."""
+    if value is None:
+        return None
+    if not isinstance(value, list):
+        raise RequestError("bad_message", f"{where} must be a list of {{face, barycentric}} objects or null")
+    if f.max_length is not None and len(value) > f.max_length:
+        raise RequestError("bad_message", f"{where} has {len(value)} point handles, at most {f.max_length}")
+    for i, item in enumerate(value):
+        if not isinstance(item, dict) or not {"face", "barycentric"} <= set(item) or not set(item) <= _POINT_KEYS:
+            raise RequestError("bad_message", f'{where}[{i}] must be an object with "face", "barycentric" and '
+                               'optionally "weight" and "target"')
+        if not _is_int(item["face"]):
+            raise RequestError("bad_message", f"{where}[{i}].face must be an integer triangle index")
+        for key in ("barycentric", "target"):
+            p = item.get(key, [0, 0, 0])
+            if not isinstance(p, list) or len(p) != 3 or not all(_is_number(x) for x in p):
+                raise RequestError("bad_message", f"{where}[{i}].{key} must be a list of 3 finite numbers")
+        w = item.get("weight", 1)
+        if not (_is_number(w) and w > 0):
+            raise RequestError("bad_message", f"{where}[{i}].weight must be a positive number (omit it for a "
+                               "hard handle)")
+    return value
 
 
 def _check_fields_together(mtype: str, fields: dict[str, Any]) -> None:
     """Checks across the fields of one message."""
+    if mtype == "set_constraints" and fields.get("points"):
+        total = len(fields["handle_groups"]) + len(fields["points"])
+        if total > MAX_HANDLE_GROUPS:
+            raise RequestError("bad_message", f"set_constraints has {total} handle groups and point handles, at "
+                               f"most {MAX_HANDLE_GROUPS}")
     if mtype == "set_constraints" and fields.get("targets") is not None:
         n_handles = sum(len(g) for g in fields["handle_groups"])
         if len(fields["targets"]) != n_handles:
