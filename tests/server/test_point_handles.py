@@ -108,12 +108,15 @@ def test_undo_redo_reset_and_apply_keep_the_points(session: Session) -> None:
 def test_point_targets_in_set_constraints_are_solved_at_once(session: Session) -> None:
     V, F = session.V, session.mesh.F
     fixed, face = _bottom_and_top_face(V, F)
-    target = (_on_surface(V, F, face, BARY) + [0.4, 0.0, 0.0]).tolist()
-    outcome = session.set_constraints(None, fixed, [], points=[{"face": face, "barycentric": BARY,
-                                                                "target": target}])
+    target = (_on_surface(V, F, face, BARY) + np.array([0.4, 0.0, 0.0])).tolist()
+    side = int(np.argmax(V[:, 0] + 0.1 * V[:, 1]))
+    side_target = (V[side] + np.array([0.1, 0.0, 0.0])).tolist()
+    outcome = session.set_constraints(None, fixed, [[side]], targets=[side_target],
+                                      points=[{"face": face, "barycentric": BARY, "target": target}])
     assert outcome is not None
     session.settle(lambda: False)
     assert np.abs(_on_surface(session.U, F, face, BARY) - target).max() <= 1e-9 * _diag(V)
+    np.testing.assert_allclose(session.U[side], side_target, atol=1e-12)
     assert session.constraints_document()["points"][0]["target"] == pytest.approx(target)
 
 

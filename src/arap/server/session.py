@@ -235,12 +235,12 @@ class Session:
         positions = None
         n_handles = sum(len(g) for g in groups)
         if targets is not None:
-            points = np.asarray(targets, dtype=np.float64)
-            if points.shape != (n_handles, 3) and not (n_handles == 0 and points.size == 0):
+            given = np.asarray(targets, dtype=np.float64)
+            if given.shape != (n_handles, 3) and not (n_handles == 0 and given.size == 0):
                 raise RequestError("bad_message", f"targets must be {n_handles} points [x, y, z], one per handle "
                                    "vertex")
-            self._check_range(points)
-            positions = points if n_handles else None
+            self._check_range(given)
+            positions = given if n_handles else None
         cs = ConstraintSet.build(self.V, self.U, roi, fixed, groups, handle_positions=positions,
                                  stiffness=stiffness, points=points, faces=mesh.F)
         moved = positions is not None or any("target" in p for p in points or [])
