@@ -96,9 +96,53 @@ function targetMap(doc) {
   return map;
 }
 
+const isNumber = (x) => typeof x === 'number' && Number.isFinite(x);
+const isTriple = (p) => Array.isArray(p) && p.length === 3 && p.every(isNumber);
+
+/** The point handles of a document (version 2): [{face, barycentric, weight?, target?}]. */
+function pointList(doc) {
+  if (doc.points === undefined || doc.points === null) return [];
+  if (!Array.isArray(doc.points)) throw new Error('"points" must be a list');
+  return doc.points.map((p, k) => {
+    if (!p || typeof p !== 'object' || !Number.isInteger(p.face) || p.face < 0 || !isTriple(p.barycentric)) {
+      throw new Error(`"points[${k}]" must have a triangle index "face" and three "barycentric" numbers`);
+    }
+    if (p.target !== undefined && !isTriple(p.target)) throw new Error(`"points[${k}].target" must be three numbers`);
+    if (p.weight !== undefined && !(isNumber(p.weight) && p.weight > 0)) {
+      throw new Error(`"points[${k}].weight" must be a positive number`);
+    }
+    const out = { face: p.face, barycentric: p.barycentric.slice() };
+    if (p.weight !== undefined) out.weight = p.weight;
+    if (p.target !== undefined) out.target = p.target.slice();
+    return out;
+  });
+}
+
+/** Painted stiffness of a document: [{vertices, value}] (a list of one value per vertex is turned into that). */
+function stiffnessList(doc) {
+  const s = doc.stiffness;
+  if (s === undefined || s === null) return null;
+  if (!Array.isArray(s)) throw new Error('"stiffness" must be a list');
+  if (s.length && s.every((v) => typeof v !== 'object')) {
+    const groups = new Map();
+    s.forEach((v, i) => {
+      if (v === 1) return;
+      if (!groups.has(v)) groups.set(v, []);
+      groups.get(v).push(i);
+    });
+    return [...groups].map(([value, vertices]) => ({ vertices, value }));
+  }
+  return s.map((g, k) => {
+    const ok = g && typeof g === 'object' && (g.value === 'rigid' || (isNumber(g.value) && g.value > 0));
+    if (!ok) throw new Error(`"stiffness[${k}]" must be {"vertices": [...], "value": a positive number or "rigid"}`);
+    return { vertices: indexList(g.vertices, `stiffness[${k}].vertices`), value: g.value };
+  });
+}
+
 /**
  * Read a constraints document: the studio format {roi, fixed, handle_groups} or the command-line format
- * {fixed, handles, targets, roi} (its handles become one group). With `targets`, the result's `targets` maps each
+ * {fixed, handles, targets, roi, points, stiffness} (its handles become one group; point handles follow the groups,
+ * painted stiffness comes as [{vertices, value}]). With `targets`, the result's `targets` maps each
  * handle vertex to its [x, y, z]; handles outside `handle_groups` (vertices a saved studio session held in place)
  * become one more group.
  */
@@ -129,6 +173,10 @@ export function parseConstraints(text) {
   } else {
     groups = [];
   }
-  if (!fixed.length && !groups.length) throw new Error('no "fixed" or handle vertices in the document');
-  return { roi: roi && roi.length ? roi : null, fixed, handle_groups: groups, targets };
+  const points = pointList(doc);
+  const stiffness = stiffnessList(doc);
+  if (!fixed.length && !groups.length && !points.length) {
+    throw new Error('no "fixed" or handle vertices (or "points") in the document');
+  }
+  return { roi: roi && roi.length ? roi : null, fixed, handle_groups: groups, targets, points, stiffness };
 }

@@ -11,7 +11,9 @@ import { SessionKeeper } from './keeper.js';
 import { ignoreTypeAhead, installShortcuts, releaseFocusAfterPointerUse } from './keys.js';
 import { Panel } from './panel.js';
 import { LivePose } from './livepose.js';
+import { PaintModes } from './paintmodes.js';
 import { LinePlot } from './plot.js';
+import { PointHandles } from './pointhandles.js';
 import { CLIENT, meshArrays, PROTOCOL_VERSION, SERVER } from './protocol.js';
 import { constraintsKey, Selection } from './selection.js';
 import { builtinSource, fileSource } from './snapshot.js';
@@ -83,11 +85,15 @@ const gizmo = new HandleGizmo(viewer, {
 const tools = new SelectionTools(viewer, {
   isGizmoActive: () => gizmo.active,
   onPaint: (indices, subtract) => {
-    if (selection.paint(indices, app.role, subtract)) refreshSelection(false);
+    if (selection.paint(indices, app.role, modes.subtract(app.role, subtract))) refreshSelection(false);
   },
   onStrokeEnd: () => commitConstraints(),
   graph: () => surface.graph(),
+  picking: () => app.role === 'point',
+  onPick: (hit, subtract) => points.pick(hit, subtract),
 });
+const points = new PointHandles({ viewer, selection, changed: selectionEdited, weight: () => modes.weight() });
+const modes = new PaintModes({ selection, setRole, onWeightProblem: (text) => panel.showStatus(text, 'error', 5000) });
 const surface = new SurfaceSelection({ viewer, selection, role: () => app.role, changed: selectionEdited });
 const heat = new HeatMap({ viewer, send, role: () => selection.role, restore: () => refreshSelection(false) });
 const help = new Help();
@@ -138,8 +144,10 @@ function selectionEdited() {
 }
 
 function refreshSelection(full = true) {
-  viewer.updateColors(selection.roiCount ? selection.roi : null, selection.role);
+  viewer.updateColors(selection.roiCount ? selection.roi : null, selection.role, selection.stiff,
+    app.role === 'stiffness' ? 0.9 : 0.35);
   heat.paint();
+  points.rebuild();
   gizmo.syncGroups(selection.groups.length);
   if (full) updateGroupsUi();
   else scheduleGroupsUi();
@@ -159,7 +167,9 @@ function updateGroupsUi() {
   keeper.touch();
   const counts = selection.counts();
   panel.setGroups(selection.groups, selection.activeGroup, counts, viewer.nVertices);
-  if (!gizmo.dragging) gizmo.attach(selection.activeGroup, selection.groupIndices(selection.activeGroup));
+  const anchor = points.anchor(selection.activeGroup);
+  if (!gizmo.dragging) gizmo.attach(selection.activeGroup, anchor.indices, anchor.weights);
+  points.refresh();
 }
 
 /** True when the server holds the local selection (so drags refer to the groups shown). */
@@ -174,20 +184,24 @@ function selectionSynced() {
 
 /**
  * Send the local selection as the session's constraint set; `targets` (a Map from handle vertex to [x, y, z],
- * from a loaded file) moves the handles there. `force` sends it even when the server seems to hold it already.
+ * from a loaded file) moves the handles there, as `pointTargets` (one [x, y, z] or null per point handle) does the
+ * point handles. `force` sends it even when the server seems to hold it already.
  */
-function commitConstraints(targets = null, force = false) {
+function commitConstraints(targets = null, force = false, pointTargets = null) {
   updateGroupsUi();
   if (!app.ready) return;
   const c = selection.toConstraints();
   const key = constraintsKey(c);
-  if (key === app.serverKey && app.sentKey === null && !targets && !force) return;
+  const moving = !!targets || !!pointTargets?.some((t) => t);
+  if (key === app.serverKey && app.sentKey === null && !moving && !force) return;
   app.groupMap = c.groupMap;
   app.sentKey = key;
   app.sentVersion = selection.version;
   gizmo.resetTransforms();
   const msg = { type: CLIENT.SET_CONSTRAINTS, roi: c.roi, fixed: c.fixed, handle_groups: c.handle_groups };
   if (targets) msg.targets = c.handle_groups.flat().map((i) => targets.get(i));
+  if (c.stiffness) msg.stiffness = c.stiffness;
+  if (c.points.length) msg.points = c.points.map((p, k) => (pointTargets?.[k] ? { ...p, target: pointTargets[k] } : p));
   if (send(msg)) setBusy('Updating constraints…', SERVER.STATE);
 }
 
@@ -286,6 +300,7 @@ function onVertices(msg) {
   heat.shapeChanged();
   if (msg.seq >= 0) app.lastSeq = msg.seq; // -1: a frame the server sent on its own (settling, undo)
   gizmo.recenter();
+  points.refresh();
   if (!(msg.iterations > 0)) return; // a pose change without a solve (undo, reset)
   const now = performance.now();
   app.updateTimes.push(now);
@@ -318,7 +333,7 @@ function onState(msg) {
   } else if (app.sentKey === null && key !== constraintsKey(selection.toConstraints())) {
     // the server's constraints changed under us (undo/redo, loaded document): adopt them
     selection.fromConstraints(c);
-    app.groupMap = c.handle_groups.map((_, k) => k);
+    app.groupMap = selection.toConstraints().groupMap;
     app.syncedVersion = selection.version;
     refreshSelection(true);
   }
@@ -367,7 +382,8 @@ function uploadFile(file) {
 }
 
 function applySavedSelection(snap) {
-  selection.fromConstraints({ roi: snap.roi, fixed: snap.fixed, handle_groups: snap.groups });
+  selection.fromConstraints({ roi: snap.roi, fixed: snap.fixed, handle_groups: snap.groups, stiffness: snap.stiffness },
+    snap.groupPoints);
   selection.activeGroup = Math.max(0, Math.min(snap.activeGroup ?? 0, selection.groups.length - 1));
   refreshSelection(true);
   commitConstraints(null, true);
@@ -386,19 +402,24 @@ function loadConstraintsFile(file) {
     }
     const n = viewer.nVertices;
     const bad = [...(c.roi || []), ...c.fixed, ...c.handle_groups.flat()].find((i) => i >= n);
-    if (bad !== undefined) {
-      panel.showStatus(`${file.name} refers to vertex ${bad}, but the mesh has ${n} vertices.`, 'error');
+    const badFace = c.points.find((p) => p.face >= app.nFaces);
+    if (bad !== undefined || badFace) {
+      const what = badFace ? `triangle ${badFace.face}` : `vertex ${bad}`;
+      const has = badFace ? `${app.nFaces} triangles` : `${n} vertices`;
+      panel.showStatus(`${file.name} refers to ${what}, but the mesh has ${has}.`, 'error');
       return;
     }
     selection.fromConstraints(c);
     refreshSelection(true);
-    commitConstraints(c.targets);
+    commitConstraints(c.targets, false, c.points.map((p) => p.target ?? null));
   });
 }
 
 function setRole(role) {
   app.role = role;
   panel.setSegment('role-seg', 'role', role);
+  modes.showRole(role);
+  refreshSelection(false);
   /** @type {HTMLButtonElement} */ (document.getElementById('btn-invert')).disabled = role === 'erase';
 }
 
@@ -465,7 +486,7 @@ const panel = new Panel({
   },
   selectGroup: (g) => {
     selection.activeGroup = g;
-    setRole('handle');
+    setRole(selection.groups[g]?.point ? 'point' : 'handle');
     updateGroupsUi();
   },
   undo: () => send({ type: CLIENT.UNDO }),
@@ -498,6 +519,8 @@ installShortcuts({
     2: () => setRole('fixed'),
     3: () => setRole('handle'),
     4: () => setRole('erase'),
+    5: () => setRole('point'),
+    6: () => setRole('stiffness'),
     '+': () => surface.ring(false),
     '=': () => surface.ring(false),
     '-': () => surface.ring(true),
@@ -513,7 +536,7 @@ releaseFocusAfterPointerUse(document.getElementById('panel'));
 
 installDropTarget(document.getElementById('viewport'), document.getElementById('drop-overlay'), uploadFile);
 
-installTestHook({ app, viewer, selection, gizmo, conn, keeper });
+installTestHook({ app, viewer, selection, gizmo, conn, keeper, points });
 
 // updates per second over the last second; decays to zero once dragging stops
 setInterval(() => {

@@ -221,10 +221,11 @@ export class Panel {
       sw.style.background = cssColor(groupColor(k));
       const name = document.createElement('span');
       name.className = 'name';
-      name.textContent = `Group ${k + 1}`;
+      name.textContent = g.point ? `Point ${k + 1}` : `Group ${k + 1}`;
       const count = document.createElement('span');
       count.className = 'count';
-      count.textContent = `${fmtInt(counts.groups[k] || 0)} v`;
+      const w = g.point?.weight;
+      count.textContent = g.point ? (w ? `soft ${w}` : 'hard') : `${fmtInt(counts.groups[k] || 0)} v`;
       const del = document.createElement('button');
       del.className = 'del';
       del.title = 'Remove this group';
