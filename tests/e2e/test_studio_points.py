@@ -9,9 +9,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from playwright.sync_api import Browser, Page
+from playwright.sync_api import Browser, Page, expect
 
 from tests.e2e.conftest import VIEWPORT, positions, screen_points, wait_idle, wait_ready, wait_settled
+from tests.e2e.test_session_safety import Dialogs, wait_autosaved
 from tests.e2e.test_studio import box_select, drag_gizmo_x, paint_stroke
 
 pytestmark = pytest.mark.e2e
@@ -203,4 +204,31 @@ def test_painted_stiffness_reaches_the_server_and_stiffens(page: Page, tmp_path:
         assert not fresh.evaluate("() => window.__arap.errors"), "the server reported errors"
     finally:
         context.close()
+    assert not page.evaluate("() => window.__arap.errors"), "the server reported errors"
+
+
+def test_point_handles_and_paint_are_autosaved_and_restored(page: Page) -> None:
+    pts = _anchor_bottom(page)
+    page.keyboard.press("6")
+    ymin, ymax = pts[:, 1].min(), pts[:, 1].max()
+    band = pts[np.abs(pts[:, 1] - (ymin + 0.5 * (ymax - ymin))) < 0.02 * (ymax - ymin)]
+    x, y = band[np.argmin(np.linalg.norm(band - np.median(band, axis=0), axis=1))]
+    paint_stroke(page, x, y)
+    wait_idle(page)
+    page.locator("#point-weight").fill("25")
+    page.locator("#point-weight").press("Enter")  # takes the weight and gives the keys back to the shortcuts
+    _place_point(page, pts)
+    before = page.evaluate("() => window.__arap.constraints()")
+    assert before["stiffness"] and before["stiffness"][0]["value"] == 10
+    assert len(before["points"]) == 1 and before["points"][0]["weight"] == 25
+    expect(page.get_by_test_id("group-list")).to_contain_text("soft 25")
+    wait_autosaved(page)
+    Dialogs(page, accept=True)  # the warning before unloading
+    page.reload()
+    wait_ready(page)
+    page.get_by_test_id("restore-accept").click()
+    page.wait_for_function("() => window.__arap.constraints().points.length === 1")
+    wait_ready(page)
+    wait_idle(page)
+    assert page.evaluate("() => window.__arap.constraints()") == before
     assert not page.evaluate("() => window.__arap.errors"), "the server reported errors"

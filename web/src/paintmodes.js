@@ -31,6 +31,10 @@ export class PaintModes {
       this.weight();
       setRole('point');
     });
+    // Enter takes the weight and hands the keys back to the shortcuts
+    this.weightInput.addEventListener('keydown', (e) => {
+      if (e.key === 'Enter') this.weightInput.blur();
+    });
     this._update();
   }
 
