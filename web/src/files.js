@@ -180,3 +180,25 @@ export function parseConstraints(text) {
   }
   return { roi: roi && roi.length ? roi : null, fixed, handle_groups: groups, targets, points, stiffness };
 }
+
+/**
+ * Read a constraints file (parseConstraints) and check it against the mesh; rejects with an Error whose message
+ * names the file.
+ * @param {File} file
+ * @param {number} nVertices
+ * @param {number} nFaces
+ */
+export async function readConstraintsFile(file, nVertices, nFaces) {
+  const text = await file.text();
+  let c;
+  try {
+    c = parseConstraints(text);
+  } catch (err) {
+    throw new Error(`Cannot read ${file.name}: ${err.message}`);
+  }
+  const bad = [...(c.roi || []), ...c.fixed, ...c.handle_groups.flat()].find((i) => i >= nVertices);
+  if (bad !== undefined) throw new Error(`${file.name} refers to vertex ${bad}, but the mesh has ${nVertices} vertices.`);
+  const badFace = c.points.find((p) => p.face >= nFaces);
+  if (badFace) throw new Error(`${file.name} refers to triangle ${badFace.face}, but the mesh has ${nFaces} triangles.`);
+  return c;
+}

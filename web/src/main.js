@@ -1,7 +1,7 @@
 // ARAP Studio: wires the connection, the 3D view, the selection tools, the gizmo and the side panel.
 import './style.css';
 import { Connection, defaultSocketUrl } from './connection.js';
-import { checkMeshFile, download, formatBytes, installDropTarget, parseConstraints } from './files.js';
+import { checkMeshFile, download, formatBytes, installDropTarget, readConstraintsFile } from './files.js';
 import { HandleGizmo } from './gizmo.js';
 import { HeatMap } from './heatmap.js';
 import { describedKeys, Help } from './help.js';
@@ -390,28 +390,13 @@ function applySavedSelection(snap) {
 }
 
 function loadConstraintsFile(file) {
-  file.text().then((text) => {
-    let c;
-    try {
-      c = parseConstraints(text);
-    } catch (err) {
-      const message = `Cannot read ${file.name}: ${err.message}`;
-      app.errors.push({ code: 'client_check', message, request: CLIENT.SET_CONSTRAINTS });
-      panel.showStatus(message, 'error');
-      return;
-    }
-    const n = viewer.nVertices;
-    const bad = [...(c.roi || []), ...c.fixed, ...c.handle_groups.flat()].find((i) => i >= n);
-    const badFace = c.points.find((p) => p.face >= app.nFaces);
-    if (bad !== undefined || badFace) {
-      const what = badFace ? `triangle ${badFace.face}` : `vertex ${bad}`;
-      const has = badFace ? `${app.nFaces} triangles` : `${n} vertices`;
-      panel.showStatus(`${file.name} refers to ${what}, but the mesh has ${has}.`, 'error');
-      return;
-    }
+  readConstraintsFile(file, viewer.nVertices, app.nFaces).then((c) => {
     selection.fromConstraints(c);
     refreshSelection(true);
     commitConstraints(c.targets, false, c.points.map((p) => p.target ?? null));
+  }, (err) => {
+    app.errors.push({ code: 'client_check', message: err.message, request: CLIENT.SET_CONSTRAINTS });
+    panel.showStatus(err.message, 'error');
   });
 }
 
@@ -420,7 +405,7 @@ function setRole(role) {
   panel.setSegment('role-seg', 'role', role);
   modes.showRole(role);
   refreshSelection(false);
-  /** @type {HTMLButtonElement} */ (document.getElementById('btn-invert')).disabled = role === 'erase';
+  /** @type {HTMLButtonElement} */ (document.getElementById('btn-invert')).disabled = !selection.invertible(role);
 }
 
 function setTool(tool) {

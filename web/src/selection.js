@@ -119,9 +119,14 @@ export class Selection {
     this.version++;
   }
 
+  /** True when `invert(mode)` can do something for this mode. */
+  invertible(mode) {
+    return mode !== 'erase' && mode !== 'stiffness' && mode !== 'point';
+  }
+
   /** Invert a role: ROI becomes its complement; anchors/handles swap with unassigned vertices. */
   invert(mode) {
-    if (mode === 'erase' || mode === 'stiffness' || mode === 'point') return false;
+    if (!this.invertible(mode)) return false;
     if (mode === 'roi') {
       for (let i = 0; i < this.n; i++) this.roi[i] ^= 1;
     } else {
