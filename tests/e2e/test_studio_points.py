@@ -76,6 +76,14 @@ def test_a_clicked_point_handle_is_dragged_and_met(page: Page, tmp_path: Path, b
     assert point["weight"] is None
     c = page.evaluate("() => window.__arap.constraints()")
     assert c["points"] == [{"face": point["face"], "barycentric": point["barycentric"]}]
+    # placing it was one undo step
+    page.keyboard.press("Control+Z")
+    page.wait_for_function("() => window.__arap.constraints().points.length === 0")
+    wait_idle(page)
+    page.keyboard.press("Control+Shift+Z")
+    page.wait_for_function("() => window.__arap.constraints().points.length === 1")
+    wait_idle(page)
+    assert page.evaluate("() => window.__arap.constraints()") == c
     gizmo = page.evaluate("() => window.__arap.gizmo()")
     assert gizmo is not None and gizmo["group"] == page.evaluate("() => window.__arap.activeGroup")
     np.testing.assert_allclose(gizmo["centroid"], _on_surface(rest, F, point), atol=1e-5 * diag)
