@@ -151,14 +151,11 @@ class ConstraintSet:
         try:
             fixed_arr, group_list, roi_arr = check_selection(n, fixed, groups, roi)
             painted = None if stiffness is None else stiffness_from_json(list(stiffness), n)
-            pts, point_pose = None, _NO_POINTS
+            pts, point_targets, given = None, None, None
             if points:
                 if faces is None:
                     raise ConstraintError("point handles need the mesh's triangles")
-                pts, given_targets, given = points_from_json(list(points), len(faces), require_target=False)
-                point_pose = pts.positions(np.asarray(pose, dtype=np.float64), np.asarray(faces))
-                point_pose[given] = given_targets[given]
-                point_pose.setflags(write=False)
+                pts, point_targets, given = points_from_json(list(points), len(faces), require_target=False)
         except ConstraintError as exc:
             raise RequestError("bad_constraints", str(exc)) from exc
         group_arrs = tuple(group_list)
@@ -166,6 +163,11 @@ class ConstraintSet:
             pose = np.array(pose, dtype=np.float64)
             pose[np.concatenate(group_arrs)] = np.asarray(handle_positions, dtype=np.float64).reshape(-1, 3)
             pose.setflags(write=False)
+        point_pose = _NO_POINTS
+        if pts is not None and faces is not None and point_targets is not None:
+            point_pose = pts.positions(np.asarray(pose, dtype=np.float64), np.asarray(faces))
+            point_pose[given] = point_targets[given]
+            point_pose.setflags(write=False)
         held = np.zeros(0, dtype=np.int64)
         if roi_arr is not None:
             outside = np.ones(n, dtype=bool)
