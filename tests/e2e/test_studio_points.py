@@ -13,7 +13,7 @@ from playwright.sync_api import Browser, Page, expect
 
 from tests.e2e.conftest import VIEWPORT, positions, screen_points, wait_idle, wait_ready, wait_settled
 from tests.e2e.test_session_safety import Dialogs, wait_autosaved
-from tests.e2e.test_studio import box_select, drag_gizmo_x, paint_stroke
+from tests.e2e.test_studio import Shoot, box_select, drag_gizmo_x, paint_stroke
 
 pytestmark = pytest.mark.e2e
 
@@ -65,7 +65,7 @@ def _on_surface(U: np.ndarray, F: np.ndarray, point: dict) -> np.ndarray:
 
 
 def test_a_clicked_point_handle_is_dragged_and_met(page: Page, tmp_path: Path, browser: Browser,
-                                                   server_url: str) -> None:
+                                                   server_url: str, shoot: Shoot) -> None:
     rest = positions(page)
     F = _faces(page)
     diag = _diag(rest)
@@ -88,9 +88,11 @@ def test_a_clicked_point_handle_is_dragged_and_met(page: Page, tmp_path: Path, b
     assert gizmo is not None and gizmo["group"] == page.evaluate("() => window.__arap.activeGroup")
     np.testing.assert_allclose(gizmo["centroid"], _on_surface(rest, F, point), atol=1e-5 * diag)
 
+    shoot("points-01-placed")
     drag_gizmo_x(page)
     assert page.evaluate("() => window.__arap.lastSeq") > 0, "no drag was answered"
     wait_settled(page)
+    shoot("points-02-dragged")
     U = positions(page)
     doc, saved = _saved_document(page, tmp_path, "points.json")
     assert doc["version"] == 2 and len(doc["points"]) == 1
