@@ -14,7 +14,8 @@ from playwright.sync_api import Page, expect
 from scipy.spatial.transform import Rotation
 
 from arap import shapes
-from tests.e2e.conftest import positions, wait_idle, wait_settled
+from tests.e2e.conftest import positions, wait_idle, wait_ready, wait_settled
+from tests.e2e.test_session_safety import Dialogs, wait_autosaved
 from tests.e2e.test_studio import box_select, drag_gizmo_x
 
 pytestmark = pytest.mark.e2e
@@ -221,4 +222,31 @@ def test_dragging_a_group_moves_its_partner_mirrored(page: Page, tmp_path: Path)
     wait_idle(page)
     assert page.evaluate("() => window.__arap.partners()")[:2] == [1, 0]
     assert page.evaluate("() => window.__arap.constraints().handle_groups")[:2] == groups
+    assert not page.evaluate("() => window.__arap.errors")
+
+
+def test_pairs_survive_an_undo_and_a_reload(page: Page, tmp_path: Path) -> None:
+    V, F = symmetric_mesh()
+    upload(page, tmp_path, "warped", V, F)
+    press_mirror(page)
+    page.get_by_test_id("role-handle").click()
+    paint_at(page, front_point(V, 0.7))
+    page.get_by_test_id("role-roi").click()
+    paint_at(page, front_point(V, -0.5))  # away from the gizmo
+    assert page.evaluate("() => window.__arap.constraints().roi")
+    page.keyboard.press("Control+z")
+    page.wait_for_function("() => window.__arap.constraints().roi === null && !window.__arap.busy")
+    # the groups were rebuilt from the server's constraints: the mirror images are paired again
+    assert page.evaluate("() => window.__arap.partners()") == [1, 0]
+    groups = page.evaluate("() => window.__arap.constraints().handle_groups")
+
+    wait_autosaved(page)
+    Dialogs(page, accept=True)
+    page.reload()
+    wait_ready(page)
+    page.get_by_test_id("restore-accept").click()
+    page.wait_for_function("() => window.__arap.meshName === 'warped' && !window.__arap.restoring")
+    wait_idle(page)
+    assert page.evaluate("() => window.__arap.constraints().handle_groups") == groups
+    assert page.evaluate("() => window.__arap.partners()") == [1, 0]
     assert not page.evaluate("() => window.__arap.errors")

@@ -286,9 +286,10 @@ export function detectSymmetry(pos, faces, axis = 'auto') {
       }
       if (bestScore < 0.5 * MIN_MATCHED * sample.length) continue;
       pl = refit(pos, pl, sample, bestPairs);
-      pl = refit(pos, pl, null, reflectedNearest(pos, hash, pl, tol));
     }
     const { mirrorOf, matched } = mutual(reflectedNearest(pos, hash, pl, tol));
+    // the plane that fits every pair (a sample's plane may be off by a little more than rounding)
+    if (fixedAxis < 0) pl = refit(pos, pl, null, mirrorOf);
     const found = { plane: pl, mirrorOf, matched: matched / n, tolerance: tol, ms: 0 };
     if (found.matched > best.matched) best = found;
     if (best.matched >= MIN_MATCHED) break;
