@@ -213,6 +213,15 @@ def test_dragging_a_group_moves_its_partner_mirrored(page: Page, tmp_path: Path)
     asym = np.abs(U[mirror_of] * [-1, 1, 1] - U).max()
     assert asym < 1e-6 * diag, f"the settled shape is not symmetric: {asym / diag:.2e} of the diagonal"
 
+    # apply: the deformed shape is the new rest pose, and the plane is found again on it (still symmetric)
+    before = page.evaluate("() => JSON.stringify(window.__arap.mirror().plane)")
+    page.get_by_test_id("apply").click()
+    page.wait_for_function("(p) => JSON.stringify(window.__arap.mirror().plane) !== p", arg=before)
+    wait_idle(page)
+    after = mirror_state(page)
+    assert after["active"] and after["matched"] == 1.0 and after["plane"]["normal"] == [1, 0, 0]
+    np.testing.assert_array_equal(after["mirrorOf"], mirror_of)
+
     # the pairing comes back with the file
     page.get_by_test_id("group-delete-1").click()
     page.get_by_test_id("group-delete-0").click()
