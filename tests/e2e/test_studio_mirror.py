@@ -158,6 +158,7 @@ def test_brush_paints_both_sides_with_mirror_on(page: Page, tmp_path: Path) -> N
     g0, g1 = (set(g) for g in c["handle_groups"])
     assert g0 == alone and g1 == {int(mirror_of[i]) for i in g0}
     assert page.evaluate("() => window.__arap.partners()") == [1, 0]
+    expect(page.get_by_test_id("group-1")).to_contain_text("Group 2 ⇄ 1")
     # mirror off: a dab on the partner's side paints only that side, into the active group
     press_mirror(page)
     page.get_by_test_id("group-0").click()

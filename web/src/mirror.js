@@ -107,7 +107,7 @@ export class MirrorEditing {
     if (!r) text = this.on ? 'no mesh' : 'off';
     else if (!r.plane) text = `no symmetry found (best plane: ${pct(r.matched)} of the vertices matched)`;
     else {
-      const n = r.plane.normal.map((c) => (Math.abs(c) < 5e-4 ? '0' : c.toFixed(3))).join(', ');
+      const n = r.plane.normal.map((c) => String(Number(c.toFixed(3)) || 0)).join(', ');
       const kind = r.matched >= MIN_MATCHED ? 'symmetric' : 'partly symmetric';
       text = `${kind}: ${pct(r.matched)} of the vertices matched (plane normal ${n})${this.on ? '' : ', off'}`;
     }
