@@ -116,6 +116,7 @@ def test_plane_and_correspondence_found_or_refused(page: Page, tmp_path: Path) -
     assert not m["on"] and not m["active"] and not m["visible"] and m["plane"] is None
     assert m["matched"] < 0.9
     expect(page.get_by_test_id("mirror-status")).to_contain_text("no symmetry found")
+    expect(page.get_by_test_id("statusbar")).to_be_visible()
     expect(page.get_by_test_id("status-text")).to_contain_text("No mirror symmetry found")
     assert not press_mirror(page)["on"], "auto detection keeps refusing"
     page.get_by_test_id("mirror-axis").select_option("x")

@@ -258,7 +258,6 @@ function onWelcome(msg) {
 function onMesh(msg) {
   const { positions, faces } = meshArrays(msg.frame);
   viewer.setMesh(positions, faces);
-  mirror.meshChanged(positions, faces);
   livePose.reset();
   selection.reset(msg.n_vertices);
   gizmo.syncGroups(1);
@@ -284,6 +283,7 @@ function onMesh(msg) {
   const report = Array.isArray(msg.report) ? msg.report : msg.report ? [String(msg.report)] : [];
   if (report.length) panel.showStatus(`Loaded ${msg.name}. Repairs: ${report.join('; ')}`, 'info', 8000);
   else panel.hideStatus();
+  mirror.meshChanged(positions, faces); // after the status line: it may say that no symmetry was found
   keeper.meshArrived(msg, positions, faces);
 }
 
