@@ -109,6 +109,18 @@ def test_plane_and_correspondence_found_or_refused(page: Page, tmp_path: Path) -
     diag = np.linalg.norm(np.ptp(shown, axis=0))
     assert np.abs(reflect(shown, m["plane"]) - shown[mirror_of]).max() < 1e-5 * diag
 
+    # approximately symmetric (noise of a few thousandths of the diagonal): found with a larger tolerance
+    noisy = V + np.random.default_rng(1).normal(scale=0.004, size=V.shape)
+    shown = upload(page, tmp_path, "noisy", noisy, F)
+    m = mirror_state(page)
+    diag = np.linalg.norm(np.ptp(shown, axis=0))
+    assert m["active"] and m["matched"] >= 0.9 and m["tolerance"] > 2e-3 * diag
+    assert abs(abs(m["plane"]["normal"][0]) - 1) < 1e-4
+    mirror_of = np.asarray(m["mirrorOf"])
+    matched = mirror_of >= 0
+    np.testing.assert_array_equal(mirror_of[mirror_of[matched]], np.flatnonzero(matched))
+    assert (mirror_of[matched] == expected[matched]).all()
+
     # an asymmetric blob: no plane, mirror editing goes off until an axis plane is picked
     B, FB = shapes.scan_blob(0, n=600)
     upload(page, tmp_path, "blob", B, FB)
