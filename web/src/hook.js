@@ -14,7 +14,7 @@ function gizmoInfo(viewer, gizmo) {
   return { group: gizmo.group, centroid: c, screen: viewer.project(c), axes, mode: gizmo.controls.mode };
 }
 
-export function installTestHook({ app, viewer, selection, gizmo, conn, keeper }) {
+export function installTestHook({ app, viewer, selection, gizmo, conn, keeper, mirror }) {
   const toPage = ([x, y]) => {
     const r = viewer.canvas.getBoundingClientRect();
     return [x + r.left, y + r.top];
@@ -85,6 +85,25 @@ export function installTestHook({ app, viewer, selection, gizmo, conn, keeper })
       const c = selection.toConstraints();
       return { roi: c.roi, fixed: c.fixed, handle_groups: c.handle_groups };
     },
+    /** Mirror editing: on, active (on with a plane), axis, plane, matched share, tolerance, ms, mirrorOf. */
+    mirror: () => {
+      const r = mirror.result;
+      return {
+        on: mirror.on,
+        active: mirror.active,
+        axis: mirror.axis,
+        plane: r?.plane ?? null,
+        matched: r?.matched ?? null,
+        tolerance: r?.tolerance ?? null,
+        ms: r?.ms ?? null,
+        mirrorOf: r?.mirrorOf ? Array.from(r.mirrorOf) : null,
+        visible: !!mirror.planeMesh?.visible,
+      };
+    },
+    /** The mirror partner of each client handle group (-1: none). */
+    partners: () => mirror.partners(),
+    /** The client's matrix of each handle group (column-major 4×4). */
+    transforms: () => gizmo.matrices.map((m) => Array.from(m.elements)),
     /** Page coordinates (CSS pixels) of a world point. */
     project: (p) => toPage(viewer.project(p)),
     gizmo: () => {

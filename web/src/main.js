@@ -9,6 +9,7 @@ import { installTestHook } from './hook.js';
 import { installHud } from './hud.js';
 import { SessionKeeper } from './keeper.js';
 import { ignoreTypeAhead, installShortcuts, releaseFocusAfterPointerUse } from './keys.js';
+import { MirrorEditing } from './mirror.js';
 import { Panel } from './panel.js';
 import { LivePose } from './livepose.js';
 import { LinePlot } from './plot.js';
@@ -22,6 +23,7 @@ import { Viewer } from './viewer.js';
 const viewer = new Viewer(document.getElementById('view'));
 const livePose = new LivePose(viewer);
 const selection = new Selection();
+const mirror = new MirrorEditing({ viewer, selection, tell: (text) => panel.showStatus(text, 'info', 6000) });
 const app = {
   ready: false,
   incompatible: false, // the server speaks another protocol version
@@ -73,7 +75,10 @@ const gizmo = new HandleGizmo(viewer, {
     'error', pending ? 3000 : 0);
     return false;
   },
-  onDrag: () => conn.drag(gizmo.transformsFor(app.groupMap)),
+  onDrag: () => {
+    mirror.follow(gizmo, gizmo.group); // the partner group moves by the mirrored transform in the same message
+    conn.drag(gizmo.transformsFor(app.groupMap));
+  },
   onDragEnd: () => {
     conn.endDrag();
     app.awaitingState = true;
@@ -83,12 +88,14 @@ const gizmo = new HandleGizmo(viewer, {
 const tools = new SelectionTools(viewer, {
   isGizmoActive: () => gizmo.active,
   onPaint: (indices, subtract) => {
-    if (selection.paint(indices, app.role, subtract)) refreshSelection(false);
+    if (mirror.paint(indices, app.role, subtract)) refreshSelection(false);
   },
   onStrokeEnd: () => commitConstraints(),
   graph: () => surface.graph(),
 });
-const surface = new SurfaceSelection({ viewer, selection, role: () => app.role, changed: selectionEdited });
+const surface = new SurfaceSelection({
+  viewer, selection, role: () => app.role, changed: selectionEdited, paint: (...a) => mirror.paint(...a),
+});
 const heat = new HeatMap({ viewer, send, role: () => selection.role, restore: () => refreshSelection(false) });
 const help = new Help();
 viewer.attachControls(); // after the gizmo and the tools, so they see pointer events first
@@ -127,6 +134,7 @@ function send(msg) {
     return false;
   }
   keeper.sent(msg);
+  mirror.sent(msg);
   return true;
 }
 
@@ -210,7 +218,8 @@ function handleMessage(msg) {
       return panel.setSettle(msg);
     case SERVER.CONSTRAINTS: {
       const base = (app.meshName || 'mesh').replace(/\.[^.]+$/, '');
-      download(JSON.stringify(msg.document, null, 2), `${base}-constraints.json`, 'application/json');
+      const doc = mirror.documentWithPartners(msg.document, app.groupMap);
+      download(JSON.stringify(doc, null, 2), `${base}-constraints.json`, 'application/json');
       return panel.showStatus('Constraints saved.', 'info', 2500);
     }
     case SERVER.EXPORT: {
@@ -274,6 +283,7 @@ function onMesh(msg) {
   const report = Array.isArray(msg.report) ? msg.report : msg.report ? [String(msg.report)] : [];
   if (report.length) panel.showStatus(`Loaded ${msg.name}. Repairs: ${report.join('; ')}`, 'info', 8000);
   else panel.hideStatus();
+  mirror.meshChanged(positions, faces); // after the status line: it may say that no symmetry was found
   keeper.meshArrived(msg, positions, faces);
 }
 
@@ -303,6 +313,7 @@ function onVertices(msg) {
 
 function onState(msg) {
   app.awaitingState = false;
+  mirror.stateArrived();
   app.canUndo = !!msg.can_undo;
   app.canRedo = !!msg.can_redo;
   panel.setHistory(app.canUndo, app.canRedo);
@@ -318,6 +329,7 @@ function onState(msg) {
   } else if (app.sentKey === null && key !== constraintsKey(selection.toConstraints())) {
     // the server's constraints changed under us (undo/redo, loaded document): adopt them
     selection.fromConstraints(c);
+    mirror.repair();
     app.groupMap = c.handle_groups.map((_, k) => k);
     app.syncedVersion = selection.version;
     refreshSelection(true);
@@ -369,6 +381,7 @@ function uploadFile(file) {
 function applySavedSelection(snap) {
   selection.fromConstraints({ roi: snap.roi, fixed: snap.fixed, handle_groups: snap.groups });
   selection.activeGroup = Math.max(0, Math.min(snap.activeGroup ?? 0, selection.groups.length - 1));
+  mirror.setPartners(snap.partners);
   refreshSelection(true);
   commitConstraints(null, true);
 }
@@ -391,6 +404,7 @@ function loadConstraintsFile(file) {
       return;
     }
     selection.fromConstraints(c);
+    mirror.setPairs(c.partners);
     refreshSelection(true);
     commitConstraints(c.targets);
   });
@@ -438,7 +452,7 @@ const panel = new Panel({
   setBrushUnits,
   setFrontOnly: (on) => (tools.frontOnly = on),
   clearRole: () => {
-    selection.clear(app.role);
+    mirror.clear(app.role);
     refreshSelection(true);
     commitConstraints();
   },
@@ -502,6 +516,7 @@ installShortcuts({
     '=': () => surface.ring(false),
     '-': () => surface.ring(true),
     h: () => heat.setOn(!heat.on),
+    m: () => mirror.setOn(!mirror.on),
     '?': () => help.toggle(),
     escape: () => (help.shown ? help.hide() : panel.hideStatus()),
   }),
@@ -513,7 +528,7 @@ releaseFocusAfterPointerUse(document.getElementById('panel'));
 
 installDropTarget(document.getElementById('viewport'), document.getElementById('drop-overlay'), uploadFile);
 
-installTestHook({ app, viewer, selection, gizmo, conn, keeper });
+installTestHook({ app, viewer, selection, gizmo, conn, keeper, mirror });
 
 // updates per second over the last second; decays to zero once dragging stops
 setInterval(() => {
