@@ -1,4 +1,5 @@
 // File input, drag and drop of meshes, downloads and constraint documents.
+import { PARTNERS_KEY } from './mirror.js';
 import { UPLOAD_EXTENSIONS } from './protocol.js';
 
 export const MESH_EXTENSIONS = UPLOAD_EXTENSIONS.map((e) => e.replace(/^\./, '').toLowerCase());
@@ -38,6 +39,20 @@ export function download(data, filename, mime = 'application/octet-stream') {
   a.click();
   a.remove();
   setTimeout(() => URL.revokeObjectURL(url), 10000);
+}
+
+/** Download a constraints document as `<mesh name>-constraints.json`; returns the message to show. */
+export function downloadConstraints(doc, meshName) {
+  const base = (meshName || 'mesh').replace(/\.[^.]+$/, '');
+  download(JSON.stringify(doc, null, 2), `${base}-constraints.json`, 'application/json');
+  return 'Constraints saved.';
+}
+
+/** Download an exported mesh (the server's export message with its binary frame); returns the message to show. */
+export function downloadExport(msg) {
+  const p = msg.frame.payload;
+  download(new Blob([p], { type: msg.mime || 'application/octet-stream' }), msg.filename || 'mesh');
+  return `Exported ${msg.filename} (${formatBytes(p.byteLength)}).`;
 }
 
 /** Route files dropped on `target` to onFile(file); shows `overlay` while dragging files over it. */
@@ -144,7 +159,7 @@ function stiffnessList(doc) {
  * {fixed, handles, targets, roi, points, stiffness} (its handles become one group; point handles follow the groups,
  * painted stiffness comes as [{vertices, value}]). With `targets`, the result's `targets` maps each
  * handle vertex to its [x, y, z]; handles outside `handle_groups` (vertices a saved studio session held in place)
- * become one more group.
+ * become one more group. `partners` lists the pairs [k, l] of mirror partner groups saved in "meta".
  */
 export function parseConstraints(text) {
   let doc;
@@ -178,7 +193,8 @@ export function parseConstraints(text) {
   if (!fixed.length && !groups.length && !points.length) {
     throw new Error('no "fixed" or handle vertices (or "points") in the document');
   }
-  return { roi: roi && roi.length ? roi : null, fixed, handle_groups: groups, targets, points, stiffness };
+  const partners = partnerPairs(doc, groups.length);
+  return { roi: roi && roi.length ? roi : null, fixed, handle_groups: groups, targets, points, stiffness, partners };
 }
 
 /**
@@ -201,4 +217,12 @@ export async function readConstraintsFile(file, nVertices, nFaces) {
   const badFace = c.points.find((p) => p.face >= nFaces);
   if (badFace) throw new Error(`${file.name} refers to triangle ${badFace.face}, but the mesh has ${nFaces} triangles.`);
   return c;
+}
+
+/** The mirror partners of handle groups saved in the document's "meta" (pairs [k, l] of groups; others skipped). */
+function partnerPairs(doc, nGroups) {
+  const raw = doc.meta && typeof doc.meta === 'object' ? doc.meta[PARTNERS_KEY] : null;
+  if (!Array.isArray(raw)) return [];
+  const ok = (k) => Number.isInteger(k) && k >= 0 && k < nGroups;
+  return raw.filter((p) => Array.isArray(p) && p.length === 2 && ok(p[0]) && ok(p[1]) && p[0] !== p[1]);
 }

@@ -14,7 +14,7 @@ function gizmoInfo(viewer, gizmo) {
   return { group: gizmo.group, centroid: c, screen: viewer.project(c), axes, mode: gizmo.controls.mode };
 }
 
-export function installTestHook({ app, viewer, selection, gizmo, conn, keeper, points }) {
+export function installTestHook({ app, viewer, selection, gizmo, conn, keeper, points, mirror }) {
   const toPage = ([x, y]) => {
     const r = viewer.canvas.getBoundingClientRect();
     return [x + r.left, y + r.top];
@@ -94,6 +94,25 @@ export function installTestHook({ app, viewer, selection, gizmo, conn, keeper, p
     get role() {
       return app.role;
     },
+    /** Mirror editing: on, active (on with a plane), axis, plane, matched share, tolerance, ms, mirrorOf. */
+    mirror: () => {
+      const r = mirror.result;
+      return {
+        on: mirror.on,
+        active: mirror.active,
+        axis: mirror.axis,
+        plane: r?.plane ?? null,
+        matched: r?.matched ?? null,
+        tolerance: r?.tolerance ?? null,
+        ms: r?.ms ?? null,
+        mirrorOf: r?.mirrorOf ? Array.from(r.mirrorOf) : null,
+        visible: !!mirror.planeMesh?.visible,
+      };
+    },
+    /** The mirror partner of each client handle group (-1: none). */
+    partners: () => mirror.partners(),
+    /** The client's matrix of each handle group (column-major 4×4). */
+    transforms: () => gizmo.matrices.map((m) => Array.from(m.elements)),
     /** Page coordinates (CSS pixels) of a world point. */
     project: (p) => toPage(viewer.project(p)),
     gizmo: () => {

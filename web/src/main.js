@@ -1,7 +1,9 @@
 // ARAP Studio: wires the connection, the 3D view, the selection tools, the gizmo and the side panel.
 import './style.css';
 import { Connection, defaultSocketUrl } from './connection.js';
-import { checkMeshFile, download, formatBytes, installDropTarget, readConstraintsFile } from './files.js';
+import {
+  checkMeshFile, downloadConstraints, downloadExport, installDropTarget, readConstraintsFile,
+} from './files.js';
 import { HandleGizmo } from './gizmo.js';
 import { HeatMap } from './heatmap.js';
 import { describedKeys, Help } from './help.js';
@@ -9,14 +11,15 @@ import { installTestHook } from './hook.js';
 import { installHud } from './hud.js';
 import { SessionKeeper } from './keeper.js';
 import { ignoreTypeAhead, installShortcuts, releaseFocusAfterPointerUse } from './keys.js';
+import { MirrorEditing } from './mirror.js';
 import { Panel } from './panel.js';
 import { LivePose } from './livepose.js';
 import { PaintModes } from './paintmodes.js';
-import { LinePlot } from './plot.js';
 import { PointHandles } from './pointhandles.js';
 import { CLIENT, meshArrays, PROTOCOL_VERSION, SERVER } from './protocol.js';
 import { constraintsKey, Selection } from './selection.js';
 import { builtinSource, fileSource } from './snapshot.js';
+import { UpdateStats } from './stats.js';
 import { installSurfaceControls, SurfaceSelection } from './surface.js';
 import { SelectionTools } from './tools.js';
 import { Viewer } from './viewer.js';
@@ -24,6 +27,7 @@ import { Viewer } from './viewer.js';
 const viewer = new Viewer(document.getElementById('view'));
 const livePose = new LivePose(viewer);
 const selection = new Selection();
+const mirror = new MirrorEditing({ viewer, selection, tell: (text) => panel.showStatus(text, 'info', 6000) });
 const app = {
   ready: false,
   incompatible: false, // the server speaks another protocol version
@@ -41,8 +45,6 @@ const app = {
   serverKey: '',
   errors: [],
   messages: 0,
-  updateTimes: [],
-  energyHistory: [],
   canUndo: false,
   canRedo: false,
   params: {},
@@ -75,7 +77,10 @@ const gizmo = new HandleGizmo(viewer, {
     'error', pending ? 3000 : 0);
     return false;
   },
-  onDrag: () => conn.drag(gizmo.transformsFor(app.groupMap)),
+  onDrag: () => {
+    mirror.follow(gizmo, gizmo.group); // the partner group moves by the mirrored transform in the same message
+    conn.drag(gizmo.transformsFor(app.groupMap));
+  },
   onDragEnd: () => {
     conn.endDrag();
     app.awaitingState = true;
@@ -85,7 +90,7 @@ const gizmo = new HandleGizmo(viewer, {
 const tools = new SelectionTools(viewer, {
   isGizmoActive: () => gizmo.active,
   onPaint: (indices, subtract) => {
-    if (selection.paint(indices, app.role, modes.subtract(app.role, subtract))) refreshSelection(false);
+    if (mirror.paint(indices, app.role, modes.subtract(app.role, subtract))) refreshSelection(false);
   },
   onStrokeEnd: () => commitConstraints(),
   graph: () => surface.graph(),
@@ -94,13 +99,14 @@ const tools = new SelectionTools(viewer, {
 });
 const points = new PointHandles({ viewer, selection, changed: selectionEdited, weight: () => modes.weight() });
 const modes = new PaintModes({ selection, setRole, onWeightProblem: (text) => panel.showStatus(text, 'error', 5000) });
-const surface = new SurfaceSelection({ viewer, selection, role: () => app.role, changed: selectionEdited });
+const surface = new SurfaceSelection({
+  viewer, selection, role: () => app.role, changed: selectionEdited, paint: (...a) => mirror.paint(...a),
+});
 const heat = new HeatMap({ viewer, send, role: () => selection.role, restore: () => refreshSelection(false) });
 const help = new Help();
 viewer.attachControls(); // after the gizmo and the tools, so they see pointer events first
 
-const iterPlot = new LinePlot(document.getElementById('plot-iter'), { color: '#4c9aff', xLabel: 'iterations' });
-const timePlot = new LinePlot(document.getElementById('plot-time'), { color: '#f0883e', xLabel: 'updates', maxPoints: 300 });
+const stats = new UpdateStats({ panel: () => panel, latencyMs: () => conn.lastLatencyMs });
 
 const conn = new Connection(defaultSocketUrl(), {
   onOpen: () => {
@@ -133,6 +139,7 @@ function send(msg) {
     return false;
   }
   keeper.sent(msg);
+  mirror.sent(msg);
   return true;
 }
 
@@ -222,16 +229,11 @@ function handleMessage(msg) {
       return onState(msg);
     case SERVER.SETTLE:
       return panel.setSettle(msg);
-    case SERVER.CONSTRAINTS: {
-      const base = (app.meshName || 'mesh').replace(/\.[^.]+$/, '');
-      download(JSON.stringify(msg.document, null, 2), `${base}-constraints.json`, 'application/json');
-      return panel.showStatus('Constraints saved.', 'info', 2500);
-    }
-    case SERVER.EXPORT: {
-      const p = msg.frame.payload;
-      download(new Blob([p], { type: msg.mime || 'application/octet-stream' }), msg.filename || 'mesh');
-      return panel.showStatus(`Exported ${msg.filename} (${formatBytes(p.byteLength)}).`, 'info', 3000);
-    }
+    case SERVER.CONSTRAINTS: // the document carries the mirror pairs of its handle groups in "meta"
+      return panel.showStatus(downloadConstraints(mirror.documentWithPartners(msg.document, app.groupMap),
+        app.meshName), 'info', 2500);
+    case SERVER.EXPORT:
+      return panel.showStatus(downloadExport(msg), 'info', 3000);
     case SERVER.DISTORTION:
       return heat.received(msg);
     case SERVER.ERROR:
@@ -274,11 +276,8 @@ function onMesh(msg) {
   app.sentKey = null;
   app.syncedVersion = selection.version;
   app.serverKey = constraintsKey({ roi: null, fixed: [], handle_groups: [] });
-  app.energyHistory = [];
-  app.updateTimes = [];
   app.ready = true;
-  iterPlot.clear();
-  timePlot.clear();
+  stats.reset();
   panel.setCurrentModel(msg.name);
   panel.setMeshInfo(`${msg.name}: ${msg.n_vertices.toLocaleString('en-US')} vertices, ${msg.n_faces.toLocaleString('en-US')} faces`);
   panel.setStats({ n_vertices: msg.n_vertices, n_faces: msg.n_faces, ups: NaN, latency_ms: null, ms_per_iteration: null });
@@ -288,6 +287,7 @@ function onMesh(msg) {
   const report = Array.isArray(msg.report) ? msg.report : msg.report ? [String(msg.report)] : [];
   if (report.length) panel.showStatus(`Loaded ${msg.name}. Repairs: ${report.join('; ')}`, 'info', 8000);
   else panel.hideStatus();
+  mirror.meshChanged(positions, faces); // after the status line: it may say that no symmetry was found
   keeper.meshArrived(msg, positions, faces);
 }
 
@@ -301,23 +301,12 @@ function onVertices(msg) {
   if (msg.seq >= 0) app.lastSeq = msg.seq; // -1: a frame the server sent on its own (settling, undo)
   gizmo.recenter();
   points.refresh();
-  if (!(msg.iterations > 0)) return; // a pose change without a solve (undo, reset)
-  const now = performance.now();
-  app.updateTimes.push(now);
-  while (app.updateTimes.length && now - app.updateTimes[0] > 1000) app.updateTimes.shift();
-  const energies = (msg.energies || []).filter((e) => e !== null);
-  iterPlot.set(energies);
-  if (energies.length) timePlot.push(energies[energies.length - 1]);
-  document.getElementById('energy-note').hidden = !energies.some((e) => e < 0);
-  panel.setStats({
-    ms_per_iteration: msg.ms_per_iteration,
-    ups: app.updateTimes.length,
-    latency_ms: msg.seq >= 0 && conn.lastLatencyMs !== null ? conn.lastLatencyMs : msg.solve_ms,
-  });
+  if (msg.iterations > 0) stats.frame(msg); // not for a pose change without a solve (undo, reset)
 }
 
 function onState(msg) {
   app.awaitingState = false;
+  mirror.stateArrived();
   app.canUndo = !!msg.can_undo;
   app.canRedo = !!msg.can_redo;
   panel.setHistory(app.canUndo, app.canRedo);
@@ -333,6 +322,7 @@ function onState(msg) {
   } else if (app.sentKey === null && key !== constraintsKey(selection.toConstraints())) {
     // the server's constraints changed under us (undo/redo, loaded document): adopt them
     selection.fromConstraints(c);
+    mirror.repair();
     app.groupMap = selection.toConstraints().groupMap;
     app.syncedVersion = selection.version;
     refreshSelection(true);
@@ -385,6 +375,7 @@ function applySavedSelection(snap) {
   selection.fromConstraints({ roi: snap.roi, fixed: snap.fixed, handle_groups: snap.groups, stiffness: snap.stiffness },
     snap.groupPoints);
   selection.activeGroup = Math.max(0, Math.min(snap.activeGroup ?? 0, selection.groups.length - 1));
+  mirror.setPartners(snap.partners);
   refreshSelection(true);
   commitConstraints(null, true);
 }
@@ -392,6 +383,7 @@ function applySavedSelection(snap) {
 function loadConstraintsFile(file) {
   readConstraintsFile(file, viewer.nVertices, app.nFaces).then((c) => {
     selection.fromConstraints(c);
+    mirror.setPairs(c.partners);
     refreshSelection(true);
     commitConstraints(c.targets, false, c.points.map((p) => p.target ?? null));
   }, (err) => {
@@ -444,7 +436,7 @@ const panel = new Panel({
   setBrushUnits,
   setFrontOnly: (on) => (tools.frontOnly = on),
   clearRole: () => {
-    selection.clear(app.role);
+    mirror.clear(app.role);
     refreshSelection(true);
     commitConstraints();
   },
@@ -510,6 +502,7 @@ installShortcuts({
     '=': () => surface.ring(false),
     '-': () => surface.ring(true),
     h: () => heat.setOn(!heat.on),
+    m: () => mirror.setOn(!mirror.on),
     '?': () => help.toggle(),
     escape: () => (help.shown ? help.hide() : panel.hideStatus()),
   }),
@@ -521,15 +514,7 @@ releaseFocusAfterPointerUse(document.getElementById('panel'));
 
 installDropTarget(document.getElementById('viewport'), document.getElementById('drop-overlay'), uploadFile);
 
-installTestHook({ app, viewer, selection, gizmo, conn, keeper, points });
-
-// updates per second over the last second; decays to zero once dragging stops
-setInterval(() => {
-  if (!app.updateTimes.length) return;
-  const now = performance.now();
-  while (app.updateTimes.length && now - app.updateTimes[0] > 1000) app.updateTimes.shift();
-  panel.setStats({ ups: app.updateTimes.length });
-}, 500);
+installTestHook({ app, viewer, selection, gizmo, conn, keeper, points, mirror });
 
 // ------------------------------------------------------------------ start
 

@@ -208,7 +208,7 @@ export class Panel {
     $('btn-reconnect').hidden = state !== 'closed'; // while reconnecting, the retries run by themselves
   }
 
-  /** groups: [{count}], active: index, roi/fixed counts. */
+  /** groups: [{id, partner?}] (partner: the id of its mirror partner), active: index, roi/fixed counts. */
   setGroups(groups, active, counts, nVertices) {
     const ul = $('group-list');
     ul.innerHTML = '';
@@ -221,7 +221,10 @@ export class Panel {
       sw.style.background = cssColor(groupColor(k));
       const name = document.createElement('span');
       name.className = 'name';
-      name.textContent = g.point ? `Point ${k + 1}` : `Group ${k + 1}`;
+      const partner = groups.findIndex((h) => g.partner !== undefined && h.id === g.partner);
+      const label = g.point ? `Point ${k + 1}` : `Group ${k + 1}`;
+      name.textContent = partner >= 0 ? `${label} ⇄ ${partner + 1}` : label;
+      if (partner >= 0) name.title = `Mirror partner of group ${partner + 1}`;
       const count = document.createElement('span');
       count.className = 'count';
       const w = g.point?.weight;

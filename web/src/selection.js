@@ -3,7 +3,8 @@
 //   role:  Int16Array, 0 = none, 1 = fixed anchor, 2 + g = handle group g
 //   stiff: Float64Array, the cell weight of each vertex (1 = unpainted, Infinity = rigid)
 // A handle group is either a set of vertices or one point handle: `groups[g].point` = {face, barycentric, weight}
-// (weight null: a hard handle), with no vertices.
+// (weight null: a hard handle), with no vertices. `groups[g].partner` is the id of a vertex group's mirror partner
+// (mirror.js); point handles have none.
 import { stiffnessFromJson, stiffnessKey, stiffnessToJson } from './stiffness.js';
 
 export const NONE = 0;
@@ -21,7 +22,7 @@ export class Selection {
     this.role = new Int16Array(n);
     this.stiff = new Float64Array(n).fill(1);
     this.stiffnessValue = 10; // what the stiffness brush paints
-    /** @type {{id: number, point?: {face: number, barycentric: number[], weight: number|null}}[]} */
+    /** @type {{id: number, partner?: number, point?: {face: number, barycentric: number[], weight: number|null}}[]} */
     this.groups = [{ id: 1 }];
     this.nextGroupId = 2;
     this.activeGroup = 0;
@@ -174,6 +175,27 @@ export class Selection {
     this.activeGroup = this.groups.length - 1;
     this.version++;
     return this.activeGroup;
+  }
+
+  /** The mirror partner of handle group g (see mirror.js), or -1. */
+  partnerOf(g) {
+    const id = this.groups[g]?.partner;
+    return id === undefined ? -1 : this.groups.findIndex((x) => x.id === id);
+  }
+
+  /**
+   * Make handle groups g and h each other's mirror partner (leaving their former partners unpaired). Point handles
+   * are never paired: false (and nothing changes) when g or h is one.
+   */
+  pair(g, h) {
+    if (this.groups[g]?.point || this.groups[h]?.point) return false;
+    for (const k of [g, h]) {
+      const old = this.partnerOf(k);
+      if (old >= 0) delete this.groups[old].partner;
+    }
+    this.groups[g].partner = this.groups[h].id;
+    this.groups[h].partner = this.groups[g].id;
+    return true;
   }
 
   /** Vertex indices of handle group g. */

@@ -48,8 +48,8 @@ export function hasEdits({ app, selection }) {
 /**
  * The session as a plain object (structured-cloneable): `source` (with its bytes), mesh counts, `roi`, `fixed`,
  * `groups` (one vertex list per client handle group, empty ones included), `groupPoints` (per group, its point
- * handle or null), `stiffness` (painted, as sent to the server, or null), `activeGroup`, `positions` (Float32Array
- * of the current shape) and `params`.
+ * handle or null), `stiffness` (painted, as sent to the server, or null), `activeGroup`, `partners` (each group's
+ * mirror partner, -1 for none), `positions` (Float32Array of the current shape) and `params`.
  */
 export function captureSession({ app, selection, viewer }) {
   const groups = selection.groups.map(() => []);
@@ -73,6 +73,7 @@ export function captureSession({ app, selection, viewer }) {
     groupPoints: selection.groups.map((g) => (g.point ? { ...g.point, barycentric: g.point.barycentric.slice() } : null)),
     stiffness: stiffnessToJson(selection.stiff),
     activeGroup: selection.activeGroup,
+    partners: selection.groups.map((_, g) => selection.partnerOf(g)),
     positions: new Float32Array(viewer.positions),
     params: { ...app.params },
     edits: hasEdits({ app, selection }),
