@@ -17,7 +17,7 @@ import { LivePose } from './livepose.js';
 import { PaintModes } from './paintmodes.js';
 import { PointHandles } from './pointhandles.js';
 import { CLIENT, meshArrays, PROTOCOL_VERSION, SERVER } from './protocol.js';
-import { constraintsKey, Selection } from './selection.js';
+import { constraintsKey, constraintsMessage, Selection } from './selection.js';
 import { builtinSource, fileSource } from './snapshot.js';
 import { UpdateStats } from './stats.js';
 import { installSurfaceControls, SurfaceSelection } from './surface.js';
@@ -118,10 +118,7 @@ const conn = new Connection(defaultSocketUrl(), {
     app.ready = false;
     app.awaitingState = false;
     keeper.connectionLost();
-    panel.setEnabled(false);
-    panel.setBusy(null);
-    panel.showStatus('Lost the connection to the studio server; reconnecting… Your work is kept and comes back ' +
-      'when the server does.', 'error');
+    panel.connectionLost();
   },
   onRetry: ({ attempt, delayMs }) => panel.setConnection('reconnecting', { attempt, delayMs }),
   onMessage: (msg) => handleMessage(msg),
@@ -205,11 +202,7 @@ function commitConstraints(targets = null, force = false, pointTargets = null) {
   app.sentKey = key;
   app.sentVersion = selection.version;
   gizmo.resetTransforms();
-  const msg = { type: CLIENT.SET_CONSTRAINTS, roi: c.roi, fixed: c.fixed, handle_groups: c.handle_groups };
-  if (targets) msg.targets = c.handle_groups.flat().map((i) => targets.get(i));
-  if (c.stiffness) msg.stiffness = c.stiffness;
-  if (c.points.length) msg.points = c.points.map((p, k) => (pointTargets?.[k] ? { ...p, target: pointTargets[k] } : p));
-  if (send(msg)) setBusy('Updating constraints…', SERVER.STATE);
+  if (send(constraintsMessage(c, targets, pointTargets))) setBusy('Updating constraints…', SERVER.STATE);
 }
 
 // ------------------------------------------------------------------ messages
@@ -248,9 +241,7 @@ function onWelcome(msg) {
   if (app.incompatible) {
     // a page left open across an upgrade of the server: its messages would be misread
     app.ready = false;
-    panel.setEnabled(false);
-    panel.showStatus(`This page speaks version ${PROTOCOL_VERSION} of the studio protocol and the server `
-      + `version ${msg.protocol}: reload the page.`, 'error');
+    panel.protocolMismatch(PROTOCOL_VERSION, msg.protocol);
     return;
   }
   keeper.welcomed();
@@ -278,15 +269,10 @@ function onMesh(msg) {
   app.serverKey = constraintsKey({ roi: null, fixed: [], handle_groups: [] });
   app.ready = true;
   stats.reset();
-  panel.setCurrentModel(msg.name);
-  panel.setMeshInfo(`${msg.name}: ${msg.n_vertices.toLocaleString('en-US')} vertices, ${msg.n_faces.toLocaleString('en-US')} faces`);
-  panel.setStats({ n_vertices: msg.n_vertices, n_faces: msg.n_faces, ups: NaN, latency_ms: null, ms_per_iteration: null });
+  panel.meshLoaded(msg);
   refreshSelection(true);
   heat.meshChanged();
   setBusy(null);
-  const report = Array.isArray(msg.report) ? msg.report : msg.report ? [String(msg.report)] : [];
-  if (report.length) panel.showStatus(`Loaded ${msg.name}. Repairs: ${report.join('; ')}`, 'info', 8000);
-  else panel.hideStatus();
   mirror.meshChanged(positions, faces); // after the status line: it may say that no symmetry was found
   keeper.meshArrived(msg, positions, faces);
 }
@@ -437,19 +423,12 @@ const panel = new Panel({
   setFrontOnly: (on) => (tools.frontOnly = on),
   clearRole: () => {
     mirror.clear(app.role);
-    refreshSelection(true);
-    commitConstraints();
+    selectionEdited();
   },
-  invertRole: () => {
-    if (selection.invert(app.role)) {
-      refreshSelection(true);
-      commitConstraints();
-    }
-  },
+  invertRole: () => selection.invert(app.role) && selectionEdited(),
   clearAll: () => {
     selection.clear('erase');
-    refreshSelection(true);
-    commitConstraints();
+    selectionEdited();
   },
   newGroup: () => {
     selection.addGroup();
@@ -458,8 +437,7 @@ const panel = new Panel({
   },
   removeGroup: (g) => {
     selection.removeGroup(g);
-    refreshSelection(true);
-    commitConstraints();
+    selectionEdited();
   },
   selectGroup: (g) => {
     selection.activeGroup = g;

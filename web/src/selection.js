@@ -5,6 +5,7 @@
 // A handle group is either a set of vertices or one point handle: `groups[g].point` = {face, barycentric, weight}
 // (weight null: a hard handle), with no vertices. `groups[g].partner` is the id of a vertex group's mirror partner
 // (mirror.js); point handles have none.
+import { CLIENT } from './protocol.js';
 import { stiffnessFromJson, stiffnessKey, stiffnessToJson } from './stiffness.js';
 
 export const NONE = 0;
@@ -269,6 +270,18 @@ export class Selection {
     this.activeGroup = Math.min(this.activeGroup, this.groups.length - 1);
     this.version++;
   }
+}
+
+/**
+ * The set_constraints message of a constraint set (Selection.toConstraints): `targets` (a Map from handle vertex to
+ * [x, y, z]) moves the handles there, `pointTargets` (one [x, y, z] or null per point handle) the point handles.
+ */
+export function constraintsMessage(c, targets = null, pointTargets = null) {
+  const msg = { type: CLIENT.SET_CONSTRAINTS, roi: c.roi, fixed: c.fixed, handle_groups: c.handle_groups };
+  if (targets) msg.targets = c.handle_groups.flat().map((i) => targets.get(i));
+  if (c.stiffness) msg.stiffness = c.stiffness;
+  if (c.points.length) msg.points = c.points.map((p, k) => (pointTargets?.[k] ? { ...p, target: pointTargets[k] } : p));
+  return msg;
 }
 
 /** A canonical string of a constraint set, to compare what the server holds with the local selection. */
