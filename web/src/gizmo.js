@@ -22,6 +22,7 @@ export class HandleGizmo {
     this.matrices = []; // one THREE.Matrix4 per client handle group
     this.group = -1;
     this.indices = [];
+    this.weights = null;
     this._base = new THREE.Matrix4();
     this._baseInv = new THREE.Matrix4();
     this._start = new THREE.Matrix4();
@@ -78,10 +79,15 @@ export class HandleGizmo {
     });
   }
 
-  /** Attach to client group g with vertex indices (empty: hide the gizmo). */
-  attach(g, indices) {
+  /**
+   * Attach to client group g with vertex indices (empty: hide the gizmo); `weights` (one per index) puts the pivot
+   * at that combination of their positions instead of their centroid (a point handle: its triangle's corners and
+   * barycentric coordinates).
+   */
+  attach(g, indices, weights = null) {
     this.group = g;
     this.indices = indices;
+    this.weights = weights;
     if (!indices.length || !this.viewer.mesh) {
       this.controls.detach();
       this.viewer.requestRender();
@@ -92,20 +98,21 @@ export class HandleGizmo {
     this.viewer.requestRender();
   }
 
-  /** Put the pivot at the centroid of the group's current positions. */
+  /** Put the pivot at the centroid of the group's current positions (or their weighted combination). */
   recenter() {
     if (this.controls.dragging || !this.indices.length) return;
     const pos = this.viewer.positions;
     let x = 0;
     let y = 0;
     let z = 0;
-    for (const i of this.indices) {
-      x += pos[3 * i];
-      y += pos[3 * i + 1];
-      z += pos[3 * i + 2];
-    }
     const n = this.indices.length;
-    this.pivot.position.set(x / n, y / n, z / n);
+    this.indices.forEach((i, k) => {
+      const w = this.weights ? this.weights[k] : 1 / n;
+      x += w * pos[3 * i];
+      y += w * pos[3 * i + 1];
+      z += w * pos[3 * i + 2];
+    });
+    this.pivot.position.set(x, y, z);
     this.pivot.quaternion.identity();
     this.pivot.scale.set(1, 1, 1);
     this.pivot.updateMatrixWorld(true);
