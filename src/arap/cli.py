@@ -418,8 +418,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--start", choices=START_NAMES, default="auto",
                    help="starting pose: the rest pose, its best-fit rigid motion onto the targets, or whichever "
                         "has the lower energy (default: auto)")
-    p.add_argument("--acceleration", choices=ACCELERATIONS, default="anderson",
-                   help="Anderson acceleration (Peng et al. 2018) or the plain iteration (default: anderson)")
+    p.add_argument("--acceleration", choices=ACCELERATIONS, default="lbfgs",
+                   help="L-BFGS preconditioned by the global step (Liu et al. 2017), Anderson acceleration (Peng et "
+                        "al. 2018) or the plain iteration (default: lbfgs)")
     p.add_argument("--energy", choices=ENERGY_TYPES, default=DEFAULT_ENERGY,
                    help=f"cell definition (default: {DEFAULT_ENERGY}; spokes is the 2007 paper's)")
     p.add_argument("--weights", choices=WEIGHT_TYPES, default=DEFAULT_WEIGHTS,

@@ -13,8 +13,8 @@ __all__ = ["ACCELERATIONS", "DEFAULT_TOLERANCE", "DEFAULT_WINDOW", "MAX_ITERATIO
            "ArapResult", "IterationCallback", "StartName"]
 
 IterationCallback = Callable[[int, float], "bool | None"]
-Acceleration = Literal["anderson", "none"]
-ACCELERATIONS: tuple[str, ...] = ("anderson", "none")
+Acceleration = Literal["lbfgs", "anderson", "none"]
+ACCELERATIONS: tuple[str, ...] = ("lbfgs", "anderson", "none")
 StartName = Literal["auto", "rest", "rigid"]
 START_NAMES: tuple[str, ...] = ("auto", "rest", "rigid")
 
@@ -23,7 +23,7 @@ START_NAMES: tuple[str, ...] = ("auto", "rest", "rigid")
 DEFAULT_TOLERANCE = 1e-9
 #: Hard cap on iterations when ``max_iterations`` is None.
 MAX_ITERATIONS = 10_000
-#: Default Anderson window.
+#: Default L-BFGS memory and Anderson window.
 DEFAULT_WINDOW = 5
 
 
@@ -51,7 +51,8 @@ class ArapResult:
     start : {"warm", "rest", "rigid", "given"}
         Where the iteration started (see ``initial``).
     rejected : int
-        Anderson extrapolations rejected by the energy safeguard.
+        Accelerated steps rejected by the energy safeguard: Anderson extrapolations, or L-BFGS line searches that
+        found no lower energy (the plain step was taken instead).
     """
 
     vertices: NDArray[np.float64]

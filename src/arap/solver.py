@@ -22,6 +22,7 @@ from arap.cells import (
 from arap.covariance import assemble_rhs, covariances, local_step
 from arap.errors import ArapError, ConstraintError, OptionError, UnconstrainedRegionError
 from arap.indexing import check_index_array, find_unconstrained_part
+from arap.lbfgs import LbfgsHistory
 from arap.linsolve import NotPositiveDefiniteError, factorize
 from arap.mesh import MeshLike, check_mesh, is_mesh_like, mesh_arrays
 from arap.points import PointConstraints, PointSystem, check_points
@@ -41,6 +42,13 @@ from arap.smooth import DEFAULT_ALPHA, SWEEP_GAIN, SWEEPS, SmoothRotations, chec
 from arap.start import best_rigid_transform, vertex_areas
 from arap.topology import locality_order, vertex_adjacency
 from arap.weights import DEFAULT_WEIGHTS, WeightType
+
+#: L-BFGS line search: trials from step 1, halving, before the plain step is taken instead.
+LINE_SEARCH_HALVINGS = 5
+#: L-BFGS measures the plain step (a back-substitution) when its own step was at most this many times the tolerance,
+#: and every ``CHECK_EVERY`` iterations.
+CHECK_FACTOR = 10.0
+CHECK_EVERY = 10
 
 
 class ArapSolver:
@@ -206,6 +214,7 @@ class ArapSolver:
             mu = float(L_ff.diagonal().mean())
             self._points = PointSystem(self.points, self._inv[F[self.points.faces]], self._nf, n, mu)
             L_ff = (L_ff + self._points.matrix()).tocsr()
+        self._A = L_ff.tocsr()  # the factored matrix: the energy's Hessian in x for fixed rotations (L-BFGS)
         self._point_state: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None
         self._gather = build_rhs_gather(self._cells, self._free, n)
         self._active = np.flatnonzero(np.bincount(self._gather.cell, minlength=n))
@@ -359,7 +368,7 @@ class ArapSolver:
         max_iterations: int | None = None,
         tolerance: float = DEFAULT_TOLERANCE,
         callback: IterationCallback | None = None,
-        acceleration: Acceleration = "anderson",
+        acceleration: Acceleration = "lbfgs",
         window: int = DEFAULT_WINDOW,
         point_targets: NDArray[np.float64] | list | None = None,
     ) -> ArapResult:
@@ -386,12 +395,18 @@ class ArapSolver:
         callback : callable or None
             ``callback(iteration, energy)`` after each iteration (1-based); returning False stops early.
             :meth:`current_vertices` gives the iterate meanwhile.
-        acceleration : {"anderson", "none"}
-            ``anderson``: Anderson acceleration of the local/global fixed point (Peng et al. 2018) with an energy
-            safeguard: an extrapolated iterate is kept only if its energy is not higher than the current one,
-            otherwise the plain step is taken. ``none``: the plain iteration of Sorkine & Alexa 2007.
+        acceleration : {"lbfgs", "anderson", "none"}
+            ``lbfgs``: L-BFGS preconditioned by the global step (Liu, Bouaziz & Kavan 2017; see
+            :mod:`arap.lbfgs`) with a backtracking line search on the energy; its first direction is the plain
+            step, and a search that finds no lower energy takes the plain step, so the energy never rises. Where a
+            part of the shape drifts slowly, Anderson's extrapolations are rejected for thousands of iterations
+            while L-BFGS keeps converging. For ``smooth_rotations`` (whose coupled rotations are only swept towards
+            their optimum), hard point handles (met by a projection) and rigid regions, ``lbfgs`` runs
+            ``anderson``. ``anderson``: Anderson acceleration of the local/global fixed point (Peng et al. 2018)
+            with an energy safeguard: an extrapolated iterate is kept only if its energy is not higher than the
+            current one, otherwise the plain step is taken. ``none``: the plain iteration of Sorkine & Alexa 2007.
         window : int
-            Anderson window ``m`` (previous iterates used).
+            Curvature pairs kept by L-BFGS, or Anderson's window ``m`` (previous iterates used).
 
         Returns
         -------
@@ -423,14 +438,17 @@ class ArapSolver:
         rhs_const = self._L_fn @ fixed
         if self._points is not None and P is not None:
             rhs_const = rhs_const - self._points.rhs(P, fixed)  # assemble_rhs subtracts its constant
+        step_limit = tolerance * self._diagonal * np.sqrt(max(nf, 1))
+        if acceleration == "lbfgs" and self._lbfgs_applies(P):
+            return self._solve_lbfgs(U, E_cur, start, const_E, rhs_const, int(cap), step_limit, callback, window,
+                                     timings, t_start)
         rhs = np.empty((nf, 3))
         accel = None
-        if acceleration == "anderson" and nf:
+        if acceleration != "none" and nf:
             if self._accelerator is None or self._accelerator.window != window:
                 self._accelerator = AndersonAccelerator(window, 3 * nf)
             accel = self._accelerator
             accel.reset()
-        step_limit = tolerance * self._diagonal * np.sqrt(max(nf, 1))
         energies: list[float] = []
         converged = False
         residual = float("nan")
@@ -482,6 +500,104 @@ class ArapSolver:
         self._last = U
         self._live = None
         # The rotations fit the stored solution only if an iteration ended with a local step on it.
+        self._rotations_fresh = bool(energies) or start != "warm"
+        timings["total"] = time.perf_counter() - t_start
+        return ArapResult(vertices=np.take(U, self._inv, axis=0), energies=energies, iterations=len(energies),
+                          converged=converged, timings=timings, residual=residual, start=start, rejected=rejected)
+
+    def _lbfgs_applies(self, point_targets: NDArray[np.float64] | None) -> bool:
+        """True when the energy's gradient in x is ``2 (A x − b(R))`` with the factored ``A``, evaluated to full
+        precision: rotations fitted exactly (not ``smooth_rotations``), no hard point handles (their projection is
+        not ``A⁻¹``) and no rigid regions (their huge cell weights cancel in ``A x − b``)."""
+        hard = self._points is not None and point_targets is not None and bool(self._points.hard.any())
+        return (self.factor is not None and self._smooth is None and self._rigid is None and not hard
+                and self._nf > 0)
+
+    def _solve_lbfgs(self, U: NDArray[np.float64], E_cur: float | None, start: str, const_E: float,
+                     rhs_const: NDArray[np.float64], cap: int, step_limit: float,
+                     callback: IterationCallback | None, window: int, timings: dict[str, float],
+                     t_start: float) -> ArapResult:
+        """The iterations of :meth:`solve` with ``acceleration="lbfgs"`` (see :mod:`arap.lbfgs`).
+
+        Each iteration: a direction from the history (the plain step when it is empty, or when the rotations in
+        ``self._R`` were fitted to another shape), a backtracking line search on the energy from step 1, the
+        plain step if no trial lowered it, then the gradient at the new iterate (its right-hand side is the one the
+        next plain step needs). The plain step's size, the convergence measure, costs a back-substitution: it is
+        taken when the step was small, every ``CHECK_EVERY`` iterations, and at the end.
+        """
+        assert self.factor is not None
+        nf = self._nf
+        solve = self.factor.solve
+        history = LbfgsHistory(window)
+        rhs = np.empty((nf, 3))
+
+        def fit_rhs() -> NDArray[np.float64]:
+            """Right-hand side of the global step for the rotations in ``self._R``, and ``A x − b`` at ``x``."""
+            t = time.perf_counter()
+            assemble_rhs(self._gather, self._R, rhs_const, rhs)
+            timings["rhs"] += time.perf_counter() - t
+            return self._A @ U[:nf] - rhs
+
+        def plain_size(step: NDArray[np.float64]) -> float:
+            return float(np.sqrt(np.einsum("ij,ij->", step, step)))
+
+        def plain_step_from_here() -> NDArray[np.float64]:
+            t = time.perf_counter()
+            g = solve(rhs)
+            timings["solve"] += time.perf_counter() - t
+            return g
+
+        scale = self._diagonal * np.sqrt(nf)
+        x = U[:nf].copy()
+        gradient = fit_rhs()
+        fresh = E_cur is not None  # the rotations in self._R fit x
+        energies: list[float] = []
+        converged = False
+        residual = float("nan")
+        residual_at = -2  # iteration whose iterate the residual was measured at (0: the start)
+        rejected = 0
+        for it in range(1, cap + 1):
+            if fresh and len(history):
+                t = time.perf_counter()
+                d = history.direction(gradient, solve)
+                timings["acceleration"] += time.perf_counter() - t
+            else:
+                d = plain_step_from_here() - x
+                residual, residual_at = plain_size(d) / scale, it - 1
+                converged = fresh and residual * scale <= step_limit  # this plain step is the last
+            step = 1.0
+            for _ in range(LINE_SEARCH_HALVINGS):
+                np.add(x, step * d, out=U[:nf])
+                e = self._local(U, const_E, timings)
+                if E_cur is None or e <= E_cur:
+                    break
+                step *= 0.5
+            else:  # no trial lowered the energy: the plain step from x, which cannot raise it
+                rejected += 1
+                history.reset()
+                U[:nf] = plain_step_from_here()
+                e = self._local(U, const_E, timings)
+            moved = U[:nf] - x
+            new_gradient = fit_rhs()
+            if fresh:
+                history.update(moved, new_gradient - gradient)
+            x[:] = U[:nf]
+            gradient = new_gradient
+            fresh = True
+            E_cur = e
+            energies.append(e)
+            stop = callback is not None and callback(it, e) is False
+            small = plain_size(moved) <= CHECK_FACTOR * step_limit
+            if not converged and step_limit > 0 and (small or it % CHECK_EVERY == 0):
+                residual, residual_at = plain_size(plain_step_from_here() - x) / scale, it
+                if residual * scale <= step_limit:
+                    converged = True
+            if converged or stop:
+                break
+        if energies and residual_at < len(energies) - 1:
+            residual = plain_size(plain_step_from_here() - x) / scale
+        self._last = U
+        self._live = None
         self._rotations_fresh = bool(energies) or start != "warm"
         timings["total"] = time.perf_counter() - t_start
         return ArapResult(vertices=np.take(U, self._inv, axis=0), energies=energies, iterations=len(energies),

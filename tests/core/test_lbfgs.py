@@ -1,0 +1,75 @@
+"""L-BFGS directions (arap.lbfgs): the two-loop recursion equals the BFGS inverse-Hessian update written out,
+pairs of non-positive curvature are refused, and the window keeps the newest pairs."""
+
+from __future__ import annotations
+
+import doctest
+
+import numpy as np
+import pytest
+
+import arap.lbfgs
+from arap.errors import ArapError
+from arap.lbfgs import LbfgsHistory
+
+
+def _bfgs_inverse(H0: np.ndarray, pairs: list[tuple[np.ndarray, np.ndarray]]) -> np.ndarray:
+    """H_{k+1} = (I − ρ s yᵀ) H_k (I − ρ y sᵀ) + ρ s sᵀ, applied oldest pair first."""
+    H = H0.copy()
+    eye = np.eye(len(H0))
+    for s, y in pairs:
+        rho = 1.0 / float(s @ y)
+        H = (eye - rho * np.outer(s, y)) @ H @ (eye - rho * np.outer(y, s)) + rho * np.outer(s, s)
+    return H
+
+
+def _spd(rng: np.random.Generator, n: int) -> np.ndarray:
+    Q = rng.normal(size=(n, n))
+    return Q @ Q.T + n * np.eye(n)
+
+
+@pytest.mark.parametrize("window", [1, 3, 8])
+def test_two_loop_equals_the_written_out_update(window: int) -> None:
+    rng = np.random.default_rng(window)
+    n = 12
+    H0 = np.linalg.inv(_spd(rng, n))  # the preconditioner: the inverse of an SPD "system matrix"
+    Q = _spd(rng, n)  # the Hessian the pairs come from, so sᵀy > 0
+    history = LbfgsHistory(window)
+    pairs = []
+    for _ in range(6):
+        s = rng.normal(size=n)
+        y = Q @ s
+        assert history.update(s[:, None].copy(), y[:, None].copy())
+        pairs.append((s, y))
+    g = rng.normal(size=n)
+    d = history.direction(g[:, None].copy(), lambda q: H0 @ q)
+    expected = -_bfgs_inverse(H0, pairs[-window:]) @ g
+    np.testing.assert_allclose(d[:, 0], expected, rtol=1e-10, atol=1e-12)
+    assert len(history) == min(window, 6)
+
+
+def test_an_empty_history_gives_the_preconditioned_gradient_step() -> None:
+    g = np.array([[1.0, -2.0], [3.0, 0.5]])
+    d = LbfgsHistory(4).direction(g, lambda q: 0.5 * q)
+    np.testing.assert_array_equal(d, -0.5 * g)
+
+
+def test_pairs_without_positive_curvature_are_refused() -> None:
+    history = LbfgsHistory(3)
+    s = np.array([[1.0, 0.0]])
+    assert not history.update(s, np.array([[-1.0, 0.0]]))
+    assert not history.update(s, np.array([[0.0, 1.0]]))
+    assert len(history) == 0
+    assert history.update(s, np.array([[2.0, 0.0]]))
+    history.reset()
+    assert len(history) == 0
+
+
+def test_the_window_must_be_a_positive_integer() -> None:
+    for bad in (0, -1, 2.5):
+        with pytest.raises(ArapError):
+            LbfgsHistory(bad)  # type: ignore[arg-type]
+
+
+def test_docstring_example() -> None:
+    assert doctest.testmod(arap.lbfgs, raise_on_error=True).attempted > 0
