@@ -80,11 +80,16 @@ def _as_faces(F: np.ndarray, allow_polygons: bool = False) -> np.ndarray:
     return np.ascontiguousarray(F, dtype=np.int64)
 
 
+def _extent(V: np.ndarray) -> np.ndarray:
+    """Bounding-box size of ``V`` (n, 3), one column at a time (NumPy reduces a 3-wide axis 0 slowly)."""
+    return np.array([np.ptp(V[:, j]) if len(V) else 0.0 for j in range(V.shape[1])])
+
+
 def _bbox_diagonal(V: np.ndarray) -> float:
-    finite = V[np.all(np.isfinite(V), axis=1)]
+    finite = V if np.isfinite(V).all() else V[np.all(np.isfinite(V), axis=1)]
     if not len(finite):
         return 0.0
-    return float(np.linalg.norm(finite.max(axis=0) - finite.min(axis=0)))
+    return float(np.linalg.norm(_extent(finite)))
 
 
 def _double_areas(V: np.ndarray, F: np.ndarray) -> np.ndarray:
@@ -106,7 +111,7 @@ def coordinate_problem(V: np.ndarray) -> str | None:
         return None
     small, large = SIZE_RANGE
     with np.errstate(over="ignore", invalid="ignore"):
-        size = float(np.max(V.max(axis=0) - V.min(axis=0)))
+        size = float(np.max(_extent(V)))
     reach = float(np.abs(V).max())
     where = f"coordinates range from {float(V.min()):.3g} to {float(V.max()):.3g}"
     supported = f"meshes from {small:g} to {large:g} across are supported"
@@ -362,8 +367,52 @@ def _first_equal_row(A: np.ndarray) -> np.ndarray:
     return rep
 
 
+_WELD_DIRECTION = np.array([0.6012, 0.5321, 0.5963]) / np.linalg.norm([0.6012, 0.5321, 0.5963])
+_WELD_MAX_RUN = 32
+
+
 def _weld_groups(V: np.ndarray, tol: float) -> np.ndarray:
-    """Representative (smallest index) of every vertex after welding points closer than ``tol``."""
+    """Representative (smallest index) of every vertex after welding points closer than ``tol``.
+
+    Points closer than ``tol`` are closer than ``tol`` along any direction: sorted along one (not an axis, which
+    grid-like meshes share), such pairs lie in runs of neighbours less than ``tol`` apart, and only pairs within a
+    run are measured. Long runs (many points on a plane across that direction) go to a k-d tree.
+    """
+    n = len(V)
+    if n < 2:
+        return np.arange(n, dtype=np.int64)
+    P = V + 0.0  # turns -0.0 into 0.0
+    s = P @ _WELD_DIRECTION
+    order = np.argsort(s, kind="stable")
+    ss = s[order]
+    slack = tol + 8 * np.finfo(np.float64).eps * float(np.abs(ss).max())
+    run = np.concatenate(([0], np.cumsum(np.diff(ss) > slack)))
+    longest = int(np.bincount(run).max())
+    if longest > _WELD_MAX_RUN:
+        return _weld_groups_tree(V, tol)
+    pairs = []
+    for k in range(1, longest):
+        i = np.flatnonzero(run[:-k] == run[k:])
+        a, b = order[i], order[i + k]
+        d = P[a] - P[b]
+        close = np.einsum("ij,ij->i", d, d) <= tol * tol
+        pairs.append(np.stack([a[close], b[close]], axis=1))
+    return _component_minimum(np.concatenate(pairs) if pairs else np.zeros((0, 2), dtype=np.int64), n)
+
+
+def _component_minimum(pairs: np.ndarray, n: int) -> np.ndarray:
+    """Smallest index of every vertex's connected component in the graph of edges ``pairs``."""
+    if not len(pairs):
+        return np.arange(n, dtype=np.int64)
+    G = sp.coo_matrix((np.ones(len(pairs), dtype=np.int8), (pairs[:, 0], pairs[:, 1])), shape=(n, n))
+    _, labels = _cc(G, directed=False)
+    first = np.full(labels.max() + 1, n, dtype=np.int64)
+    np.minimum.at(first, labels, np.arange(n, dtype=np.int64))
+    return first[labels]
+
+
+def _weld_groups_tree(V: np.ndarray, tol: float) -> np.ndarray:
+    """:func:`_weld_groups` with exact duplicates found by sorting and close points by a k-d tree."""
     n = len(V)
     rep = _first_equal_row(V + 0.0)  # + 0.0 turns -0.0 into 0.0
     first = np.flatnonzero(rep == np.arange(n))
@@ -383,7 +432,16 @@ def _weld_groups(V: np.ndarray, tol: float) -> np.ndarray:
 
 def _unique_face_mask(F: np.ndarray) -> np.ndarray:
     """True for the first occurrence of every face (same vertex set, either orientation)."""
-    return _first_equal_row(np.sort(F, axis=1)) == np.arange(len(F))
+    S = np.sort(F, axis=1)
+    n = int(S.max()) + 1 if len(S) else 1
+    if n >= 2**21:  # the three indices do not fit one int64 key
+        return _first_equal_row(S) == np.arange(len(F))
+    key = (S[:, 0] * n + S[:, 1]) * n + S[:, 2]
+    order = np.argsort(key, kind="stable")  # equal keys keep their order: the first comes first
+    k = key[order]
+    keep = np.ones(len(F), dtype=bool)
+    keep[order[1:][k[1:] == k[:-1]]] = False
+    return keep
 
 
 def repair_mesh(
@@ -434,9 +492,9 @@ def repair_mesh(
         bad = np.flatnonzero(np.any((F < 0) | (F >= n), axis=1))
         raise MeshError(f"{len(bad)} faces have vertex indices out of range [0, {n}) (first: face {bad[0]}); "
                         "this cannot be repaired")
-    finite = np.all(np.isfinite(V), axis=1)
-    used_bad = ~finite[F].all(axis=1) if len(F) else np.zeros(0, dtype=bool)
-    if used_bad.any():
+    finite = np.all(np.isfinite(V), axis=1) if not np.isfinite(V).all() else None
+    used_bad = ~finite[F].all(axis=1) if finite is not None and len(F) else np.zeros(0, dtype=bool)
+    if finite is not None and used_bad.any():
         bad_v = np.flatnonzero(~finite)
         raise MeshError(f"{int((~finite).sum())} vertices have NaN or infinite coordinates (first: vertex "
                         f"{bad_v[0]}) and {int(used_bad.sum())} faces use them; this cannot be repaired")
