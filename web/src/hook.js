@@ -65,6 +65,9 @@ export function installTestHook({ app, viewer, selection, gizmo, conn, keeper, m
     get frameMs() {
       return app.frameMs.slice();
     },
+    get meshMs() {
+      return app.meshMs;
+    },
     get messages() {
       return app.messages;
     },
