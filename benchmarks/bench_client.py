@@ -10,7 +10,8 @@ screenshot of each run to the output folder.
 Before that, upload-to-ready: from handing the file to the page's file input until the page shows the mesh and
 has nothing pending (ready to drag), split into the server's parse and repair of the same bytes (timed again in
 this process, median of 3), the encoding of the mesh message, the page's JavaScript for the mesh message
-(``window.__arap.meshMs``) and the rest (reading the file, transfers, waiting); then the time from sending the
+(``window.__arap.meshMs``) and the rest (reading the file, transfers, waiting), measured on a page of its own
+whose WebSocket is not relayed through Playwright; then the time from sending the
 first constraint set to the answer of its first drag, with the server's factorisation time (``factor_ms``).
 
 Usage::
@@ -29,13 +30,11 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from playwright.sync_api import Page, WebSocketRoute, sync_playwright
+from playwright.sync_api import Browser, Page, WebSocketRoute, sync_playwright
 
-from arap.io import save_mesh_bytes
 from arap.server.connection import _mesh_frame
 from arap.server.meshdata import load_upload
-from arap.shapes import sphere, sphere_frequency_for
-from bench_studio import DEFAULT_MESH, ROOT, start_server
+from bench_studio import DEFAULT_MESH, ROOT, sphere_obj, start_server
 
 CHROMIUM = "/usr/bin/chromium"
 CHROMIUM_ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--no-first-run", "--disable-background-networking"]
@@ -73,6 +72,27 @@ def _server_parts(mesh: Path) -> dict[str, float]:
     return {"parse_repair_ms": float(np.median(load)), "encode_ms": float(np.median(encode))}
 
 
+def _upload(page: Page, mesh: Path) -> float:
+    """Hand ``mesh`` to the page's file input; milliseconds until the page shows it with nothing pending."""
+    page.wait_for_function("() => window.__arap && window.__arap.ready && !window.__arap.busy", timeout=120_000)
+    t0 = time.perf_counter()
+    page.get_by_test_id("file-input").set_input_files(str(mesh))
+    page.wait_for_function(f"() => window.__arap.ready && window.__arap.meshName.startsWith('{mesh.stem}')"
+                           " && !window.__arap.busy", timeout=300_000, polling=10)
+    return 1000 * (time.perf_counter() - t0)
+
+
+def _upload_to_ready(browser: Browser, http: str, mesh: Path) -> tuple[float, float]:
+    """Upload-to-ready on a page of its own whose WebSocket is not relayed through Playwright (a relayed one
+    carries every byte through this process), and the page's JavaScript time for the mesh message."""
+    page = browser.new_page(viewport={"width": 1280, "height": 800})
+    page.goto(http)
+    ready_ms = _upload(page, mesh)
+    mesh_js_ms = float(page.evaluate("() => (typeof window.__arap.meshMs === 'number' ? window.__arap.meshMs : NaN)"))
+    page.close()
+    return ready_ms, mesh_js_ms
+
+
 def run(mesh: Path, updates: int, out: Path) -> dict[str, Any]:
     proc, url = start_server()
     http = url.replace("ws://", "http://").rsplit("/ws", 1)[0] + "/"
@@ -81,6 +101,7 @@ def run(mesh: Path, updates: int, out: Path) -> dict[str, Any]:
     try:
         with sync_playwright() as pw:
             browser = pw.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS, timeout=60_000)
+            ready_ms, mesh_js_ms = _upload_to_ready(browser, http, mesh)
             page = browser.new_page(viewport={"width": 1280, "height": 800})
             route: dict[str, WebSocketRoute] = {}
 
@@ -92,7 +113,7 @@ def run(mesh: Path, updates: int, out: Path) -> dict[str, Any]:
 
                 def from_server(m: str | bytes) -> None:
                     if isinstance(m, str) and '"state"' in m[:64]:
-                        factor_ms.append(float(json.loads(m).get("factor_ms") or 0.0))
+                        factor_ms.append(float(json.loads(m).get("stats", {}).get("factor_ms") or 0.0))
                     ws.send(m)
 
                 server.on_message(from_server)
@@ -100,23 +121,16 @@ def run(mesh: Path, updates: int, out: Path) -> dict[str, Any]:
 
             page.route_web_socket("**/ws", relay)
             page.goto(http)
-            page.wait_for_function("() => window.__arap && window.__arap.ready && !window.__arap.busy",
-                                   timeout=120_000)
-            t0 = time.perf_counter()
-            page.get_by_test_id("file-input").set_input_files(str(mesh))
-            page.wait_for_function(f"() => window.__arap.ready && window.__arap.meshName.startsWith('{mesh.stem}')"
-                                   " && !window.__arap.busy", timeout=300_000, polling=10)
-            ready_ms = 1000 * (time.perf_counter() - t0)
-            mesh_js_ms = float(page.evaluate("() => (typeof window.__arap.meshMs === 'number' ? "
-                                             "window.__arap.meshMs : NaN)"))
+            _upload(page, mesh)
             V = np.asarray(page.evaluate("() => window.__arap.positions()")).reshape(-1, 3)
             y = V[:, 1]
             height = float(np.ptp(y))
             handle = np.flatnonzero(y >= np.quantile(y, 0.9)).tolist()
             server = route["server"]
+            states = len(factor_ms)
             whole, first_ms = _drags(page, server, None, np.flatnonzero(y <= np.quantile(y, 0.1)).tolist(), handle,
                                      updates, 1000, height)
-            factor = factor_ms[-1] if factor_ms else float("nan")
+            factor = max(factor_ms[states:], default=float("nan"))  # the constraint set's state
             page.screenshot(path=str(out / f"{mesh.stem}-whole.png"))
             band = (y >= np.quantile(y, 0.8)) & (y <= np.quantile(y, 0.82))
             region, _ = _drags(page, server, np.flatnonzero(y >= np.quantile(y, 0.8)).tolist(),
@@ -143,14 +157,6 @@ def run(mesh: Path, updates: int, out: Path) -> dict[str, Any]:
         proc.terminate()
         proc.wait(timeout=10)
     return results
-
-
-def sphere_obj(n_vertices: int, folder: Path) -> Path:
-    """A geodesic sphere of about ``n_vertices`` vertices written as OBJ (the format of large scans)."""
-    V, F = sphere(frequency=sphere_frequency_for(n_vertices))
-    out = folder / f"sphere{round(len(V) / 1000)}k.obj"
-    out.write_bytes(save_mesh_bytes(V, F, "obj"))
-    return out
 
 
 def main() -> None:
