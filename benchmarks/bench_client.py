@@ -7,12 +7,13 @@ median and p95 of the JavaScript time the page spent applying each frame (``wind
 the positions, writing them into the vertex buffer, the normals and the bounds; drawing excluded), and saves a
 screenshot of each run to the output folder.
 
-Before that, upload-to-ready: from handing the file to the page's file input until the page shows the mesh and
-has nothing pending (ready to drag), split into the server's parse and repair of the same bytes (timed again in
-this process, median of 3), the encoding of the mesh message, the page's JavaScript for the mesh message
-(``window.__arap.meshMs``) and the rest (reading the file, transfers, waiting), measured on a page of its own
-whose WebSocket is not relayed through Playwright; then the time from sending the
-first constraint set to the answer of its first drag, with the server's factorisation time (``factor_ms``).
+Before that, upload-to-ready: from the page having the file in its file input (Playwright's transfer of the
+file into the browser excluded) until the page shows the mesh and has nothing pending (ready to drag), measured
+on a page of its own whose WebSocket is not relayed through Playwright. It is split into the server's parse and
+repair of the same bytes (timed again in this process, median of 3), the encoding of the mesh message, the
+page's JavaScript for the mesh message (``window.__arap.meshMs``) and the rest (reading the file, transfers,
+waiting). Then the time from sending the first constraint set to the answer of its first drag, with the
+server's factorisation time (``factor_ms``).
 
 Usage::
 
@@ -73,10 +74,11 @@ def _server_parts(mesh: Path) -> dict[str, float]:
 
 
 def _upload(page: Page, mesh: Path) -> float:
-    """Hand ``mesh`` to the page's file input; milliseconds until the page shows it with nothing pending."""
+    """Hand ``mesh`` to the page's file input; milliseconds from the page having the file (Playwright's transfer
+    of the file into the browser excluded) until it shows the mesh with nothing pending."""
     page.wait_for_function("() => window.__arap && window.__arap.ready && !window.__arap.busy", timeout=120_000)
-    t0 = time.perf_counter()
     page.get_by_test_id("file-input").set_input_files(str(mesh))
+    t0 = time.perf_counter()
     page.wait_for_function(f"() => window.__arap.ready && window.__arap.meshName.startsWith('{mesh.stem}')"
                            " && !window.__arap.busy", timeout=300_000, polling=10)
     return 1000 * (time.perf_counter() - t0)
