@@ -346,7 +346,7 @@ def subdivided(mesh: Path, folder: Path) -> Path:
     return out
 
 
-async def sphere_obj(n_vertices: int, folder: Path) -> Path:
+def sphere_obj(n_vertices: int, folder: Path) -> Path:
     """A geodesic sphere of about ``n_vertices`` vertices written as OBJ (the format of large scans)."""
     V, F = sphere(frequency=sphere_frequency_for(n_vertices))
     out = folder / f"sphere{round(len(V) / 1000)}k.obj"
