@@ -232,7 +232,7 @@ def test_inspect_negative_weight_share() -> None:
 
 @pytest.mark.parametrize("seed", range(6))
 def test_welding_along_a_direction_finds_the_groups_a_kd_tree_finds(seed: int) -> None:
-    from arap.mesh import _unique_face_mask, _weld_groups, _weld_groups_tree
+    from arap._weld import _unique_face_mask, _weld_groups, _weld_groups_tree
 
     rng = np.random.default_rng(seed)
     V = rng.normal(size=(400, 3)).round(seed % 3)  # rounded: many points share coordinates
