@@ -4,42 +4,95 @@ Starts the studio (as ``bench_studio.py`` does), opens it in the system's Chromi
 the mesh through the page, then sends through the page's own WebSocket a constraint set and drags: once with the
 whole mesh as region of interest (full frames) and once with the top 20% along y (subset frames). It prints the
 median and p95 of the JavaScript time the page spent applying each frame (``window.__arap.frameMs``: decoding
-the positions, writing them into the vertex buffer and the normals; drawing excluded), and saves a screenshot
-of each run to the output folder.
+the positions, writing them into the vertex buffer, the normals and the bounds; drawing excluded), and saves a
+screenshot of each run to the output folder.
+
+Before that, upload-to-ready: from the page having the file in its file input (Playwright's transfer of the
+file into the browser excluded) until the page shows the mesh and has nothing pending (ready to drag), measured
+on a page of its own whose WebSocket is not relayed through Playwright. It is split into the server's parse and
+repair of the same bytes (timed again in this process, median of 3), the encoding of the mesh message, the
+page's JavaScript for the mesh message (``window.__arap.meshMs``) and the rest (reading the file, transfers,
+waiting). Then the time from sending the first constraint set to the answer of its first drag, with the
+server's factorisation time (``factor_ms``).
 
 Usage::
 
-    .venv/bin/python benchmarks/bench_client.py [--mesh ../shared/meshes/armadillo.obj] [--updates 30]
-        [--out artifacts/bench_client]
+    .venv/bin/python benchmarks/bench_client.py [--mesh ../shared/meshes/armadillo.obj | --sphere 134000]
+        [--updates 30] [--out artifacts/bench_client]
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import tempfile
+import time
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-from playwright.sync_api import Page, WebSocketRoute, sync_playwright
+from playwright.sync_api import Browser, Page, WebSocketRoute, sync_playwright
 
-from bench_studio import DEFAULT_MESH, ROOT, start_server
+from arap.server.connection import _mesh_frame
+from arap.server.meshdata import load_upload
+from bench_studio import DEFAULT_MESH, ROOT, sphere_obj, start_server
 
 CHROMIUM = "/usr/bin/chromium"
 CHROMIUM_ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--no-first-run", "--disable-background-networking"]
 
 
 def _drags(page: Page, server: WebSocketRoute, roi: list[int] | None, fixed: list[int], handle: list[int],
-           updates: int, seq0: int, height: float) -> list[float]:
+           updates: int, seq0: int, height: float) -> tuple[list[float], float]:
+    """Frame times of ``updates`` drags after a constraint set, and the time until the first was answered."""
+    t0 = time.perf_counter()
+    first_ms = float("nan")
     server.send(json.dumps({"type": "set_constraints", "roi": roi, "fixed": fixed, "handle_groups": [handle]}))
     seen = 0
     for k in range(1, updates + 1):
         M = np.eye(4)
         M[0, 3] = 0.1 * height * np.sin(k / 5)
         server.send(json.dumps({"type": "drag", "seq": seq0 + k, "transforms": [M.T.reshape(16).tolist()]}))
-        page.wait_for_function(f"() => window.__arap.lastSeq === {seq0 + k}", timeout=120_000)
+        page.wait_for_function(f"() => window.__arap.lastSeq === {seq0 + k}", timeout=300_000)
+        if k == 1:
+            first_ms = 1000 * (time.perf_counter() - t0)
         seen += 1
-    return list(page.evaluate("() => window.__arap.frameMs"))[-seen:]
+    return list(page.evaluate("() => window.__arap.frameMs"))[-seen:], first_ms
+
+
+def _server_parts(mesh: Path) -> dict[str, float]:
+    """The server's parse and repair of the upload, and the encoding of the mesh message (ms, median of 3)."""
+    data = mesh.read_bytes()
+    load, encode = [], []
+    for _ in range(3):
+        t0 = time.perf_counter()
+        loaded = load_upload(data, mesh.name, 10**8)
+        t1 = time.perf_counter()
+        _mesh_frame(loaded)
+        load.append(1000 * (t1 - t0))
+        encode.append(1000 * (time.perf_counter() - t1))
+    return {"parse_repair_ms": float(np.median(load)), "encode_ms": float(np.median(encode))}
+
+
+def _upload(page: Page, mesh: Path) -> float:
+    """Hand ``mesh`` to the page's file input; milliseconds from the page having the file (Playwright's transfer
+    of the file into the browser excluded) until it shows the mesh with nothing pending."""
+    page.wait_for_function("() => window.__arap && window.__arap.ready && !window.__arap.busy", timeout=120_000)
+    page.get_by_test_id("file-input").set_input_files(str(mesh))
+    t0 = time.perf_counter()
+    page.wait_for_function(f"() => window.__arap.ready && window.__arap.meshName.startsWith('{mesh.stem}')"
+                           " && !window.__arap.busy", timeout=300_000, polling=10)
+    return 1000 * (time.perf_counter() - t0)
+
+
+def _upload_to_ready(browser: Browser, http: str, mesh: Path) -> tuple[float, float]:
+    """Upload-to-ready on a page of its own whose WebSocket is not relayed through Playwright (a relayed one
+    carries every byte through this process), and the page's JavaScript time for the mesh message."""
+    page = browser.new_page(viewport={"width": 1280, "height": 800})
+    page.goto(http)
+    ready_ms = _upload(page, mesh)
+    mesh_js_ms = float(page.evaluate("() => (typeof window.__arap.meshMs === 'number' ? window.__arap.meshMs : NaN)"))
+    page.close()
+    return ready_ms, mesh_js_ms
 
 
 def run(mesh: Path, updates: int, out: Path) -> dict[str, Any]:
@@ -50,38 +103,55 @@ def run(mesh: Path, updates: int, out: Path) -> dict[str, Any]:
     try:
         with sync_playwright() as pw:
             browser = pw.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS, timeout=60_000)
+            ready_ms, mesh_js_ms = _upload_to_ready(browser, http, mesh)
             page = browser.new_page(viewport={"width": 1280, "height": 800})
             route: dict[str, WebSocketRoute] = {}
+
+            factor_ms: list[float] = []
 
             def relay(ws: WebSocketRoute) -> None:
                 server = ws.connect_to_server()
                 route["server"] = server
-                server.on_message(lambda m: ws.send(m))
+
+                def from_server(m: str | bytes) -> None:
+                    if isinstance(m, str) and '"state"' in m[:64]:
+                        factor_ms.append(float(json.loads(m).get("stats", {}).get("factor_ms") or 0.0))
+                    ws.send(m)
+
+                server.on_message(from_server)
                 ws.on_message(lambda m: server.send(m))
 
             page.route_web_socket("**/ws", relay)
             page.goto(http)
-            page.wait_for_function("() => window.__arap && window.__arap.ready", timeout=120_000)
-            page.get_by_test_id("file-input").set_input_files(str(mesh))
-            page.wait_for_function(f"() => window.__arap.ready && window.__arap.meshName.startsWith('{mesh.stem}')"
-                                   " && !window.__arap.busy", timeout=300_000)
+            _upload(page, mesh)
             V = np.asarray(page.evaluate("() => window.__arap.positions()")).reshape(-1, 3)
             y = V[:, 1]
             height = float(np.ptp(y))
             handle = np.flatnonzero(y >= np.quantile(y, 0.9)).tolist()
             server = route["server"]
-            whole = _drags(page, server, None, np.flatnonzero(y <= np.quantile(y, 0.1)).tolist(), handle, updates,
-                           1000, height)
+            states = len(factor_ms)
+            whole, first_ms = _drags(page, server, None, np.flatnonzero(y <= np.quantile(y, 0.1)).tolist(), handle,
+                                     updates, 1000, height)
+            factor = max(factor_ms[states:], default=float("nan"))  # the constraint set's state
             page.screenshot(path=str(out / f"{mesh.stem}-whole.png"))
             band = (y >= np.quantile(y, 0.8)) & (y <= np.quantile(y, 0.82))
-            region = _drags(page, server, np.flatnonzero(y >= np.quantile(y, 0.8)).tolist(),
-                            np.flatnonzero(band).tolist(), handle, updates, 2000, height)
+            region, _ = _drags(page, server, np.flatnonzero(y >= np.quantile(y, 0.8)).tolist(),
+                               np.flatnonzero(band).tolist(), handle, updates, 2000, height)
             page.screenshot(path=str(out / f"{mesh.stem}-roi20.png"))
             browser.close()
-        print(f"{mesh.name}: {len(V):,} vertices; client JavaScript per vertices frame (drawing excluded)")
+        parts = _server_parts(mesh)
+        rest = ready_ms - parts["parse_repair_ms"] - parts["encode_ms"] - mesh_js_ms
+        print(f"{mesh.name}: {len(V):,} vertices, {mesh.stat().st_size / 2**20:.1f} MiB")
+        print(f"  upload to ready {ready_ms:.0f} ms: server parse and repair {parts['parse_repair_ms']:.0f} ms, "
+              f"mesh message encoded {parts['encode_ms']:.0f} ms, page JavaScript for the mesh {mesh_js_ms:.0f} ms, "
+              f"rest (file read, transfers, waiting) {rest:.0f} ms")
+        print(f"  first constraint set to its first drag answered {first_ms:.0f} ms (factorisation {factor:.0f} ms)")
+        results.update(upload_to_ready_ms=ready_ms, mesh_js_ms=mesh_js_ms, first_drag_ms=first_ms,
+                       factor_ms=factor, **parts)
+        print("  client JavaScript per vertices frame (drawing excluded)")
         for label, times in (("whole mesh (full frames)", whole), ("20% region (subset frames)", region)):
             t = np.asarray(times[1:])  # the first frame of a constraint set is full in both runs
-            print(f"  {label:<28} median {np.median(t):6.1f} ms, p95 {np.percentile(t, 95):6.1f} ms "
+            print(f"    {label:<28} median {np.median(t):6.1f} ms, p95 {np.percentile(t, 95):6.1f} ms "
                   f"({len(t)} frames)")
             results[label] = {"median_ms": float(np.median(t)), "p95_ms": float(np.percentile(t, 95))}
         print(f"screenshots in {out}")
@@ -94,10 +164,16 @@ def run(mesh: Path, updates: int, out: Path) -> dict[str, Any]:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--mesh", type=Path, default=DEFAULT_MESH, help="mesh file to upload")
+    parser.add_argument("--sphere", type=int, default=0, metavar="N",
+                        help="upload a geodesic sphere of about N vertices (OBJ) instead of --mesh")
     parser.add_argument("--updates", type=int, default=30, help="drags per constraint set")
     parser.add_argument("--out", type=Path, default=ROOT / "artifacts" / "bench_client",
                         help="folder for the screenshots")
     args = parser.parse_args()
+    if args.sphere:
+        with tempfile.TemporaryDirectory() as tmp:
+            run(sphere_obj(args.sphere, Path(tmp)), args.updates, args.out)
+        return
     if not args.mesh.is_file():
         parser.error(f"mesh not found: {args.mesh}")
     run(args.mesh, args.updates, args.out)

@@ -16,12 +16,14 @@ With ``--payload`` it reports instead, per mesh, upload-to-ready (upload sent un
 and until the first drag of a constraint set was answered, first factorisation included) and the bytes and
 server time per update for the whole mesh as region of interest (full frames) and for a region of the top 20%
 along y (subset frames). ``--subdivide`` also runs it on the mesh subdivided once (``trimesh.remesh.subdivide``:
-about 4 times the vertices, 172k for the armadillo), written to a temporary folder.
+about 4 times the vertices, 172k for the armadillo), written to a temporary folder; ``--sphere N`` also on a
+geodesic sphere of about N vertices written as OBJ. The first answer is split into the server's factorisation
+(``factor_ms`` of the constraint set's ``state``) and the rest.
 
 Usage::
 
     .venv/bin/python benchmarks/bench_studio.py [--mesh ../shared/meshes/armadillo.obj] [--seconds 5]
-    .venv/bin/python benchmarks/bench_studio.py --payload --subdivide [--updates 30]
+    .venv/bin/python benchmarks/bench_studio.py --payload --subdivide [--sphere 134000] [--updates 30]
 """
 
 from __future__ import annotations
@@ -42,7 +44,9 @@ from typing import Any
 import numpy as np
 from websockets.asyncio.client import ClientConnection, connect
 
+from arap.io import save_mesh_bytes
 from arap.server.protocol import decode_binary, encode_binary
+from arap.shapes import sphere, sphere_frequency_for
 
 ROOT = Path(__file__).resolve().parents[1]
 DEFAULT_MESH = ROOT.parent / "shared" / "meshes" / "armadillo.obj"
@@ -267,11 +271,16 @@ async def _drags(studio: Studio, roi: list[int] | None, fixed: list[int], update
     sizes: list[int] = []
     solve: list[float] = []
     first_ms = math.nan
+    factor_ms = math.nan
     for seq in range(1, updates + 1):
         if seq > 1:
             await studio.drag(seq, 0.05 * seq)
         while True:
-            msg = await asyncio.wait_for(ws.recv(), 120.0)
+            msg = await asyncio.wait_for(ws.recv(), 300.0)
+            if isinstance(msg, str) and seq == 1:
+                data = json.loads(msg)
+                if data["type"] == "state":
+                    factor_ms = float(data["stats"]["factor_ms"])
             if isinstance(msg, bytes):
                 header, _ = decode_binary(msg)
                 if header["type"] == "vertices" and header["seq"] == seq:
@@ -281,7 +290,8 @@ async def _drags(studio: Studio, roi: list[int] | None, fixed: list[int], update
         sizes.append(len(msg))
         solve.append(float(header["solve_ms"]))
     await ws.send(json.dumps({"type": "end_drag"}))
-    return {"first_answer_ms": first_ms, "first_bytes": sizes[0], "bytes_per_update": float(np.median(sizes[1:])),
+    return {"first_answer_ms": first_ms, "factor_ms": factor_ms, "first_bytes": sizes[0],
+            "bytes_per_update": float(np.median(sizes[1:])),
             "server_solve_ms": float(np.median(solve[1:]))}
 
 
@@ -317,8 +327,8 @@ async def payload_report(url: str, mesh: Path, updates: int) -> dict[str, Any]:
     out = {"mesh": mesh.name, "n_vertices": n, "upload_bytes": len(data), "upload_to_mesh_ms": shown_ms,
            "upload_to_first_answer_ms": ready_ms, "whole": whole, "roi20": region}
     print(f"\n{mesh.name}: {n:,} vertices, upload {len(data) / 2**20:.1f} MiB", flush=True)
-    print(f"  upload to mesh shown {shown_ms:.0f} ms; to the first drag answered (factorisation included) "
-          f"{ready_ms:.0f} ms")
+    print(f"  upload to mesh shown {shown_ms:.0f} ms; to the first drag answered {ready_ms:.0f} ms (constraint set "
+          f"to first answer {whole['first_answer_ms']:.0f} ms, of which factorisation {whole['factor_ms']:.0f} ms)")
     for label, r in (("whole mesh (full frames)", whole), ("20% region (subset frames)", region)):
         print(f"  {label:<28} {r['bytes_per_update'] / 1024:>9.1f} KiB/update (first frame "
               f"{r['first_bytes'] / 1024:.1f} KiB), server solve {r['server_solve_ms']:.1f} ms/update")
@@ -336,11 +346,21 @@ def subdivided(mesh: Path, folder: Path) -> Path:
     return out
 
 
+def sphere_obj(n_vertices: int, folder: Path) -> Path:
+    """A geodesic sphere of about ``n_vertices`` vertices written as OBJ (the format of large scans)."""
+    V, F = sphere(frequency=sphere_frequency_for(n_vertices))
+    out = folder / f"sphere{round(len(V) / 1000)}k.obj"
+    out.write_bytes(save_mesh_bytes(V, F, "obj"))
+    return out
+
+
 async def payload_main(args: argparse.Namespace) -> dict[str, Any]:
     proc, url = start_server()
     try:
         with tempfile.TemporaryDirectory() as tmp:
             meshes = [args.mesh] + ([subdivided(args.mesh, Path(tmp))] if args.subdivide else [])
+            if args.sphere:
+                meshes.append(sphere_obj(args.sphere, Path(tmp)))
             return {"payload": [await payload_report(url, m, args.updates) for m in meshes]}
     finally:
         proc.terminate()
@@ -400,6 +420,8 @@ def main() -> None:
     parser.add_argument("--payload", action="store_true", help="report upload-to-ready and bytes per update "
                         "(full frames vs a 20%% region) instead of throughput")
     parser.add_argument("--subdivide", action="store_true", help="with --payload, also the mesh subdivided once")
+    parser.add_argument("--sphere", type=int, default=0, metavar="N", help="with --payload, also a geodesic "
+                        "sphere of about N vertices (OBJ)")
     parser.add_argument("--updates", type=int, default=30, help="drags per constraint set with --payload")
     args = parser.parse_args()
     if not args.mesh.is_file():

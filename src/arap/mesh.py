@@ -13,11 +13,9 @@ from dataclasses import dataclass, field
 from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
-import scipy.sparse as sp
 from numpy.typing import NDArray
-from scipy.sparse.csgraph import connected_components as _cc
-from scipy.spatial import cKDTree
 
+from arap._weld import _unique_face_mask, _weld_groups
 from arap.errors import MeshError
 
 __all__ = [
@@ -80,11 +78,16 @@ def _as_faces(F: np.ndarray, allow_polygons: bool = False) -> np.ndarray:
     return np.ascontiguousarray(F, dtype=np.int64)
 
 
+def _extent(V: np.ndarray) -> np.ndarray:
+    """Bounding-box size of ``V`` (n, 3), one column at a time (NumPy reduces a 3-wide axis 0 slowly)."""
+    return np.array([np.ptp(V[:, j]) if len(V) else 0.0 for j in range(V.shape[1])])
+
+
 def _bbox_diagonal(V: np.ndarray) -> float:
-    finite = V[np.all(np.isfinite(V), axis=1)]
+    finite = V if np.isfinite(V).all() else V[np.all(np.isfinite(V), axis=1)]
     if not len(finite):
         return 0.0
-    return float(np.linalg.norm(finite.max(axis=0) - finite.min(axis=0)))
+    return float(np.linalg.norm(_extent(finite)))
 
 
 def _double_areas(V: np.ndarray, F: np.ndarray) -> np.ndarray:
@@ -106,7 +109,7 @@ def coordinate_problem(V: np.ndarray) -> str | None:
         return None
     small, large = SIZE_RANGE
     with np.errstate(over="ignore", invalid="ignore"):
-        size = float(np.max(V.max(axis=0) - V.min(axis=0)))
+        size = float(np.max(_extent(V)))
     reach = float(np.abs(V).max())
     where = f"coordinates range from {float(V.min()):.3g} to {float(V.max()):.3g}"
     supported = f"meshes from {small:g} to {large:g} across are supported"
@@ -347,45 +350,6 @@ class RepairResult:
         return any(self.counts.values())
 
 
-def _first_equal_row(A: np.ndarray) -> np.ndarray:
-    """For every row of ``A`` (k, c), the index of the first row equal to it (itself if unique)."""
-    k = len(A)
-    if k == 0:
-        return np.zeros(0, dtype=np.int64)
-    order = np.lexsort(A.T[::-1])  # stable: equal rows keep their original order
-    S = A[order]
-    starts = np.ones(k, dtype=bool)
-    starts[1:] = np.any(S[1:] != S[:-1], axis=1)
-    group = np.cumsum(starts) - 1
-    rep = np.empty(k, dtype=np.int64)
-    rep[order] = order[np.flatnonzero(starts)][group]
-    return rep
-
-
-def _weld_groups(V: np.ndarray, tol: float) -> np.ndarray:
-    """Representative (smallest index) of every vertex after welding points closer than ``tol``."""
-    n = len(V)
-    rep = _first_equal_row(V + 0.0)  # + 0.0 turns -0.0 into 0.0
-    first = np.flatnonzero(rep == np.arange(n))
-    inverse = np.searchsorted(first, rep)
-    if tol > 0 and len(first) > 1:
-        U = V[first]
-        pairs = cKDTree(U).query_pairs(tol, output_type="ndarray")
-        if len(pairs):
-            k = len(U)
-            G = sp.coo_matrix((np.ones(len(pairs), dtype=np.int8), (pairs[:, 0], pairs[:, 1])), shape=(k, k))
-            _, labels = _cc(G, directed=False)
-            group_first = np.full(labels.max() + 1, n, dtype=np.int64)
-            np.minimum.at(group_first, labels, first)
-            rep = group_first[labels][inverse]
-    return rep
-
-
-def _unique_face_mask(F: np.ndarray) -> np.ndarray:
-    """True for the first occurrence of every face (same vertex set, either orientation)."""
-    return _first_equal_row(np.sort(F, axis=1)) == np.arange(len(F))
-
-
 def repair_mesh(
     V: np.ndarray, polygons: np.ndarray | list[list[int]], *, weld_tolerance: float = WELD_TOLERANCE
 ) -> RepairResult:
@@ -434,9 +398,9 @@ def repair_mesh(
         bad = np.flatnonzero(np.any((F < 0) | (F >= n), axis=1))
         raise MeshError(f"{len(bad)} faces have vertex indices out of range [0, {n}) (first: face {bad[0]}); "
                         "this cannot be repaired")
-    finite = np.all(np.isfinite(V), axis=1)
-    used_bad = ~finite[F].all(axis=1) if len(F) else np.zeros(0, dtype=bool)
-    if used_bad.any():
+    finite = np.all(np.isfinite(V), axis=1) if not np.isfinite(V).all() else None
+    used_bad = ~finite[F].all(axis=1) if finite is not None and len(F) else np.zeros(0, dtype=bool)
+    if finite is not None and used_bad.any():
         bad_v = np.flatnonzero(~finite)
         raise MeshError(f"{int((~finite).sum())} vertices have NaN or infinite coordinates (first: vertex "
                         f"{bad_v[0]}) and {int(used_bad.sum())} faces use them; this cannot be repaired")

@@ -228,3 +228,21 @@ def test_inspect_negative_weight_share() -> None:
     info = inspect_mesh(V, F)
     assert info.negative_weight_share == pytest.approx(1 / 5)
     assert inspect_mesh(TET_V, TET_F).negative_weight_share == 0.0
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_welding_along_a_direction_finds_the_groups_a_kd_tree_finds(seed: int) -> None:
+    from arap._weld import _unique_face_mask, _weld_groups, _weld_groups_tree
+
+    rng = np.random.default_rng(seed)
+    V = rng.normal(size=(400, 3)).round(seed % 3)  # rounded: many points share coordinates
+    copies = rng.integers(0, len(V), size=150)
+    V = np.concatenate([V, V[copies] + rng.normal(size=(150, 3)) * [0.0, 1e-12, 1e-3][seed % 3]])
+    V[rng.integers(0, len(V), size=5)] *= -1.0
+    V = V[rng.permutation(len(V))]
+    for tol in (0.0, 1e-9, 1e-6, 0.05):
+        np.testing.assert_array_equal(_weld_groups(V, tol), _weld_groups_tree(V, tol))
+    F = rng.integers(0, len(V), size=(500, 3))
+    F = np.concatenate([F, F[rng.integers(0, 500, size=40)][:, ::-1]])
+    first = [sorted(f) not in [sorted(g) for g in F[:i]] for i, f in enumerate(F.tolist())]
+    np.testing.assert_array_equal(_unique_face_mask(F), first)

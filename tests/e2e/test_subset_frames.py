@@ -85,3 +85,65 @@ def test_the_page_holds_the_full_frame_positions_after_subset_frames(browser: Br
     expected /= np.maximum(np.linalg.norm(expected, axis=1, keepdims=True), 1e-300)
     assert np.abs(normals - expected).max() < 1e-3
     context.close()
+
+
+def test_normals_kept_per_frame_equal_a_full_recomputation(browser: Browser, server_url: str) -> None:
+    """After subset frames (normals recomputed only around the moved vertices), after a full frame and after
+    subset frames again, every normal and the bounds equal those recomputed from the whole shape."""
+    context = browser.new_context(viewport=VIEWPORT)
+    page = context.new_page()
+    route: dict[str, WebSocketRoute] = {}
+    kinds: list[int] = []
+
+    def relay(ws: WebSocketRoute) -> None:
+        server = ws.connect_to_server()
+        route["server"] = server
+
+        def from_server(message: str | bytes) -> None:
+            if isinstance(message, bytes):
+                header, _ = decode_binary(message)
+                if header["type"] == "vertices" and header["seq"] >= 0:
+                    kinds.append(header["subset"])
+            ws.send(message)
+
+        server.on_message(from_server)
+        ws.on_message(lambda message: server.send(message))
+
+    page.route_web_socket("**/ws", relay)
+    page.goto(server_url)
+    wait_ready(page)
+    V = positions(page)
+    y = V[:, 1]
+    roi = np.flatnonzero(y >= np.quantile(y, 0.6)).tolist()
+    fixed = np.flatnonzero((y >= np.quantile(y, 0.6)) & (y <= np.quantile(y, 0.65))).tolist()
+    top = np.flatnonzero(y >= np.quantile(y, 0.9)).tolist()
+    server = route["server"]
+
+    def check(label: str) -> None:
+        # one evaluation: no frame (settling streams them) can land between the readings
+        got = page.evaluate("() => { const a = window.__arap; return { kept: a.normals(), full: "
+                            "a.recomputedNormals(), pos: a.positions(), bounds: a.bounds() }; }")
+        kept = np.asarray(got["kept"], dtype=np.float32)
+        full = np.asarray(got["full"], dtype=np.float32)
+        assert len(kept) == 3 * len(V)
+        np.testing.assert_allclose(kept, full, rtol=0, atol=1e-6, err_msg=label)
+        P = np.asarray(got["pos"], dtype=np.float64).reshape(-1, 3)
+        b = got["bounds"]
+        np.testing.assert_allclose(b["min"], P.min(axis=0), rtol=0, atol=1e-6, err_msg=label)
+        np.testing.assert_allclose(b["max"], P.max(axis=0), rtol=0, atol=1e-6, err_msg=label)
+        radius = np.linalg.norm(P - np.asarray(b["center"]), axis=1).max()
+        assert abs(b["radius"] - radius) < 1e-5 * max(1.0, radius), label
+
+    seq = 0
+    for rounds, region in ((4, roi), (3, None), (4, roi)):  # subset frames, full frames, subset frames again
+        server.send(json.dumps({"type": "set_constraints", "roi": region, "fixed": fixed, "handle_groups": [top]}))
+        for _ in range(rounds):
+            seq += 1
+            server.send(json.dumps({"type": "drag", "seq": seq, "transforms": [translation(0.1 * seq, 0.05 * seq)]}))
+            page.wait_for_function(f"() => window.__arap.lastSeq === {seq}", timeout=30_000)
+        check(f"after drag {seq} (region {'20%' if region else 'whole mesh'})")
+        server.send(json.dumps({"type": "end_drag"}))
+    assert kinds[:4][0] < 0 and all(k >= 0 for k in kinds[1:4]), f"expected a full frame then subset frames: {kinds}"
+    assert all(k < 0 for k in kinds[4:7]), f"the whole mesh as region should give full frames: {kinds}"
+    assert any(k >= 0 for k in kinds[8:]), kinds
+    context.close()

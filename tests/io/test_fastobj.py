@@ -44,3 +44,31 @@ def test_plain_files_read_as_the_general_parser_reads_them(face: str) -> None:
 ])
 def test_other_files_are_left_to_the_general_parser(text: bytes) -> None:
     assert parse_plain_obj(text) is None
+
+
+@pytest.mark.parametrize("every", [1, 7, 1000])
+def test_vertex_lines_interleaved_with_normals_read_as_the_general_parser_reads_them(every: int) -> None:
+    rng = np.random.default_rng(5)
+    V = rng.normal(size=(200, 3))
+    F = rng.integers(0, 200, size=(300, 3))
+    lines: list[str] = []
+    for i, (x, y, z) in enumerate(V.tolist()):
+        lines.append(f"v\t{x!r} {y!r} {z!r}")
+        if i % every == 0:
+            lines.append("vn 0 0 1")
+    lines += [f"f {a + 1}//{a + 1} {b + 1}//{b + 1} {c + 1}//{c + 1}" for a, b, c in F]
+    data = ("\n".join(lines)).encode()  # no line break at the end
+    parsed = parse_plain_obj(data)
+    assert parsed is not None
+    np.testing.assert_array_equal(parsed[0], V)
+    np.testing.assert_array_equal(parsed[1], F)
+
+
+@pytest.mark.parametrize("text", [
+    b"v 0 0 0\nv 1 v 0\nv 0 1 0\nf 1 2 3\n",  # a keyword letter inside a line
+    b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3 f\n",
+    b"v 0 0 0\nv 1 0 0\nv 0 1 0\nvx 1 2 3\nf 1 2 3\n",
+    b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 /3\n",
+])
+def test_stray_letters_are_left_to_the_general_parser(text: bytes) -> None:
+    assert parse_plain_obj(text) is None

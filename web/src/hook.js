@@ -1,4 +1,5 @@
 // Read-only view of the studio state on `window.__arap`, for automated browser tests and debugging.
+import { computeNormals } from './normals.js';
 
 /** Screen position of the gizmo and of points on its axes (CSS pixels relative to the canvas). */
 function gizmoInfo(viewer, gizmo) {
@@ -64,6 +65,9 @@ export function installTestHook({ app, viewer, selection, gizmo, conn, keeper, p
     get frameMs() {
       return app.frameMs.slice();
     },
+    get meshMs() {
+      return app.meshMs;
+    },
     get messages() {
       return app.messages;
     },
@@ -80,6 +84,20 @@ export function installTestHook({ app, viewer, selection, gizmo, conn, keeper, p
     colors: () => (viewer.geometry ? Array.from(viewer.geometry.attributes.color.array) : []),
     faces: () => Array.from(viewer.geometry ? viewer.geometry.index.array : []),
     normals: () => Array.from(viewer.geometry ? viewer.geometry.attributes.normal.array : []),
+    /** Every vertex normal recomputed from the positions shown (what the normals kept per frame must equal). */
+    recomputedNormals: () => {
+      if (!viewer.geometry) return [];
+      const out = new Float32Array(viewer.positions.length);
+      computeNormals(viewer.positions, viewer.geometry.index.array, out);
+      return Array.from(out);
+    },
+    /** Bounding box [min, max] and sphere [centre, radius] the viewer keeps. */
+    bounds: () => {
+      const g = viewer.geometry;
+      if (!g) return null;
+      return { min: g.boundingBox.min.toArray(), max: g.boundingBox.max.toArray(),
+        center: g.boundingSphere.center.toArray(), radius: g.boundingSphere.radius };
+    },
     counts: () => selection.counts(),
     constraints: () => {
       const c = selection.toConstraints();

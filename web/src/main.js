@@ -35,6 +35,7 @@ const app = {
   nFaces: 0,
   limits: { max_upload_bytes: 0, max_vertices: 0 },
   frameMs: [], // JavaScript time spent applying each vertices frame (drawing excluded)
+  meshMs: NaN, // JavaScript time spent showing the last mesh message (drawing excluded)
   builtins: [],
   role: 'handle',
   lastSeq: -1,
@@ -254,6 +255,7 @@ function onWelcome(msg) {
 }
 
 function onMesh(msg) {
+  const t0 = performance.now();
   const { positions, faces } = meshArrays(msg.frame);
   viewer.setMesh(positions, faces);
   livePose.reset();
@@ -275,6 +277,7 @@ function onMesh(msg) {
   setBusy(null);
   mirror.meshChanged(positions, faces); // after the status line: it may say that no symmetry was found
   keeper.meshArrived(msg, positions, faces);
+  app.meshMs = performance.now() - t0;
 }
 
 function onVertices(msg) {

@@ -1,8 +1,8 @@
 // Three.js scene: the mesh with per-vertex role colours, lights, camera and orbit controls.
 import * as THREE from 'three';
 import { OrbitControls } from 'three/addons/controls/OrbitControls.js';
+import { SubsetNormals, VertexFaces, computeBounds, computeNormals } from './normals.js';
 import { stiffnessTint } from './stiffness.js';
-import { SubsetNormals } from './subsetnormals.js';
 
 // Role colours in sRGB (as shown in the panel); the vertex colour attribute holds their linear values.
 export const BASE_COLOR = [0.78, 0.79, 0.81];
@@ -119,10 +119,14 @@ export class Viewer {
     const colors = new Float32Array(positions.length);
     for (let i = 0; i < colors.length; i += 3) colors.set(BASE_LIN, i);
     g.setAttribute('color', new THREE.BufferAttribute(colors, 3));
-    g.computeVertexNormals();
-    g.computeBoundingBox();
-    g.computeBoundingSphere();
+    g.setAttribute('normal', new THREE.BufferAttribute(new Float32Array(positions.length), 3));
+    computeNormals(g.attributes.position.array, g.index.array, g.attributes.normal.array);
+    g.boundingBox = new THREE.Box3();
+    g.boundingSphere = new THREE.Sphere();
+    computeBounds(g.attributes.position.array, g.boundingBox, g.boundingSphere);
     this.geometry = g;
+    this._adjacency = null; // vertex→face adjacency, built at the first subset frame
+    this._subsetNormals = null;
     this.mesh = new THREE.Mesh(g, this.material);
     this.wire = new THREE.Mesh(g, this.wireMaterial);
     this.wire.visible = this.wireOverlay;
@@ -148,8 +152,10 @@ export class Viewer {
     if (array.length !== attr.array.length) return;
     attr.array.set(array);
     attr.clearUpdateRanges();
-    this.geometry.computeVertexNormals();
-    /** @type {THREE.BufferAttribute} */ (this.geometry.attributes.normal).clearUpdateRanges();
+    const normal = /** @type {THREE.BufferAttribute} */ (this.geometry.attributes.normal);
+    computeNormals(attr.array, this.geometry.index.array, normal.array);
+    normal.clearUpdateRanges();
+    normal.needsUpdate = true;
     this._positionsChanged(attr);
   }
 
@@ -158,9 +164,9 @@ export class Viewer {
     if (!this.geometry || !indices.length) return;
     const attr = /** @type {THREE.BufferAttribute} */ (this.geometry.attributes.position);
     const a = attr.array;
-    if (this._subsetNormals?.movable !== indices || this._subsetGeometry !== this.geometry) {
-      this._subsetNormals = new SubsetNormals(this.geometry.index.array, this.nVertices, indices);
-      this._subsetGeometry = this.geometry;
+    if (this._subsetNormals?.movable !== indices) {
+      this._adjacency ??= new VertexFaces(/** @type {Uint32Array} */ (this.geometry.index.array), this.nVertices);
+      this._subsetNormals = new SubsetNormals(this._adjacency, indices);
     }
     for (let k = 0, o = 0; k < indices.length; k++, o += 3) {
       const i = 3 * indices[k];
@@ -182,8 +188,7 @@ export class Viewer {
 
   _positionsChanged(attr) {
     attr.needsUpdate = true;
-    this.geometry.computeBoundingSphere();
-    this.geometry.computeBoundingBox();
+    computeBounds(attr.array, this.geometry.boundingBox, this.geometry.boundingSphere);
     this.requestRender();
   }
 
@@ -246,8 +251,7 @@ export class Viewer {
   /** Frame the whole mesh. */
   fit() {
     if (!this.geometry) return;
-    this.geometry.computeBoundingSphere();
-    const s = this.geometry.boundingSphere;
+    const s = this.geometry.boundingSphere; // kept up to date by every position change
     this.radius = Math.max(s.radius, 1e-6);
     const fov = THREE.MathUtils.degToRad(this.camera.fov);
     const fitH = this.radius / Math.sin(fov / 2);

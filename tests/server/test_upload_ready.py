@@ -1,0 +1,67 @@
+"""Requests sent right behind an upload: answered for the new mesh, in order, with the answer a fresh session gives."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from arap.io import save_mesh_bytes
+from arap.server.meshdata import load_upload
+from arap.server.session import Session
+from arap.shapes import sphere
+from tests.server.helpers import StudioClient, translation
+
+
+def _upload() -> tuple[bytes, np.ndarray]:
+    V, F = sphere(frequency=12)
+    data = save_mesh_bytes(V, F, "obj")
+    return data, V
+
+
+def _reference(data: bytes, fixed: list[int], handle: list[int], roi: list[int] | None,
+               drags: list[list[float]]) -> np.ndarray:
+    """The shape a fresh session reaches on the same upload and requests."""
+    session = Session()
+    session.load(load_upload(data, "ball.obj", 10**6))
+    session.set_constraints(roi, fixed, [handle])
+    for T in drags:
+        session.drag([T])
+    return np.asarray(session.U, dtype="<f4").astype(np.float64)
+
+
+def test_constraints_and_drags_sent_right_behind_an_upload_are_answered_for_the_new_mesh(
+        studio: StudioClient) -> None:
+    data, V = _upload()
+    y = V[:, 1]
+    fixed = np.flatnonzero(y <= np.quantile(y, 0.1)).tolist()
+    handle = np.flatnonzero(y >= np.quantile(y, 0.9)).tolist()
+    roi = np.flatnonzero(y >= np.quantile(y, 0.05)).tolist()
+    drags = [translation(0.05 * k, 0.1 * k) for k in (1, 2)]
+    # nothing is read before everything is sent: the constraint set and the drags wait behind the upload
+    studio.send_binary({"type": "upload", "filename": "ball.obj"}, data)
+    studio.send({"type": "set_constraints", "roi": roi, "fixed": fixed, "handle_groups": [handle]})
+    studio.send({"type": "drag", "seq": 1, "transforms": [drags[0]]})
+    mesh = studio.read_mesh().data
+    assert mesh["n_vertices"] == len(V)
+    assert studio.expect("state").data["constraints"]["fixed"] == []  # the upload's state: nothing selected yet
+    state = studio.expect("state").data
+    assert state["constraints"]["fixed"] == fixed and state["stats"]["n_free"] > 0
+    first = studio.expect("vertices")
+    assert first.data["seq"] == 1
+    np.testing.assert_allclose(first.floats(), _reference(data, fixed, handle, roi, drags[:1]), atol=1e-6)
+    second = studio.drag(2, [drags[1]])
+    np.testing.assert_allclose(second.floats(), _reference(data, fixed, handle, roi, drags), atol=1e-6)
+
+
+def test_a_second_upload_right_behind_constraints_drops_them(studio: StudioClient) -> None:
+    """Constraints of the previous mesh never reach the new one: after the upload a drag has nothing to move."""
+    data, V = _upload()
+    studio.send_binary({"type": "upload", "filename": "ball.obj"}, data)
+    studio.send({"type": "set_constraints", "roi": None, "fixed": [0, 1, 2], "handle_groups": [[len(V) - 1]]})
+    studio.send_binary({"type": "upload", "filename": "ball.obj"}, data)
+    studio.send({"type": "drag", "seq": 7, "transforms": [translation(0.1)]})
+    studio.read_mesh()
+    studio.expect("state")
+    studio.expect("state")
+    studio.read_mesh()
+    assert studio.expect("state").data["constraints"]["fixed"] == []
+    studio.error("bad_message")  # no handle group for its transform
