@@ -535,8 +535,10 @@ class ArapSolver:
             """Right-hand side of the global step for the rotations in ``self._R``, and ``A x − b`` at ``x``."""
             t = time.perf_counter()
             assemble_rhs(self._gather, self._R, rhs_const, rhs)
+            gradient = self._A @ U[:nf]
+            gradient -= rhs
             timings["rhs"] += time.perf_counter() - t
-            return self._A @ U[:nf] - rhs
+            return gradient
 
         def plain_size(step: NDArray[np.float64]) -> float:
             return float(np.sqrt(np.einsum("ij,ij->", step, step)))
