@@ -15,21 +15,69 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
+import numba as nb
 import numpy as np
+import scipy.sparse as sp
 from numpy.typing import NDArray
 
 from arap.errors import ArapError
 
-__all__ = ["LbfgsHistory"]
+__all__ = ["LbfgsHistory", "gradient"]
 
 
-def _dot(a: NDArray[np.float64], b: NDArray[np.float64]) -> float:
-    # einsum, not the threaded BLAS: with busy cores its thread start-up costs more than these products.
-    return float(np.einsum("ij,ij->", a, b))
+@nb.njit(cache=True, nogil=True)
+def _dot(a: NDArray[np.float64], b: NDArray[np.float64]) -> float:  # pragma: no cover - compiled
+    total = 0.0
+    for i in range(a.size):
+        total += a[i] * b[i]
+    return total
+
+
+@nb.njit(cache=True, nogil=True)
+def _axpy(alpha: float, x: NDArray[np.float64], y: NDArray[np.float64]) -> None:  # pragma: no cover - compiled
+    for i in range(x.size):
+        y[i] += alpha * x[i]
+
+
+@nb.njit(cache=True, nogil=True)
+def _diff(a: NDArray[np.float64], b: NDArray[np.float64], out: NDArray[np.float64]) -> None:  # pragma: no cover
+    for i in range(a.size):
+        out[i] = a[i] - b[i]
+
+
+@nb.njit(cache=True, nogil=True)
+def _gradient(indptr, indices, data, x, rhs, out):  # pragma: no cover - compiled
+    for i in range(len(indptr) - 1):
+        g0 = -rhs[i, 0]
+        g1 = -rhs[i, 1]
+        g2 = -rhs[i, 2]
+        for k in range(indptr[i], indptr[i + 1]):
+            j = indices[k]
+            v = data[k]
+            g0 += v * x[j, 0]
+            g1 += v * x[j, 1]
+            g2 += v * x[j, 2]
+        out[i, 0] = g0
+        out[i, 1] = g1
+        out[i, 2] = g2
+
+
+def gradient(A: sp.csr_matrix, x: NDArray[np.float64], rhs: NDArray[np.float64], out: NDArray[np.float64]) -> None:
+    """``out = A x − rhs`` in one pass (half the energy's gradient when ``rhs`` is ``b(R(x))``).
+
+    Parameters
+    ----------
+    A : (k, k) CSR matrix
+    x, rhs, out : (k, 3) C-contiguous float64 arrays
+    """
+    _gradient(A.indptr, A.indices, A.data, x, rhs, out)
 
 
 class LbfgsHistory:
     """The last ``window`` curvature pairs and the two-loop recursion (Nocedal & Wright, Algorithm 7.4).
+
+    The pairs live in preallocated slots and the recursion works in place (compiled dot products and updates), so
+    a direction allocates nothing but what ``precondition`` returns.
 
     Parameters
     ----------
@@ -49,7 +97,7 @@ class LbfgsHistory:
     ...     d = h.direction(g, lambda q: q / np.diag(Q)[:, None])
     ...     step = -float((g * d).sum()) / float((d * (Q @ d)).sum())
     ...     x_new = x + step * d; g_new = Q @ x_new - c
-    ...     _ = h.update(x_new - x, g_new - g)
+    ...     _ = h.update(x_new, x, g_new, g)
     ...     x, g = x_new, g_new
     >>> bool(np.allclose(x, np.linalg.solve(Q, c)))
     True
@@ -59,32 +107,49 @@ class LbfgsHistory:
         if int(window) != window or window < 1:
             raise ArapError(f"window must be a positive integer, got {window!r}")
         self.window = int(window)
-        self._s: list[NDArray[np.float64]] = []
-        self._y: list[NDArray[np.float64]] = []
-        self._rho: list[float] = []
+        self._S: NDArray[np.float64] | None = None  # (window, size) steps
+        self._Y: NDArray[np.float64] | None = None  # (window, size) gradient changes
+        self._rho = np.zeros(self.window)
+        self._q = np.empty(0)
+        self._alpha = np.zeros(self.window)
+        self._order: list[int] = []  # slots, oldest first
 
     def __len__(self) -> int:
-        return len(self._s)
+        return len(self._order)
 
     def reset(self) -> None:
         """Forget every pair: the next direction is the preconditioned gradient step."""
-        self._s.clear()
-        self._y.clear()
-        self._rho.clear()
+        self._order.clear()
 
-    def update(self, s: NDArray[np.float64], y: NDArray[np.float64]) -> bool:
-        """Record the step ``s`` and the change ``y`` of the gradient along it; False (nothing recorded) when
-        ``sᵀy`` is not positive, where the energy is not convex along the step."""
+    def _slots(self, size: int) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        if self._S is None or self._Y is None or self._S.shape[1] != size:
+            self._S = np.empty((self.window, size))
+            self._Y = np.empty((self.window, size))
+            self._q = np.empty(size)
+            self._order.clear()
+        return self._S, self._Y
+
+    def update(self, x_new: NDArray[np.float64], x: NDArray[np.float64], g_new: NDArray[np.float64],
+               g: NDArray[np.float64]) -> bool:
+        """Record the step ``s = x_new − x`` and the gradient's change ``y = g_new − g`` along it; False (nothing
+        recorded) when ``sᵀy`` is not positive, where the energy is not convex along the step.
+
+        The arrays (any shape, C-contiguous, all of one size) are not kept: their differences are copied into
+        the history.
+        """
+        S, Y = self._slots(x.size)
+        free = [k for k in range(self.window) if k not in self._order]
+        slot = free[0] if free else self._order[0]
+        s, y = S[slot], Y[slot]
+        _diff(x_new.reshape(-1), x.reshape(-1), s)
+        _diff(g_new.reshape(-1), g.reshape(-1), y)
         sy = _dot(s, y)
         if not sy > 1e-14 * np.sqrt(_dot(s, s) * _dot(y, y)):
             return False
-        if len(self._s) == self.window:
-            self._s.pop(0)
-            self._y.pop(0)
-            self._rho.pop(0)
-        self._s.append(s)
-        self._y.append(y)
-        self._rho.append(1.0 / sy)
+        if not free:
+            self._order.pop(0)
+        self._order.append(slot)
+        self._rho[slot] = 1.0 / sy
         return True
 
     def direction(self, gradient: NDArray[np.float64],
@@ -101,15 +166,19 @@ class LbfgsHistory:
         Returns
         -------
         (k, d) float64 array
-            A new array.
+            A new array (or the one ``precondition`` returned, written over).
         """
-        q = gradient.copy()
-        alphas = []
-        for s, y, rho in zip(reversed(self._s), reversed(self._y), reversed(self._rho), strict=True):
-            a = rho * _dot(s, q)
-            alphas.append(a)
-            q -= a * y
-        r = precondition(q)
-        for (s, y, rho), a in zip(zip(self._s, self._y, self._rho, strict=True), reversed(alphas), strict=True):
-            r += (a - rho * _dot(y, r)) * s
+        S, Y = self._slots(gradient.size)
+        q = self._q
+        q[:] = gradient.reshape(-1)
+        for slot in reversed(self._order):
+            a = self._rho[slot] * _dot(S[slot], q)
+            self._alpha[slot] = a
+            _axpy(-a, Y[slot], q)
+        r = np.ascontiguousarray(precondition(q.reshape(gradient.shape)), dtype=np.float64)
+        if np.shares_memory(r, q):
+            r = r.copy()
+        flat = r.reshape(-1)
+        for slot in self._order:
+            _axpy(self._alpha[slot] - self._rho[slot] * _dot(Y[slot], flat), S[slot], flat)
         return np.negative(r, out=r)

@@ -22,7 +22,7 @@ from arap.cells import (
 from arap.covariance import assemble_rhs, covariances, local_step
 from arap.errors import ArapError, ConstraintError, OptionError, UnconstrainedRegionError
 from arap.indexing import check_index_array, find_unconstrained_part
-from arap.lbfgs import LbfgsHistory
+from arap.lbfgs import LbfgsHistory, gradient
 from arap.linsolve import NotPositiveDefiniteError, factorize
 from arap.mesh import MeshLike, check_mesh, is_mesh_like, mesh_arrays
 from arap.points import PointConstraints, PointSystem, check_points
@@ -531,14 +531,14 @@ class ArapSolver:
         history = LbfgsHistory(window)
         rhs = np.empty((nf, 3))
 
-        def fit_rhs() -> NDArray[np.float64]:
-            """Right-hand side of the global step for the rotations in ``self._R``, and ``A x − b`` at ``x``."""
+        def fit_rhs(out: NDArray[np.float64]) -> NDArray[np.float64]:
+            """Right-hand side of the global step for the rotations in ``self._R``; ``A x − b`` at ``x`` into
+            ``out``."""
             t = time.perf_counter()
             assemble_rhs(self._gather, self._R, rhs_const, rhs)
-            gradient = self._A @ U[:nf]
-            gradient -= rhs
+            gradient(self._A, U[:nf], rhs, out)
             timings["rhs"] += time.perf_counter() - t
-            return gradient
+            return out
 
         def plain_size(step: NDArray[np.float64]) -> float:
             return float(np.sqrt(np.einsum("ij,ij->", step, step)))
@@ -551,7 +551,7 @@ class ArapSolver:
 
         scale = self._diagonal * np.sqrt(nf)
         x = U[:nf].copy()
-        gradient = fit_rhs()
+        grad, new_grad = fit_rhs(np.empty((nf, 3))), np.empty((nf, 3))
         fresh = E_cur is not None  # the rotations in self._R fit x
         energies: list[float] = []
         converged = False
@@ -561,35 +561,34 @@ class ArapSolver:
         for it in range(1, cap + 1):
             if fresh and len(history):
                 t = time.perf_counter()
-                d = history.direction(gradient, solve)
+                d = history.direction(grad, solve)
                 timings["acceleration"] += time.perf_counter() - t
             else:
                 d = plain_step_from_here() - x
                 residual, residual_at = plain_size(d) / scale, it - 1
                 converged = fresh and residual * scale <= step_limit  # this plain step is the last
-            step = 1.0
             for _ in range(LINE_SEARCH_HALVINGS):
-                np.add(x, step * d, out=U[:nf])
+                np.add(x, d, out=U[:nf])
                 e = self._local(U, const_E, timings)
                 if E_cur is None or e <= E_cur:
                     break
-                step *= 0.5
+                d *= 0.5
             else:  # no trial lowered the energy: the plain step from x, which cannot raise it
                 rejected += 1
                 history.reset()
-                U[:nf] = plain_step_from_here()
+                d = plain_step_from_here() - x
+                np.add(x, d, out=U[:nf])
                 e = self._local(U, const_E, timings)
-            moved = U[:nf] - x
-            new_gradient = fit_rhs()
+            small = plain_size(d) <= CHECK_FACTOR * step_limit
+            fit_rhs(new_grad)
             if fresh:
-                history.update(moved, new_gradient - gradient)
+                history.update(U[:nf], x, new_grad, grad)
             x[:] = U[:nf]
-            gradient = new_gradient
+            grad, new_grad = new_grad, grad
             fresh = True
             E_cur = e
             energies.append(e)
             stop = callback is not None and callback(it, e) is False
-            small = plain_size(moved) <= CHECK_FACTOR * step_limit
             if not converged and step_limit > 0 and (small or it % CHECK_EVERY == 0):
                 residual, residual_at = plain_size(plain_step_from_here() - x) / scale, it
                 if residual * scale <= step_limit:

@@ -7,10 +7,11 @@ import doctest
 
 import numpy as np
 import pytest
+import scipy.sparse as sp
 
 import arap.lbfgs
 from arap.errors import ArapError
-from arap.lbfgs import LbfgsHistory
+from arap.lbfgs import LbfgsHistory, gradient
 
 
 def _bfgs_inverse(H0: np.ndarray, pairs: list[tuple[np.ndarray, np.ndarray]]) -> np.ndarray:
@@ -36,10 +37,12 @@ def test_two_loop_equals_the_written_out_update(window: int) -> None:
     Q = _spd(rng, n)  # the Hessian the pairs come from, so sᵀy > 0
     history = LbfgsHistory(window)
     pairs = []
+    x, g = np.zeros((n, 1)), np.zeros((n, 1))
     for _ in range(6):
         s = rng.normal(size=n)
         y = Q @ s
-        assert history.update(s[:, None].copy(), y[:, None].copy())
+        assert history.update(x + s[:, None], x, g + y[:, None], g)
+        x, g = x + s[:, None], g + y[:, None]
         pairs.append((s, y))
     g = rng.normal(size=n)
     d = history.direction(g[:, None].copy(), lambda q: H0 @ q)
@@ -56,11 +59,12 @@ def test_an_empty_history_gives_the_preconditioned_gradient_step() -> None:
 
 def test_pairs_without_positive_curvature_are_refused() -> None:
     history = LbfgsHistory(3)
+    zero = np.zeros((1, 2))
     s = np.array([[1.0, 0.0]])
-    assert not history.update(s, np.array([[-1.0, 0.0]]))
-    assert not history.update(s, np.array([[0.0, 1.0]]))
+    assert not history.update(s, zero, np.array([[-1.0, 0.0]]), zero)
+    assert not history.update(s, zero, np.array([[0.0, 1.0]]), zero)
     assert len(history) == 0
-    assert history.update(s, np.array([[2.0, 0.0]]))
+    assert history.update(s, zero, np.array([[2.0, 0.0]]), zero)
     history.reset()
     assert len(history) == 0
 
@@ -69,6 +73,15 @@ def test_the_window_must_be_a_positive_integer() -> None:
     for bad in (0, -1, 2.5):
         with pytest.raises(ArapError):
             LbfgsHistory(bad)  # type: ignore[arg-type]
+
+
+def test_gradient_is_a_x_minus_rhs() -> None:
+    rng = np.random.default_rng(5)
+    A = sp.random(40, 40, density=0.2, random_state=6, format="csr") + sp.eye(40, format="csr")
+    x, rhs = rng.normal(size=(40, 3)), rng.normal(size=(40, 3))
+    out = np.empty((40, 3))
+    gradient(A.tocsr(), x, rhs, out)
+    np.testing.assert_allclose(out, A @ x - rhs, rtol=1e-13, atol=1e-13)
 
 
 def test_docstring_example() -> None:
