@@ -9,8 +9,8 @@ from typing import Literal
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["ACCELERATIONS", "DEFAULT_TOLERANCE", "DEFAULT_WINDOW", "MAX_ITERATIONS", "START_NAMES", "Acceleration",
-           "ArapResult", "IterationCallback", "StartName"]
+__all__ = ["ACCELERATIONS", "DEFAULT_LBFGS_MEMORY", "DEFAULT_TOLERANCE", "DEFAULT_WINDOW", "MAX_ITERATIONS",
+           "START_NAMES", "Acceleration", "ArapResult", "IterationCallback", "StartName"]
 
 IterationCallback = Callable[[int, float], "bool | None"]
 Acceleration = Literal["lbfgs", "anderson", "none"]
@@ -23,8 +23,11 @@ START_NAMES: tuple[str, ...] = ("auto", "rest", "rigid")
 DEFAULT_TOLERANCE = 1e-9
 #: Hard cap on iterations when ``max_iterations`` is None.
 MAX_ITERATIONS = 10_000
-#: Default L-BFGS memory and Anderson window.
+#: Default Anderson window (iterates used).
 DEFAULT_WINDOW = 5
+#: Default L-BFGS memory (curvature pairs kept): with 8 pairs it needed as few iterations as Anderson on the meshes
+#: where Anderson converges steadily (with 5, up to 1.8× more).
+DEFAULT_LBFGS_MEMORY = 8
 
 
 @dataclass

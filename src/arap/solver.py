@@ -28,6 +28,7 @@ from arap.mesh import MeshLike, check_mesh, is_mesh_like, mesh_arrays
 from arap.points import PointConstraints, PointSystem, check_points
 from arap.result import (
     ACCELERATIONS,
+    DEFAULT_LBFGS_MEMORY,
     DEFAULT_TOLERANCE,
     DEFAULT_WINDOW,
     MAX_ITERATIONS,
@@ -369,7 +370,7 @@ class ArapSolver:
         tolerance: float = DEFAULT_TOLERANCE,
         callback: IterationCallback | None = None,
         acceleration: Acceleration = "lbfgs",
-        window: int = DEFAULT_WINDOW,
+        window: int | None = None,
         point_targets: NDArray[np.float64] | list | None = None,
     ) -> ArapResult:
         """Deform the mesh so the constrained vertices reach their targets; by default, iterate until converged.
@@ -405,8 +406,9 @@ class ArapSolver:
             ``anderson``. ``anderson``: Anderson acceleration of the local/global fixed point (Peng et al. 2018)
             with an energy safeguard: an extrapolated iterate is kept only if its energy is not higher than the
             current one, otherwise the plain step is taken. ``none``: the plain iteration of Sorkine & Alexa 2007.
-        window : int
-            Curvature pairs kept by L-BFGS, or Anderson's window ``m`` (previous iterates used).
+        window : int or None
+            Curvature pairs kept by L-BFGS, or Anderson's window ``m`` (previous iterates used). None:
+            ``DEFAULT_LBFGS_MEMORY`` (8) for L-BFGS, ``DEFAULT_WINDOW`` (5) for Anderson.
 
         Returns
         -------
@@ -422,8 +424,8 @@ class ArapSolver:
             raise OptionError(f"tolerance must be >= 0, got {tolerance!r}")
         if acceleration not in ACCELERATIONS:
             raise OptionError(f"unknown acceleration {acceleration!r}; expected one of {ACCELERATIONS}")
-        if int(window) != window or window < 1:
-            raise OptionError(f"window must be a positive integer, got {window!r}")
+        if window is not None and (int(window) != window or window < 1):
+            raise OptionError(f"window must be a positive integer or None, got {window!r}")
         fixed = self._fixed_positions(T)
         P = self._check_point_targets(point_targets)
         self._point_state = None if P is None else (P, fixed)
@@ -440,8 +442,10 @@ class ArapSolver:
             rhs_const = rhs_const - self._points.rhs(P, fixed)  # assemble_rhs subtracts its constant
         step_limit = tolerance * self._diagonal * np.sqrt(max(nf, 1))
         if acceleration == "lbfgs" and self._lbfgs_applies(P):
-            return self._solve_lbfgs(U, E_cur, start, const_E, rhs_const, int(cap), step_limit, callback, window,
+            memory = DEFAULT_LBFGS_MEMORY if window is None else int(window)
+            return self._solve_lbfgs(U, E_cur, start, const_E, rhs_const, int(cap), step_limit, callback, memory,
                                      timings, t_start)
+        window = DEFAULT_WINDOW if window is None else int(window)
         rhs = np.empty((nf, 3))
         accel = None
         if acceleration != "none" and nf:
