@@ -17,6 +17,7 @@ import { constraintsKey, Selection } from './selection.js';
 import { builtinSource, fileSource } from './snapshot.js';
 import { installSurfaceControls, SurfaceSelection } from './surface.js';
 import { SelectionTools } from './tools.js';
+import { installTransformUi } from './transformui.js';
 import { Viewer } from './viewer.js';
 
 const viewer = new Viewer(document.getElementById('view'));
@@ -80,6 +81,8 @@ const gizmo = new HandleGizmo(viewer, {
   },
   onDraggingChanged: () => {},
 });
+const transformUi = installTransformUi({ viewer, gizmo, canStart: () => app.ready,
+  say: (text) => panel.showStatus(text, 'info', 4000) });
 const tools = new SelectionTools(viewer, {
   isGizmoActive: () => gizmo.active,
   onPaint: (indices, subtract) => {
@@ -253,6 +256,7 @@ function onMesh(msg) {
   selection.reset(msg.n_vertices);
   gizmo.syncGroups(1);
   gizmo.resetTransforms();
+  transformUi.meshChanged();
   app.meshName = msg.name;
   app.nFaces = msg.n_faces;
   app.lastSeq = -1;
@@ -504,6 +508,7 @@ installShortcuts({
     h: () => heat.setOn(!heat.on),
     '?': () => help.toggle(),
     escape: () => (help.shown ? help.hide() : panel.hideStatus()),
+    ...transformUi.keys,
   }),
 });
 installSurfaceControls(surface, tools, (text) => panel.showStatus(text, 'info', 3000));
@@ -513,7 +518,7 @@ releaseFocusAfterPointerUse(document.getElementById('panel'));
 
 installDropTarget(document.getElementById('viewport'), document.getElementById('drop-overlay'), uploadFile);
 
-installTestHook({ app, viewer, selection, gizmo, conn, keeper });
+installTestHook({ app, viewer, selection, gizmo, conn, keeper, transformUi });
 
 // updates per second over the last second; decays to zero once dragging stops
 setInterval(() => {

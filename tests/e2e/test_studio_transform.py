@@ -1,0 +1,333 @@
+"""The handle gizmo's rotation, pivot, typed transforms, snapping and axes in headless Chromium, with real mouse and
+keyboard input."""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+import pytest
+from playwright.sync_api import Page, expect
+
+from tests.e2e.conftest import positions, wait_idle
+from tests.e2e.test_studio import select_anchor_and_handle
+
+pytestmark = pytest.mark.e2e
+
+
+def matrix(elements: list[float]) -> np.ndarray:
+    """A column-major 4×4 (as sent and as three.js keeps it) as a row-major array."""
+    return np.asarray(elements, dtype=np.float64).reshape(4, 4).T
+
+
+def transform(page: Page) -> np.ndarray:
+    return matrix(page.evaluate("() => window.__arap.transforms()[window.__arap.gizmo().group]"))
+
+
+def rotation_of(delta: np.ndarray) -> tuple[float, np.ndarray]:
+    """Angle (degrees) and unit axis of the rotation part of a rigid transform."""
+    r = delta[:3, :3]
+    angle = math.degrees(math.acos(np.clip((np.trace(r) - 1) / 2, -1.0, 1.0)))
+    axis = np.array([r[2, 1] - r[1, 2], r[0, 2] - r[2, 0], r[1, 0] - r[0, 1]])
+    n = np.linalg.norm(axis)
+    return angle, axis / n if n > 0 else axis
+
+
+def about(pivot: np.ndarray, axis: np.ndarray, degrees: float) -> np.ndarray:
+    """Rotation by `degrees` about the line through `pivot` along the unit `axis`."""
+    a = math.radians(degrees)
+    k = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
+    r = np.eye(3) + math.sin(a) * k + (1 - math.cos(a)) * (k @ k)
+    m = np.eye(4)
+    m[:3, :3] = r
+    m[:3, 3] = pivot - r @ pivot
+    return m
+
+
+def gizmo(page: Page) -> dict[str, Any]:
+    g = page.evaluate("() => window.__arap.gizmo()")
+    assert g is not None, "no gizmo on the handle group"
+    return g
+
+
+def spy_on_drags(page: Page) -> None:
+    """Record the drag messages the page sends (in window.__drags)."""
+    page.evaluate(
+        """() => {
+            window.__drags = [];
+            const send = WebSocket.prototype.send;
+            WebSocket.prototype.send = function (data) {
+                if (typeof data === 'string' && data.includes('"drag"')) window.__drags.push(JSON.parse(data));
+                return send.call(this, data);
+            };
+        }"""
+    )
+
+
+def last_drag(page: Page) -> list[list[float]]:
+    return page.evaluate("() => window.__drags.filter((m) => m.type === 'drag').at(-1).transforms")
+
+
+def ready_to_rotate(page: Page) -> tuple[np.ndarray, np.ndarray]:
+    fixed, handle = select_anchor_and_handle(page)
+    page.mouse.move(30, 300)  # over the view, away from the model
+    page.keyboard.press("e")
+    assert gizmo(page)["mode"] == "rotate"
+    return fixed, handle
+
+
+def grab_ring(page: Page, axis: str, pick: str = "first", skip: int = 0) -> tuple[float, float]:
+    """Move the pointer onto the ring about `axis` (where the gizmo picks that ring); `pick`: the first such point
+    of the ring (after `skip`), or the one nearest the ring's centre on screen."""
+    g = gizmo(page)
+    cx, cy = g["screen"]
+    points = g["rings"][axis]
+    order = list(range(len(points)))
+    if pick == "nearest":
+        order.sort(key=lambda k: math.hypot(points[k][0] - cx, points[k][1] - cy))
+    found = 0
+    for k in order:
+        x, y = points[k]
+        page.mouse.move(x, y)
+        if page.evaluate("() => window.__arap.gizmo().hover") == axis.upper():
+            if found == skip:
+                return x, y
+            found += 1
+    raise AssertionError(f"the {axis} ring could not be picked")
+
+
+def sweep(page: Page, start: tuple[float, float], turn_deg: float, steps: int = 12,
+          modifier: str | None = None) -> None:
+    """Press at `start` and move the pointer `turn_deg` around the gizmo's centre (counter-clockwise on screen
+    positive), then let go."""
+    cx, cy = gizmo(page)["screen"]
+    r = math.hypot(start[0] - cx, start[1] - cy)
+    a0 = math.atan2(cy - start[1], start[0] - cx)
+    if modifier:
+        page.keyboard.down(modifier)
+    page.mouse.down()
+    for k in range(1, steps + 1):
+        a = a0 + math.radians(turn_deg) * k / steps
+        page.mouse.move(cx + r * math.cos(a), cy - r * math.sin(a))
+    page.mouse.up()
+    if modifier:
+        page.keyboard.up(modifier)
+    wait_idle(page)
+
+
+def test_rotate_rings_follow_the_pointer_around_the_centre(page: Page) -> None:
+    ready_to_rotate(page)
+    units = {"x": np.array([1.0, 0, 0]), "y": np.array([0, 1.0, 0]), "z": np.array([0, 0, 1.0])}
+    cases = [("x", 0, 90), ("y", 0, -90), ("z", 0, 90), ("z", 3, -90), ("x", 4, -90), ("y", 2, 90)]
+    for axis, skip, turn in cases:
+        before = transform(page)
+        start = grab_ring(page, axis, skip=skip)
+        g = gizmo(page)
+        eye = np.asarray(g["camera"]) - np.asarray(g["pivot"])
+        sweep(page, start, turn)
+        angle, rot_axis = rotation_of(transform(page) @ np.linalg.inv(before))
+        assert abs(angle - 90) < 3, f"{axis} ring, {turn}° around the centre from {start}: turned {angle:.1f}°"
+        assert abs(abs(rot_axis @ units[axis]) - 1) < 1e-6, f"{axis} ring turned about {rot_axis}"
+        # counter-clockwise on screen turns counter-clockwise as seen from the camera
+        assert np.sign(rot_axis @ units[axis]) * np.sign(units[axis] @ eye) == np.sign(turn)
+
+    # grabbed where the ring passes next to the centre on screen, it still turns with the pointer
+    before = transform(page)
+    start = grab_ring(page, "x", pick="nearest")
+    cx, cy = gizmo(page)["screen"]
+    assert math.hypot(start[0] - cx, start[1] - cy) < 0.6 * np.ptp(np.asarray(gizmo(page)["rings"]["x"])[:, 1])
+    sweep(page, start, 90)
+    angle, _ = rotation_of(transform(page) @ np.linalg.inv(before))
+    assert abs(angle - 90) < 3, f"grabbed beside the centre: turned {angle:.1f}°"
+    assert not page.evaluate("() => window.__arap.errors")
+
+
+def test_typed_rotation_about_a_placed_pivot(page: Page) -> None:
+    fixed, handle = ready_to_rotate(page)
+    spy_on_drags(page)
+    rest = positions(page)
+    # place the pivot on the surface, a little below the handle
+    target = rest[handle].mean(axis=0) - np.array([0, 0.1 * np.ptp(rest[:, 1]), 0])
+    hit = rest[np.argmin(np.linalg.norm(rest - target, axis=1))]
+    x, y = page.evaluate("(p) => window.__arap.project(p)", hit.tolist())
+    page.mouse.move(x, y)
+    page.keyboard.press("p")
+    assert gizmo(page)["placing"]
+    page.mouse.click(x, y)
+    g = gizmo(page)
+    assert g["pivotPlaced"] and not g["placing"]
+    pivot = np.asarray(g["pivot"])
+    assert np.linalg.norm(pivot - hit) < 0.05 * np.ptp(rest[:, 1]), "the pivot is not where the click was"
+    assert page.evaluate("() => window.__arap.constraints().handle_groups[0].length") == len(handle), \
+        "the placing click painted"
+
+    for key in ("r", "z", "9"):
+        page.keyboard.press(key)
+    assert page.evaluate("() => window.__arap.typing") == "Rotate Z: 9°"
+    page.keyboard.press("0")
+    expect(page.get_by_test_id("numeric-line")).to_have_text("Rotate Z: 90°")
+    page.keyboard.press("Enter")
+    expect(page.get_by_test_id("numeric-line")).to_be_hidden()
+    wait_idle(page)
+    page.wait_for_function("() => !window.__arap.busy && window.__arap.canUndo")
+
+    expected = about(pivot, np.array([0, 0, 1.0]), 90)
+    sent = last_drag(page)
+    assert len(sent) == 1
+    np.testing.assert_allclose(matrix(sent[0]), expected, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(transform(page), expected, rtol=0, atol=1e-9)  # the server's state
+    # the server holds the handle there: its vertices are the rotated rest positions
+    page.wait_for_function(
+        "() => document.querySelector('[data-testid=settle-status]')?.dataset.status === 'settled'")
+    moved = positions(page)
+    want = rest[handle] @ expected[:3, :3].T + expected[:3, 3]
+    np.testing.assert_allclose(moved[handle], want, atol=1e-5 * np.ptp(rest))
+    np.testing.assert_allclose(moved[fixed], rest[fixed], atol=1e-6)
+    np.testing.assert_allclose(gizmo(page)["pivot"], pivot, atol=1e-9)  # turning about the pivot keeps it
+
+    # back to the centroid
+    page.keyboard.press("c")
+    g = gizmo(page)
+    assert not g["pivotPlaced"]
+    np.testing.assert_allclose(g["pivot"], moved[handle].mean(axis=0), atol=1e-6)
+    assert not page.evaluate("() => window.__arap.errors")
+
+
+def test_typed_move_applies_exactly_and_escape_cancels(page: Page) -> None:
+    _, handle = select_anchor_and_handle(page)
+    spy_on_drags(page)
+    page.mouse.move(30, 300)
+    before = transform(page)
+    pivot_before = gizmo(page)["pivotMatrix"]
+    seq = page.evaluate("() => window.__arap.lastSeq")
+
+    # Escape: the preview goes, nothing is sent
+    for key in ("g", "y", "5"):
+        page.keyboard.press(key)
+    expect(page.get_by_test_id("numeric-line")).to_have_text("Move Y: 5")
+    assert gizmo(page)["pivotMatrix"] != pivot_before, "the gizmo does not preview the move"
+    page.keyboard.press("Backspace")
+    page.keyboard.press("Escape")
+    expect(page.get_by_test_id("numeric-line")).to_be_hidden()
+    assert page.evaluate("() => window.__arap.typing") is None
+    np.testing.assert_array_equal(transform(page), before)
+    np.testing.assert_allclose(gizmo(page)["pivotMatrix"], pivot_before, atol=1e-12)
+    assert page.evaluate("() => window.__drags.length") == 0
+    assert page.evaluate("() => window.__arap.lastSeq") == seq
+    assert page.evaluate("() => window.__arap.gizmo().mode") == "translate"
+
+    # the axis letter was not taken as the box tool's shortcut, the digits not as roles
+    expect(page.get_by_test_id("tool-box")).not_to_have_class("active")
+
+    rest = positions(page)
+    for key in ("g", "x", "0", ".", "1"):
+        page.keyboard.press(key)
+    expect(page.get_by_test_id("numeric-line")).to_have_text("Move X: 0.1")
+    page.keyboard.press("Enter")
+    wait_idle(page)
+    expected = before.copy()
+    expected[0, 3] += 0.1
+    np.testing.assert_allclose(matrix(last_drag(page)[0]), expected, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(transform(page), expected, rtol=0, atol=1e-12)
+    page.wait_for_function(
+        "() => document.querySelector('[data-testid=settle-status]')?.dataset.status === 'settled'")
+    shift = positions(page)[handle] - rest[handle]
+    np.testing.assert_allclose(shift, np.tile([0.1, 0, 0], (len(handle), 1)), atol=1e-5)
+    expect(page.get_by_test_id("role-handle")).to_have_class("active")
+    assert not page.evaluate("() => window.__arap.errors")
+
+
+def test_panel_fields_apply_an_exact_rotation(page: Page) -> None:
+    select_anchor_and_handle(page)
+    pivot = np.asarray(gizmo(page)["pivot"])
+    page.get_by_test_id("exact-mode").select_option("rotate")
+    page.get_by_test_id("exact-axis").select_option("y")
+    page.get_by_test_id("exact-amount").fill("-45")
+    page.get_by_test_id("exact-apply").click()
+    wait_idle(page)
+    page.wait_for_function("() => window.__arap.canUndo")
+    np.testing.assert_allclose(transform(page), about(pivot, np.array([0, 1.0, 0]), -45), rtol=0, atol=1e-9)
+
+
+def test_snapping_with_ctrl_and_the_checkbox(page: Page) -> None:
+    ready_to_rotate(page)
+    step = gizmo(page)["gridStep"]
+    expect(page.get_by_test_id("snap-step")).to_contain_text(f"grid {step:g}")
+    mantissa = step / 10 ** math.floor(math.log10(step))
+    assert any(abs(mantissa - m) < 1e-9 for m in (1, 2, 5)), step
+
+    for modifier, turn in (("Control", 50), (None, 70)):
+        if modifier is None:
+            page.get_by_test_id("snap").check()
+            page.mouse.move(30, 300)
+        before = transform(page)
+        sweep(page, grab_ring(page, "z"), turn, modifier=modifier)
+        angle, _ = rotation_of(transform(page) @ np.linalg.inv(before))
+        assert angle > 10 and abs(angle / 15 - round(angle / 15)) < 1e-6, f"snapped to {angle}°"
+        assert round(angle / 15) * 15 == round(turn / 15) * 15
+    page.get_by_test_id("snap").uncheck()
+
+    # a free drag turns by any angle
+    before = transform(page)
+    sweep(page, grab_ring(page, "z"), 37)
+    angle, _ = rotation_of(transform(page) @ np.linalg.inv(before))
+    assert abs(angle - 37) < 3
+
+    # moves land on the grid (from where the drag began)
+    page.mouse.move(30, 300)
+    page.keyboard.press("w")
+    g = gizmo(page)
+    before = transform(page)
+    (cx, cy), (ax, ay) = g["screen"], g["axes"]["x"]
+    d = np.array([ax - cx, ay - cy]) / math.hypot(ax - cx, ay - cy)
+    page.mouse.move(ax, ay)
+    page.keyboard.down("Control")
+    page.mouse.down()
+    for k in range(1, 9):
+        page.mouse.move(ax + d[0] * 97 * k / 8, ay + d[1] * 97 * k / 8)
+    page.mouse.up()
+    page.keyboard.up("Control")
+    wait_idle(page)
+    offset = (transform(page) @ np.linalg.inv(before))[:3, 3]
+    assert abs(offset[0]) >= step and abs(offset[0] / step - round(offset[0] / step)) < 1e-6, offset
+    np.testing.assert_allclose(offset[1:], 0, atol=1e-12)
+    assert not page.evaluate("() => window.__arap.errors")
+
+
+def test_local_and_world_axes(page: Page) -> None:
+    select_anchor_and_handle(page)
+    page.mouse.move(30, 300)
+    for key in ("r", "z", "9", "0", "Enter"):
+        page.keyboard.press(key)
+    wait_idle(page)
+    g = gizmo(page)
+    assert g["space"] == "world"
+    world_y = np.asarray(g["axes"]["y"])
+
+    page.keyboard.press("l")
+    g = gizmo(page)
+    assert g["space"] == "local"
+    expect(page.get_by_test_id("local-axes")).to_be_checked()
+    # the group turned 90° about Z: its local X is the world's Y
+    np.testing.assert_allclose(g["axes"]["x"], world_y, atol=0.5)
+
+    # a typed move along local X goes along world Y
+    before = transform(page)
+    for key in ("g", "x", "1", "Enter"):
+        page.keyboard.press(key)
+    wait_idle(page)
+    offset = (transform(page) @ np.linalg.inv(before))[:3, 3]
+    np.testing.assert_allclose(offset, [0, 1, 0], atol=1e-12)
+
+    page.get_by_test_id("local-axes").uncheck()
+    assert gizmo(page)["space"] == "world"
+    assert not page.evaluate("() => window.__arap.errors")
+
+
+def test_new_shortcuts_are_in_the_help(page: Page) -> None:
+    page.locator("#view").focus()
+    page.keyboard.press("?")
+    keys = page.locator("[data-testid=help-table] kbd").all_inner_texts()
+    for key in ("G", "R", "P", "C", "L", "Ctrl+drag gizmo"):
+        assert key in keys, f"{key} is missing from the help"
