@@ -119,12 +119,15 @@ def sweep(page: Page, start: tuple[float, float], turn_deg: float, steps: int = 
 def test_rotate_rings_follow_the_pointer_around_the_centre(page: Page) -> None:
     ready_to_rotate(page)
     units = {"x": np.array([1.0, 0, 0]), "y": np.array([0, 1.0, 0]), "z": np.array([0, 0, 1.0])}
-    cases = [("x", 0, 90), ("y", 0, -90), ("z", 0, 90), ("z", 3, -90), ("x", 4, -90), ("y", 2, 90)]
+    cases = [("x", 0, 90), ("y", 0, -90), ("z", 0, 90), ("z", 3, -90), ("x", 4, -90), ("y", 2, 90),
+             ("e", 0, 90), ("e", 9, -90)]
     for axis, skip, turn in cases:
         before = transform(page)
         start = grab_ring(page, axis, skip=skip)
         g = gizmo(page)
         eye = np.asarray(g["camera"]) - np.asarray(g["pivot"])
+        if axis == "e":  # the view ring turns about the line of sight
+            units["e"] = eye / np.linalg.norm(eye)
         sweep(page, start, turn)
         angle, rot_axis = rotation_of(transform(page) @ np.linalg.inv(before))
         assert abs(angle - 90) < 3, f"{axis} ring, {turn}° around the centre from {start}: turned {angle:.1f}°"
@@ -140,6 +143,24 @@ def test_rotate_rings_follow_the_pointer_around_the_centre(page: Page) -> None:
     sweep(page, start, 90)
     angle, _ = rotation_of(transform(page) @ np.linalg.inv(before))
     assert abs(angle - 90) < 3, f"grabbed beside the centre: turned {angle:.1f}°"
+
+    # the free ball at the centre rolls like a trackball: a sideways drag turns about the screen's vertical
+    before = transform(page)
+    ball = [(cx + dx, cy + dy) for dy in (0, -10, 10, -20, 20, -30, 30) for dx in (0, -10, 10)]
+    for bx, by in ball:
+        page.mouse.move(bx, by)
+        if gizmo(page)["hover"] == "XYZE":
+            break
+    else:
+        raise AssertionError("the free ball could not be picked")
+    page.mouse.down()
+    for k in range(1, 7):
+        page.mouse.move(bx + 10 * k, by)
+    page.mouse.up()
+    wait_idle(page)
+    angle, rot_axis = rotation_of(transform(page) @ np.linalg.inv(before))
+    assert 5 < angle < 180
+    assert abs(rot_axis[1]) > 0.8, f"a sideways roll turned about {rot_axis}"
     assert not page.evaluate("() => window.__arap.errors")
 
 

@@ -27,6 +27,10 @@ export class HandleGizmo {
     this.marker.renderOrder = 10;
     this.marker.visible = false;
     this.marker.raycast = () => {};
+    this.marker.onBeforeRender = () => { // a constant size on screen, whatever the zoom
+      this.marker.scale.setScalar(6 * viewer.worldPerPixel(this.marker.position));
+      this.marker.updateMatrixWorld(true);
+    };
     viewer.scene.add(this.marker);
     this.matrices = []; // one THREE.Matrix4 per client handle group
     this.pivots = []; // per group: the placed pivot in the group's untransformed frame, or null (the centroid)
@@ -173,7 +177,6 @@ export class HandleGizmo {
     this.marker.visible = on;
     if (!on) return;
     this.marker.position.copy(this.pivot.position);
-    this.marker.scale.setScalar(6 * this.viewer.worldPerPixel(this.pivot.position));
   }
 
   /** Centroid of the active group's current positions. */

@@ -10,16 +10,18 @@ function gizmoInfo(viewer, gizmo, transformUi) {
   const at = (d, r) => viewer.project([c[0] + d.x * r, c[1] + d.y * r, c[2] + d.z * r]);
   const axes = {};
   const rings = {};
-  for (const name of ['x', 'y', 'z']) {
-    const a = gizmo.axisVector(name);
-    axes[name] = at(a, scale * 0.45);
-    // the ring of radius 0.5 about the axis, as 72 points (every 5°)
+  const eye = cam.position.clone().sub(gizmo.pivot.position).normalize();
+  for (const name of ['x', 'y', 'z', 'e']) {
+    const a = name === 'e' ? eye : gizmo.axisVector(name);
+    if (name !== 'e') axes[name] = at(a, scale * 0.45);
+    const radius = name === 'e' ? 0.75 : 0.5;
+    // the ring about the axis (the view ring E about the line of sight), as 72 points (every 5°)
     const u = Math.abs(a.x) < 0.9 ? a.clone().set(1, 0, 0) : a.clone().set(0, 1, 0);
     u.sub(a.clone().multiplyScalar(u.dot(a))).normalize();
     const v = a.clone().cross(u);
     rings[name] = Array.from({ length: 72 }, (_, k) => {
       const phi = (k * Math.PI) / 36;
-      return at(u.clone().multiplyScalar(Math.cos(phi)).addScaledVector(v, Math.sin(phi)), scale * 0.5);
+      return at(u.clone().multiplyScalar(Math.cos(phi)).addScaledVector(v, Math.sin(phi)), scale * radius);
     });
   }
   return {

@@ -106,7 +106,6 @@ export class NumericEntry {
     const unit = e.mode === 'rotate' ? '°' : '';
     this.line.textContent = `${VERB[e.mode]} ${axis === 'view' ? 'view axis' : axis.toUpperCase()}: `
       + `${e.text === '' ? '…' : e.text}${unit}`;
-    this.line.title = 'X, Y or Z: axis · digits: amount · Enter: apply · Esc: cancel';
     this.line.hidden = false;
   }
 

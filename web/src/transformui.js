@@ -70,10 +70,14 @@ export function installTransformUi({ viewer, gizmo, canStart, say }) {
     byId('snap-step').textContent = `grid ${gizmo.gridStep}, ${ROTATION_SNAP_DEG}°`;
   };
 
+  const startEntry = (what) => {
+    if (!entry.start(what) && !gizmo.indices.length) say('Pick a handle group first: G and R move or turn it.');
+  };
+
   return {
     keys: {
-      g: () => entry.start('translate'),
-      r: () => entry.start('rotate'),
+      g: () => startEntry('translate'),
+      r: () => startEntry('rotate'),
       p: () => picker.toggle(),
       c: () => picker.reset(),
       l: () => setSpace(gizmo.space !== 'local'),
