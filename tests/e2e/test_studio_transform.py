@@ -224,14 +224,20 @@ def test_typed_move_applies_exactly_and_escape_cancels(page: Page) -> None:
     seq = page.evaluate("() => window.__arap.lastSeq")
 
     # Escape: the preview goes, nothing is sent
+    shown = positions(page)
     for key in ("g", "y", "5"):
         page.keyboard.press(key)
     expect(page.get_by_test_id("numeric-line")).to_have_text("Move Y: 5")
     assert gizmo(page)["pivotMatrix"] != pivot_before, "the gizmo does not preview the move"
+    preview = positions(page)
+    np.testing.assert_allclose(preview[handle] - shown[handle], np.tile([0, 5, 0], (len(handle), 1)), atol=1e-5)
+    others = np.setdiff1d(np.arange(len(shown)), handle)
+    np.testing.assert_array_equal(preview[others], shown[others])
     page.keyboard.press("Backspace")
     page.keyboard.press("Escape")
     expect(page.get_by_test_id("numeric-line")).to_be_hidden()
     assert page.evaluate("() => window.__arap.typing") is None
+    np.testing.assert_array_equal(positions(page), shown)
     np.testing.assert_array_equal(transform(page), before)
     np.testing.assert_allclose(gizmo(page)["pivotMatrix"], pivot_before, atol=1e-12)
     assert page.evaluate("() => window.__drags.length") == 0

@@ -37,6 +37,7 @@ export class HandleGizmo {
     this.group = -1;
     this.indices = [];
     this.previewing = false;
+    this._saved = null; // the group's positions before a preview: {indices, xyz}
     this._base = new THREE.Matrix4();
     this._baseInv = new THREE.Matrix4();
     this._start = new THREE.Matrix4();
@@ -95,6 +96,8 @@ export class HandleGizmo {
 
   /** A new mesh: placed pivots are dropped and the translation grid follows the model's size. */
   meshChanged() {
+    this._saved = null; // a preview's positions belong to the mesh gone
+    this.previewing = false;
     this.pivots = this.matrices.map(() => null);
     this.controls.gridStep = gridStep(this.viewer.geometry?.boundingBox ?? null);
   }
@@ -217,14 +220,38 @@ export class HandleGizmo {
       this.previewing = true;
     }
     const delta = matrix.clone().multiply(m.clone().invert());
+    this._moveHandle(delta);
     delta.multiply(this._base).decompose(this.pivot.position, this.pivot.quaternion, this.pivot.scale);
     this.pivot.updateMatrixWorld(true);
     this._showMarker(this.pivotPlaced);
     this.viewer.requestRender();
   }
 
-  /** Drop the preview: the gizmo goes back to the group's transform. */
+  /** Show the group's vertices moved rigidly by `delta` (their positions before the preview are kept). */
+  _moveHandle(delta) {
+    const pos = this.viewer.positions;
+    if (!this._saved) {
+      const xyz = Float32Array.from(this.indices.flatMap((i) => [pos[3 * i], pos[3 * i + 1], pos[3 * i + 2]]));
+      this._saved = { indices: this.indices, xyz };
+    }
+    const v = new THREE.Vector3();
+    this._saved.indices.forEach((i, k) => {
+      v.fromArray(this._saved.xyz, 3 * k).applyMatrix4(delta);
+      pos[3 * i] = v.x;
+      pos[3 * i + 1] = v.y;
+      pos[3 * i + 2] = v.z;
+    });
+    this.viewer.updatePositions(pos);
+  }
+
+  /** Drop the preview: the group's vertices and the gizmo go back to the group's transform. */
   cancelPreview() {
+    if (this._saved) {
+      const pos = this.viewer.positions;
+      this._saved.indices.forEach((i, k) => pos.set(this._saved.xyz.subarray(3 * k, 3 * k + 3), 3 * i));
+      this.viewer.updatePositions(pos);
+    }
+    this._saved = null;
     this.previewing = false;
     this.recenter();
   }
@@ -244,6 +271,7 @@ export class HandleGizmo {
     m.copy(matrix);
     this.opts.onDrag();
     this.opts.onDragEnd();
+    this._saved = null; // the server's frames take over from the preview
     this.previewing = false;
     return true;
   }

@@ -82,7 +82,7 @@ const gizmo = new HandleGizmo(viewer, {
   onDraggingChanged: () => {},
 });
 const transformUi = installTransformUi({ viewer, gizmo, canStart: () => app.ready,
-  say: (text) => panel.showStatus(text, 'info', 4000) });
+  say: (text) => panel.showStatus(text, 'info', 4000), hush: () => panel.hideStatus() });
 const tools = new SelectionTools(viewer, {
   isGizmoActive: () => gizmo.active,
   onPaint: (indices, subtract) => {

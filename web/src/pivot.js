@@ -6,13 +6,14 @@ export class PivotPicker {
    * Create it before the selection tools and the orbit controls: its pointer handler on the canvas must run
    * first, to keep the placing click from painting or orbiting.
    * @param {object} opts viewer, gizmo, changed(placing: boolean) (the placing mode began or ended),
-   *   say(text) (a short message)
+   *   say(text) (a short message), hush() (take the message away)
    */
-  constructor({ viewer, gizmo, changed, say }) {
+  constructor({ viewer, gizmo, changed, say, hush }) {
     this.viewer = viewer;
     this.gizmo = gizmo;
     this.changed = changed;
     this.say = say;
+    this.hush = hush;
     this.placing = false;
     this.raycaster = new THREE.Raycaster();
     viewer.canvas.addEventListener('pointerdown', (e) => this._down(e));
@@ -45,6 +46,7 @@ export class PivotPicker {
   stop() {
     if (!this.placing) return;
     this.placing = false;
+    this.hush();
     this.gizmo.controls.enabled = true;
     this.viewer.canvas.style.cursor = '';
     this.changed(false);

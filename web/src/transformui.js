@@ -19,13 +19,15 @@ const byId = (id) => /** @type {HTMLElement} */ (document.getElementById(id));
 /**
  * Wire the controls to the gizmo. Call it before the selection tools and the orbit controls are created (the
  * pivot's click on the surface goes first).
- * @param {object} opts viewer, gizmo, canStart() (a typed transform may start: studio ready), say(text)
+ * @param {object} opts viewer, gizmo, canStart() (a typed transform may start: studio ready), say(text) (a short
+ *   message), hush() (take it away)
  * @returns {{keys: Record<string, () => void>, meshChanged: () => void, entry: NumericEntry,
  *   picker: PivotPicker}}
  */
-export function installTransformUi({ viewer, gizmo, canStart, say }) {
+export function installTransformUi({ viewer, gizmo, canStart, say, hush }) {
   const placeBtn = byId('btn-place-pivot');
-  const picker = new PivotPicker({ viewer, gizmo, say, changed: (on) => placeBtn.classList.toggle('active', on) });
+  const changed = (on) => placeBtn.classList.toggle('active', on);
+  const picker = new PivotPicker({ viewer, gizmo, say, hush, changed });
   const entry = new NumericEntry({ gizmo, viewer, line: byId('numeric-line'), canStart });
   const local = /** @type {HTMLInputElement} */ (byId('local-axes'));
   const snap = /** @type {HTMLInputElement} */ (byId('snap'));
@@ -65,8 +67,8 @@ export function installTransformUi({ viewer, gizmo, canStart, say }) {
 
   const meshChanged = () => {
     picker.stop();
-    entry.cancel();
     gizmo.meshChanged();
+    entry.cancel();
     byId('snap-step').textContent = `grid ${gizmo.gridStep}, ${ROTATION_SNAP_DEG}°`;
   };
 
