@@ -4,6 +4,8 @@ keyboard input."""
 from __future__ import annotations
 
 import math
+import re
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -98,9 +100,9 @@ def grab_ring(page: Page, axis: str, pick: str = "first", skip: int = 0) -> tupl
 
 
 def sweep(page: Page, start: tuple[float, float], turn_deg: float, steps: int = 12,
-          modifier: str | None = None) -> None:
+          modifier: str | None = None, before_release: Callable[[], None] | None = None) -> None:
     """Press at `start` and move the pointer `turn_deg` around the gizmo's centre (counter-clockwise on screen
-    positive), then let go."""
+    positive), then (after `before_release`) let go."""
     cx, cy = gizmo(page)["screen"]
     r = math.hypot(start[0] - cx, start[1] - cy)
     a0 = math.atan2(cy - start[1], start[0] - cx)
@@ -110,6 +112,8 @@ def sweep(page: Page, start: tuple[float, float], turn_deg: float, steps: int = 
     for k in range(1, steps + 1):
         a = a0 + math.radians(turn_deg) * k / steps
         page.mouse.move(cx + r * math.cos(a), cy - r * math.sin(a))
+    if before_release:
+        before_release()
     page.mouse.up()
     if modifier:
         page.keyboard.up(modifier)
@@ -284,12 +288,15 @@ def test_snapping_with_ctrl_and_the_checkbox(page: Page) -> None:
     mantissa = step / 10 ** math.floor(math.log10(step))
     assert any(abs(mantissa - m) < 1e-9 for m in (1, 2, 5)), step
 
+    line = page.get_by_test_id("numeric-line")
     for modifier, turn in (("Control", 50), (None, 70)):
         if modifier is None:
             page.get_by_test_id("snap").check()
             page.mouse.move(30, 300)
         before = transform(page)
-        sweep(page, grab_ring(page, "z"), turn, modifier=modifier)
+        sweep(page, grab_ring(page, "z"), turn, modifier=modifier,
+              before_release=lambda: expect(line).to_have_text(re.compile(r"Rotate Z: -?(45|60|75)°")))
+        expect(line).to_be_hidden()
         angle, _ = rotation_of(transform(page) @ np.linalg.inv(before))
         assert angle > 10 and abs(angle / 15 - round(angle / 15)) < 1e-6, f"snapped to {angle}°"
         assert round(angle / 15) * 15 == round(turn / 15) * 15

@@ -144,6 +144,21 @@ export class RingControls extends TransformControls {
     this.dispatchEvent({ type: 'objectChange' });
   }
 
+  /** What the drag under way has done so far: 'Rotate Z: 45°', 'Move X: 0.05', or '' when none is under way. */
+  dragText() {
+    if (!this.dragging || this.object === undefined || this.axis === null) return '';
+    const axis = this.axis === 'E' ? 'view axis' : this.axis === 'XYZE' ? 'free' : this.axis;
+    if (this.mode === 'rotate') {
+      const q = this.object.quaternion.clone().multiply(this.tc._quaternionStart.clone().invert());
+      const turned = this._ring?.worldAxis ? this.tc.rotationAngle : 2 * Math.acos(Math.min(1, Math.abs(q.w)));
+      return `Rotate ${axis}: ${Number(THREE.MathUtils.radToDeg(turned).toFixed(1))}°`;
+    }
+    const d = this.object.position.clone().sub(this.tc._positionStart);
+    if (this.space === 'local' && this.axis !== 'XYZ') d.applyQuaternion(this.tc._quaternionStart.clone().invert());
+    const parts = ['x', 'y', 'z'].filter((c) => this.axis.includes(c.toUpperCase()));
+    return `Move ${this.axis}: ${parts.map((c) => Number(d[c].toPrecision(4))).join(', ')}`;
+  }
+
   /** World size of the gizmo's unit (its handles keep a constant screen size; TransformControls' own factor). */
   handleScale() {
     const cam = /** @type {THREE.PerspectiveCamera} */ (this.camera);

@@ -65,6 +65,20 @@ export function installTransformUi({ viewer, gizmo, canStart, say, hush }) {
     if (e.key === 'Enter') applyFields();
   });
 
+  // while the pointer drags the gizmo, the same line shows the angle or distance so far
+  const line = byId('numeric-line');
+  gizmo.controls.addEventListener('objectChange', () => {
+    if (entry.active || !gizmo.dragging) return;
+    line.textContent = gizmo.controls.dragText();
+    line.classList.add('dragging');
+    line.hidden = false;
+  });
+  gizmo.controls.addEventListener('mouseUp', () => {
+    if (!line.classList.contains('dragging')) return;
+    line.classList.remove('dragging');
+    if (!entry.active) line.hidden = true;
+  });
+
   const meshChanged = () => {
     picker.stop();
     gizmo.meshChanged();
