@@ -348,11 +348,19 @@ def test_local_and_world_axes(page: Page) -> None:
 
     # a typed move along local X goes along world Y
     before = transform(page)
-    for key in ("g", "x", "1", "Enter"):
+    for key in ("g", "x", "-", "0", ".", "1", "Enter"):
         page.keyboard.press(key)
     wait_idle(page)
     offset = (transform(page) @ np.linalg.inv(before))[:3, 3]
-    np.testing.assert_allclose(offset, [0, 1, 0], atol=1e-12)
+    np.testing.assert_allclose(offset, [0, -0.1, 0], atol=1e-12)
+
+    # the local X ring turns about the group's own X axis (the world's Y here)
+    page.mouse.move(30, 300)
+    page.keyboard.press("e")
+    before = transform(page)
+    sweep(page, grab_ring(page, "x"), -90)
+    angle, rot_axis = rotation_of(transform(page) @ np.linalg.inv(before))
+    assert abs(angle - 90) < 3 and abs(abs(rot_axis[1]) - 1) < 1e-6, (angle, rot_axis)
 
     page.get_by_test_id("local-axes").uncheck()
     assert gizmo(page)["space"] == "world"
