@@ -280,6 +280,16 @@ def test_panel_fields_apply_an_exact_rotation(page: Page) -> None:
     page.wait_for_function("() => window.__arap.canUndo")
     np.testing.assert_allclose(transform(page), about(pivot, np.array([0, 1.0, 0]), -45), rtol=0, atol=1e-9)
 
+    # the pivot buttons: Place… waits for a click on the surface (Esc gives up), Centroid resets
+    page.get_by_test_id("place-pivot").click()
+    expect(page.get_by_test_id("place-pivot")).to_have_class(re.compile("active"))
+    assert gizmo(page)["placing"]
+    page.keyboard.press("Escape")
+    assert not gizmo(page)["placing"]
+    expect(page.get_by_test_id("place-pivot")).not_to_have_class(re.compile("active"))
+    page.get_by_test_id("reset-pivot").click()
+    assert not gizmo(page)["pivotPlaced"]
+
 
 def test_snapping_with_ctrl_and_the_checkbox(page: Page) -> None:
     ready_to_rotate(page)
