@@ -22,6 +22,7 @@ export class RingControls extends TransformControls {
     this.gridStep = 0; // translation snap step (model units)
     this._muted = false;
     this._ring = null; // state of the rotation under way
+    this._lastPointer = null; // the latest pointer of the drag (re-applied when the modifier changes)
     const track = (e) => {
       const held = e.ctrlKey || e.metaKey;
       if (held === this.snapKey) return;
