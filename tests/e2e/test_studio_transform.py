@@ -6,14 +6,16 @@ from __future__ import annotations
 import math
 import re
 from collections.abc import Callable
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pytest
 from playwright.sync_api import Page, expect
 
-from tests.e2e.conftest import positions, wait_idle
-from tests.e2e.test_studio import select_anchor_and_handle
+from tests.e2e.conftest import positions, wait_idle, wait_settled
+from tests.e2e.test_studio import box_select, select_anchor_and_handle
+from tests.e2e.test_studio_mirror import front_point, paint_at, press_mirror, symmetric_mesh, upload
 
 pytestmark = pytest.mark.e2e
 
@@ -383,3 +385,67 @@ def test_new_shortcuts_are_in_the_help(page: Page) -> None:
     keys = page.locator("[data-testid=help-table] kbd").all_inner_texts()
     for key in ("G", "R", "P", "C", "L", "Ctrl+drag gizmo"):
         assert key in keys, f"{key} is missing from the help"
+
+
+def test_typed_rotation_moves_the_mirror_partner_mirrored(page: Page, tmp_path: Path) -> None:
+    V, F = symmetric_mesh()
+    shown = upload(page, tmp_path, "warped", V, F)
+    diag = float(np.linalg.norm(np.ptp(V, axis=0)))
+    mirror_of = np.asarray(press_mirror(page)["mirrorOf"])
+    pts = np.asarray([page.evaluate("(p) => window.__arap.project(p)", p) for p in shown.tolist()])
+    bottom = pts[:, 1] > pts[:, 1].max() - 0.15 * np.ptp(pts[:, 1])
+    page.get_by_test_id("role-fixed").click()
+    box_select(page, pts[bottom, 0].min() - 10, pts[bottom, 1].min(), pts[:, 0].max() + 10, pts[:, 1].max() + 10)
+    wait_idle(page)
+    page.get_by_test_id("role-handle").click()
+    page.get_by_test_id("brush-units").select_option("world")
+    page.get_by_test_id("brush-radius").fill("8")  # 8% of the diagonal: a patch, so that turning it moves it
+    paint_at(page, front_point(V, 0.7))
+    assert page.evaluate("() => window.__arap.partners()") == [1, 0]
+    groups = page.evaluate("() => window.__arap.constraints().handle_groups")
+    assert len(groups[0]) > 3
+    assert sorted(int(mirror_of[i]) for i in groups[0]) == sorted(groups[1])
+    assert gizmo(page)["group"] == 0
+    # a pivot placed beside the group: the partner's pivot is its mirror image
+    x, y = page.evaluate("(p) => window.__arap.project(p)", front_point(V, 0.45).tolist())
+    page.mouse.move(x, y)
+    page.keyboard.press("p")
+    page.mouse.click(x, y)
+    g = gizmo(page)
+    assert g["pivotPlaced"] and not g["placing"]
+    pivot = np.asarray(g["pivot"])
+    assert page.evaluate("() => window.__arap.constraints().handle_groups") == groups
+
+    spy_on_drags(page)
+    page.mouse.move(30, 300)
+    for key in ("r", "z", "9", "0"):
+        page.keyboard.press(key)
+    expect(page.get_by_test_id("numeric-line")).to_have_text("Rotate Z: 90°")
+    page.keyboard.press("Enter")
+    wait_idle(page)
+    page.wait_for_function("() => !window.__arap.busy && window.__arap.canUndo")
+
+    T = about(pivot, np.array([0, 0, 1.0]), 90)
+    M = np.diag([-1.0, 1.0, 1.0, 1.0])  # the reflection in the plane x = 0
+    sent = last_drag(page)
+    assert len(sent) == 2, "one drag message carries both groups"
+    np.testing.assert_allclose(matrix(sent[0]), T, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(matrix(sent[1]), M @ T @ M, rtol=0, atol=1e-9)
+    # the partner turned the other way: -90° about Z through the mirrored pivot
+    angle, axis = rotation_of(matrix(sent[1]))
+    assert abs(angle - 90) < 1e-6 and axis @ [0, 0, 1] < -0.999
+    client = np.asarray(page.evaluate("() => window.__arap.transforms()")).reshape(-1, 4, 4).transpose(0, 2, 1)
+    np.testing.assert_allclose(client[1], M @ client[0] @ M, atol=1e-12)
+
+    wait_settled(page)
+    U = positions(page)
+    for g, m in ((groups[0], T), (groups[1], M @ T @ M)):  # the server holds each group where its transform puts it
+        np.testing.assert_allclose(U[g], V[g] @ m[:3, :3].T + m[:3, 3], atol=1e-5 * diag)
+    assert np.abs(U[groups[0]] - V[groups[0]]).max() > 0.01 * diag, "the typed rotation did not move the group"
+    asym = np.abs(U[mirror_of] * [-1, 1, 1] - U).max()
+    assert asym < 1e-6 * diag, f"the settled shape is not symmetric: {asym / diag:.2e} of the diagonal"
+    page.get_by_test_id("group-1").click()
+    g = gizmo(page)
+    assert g["group"] == 1 and g["pivotPlaced"]
+    np.testing.assert_allclose(g["pivot"], pivot * [-1, 1, 1], atol=1e-9)
+    assert not page.evaluate("() => window.__arap.errors")

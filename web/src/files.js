@@ -1,4 +1,5 @@
 // File input, drag and drop of meshes, downloads and constraint documents.
+import { PARTNERS_KEY } from './mirror.js';
 import { UPLOAD_EXTENSIONS } from './protocol.js';
 
 export const MESH_EXTENSIONS = UPLOAD_EXTENSIONS.map((e) => e.replace(/^\./, '').toLowerCase());
@@ -100,7 +101,7 @@ function targetMap(doc) {
  * Read a constraints document: the studio format {roi, fixed, handle_groups} or the command-line format
  * {fixed, handles, targets, roi} (its handles become one group). With `targets`, the result's `targets` maps each
  * handle vertex to its [x, y, z]; handles outside `handle_groups` (vertices a saved studio session held in place)
- * become one more group.
+ * become one more group. `partners` lists the pairs [k, l] of mirror partner groups saved in "meta".
  */
 export function parseConstraints(text) {
   let doc;
@@ -130,5 +131,13 @@ export function parseConstraints(text) {
     groups = [];
   }
   if (!fixed.length && !groups.length) throw new Error('no "fixed" or handle vertices in the document');
-  return { roi: roi && roi.length ? roi : null, fixed, handle_groups: groups, targets };
+  return { roi: roi && roi.length ? roi : null, fixed, handle_groups: groups, targets, partners: partnerPairs(doc, groups.length) };
+}
+
+/** The mirror partners of handle groups saved in the document's "meta" (pairs [k, l] of groups; others skipped). */
+function partnerPairs(doc, nGroups) {
+  const raw = doc.meta && typeof doc.meta === 'object' ? doc.meta[PARTNERS_KEY] : null;
+  if (!Array.isArray(raw)) return [];
+  const ok = (k) => Number.isInteger(k) && k >= 0 && k < nGroups;
+  return raw.filter((p) => Array.isArray(p) && p.length === 2 && ok(p[0]) && ok(p[1]) && p[0] !== p[1]);
 }

@@ -11,7 +11,7 @@ export class HandleGizmo {
   /**
    * @param {import('./viewer.js').Viewer} viewer
    * @param {object} opts onDragStart() (return false to refuse the drag), onDrag(), onDragEnd(),
-   *   onDraggingChanged(bool)
+   *   onDraggingChanged(bool), onPivot() (the active group's pivot was placed or reset)
    */
   constructor(viewer, opts) {
     this.viewer = viewer;
@@ -153,12 +153,14 @@ export class HandleGizmo {
     const m = this.matrices[this.group];
     if (!m || !this.indices.length) return;
     this.pivots[this.group] = new THREE.Vector3(p[0], p[1], p[2]).applyMatrix4(m.clone().invert());
+    this.opts.onPivot?.();
     this.recenter();
   }
 
   /** The active group's pivot back to its centroid. */
   resetPivot() {
     if (this.group >= 0 && this.group < this.pivots.length) this.pivots[this.group] = null;
+    this.opts.onPivot?.();
     this.recenter();
   }
 

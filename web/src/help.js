@@ -23,6 +23,7 @@ export const SHORTCUTS = [
   { key: '=', label: '=', does: 'Grow the current role by one ring (without Shift)' },
   { key: '-', label: '−', does: 'Shrink the current role by one ring' },
   { key: 'h', label: 'H', does: 'Show or hide the distortion heat map' },
+  { key: 'm', label: 'M', does: 'Mirror editing on or off (selections and drags act on both sides)' },
   { key: '?', label: '?', does: 'Show or hide this help' },
   { key: 'escape', label: 'Esc', does: 'Close the help or the message' },
   { key: null, label: 'Ctrl+Z', does: 'Undo' },

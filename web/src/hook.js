@@ -45,7 +45,7 @@ function gizmoInfo(viewer, gizmo, transformUi) {
   };
 }
 
-export function installTestHook({ app, viewer, selection, gizmo, conn, keeper, transformUi }) {
+export function installTestHook({ app, viewer, selection, gizmo, conn, keeper, mirror, transformUi }) {
   const toPage = ([x, y]) => {
     const r = viewer.canvas.getBoundingClientRect();
     return [x + r.left, y + r.top];
@@ -116,6 +116,23 @@ export function installTestHook({ app, viewer, selection, gizmo, conn, keeper, t
       const c = selection.toConstraints();
       return { roi: c.roi, fixed: c.fixed, handle_groups: c.handle_groups };
     },
+    /** Mirror editing: on, active (on with a plane), axis, plane, matched share, tolerance, ms, mirrorOf. */
+    mirror: () => {
+      const r = mirror.result;
+      return {
+        on: mirror.on,
+        active: mirror.active,
+        axis: mirror.axis,
+        plane: r?.plane ?? null,
+        matched: r?.matched ?? null,
+        tolerance: r?.tolerance ?? null,
+        ms: r?.ms ?? null,
+        mirrorOf: r?.mirrorOf ? Array.from(r.mirrorOf) : null,
+        visible: !!mirror.planeMesh?.visible,
+      };
+    },
+    /** The mirror partner of each client handle group (-1: none). */
+    partners: () => mirror.partners(),
     /** Page coordinates (CSS pixels) of a world point. */
     project: (p) => toPage(viewer.project(p)),
     gizmo: () => {

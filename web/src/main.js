@@ -2,13 +2,14 @@
 import './style.css';
 import { Connection, defaultSocketUrl } from './connection.js';
 import { checkMeshFile, download, formatBytes, installDropTarget, parseConstraints } from './files.js';
-import { HandleGizmo } from './gizmo.js';
 import { HeatMap } from './heatmap.js';
 import { describedKeys, Help } from './help.js';
 import { installTestHook } from './hook.js';
 import { installHud } from './hud.js';
 import { SessionKeeper } from './keeper.js';
 import { ignoreTypeAhead, installShortcuts, releaseFocusAfterPointerUse } from './keys.js';
+import { installManipulation } from './manipulate.js';
+import { MirrorEditing } from './mirror.js';
 import { Panel } from './panel.js';
 import { LivePose } from './livepose.js';
 import { LinePlot } from './plot.js';
@@ -17,12 +18,12 @@ import { constraintsKey, Selection } from './selection.js';
 import { builtinSource, fileSource } from './snapshot.js';
 import { installSurfaceControls, SurfaceSelection } from './surface.js';
 import { SelectionTools } from './tools.js';
-import { installTransformUi } from './transformui.js';
 import { Viewer } from './viewer.js';
 
 const viewer = new Viewer(document.getElementById('view'));
 const livePose = new LivePose(viewer);
 const selection = new Selection();
+const mirror = new MirrorEditing({ viewer, selection, tell: (text) => panel.showStatus(text, 'info', 6000) });
 const app = {
   ready: false,
   incompatible: false, // the server speaks another protocol version
@@ -64,34 +65,21 @@ const keeper = new SessionKeeper({
   offerParent: document.getElementById('viewport'),
 });
 
-const gizmo = new HandleGizmo(viewer, {
-  onDragStart: () => {
-    if (selectionSynced()) return true;
-    const pending = app.sentKey !== null;
-    panel.showStatus(pending
-      ? 'The new selection is still being set up; try again in a moment.'
-      : 'The server has not accepted the current selection (see the previous message); change it or undo.',
-    'error', pending ? 3000 : 0);
-    return false;
-  },
-  onDrag: () => conn.drag(gizmo.transformsFor(app.groupMap)),
-  onDragEnd: () => {
-    conn.endDrag();
-    app.awaitingState = true;
-  },
-  onDraggingChanged: () => {},
+const { gizmo, transformUi } = installManipulation({
+  app, viewer, selection, mirror, connection: () => conn,
+  status: (...a) => panel.showStatus(...a), hush: () => panel.hideStatus(),
 });
-const transformUi = installTransformUi({ viewer, gizmo, canStart: () => app.ready,
-  say: (text) => panel.showStatus(text, 'info', 4000), hush: () => panel.hideStatus() });
 const tools = new SelectionTools(viewer, {
   isGizmoActive: () => gizmo.active,
   onPaint: (indices, subtract) => {
-    if (selection.paint(indices, app.role, subtract)) refreshSelection(false);
+    if (mirror.paint(indices, app.role, subtract)) refreshSelection(false);
   },
   onStrokeEnd: () => commitConstraints(),
   graph: () => surface.graph(),
 });
-const surface = new SurfaceSelection({ viewer, selection, role: () => app.role, changed: selectionEdited });
+const surface = new SurfaceSelection({
+  viewer, selection, role: () => app.role, changed: selectionEdited, paint: (...a) => mirror.paint(...a),
+});
 const heat = new HeatMap({ viewer, send, role: () => selection.role, restore: () => refreshSelection(false) });
 const help = new Help();
 viewer.attachControls(); // after the gizmo and the tools, so they see pointer events first
@@ -130,6 +118,7 @@ function send(msg) {
     return false;
   }
   keeper.sent(msg);
+  mirror.sent(msg);
   return true;
 }
 
@@ -163,16 +152,6 @@ function updateGroupsUi() {
   const counts = selection.counts();
   panel.setGroups(selection.groups, selection.activeGroup, counts, viewer.nVertices);
   if (!gizmo.dragging) gizmo.attach(selection.activeGroup, selection.groupIndices(selection.activeGroup));
-}
-
-/** True when the server holds the local selection (so drags refer to the groups shown). */
-function selectionSynced() {
-  if (selection.version === app.syncedVersion) return true;
-  if (app.sentKey === null && constraintsKey(selection.toConstraints()) === app.serverKey) {
-    app.syncedVersion = selection.version;
-    return true;
-  }
-  return false;
 }
 
 /**
@@ -213,7 +192,8 @@ function handleMessage(msg) {
       return panel.setSettle(msg);
     case SERVER.CONSTRAINTS: {
       const base = (app.meshName || 'mesh').replace(/\.[^.]+$/, '');
-      download(JSON.stringify(msg.document, null, 2), `${base}-constraints.json`, 'application/json');
+      const doc = mirror.documentWithPartners(msg.document, app.groupMap);
+      download(JSON.stringify(doc, null, 2), `${base}-constraints.json`, 'application/json');
       return panel.showStatus('Constraints saved.', 'info', 2500);
     }
     case SERVER.EXPORT: {
@@ -278,6 +258,7 @@ function onMesh(msg) {
   const report = Array.isArray(msg.report) ? msg.report : msg.report ? [String(msg.report)] : [];
   if (report.length) panel.showStatus(`Loaded ${msg.name}. Repairs: ${report.join('; ')}`, 'info', 8000);
   else panel.hideStatus();
+  mirror.meshChanged(positions, faces); // after the status line: it may say that no symmetry was found
   keeper.meshArrived(msg, positions, faces);
 }
 
@@ -307,6 +288,7 @@ function onVertices(msg) {
 
 function onState(msg) {
   app.awaitingState = false;
+  mirror.stateArrived();
   app.canUndo = !!msg.can_undo;
   app.canRedo = !!msg.can_redo;
   panel.setHistory(app.canUndo, app.canRedo);
@@ -322,6 +304,7 @@ function onState(msg) {
   } else if (app.sentKey === null && key !== constraintsKey(selection.toConstraints())) {
     // the server's constraints changed under us (undo/redo, loaded document): adopt them
     selection.fromConstraints(c);
+    mirror.repair();
     app.groupMap = c.handle_groups.map((_, k) => k);
     app.syncedVersion = selection.version;
     refreshSelection(true);
@@ -373,6 +356,7 @@ function uploadFile(file) {
 function applySavedSelection(snap) {
   selection.fromConstraints({ roi: snap.roi, fixed: snap.fixed, handle_groups: snap.groups });
   selection.activeGroup = Math.max(0, Math.min(snap.activeGroup ?? 0, selection.groups.length - 1));
+  mirror.setPartners(snap.partners);
   refreshSelection(true);
   commitConstraints(null, true);
 }
@@ -395,6 +379,7 @@ function loadConstraintsFile(file) {
       return;
     }
     selection.fromConstraints(c);
+    mirror.setPairs(c.partners);
     refreshSelection(true);
     commitConstraints(c.targets);
   });
@@ -442,7 +427,7 @@ const panel = new Panel({
   setBrushUnits,
   setFrontOnly: (on) => (tools.frontOnly = on),
   clearRole: () => {
-    selection.clear(app.role);
+    mirror.clear(app.role);
     refreshSelection(true);
     commitConstraints();
   },
@@ -506,6 +491,7 @@ installShortcuts({
     '=': () => surface.ring(false),
     '-': () => surface.ring(true),
     h: () => heat.setOn(!heat.on),
+    m: () => mirror.setOn(!mirror.on),
     '?': () => help.toggle(),
     escape: () => (help.shown ? help.hide() : panel.hideStatus()),
     ...transformUi.keys,
@@ -518,7 +504,7 @@ releaseFocusAfterPointerUse(document.getElementById('panel'));
 
 installDropTarget(document.getElementById('viewport'), document.getElementById('drop-overlay'), uploadFile);
 
-installTestHook({ app, viewer, selection, gizmo, conn, keeper, transformUi });
+installTestHook({ app, viewer, selection, gizmo, conn, keeper, mirror, transformUi });
 
 // updates per second over the last second; decays to zero once dragging stops
 setInterval(() => {

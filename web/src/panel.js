@@ -208,7 +208,7 @@ export class Panel {
     $('btn-reconnect').hidden = state !== 'closed'; // while reconnecting, the retries run by themselves
   }
 
-  /** groups: [{count}], active: index, roi/fixed counts. */
+  /** groups: [{id, partner?}] (partner: the id of its mirror partner), active: index, roi/fixed counts. */
   setGroups(groups, active, counts, nVertices) {
     const ul = $('group-list');
     ul.innerHTML = '';
@@ -221,7 +221,9 @@ export class Panel {
       sw.style.background = cssColor(groupColor(k));
       const name = document.createElement('span');
       name.className = 'name';
-      name.textContent = `Group ${k + 1}`;
+      const partner = groups.findIndex((h) => g.partner !== undefined && h.id === g.partner);
+      name.textContent = partner >= 0 ? `Group ${k + 1} ⇄ ${partner + 1}` : `Group ${k + 1}`;
+      if (partner >= 0) name.title = `Mirror partner of group ${partner + 1}`;
       const count = document.createElement('span');
       count.className = 'count';
       count.textContent = `${fmtInt(counts.groups[k] || 0)} v`;

@@ -133,6 +133,22 @@ export class Selection {
     this.version++;
   }
 
+  /** The mirror partner of handle group g (see mirror.js), or -1. */
+  partnerOf(g) {
+    const id = this.groups[g]?.partner;
+    return id === undefined ? -1 : this.groups.findIndex((x) => x.id === id);
+  }
+
+  /** Make handle groups g and h each other's mirror partner (leaving their former partners unpaired). */
+  pair(g, h) {
+    for (const k of [g, h]) {
+      const old = this.partnerOf(k);
+      if (old >= 0) delete this.groups[old].partner;
+    }
+    this.groups[g].partner = this.groups[h].id;
+    this.groups[h].partner = this.groups[g].id;
+  }
+
   /** Vertex indices of handle group g. */
   groupIndices(g) {
     const out = [];

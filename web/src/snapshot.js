@@ -46,7 +46,8 @@ export function hasEdits({ app, selection }) {
 
 /**
  * The session as a plain object (structured-cloneable): `source` (with its bytes), mesh counts, `roi`, `fixed`,
- * `groups` (one vertex list per client handle group, empty ones included), `activeGroup`, `positions`
+ * `groups` (one vertex list per client handle group, empty ones included), `activeGroup`, `partners` (each
+ * group's mirror partner, -1 for none), `positions`
  * (Float32Array of the current shape) and `params`.
  */
 export function captureSession({ app, selection, viewer }) {
@@ -69,6 +70,7 @@ export function captureSession({ app, selection, viewer }) {
     fixed,
     groups,
     activeGroup: selection.activeGroup,
+    partners: selection.groups.map((_, g) => selection.partnerOf(g)),
     positions: new Float32Array(viewer.positions),
     params: { ...app.params },
     edits: hasEdits({ app, selection }),

@@ -9,11 +9,12 @@ export const ROI_GROW_MODES = ['rings', 'distance'];
 export class SurfaceSelection {
   /**
    * @param {object} opts viewer, selection, role(): the role being painted, changed(): after the selection
-   *   changed (refresh and send it)
+   *   changed (refresh and send it), paint(indices, mode, subtract): paints (Selection.paint by default)
    */
-  constructor({ viewer, selection, role, changed }) {
+  constructor({ viewer, selection, role, changed, paint = null }) {
     this.viewer = viewer;
     this.selection = selection;
+    this.paint = paint ?? ((indices, mode, subtract) => selection.paint(indices, mode, subtract));
     this.role = role;
     this.changed = changed;
     this._graph = null;
@@ -47,7 +48,7 @@ export class SurfaceSelection {
     const member = this._member();
     if (!member || !this.viewer.nVertices) return false;
     const ring = ringAround(this.graph(), this.viewer.nVertices, member, shrink);
-    if (!this.selection.paint(ring, this.role(), shrink)) return false;
+    if (!this.paint(ring, this.role(), shrink)) return false;
     this.changed();
     return true;
   }
@@ -70,7 +71,7 @@ export class SurfaceSelection {
       region = geodesicDistances(this.graph(), this.viewer.positions, handles.map((v) => [v, 0]), radius).vertices;
     }
     s.roi.fill(0);
-    for (const i of region) s.roi[i] = 1;
+    this.paint(region, 'roi', false);
     for (let i = 0; i < s.n; i++) if (s.role[i] === FIXED || s.role[i] >= HANDLE0) s.roi[i] = 1;
     s.version++;
     this.changed();

@@ -1,0 +1,271 @@
+// Mirror editing: with it on, painting, box selection and growing a role act on both sides of the mirror plane,
+// a handle group painted on one side gets a partner group on the other, and dragging a group moves its partner by
+// the mirrored transform. The plane and the vertex correspondence (symmetry.js) are found once per rest pose, when
+// mirror editing is first turned on.
+import * as THREE from 'three';
+import { ignoreTypeAhead } from './keys.js';
+import { CLIENT } from './protocol.js';
+import { detectSymmetry, MIN_MATCHED, reflectionMatrix } from './symmetry.js';
+
+/** Key of the handle-group pairs in a constraints document's "meta" object: [[k, l], ...] of handle_groups. */
+export const PARTNERS_KEY = 'mirror_partners';
+
+const pct = (x) => `${(100 * x).toFixed(x > 0.995 && x < 1 ? 1 : 0)}%`;
+
+export class MirrorEditing {
+  /**
+   * @param {object} opts viewer, selection, tell(text) (a short message), checkbox, axisSelect, statusEl
+   */
+  constructor({
+    viewer, selection, tell,
+    checkbox = /** @type {HTMLInputElement} */ (document.getElementById('mirror-on')),
+    axisSelect = /** @type {HTMLSelectElement} */ (document.getElementById('mirror-axis')),
+    statusEl = document.getElementById('mirror-status'),
+  }) {
+    this.viewer = viewer;
+    this.selection = selection;
+    this.tell = tell;
+    this.checkbox = checkbox;
+    this.axisSelect = axisSelect;
+    this.statusEl = statusEl;
+    this.on = false;
+    this.axis = 'auto';
+    this.result = null; // detectSymmetry's answer for the rest pose, null until needed
+    this.rest = null; // rest positions (Float32Array) and faces of the current mesh
+    this.faces = null;
+    this.applying = 0; // apply requests whose state has not arrived yet
+    this.matrix = new THREE.Matrix4();
+    this.planeMesh = null;
+    checkbox.addEventListener('change', () => this.setOn(checkbox.checked));
+    axisSelect.addEventListener('change', () => this.setAxis(axisSelect.value));
+    ignoreTypeAhead(axisSelect);
+    this._show();
+  }
+
+  /** Mirror editing is on and has a plane. */
+  get active() {
+    return this.on && !!this.result?.plane;
+  }
+
+  /** The vertex correspondence (-1: no partner), or null while inactive. */
+  get mirrorOf() {
+    return this.active ? this.result.mirrorOf : null;
+  }
+
+  /** A new mesh: its positions are the rest pose. */
+  meshChanged(positions, faces) {
+    this.rest = Float32Array.from(positions);
+    this.faces = faces;
+    this._invalidate();
+  }
+
+  /** A request was sent (an apply makes the current shape the rest pose once its state arrives). */
+  sent(msg) {
+    if (msg.type === CLIENT.APPLY) this.applying++;
+  }
+
+  stateArrived() {
+    if (this.applying <= 0) return;
+    this.applying--;
+    this.rest = Float32Array.from(this.viewer.positions);
+    this._invalidate();
+  }
+
+  _invalidate() {
+    this.result = null;
+    if (this.on) this.setOn(true);
+    else this._show();
+  }
+
+  /** Turn mirror editing on (finding the plane first if needed; it stays off when none is found) or off. */
+  setOn(on) {
+    this.on = on;
+    if (on && !this.result && this.rest) {
+      this.result = detectSymmetry(this.rest, this.faces, this.axis);
+      this.matrix.fromArray(this.result.plane ? reflectionMatrix(this.result.plane) : new THREE.Matrix4().elements);
+      this.repair();
+    }
+    if (on && this.result && !this.result.plane) {
+      this.on = false;
+      this.tell(`No mirror symmetry found (the best plane matched ${pct(this.result.matched)} of the vertices); `
+        + 'pick the X, Y or Z plane to mirror anyway.');
+    }
+    this._show();
+  }
+
+  /** The plane: 'auto' (found) or 'x', 'y', 'z' (that axis's plane through the middle of the model). */
+  setAxis(axis) {
+    this.axis = axis;
+    this.axisSelect.value = axis;
+    this._invalidate();
+  }
+
+  _show() {
+    this.checkbox.checked = this.on;
+    const r = this.result;
+    let text;
+    if (!r) text = this.on ? 'no mesh' : 'off';
+    else if (!r.plane) text = `no symmetry found (best plane: ${pct(r.matched)} of the vertices matched)`;
+    else {
+      const n = r.plane.normal.map((c) => String(Number(c.toFixed(3)) || 0)).join(', ');
+      const kind = r.matched >= MIN_MATCHED ? 'symmetric' : 'partly symmetric';
+      text = `${kind}: ${pct(r.matched)} of the vertices matched (plane normal ${n})${this.on ? '' : ', off'}`;
+    }
+    this.statusEl.textContent = text;
+    this.statusEl.title = r ? `found in ${r.ms.toFixed(0)} ms; a partner is at most ${r.tolerance.toPrecision(2)} `
+      + 'away from the reflection' : '';
+    this._drawPlane();
+  }
+
+  _drawPlane() {
+    const v = this.viewer;
+    const shown = this.active && v.geometry;
+    if (!shown) {
+      if (this.planeMesh) this.planeMesh.visible = false;
+      v.requestRender();
+      return;
+    }
+    if (!this.planeMesh) {
+      const material = new THREE.MeshBasicMaterial({
+        color: 0x4c9aff, transparent: true, opacity: 0.16, side: THREE.DoubleSide, depthWrite: false,
+      });
+      this.planeMesh = new THREE.Mesh(new THREE.PlaneGeometry(1, 1), material);
+      const edge = new THREE.LineSegments(new THREE.EdgesGeometry(this.planeMesh.geometry),
+        new THREE.LineBasicMaterial({ color: 0x4c9aff, transparent: true, opacity: 0.6 }));
+      this.planeMesh.add(edge);
+      this.planeMesh.raycast = () => {};
+      edge.raycast = () => {};
+      this.planeMesh.renderOrder = 1;
+      v.scene.add(this.planeMesh);
+    }
+    const { normal, point } = this.result.plane;
+    const nrm = new THREE.Vector3(...normal);
+    const box = new THREE.Box3().setFromArray(this.rest);
+    const centre = box.getCenter(new THREE.Vector3());
+    centre.addScaledVector(nrm, nrm.dot(new THREE.Vector3(...point).sub(centre)));
+    const size = 1.15 * box.getSize(new THREE.Vector3()).length();
+    this.planeMesh.position.copy(centre);
+    this.planeMesh.quaternion.setFromUnitVectors(new THREE.Vector3(0, 0, 1), nrm);
+    this.planeMesh.scale.set(size, size, 1);
+    this.planeMesh.visible = true;
+    v.requestRender();
+  }
+
+  /**
+   * Paint like Selection.paint, and with mirror editing on the mirrored vertices too: for a handle group, into its
+   * partner group (created and paired on first use); vertices painted directly keep the group they were painted.
+   */
+  paint(indices, mode, subtract = false) {
+    const s = this.selection;
+    const mirrorOf = this.mirrorOf;
+    if (!mirrorOf) return s.paint(indices, mode, subtract);
+    const list = Array.from(indices);
+    if (mode !== 'handle') return s.paint(list.concat(list.map((i) => mirrorOf[i]).filter((j) => j >= 0)), mode, subtract);
+    const direct = new Set(list);
+    const mirrored = list.map((i) => mirrorOf[i]).filter((j) => j >= 0 && !direct.has(j));
+    let changed = s.paint(list, mode, subtract);
+    if (!mirrored.length) return changed;
+    const g = s.activeGroup;
+    let p = s.partnerOf(g);
+    if (p < 0) {
+      if (subtract) return changed;
+      s.groups.push({ id: s.nextGroupId++ });
+      p = s.groups.length - 1;
+      s.pair(g, p);
+      s.version++;
+      changed = true;
+    }
+    s.activeGroup = p;
+    changed = s.paint(mirrored, mode, subtract) || changed;
+    s.activeGroup = g;
+    return changed;
+  }
+
+  /** Clear a role (Selection.clear); with mirror editing on, a handle group's partner is cleared as well. */
+  clear(mode) {
+    const s = this.selection;
+    const p = this.active && mode === 'handle' ? s.partnerOf(s.activeGroup) : -1;
+    s.clear(mode);
+    if (p < 0) return;
+    const g = s.activeGroup;
+    s.activeGroup = p;
+    s.clear(mode);
+    s.activeGroup = g;
+  }
+
+  /**
+   * The active group's matrix changed (a drag, or any other edit of its transform): with mirror editing on, its
+   * partner's becomes M·T·M (M the reflection, T the group's matrix), so one drag message carries both.
+   * @param {{matrices: THREE.Matrix4[]}} gizmo
+   * @param {number} group client handle group
+   */
+  follow(gizmo, group) {
+    if (!this.active) return;
+    const p = this.selection.partnerOf(group);
+    const T = gizmo.matrices[group];
+    if (p < 0 || !T || !gizmo.matrices[p]) return;
+    gizmo.matrices[p].multiplyMatrices(this.matrix, T).multiply(this.matrix);
+  }
+
+  /**
+   * The active group's pivot was placed or reset: with mirror editing on, its partner's pivot becomes the mirror
+   * image (or its centroid too), so dragging either side turns both about mirrored points.
+   * @param {{pivots: (THREE.Vector3|null)[]}} gizmo pivots in each group's untransformed frame
+   * @param {number} group client handle group
+   */
+  followPivot(gizmo, group) {
+    if (!this.active) return;
+    const p = this.selection.partnerOf(group);
+    if (p < 0 || p >= gizmo.pivots.length) return;
+    const q = gizmo.pivots[group];
+    gizmo.pivots[p] = q ? q.clone().applyMatrix4(this.matrix) : null;
+  }
+
+  /**
+   * Pair the unpaired handle groups that are each other's exact mirror image (after the groups were rebuilt from
+   * the server's constraints, an undo or a file without pairs).
+   */
+  repair() {
+    const mirrorOf = this.result?.mirrorOf;
+    const s = this.selection;
+    if (!mirrorOf || s.groups.length < 2) return;
+    const lists = s.groups.map((_, g) => s.groupIndices(g));
+    const keys = lists.map((l) => l.join(','));
+    lists.forEach((list, g) => {
+      if (!list.length || s.partnerOf(g) >= 0 || list.some((i) => mirrorOf[i] < 0 || mirrorOf[i] === i)) return;
+      const image = list.map((i) => mirrorOf[i]).sort((a, b) => a - b).join(',');
+      const h = keys.indexOf(image);
+      if (h >= 0 && h !== g && s.partnerOf(h) < 0) s.pair(g, h);
+    });
+  }
+
+  /** The partner of each client group (-1: none), as autosaved. */
+  partners() {
+    return this.selection.groups.map((_, g) => this.selection.partnerOf(g));
+  }
+
+  /** Pair client groups again from partners() as saved. */
+  setPartners(partners) {
+    const s = this.selection;
+    (partners || []).forEach((h, g) => {
+      if (Number.isInteger(h) && h >= 0 && h < s.groups.length && g < s.groups.length && h !== g) s.pair(g, h);
+    });
+  }
+
+  /** A constraints document with the pairs of its handle_groups (server group k = client group groupMap[k]). */
+  documentWithPartners(doc, groupMap) {
+    const pairs = [];
+    groupMap.forEach((g, k) => {
+      const l = groupMap.indexOf(this.selection.partnerOf(g));
+      if (l > k) pairs.push([k, l]);
+    });
+    if (!pairs.length) return doc;
+    return { ...doc, meta: { ...(doc.meta || {}), [PARTNERS_KEY]: pairs } };
+  }
+
+  /** Pair client groups from a document's [[k, l], ...] (its handle_groups k and l are client groups k and l). */
+  setPairs(pairs) {
+    const n = this.selection.groups.length;
+    for (const [k, l] of pairs || []) if (k < n && l < n && k !== l) this.selection.pair(k, l);
+  }
+}
