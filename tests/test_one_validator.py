@@ -121,3 +121,18 @@ def test_studio_documents_load_in_the_library() -> None:
     doc = session.constraints_document()
     c = load_constraints(doc, N)
     assert len(c.handles) > 3 and not set(c.handles.tolist()) <= set(roi)
+
+
+@pytest.mark.parametrize(("point", "expected"), [
+    ({"face": len(F), "barycentric": [0.2, 0.3, 0.5]}, f"point face {len(F)} out of range"),
+    ({"face": 0, "barycentric": [0.2, 0.2, 0.2]}, "barycentric coordinates of point 0 must be >= 0 and sum to 1"),
+    ({"face": 0, "barycentric": [1.5, -0.5, 0.0]}, "barycentric coordinates of point 0 must be >= 0 and sum to 1"),
+])
+def test_point_handles_are_refused_alike_by_files_and_the_studio(point: dict[str, Any], expected: str) -> None:
+    with pytest.raises(ConstraintError, match=expected):
+        load_constraints({"fixed": BOTTOM, "version": 2, "points": [point | {"target": [0.0, 0.0, 0.0]}]}, N, len(F))
+    session = Session()
+    session.load(MeshData.make("bar", V, F))
+    with pytest.raises(RequestError, match=expected) as err:
+        session.set_constraints(None, BOTTOM, [], points=[point])
+    assert err.value.code == "bad_constraints"

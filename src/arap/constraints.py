@@ -46,7 +46,7 @@ from arap.mesh import coordinate_problem
 from arap.points import PointConstraints, check_points
 
 __all__ = ["FORMAT_VERSION", "Constraints", "check_selection", "check_targets", "load_constraints",
-           "save_constraints", "stiffness_from_json", "stiffness_to_json"]
+           "points_from_json", "save_constraints", "stiffness_from_json", "stiffness_to_json"]
 
 _KEYS = ("fixed", "handles", "targets", "roi", "handle_groups", "stiffness", "points", "version", "meta")
 
@@ -389,25 +389,63 @@ def load_constraints(source: str | os.PathLike[str] | Mapping[str, Any], n_verti
 
 def _points(raw: Any, n_faces: int) -> tuple[PointConstraints, np.ndarray]:
     """Point handles of a file: ``[{"face", "barycentric", "target", optional "weight"}, ...]``."""
+    points, targets, _ = points_from_json(raw, n_faces)
+    return points, targets
+
+
+def points_from_json(raw: Any, n_faces: int, *, require_target: bool = True
+                     ) -> tuple[PointConstraints, np.ndarray, np.ndarray]:
+    """Point handles from ``[{"face", "barycentric", "target", optional "weight"}, ...]``: the one validator of
+    point handles in JSON (constraints files and the studio's ``set_constraints``).
+
+    Parameters
+    ----------
+    raw : Any
+        The decoded list.
+    n_faces : int
+        Triangle count of the mesh.
+    require_target : bool
+        Whether every point must carry a ``"target"`` (files: yes; the studio: optional, a point without one
+        stays where the surface puts it).
+
+    Returns
+    -------
+    points : PointConstraints
+    targets : (p, 3) float64 array
+        The targets given (rows of points without one are 0).
+    given : (p,) bool array
+        Which points carry a target.
+
+    Raises
+    ------
+    ConstraintError
+        Not a list of such objects, and what :func:`arap.points.check_points` and :func:`check_targets` refuse.
+    """
     if not isinstance(raw, list):
         raise ConstraintError("points must be a list")
-    faces, bary, targets, weights = [], [], [], []
+    required = {"face", "barycentric", "target"} if require_target else {"face", "barycentric"}
+    faces, bary, targets, weights, given = [], [], [], [], []
     for k, item in enumerate(raw):
-        if not isinstance(item, Mapping) or not {"face", "barycentric", "target"} <= set(item) or \
+        if not isinstance(item, Mapping) or not required <= set(item) or \
                 not set(item) <= {"face", "barycentric", "target", "weight"}:
-            raise ConstraintError(f'points[{k}] must be an object with "face", "barycentric", "target" and '
-                                  'optionally "weight"')
+            what = '"target" and optionally "weight"' if require_target else 'optionally "target" and "weight"'
+            raise ConstraintError(f'points[{k}] must be an object with "face", "barycentric", {what}')
         if type(item["face"]) is not int:
             raise ConstraintError(f"points[{k}].face must be an integer triangle index")
+        b = item["barycentric"]
+        if not isinstance(b, list | tuple) or len(b) != 3 or not all(
+                type(x) in (int, float) for x in b):
+            raise ConstraintError(f"points[{k}].barycentric must be a list of 3 numbers")
         faces.append(item["face"])
-        bary.append(item["barycentric"])
-        targets.append(item["target"])
+        bary.append(b)
+        given.append("target" in item)
+        targets.append(item["target"] if "target" in item else [0.0, 0.0, 0.0])
         w = item.get("weight", math.inf)
         if type(w) not in (int, float):
             raise ConstraintError(f"points[{k}].weight must be a positive number")
         weights.append(float(w))
     points = check_points(np.asarray(faces, dtype=np.int64), bary, weights, n_faces)
-    return points, check_targets(targets, len(faces))
+    return points, check_targets(targets, len(faces)), np.asarray(given, dtype=bool)
 
 
 def _stiffness_value(value: Any, where: str) -> float:

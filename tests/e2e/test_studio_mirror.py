@@ -273,3 +273,76 @@ def test_pairs_survive_an_undo_and_a_reload(page: Page, tmp_path: Path) -> None:
     assert page.evaluate("() => window.__arap.constraints().handle_groups") == groups
     assert page.evaluate("() => window.__arap.partners()") == [1, 0]
     assert not page.evaluate("() => window.__arap.errors")
+
+
+def test_a_point_handle_beside_a_mirrored_pair(page: Page, tmp_path: Path) -> None:
+    """A point handle placed first (so that it is client group 0, but the last group on the server) is not mirrored
+    and keeps its target, while a drag of a mirrored pair painted after it still moves the partner by the mirrored
+    transform and the file pairs the right handle groups."""
+    V, F = symmetric_mesh()
+    shown = upload(page, tmp_path, "warped", V, F)
+    diag = float(np.linalg.norm(np.ptp(V, axis=0)))
+    m = press_mirror(page)
+    mirror_of = np.asarray(m["mirrorOf"])
+    pts = np.asarray([page.evaluate("(p) => window.__arap.project(p)", p) for p in shown.tolist()])
+    bottom = pts[:, 1] > pts[:, 1].max() - 0.15 * np.ptp(pts[:, 1])
+    page.get_by_test_id("role-fixed").click()
+    box_select(page, pts[bottom, 0].min() - 10, pts[bottom, 1].min(), pts[:, 0].max() + 10, pts[:, 1].max() + 10)
+    wait_idle(page)
+
+    # a point handle on the front, in the middle: a click in point mode (not mirrored: one handle)
+    page.keyboard.press("5")
+    x, y = page.evaluate("(p) => window.__arap.project(p)", front_point(V, 0.0).tolist())
+    page.mouse.click(x + 3, y + 3)
+    wait_idle(page)
+    handles = page.evaluate("() => window.__arap.pointHandles()")
+    assert [h is not None for h in handles] == [True], "the click placed no point handle (or more than one)"
+    point = handles[0]["point"]
+    faces = np.asarray(page.evaluate("() => window.__arap.faces()"), dtype=np.int64).reshape(-1, 3)
+    rest_point = np.asarray(point["barycentric"]) @ shown[faces[point["face"]]]
+
+    # a new vertex group painted on one side gets its partner on the other: client groups [point, A, A's partner]
+    page.keyboard.press("n")
+    paint_at(page, front_point(V, 0.7))
+    assert page.evaluate("() => window.__arap.partners()") == [-1, 2, 1]
+    assert page.evaluate("() => window.__arap.activeGroup") == 1
+    c = page.evaluate("() => window.__arap.constraints()")
+    assert len(c["handle_groups"]) == 2 and len(c["points"]) == 1
+    assert sorted(int(mirror_of[i]) for i in c["handle_groups"][0]) == sorted(c["handle_groups"][1])
+
+    drag_gizmo_x(page)
+    assert page.evaluate("() => window.__arap.lastSeq") > 0, "no drag was answered"
+    wait_settled(page)
+    transforms = np.asarray(page.evaluate("() => window.__arap.transforms()")).reshape(-1, 4, 4).transpose(0, 2, 1)
+    np.testing.assert_array_equal(transforms[0], np.eye(4))
+    T, P = transforms[1], transforms[2]
+    assert abs(T[0, 3]) > 0.05 * diag, "the drag did not move the group"
+    Mx = np.diag([-1.0, 1.0, 1.0, 1.0])
+    np.testing.assert_allclose(P, Mx @ T @ Mx, atol=1e-12)
+
+    # what the server holds: the partner's targets are the mirror image, the point handle's target did not move
+    with page.expect_download() as info:
+        page.get_by_test_id("save-constraints").click()
+    path = tmp_path / "saved.json"
+    info.value.save_as(path)
+    doc = json.loads(path.read_text())
+    assert doc["meta"]["mirror_partners"] == [[0, 1]]
+    groups = doc["handle_groups"]
+    target = dict(zip(doc["handles"], np.asarray(doc["targets"]), strict=False))
+    for i in groups[0]:
+        np.testing.assert_allclose(target[int(mirror_of[i])], target[i] * [-1, 1, 1], rtol=0, atol=1e-9)
+        assert np.linalg.norm(target[i] - V[i]) > 0.05 * diag
+    assert len(doc["points"]) == 1 and doc["points"][0]["face"] == point["face"]
+    np.testing.assert_allclose(doc["points"][0]["target"], rest_point, rtol=0, atol=1e-6 * diag)
+    U = positions(page)
+    assert np.abs(np.asarray(point["barycentric"]) @ U[faces[point["face"]]] - rest_point).max() < 1e-5 * diag
+
+    # loaded back, the vertex groups come first and are paired again; the point handle follows, unpaired
+    page.get_by_test_id("clear-all").click()
+    wait_idle(page)
+    page.get_by_test_id("constraints-input").set_input_files(str(path))
+    page.wait_for_function("() => window.__arap.constraints().points.length === 1")
+    wait_idle(page)
+    assert page.evaluate("() => window.__arap.partners()") == [1, 0, -1]
+    assert page.evaluate("() => window.__arap.constraints().handle_groups") == groups
+    assert not page.evaluate("() => window.__arap.errors")

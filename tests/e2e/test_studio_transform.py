@@ -16,6 +16,7 @@ from playwright.sync_api import Page, expect
 from tests.e2e.conftest import positions, wait_idle, wait_settled
 from tests.e2e.test_studio import box_select, select_anchor_and_handle
 from tests.e2e.test_studio_mirror import front_point, paint_at, press_mirror, symmetric_mesh, upload
+from tests.e2e.test_studio_points import _anchor_bottom, _place_point
 
 pytestmark = pytest.mark.e2e
 
@@ -448,4 +449,44 @@ def test_typed_rotation_moves_the_mirror_partner_mirrored(page: Page, tmp_path: 
     g = gizmo(page)
     assert g["group"] == 1 and g["pivotPlaced"]
     np.testing.assert_allclose(g["pivot"], pivot * [-1, 1, 1], atol=1e-9)
+    assert not page.evaluate("() => window.__arap.errors")
+
+
+def test_typed_rotation_of_a_point_handle_about_a_placed_pivot(page: Page) -> None:
+    rest = positions(page)
+    F = np.asarray(page.evaluate("() => window.__arap.faces()"), dtype=np.int64).reshape(-1, 3)
+    diag = float(np.linalg.norm(np.ptp(rest, axis=0)))
+    point = _place_point(page, _anchor_bottom(page))["point"]
+    at = np.asarray(point["barycentric"]) @ rest[F[point["face"]]]
+    g = gizmo(page)
+    np.testing.assert_allclose(g["pivot"], at, atol=1e-5 * diag)  # the gizmo sits on the point
+    # the pivot placed on the surface below the point
+    target = at - np.array([0, 0.15 * np.ptp(rest[:, 1]), 0])
+    hit = rest[np.argmin(np.linalg.norm(rest - target, axis=1))]
+    x, y = page.evaluate("(p) => window.__arap.project(p)", hit.tolist())
+    page.mouse.move(x, y)
+    page.keyboard.press("p")
+    page.mouse.click(x, y)
+    g = gizmo(page)
+    assert g["pivotPlaced"] and not g["placing"]
+    pivot = np.asarray(g["pivot"])
+    assert len(page.evaluate("() => window.__arap.constraints().points")) == 1, "the placing click placed a point"
+
+    spy_on_drags(page)
+    page.mouse.move(30, 300)
+    for key in ("r", "z", "9", "0"):
+        page.keyboard.press(key)
+    expect(page.get_by_test_id("numeric-line")).to_have_text("Rotate Z: 90°")
+    page.keyboard.press("Enter")
+    wait_idle(page)
+    expected = about(pivot, np.array([0, 0, 1.0]), 90)
+    sent = last_drag(page)
+    assert len(sent) == 1
+    np.testing.assert_allclose(matrix(sent[0]), expected, rtol=0, atol=1e-9)
+    wait_settled(page)
+    want = expected[:3, :3] @ at + expected[:3, 3]
+    assert np.linalg.norm(want - at) > 0.05 * diag
+    U = positions(page)
+    np.testing.assert_allclose(np.asarray(point["barycentric"]) @ U[F[point["face"]]], want, atol=1e-5 * diag)
+    np.testing.assert_allclose(gizmo(page)["pivot"], pivot, atol=1e-9)  # turning about the pivot keeps it
     assert not page.evaluate("() => window.__arap.errors")

@@ -35,7 +35,8 @@ def test_greeting(studio: StudioClient) -> None:
 def test_constraints_and_drag(studio: StudioClient) -> None:
     fixed, top = studio.bottom_top()
     state = studio.set_constraints(fixed, [top])
-    assert state["constraints"] == {"roi": None, "fixed": fixed, "handle_groups": [top], "stiffness": None}
+    assert state["constraints"] == {"roi": None, "fixed": fixed, "handle_groups": [top], "stiffness": None,
+                                   "points": []}
     assert state["stats"]["n_free"] == 5250 - len(fixed) - len(top)
     assert state["stats"]["factor_ms"] > 0 and state["can_undo"]
     M = rotation_z(0.5, studio.V[top].mean(axis=0), shift=(0.2, 0, 0.1))

@@ -59,6 +59,13 @@ def _valid(f: Field) -> st.SearchStrategy[Any]:
         value = st.one_of(st.just("rigid"), st.floats(min_value=1e-3, max_value=1e6))
         return st.one_of(st.none(), st.lists(st.fixed_dictionaries(
             {"vertices": st.lists(index, max_size=6), "value": value}), max_size=3))
+    if f.kind == "point_handles_or_null":
+        bary = st.lists(st.floats(min_value=-0.5, max_value=1.5), min_size=3, max_size=3)
+        point = st.fixed_dictionaries({"face": st.integers(min_value=-2, max_value=2 * N_VERTICES),
+                                       "barycentric": st.one_of(st.just([0.2, 0.3, 0.5]), bary)},
+                                      optional={"weight": st.floats(min_value=1e-3, max_value=1e6),
+                                                "target": st.lists(number, min_size=3, max_size=3)})
+        return st.one_of(st.none(), st.lists(point, max_size=3))
     raise AssertionError(f"no strategy for field kind {f.kind!r}")
 
 

@@ -46,7 +46,8 @@ def test_targets_move_the_handles_and_solve(studio: StudioClient) -> None:
     free = np.setdiff1d(np.arange(len(U)), fixed + top)
     assert np.abs(U[free] - studio.V[free]).max() > 0.05
     state = studio.expect("state").data
-    assert state["constraints"] == {"roi": None, "fixed": fixed, "handle_groups": [top], "stiffness": None}
+    assert state["constraints"] == {"roi": None, "fixed": fixed, "handle_groups": [top], "stiffness": None,
+                                   "points": []}
     np.testing.assert_allclose(state["transforms"], [translation(0.0)])
     assert state["can_undo"] and not state["can_redo"]
     assert studio.settled()[0]["status"] == "settled"
@@ -91,7 +92,8 @@ def test_undo_and_redo_of_a_set_with_targets(studio: StudioClient) -> None:
     studio.send({"type": "undo"})
     np.testing.assert_array_equal(studio.expect("vertices").floats(), studio.V)
     state = studio.expect("state").data
-    assert state["constraints"] == {"roi": None, "fixed": [], "handle_groups": [], "stiffness": None}
+    assert state["constraints"] == {"roi": None, "fixed": [], "handle_groups": [], "stiffness": None,
+                                   "points": []}
     assert not state["can_undo"] and state["can_redo"]
 
     studio.send({"type": "redo"})

@@ -41,6 +41,20 @@ export function download(data, filename, mime = 'application/octet-stream') {
   setTimeout(() => URL.revokeObjectURL(url), 10000);
 }
 
+/** Download a constraints document as `<mesh name>-constraints.json`; returns the message to show. */
+export function downloadConstraints(doc, meshName) {
+  const base = (meshName || 'mesh').replace(/\.[^.]+$/, '');
+  download(JSON.stringify(doc, null, 2), `${base}-constraints.json`, 'application/json');
+  return 'Constraints saved.';
+}
+
+/** Download an exported mesh (the server's export message with its binary frame); returns the message to show. */
+export function downloadExport(msg) {
+  const p = msg.frame.payload;
+  download(new Blob([p], { type: msg.mime || 'application/octet-stream' }), msg.filename || 'mesh');
+  return `Exported ${msg.filename} (${formatBytes(p.byteLength)}).`;
+}
+
 /** Route files dropped on `target` to onFile(file); shows `overlay` while dragging files over it. */
 export function installDropTarget(target, overlay, onFile) {
   let depth = 0;
@@ -97,9 +111,53 @@ function targetMap(doc) {
   return map;
 }
 
+const isNumber = (x) => typeof x === 'number' && Number.isFinite(x);
+const isTriple = (p) => Array.isArray(p) && p.length === 3 && p.every(isNumber);
+
+/** The point handles of a document (version 2): [{face, barycentric, weight?, target?}]. */
+function pointList(doc) {
+  if (doc.points === undefined || doc.points === null) return [];
+  if (!Array.isArray(doc.points)) throw new Error('"points" must be a list');
+  return doc.points.map((p, k) => {
+    if (!p || typeof p !== 'object' || !Number.isInteger(p.face) || p.face < 0 || !isTriple(p.barycentric)) {
+      throw new Error(`"points[${k}]" must have a triangle index "face" and three "barycentric" numbers`);
+    }
+    if (p.target !== undefined && !isTriple(p.target)) throw new Error(`"points[${k}].target" must be three numbers`);
+    if (p.weight !== undefined && !(isNumber(p.weight) && p.weight > 0)) {
+      throw new Error(`"points[${k}].weight" must be a positive number`);
+    }
+    const out = { face: p.face, barycentric: p.barycentric.slice() };
+    if (p.weight !== undefined) out.weight = p.weight;
+    if (p.target !== undefined) out.target = p.target.slice();
+    return out;
+  });
+}
+
+/** Painted stiffness of a document: [{vertices, value}] (a list of one value per vertex is turned into that). */
+function stiffnessList(doc) {
+  const s = doc.stiffness;
+  if (s === undefined || s === null) return null;
+  if (!Array.isArray(s)) throw new Error('"stiffness" must be a list');
+  if (s.length && s.every((v) => typeof v !== 'object')) {
+    const groups = new Map();
+    s.forEach((v, i) => {
+      if (v === 1) return;
+      if (!groups.has(v)) groups.set(v, []);
+      groups.get(v).push(i);
+    });
+    return [...groups].map(([value, vertices]) => ({ vertices, value }));
+  }
+  return s.map((g, k) => {
+    const ok = g && typeof g === 'object' && (g.value === 'rigid' || (isNumber(g.value) && g.value > 0));
+    if (!ok) throw new Error(`"stiffness[${k}]" must be {"vertices": [...], "value": a positive number or "rigid"}`);
+    return { vertices: indexList(g.vertices, `stiffness[${k}].vertices`), value: g.value };
+  });
+}
+
 /**
  * Read a constraints document: the studio format {roi, fixed, handle_groups} or the command-line format
- * {fixed, handles, targets, roi} (its handles become one group). With `targets`, the result's `targets` maps each
+ * {fixed, handles, targets, roi, points, stiffness} (its handles become one group; point handles follow the groups,
+ * painted stiffness comes as [{vertices, value}]). With `targets`, the result's `targets` maps each
  * handle vertex to its [x, y, z]; handles outside `handle_groups` (vertices a saved studio session held in place)
  * become one more group. `partners` lists the pairs [k, l] of mirror partner groups saved in "meta".
  */
@@ -130,8 +188,35 @@ export function parseConstraints(text) {
   } else {
     groups = [];
   }
-  if (!fixed.length && !groups.length) throw new Error('no "fixed" or handle vertices in the document');
-  return { roi: roi && roi.length ? roi : null, fixed, handle_groups: groups, targets, partners: partnerPairs(doc, groups.length) };
+  const points = pointList(doc);
+  const stiffness = stiffnessList(doc);
+  if (!fixed.length && !groups.length && !points.length) {
+    throw new Error('no "fixed" or handle vertices (or "points") in the document');
+  }
+  const partners = partnerPairs(doc, groups.length);
+  return { roi: roi && roi.length ? roi : null, fixed, handle_groups: groups, targets, points, stiffness, partners };
+}
+
+/**
+ * Read a constraints file (parseConstraints) and check it against the mesh; rejects with an Error whose message
+ * names the file.
+ * @param {File} file
+ * @param {number} nVertices
+ * @param {number} nFaces
+ */
+export async function readConstraintsFile(file, nVertices, nFaces) {
+  const text = await file.text();
+  let c;
+  try {
+    c = parseConstraints(text);
+  } catch (err) {
+    throw new Error(`Cannot read ${file.name}: ${err.message}`);
+  }
+  const bad = [...(c.roi || []), ...c.fixed, ...c.handle_groups.flat()].find((i) => i >= nVertices);
+  if (bad !== undefined) throw new Error(`${file.name} refers to vertex ${bad}, but the mesh has ${nVertices} vertices.`);
+  const badFace = c.points.find((p) => p.face >= nFaces);
+  if (badFace) throw new Error(`${file.name} refers to triangle ${badFace.face}, but the mesh has ${nFaces} triangles.`);
+  return c;
 }
 
 /** The mirror partners of handle groups saved in the document's "meta" (pairs [k, l] of groups; others skipped). */

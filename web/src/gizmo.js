@@ -38,6 +38,7 @@ export class HandleGizmo {
     this.indices = [];
     this.previewing = false;
     this._saved = null; // the group's positions before a preview: {indices, xyz}
+    this.weights = null;
     this._base = new THREE.Matrix4();
     this._baseInv = new THREE.Matrix4();
     this._start = new THREE.Matrix4();
@@ -128,10 +129,15 @@ export class HandleGizmo {
     this.recenter();
   }
 
-  /** Attach to client group g with vertex indices (empty: hide the gizmo). */
-  attach(g, indices) {
+  /**
+   * Attach to client group g with vertex indices (empty: hide the gizmo); `weights` (one per index) puts the pivot
+   * at that combination of their positions instead of their centroid (a point handle: its triangle's corners and
+   * barycentric coordinates).
+   */
+  attach(g, indices, weights = null) {
     this.group = g;
     this.indices = indices;
+    this.weights = weights;
     if (!indices.length || !this.viewer.mesh) {
       this.controls.detach();
       this.marker.visible = false;
@@ -164,7 +170,7 @@ export class HandleGizmo {
     this.recenter();
   }
 
-  /** Put the pivot at the group's placed pivot or at the centroid of its current positions. */
+  /** Put the pivot at the group's placed pivot or at its centroid (a point handle: its point). */
   recenter() {
     if (this.controls.dragging || this.previewing || !this.indices.length) return;
     const m = this.matrices[this.group] || new THREE.Matrix4();
@@ -184,19 +190,20 @@ export class HandleGizmo {
     this.marker.position.copy(this.pivot.position);
   }
 
-  /** Centroid of the active group's current positions. */
+  /** Centroid of the active group's current positions (a point handle: its point, the weighted corners). */
   get centroid() {
     const pos = this.viewer.positions;
     let x = 0;
     let y = 0;
     let z = 0;
-    for (const i of this.indices) {
-      x += pos[3 * i];
-      y += pos[3 * i + 1];
-      z += pos[3 * i + 2];
-    }
-    const n = this.indices.length || 1;
-    return [x / n, y / n, z / n];
+    const n = this.indices.length;
+    this.indices.forEach((i, k) => {
+      const w = this.weights ? this.weights[k] : 1 / n;
+      x += w * pos[3 * i];
+      y += w * pos[3 * i + 1];
+      z += w * pos[3 * i + 2];
+    });
+    return [x, y, z];
   }
 
   /** World position of the pivot the active group turns about. */
@@ -222,7 +229,7 @@ export class HandleGizmo {
       this.previewing = true;
     }
     const delta = matrix.clone().multiply(m.clone().invert());
-    this._moveHandle(delta);
+    if (!this.weights) this._moveHandle(delta); // a point handle's triangle is not its own: only the gizmo moves
     delta.multiply(this._base).decompose(this.pivot.position, this.pivot.quaternion, this.pivot.scale);
     this.pivot.updateMatrixWorld(true);
     this._showMarker(this.pivotPlaced);

@@ -12,6 +12,8 @@ export const SHORTCUTS = [
   { key: '2', label: '2', does: 'Paint fixed anchors' },
   { key: '3', label: '3', does: 'Paint the active handle group' },
   { key: '4', label: '4', does: 'Erase any role' },
+  { key: '5', label: '5', does: 'Point handle mode: a click on the surface places a handle there' },
+  { key: '6', label: '6', does: 'Stiffness brush: painted parts bend less (rigid: not at all)' },
   { key: 'b', label: 'B', does: 'Brush tool' },
   { key: 'x', label: 'X', does: 'Box select tool' },
   { key: 'o', label: 'O', does: 'Orbit only' },
@@ -30,7 +32,8 @@ export const SHORTCUTS = [
   { key: null, label: 'Ctrl+Shift+Z / Ctrl+Y', does: 'Redo' },
   { key: null, label: 'Left drag', does: 'Paint with the brush, or orbit over empty space' },
   { key: null, label: 'Shift+drag', does: 'Box select' },
-  { key: null, label: 'Ctrl+paint', does: 'Remove the current role' },
+  { key: null, label: 'Ctrl+paint', does: 'Remove the current role (stiffness: back to 1)' },
+  { key: null, label: 'Ctrl+click', does: 'Remove the point handle under the pointer (point handle mode)' },
   { key: null, label: 'Right drag', does: 'Pan' },
   { key: null, label: 'Wheel', does: 'Zoom' },
 ];

@@ -45,7 +45,7 @@ function gizmoInfo(viewer, gizmo, transformUi) {
   };
 }
 
-export function installTestHook({ app, viewer, selection, gizmo, conn, keeper, mirror, transformUi }) {
+export function installTestHook({ app, viewer, selection, gizmo, conn, keeper, points, mirror, transformUi }) {
   const toPage = ([x, y]) => {
     const r = viewer.canvas.getBoundingClientRect();
     return [x + r.left, y + r.top];
@@ -114,7 +114,16 @@ export function installTestHook({ app, viewer, selection, gizmo, conn, keeper, m
     counts: () => selection.counts(),
     constraints: () => {
       const c = selection.toConstraints();
-      return { roi: c.roi, fixed: c.fixed, handle_groups: c.handle_groups };
+      return { roi: c.roi, fixed: c.fixed, handle_groups: c.handle_groups, stiffness: c.stiffness, points: c.points };
+    },
+    /** Per client group: {point, screen} of a point handle (page coordinates of its marker), null otherwise. */
+    pointHandles: () => selection.groups.map((g, k) => (g.point
+      ? { point: { ...g.point }, screen: toPage(points.screen()[k]) } : null)),
+    get activeGroup() {
+      return selection.activeGroup;
+    },
+    get role() {
+      return app.role;
     },
     /** Mirror editing: on, active (on with a plane), axis, plane, matched share, tolerance, ms, mirrorOf. */
     mirror: () => {

@@ -1,7 +1,9 @@
 // ARAP Studio: wires the connection, the 3D view, the selection tools, the gizmo and the side panel.
 import './style.css';
 import { Connection, defaultSocketUrl } from './connection.js';
-import { checkMeshFile, download, formatBytes, installDropTarget, parseConstraints } from './files.js';
+import {
+  checkMeshFile, downloadConstraints, downloadExport, installDropTarget, readConstraintsFile,
+} from './files.js';
 import { HeatMap } from './heatmap.js';
 import { describedKeys, Help } from './help.js';
 import { installTestHook } from './hook.js';
@@ -12,10 +14,12 @@ import { installManipulation } from './manipulate.js';
 import { MirrorEditing } from './mirror.js';
 import { Panel } from './panel.js';
 import { LivePose } from './livepose.js';
-import { LinePlot } from './plot.js';
+import { PaintModes } from './paintmodes.js';
+import { PointHandles } from './pointhandles.js';
 import { CLIENT, meshArrays, PROTOCOL_VERSION, SERVER } from './protocol.js';
-import { constraintsKey, Selection } from './selection.js';
+import { constraintsKey, constraintsMessage, Selection } from './selection.js';
 import { builtinSource, fileSource } from './snapshot.js';
+import { UpdateStats } from './stats.js';
 import { installSurfaceControls, SurfaceSelection } from './surface.js';
 import { SelectionTools } from './tools.js';
 import { Viewer } from './viewer.js';
@@ -41,8 +45,6 @@ const app = {
   serverKey: '',
   errors: [],
   messages: 0,
-  updateTimes: [],
-  energyHistory: [],
   canUndo: false,
   canRedo: false,
   params: {},
@@ -72,11 +74,15 @@ const { gizmo, transformUi } = installManipulation({
 const tools = new SelectionTools(viewer, {
   isGizmoActive: () => gizmo.active,
   onPaint: (indices, subtract) => {
-    if (mirror.paint(indices, app.role, subtract)) refreshSelection(false);
+    if (mirror.paint(indices, app.role, modes.subtract(app.role, subtract))) refreshSelection(false);
   },
   onStrokeEnd: () => commitConstraints(),
   graph: () => surface.graph(),
+  picking: () => app.role === 'point',
+  onPick: (hit, subtract) => points.pick(hit, subtract),
 });
+const points = new PointHandles({ viewer, selection, changed: selectionEdited, weight: () => modes.weight() });
+const modes = new PaintModes({ selection, setRole, onWeightProblem: (text) => panel.showStatus(text, 'error', 5000) });
 const surface = new SurfaceSelection({
   viewer, selection, role: () => app.role, changed: selectionEdited, paint: (...a) => mirror.paint(...a),
 });
@@ -84,8 +90,7 @@ const heat = new HeatMap({ viewer, send, role: () => selection.role, restore: ()
 const help = new Help();
 viewer.attachControls(); // after the gizmo and the tools, so they see pointer events first
 
-const iterPlot = new LinePlot(document.getElementById('plot-iter'), { color: '#4c9aff', xLabel: 'iterations' });
-const timePlot = new LinePlot(document.getElementById('plot-time'), { color: '#f0883e', xLabel: 'updates', maxPoints: 300 });
+const stats = new UpdateStats({ panel: () => panel, latencyMs: () => conn.lastLatencyMs });
 
 const conn = new Connection(defaultSocketUrl(), {
   onOpen: () => {
@@ -97,10 +102,7 @@ const conn = new Connection(defaultSocketUrl(), {
     app.ready = false;
     app.awaitingState = false;
     keeper.connectionLost();
-    panel.setEnabled(false);
-    panel.setBusy(null);
-    panel.showStatus('Lost the connection to the studio server; reconnecting… Your work is kept and comes back ' +
-      'when the server does.', 'error');
+    panel.connectionLost();
   },
   onRetry: ({ attempt, delayMs }) => panel.setConnection('reconnecting', { attempt, delayMs }),
   onMessage: (msg) => handleMessage(msg),
@@ -130,8 +132,10 @@ function selectionEdited() {
 }
 
 function refreshSelection(full = true) {
-  viewer.updateColors(selection.roiCount ? selection.roi : null, selection.role);
+  viewer.updateColors(selection.roiCount ? selection.roi : null, selection.role, selection.stiff,
+    app.role === 'stiffness' ? 0.9 : 0.35);
   heat.paint();
+  points.rebuild();
   gizmo.syncGroups(selection.groups.length);
   if (full) updateGroupsUi();
   else scheduleGroupsUi();
@@ -151,26 +155,28 @@ function updateGroupsUi() {
   keeper.touch();
   const counts = selection.counts();
   panel.setGroups(selection.groups, selection.activeGroup, counts, viewer.nVertices);
-  if (!gizmo.dragging) gizmo.attach(selection.activeGroup, selection.groupIndices(selection.activeGroup));
+  const anchor = points.anchor(selection.activeGroup);
+  if (!gizmo.dragging) gizmo.attach(selection.activeGroup, anchor.indices, anchor.weights);
+  points.refresh();
 }
 
 /**
  * Send the local selection as the session's constraint set; `targets` (a Map from handle vertex to [x, y, z],
- * from a loaded file) moves the handles there. `force` sends it even when the server seems to hold it already.
+ * from a loaded file) moves the handles there, as `pointTargets` (one [x, y, z] or null per point handle) does the
+ * point handles. `force` sends it even when the server seems to hold it already.
  */
-function commitConstraints(targets = null, force = false) {
+function commitConstraints(targets = null, force = false, pointTargets = null) {
   updateGroupsUi();
   if (!app.ready) return;
   const c = selection.toConstraints();
   const key = constraintsKey(c);
-  if (key === app.serverKey && app.sentKey === null && !targets && !force) return;
+  const moving = !!targets || !!pointTargets?.some((t) => t);
+  if (key === app.serverKey && app.sentKey === null && !moving && !force) return;
   app.groupMap = c.groupMap;
   app.sentKey = key;
   app.sentVersion = selection.version;
   gizmo.resetTransforms();
-  const msg = { type: CLIENT.SET_CONSTRAINTS, roi: c.roi, fixed: c.fixed, handle_groups: c.handle_groups };
-  if (targets) msg.targets = c.handle_groups.flat().map((i) => targets.get(i));
-  if (send(msg)) setBusy('Updating constraints…', SERVER.STATE);
+  if (send(constraintsMessage(c, targets, pointTargets))) setBusy('Updating constraints…', SERVER.STATE);
 }
 
 // ------------------------------------------------------------------ messages
@@ -190,17 +196,11 @@ function handleMessage(msg) {
       return onState(msg);
     case SERVER.SETTLE:
       return panel.setSettle(msg);
-    case SERVER.CONSTRAINTS: {
-      const base = (app.meshName || 'mesh').replace(/\.[^.]+$/, '');
-      const doc = mirror.documentWithPartners(msg.document, app.groupMap);
-      download(JSON.stringify(doc, null, 2), `${base}-constraints.json`, 'application/json');
-      return panel.showStatus('Constraints saved.', 'info', 2500);
-    }
-    case SERVER.EXPORT: {
-      const p = msg.frame.payload;
-      download(new Blob([p], { type: msg.mime || 'application/octet-stream' }), msg.filename || 'mesh');
-      return panel.showStatus(`Exported ${msg.filename} (${formatBytes(p.byteLength)}).`, 'info', 3000);
-    }
+    case SERVER.CONSTRAINTS: // the document carries the mirror pairs of its handle groups in "meta"
+      return panel.showStatus(downloadConstraints(mirror.documentWithPartners(msg.document, app.groupMap),
+        app.meshName), 'info', 2500);
+    case SERVER.EXPORT:
+      return panel.showStatus(downloadExport(msg), 'info', 3000);
     case SERVER.DISTORTION:
       return heat.received(msg);
     case SERVER.ERROR:
@@ -215,9 +215,7 @@ function onWelcome(msg) {
   if (app.incompatible) {
     // a page left open across an upgrade of the server: its messages would be misread
     app.ready = false;
-    panel.setEnabled(false);
-    panel.showStatus(`This page speaks version ${PROTOCOL_VERSION} of the studio protocol and the server `
-      + `version ${msg.protocol}: reload the page.`, 'error');
+    panel.protocolMismatch(PROTOCOL_VERSION, msg.protocol);
     return;
   }
   keeper.welcomed();
@@ -244,20 +242,12 @@ function onMesh(msg) {
   app.sentKey = null;
   app.syncedVersion = selection.version;
   app.serverKey = constraintsKey({ roi: null, fixed: [], handle_groups: [] });
-  app.energyHistory = [];
-  app.updateTimes = [];
   app.ready = true;
-  iterPlot.clear();
-  timePlot.clear();
-  panel.setCurrentModel(msg.name);
-  panel.setMeshInfo(`${msg.name}: ${msg.n_vertices.toLocaleString('en-US')} vertices, ${msg.n_faces.toLocaleString('en-US')} faces`);
-  panel.setStats({ n_vertices: msg.n_vertices, n_faces: msg.n_faces, ups: NaN, latency_ms: null, ms_per_iteration: null });
+  stats.reset();
+  panel.meshLoaded(msg);
   refreshSelection(true);
   heat.meshChanged();
   setBusy(null);
-  const report = Array.isArray(msg.report) ? msg.report : msg.report ? [String(msg.report)] : [];
-  if (report.length) panel.showStatus(`Loaded ${msg.name}. Repairs: ${report.join('; ')}`, 'info', 8000);
-  else panel.hideStatus();
   mirror.meshChanged(positions, faces); // after the status line: it may say that no symmetry was found
   keeper.meshArrived(msg, positions, faces);
 }
@@ -271,19 +261,8 @@ function onVertices(msg) {
   heat.shapeChanged();
   if (msg.seq >= 0) app.lastSeq = msg.seq; // -1: a frame the server sent on its own (settling, undo)
   gizmo.recenter();
-  if (!(msg.iterations > 0)) return; // a pose change without a solve (undo, reset)
-  const now = performance.now();
-  app.updateTimes.push(now);
-  while (app.updateTimes.length && now - app.updateTimes[0] > 1000) app.updateTimes.shift();
-  const energies = (msg.energies || []).filter((e) => e !== null);
-  iterPlot.set(energies);
-  if (energies.length) timePlot.push(energies[energies.length - 1]);
-  document.getElementById('energy-note').hidden = !energies.some((e) => e < 0);
-  panel.setStats({
-    ms_per_iteration: msg.ms_per_iteration,
-    ups: app.updateTimes.length,
-    latency_ms: msg.seq >= 0 && conn.lastLatencyMs !== null ? conn.lastLatencyMs : msg.solve_ms,
-  });
+  points.refresh();
+  if (msg.iterations > 0) stats.frame(msg); // not for a pose change without a solve (undo, reset)
 }
 
 function onState(msg) {
@@ -305,7 +284,7 @@ function onState(msg) {
     // the server's constraints changed under us (undo/redo, loaded document): adopt them
     selection.fromConstraints(c);
     mirror.repair();
-    app.groupMap = c.handle_groups.map((_, k) => k);
+    app.groupMap = selection.toConstraints().groupMap;
     app.syncedVersion = selection.version;
     refreshSelection(true);
   }
@@ -354,7 +333,8 @@ function uploadFile(file) {
 }
 
 function applySavedSelection(snap) {
-  selection.fromConstraints({ roi: snap.roi, fixed: snap.fixed, handle_groups: snap.groups });
+  selection.fromConstraints({ roi: snap.roi, fixed: snap.fixed, handle_groups: snap.groups, stiffness: snap.stiffness },
+    snap.groupPoints);
   selection.activeGroup = Math.max(0, Math.min(snap.activeGroup ?? 0, selection.groups.length - 1));
   mirror.setPartners(snap.partners);
   refreshSelection(true);
@@ -362,33 +342,23 @@ function applySavedSelection(snap) {
 }
 
 function loadConstraintsFile(file) {
-  file.text().then((text) => {
-    let c;
-    try {
-      c = parseConstraints(text);
-    } catch (err) {
-      const message = `Cannot read ${file.name}: ${err.message}`;
-      app.errors.push({ code: 'client_check', message, request: CLIENT.SET_CONSTRAINTS });
-      panel.showStatus(message, 'error');
-      return;
-    }
-    const n = viewer.nVertices;
-    const bad = [...(c.roi || []), ...c.fixed, ...c.handle_groups.flat()].find((i) => i >= n);
-    if (bad !== undefined) {
-      panel.showStatus(`${file.name} refers to vertex ${bad}, but the mesh has ${n} vertices.`, 'error');
-      return;
-    }
+  readConstraintsFile(file, viewer.nVertices, app.nFaces).then((c) => {
     selection.fromConstraints(c);
     mirror.setPairs(c.partners);
     refreshSelection(true);
-    commitConstraints(c.targets);
+    commitConstraints(c.targets, false, c.points.map((p) => p.target ?? null));
+  }, (err) => {
+    app.errors.push({ code: 'client_check', message: err.message, request: CLIENT.SET_CONSTRAINTS });
+    panel.showStatus(err.message, 'error');
   });
 }
 
 function setRole(role) {
   app.role = role;
   panel.setSegment('role-seg', 'role', role);
-  /** @type {HTMLButtonElement} */ (document.getElementById('btn-invert')).disabled = role === 'erase';
+  modes.showRole(role);
+  refreshSelection(false);
+  /** @type {HTMLButtonElement} */ (document.getElementById('btn-invert')).disabled = !selection.invertible(role);
 }
 
 function setTool(tool) {
@@ -428,19 +398,12 @@ const panel = new Panel({
   setFrontOnly: (on) => (tools.frontOnly = on),
   clearRole: () => {
     mirror.clear(app.role);
-    refreshSelection(true);
-    commitConstraints();
+    selectionEdited();
   },
-  invertRole: () => {
-    if (selection.invert(app.role)) {
-      refreshSelection(true);
-      commitConstraints();
-    }
-  },
+  invertRole: () => selection.invert(app.role) && selectionEdited(),
   clearAll: () => {
     selection.clear('erase');
-    refreshSelection(true);
-    commitConstraints();
+    selectionEdited();
   },
   newGroup: () => {
     selection.addGroup();
@@ -449,12 +412,11 @@ const panel = new Panel({
   },
   removeGroup: (g) => {
     selection.removeGroup(g);
-    refreshSelection(true);
-    commitConstraints();
+    selectionEdited();
   },
   selectGroup: (g) => {
     selection.activeGroup = g;
-    setRole('handle');
+    setRole(selection.groups[g]?.point ? 'point' : 'handle');
     updateGroupsUi();
   },
   undo: () => send({ type: CLIENT.UNDO }),
@@ -487,6 +449,8 @@ installShortcuts({
     2: () => setRole('fixed'),
     3: () => setRole('handle'),
     4: () => setRole('erase'),
+    5: () => setRole('point'),
+    6: () => setRole('stiffness'),
     '+': () => surface.ring(false),
     '=': () => surface.ring(false),
     '-': () => surface.ring(true),
@@ -504,15 +468,7 @@ releaseFocusAfterPointerUse(document.getElementById('panel'));
 
 installDropTarget(document.getElementById('viewport'), document.getElementById('drop-overlay'), uploadFile);
 
-installTestHook({ app, viewer, selection, gizmo, conn, keeper, mirror, transformUi });
-
-// updates per second over the last second; decays to zero once dragging stops
-setInterval(() => {
-  if (!app.updateTimes.length) return;
-  const now = performance.now();
-  while (app.updateTimes.length && now - app.updateTimes[0] > 1000) app.updateTimes.shift();
-  panel.setStats({ ups: app.updateTimes.length });
-}, 500);
+installTestHook({ app, viewer, selection, gizmo, conn, keeper, points, mirror, transformUi });
 
 // ------------------------------------------------------------------ start
 

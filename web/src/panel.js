@@ -167,6 +167,17 @@ export class Panel {
     $('mesh-info').textContent = text;
   }
 
+  /** A new mesh arrived (the server's mesh message): its name and counts, and the repairs made loading it. */
+  meshLoaded(msg) {
+    const n = (x) => x.toLocaleString('en-US');
+    this.setCurrentModel(msg.name);
+    this.setMeshInfo(`${msg.name}: ${n(msg.n_vertices)} vertices, ${n(msg.n_faces)} faces`);
+    this.setStats({ n_vertices: msg.n_vertices, n_faces: msg.n_faces, ups: NaN, latency_ms: null, ms_per_iteration: null });
+    const report = Array.isArray(msg.report) ? msg.report : msg.report ? [String(msg.report)] : [];
+    if (report.length) this.showStatus(`Loaded ${msg.name}. Repairs: ${report.join('; ')}`, 'info', 8000);
+    else this.hideStatus();
+  }
+
   setParams(p) {
     if (!p) return;
     if (Number.isFinite(p.iterations)) {
@@ -198,6 +209,21 @@ export class Panel {
     }
   }
 
+  /** The connection went away: the controls wait for it (the work is kept). */
+  connectionLost() {
+    this.setEnabled(false);
+    this.setBusy(null);
+    this.showStatus('Lost the connection to the studio server; reconnecting… Your work is kept and comes back ' +
+      'when the server does.', 'error');
+  }
+
+  /** The server speaks another protocol version (a page left open across an upgrade): nothing is sent. */
+  protocolMismatch(ours, theirs) {
+    this.setEnabled(false);
+    this.showStatus(`This page speaks version ${ours} of the studio protocol and the server version ${theirs}: `
+      + 'reload the page.', 'error');
+  }
+
   /** state: 'open', 'connecting', 'closed' or 'reconnecting' (retry: {attempt, delayMs} of the next try). */
   setConnection(state, retry = null) {
     const dot = $('conn-dot');
@@ -222,11 +248,13 @@ export class Panel {
       const name = document.createElement('span');
       name.className = 'name';
       const partner = groups.findIndex((h) => g.partner !== undefined && h.id === g.partner);
-      name.textContent = partner >= 0 ? `Group ${k + 1} ⇄ ${partner + 1}` : `Group ${k + 1}`;
+      const label = g.point ? `Point ${k + 1}` : `Group ${k + 1}`;
+      name.textContent = partner >= 0 ? `${label} ⇄ ${partner + 1}` : label;
       if (partner >= 0) name.title = `Mirror partner of group ${partner + 1}`;
       const count = document.createElement('span');
       count.className = 'count';
-      count.textContent = `${fmtInt(counts.groups[k] || 0)} v`;
+      const w = g.point?.weight;
+      count.textContent = g.point ? (w ? `soft ${w}` : 'hard') : `${fmtInt(counts.groups[k] || 0)} v`;
       const del = document.createElement('button');
       del.className = 'del';
       del.title = 'Remove this group';

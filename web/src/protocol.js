@@ -190,6 +190,12 @@ export const CLIENT_MESSAGES = Object.freeze({
         "kind": "stiffness_or_null",
         "required": false,
         "maxLength": 256
+      },
+      {
+        "name": "points",
+        "kind": "point_handles_or_null",
+        "required": false,
+        "maxLength": 256
       }
     ]
   },
@@ -574,6 +580,7 @@ export const SERVER_MESSAGES = Object.freeze({
  * @property {number[][]} handle_groups vertices moved together by one transform per group
  * @property {number[][]|null} [targets] positions of the handle vertices (groups concatenated), or null to keep them where they are
  * @property {Array<{vertices: number[], value: number|"rigid"}>|null} [stiffness] painted stiffness (cell weights) as [{vertices, value}], value > 0 or "rigid", 1 elsewhere; null or absent: all 1
+ * @property {Array<{face: number, barycentric: number[], weight?: number, target?: number[]}>|null} [points] point handles as [{face, barycentric, weight?, target?}] (no weight: hard); each is a handle group of its own, after handle_groups; null or absent: none
  */
 
 /**
@@ -581,7 +588,7 @@ export const SERVER_MESSAGES = Object.freeze({
  * @typedef {object} DragClientMessage
  * @property {"drag"} type
  * @property {number} seq sequence number echoed by the answering vertices frame
- * @property {number[][]} transforms one affine 4x4 matrix per handle group, column-major
+ * @property {number[][]} transforms one affine 4x4 matrix per handle group, then per point handle, column-major
  */
 
 /**
@@ -697,7 +704,7 @@ export const SERVER_MESSAGES = Object.freeze({
  * @property {boolean} can_undo
  * @property {boolean} can_redo
  * @property {Object<string, any>} params solver parameters
- * @property {Object<string, any>} constraints roi, fixed, handle_groups, stiffness as last accepted
+ * @property {Object<string, any>} constraints roi, fixed, handle_groups, stiffness, points as last accepted
  * @property {number[][]} transforms current transform of each handle group
  * @property {Object<string, any>} stats n_vertices, n_faces, roi_size, n_free, factor_ms
  */

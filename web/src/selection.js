@@ -1,6 +1,12 @@
-// Per-vertex roles: region of interest, fixed anchors and handle groups.
-//   roi:  Uint8Array, 1 = inside the painted region (an empty region means "whole mesh")
-//   role: Int16Array, 0 = none, 1 = fixed anchor, 2 + g = handle group g
+// Per-vertex roles: region of interest, fixed anchors and handle groups, the painted stiffness and point handles.
+//   roi:   Uint8Array, 1 = inside the painted region (an empty region means "whole mesh")
+//   role:  Int16Array, 0 = none, 1 = fixed anchor, 2 + g = handle group g
+//   stiff: Float64Array, the cell weight of each vertex (1 = unpainted, Infinity = rigid)
+// A handle group is either a set of vertices or one point handle: `groups[g].point` = {face, barycentric, weight}
+// (weight null: a hard handle), with no vertices. `groups[g].partner` is the id of a vertex group's mirror partner
+// (mirror.js); point handles have none.
+import { CLIENT } from './protocol.js';
+import { stiffnessFromJson, stiffnessKey, stiffnessToJson } from './stiffness.js';
 
 export const NONE = 0;
 export const FIXED = 1;
@@ -15,6 +21,9 @@ export class Selection {
     this.n = n;
     this.roi = new Uint8Array(n);
     this.role = new Int16Array(n);
+    this.stiff = new Float64Array(n).fill(1);
+    this.stiffnessValue = 10; // what the stiffness brush paints
+    /** @type {{id: number, partner?: number, point?: {face: number, barycentric: number[], weight: number|null}}[]} */
     this.groups = [{ id: 1 }];
     this.nextGroupId = 2;
     this.activeGroup = 0;
@@ -49,12 +58,25 @@ export class Selection {
     return null;
   }
 
+  /** True when the active group is a point handle. */
+  get activeIsPoint() {
+    return !!this.groups[this.activeGroup]?.point;
+  }
+
   /** Paint `indices` (iterable of vertex ids) with a mode; subtract removes that mode instead. */
   paint(indices, mode, subtract = false) {
     let changed = false;
+    if (mode === 'handle' && this.activeIsPoint) this.addGroup(); // a point handle has no vertices
+    if (mode === 'point') return false;
     const value = this.roleValue(mode);
+    const stiffness = subtract ? 1 : this.stiffnessValue;
     for (const i of indices) {
-      if (mode === 'roi') {
+      if (mode === 'stiffness') {
+        if (this.stiff[i] !== stiffness) {
+          this.stiff[i] = stiffness;
+          changed = true;
+        }
+      } else if (mode === 'roi') {
         const v = subtract ? 0 : 1;
         if (this.roi[i] !== v) {
           this.roi[i] = v;
@@ -82,9 +104,16 @@ export class Selection {
 
   clear(mode) {
     if (mode === 'roi') this.roi.fill(0);
-    else if (mode === 'erase') {
+    else if (mode === 'stiffness') this.stiff.fill(1);
+    else if (mode === 'point') {
+      for (let g = this.groups.length - 1; g >= 0; g--) if (this.groups[g].point) this.removeGroup(g);
+    } else if (mode === 'erase') {
       this.roi.fill(0);
       this.role.fill(NONE);
+      this.stiff.fill(1);
+      this.groups = this.groups.filter((g) => !g.point);
+      if (!this.groups.length) this.groups.push({ id: this.nextGroupId++ });
+      this.activeGroup = Math.min(this.activeGroup, this.groups.length - 1);
     } else {
       const value = this.roleValue(mode);
       for (let i = 0; i < this.n; i++) if (this.role[i] === value) this.role[i] = NONE;
@@ -92,9 +121,14 @@ export class Selection {
     this.version++;
   }
 
+  /** True when `invert(mode)` can do something for this mode. */
+  invertible(mode) {
+    return mode !== 'erase' && mode !== 'stiffness' && mode !== 'point';
+  }
+
   /** Invert a role: ROI becomes its complement; anchors/handles swap with unassigned vertices. */
   invert(mode) {
-    if (mode === 'erase') return false;
+    if (!this.invertible(mode)) return false;
     if (mode === 'roi') {
       for (let i = 0; i < this.n; i++) this.roi[i] ^= 1;
     } else {
@@ -110,7 +144,7 @@ export class Selection {
 
   addGroup() {
     const counts = this.counts().groups;
-    const empty = counts.findIndex((c) => c === 0);
+    const empty = counts.findIndex((c, g) => c === 0 && !this.groups[g].point);
     if (empty >= 0 && empty === this.groups.length - 1) {
       this.activeGroup = empty;
       return empty;
@@ -133,20 +167,36 @@ export class Selection {
     this.version++;
   }
 
+  /** Add a point handle ({face, barycentric, weight}) as a new group and make it the active one. */
+  addPoint(point) {
+    const last = this.groups.length - 1;
+    const counts = this.counts().groups;
+    if (counts[last] === 0 && !this.groups[last].point) this.groups.pop(); // an empty vertex group gives way
+    this.groups.push({ id: this.nextGroupId++, point });
+    this.activeGroup = this.groups.length - 1;
+    this.version++;
+    return this.activeGroup;
+  }
+
   /** The mirror partner of handle group g (see mirror.js), or -1. */
   partnerOf(g) {
     const id = this.groups[g]?.partner;
     return id === undefined ? -1 : this.groups.findIndex((x) => x.id === id);
   }
 
-  /** Make handle groups g and h each other's mirror partner (leaving their former partners unpaired). */
+  /**
+   * Make handle groups g and h each other's mirror partner (leaving their former partners unpaired). Point handles
+   * are never paired: false (and nothing changes) when g or h is one.
+   */
   pair(g, h) {
+    if (this.groups[g]?.point || this.groups[h]?.point) return false;
     for (const k of [g, h]) {
       const old = this.partnerOf(k);
       if (old >= 0) delete this.groups[old].partner;
     }
     this.groups[g].partner = this.groups[h].id;
     this.groups[h].partner = this.groups[g].id;
+    return true;
   }
 
   /** Vertex indices of handle group g. */
@@ -162,6 +212,7 @@ export class Selection {
    * server group k.
    */
   toConstraints() {
+    const stiffness = stiffnessToJson(this.stiff);
     const fixed = [];
     const roi = [];
     const lists = this.groups.map(() => []);
@@ -174,19 +225,31 @@ export class Selection {
     const groupMap = [];
     const handleGroups = [];
     lists.forEach((list, g) => {
-      if (list.length) {
+      if (list.length && !this.groups[g].point) {
         groupMap.push(g);
         handleGroups.push(list);
       }
     });
-    return { roi: roi.length ? roi : null, fixed, handle_groups: handleGroups, groupMap };
+    const points = [];
+    this.groups.forEach((group, g) => {
+      if (!group.point) return;
+      const { face, barycentric, weight } = group.point;
+      groupMap.push(g);
+      points.push(weight === null || weight === undefined ? { face, barycentric } : { face, barycentric, weight });
+    });
+    return { roi: roi.length ? roi : null, fixed, handle_groups: handleGroups, stiffness, points, groupMap };
   }
 
-  /** Replace the selection by a constraint set ({roi, fixed, handle_groups}); bad indices are skipped. */
-  fromConstraints(c) {
+  /**
+   * Replace the selection by a constraint set ({roi, fixed, handle_groups, stiffness?, points?}); bad indices are
+   * skipped. Point handles become groups after the vertex groups; `groupPoints` (one entry per group of
+   * `handle_groups`, null for a vertex group) puts saved point handles back in their places instead.
+   */
+  fromConstraints(c, groupPoints = null) {
     const n = this.n;
     this.roi.fill(0);
     this.role.fill(NONE);
+    this.stiff = stiffnessFromJson(c.stiffness, n);
     const ok = (i) => Number.isInteger(i) && i >= 0 && i < n;
     for (const i of c.roi || []) if (ok(i)) this.roi[i] = 1;
     for (const i of c.fixed || []) if (ok(i)) this.role[i] = FIXED;
@@ -195,10 +258,30 @@ export class Selection {
       for (const i of list) if (ok(i)) this.role[i] = HANDLE0 + g;
     });
     this.groups = [];
-    for (let g = 0; g < Math.max(1, groups.length); g++) this.groups.push({ id: this.nextGroupId++ });
+    for (let g = 0; g < groups.length; g++) {
+      const point = groupPoints?.[g];
+      this.groups.push(point ? { id: this.nextGroupId++, point: { ...point } } : { id: this.nextGroupId++ });
+    }
+    for (const p of c.points || []) {
+      const point = { face: p.face, barycentric: p.barycentric.slice(), weight: p.weight ?? null };
+      this.groups.push({ id: this.nextGroupId++, point });
+    }
+    if (!this.groups.length) this.groups.push({ id: this.nextGroupId++ });
     this.activeGroup = Math.min(this.activeGroup, this.groups.length - 1);
     this.version++;
   }
+}
+
+/**
+ * The set_constraints message of a constraint set (Selection.toConstraints): `targets` (a Map from handle vertex to
+ * [x, y, z]) moves the handles there, `pointTargets` (one [x, y, z] or null per point handle) the point handles.
+ */
+export function constraintsMessage(c, targets = null, pointTargets = null) {
+  const msg = { type: CLIENT.SET_CONSTRAINTS, roi: c.roi, fixed: c.fixed, handle_groups: c.handle_groups };
+  if (targets) msg.targets = c.handle_groups.flat().map((i) => targets.get(i));
+  if (c.stiffness) msg.stiffness = c.stiffness;
+  if (c.points.length) msg.points = c.points.map((p, k) => (pointTargets?.[k] ? { ...p, target: pointTargets[k] } : p));
+  return msg;
 }
 
 /** A canonical string of a constraint set, to compare what the server holds with the local selection. */
@@ -206,5 +289,6 @@ export function constraintsKey(c) {
   if (!c) return '';
   const roi = c.roi ? c.roi.join(',') : '*';
   const groups = (c.handle_groups || []).map((g) => g.join(',')).join('|');
-  return `${roi};${(c.fixed || []).join(',')};${groups}`;
+  const points = (c.points || []).map((p) => `${p.face}:${p.barycentric.join(',')}:${p.weight ?? 'hard'}`).join('|');
+  return `${roi};${(c.fixed || []).join(',')};${groups};${points};${stiffnessKey(c.stiffness)}`;
 }

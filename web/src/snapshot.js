@@ -1,6 +1,7 @@
 // A snapshot of the editing session (what autosave stores and restoring puts back): where the mesh came from,
 // the selection with every handle group, the current shape and the solver parameters.
 import { FIXED, HANDLE0 } from './selection.js';
+import { stiffnessToJson } from './stiffness.js';
 
 /**
  * Where the session's rest mesh comes from: a built-in model by name, or the bytes of a mesh file (an upload, or
@@ -40,15 +41,15 @@ export function encodePly(positions, faces) {
 /** True when a session has something to lose: a selection, a deformation or history. */
 export function hasEdits({ app, selection }) {
   if (app.canUndo || app.canRedo) return true;
-  for (let i = 0; i < selection.n; i++) if (selection.role[i] || selection.roi[i]) return true;
-  return false;
+  for (let i = 0; i < selection.n; i++) if (selection.role[i] || selection.roi[i] || selection.stiff[i] !== 1) return true;
+  return selection.groups.some((g) => g.point);
 }
 
 /**
  * The session as a plain object (structured-cloneable): `source` (with its bytes), mesh counts, `roi`, `fixed`,
- * `groups` (one vertex list per client handle group, empty ones included), `activeGroup`, `partners` (each
- * group's mirror partner, -1 for none), `positions`
- * (Float32Array of the current shape) and `params`.
+ * `groups` (one vertex list per client handle group, empty ones included), `groupPoints` (per group, its point
+ * handle or null), `stiffness` (painted, as sent to the server, or null), `activeGroup`, `partners` (each group's
+ * mirror partner, -1 for none), `positions` (Float32Array of the current shape) and `params`.
  */
 export function captureSession({ app, selection, viewer }) {
   const groups = selection.groups.map(() => []);
@@ -69,6 +70,8 @@ export function captureSession({ app, selection, viewer }) {
     roi,
     fixed,
     groups,
+    groupPoints: selection.groups.map((g) => (g.point ? { ...g.point, barycentric: g.point.barycentric.slice() } : null)),
+    stiffness: stiffnessToJson(selection.stiff),
     activeGroup: selection.activeGroup,
     partners: selection.groups.map((_, g) => selection.partnerOf(g)),
     positions: new Float32Array(viewer.positions),
@@ -88,9 +91,12 @@ export function mismatch(snap, nVertices, nFaces) {
 export function describe(snap) {
   const when = new Date(snap.savedAt).toLocaleString([], { dateStyle: 'medium', timeStyle: 'short' });
   const handles = snap.groups.filter((g) => g.length).length;
+  const pointCount = (snap.groupPoints || []).filter((p) => p).length;
   const parts = [`${snap.meshName}`];
   if (snap.roi.length) parts.push(`ROI of ${snap.roi.length.toLocaleString('en-US')} vertices`);
   parts.push(`${snap.fixed.length.toLocaleString('en-US')} anchors`);
   parts.push(`${handles} handle group${handles === 1 ? '' : 's'}`);
+  if (pointCount) parts.push(`${pointCount} point handle${pointCount === 1 ? '' : 's'}`);
+  if (snap.stiffness) parts.push('painted stiffness');
   return `Unsaved work from ${when}: ${parts.join(', ')}.`;
 }

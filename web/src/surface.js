@@ -56,12 +56,16 @@ export class SurfaceSelection {
   /**
    * The region of interest becomes the handles' surroundings: every vertex within `amount` rings (mode "rings")
    * or within `amount` percent of the bounding-box diagonal along the surface (mode "distance") of a handle
-   * vertex, anchors included. False when there are no handles.
+   * vertex (or corner of a point handle's triangle), anchors included. False when there are no handles.
    */
   roiFromHandles(mode, amount) {
     const s = this.selection;
     const handles = [];
     for (let i = 0; i < s.n; i++) if (s.role[i] >= HANDLE0) handles.push(i);
+    const faces = this.viewer.geometry?.index.array;
+    for (const g of s.groups) {
+      if (g.point && faces) for (let k = 0; k < 3; k++) handles.push(faces[3 * g.point.face + k]);
+    }
     if (!handles.length) return false;
     let region;
     if (mode === 'rings') region = kRing(this.graph(), handles, Math.max(0, Math.round(amount)));
@@ -73,6 +77,7 @@ export class SurfaceSelection {
     s.roi.fill(0);
     this.paint(region, 'roi', false);
     for (let i = 0; i < s.n; i++) if (s.role[i] === FIXED || s.role[i] >= HANDLE0) s.roi[i] = 1;
+    for (const i of handles) s.roi[i] = 1;
     s.version++;
     this.changed();
     return true;

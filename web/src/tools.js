@@ -9,7 +9,8 @@ export class SelectionTools {
   /**
    * @param {import('./viewer.js').Viewer} viewer
    * @param {object} opts isGizmoActive(): bool, onPaint(indices, subtract), onStrokeEnd(), graph(): the mesh's
-   *   adjacency (geodesic.js buildAdjacency)
+   *   adjacency (geodesic.js buildAdjacency), picking(): true when a click places a point instead of painting,
+   *   onPick(hit, subtract) (the raycast intersection under a click in that mode)
    */
   constructor(viewer, opts) {
     this.viewer = viewer;
@@ -24,6 +25,7 @@ export class SelectionTools {
     this.erasing = false;
     this.painting = false;
     this.box = null;
+    this.picked = false;
     this.raycaster = new THREE.Raycaster();
     this.cursorEl = document.getElementById('brush-cursor');
     this.rectEl = document.getElementById('box-rect');
@@ -48,14 +50,24 @@ export class SelectionTools {
     return [e.clientX - r.left, e.clientY - r.top];
   }
 
-  _hit(x, y) {
+  /** The nearest intersection of the mesh under canvas pixel (x, y), or null. */
+  _intersect(x, y) {
     const v = this.viewer;
     if (!v.mesh) return null;
     const ndc = new THREE.Vector2((x / v.canvas.clientWidth) * 2 - 1, -(y / v.canvas.clientHeight) * 2 + 1);
     this.raycaster.setFromCamera(ndc, v.camera);
     const hits = this.raycaster.intersectObject(v.mesh, false);
-    this._hitFace = hits.length ? hits[0].face : null;
-    return hits.length ? hits[0].point : null;
+    return hits.length ? hits[0] : null;
+  }
+
+  _hit(x, y) {
+    const hit = this._intersect(x, y);
+    this._hitFace = hit ? hit.face : null;
+    return hit ? hit.point : null;
+  }
+
+  get _picking() {
+    return this.tool !== 'orbit' && !!this.opts.picking?.();
   }
 
   /** World-space brush radius at a point. */
@@ -68,9 +80,19 @@ export class SelectionTools {
   }
 
   _down(e) {
-    if (e.button !== 0 || !this.viewer.mesh || this.opts.isGizmoActive()) return;
+    if (e.button !== 0 || !this.viewer.mesh) return;
     const [x, y] = this._local(e);
     const subtract = e.ctrlKey || e.metaKey || e.altKey;
+    // a point handle's marker lies under its gizmo: removing it must reach through
+    if (this.opts.isGizmoActive() && !(this._picking && subtract)) return;
+    if (this._picking) {
+      const hit = this._intersect(x, y);
+      if (!hit) return; // empty space: let the camera orbit
+      this.picked = true;
+      this._takePointer(e);
+      this.opts.onPick(hit, subtract);
+      return;
+    }
     if (e.shiftKey || this.tool === 'box') {
       this.box = { x0: x, y0: y, x1: x, y1: y, subtract };
       this._takePointer(e);
@@ -100,7 +122,7 @@ export class SelectionTools {
       this._drawRect();
       return;
     }
-    if (this.tool === 'brush' && !this.opts.isGizmoActive()) this._showCursor(x, y, e.ctrlKey || e.metaKey || e.altKey);
+    if (this.tool === 'brush' && !this.opts.isGizmoActive() && !this._picking) this._showCursor(x, y, e.ctrlKey || e.metaKey || e.altKey);
     else this._hideCursor();
     if (!this.painting) return;
     // coalesce to one raycast per animation frame
@@ -119,6 +141,11 @@ export class SelectionTools {
   }
 
   _up(e) {
+    if (this.picked) {
+      this.picked = false;
+      this._release(e);
+      return;
+    }
     if (this.box) {
       const b = this.box;
       this.box = null;

@@ -1,6 +1,7 @@
 // Three.js scene: the mesh with per-vertex role colours, lights, camera and orbit controls.
 import * as THREE from 'three';
 import { OrbitControls } from 'three/addons/controls/OrbitControls.js';
+import { stiffnessTint } from './stiffness.js';
 import { SubsetNormals } from './subsetnormals.js';
 
 // Role colours in sRGB (as shown in the panel); the vertex colour attribute holds their linear values.
@@ -8,6 +9,7 @@ export const BASE_COLOR = [0.78, 0.79, 0.81];
 const OUTSIDE_COLOR = [0.55, 0.56, 0.58];
 const ROI_COLOR = [0.55, 0.74, 0.95];
 export const FIXED_COLOR = [0.9, 0.3, 0.27];
+export const STIFF_COLOR = [0.36, 0.16, 0.55];
 export const GROUP_COLORS = [
   [1.0, 0.62, 0.1],
   [0.25, 0.78, 0.42],
@@ -34,6 +36,7 @@ const OUTSIDE_LIN = toLinear(OUTSIDE_COLOR);
 const ROI_LIN = toLinear(ROI_COLOR);
 const FIXED_LIN = toLinear(FIXED_COLOR);
 const GROUP_LIN = GROUP_COLORS.map(toLinear);
+const STIFF_LIN = toLinear(STIFF_COLOR);
 
 export class Viewer {
   constructor(canvas) {
@@ -185,7 +188,11 @@ export class Viewer {
   }
 
   /** Colour vertices by role: roi (Uint8Array or null), role (Int16Array: 0 none, 1 fixed, 2+g handle g). */
-  updateColors(roi, role) {
+  /**
+   * Colour the vertices by role; `stiff` (per-vertex stiffness, or null) tints painted vertices towards purple,
+   * by `stiffStrength` (0..1) of their tint.
+   */
+  updateColors(roi, role, stiff = null, stiffStrength = 0) {
     if (!this.geometry) return;
     const attr = this.geometry.attributes.color;
     const c = attr.array;
@@ -197,9 +204,10 @@ export class Viewer {
       else if (r >= 2) rgb = GROUP_LIN[(r - 2) % GROUP_LIN.length];
       else if (hasRoi) rgb = roi[i] ? ROI_LIN : OUTSIDE_LIN;
       else rgb = BASE_LIN;
-      c[3 * i] = rgb[0];
-      c[3 * i + 1] = rgb[1];
-      c[3 * i + 2] = rgb[2];
+      const t = stiff && stiff[i] !== 1 ? stiffStrength * stiffnessTint(stiff[i]) : 0;
+      c[3 * i] = rgb[0] + t * (STIFF_LIN[0] - rgb[0]);
+      c[3 * i + 1] = rgb[1] + t * (STIFF_LIN[1] - rgb[1]);
+      c[3 * i + 2] = rgb[2] + t * (STIFF_LIN[2] - rgb[2]);
     }
     attr.needsUpdate = true;
     this.requestRender();

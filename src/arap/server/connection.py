@@ -417,7 +417,7 @@ class Connection:
             await self._send_state()
         elif t == "set_constraints":
             solved = await self._off_loop(s.set_constraints, f["roi"], f["fixed"], f["handle_groups"],
-                                          f.get("targets"), f.get("stiffness"))
+                                          f.get("targets"), f.get("stiffness"), f.get("points"))
             if solved is not None:
                 await self._send_vertices(-1, solved)
             await self._send_state()

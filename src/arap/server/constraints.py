@@ -11,13 +11,14 @@ from __future__ import annotations
 
 import hashlib
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
-from arap.constraints import check_selection, stiffness_from_json, stiffness_to_json
+from arap.constraints import check_selection, points_from_json, stiffness_from_json, stiffness_to_json
 from arap.errors import ConstraintError
+from arap.points import PointConstraints
 from arap.server.protocol import RequestError
 
 __all__ = ["ConstraintSet", "identity_transforms", "matrices_from_json", "matrices_to_json"]
@@ -40,9 +41,14 @@ def matrices_to_json(T: np.ndarray) -> list[list[float]]:
     return [m.T.reshape(16).tolist() for m in T]
 
 
-def _digest(*arrays: np.ndarray | None, stiffness: np.ndarray | None = None) -> bytes:
+def _digest(*arrays: np.ndarray | None, stiffness: np.ndarray | None = None,
+            points: PointConstraints | None = None) -> bytes:
     h = hashlib.blake2b(digest_size=16)
     h.update(b"s:none;" if stiffness is None else b"s:" + np.ascontiguousarray(stiffness, dtype=np.float64).tobytes())
+    if points is not None:
+        h.update(b"p:" + np.ascontiguousarray(points.faces, dtype=np.int64).tobytes())
+        h.update(np.ascontiguousarray(points.barycentric, dtype=np.float64).tobytes())
+        h.update(np.ascontiguousarray(points.weights, dtype=np.float64).tobytes() + b";")
     for a in arrays:
         if a is None:
             h.update(b"none;")
@@ -50,6 +56,10 @@ def _digest(*arrays: np.ndarray | None, stiffness: np.ndarray | None = None) -> 
             h.update(np.ascontiguousarray(a, dtype=np.int64).tobytes())
             h.update(b";")
     return h.digest()
+
+
+_NO_POINTS = np.zeros((0, 3))
+_NO_POINTS.setflags(write=False)
 
 
 @dataclass(frozen=True, eq=False)
@@ -71,6 +81,12 @@ class ConstraintSet:
         ``fixed``, then every group, then ``held``: the solver's constrained vertices in target order.
     stiffness : (n,) float64 array or None
         Painted stiffness (the cell weights of :class:`arap.ArapSolver`; ``inf``: rigid), or None for all 1.
+    points : PointConstraints or None
+        Point handles (a triangle and barycentric coordinates each; :mod:`arap.points`), or None for none. Each is
+        a handle group of its own: its transform follows those of :attr:`groups`.
+    point_pose : (p, 3) float64 array
+        Positions the point handles' transforms apply to: where the pose puts them on the surface, or the targets
+        they were given.
     """
 
     roi: np.ndarray | None
@@ -80,6 +96,8 @@ class ConstraintSet:
     held: np.ndarray
     constrained: np.ndarray
     stiffness: np.ndarray | None = None
+    points: PointConstraints | None = None
+    point_pose: np.ndarray = field(default_factory=lambda: _NO_POINTS)
 
     @classmethod
     def build(
@@ -91,6 +109,8 @@ class ConstraintSet:
         groups: Sequence[Sequence[int]],
         handle_positions: np.ndarray | None = None,
         stiffness: Any = None,
+        points: Any = None,
+        faces: np.ndarray | None = None,
     ) -> ConstraintSet:
         """Validate a constraint set for a mesh.
 
@@ -108,6 +128,11 @@ class ConstraintSet:
             ``pose`` positions; the set's :attr:`pose` is then a copy of ``pose`` with these positions put in.
         stiffness : list of {"vertices": [...], "value": v} or None
             Painted stiffness (v > 0 or ``"rigid"``; 1 elsewhere), as in constraints files; None: all 1.
+        points : list of {"face": f, "barycentric": [a, b, c], "weight"?: w, "target"?: [x, y, z]} or None
+            Point handles (no weight: a hard one), as in constraints files but with an optional target: the
+            position the point's transform applies to (default: where ``pose`` puts the point).
+        faces : (m, 3) int array or None
+            The mesh's triangles; needed with ``points``.
 
         Returns
         -------
@@ -119,12 +144,18 @@ class ConstraintSet:
             ``bad_constraints`` with the message of :func:`arap.constraints.check_selection` (the validator the
             library and the command line use): indices that are not integers or out of range, a vertex repeated
             within or across ``fixed`` and the groups, a repeated ROI vertex, an empty handle group or an empty
-            ROI; or the message of :func:`arap.constraints.stiffness_from_json` for bad stiffness.
+            ROI; or the message of :func:`arap.constraints.stiffness_from_json` for bad stiffness, or of
+            :func:`arap.constraints.points_from_json` for bad point handles.
         """
         n = len(rest)
         try:
             fixed_arr, group_list, roi_arr = check_selection(n, fixed, groups, roi)
             painted = None if stiffness is None else stiffness_from_json(list(stiffness), n)
+            pts, point_targets, given = None, None, None
+            if points:
+                if faces is None:
+                    raise ConstraintError("point handles need the mesh's triangles")
+                pts, point_targets, given = points_from_json(list(points), len(faces), require_target=False)
         except ConstraintError as exc:
             raise RequestError("bad_constraints", str(exc)) from exc
         group_arrs = tuple(group_list)
@@ -132,6 +163,11 @@ class ConstraintSet:
             pose = np.array(pose, dtype=np.float64)
             pose[np.concatenate(group_arrs)] = np.asarray(handle_positions, dtype=np.float64).reshape(-1, 3)
             pose.setflags(write=False)
+        point_pose = _NO_POINTS
+        if pts is not None and faces is not None and point_targets is not None:
+            point_pose = pts.positions(np.asarray(pose, dtype=np.float64), np.asarray(faces))
+            point_pose[given] = point_targets[given]
+            point_pose.setflags(write=False)
         held = np.zeros(0, dtype=np.int64)
         if roi_arr is not None:
             outside = np.ones(n, dtype=bool)
@@ -146,7 +182,7 @@ class ConstraintSet:
         for frozen in (fixed_arr, *group_arrs, held, painted):
             if frozen is not None:
                 frozen.setflags(write=False)
-        return cls(roi_arr, fixed_arr, group_arrs, pose, held, constrained, painted)
+        return cls(roi_arr, fixed_arr, group_arrs, pose, held, constrained, painted, pts, point_pose)
 
     @classmethod
     def empty(cls, pose: np.ndarray) -> ConstraintSet:
@@ -156,14 +192,19 @@ class ConstraintSet:
 
     # ------------------------------------------------------------------ queries
     @property
+    def n_points(self) -> int:
+        """Number of point handles."""
+        return 0 if self.points is None else len(self.points)
+
+    @property
     def n_groups(self) -> int:
-        """Number of handle groups."""
-        return len(self.groups)
+        """Number of transforms a drag gives: the handle groups, then one per point handle."""
+        return len(self.groups) + self.n_points
 
     @property
     def is_empty(self) -> bool:
-        """True when nothing is constrained (no fixed vertex and no handle)."""
-        return not len(self.fixed) and not self.groups
+        """True when nothing is constrained (no fixed vertex, no handle, no point handle)."""
+        return not len(self.fixed) and not self.groups and not self.n_points
 
     def same_selection(self, other: ConstraintSet) -> bool:
         """True if ``other`` selects the same roi, fixed vertices and groups (poses aside)."""
@@ -172,11 +213,11 @@ class ConstraintSet:
     def selection_digest(self) -> bytes:
         """Hash of the selection (roi, fixed, groups, stiffness)."""
         return _digest(self.roi, self.fixed, *self.groups, np.asarray([len(g) for g in self.groups]),
-                       stiffness=self.stiffness)
+                       stiffness=self.stiffness, points=self.points)
 
     def solver_digest(self) -> bytes:
-        """Hash of what the solver's factorisation depends on (constrained vertices, roi and stiffness)."""
-        return _digest(self.roi, self.constrained, stiffness=self.stiffness)
+        """Hash of what the solver's factorisation depends on (constrained vertices, roi, stiffness, points)."""
+        return _digest(self.roi, self.constrained, stiffness=self.stiffness, points=self.points)
 
     def handle_targets(self, transforms: np.ndarray) -> np.ndarray:
         """Targets of the handle vertices (groups concatenated) under ``transforms`` ``(g, 4, 4)``."""
@@ -185,6 +226,30 @@ class ConstraintSet:
             M = transforms[g]
             parts.append(self.pose[idx] @ M[:3, :3].T + M[:3, 3])
         return np.concatenate(parts) if parts else np.zeros((0, 3))
+
+    def point_targets(self, transforms: np.ndarray) -> np.ndarray | None:
+        """Targets of the point handles under ``transforms`` ``(g, 4, 4)`` (theirs follow the groups'), or None."""
+        if not self.n_points:
+            return None
+        T = transforms[len(self.groups):]
+        return np.einsum("pij,pj->pi", T[:, :3, :3], self.point_pose) + T[:, :3, 3]
+
+    def points_json(self, transforms: np.ndarray | None = None) -> list[dict[str, Any]]:
+        """The point handles as ``[{"face", "barycentric", "weight"?}]`` (no weight: hard), with ``"target"``
+        under ``transforms`` when given."""
+        if self.points is None:
+            return []
+        targets = None if transforms is None else self.point_targets(transforms)
+        out = []
+        for k, (f, b, w) in enumerate(zip(self.points.faces, self.points.barycentric, self.points.weights,
+                                          strict=True)):
+            item: dict[str, Any] = {"face": int(f), "barycentric": [float(x) for x in b]}
+            if targets is not None:
+                item["target"] = [float(x) for x in targets[k]]
+            if not np.isinf(w):
+                item["weight"] = float(w)
+            out.append(item)
+        return out
 
     def targets(self, transforms: np.ndarray) -> np.ndarray:
         """Targets of :attr:`constrained`, in order, under ``transforms`` ``(g, 4, 4)``."""
@@ -201,6 +266,7 @@ class ConstraintSet:
             "fixed": self.fixed.tolist(),
             "handle_groups": [g.tolist() for g in self.groups],
             "stiffness": self.stiffness_json(),
+            "points": self.points_json(),
         }
 
     def document(self, rest: np.ndarray, transforms: np.ndarray) -> dict[str, Any]:
@@ -228,4 +294,7 @@ class ConstraintSet:
         if self.stiffness is not None:
             doc["version"] = 2
             doc["stiffness"] = self.stiffness_json()
+        if self.n_points:
+            doc["version"] = 2
+            doc["points"] = self.points_json(transforms)
         return doc

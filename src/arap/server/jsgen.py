@@ -6,6 +6,7 @@ import json
 from typing import Any
 
 from arap.server import protocol as P
+from arap.server.fields import AFFINE_TOLERANCE
 
 __all__ = ["generate_js"]
 
@@ -126,6 +127,7 @@ _TS_TYPES = {
     "matrices": "number[][]",
     "points_or_null": "number[][]|null",
     "stiffness_or_null": "Array<{vertices: number[], value: number|\"rigid\"}>|null",
+    "point_handles_or_null": "Array<{face: number, barycentric: number[], weight?: number, target?: number[]}>|null",
 }
 """JSDoc type of each field kind (``enum`` fields get the union of their choices)."""
 
@@ -197,7 +199,7 @@ def generate_js() -> str:
         _const("EXPORT_FORMATS", list(P.EXPORT_FORMATS), "Formats of `export`."),
         _const("UPLOAD_EXTENSIONS", list(P.UPLOAD_EXTENSIONS), "File extensions `upload` accepts."),
         _const("LIMITS", {"maxHandleGroups": P.MAX_HANDLE_GROUPS, "maxSeq": P.MAX_SEQ,
-                          "maxHeaderBytes": P.MAX_HEADER_BYTES, "affineTolerance": P.AFFINE_TOLERANCE},
+                          "maxHeaderBytes": P.MAX_HEADER_BYTES, "affineTolerance": AFFINE_TOLERANCE},
                "Fixed protocol limits (size limits of the server are in `welcome.limits`)."),
         _const("CLIENT_MESSAGES", _messages(P.CLIENT_MESSAGES), "Fields of each client message."),
         _const("SERVER_MESSAGES", _messages(P.SERVER_MESSAGES), "Fields of each server message."),

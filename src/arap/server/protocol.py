@@ -16,9 +16,6 @@ number of handle groups). Both raise :class:`RequestError`, which the server tur
 
 from __future__ import annotations
 
-import json
-import math
-import sys
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -26,6 +23,7 @@ import numpy as np
 
 from arap.cells import DEFAULT_ENERGY, ENERGY_LABELS, ENERGY_TYPES
 from arap.server.errors import ERROR_CODES, RequestError
+from arap.server.fields import check_field
 from arap.server.frames import MAX_HEADER_BYTES, decode_binary, encode_binary, loads_json
 from arap.smooth import DEFAULT_ALPHA
 from arap.weights import DEFAULT_WEIGHTS, WEIGHT_LABELS, WEIGHT_TYPES
@@ -68,9 +66,6 @@ MAX_STIFFNESS_GROUPS = 256
 MAX_SEQ = 2**53 - 1
 """Largest ``seq`` of a drag (the largest integer a JavaScript number holds exactly)."""
 
-AFFINE_TOLERANCE = 1e-9
-"""How far the last row of a drag transform may be from (0, 0, 0, 1)."""
-
 ENERGIES = ENERGY_TYPES
 WEIGHTS = WEIGHT_TYPES
 EXPORT_FORMATS = ("obj", "ply")
@@ -97,7 +92,8 @@ class Field:
         ``indices_or_null``, ``index_groups`` (list of lists of vertex indices), ``matrices`` (list of 4×4
         matrices, 16 numbers each, column-major), ``points_or_null`` (list of ``[x, y, z]``, or null),
         ``stiffness_or_null`` (list of ``{"vertices": [...], "value": v}``, v a positive number or ``"rigid"``,
-        or null), ``bool``, ``object``, ``list``.
+        or null), ``point_handles_or_null`` (list of ``{"face": f, "barycentric": [a, b, c]}`` with optional
+        ``"weight"`` and ``"target"``, or null), ``bool``, ``object``, ``list``.
     doc : str
         What the field means.
     required : bool
@@ -170,11 +166,15 @@ CLIENT_MESSAGES: dict[str, MessageSpec] = {
                     "to keep them where they are", required=False),
               Field("stiffness", "stiffness_or_null", "painted stiffness (cell weights) as [{vertices, value}], "
                     'value > 0 or "rigid", 1 elsewhere; null or absent: all 1', required=False,
-                    max_length=MAX_STIFFNESS_GROUPS)),
+                    max_length=MAX_STIFFNESS_GROUPS),
+              Field("points", "point_handles_or_null", "point handles as [{face, barycentric, weight?, target?}] "
+                    "(no weight: hard); each is a handle group of its own, after handle_groups; null or absent: none",
+                    required=False, max_length=MAX_HANDLE_GROUPS)),
         _spec("drag", "move the handle groups; only the newest pending drag is solved",
               Field("seq", "int", "sequence number echoed by the answering vertices frame", minimum=0,
                     maximum=MAX_SEQ),
-              Field("transforms", "matrices", "one affine 4x4 matrix per handle group, column-major",
+              Field("transforms", "matrices", "one affine 4x4 matrix per handle group, then per point handle, "
+                    "column-major",
                     max_length=MAX_HANDLE_GROUPS)),
         _spec("end_drag", "the current deformation becomes one undo step"),
         _spec("set_params", "change solver parameters (any of the fields)",
@@ -242,7 +242,7 @@ SERVER_MESSAGES: dict[str, MessageSpec] = {
         _spec("state", "session state after any change",
               Field("can_undo", "bool", ""), Field("can_redo", "bool", ""),
               Field("params", "object", "solver parameters"),
-              Field("constraints", "object", "roi, fixed, handle_groups, stiffness as last accepted"),
+              Field("constraints", "object", "roi, fixed, handle_groups, stiffness, points as last accepted"),
               Field("transforms", "matrices", "current transform of each handle group"),
               Field("stats", "object", "n_vertices, n_faces, roi_size, n_free, factor_ms")),
         _spec("constraints", "answer to get_constraints",
@@ -324,106 +324,13 @@ class ClientMessage:
     payload: memoryview | None = None
 
 
-def _is_int(x: Any) -> bool:
-    return type(x) is int
-
-
-_FLOAT_MAX = sys.float_info.max
-
-
-def _is_number(x: Any) -> bool:
-    """A finite float, or an integer a float64 can hold (comparing an int with a float is exact in Python)."""
-    if type(x) is float:
-        return math.isfinite(x)
-    return type(x) is int and -_FLOAT_MAX <= x <= _FLOAT_MAX
-
-
-def _check_index_list(value: Any, where: str) -> list[int]:
-    if not isinstance(value, list):
-        raise RequestError("bad_message", f"{where} must be a list of vertex indices")
-    if not all(type(x) is int for x in value):
-        bad = next(x for x in value if type(x) is not int)
-        raise RequestError("bad_message", f"{where} must hold integers, found {json.dumps(bad)[:40]}")
-    return value
-
-
-def _check_field(f: Field, value: Any, mtype: str) -> Any:
-    where = f"{mtype}.{f.name}"
-    kind = f.kind
-    if kind == "int":
-        if not _is_int(value):
-            raise RequestError("bad_message", f"{where} must be an integer")
-        if (f.minimum is not None and value < f.minimum) or (f.maximum is not None and value > f.maximum):
-            raise RequestError("bad_message", f"{where} must be in {f.minimum}..{f.maximum}, got {str(value)[:40]}")
-        return value
-    if kind == "number":
-        if not _is_number(value):
-            raise RequestError("bad_message", f"{where} must be a finite number")
-        if (f.minimum is not None and value < f.minimum) or (f.maximum is not None and value > f.maximum):
-            raise RequestError("bad_message", f"{where} must be in {f.minimum}..{f.maximum}, got {str(value)[:40]}")
-        return float(value)
-    if kind in ("string", "enum"):
-        if not isinstance(value, str):
-            raise RequestError("bad_message", f"{where} must be a string")
-        if f.max_length is not None and len(value) > f.max_length:
-            raise RequestError("bad_message", f"{where} is longer than {f.max_length} characters")
-        if kind == "enum" and value not in f.choices:
-            raise RequestError("bad_message", f"{where} must be one of {list(f.choices)}, got {value[:40]!r}")
-        return value
-    if kind == "indices_or_null" and value is None:
-        return None
-    if kind in ("indices", "indices_or_null"):
-        return _check_index_list(value, where)
-    if kind == "index_groups":
-        if not isinstance(value, list):
-            raise RequestError("bad_message", f"{where} must be a list of lists of vertex indices")
-        if f.max_length is not None and len(value) > f.max_length:
-            raise RequestError("bad_message", f"{where} has {len(value)} groups, at most {f.max_length}")
-        return [_check_index_list(g, f"{where}[{i}]") for i, g in enumerate(value)]
-    if kind == "matrices":
-        if not isinstance(value, list):
-            raise RequestError("bad_message", f"{where} must be a list of 4x4 matrices (16 numbers each)")
-        if f.max_length is not None and len(value) > f.max_length:
-            raise RequestError("bad_message", f"{where} has {len(value)} matrices, at most {f.max_length}")
-        for i, m in enumerate(value):
-            if not isinstance(m, list) or len(m) != 16:
-                raise RequestError("bad_message", f"{where}[{i}] must be a list of 16 numbers")
-            if not all(_is_number(x) for x in m):
-                raise RequestError("bad_message", f"{where}[{i}] must hold 16 finite numbers")
-            if max(abs(m[3]), abs(m[7]), abs(m[11]), abs(m[15] - 1)) > AFFINE_TOLERANCE:
-                raise RequestError(
-                    "bad_message", f"{where}[{i}] must be affine (last row 0, 0, 0, 1; column-major elements "
-                    "3, 7, 11, 15)")
-        return value
-    if kind == "points_or_null":
-        if value is None:
-            return None
-        if not isinstance(value, list):
-            raise RequestError("bad_message", f"{where} must be a list of [x, y, z] points or null")
-        for i, p in enumerate(value):
-            if not isinstance(p, list) or len(p) != 3 or not all(_is_number(x) for x in p):
-                raise RequestError("bad_message", f"{where}[{i}] must be a list of 3 finite numbers")
-        return value
-    if kind == "stiffness_or_null":
-        if value is None:
-            return None
-        if not isinstance(value, list):
-            raise RequestError("bad_message", f"{where} must be a list of {{vertices, value}} objects or null")
-        if f.max_length is not None and len(value) > f.max_length:
-            raise RequestError("bad_message", f"{where} has {len(value)} groups, at most {f.max_length}")
-        for i, item in enumerate(value):
-            if not isinstance(item, dict) or set(item) != {"vertices", "value"}:
-                raise RequestError("bad_message", f'{where}[{i}] must be an object with "vertices" and "value"')
-            _check_index_list(item["vertices"], f"{where}[{i}].vertices")
-            v = item["value"]
-            if v != "rigid" and not (_is_number(v) and v > 0):
-                raise RequestError("bad_message", f'{where}[{i}].value must be a positive number or "rigid"')
-        return value
-    raise AssertionError(f"field kind {kind!r} cannot be received")
-
-
 def _check_fields_together(mtype: str, fields: dict[str, Any]) -> None:
     """Checks across the fields of one message."""
+    if mtype == "set_constraints" and fields.get("points"):
+        total = len(fields["handle_groups"]) + len(fields["points"])
+        if total > MAX_HANDLE_GROUPS:
+            raise RequestError("bad_message", f"set_constraints has {total} handle groups and point handles, at "
+                               f"most {MAX_HANDLE_GROUPS}")
     if mtype == "set_constraints" and fields.get("targets") is not None:
         n_handles = sum(len(g) for g in fields["handle_groups"])
         if len(fields["targets"]) != n_handles:
@@ -480,7 +387,7 @@ def validate(obj: Any, binary: bool, payload: memoryview | None = None) -> Clien
                 if f.required:
                     raise RequestError("bad_message", f"{spec.type} needs field {f.name!r}")
                 continue
-            fields[f.name] = _check_field(f, obj[f.name], spec.type)
+            fields[f.name] = check_field(f, obj[f.name], spec.type)
         if spec.at_least_one and not fields:
             names = ", ".join(f.name for f in spec.fields)
             raise RequestError("bad_message", f"{spec.type} needs at least one of {names}")

@@ -147,7 +147,7 @@ class Session:
         mesh = self._require_mesh()
         try:
             solver = arap.ArapSolver(V, mesh.F, cs.constrained, energy=params.energy, weights=params.weights,
-                                     roi=cs.roi, alpha=params.alpha, stiffness=cs.stiffness)
+                                     roi=cs.roi, alpha=params.alpha, stiffness=cs.stiffness, points=cs.points)
         except ArapError as exc:
             raise RequestError("bad_constraints", str(exc)) from exc
         logger.debug("factorised %d free vertices in %.1f ms", solver.n_free, 1000 * solver.factor_seconds)
@@ -200,7 +200,8 @@ class Session:
 
     def set_constraints(self, roi: list[int] | None, fixed: list[int], groups: list[list[int]],
                         targets: list[list[float]] | None = None,
-                        stiffness: list[dict[str, Any]] | None = None) -> DragOutcome | None:
+                        stiffness: list[dict[str, Any]] | None = None,
+                        points: list[dict[str, Any]] | None = None) -> DragOutcome | None:
         """New constraint set referring to the current deformed pose; transforms reset to identity.
 
         Parameters
@@ -214,6 +215,10 @@ class Session:
             base of the transforms; the shape is then solved at once.
         stiffness : list of {"vertices": [...], "value": v} or None
             Painted stiffness (v > 0 or ``"rigid"``, 1 elsewhere), as in constraints files; None: all 1.
+        points : list of {"face", "barycentric", "weight"?, "target"?} or None
+            Point handles (no weight: hard), each a handle group of its own whose transform follows the groups'.
+            A ``target`` replaces the point's pose position as the base of its transform (the shape is then
+            solved at once, as with ``targets``).
 
         Returns
         -------
@@ -226,19 +231,22 @@ class Session:
             ``bad_constraints`` for invalid indices or constraints the solver rejects, ``bad_message`` for
             targets of the wrong shape or absurdly far away.
         """
-        self._require_mesh()
+        mesh = self._require_mesh()
         positions = None
         n_handles = sum(len(g) for g in groups)
         if targets is not None:
-            points = np.asarray(targets, dtype=np.float64)
-            if points.shape != (n_handles, 3) and not (n_handles == 0 and points.size == 0):
+            given = np.asarray(targets, dtype=np.float64)
+            if given.shape != (n_handles, 3) and not (n_handles == 0 and given.size == 0):
                 raise RequestError("bad_message", f"targets must be {n_handles} points [x, y, z], one per handle "
                                    "vertex")
-            self._check_range(points)
-            positions = points if n_handles else None
+            self._check_range(given)
+            positions = given if n_handles else None
         cs = ConstraintSet.build(self.V, self.U, roi, fixed, groups, handle_positions=positions,
-                                 stiffness=stiffness)
-        unchanged = (positions is None and cs.same_selection(self.constraints) and self.constraints.pose is self.U
+                                 stiffness=stiffness, points=points, faces=mesh.F)
+        moved = positions is not None or any("target" in p for p in points or [])
+        if moved:
+            self._check_range(cs.point_pose)
+        unchanged = (not moved and cs.same_selection(self.constraints) and self.constraints.pose is self.U
                      and np.array_equal(self.transforms, identity_transforms(cs.n_groups)))
         if unchanged:
             return None
@@ -246,15 +254,15 @@ class Session:
         T = identity_transforms(cs.n_groups)
         outcome = None
         U = self.U
-        if positions is not None:
+        if moved:
             assert solver is not None
             # Loaded targets can be far from the current shape: iterate until the energy settles, not one drag's worth.
-            U, outcome = self._solve(solver, cs.targets(T), self.U, settle=True)
+            U, outcome = self._solve(solver, cs.targets(T), self.U, settle=True, point_targets=cs.point_targets(T))
         self.constraints = cs
         self.transforms = T
         self.solver = solver
         self.U = U
-        self._warm = positions is not None
+        self._warm = moved
         self.settled = False
         self._commit()
         return outcome
@@ -267,7 +275,7 @@ class Session:
                                f"{limit:.3g} from the origin)")
 
     def _solve(self, solver: Any, targets: np.ndarray, initial: np.ndarray | None,
-               settle: bool = False) -> tuple[np.ndarray, DragOutcome]:
+               settle: bool = False, point_targets: np.ndarray | None = None) -> tuple[np.ndarray, DragOutcome]:
         """Solve for ``targets``; returns the positions and the outcome without changing the session.
 
         ``settle`` runs until converged, at most :data:`LOAD_ITERATIONS` iterations, instead of the per-update
@@ -276,7 +284,8 @@ class Session:
         iterations = max(self.params.iterations, LOAD_ITERATIONS) if settle else self.params.iterations
         kwargs: dict[str, Any] = {} if settle else {"tolerance": 0.0}
         try:
-            result = solver.solve(targets, initial=initial, max_iterations=iterations, **kwargs)
+            result = solver.solve(targets, initial=initial, max_iterations=iterations, point_targets=point_targets,
+                                  **kwargs)
         except ArapError as exc:
             raise RequestError("bad_message", str(exc)) from exc
         if not np.all(np.isfinite(result.vertices)):
@@ -302,8 +311,11 @@ class Session:
             raise RequestError("bad_constraints", "nothing to solve: select fixed vertices or handles first")
         T = matrices_from_json(transforms)
         targets = self.constraints.targets(T)
+        point_targets = self.constraints.point_targets(T)
         self._check_range(targets)
-        U, outcome = self._solve(self.solver, targets, None if self._warm else self.U)
+        if point_targets is not None:
+            self._check_range(point_targets)
+        U, outcome = self._solve(self.solver, targets, None if self._warm else self.U, point_targets=point_targets)
         self.U = U
         self.transforms = T
         self._warm = True
@@ -359,7 +371,8 @@ class Session:
 
         try:
             result = solver.solve(targets, initial=None if self._warm else self.U, callback=callback,
-                                  max_iterations=SETTLE_ITERATIONS)
+                                  max_iterations=SETTLE_ITERATIONS,
+                                  point_targets=self.constraints.point_targets(self.transforms))
         except ArapError as exc:
             self.settled = True
             raise RequestError("bad_message", str(exc)) from exc
@@ -435,7 +448,7 @@ class Session:
 
     def reset(self) -> None:
         """Back to the rest pose, keeping the selection (an undo step)."""
-        self._require_mesh()
+        mesh = self._require_mesh()
         self._commit_pending_drag()
         old = self.constraints
         at_rest = (self.U is self.V and old.pose is self.V
@@ -444,7 +457,8 @@ class Session:
             return
         groups = [g.tolist() for g in old.groups]
         roi = None if old.roi is None else old.roi.tolist()
-        cs = ConstraintSet.build(self.V, self.V, roi, old.fixed.tolist(), groups, stiffness=old.stiffness_json())
+        cs = ConstraintSet.build(self.V, self.V, roi, old.fixed.tolist(), groups, stiffness=old.stiffness_json(),
+                                 points=old.points_json(), faces=mesh.F)
         self.solver = self._solver_for(self.rest_id, self.V, cs, self.params)
         self.U = self.V
         self.constraints = cs
@@ -465,7 +479,8 @@ class Session:
             raise RequestError("bad_mesh", f"the deformed shape cannot become the rest pose: {exc}") from exc
         old = self.constraints
         cs = ConstraintSet.build(V, V, None if old.roi is None else old.roi.tolist(), old.fixed.tolist(),
-                                 [g.tolist() for g in old.groups], stiffness=old.stiffness_json())
+                                 [g.tolist() for g in old.groups], stiffness=old.stiffness_json(),
+                                 points=old.points_json(), faces=mesh.F)
         rest_id = self._new_rest_id()
         self.solver = self._solver_for(rest_id, V, cs, self.params)
         self.rest_id, self.V, self.U = rest_id, V, V

@@ -1,0 +1,244 @@
+"""The studio's point-handle mode and stiffness brush with real mouse input: a click places a point handle that
+the gizmo drags and the settled shape meets; painted stiffness reaches the server and stiffens the shape; both
+travel through a saved constraints file into a fresh page."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+from playwright.sync_api import Browser, Page, expect
+
+from tests.e2e.conftest import VIEWPORT, positions, screen_points, wait_idle, wait_ready, wait_settled
+from tests.e2e.test_session_safety import Dialogs, wait_autosaved
+from tests.e2e.test_studio import Shoot, box_select, drag_gizmo_x, paint_stroke
+
+pytestmark = pytest.mark.e2e
+
+
+def _diag(V: np.ndarray) -> float:
+    return float(np.linalg.norm(V.max(axis=0) - V.min(axis=0)))
+
+
+def _faces(page: Page) -> np.ndarray:
+    return np.asarray(page.evaluate("() => window.__arap.faces()"), dtype=np.int64).reshape(-1, 3)
+
+
+def _anchor_bottom(page: Page) -> np.ndarray:
+    """Box-select anchors at the bottom of the model; returns the screen points of every vertex."""
+    pts = screen_points(page)
+    ymin, ymax = pts[:, 1].min(), pts[:, 1].max()
+    xmin, xmax = pts[:, 0].min(), pts[:, 0].max()
+    page.get_by_test_id("role-fixed").click()
+    box_select(page, xmin - 10, ymax - 0.12 * (ymax - ymin), xmax + 10, ymax + 10)
+    wait_idle(page)
+    assert page.evaluate("() => window.__arap.counts().fixed") > 0
+    return pts
+
+
+def _place_point(page: Page, pts: np.ndarray) -> dict:
+    """Click the surface near the top of the model in point-handle mode; returns the new point handle."""
+    ymin, ymax = pts[:, 1].min(), pts[:, 1].max()
+    top = pts[pts[:, 1] <= ymin + 0.08 * (ymax - ymin)]
+    x, y = np.median(top, axis=0)
+    page.keyboard.press("5")
+    assert page.evaluate("() => window.__arap.role") == "point"
+    page.mouse.click(x, y + 4)
+    wait_idle(page)
+    handles = [h for h in page.evaluate("() => window.__arap.pointHandles()") if h]
+    assert len(handles) == 1, "the click placed no point handle"
+    return handles[0]
+
+
+def _saved_document(page: Page, tmp_path: Path, name: str) -> tuple[dict, Path]:
+    with page.expect_download() as info:
+        page.get_by_test_id("save-constraints").click()
+    path = tmp_path / name
+    info.value.save_as(path)
+    return json.loads(path.read_text()), path
+
+
+def _on_surface(U: np.ndarray, F: np.ndarray, point: dict) -> np.ndarray:
+    return np.asarray(point["barycentric"]) @ U[F[point["face"]]]
+
+
+def test_a_clicked_point_handle_is_dragged_and_met(page: Page, tmp_path: Path, browser: Browser,
+                                                   server_url: str, shoot: Shoot) -> None:
+    rest = positions(page)
+    F = _faces(page)
+    diag = _diag(rest)
+    pts = _anchor_bottom(page)
+    handle = _place_point(page, pts)
+    point = handle["point"]
+    assert abs(sum(point["barycentric"]) - 1) < 1e-12 and min(point["barycentric"]) >= 0
+    assert point["weight"] is None
+    c = page.evaluate("() => window.__arap.constraints()")
+    assert c["points"] == [{"face": point["face"], "barycentric": point["barycentric"]}]
+    # placing it was one undo step
+    page.keyboard.press("Control+Z")
+    page.wait_for_function("() => window.__arap.constraints().points.length === 0")
+    wait_idle(page)
+    page.keyboard.press("Control+Shift+Z")
+    page.wait_for_function("() => window.__arap.constraints().points.length === 1")
+    wait_idle(page)
+    assert page.evaluate("() => window.__arap.constraints()") == c
+    gizmo = page.evaluate("() => window.__arap.gizmo()")
+    assert gizmo is not None and gizmo["group"] == page.evaluate("() => window.__arap.activeGroup")
+    np.testing.assert_allclose(gizmo["centroid"], _on_surface(rest, F, point), atol=1e-5 * diag)
+
+    shoot("points-01-placed")
+    drag_gizmo_x(page)
+    assert page.evaluate("() => window.__arap.lastSeq") > 0, "no drag was answered"
+    wait_settled(page)
+    shoot("points-02-dragged")
+    U = positions(page)
+    doc, saved = _saved_document(page, tmp_path, "points.json")
+    assert doc["version"] == 2 and len(doc["points"]) == 1
+    target = np.asarray(doc["points"][0]["target"])
+    moved = np.linalg.norm(target - _on_surface(rest, F, point))
+    assert moved > 0.02 * diag, f"the point's target moved only {moved:.3g}"
+    assert np.abs(_on_surface(U, F, point) - target).max() < 1e-5 * diag, "the shape misses the point target"
+    marker = page.evaluate("() => window.__arap.pointHandles()")[handle_index(page)]["screen"]
+    expected = page.evaluate("(p) => window.__arap.project(p)", target.tolist())
+    assert np.hypot(marker[0] - expected[0], marker[1] - expected[1]) < 2.0, "the marker did not follow the surface"
+
+    # the saved file puts the point handle and the shape back in a fresh page
+    context = browser.new_context(viewport=VIEWPORT, accept_downloads=True)
+    fresh = context.new_page()
+    try:
+        fresh.goto(server_url)
+        wait_ready(fresh)
+        fresh.get_by_test_id("constraints-input").set_input_files(str(saved))
+        fresh.wait_for_function("() => window.__arap.constraints().points.length === 1")
+        wait_idle(fresh)
+        wait_settled(fresh)
+        assert fresh.evaluate("() => window.__arap.constraints().points") == c["points"]
+        assert np.abs(positions(fresh) - U).max() < 1e-4 * diag
+        assert not fresh.evaluate("() => window.__arap.errors"), "the server reported errors"
+    finally:
+        context.close()
+
+    # Ctrl+click on the marker removes it
+    x, y = page.evaluate("() => window.__arap.pointHandles()")[handle_index(page)]["screen"]
+    page.keyboard.down("Control")
+    page.mouse.click(x, y)
+    page.keyboard.up("Control")
+    wait_idle(page)
+    assert page.evaluate("() => window.__arap.constraints().points") == []
+    assert not page.evaluate("() => window.__arap.errors"), "the server reported errors"
+
+
+def handle_index(page: Page) -> int:
+    return next(k for k, h in enumerate(page.evaluate("() => window.__arap.pointHandles()")) if h)
+
+
+def test_painted_stiffness_reaches_the_server_and_stiffens(page: Page, tmp_path: Path, browser: Browser,
+                                                           server_url: str) -> None:
+    rest = positions(page)
+    diag = _diag(rest)
+    pts = _anchor_bottom(page)
+    ymin, ymax = pts[:, 1].min(), pts[:, 1].max()
+    top = pts[pts[:, 1] <= ymin + 0.03 * (ymax - ymin)]
+    page.get_by_test_id("role-handle").click()
+    tx, ty = top.mean(axis=0)
+    paint_stroke(page, tx - 6, ty + 8)
+    wait_idle(page)
+    middle = np.flatnonzero(np.abs(pts[:, 1] - (ymin + 0.5 * (ymax - ymin))) < 0.2 * (ymax - ymin))
+
+    drag_gizmo_x(page)
+    wait_settled(page)
+    soft = positions(page)
+    page.get_by_test_id("undo").click()
+    page.wait_for_function("() => window.__arap.canRedo === true")
+    wait_idle(page)
+
+    # paint the middle rigid with the mouse (three strokes across it)
+    page.keyboard.press("6")
+    page.get_by_test_id("stiffness-rigid").check()
+    assert page.evaluate("() => window.__arap.role") == "stiffness"
+    xs = pts[middle, 0]
+    y0, y1 = pts[middle, 1].min(), pts[middle, 1].max()
+    for y in np.linspace(y0, y1, int(np.ceil((y1 - y0) / 24)) + 1):
+        page.mouse.move(xs.min(), y)
+        page.mouse.down()
+        page.mouse.move(xs.max(), y, steps=8)
+        page.mouse.up()
+    wait_idle(page)
+    stiffness = page.evaluate("() => window.__arap.constraints().stiffness")
+    assert stiffness and stiffness[-1]["value"] == "rigid" and len(stiffness[-1]["vertices"]) > 10
+    painted = np.asarray(stiffness[-1]["vertices"])
+    doc, saved = _saved_document(page, tmp_path, "stiff.json")
+    assert doc["version"] == 2 and doc["stiffness"] == stiffness, "the server does not hold the paint"
+
+    drag_gizmo_x(page)
+    wait_settled(page)
+    stiff = positions(page)
+
+    def misfit(U: np.ndarray) -> float:
+        """How far the painted vertices are from a rigid motion of their rest positions."""
+        A, B = rest[painted] - rest[painted].mean(0), U[painted] - U[painted].mean(0)
+        u, _, vt = np.linalg.svd(A.T @ B)
+        R = (u @ vt).T
+        return float(np.abs(A @ R.T - B).max())
+
+    assert misfit(stiff) < 0.2 * misfit(soft), (misfit(stiff), misfit(soft))
+    assert misfit(stiff) < 1e-4 * diag
+
+    # the eraser paints back to 1
+    page.get_by_test_id("undo").click()  # back at rest, where the strokes were painted
+    page.wait_for_function("() => window.__arap.canRedo === true")
+    wait_idle(page)
+    page.get_by_test_id("stiffness-erase").check()
+    inside = pts[painted]
+    x, y = inside[np.argmin(np.linalg.norm(inside - np.median(inside, axis=0), axis=1))]
+    page.mouse.move(x, y)
+    page.mouse.down()
+    page.mouse.move(x + 6, y + 3, steps=4)
+    page.mouse.up()
+    wait_idle(page)
+    after = page.evaluate("() => window.__arap.constraints().stiffness")
+    assert sum(len(g["vertices"]) for g in after or []) < len(painted)
+
+    # a fresh page loads the saved paint
+    context = browser.new_context(viewport=VIEWPORT, accept_downloads=True)
+    fresh = context.new_page()
+    try:
+        fresh.goto(server_url)
+        wait_ready(fresh)
+        fresh.get_by_test_id("constraints-input").set_input_files(str(saved))
+        fresh.wait_for_function("() => (window.__arap.constraints().stiffness || []).length > 0")
+        wait_idle(fresh)
+        assert fresh.evaluate("() => window.__arap.constraints().stiffness") == stiffness
+        assert not fresh.evaluate("() => window.__arap.errors"), "the server reported errors"
+    finally:
+        context.close()
+    assert not page.evaluate("() => window.__arap.errors"), "the server reported errors"
+
+
+def test_point_handles_and_paint_are_autosaved_and_restored(page: Page) -> None:
+    pts = _anchor_bottom(page)
+    page.keyboard.press("6")
+    ymin, ymax = pts[:, 1].min(), pts[:, 1].max()
+    band = pts[np.abs(pts[:, 1] - (ymin + 0.5 * (ymax - ymin))) < 0.02 * (ymax - ymin)]
+    x, y = band[np.argmin(np.linalg.norm(band - np.median(band, axis=0), axis=1))]
+    paint_stroke(page, x, y)
+    wait_idle(page)
+    page.locator("#point-weight").fill("25")
+    page.locator("#point-weight").press("Enter")  # takes the weight and gives the keys back to the shortcuts
+    _place_point(page, pts)
+    before = page.evaluate("() => window.__arap.constraints()")
+    assert before["stiffness"] and before["stiffness"][0]["value"] == 10
+    assert len(before["points"]) == 1 and before["points"][0]["weight"] == 25
+    expect(page.get_by_test_id("group-list")).to_contain_text("soft 25")
+    wait_autosaved(page)
+    Dialogs(page, accept=True)  # the warning before unloading
+    page.reload()
+    wait_ready(page)
+    page.get_by_test_id("restore-accept").click()
+    page.wait_for_function("() => window.__arap.constraints().points.length === 1")
+    wait_ready(page)
+    wait_idle(page)
+    assert page.evaluate("() => window.__arap.constraints()") == before
+    assert not page.evaluate("() => window.__arap.errors"), "the server reported errors"

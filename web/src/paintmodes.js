@@ -1,0 +1,70 @@
+// The panel's controls of the point-handle mode and the stiffness brush: the brush's strength (log slider, or
+// rigid), its eraser, and the weight of new point handles (empty: hard).
+import { sliderToStiffness, stiffnessLabel } from './stiffness.js';
+
+const $ = (id) => /** @type {HTMLInputElement} */ (document.getElementById(id));
+
+export class PaintModes {
+  /**
+   * @param {object} opts selection (its stiffnessValue is what the brush paints), setRole(role),
+   *   onWeightProblem(text)
+   */
+  constructor({ selection, setRole, onWeightProblem }) {
+    this.selection = selection;
+    this.onWeightProblem = onWeightProblem;
+    this.slider = $('stiffness');
+    this.rigid = $('stiffness-rigid');
+    this.eraser = $('stiffness-erase');
+    this.weightInput = $('point-weight');
+    document.getElementById('role-seg-2').addEventListener('click', (e) => {
+      const b = /** @type {Element} */ (e.target).closest('button');
+      if (b instanceof HTMLButtonElement && !b.disabled) setRole(b.dataset.role);
+    });
+    const strength = () => {
+      this._update();
+      setRole('stiffness');
+    };
+    this.slider.addEventListener('input', strength);
+    this.rigid.addEventListener('change', strength);
+    this.eraser.addEventListener('change', strength);
+    this.weightInput.addEventListener('change', () => {
+      this.weight();
+      setRole('point');
+    });
+    // Enter takes the weight and hands the keys back to the shortcuts
+    this.weightInput.addEventListener('keydown', (e) => {
+      if (e.key === 'Enter') this.weightInput.blur();
+    });
+    this._update();
+  }
+
+  _update() {
+    const value = this.rigid.checked ? Infinity : sliderToStiffness(Number(this.slider.value));
+    this.selection.stiffnessValue = value;
+    this.slider.disabled = this.rigid.checked;
+    document.getElementById('stiffness-val').textContent = stiffnessLabel(value);
+  }
+
+  /** Whether a stroke in `role` removes (the modifier held, or the stiffness eraser on). */
+  subtract(role, modifier) {
+    return modifier || (role === 'stiffness' && this.eraser.checked);
+  }
+
+  /** The weight of new point handles: null (hard) when the field is empty or not a positive number. */
+  weight() {
+    const text = this.weightInput.value.trim();
+    if (!text) return null;
+    const w = Number(text);
+    if (Number.isFinite(w) && w > 0) return w;
+    this.onWeightProblem(`Point weight must be a positive number (or empty for a hard handle), not "${text}".`);
+    this.weightInput.value = '';
+    return null;
+  }
+
+  /** Mark the active buttons of the second row of roles. */
+  showRole(role) {
+    for (const b of document.querySelectorAll('#role-seg-2 button')) {
+      b.classList.toggle('active', /** @type {HTMLElement} */ (b).dataset.role === role);
+    }
+  }
+}

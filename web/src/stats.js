@@ -1,0 +1,48 @@
+// The statistics of live updates: the energy plots (per iteration of the last update, and per update) and the
+// updates per second, which decay to zero once dragging stops.
+import { LinePlot } from './plot.js';
+
+export class UpdateStats {
+  /**
+   * @param {object} opts panel (its setStats), latencyMs() (the connection's last round trip, or null)
+   */
+  constructor({ panel, latencyMs }) {
+    this.panel = panel;
+    this.latencyMs = latencyMs;
+    this.updateTimes = []; // when each solved update of the last second arrived
+    this.iterPlot = new LinePlot(document.getElementById('plot-iter'), { color: '#4c9aff', xLabel: 'iterations' });
+    this.timePlot = new LinePlot(document.getElementById('plot-time'),
+      { color: '#f0883e', xLabel: 'updates', maxPoints: 300 });
+    setInterval(() => {
+      if (this.updateTimes.length) this.panel().setStats({ ups: this._ups() });
+    }, 500);
+  }
+
+  _ups() {
+    const now = performance.now();
+    while (this.updateTimes.length && now - this.updateTimes[0] > 1000) this.updateTimes.shift();
+    return this.updateTimes.length;
+  }
+
+  /** A new mesh: the plots start over. */
+  reset() {
+    this.updateTimes = [];
+    this.iterPlot.clear();
+    this.timePlot.clear();
+  }
+
+  /** A vertices frame of a solve (iterations > 0): its energies, timings and the update rate. */
+  frame(msg) {
+    this.updateTimes.push(performance.now());
+    const energies = (msg.energies || []).filter((e) => e !== null);
+    this.iterPlot.set(energies);
+    if (energies.length) this.timePlot.push(energies[energies.length - 1]);
+    document.getElementById('energy-note').hidden = !energies.some((e) => e < 0);
+    const latency = this.latencyMs();
+    this.panel().setStats({
+      ms_per_iteration: msg.ms_per_iteration,
+      ups: this._ups(),
+      latency_ms: msg.seq >= 0 && latency !== null ? latency : msg.solve_ms,
+    });
+  }
+}
