@@ -1,6 +1,9 @@
-// Transform gizmo on the active handle group and the per-group transforms sent while dragging.
+// Transform gizmo on the active handle group and the per-group transforms sent while dragging. The group's matrix
+// is the one source of truth: the gizmo's pivot object is placed from it (and from the group's vertices), moved
+// by the pointer, and each move turns into the matrix again.
 import * as THREE from 'three';
-import { TransformControls } from 'three/addons/controls/TransformControls.js';
+import { RingControls } from './ringcontrols.js';
+import { gridStep, rotationOf } from './transform.js';
 
 const IDENTITY = new THREE.Matrix4().elements.slice();
 
@@ -8,20 +11,33 @@ export class HandleGizmo {
   /**
    * @param {import('./viewer.js').Viewer} viewer
    * @param {object} opts onDragStart() (return false to refuse the drag), onDrag(), onDragEnd(),
-   *   onDraggingChanged(bool)
+   *   onDraggingChanged(bool), onPivot() (the active group's pivot was placed or reset)
    */
   constructor(viewer, opts) {
     this.viewer = viewer;
     this.opts = opts;
     this.pivot = new THREE.Object3D();
     viewer.scene.add(this.pivot);
-    this.controls = new TransformControls(viewer.camera, viewer.canvas);
+    this.controls = new RingControls(viewer.camera, viewer.canvas);
     this.controls.setSize(0.75);
     this.helper = this.controls.getHelper();
     viewer.scene.add(this.helper);
+    this.marker = new THREE.Mesh(new THREE.SphereGeometry(1, 16, 12),
+      new THREE.MeshBasicMaterial({ color: 0xffffff, depthTest: false, transparent: true, opacity: 0.9 }));
+    this.marker.renderOrder = 10;
+    this.marker.visible = false;
+    this.marker.raycast = () => {};
+    this.marker.onBeforeRender = () => { // a constant size on screen, whatever the zoom
+      this.marker.scale.setScalar(6 * viewer.worldPerPixel(this.marker.position));
+      this.marker.updateMatrixWorld(true);
+    };
+    viewer.scene.add(this.marker);
     this.matrices = []; // one THREE.Matrix4 per client handle group
+    this.pivots = []; // per group: the placed pivot in the group's untransformed frame, or null (the centroid)
     this.group = -1;
     this.indices = [];
+    this.previewing = false;
+    this._saved = null; // the group's positions before a preview: {indices, xyz}
     this.weights = null;
     this._base = new THREE.Matrix4();
     this._baseInv = new THREE.Matrix4();
@@ -60,23 +76,57 @@ export class HandleGizmo {
     this.controls.setMode(mode);
   }
 
+  /** Axes of the gizmo: 'world', or 'local' (the axes of the group's accumulated rotation). */
+  get space() {
+    return this.controls.space;
+  }
+
+  setSpace(space) {
+    this.controls.setSpace(space);
+    this.recenter();
+  }
+
+  /** Snap every move (true), or only while Ctrl/⌘ is held (false). */
+  setSnap(on) {
+    this.controls.snapAlways = on;
+  }
+
+  get gridStep() {
+    return this.controls.gridStep;
+  }
+
+  /** A new mesh: placed pivots are dropped and the translation grid follows the model's size. */
+  meshChanged() {
+    this._saved = null; // a preview's positions belong to the mesh gone
+    this.previewing = false;
+    this.pivots = this.matrices.map(() => null);
+    this.controls.gridStep = gridStep(this.viewer.geometry?.boundingBox ?? null);
+  }
+
   /** Keep one matrix per client group, new groups start at identity. */
   syncGroups(nGroups) {
     while (this.matrices.length < nGroups) this.matrices.push(new THREE.Matrix4());
     this.matrices.length = nGroups;
+    while (this.pivots.length < nGroups) this.pivots.push(null);
+    this.pivots.length = nGroups;
   }
 
+  /** Every group back to identity (a new constraint set: its frame is the current pose); pivots stay put. */
   resetTransforms() {
-    for (const m of this.matrices) m.identity();
+    this.matrices.forEach((m, g) => {
+      if (this.pivots[g]) this.pivots[g].applyMatrix4(m);
+      m.identity();
+    });
   }
 
   /** Server transforms (server group k = client group groupMap[k]). */
   setTransforms(transforms, groupMap) {
-    this.resetTransforms();
+    for (const m of this.matrices) m.identity();
     (transforms || []).forEach((t, k) => {
       const g = groupMap[k];
       if (g !== undefined && this.matrices[g] && Array.isArray(t) && t.length === 16) this.matrices[g].fromArray(t);
     });
+    this.recenter();
   }
 
   /**
@@ -90,6 +140,7 @@ export class HandleGizmo {
     this.weights = weights;
     if (!indices.length || !this.viewer.mesh) {
       this.controls.detach();
+      this.marker.visible = false;
       this.viewer.requestRender();
       return;
     }
@@ -98,9 +149,49 @@ export class HandleGizmo {
     this.viewer.requestRender();
   }
 
-  /** Put the pivot at the centroid of the group's current positions (or their weighted combination). */
+  /** True when the active group has a placed pivot (rather than its centroid). */
+  get pivotPlaced() {
+    return !!this.pivots[this.group];
+  }
+
+  /** Turn the active group about the world point p from now on. */
+  placePivot(p) {
+    const m = this.matrices[this.group];
+    if (!m || !this.indices.length) return;
+    this.pivots[this.group] = new THREE.Vector3(p[0], p[1], p[2]).applyMatrix4(m.clone().invert());
+    this.opts.onPivot?.();
+    this.recenter();
+  }
+
+  /** The active group's pivot back to its centroid. */
+  resetPivot() {
+    if (this.group >= 0 && this.group < this.pivots.length) this.pivots[this.group] = null;
+    this.opts.onPivot?.();
+    this.recenter();
+  }
+
+  /** Put the pivot at the group's placed pivot or at its centroid (a point handle: its point). */
   recenter() {
-    if (this.controls.dragging || !this.indices.length) return;
+    if (this.controls.dragging || this.previewing || !this.indices.length) return;
+    const m = this.matrices[this.group] || new THREE.Matrix4();
+    const placed = this.pivots[this.group];
+    if (placed) this.pivot.position.copy(placed).applyMatrix4(m);
+    else this.pivot.position.fromArray(this.centroid);
+    this.pivot.quaternion.copy(rotationOf(m)); // the local axes (world axes ignore it)
+    this.pivot.scale.set(1, 1, 1);
+    this.pivot.updateMatrixWorld(true);
+    this._showMarker(!!placed);
+    this.viewer.requestRender();
+  }
+
+  _showMarker(on) {
+    this.marker.visible = on;
+    if (!on) return;
+    this.marker.position.copy(this.pivot.position);
+  }
+
+  /** Centroid of the active group's current positions (a point handle: its point, the weighted corners). */
+  get centroid() {
     const pos = this.viewer.positions;
     let x = 0;
     let y = 0;
@@ -112,15 +203,86 @@ export class HandleGizmo {
       y += w * pos[3 * i + 1];
       z += w * pos[3 * i + 2];
     });
-    this.pivot.position.set(x, y, z);
-    this.pivot.quaternion.identity();
-    this.pivot.scale.set(1, 1, 1);
+    return [x, y, z];
+  }
+
+  /** World position of the pivot the active group turns about. */
+  get pivotWorld() {
+    return this.pivot.position.toArray();
+  }
+
+  /** Unit vector of axis 'x', 'y' or 'z' in the gizmo's space. */
+  axisVector(letter) {
+    const v = new THREE.Vector3(letter === 'x' ? 1 : 0, letter === 'y' ? 1 : 0, letter === 'z' ? 1 : 0);
+    if (this.space === 'local') v.applyQuaternion(rotationOf(this.matrices[this.group] || new THREE.Matrix4()));
+    return v;
+  }
+
+  /** Show the gizmo where `matrix` (the active group's whole transform) would put it, without sending it. */
+  preview(matrix) {
+    const m = this.matrices[this.group];
+    if (!m || this.controls.dragging) return;
+    if (!this.previewing) {
+      this.recenter();
+      this.pivot.updateMatrix();
+      this._base.copy(this.pivot.matrix);
+      this.previewing = true;
+    }
+    const delta = matrix.clone().multiply(m.clone().invert());
+    if (!this.weights) this._moveHandle(delta); // a point handle's triangle is not its own: only the gizmo moves
+    delta.multiply(this._base).decompose(this.pivot.position, this.pivot.quaternion, this.pivot.scale);
     this.pivot.updateMatrixWorld(true);
+    this._showMarker(this.pivotPlaced);
     this.viewer.requestRender();
   }
 
-  get centroid() {
-    return this.pivot.position.toArray();
+  /** Show the group's vertices moved rigidly by `delta` (their positions before the preview are kept). */
+  _moveHandle(delta) {
+    const pos = this.viewer.positions;
+    if (!this._saved) {
+      const xyz = Float32Array.from(this.indices.flatMap((i) => [pos[3 * i], pos[3 * i + 1], pos[3 * i + 2]]));
+      this._saved = { indices: this.indices, xyz };
+    }
+    const v = new THREE.Vector3();
+    this._saved.indices.forEach((i, k) => {
+      v.fromArray(this._saved.xyz, 3 * k).applyMatrix4(delta);
+      pos[3 * i] = v.x;
+      pos[3 * i + 1] = v.y;
+      pos[3 * i + 2] = v.z;
+    });
+    this.viewer.updatePositions(pos);
+  }
+
+  /** Drop the preview: the group's vertices and the gizmo go back to the group's transform. */
+  cancelPreview() {
+    if (this._saved) {
+      const pos = this.viewer.positions;
+      this._saved.indices.forEach((i, k) => pos.set(this._saved.xyz.subarray(3 * k, 3 * k + 3), 3 * i));
+      this.viewer.updatePositions(pos);
+    }
+    this._saved = null;
+    this.previewing = false;
+    this.recenter();
+  }
+
+  /**
+   * Make `matrix` the active group's transform and send it as a whole drag (drag, then end_drag); false when the
+   * drag is refused (the selection is not on the server yet).
+   */
+  apply(matrix) {
+    const m = this.matrices[this.group];
+    if (!m || this.controls.dragging) return false;
+    if (this.opts.onDragStart?.() === false) {
+      this.cancelPreview();
+      return false;
+    }
+    this.preview(matrix);
+    m.copy(matrix);
+    this.opts.onDrag();
+    this.opts.onDragEnd();
+    this._saved = null; // the server's frames take over from the preview
+    this.previewing = false;
+    return true;
   }
 
   _begin() {
@@ -134,6 +296,7 @@ export class HandleGizmo {
     if (this.refused || this.group < 0 || !this.matrices[this.group]) return;
     this.pivot.updateMatrix();
     this.matrices[this.group].multiplyMatrices(this.pivot.matrix, this._baseInv).multiply(this._start);
+    if (this.pivotPlaced) this._showMarker(true);
     this.opts.onDrag();
   }
 

@@ -1,21 +1,52 @@
 // Read-only view of the studio state on `window.__arap`, for automated browser tests and debugging.
 import { computeNormals } from './normals.js';
 
-/** Screen position of the gizmo and of points on its axes (CSS pixels relative to the canvas). */
-function gizmoInfo(viewer, gizmo) {
+/** Screen position of the gizmo, of points on its axes and on its rotate rings (CSS pixels relative to the canvas). */
+function gizmoInfo(viewer, gizmo, transformUi) {
   if (!gizmo.controls.object) return null;
-  const c = gizmo.centroid;
+  const c = gizmo.pivotWorld;
   const cam = viewer.camera;
   // TransformControls scales its helper to a constant screen size; its arrow pickers span 0..0.6 of that
   const scale = (cam.position.distanceTo(gizmo.pivot.position) * 1.9 * Math.tan((Math.PI * cam.fov) / 360) * gizmo.controls.size) / 4;
+  const at = (d, r) => viewer.project([c[0] + d.x * r, c[1] + d.y * r, c[2] + d.z * r]);
   const axes = {};
-  for (const [name, d] of Object.entries({ x: [1, 0, 0], y: [0, 1, 0], z: [0, 0, 1] })) {
-    axes[name] = viewer.project([c[0] + d[0] * scale * 0.45, c[1] + d[1] * scale * 0.45, c[2] + d[2] * scale * 0.45]);
+  const rings = {};
+  const eye = cam.position.clone().sub(gizmo.pivot.position).normalize();
+  for (const name of ['x', 'y', 'z', 'e']) {
+    const a = name === 'e' ? eye : gizmo.axisVector(name);
+    if (name !== 'e') axes[name] = at(a, scale * 0.45);
+    const radius = name === 'e' ? 0.75 : 0.5;
+    // the ring about the axis (the view ring E about the line of sight), as 72 points (every 5°)
+    const u = Math.abs(a.x) < 0.9 ? a.clone().set(1, 0, 0) : a.clone().set(0, 1, 0);
+    u.sub(a.clone().multiplyScalar(u.dot(a))).normalize();
+    const v = a.clone().cross(u);
+    rings[name] = Array.from({ length: 72 }, (_, k) => {
+      const phi = (k * Math.PI) / 36;
+      return at(u.clone().multiplyScalar(Math.cos(phi)).addScaledVector(v, Math.sin(phi)), scale * radius);
+    });
   }
-  return { group: gizmo.group, centroid: c, screen: viewer.project(c), axes, mode: gizmo.controls.mode };
+  return {
+    group: gizmo.group,
+    centroid: gizmo.centroid,
+    pivot: c,
+    pivotPlaced: gizmo.pivotPlaced,
+    placing: transformUi.picker.placing,
+    screen: viewer.project(c),
+    camera: cam.position.toArray(),
+    axes,
+    rings,
+    mode: gizmo.controls.mode,
+    space: gizmo.space,
+    hover: gizmo.controls.axis,
+    dragging: gizmo.dragging,
+    snapping: gizmo.controls.snapping,
+    gridStep: gizmo.gridStep,
+    matrix: Array.from(gizmo.matrices[gizmo.group]?.elements ?? []),
+    pivotMatrix: Array.from(gizmo.pivot.matrix.elements),
+  };
 }
 
-export function installTestHook({ app, viewer, selection, gizmo, conn, keeper, points, mirror }) {
+export function installTestHook({ app, viewer, selection, gizmo, conn, keeper, points, mirror, transformUi }) {
   const toPage = ([x, y]) => {
     const r = viewer.canvas.getBoundingClientRect();
     return [x + r.left, y + r.top];
@@ -129,15 +160,20 @@ export function installTestHook({ app, viewer, selection, gizmo, conn, keeper, p
     },
     /** The mirror partner of each client handle group (-1: none). */
     partners: () => mirror.partners(),
-    /** The client's matrix of each handle group (column-major 4×4). */
-    transforms: () => gizmo.matrices.map((m) => Array.from(m.elements)),
     /** Page coordinates (CSS pixels) of a world point. */
     project: (p) => toPage(viewer.project(p)),
     gizmo: () => {
-      const g = gizmoInfo(viewer, gizmo);
+      const g = gizmoInfo(viewer, gizmo, transformUi);
       if (!g) return null;
       const axes = Object.fromEntries(Object.entries(g.axes).map(([k, v]) => [k, toPage(v)]));
-      return { ...g, screen: toPage(g.screen), axes };
+      const rings = Object.fromEntries(Object.entries(g.rings).map(([k, v]) => [k, v.map(toPage)]));
+      return { ...g, screen: toPage(g.screen), axes, rings };
+    },
+    /** Every client group's transform (column-major 4×4), as the next drag would send it. */
+    transforms: () => gizmo.matrices.map((m) => Array.from(m.elements)),
+    /** What the typed-transform line shows, or null when no transform is being typed. */
+    get typing() {
+      return transformUi.entry.active ? transformUi.entry.line.textContent : null;
     },
   });
 }

@@ -4,13 +4,13 @@ import { Connection, defaultSocketUrl } from './connection.js';
 import {
   checkMeshFile, downloadConstraints, downloadExport, installDropTarget, readConstraintsFile,
 } from './files.js';
-import { HandleGizmo } from './gizmo.js';
 import { HeatMap } from './heatmap.js';
 import { describedKeys, Help } from './help.js';
 import { installTestHook } from './hook.js';
 import { installHud } from './hud.js';
 import { SessionKeeper } from './keeper.js';
 import { ignoreTypeAhead, installShortcuts, releaseFocusAfterPointerUse } from './keys.js';
+import { installManipulation } from './manipulate.js';
 import { MirrorEditing } from './mirror.js';
 import { Panel } from './panel.js';
 import { LivePose } from './livepose.js';
@@ -68,25 +68,9 @@ const keeper = new SessionKeeper({
   offerParent: document.getElementById('viewport'),
 });
 
-const gizmo = new HandleGizmo(viewer, {
-  onDragStart: () => {
-    if (selectionSynced()) return true;
-    const pending = app.sentKey !== null;
-    panel.showStatus(pending
-      ? 'The new selection is still being set up; try again in a moment.'
-      : 'The server has not accepted the current selection (see the previous message); change it or undo.',
-    'error', pending ? 3000 : 0);
-    return false;
-  },
-  onDrag: () => {
-    mirror.follow(gizmo, gizmo.group); // the partner group moves by the mirrored transform in the same message
-    conn.drag(gizmo.transformsFor(app.groupMap));
-  },
-  onDragEnd: () => {
-    conn.endDrag();
-    app.awaitingState = true;
-  },
-  onDraggingChanged: () => {},
+const { gizmo, transformUi } = installManipulation({
+  app, viewer, selection, mirror, connection: () => conn,
+  status: (...a) => panel.showStatus(...a), hush: () => panel.hideStatus(),
 });
 const tools = new SelectionTools(viewer, {
   isGizmoActive: () => gizmo.active,
@@ -177,16 +161,6 @@ function updateGroupsUi() {
   points.refresh();
 }
 
-/** True when the server holds the local selection (so drags refer to the groups shown). */
-function selectionSynced() {
-  if (selection.version === app.syncedVersion) return true;
-  if (app.sentKey === null && constraintsKey(selection.toConstraints()) === app.serverKey) {
-    app.syncedVersion = selection.version;
-    return true;
-  }
-  return false;
-}
-
 /**
  * Send the local selection as the session's constraint set; `targets` (a Map from handle vertex to [x, y, z],
  * from a loaded file) moves the handles there, as `pointTargets` (one [x, y, z] or null per point handle) does the
@@ -262,6 +236,7 @@ function onMesh(msg) {
   selection.reset(msg.n_vertices);
   gizmo.syncGroups(1);
   gizmo.resetTransforms();
+  transformUi.meshChanged();
   app.meshName = msg.name;
   app.nFaces = msg.n_faces;
   app.lastSeq = -1;
@@ -486,6 +461,7 @@ installShortcuts({
     m: () => mirror.setOn(!mirror.on),
     '?': () => help.toggle(),
     escape: () => (help.shown ? help.hide() : panel.hideStatus()),
+    ...transformUi.keys,
   }),
 });
 installSurfaceControls(surface, tools, (text) => panel.showStatus(text, 'info', 3000));
@@ -495,7 +471,7 @@ releaseFocusAfterPointerUse(document.getElementById('panel'));
 
 installDropTarget(document.getElementById('viewport'), document.getElementById('drop-overlay'), uploadFile);
 
-installTestHook({ app, viewer, selection, gizmo, conn, keeper, points, mirror });
+installTestHook({ app, viewer, selection, gizmo, conn, keeper, points, mirror, transformUi });
 
 // ------------------------------------------------------------------ start
 

@@ -208,6 +208,20 @@ export class MirrorEditing {
   }
 
   /**
+   * The active group's pivot was placed or reset: with mirror editing on, its partner's pivot becomes the mirror
+   * image (or its centroid too), so dragging either side turns both about mirrored points.
+   * @param {{pivots: (THREE.Vector3|null)[]}} gizmo pivots in each group's untransformed frame
+   * @param {number} group client handle group
+   */
+  followPivot(gizmo, group) {
+    if (!this.active) return;
+    const p = this.selection.partnerOf(group);
+    if (p < 0 || p >= gizmo.pivots.length) return;
+    const q = gizmo.pivots[group];
+    gizmo.pivots[p] = q ? q.clone().applyMatrix4(this.matrix) : null;
+  }
+
+  /**
    * Pair the unpaired handle groups that are each other's exact mirror image (after the groups were rebuilt from
    * the server's constraints, an undo or a file without pairs).
    */

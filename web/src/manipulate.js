@@ -1,0 +1,52 @@
+// Moving handle groups: the gizmo on the active group, the pivot, axes, snapping and typed-transform controls
+// (transformui.js), and the drags they send. Every change of a group's transform (a pointer drag, a typed G/R +
+// Enter, the panel's Apply) reaches the server through `onDrag` below, where mirror editing first moves the
+// group's partner by the mirrored transform, so both travel in the same drag message.
+import { HandleGizmo } from './gizmo.js';
+import { constraintsKey } from './selection.js';
+import { installTransformUi } from './transformui.js';
+
+/** True when the server holds the local selection (so drags refer to the groups shown). */
+function selectionSynced(app, selection) {
+  if (selection.version === app.syncedVersion) return true;
+  if (app.sentKey === null && constraintsKey(selection.toConstraints()) === app.serverKey) {
+    app.syncedVersion = selection.version;
+    return true;
+  }
+  return false;
+}
+
+/**
+ * Create the gizmo and its controls. Call it before the selection tools and the orbit controls are created (the
+ * gizmo and the pivot's click on the surface see pointer events first).
+ * @param {object} opts app (the studio state), viewer, selection, mirror (MirrorEditing), connection() (the
+ *   Connection, created later), status(text, kind, ms) and hush() (the status line)
+ * @returns {{gizmo: HandleGizmo, transformUi: ReturnType<typeof installTransformUi>}}
+ */
+export function installManipulation({ app, viewer, selection, mirror, connection, status, hush }) {
+  const gizmo = new HandleGizmo(viewer, {
+    onDragStart: () => {
+      if (selectionSynced(app, selection)) return true;
+      const pending = app.sentKey !== null;
+      status(pending
+        ? 'The new selection is still being set up; try again in a moment.'
+        : 'The server has not accepted the current selection (see the previous message); change it or undo.',
+      'error', pending ? 3000 : 0);
+      return false;
+    },
+    onDrag: () => {
+      mirror.follow(gizmo, gizmo.group); // the partner group moves by the mirrored transform in the same message
+      connection().drag(gizmo.transformsFor(app.groupMap));
+    },
+    onDragEnd: () => {
+      connection().endDrag();
+      app.awaitingState = true;
+    },
+    onPivot: () => mirror.followPivot(gizmo, gizmo.group), // the partner turns about the mirrored pivot
+    onDraggingChanged: () => {},
+  });
+  const transformUi = installTransformUi({
+    viewer, gizmo, canStart: () => app.ready, say: (text) => status(text, 'info', 4000), hush,
+  });
+  return { gizmo, transformUi };
+}

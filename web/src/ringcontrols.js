@@ -1,0 +1,177 @@
+// TransformControls whose rotate rings follow the pointer around the ring's centre, with snapping of rotations
+// (15° steps) and of translations (a grid step) while a modifier is held or snapping is switched on.
+import * as THREE from 'three';
+import { TransformControls } from 'three/addons/controls/TransformControls.js';
+import { ROTATION_SNAP_DEG, snapTo, sweptAngle } from './transform.js';
+
+const UNIT = { X: new THREE.Vector3(1, 0, 0), Y: new THREE.Vector3(0, 1, 0), Z: new THREE.Vector3(0, 0, 1) };
+const _v = new THREE.Vector3();
+const _q = new THREE.Quaternion();
+
+/**
+ * Rotation by the pointer: on an axis ring (X, Y, Z, in world or local axes) and on the view ring (E) the angle
+ * is the one the pointer sweeps around the pivot's projection on screen (counter-clockwise on screen turns
+ * counter-clockwise as seen from the camera); the free ball (XYZE) rolls like a trackball, one radian per ring
+ * radius of pointer travel. Translation is TransformControls' own.
+ */
+export class RingControls extends TransformControls {
+  constructor(camera, canvas) {
+    super(camera, canvas);
+    this.snapAlways = false; // snapping switched on in the panel
+    this.snapKey = false; // the modifier (Ctrl or ⌘) held during the drag
+    this.gridStep = 0; // translation snap step (model units)
+    this._muted = false;
+    this._ring = null; // state of the rotation under way
+    this._lastPointer = null; // the latest pointer of the drag (re-applied when the modifier changes)
+    const track = (e) => {
+      const held = e.ctrlKey || e.metaKey;
+      if (held === this.snapKey) return;
+      this.snapKey = held;
+      if (this.dragging && this._lastPointer) this.pointerMove(this._lastPointer); // snap (or not) at once
+    };
+    // capture on the window: seen before the controls' own pointer handlers on the canvas
+    for (const type of ['pointerdown', 'pointermove', 'keydown', 'keyup']) window.addEventListener(type, track, true);
+  }
+
+  /** TransformControls' internal state (the drag's start, the pivot's and the camera's world pose). */
+  get tc() {
+    return /** @type {any} */ (this);
+  }
+
+  /** True while moves snap (modifier held, or snapping switched on). */
+  get snapping() {
+    return this.snapAlways || this.snapKey;
+  }
+
+  dispatchEvent(event) {
+    if (!this._muted) super.dispatchEvent(event);
+  }
+
+  /** Pixel coordinates (relative to the canvas) of a pointer in normalised device coordinates. */
+  _pixels(pointer) {
+    const r = this.domElement.getBoundingClientRect();
+    return [((pointer.x + 1) / 2) * r.width, ((1 - pointer.y) / 2) * r.height];
+  }
+
+  _centrePixels() {
+    const v = _v.copy(this.tc.worldPosition).project(this.camera);
+    return this._pixels(v);
+  }
+
+  pointerDown(pointer) {
+    super.pointerDown(pointer);
+    this._ring = null;
+    if (!this.dragging || this.mode !== 'rotate' || pointer === null) return;
+    const axis = this.axis;
+    let worldAxis = null;
+    if (axis === 'X' || axis === 'Y' || axis === 'Z') {
+      worldAxis = UNIT[axis].clone();
+      if (this.space === 'local') worldAxis.applyQuaternion(this.tc.worldQuaternion);
+    } else if (axis === 'E') {
+      worldAxis = this.tc.eye.clone();
+    }
+    const start = this._pixels(pointer);
+    this._ring = {
+      worldAxis, // null: the free ball
+      quaternion: this.object.quaternion.clone(),
+      centre: this._centrePixels(),
+      last: start,
+      swept: 0, // unwrapped angle swept on screen (radians, counter-clockwise positive)
+      roll: new THREE.Quaternion(), // free ball: rotation accumulated so far
+    };
+  }
+
+  pointerMove(pointer) {
+    if (pointer !== null) this._lastPointer = pointer;
+    if (this.mode === 'rotate' && this._ring && this.dragging && pointer !== null) {
+      this._rotate(pointer);
+      return;
+    }
+    if (this.mode !== 'translate' || !this.snapping || !(this.gridStep > 0)) {
+      super.pointerMove(pointer);
+      return;
+    }
+    this._muted = true;
+    try {
+      super.pointerMove(pointer);
+    } finally {
+      this._muted = false;
+    }
+    if (!this.dragging || this.object === undefined) return;
+    this._snapTranslation();
+    this.dispatchEvent({ type: 'change' });
+    this.dispatchEvent({ type: 'objectChange' });
+  }
+
+  /** Round the move since the drag began to the grid, along the axes shown (world or local). */
+  _snapTranslation() {
+    const offset = _v.copy(this.object.position).sub(this.tc._positionStart);
+    const local = this.space === 'local' && this.axis !== 'XYZ';
+    if (local) offset.applyQuaternion(_q.copy(this.tc._quaternionStart).invert());
+    offset.set(snapTo(offset.x, this.gridStep), snapTo(offset.y, this.gridStep), snapTo(offset.z, this.gridStep));
+    if (local) offset.applyQuaternion(this.tc._quaternionStart);
+    this.object.position.copy(this.tc._positionStart).add(offset);
+  }
+
+  _rotate(pointer) {
+    const ring = this._ring;
+    const at = this._pixels(pointer);
+    if (pointer.button !== -1 && pointer.button !== undefined) return;
+    if (ring.worldAxis) {
+      ring.swept += sweptAngle(ring.centre, ring.last, at);
+      ring.last = at;
+      let angle = ring.swept * (ring.worldAxis.dot(this.tc.eye) < 0 ? -1 : 1);
+      if (this.snapping) angle = snapTo(angle, THREE.MathUtils.degToRad(ROTATION_SNAP_DEG));
+      this.tc.rotationAxis.copy(ring.worldAxis);
+      this.tc.rotationAngle = angle;
+      this.object.quaternion.setFromAxisAngle(ring.worldAxis, angle).multiply(ring.quaternion).normalize();
+    } else {
+      const dx = at[0] - ring.last[0];
+      const dy = ring.last[1] - at[1];
+      ring.last = at;
+      const travel = Math.hypot(dx, dy);
+      if (travel === 0) return;
+      const radius = Math.max(8, Math.hypot(...this._ringOffsetPixels(ring.centre)));
+      // the screen motion in world terms, and the axis that rolls the front of the ball that way
+      const right = _v.set(1, 0, 0).applyQuaternion(this.tc.cameraQuaternion).multiplyScalar(dx);
+      const motion = new THREE.Vector3(0, 1, 0).applyQuaternion(this.tc.cameraQuaternion).multiplyScalar(dy).add(right);
+      const axis = new THREE.Vector3().crossVectors(this.tc.eye, motion).normalize();
+      ring.roll.premultiply(_q.setFromAxisAngle(axis, travel / radius));
+      this.tc.rotationAxis.copy(axis);
+      this.tc.rotationAngle = travel / radius;
+      this.object.quaternion.copy(ring.roll).multiply(ring.quaternion).normalize();
+    }
+    this.dispatchEvent({ type: 'change' });
+    this.dispatchEvent({ type: 'objectChange' });
+  }
+
+  /** What the drag under way has done so far: 'Rotate Z: 45°', 'Move X: 0.05', or '' when none is under way. */
+  dragText() {
+    if (!this.dragging || this.object === undefined || this.axis === null) return '';
+    const axis = this.axis === 'E' ? 'view axis' : this.axis === 'XYZE' ? 'free' : this.axis;
+    if (this.mode === 'rotate') {
+      const q = this.object.quaternion.clone().multiply(this.tc._quaternionStart.clone().invert());
+      const turned = this._ring?.worldAxis ? this.tc.rotationAngle : 2 * Math.acos(Math.min(1, Math.abs(q.w)));
+      return `Rotate ${axis}: ${Number(THREE.MathUtils.radToDeg(turned).toFixed(1))}°`;
+    }
+    const d = this.object.position.clone().sub(this.tc._positionStart);
+    if (this.space === 'local' && this.axis !== 'XYZ') d.applyQuaternion(this.tc._quaternionStart.clone().invert());
+    const parts = ['x', 'y', 'z'].filter((c) => this.axis.includes(c.toUpperCase()));
+    return `Move ${this.axis}: ${parts.map((c) => Number(d[c].toPrecision(4))).join(', ')}`;
+  }
+
+  /** World size of the gizmo's unit (its handles keep a constant screen size; TransformControls' own factor). */
+  handleScale() {
+    const cam = /** @type {THREE.PerspectiveCamera} */ (this.camera);
+    const d = this.tc.worldPosition.distanceTo(this.tc.cameraPosition);
+    return (d * Math.min((1.9 * Math.tan((Math.PI * cam.fov) / 360)) / cam.zoom, 7) * this.size) / 4;
+  }
+
+  /** Screen offset (pixels) from the centre to a point of an axis ring (radius 0.5 of the gizmo's size). */
+  _ringOffsetPixels(centre) {
+    const scale = this.handleScale();
+    const up = _v.set(0, 1, 0).applyQuaternion(this.tc.cameraQuaternion).multiplyScalar(0.5 * scale);
+    const p = this._pixels(up.add(this.tc.worldPosition).project(this.camera));
+    return [p[0] - centre[0], p[1] - centre[1]];
+  }
+}
