@@ -562,6 +562,7 @@ class ArapSolver:
         residual = float("nan")
         residual_at = -2  # iteration whose iterate the residual was measured at (0: the start)
         rejected = 0
+        rhs_fresh = True
         for it in range(1, cap + 1):
             if fresh and len(history):
                 t = time.perf_counter()
@@ -584,22 +585,27 @@ class ArapSolver:
                 np.add(x, d, out=U[:nf])
                 e = self._local(U, const_E, timings)
             small = plain_size(d) <= CHECK_FACTOR * step_limit
-            fit_rhs(new_grad)
-            if fresh:
-                history.update(U[:nf], x, new_grad, grad)
+            check = not converged and step_limit > 0 and (small or it % CHECK_EVERY == 0)
+            rhs_fresh = it < cap or check  # the last iteration of a capped run (a drag) needs no gradient
+            if rhs_fresh:
+                fit_rhs(new_grad)
+                if fresh:
+                    history.update(U[:nf], x, new_grad, grad)
             x[:] = U[:nf]
             grad, new_grad = new_grad, grad
             fresh = True
             E_cur = e
             energies.append(e)
             stop = callback is not None and callback(it, e) is False
-            if not converged and step_limit > 0 and (small or it % CHECK_EVERY == 0):
+            if check:
                 residual, residual_at = plain_size(plain_step_from_here() - x) / scale, it
                 if residual * scale <= step_limit:
                     converged = True
             if converged or stop:
                 break
         if energies and residual_at < len(energies) - 1:
+            if not rhs_fresh:
+                fit_rhs(grad)
             residual = plain_size(plain_step_from_here() - x) / scale
         self._last = U
         self._live = None

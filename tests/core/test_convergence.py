@@ -68,6 +68,24 @@ def test_lbfgs_converges_where_anderson_stalls(camelhead: tuple[np.ndarray, np.n
     assert result.energies[-1] == pytest.approx(arap_energy(V, F, result.vertices, "spokes"), rel=1e-9)
 
 
+@pytest.mark.parametrize("cap", [1, 7, 10])
+def test_lbfgs_residual_is_the_plain_step_at_the_returned_shape(knight: tuple[np.ndarray, np.ndarray],
+                                                                cap: int) -> None:
+    V, F = knight
+    _, _, constrained, targets = bend_constraints(V, angle=1.0, shift=0.2)
+    solver = ArapSolver(V, F, constrained)
+    solver.solve(targets, max_iterations=3)
+    moved = targets + 0.02 * _diag(V)
+    result = solver.solve(moved, max_iterations=cap, acceleration="lbfgs")  # warm, capped: as a drag
+    plain = solver.global_step(solver.fit_rotations(result.vertices), moved)
+    free = np.setdiff1d(np.arange(len(V)), constrained)
+    expected = np.sqrt(((plain - result.vertices)[free] ** 2).sum()) / (_diag(V) * np.sqrt(len(free)))
+    if cap == 1:  # a one-iteration drag reports the plain step it took, from the previous shape
+        assert result.residual > 0
+    else:
+        assert result.residual == pytest.approx(expected, rel=1e-6)
+
+
 def test_lbfgs_keeps_the_plain_minimum_with_soft_points_and_warm_drags(
         icosphere: tuple[np.ndarray, np.ndarray]) -> None:
     """Soft point handles add their matrix and right-hand side to the gradient: L-BFGS must agree with the plain
