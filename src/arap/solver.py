@@ -555,8 +555,14 @@ class ArapSolver:
 
         scale = self._diagonal * np.sqrt(nf)
         x = U[:nf].copy()
-        grad, new_grad = fit_rhs(np.empty((nf, 3))), np.empty((nf, 3))
         fresh = E_cur is not None  # the rotations in self._R fit x
+        grad, new_grad = np.empty((nf, 3)), np.empty((nf, 3))
+        if fresh:
+            fit_rhs(grad)
+        else:  # stale rotations (a warm start towards new targets): the first step is the plain one, no gradient
+            t = time.perf_counter()
+            assemble_rhs(self._gather, self._R, rhs_const, rhs)
+            timings["rhs"] += time.perf_counter() - t
         energies: list[float] = []
         converged = False
         residual = float("nan")
