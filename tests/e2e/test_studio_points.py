@@ -225,6 +225,9 @@ def test_point_handles_and_paint_are_autosaved_and_restored(page: Page) -> None:
     x, y = band[np.argmin(np.linalg.norm(band - np.median(band, axis=0), axis=1))]
     paint_stroke(page, x, y)
     wait_idle(page)
+    expect(page.locator("#point-weight")).to_be_hidden()  # each mode shows its own settings
+    page.keyboard.press("5")
+    expect(page.get_by_test_id("stiffness-row")).to_be_hidden()
     page.locator("#point-weight").fill("25")
     page.locator("#point-weight").press("Enter")  # takes the weight and gives the keys back to the shortcuts
     _place_point(page, pts)

@@ -61,10 +61,14 @@ export class PaintModes {
     return null;
   }
 
-  /** Mark the active buttons of the second row of roles. */
+  /** Mark the active buttons of the second row of roles; show each mode's settings only while it is chosen. */
   showRole(role) {
     for (const b of document.querySelectorAll('#role-seg-2 button')) {
       b.classList.toggle('active', /** @type {HTMLElement} */ (b).dataset.role === role);
     }
+    const stiffnessRow = document.getElementById('stiffness-row');
+    const pointRow = document.getElementById('point-row');
+    if (stiffnessRow) stiffnessRow.hidden = role !== 'stiffness';
+    if (pointRow) pointRow.hidden = role !== 'point';
   }
 }
