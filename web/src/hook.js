@@ -68,6 +68,10 @@ export function installTestHook({ app, viewer, selection, gizmo, conn, keeper, p
     get meshMs() {
       return app.meshMs;
     },
+    /** Wall-clock times (ms since the epoch) of the last upload: chosen, read, sent, received, shown, drawn. */
+    get uploadAt() {
+      return { ...app.uploadAt };
+    },
     get messages() {
       return app.messages;
     },
