@@ -84,26 +84,63 @@ def _upload(page: Page, mesh: Path) -> float:
     return 1000 * (time.perf_counter() - t0)
 
 
-def _upload_to_ready(browser: Browser, http: str, mesh: Path) -> tuple[float, float]:
+def _server_upload_times(log: Path, name: str) -> dict[str, Any]:
+    """The server's step times of its last upload of ``name`` (its INFO line), or an empty dict."""
+    found: dict[str, Any] = {}
+    for line in log.read_text(errors="replace").splitlines() if log.is_file() else []:
+        if "upload timings " in line:
+            entry = json.loads(line.split("upload timings ", 1)[1])
+            if entry.get("name") == name:
+                found = entry
+    return found
+
+
+def upload_timeline(page_at: dict[str, float], server: dict[str, Any], mesh_js_ms: float) -> list[tuple[str, float]]:
+    """Upload-to-ready split into its steps (ms), from the page's wall-clock marks and the server's log line."""
+    steps: list[tuple[str, float]] = [("page reads the file", page_at["read"] - page_at["chosen"]),
+                                      ("page frames and hands it to its WebSocket", page_at["sent"] - page_at["read"])]
+    if server:
+        arrived = 1000 * server["arrived"]
+        mesh_sent = 1000 * server["mesh_sent"]
+        steps += [("transfer to the server (until received whole)", arrived - page_at["sent"]),
+                  ("server: frame decoded", server["decode_ms"]), ("server: waiting in the queue", server["queued_ms"]),
+                  ("server: parse and repair (in place, under load)", server["parse_repair_ms"]),
+                  ("server: mesh message encoded", server["encode_ms"]),
+                  ("server: mesh message handed to the socket", server["send_mesh_ms"]),
+                  ("transfer to the page (until its message event)", page_at["received"] - mesh_sent)]
+    else:
+        steps.append(("transfer, server and transfer back", page_at["received"] - page_at["sent"]))
+    steps += [("page JavaScript for the mesh message", mesh_js_ms),
+              ("first frame drawn (SwiftShader)", page_at.get("drawn", float("nan")) - page_at["shown"])]
+    return steps
+
+
+def _upload_to_ready(browser: Browser, http: str, mesh: Path,
+                     log: Path) -> tuple[float, float, list[tuple[str, float]]]:
     """Upload-to-ready on a page of its own whose WebSocket is not relayed through Playwright (a relayed one
-    carries every byte through this process), and the page's JavaScript time for the mesh message."""
+    carries every byte through this process), the page's JavaScript time for the mesh message, and the steps."""
     page = browser.new_page(viewport={"width": 1280, "height": 800})
     page.goto(http)
     ready_ms = _upload(page, mesh)
     mesh_js_ms = float(page.evaluate("() => (typeof window.__arap.meshMs === 'number' ? window.__arap.meshMs : NaN)"))
+    page.wait_for_function("() => window.__arap.uploadAt.drawn !== undefined", timeout=60_000)
+    page_at = page.evaluate("() => window.__arap.uploadAt")
     page.close()
-    return ready_ms, mesh_js_ms
+    time.sleep(0.2)  # the server's log line is written after the state is sent
+    return ready_ms, mesh_js_ms, upload_timeline(page_at, _server_upload_times(log, mesh.stem), mesh_js_ms)
 
 
 def run(mesh: Path, updates: int, out: Path) -> dict[str, Any]:
-    proc, url = start_server()
-    http = url.replace("ws://", "http://").rsplit("/ws", 1)[0] + "/"
+    log = out / "server.log"
+    log.unlink(missing_ok=True)
     out.mkdir(parents=True, exist_ok=True)
+    proc, url = start_server(log)
+    http = url.replace("ws://", "http://").rsplit("/ws", 1)[0] + "/"
     results: dict[str, Any] = {"mesh": mesh.name}
     try:
         with sync_playwright() as pw:
             browser = pw.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS, timeout=60_000)
-            ready_ms, mesh_js_ms = _upload_to_ready(browser, http, mesh)
+            ready_ms, mesh_js_ms, timeline = _upload_to_ready(browser, http, mesh, log)
             page = browser.new_page(viewport={"width": 1280, "height": 800})
             route: dict[str, WebSocketRoute] = {}
 
@@ -145,8 +182,11 @@ def run(mesh: Path, updates: int, out: Path) -> dict[str, Any]:
         print(f"  upload to ready {ready_ms:.0f} ms: server parse and repair {parts['parse_repair_ms']:.0f} ms, "
               f"mesh message encoded {parts['encode_ms']:.0f} ms, page JavaScript for the mesh {mesh_js_ms:.0f} ms, "
               f"rest (file read, transfers, waiting) {rest:.0f} ms")
+        for label, ms in timeline:
+            print(f"    {label:<50} {ms:8.1f} ms")
         print(f"  first constraint set to its first drag answered {first_ms:.0f} ms (factorisation {factor:.0f} ms)")
-        results.update(upload_to_ready_ms=ready_ms, mesh_js_ms=mesh_js_ms, first_drag_ms=first_ms,
+        results.update(upload_steps_ms=dict(timeline), upload_to_ready_ms=ready_ms, mesh_js_ms=mesh_js_ms,
+                       first_drag_ms=first_ms,
                        factor_ms=factor, **parts)
         print("  client JavaScript per vertices frame (drawing excluded)")
         for label, times in (("whole mesh (full frames)", whole), ("20% region (subset frames)", region)):

@@ -74,11 +74,17 @@ class Run:
 
 
 # ---------------------------------------------------------------------------------------------- server
-def start_server() -> tuple[subprocess.Popen[str], str]:
-    """Run the studio in a subprocess on a free port; its ws:// URL."""
+def start_server(log: Path | None = None) -> tuple[subprocess.Popen[str], str]:
+    """Run the studio in a subprocess on a free port; its ws:// URL. With ``log``, the server's INFO lines about
+    the connections (e.g. each upload's step times) are written to that file."""
     code = ("import sys\nfrom arap.server import serve\n"
             "serve(port=0, log_level='warning', on_ready=lambda url: print(url, flush=True))\n")
-    proc = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE, text=True, cwd=ROOT)
+    if log is not None:
+        code = ("import logging\nimport sys\nh = logging.FileHandler(sys.argv[1])\nh.setLevel(logging.INFO)\n"
+                "lg = logging.getLogger('arap.server.connection')\nlg.setLevel(logging.INFO)\nlg.addHandler(h)\n"
+                + code)
+    proc = subprocess.Popen([sys.executable, "-c", code, *([str(log)] if log is not None else [])],
+                            stdout=subprocess.PIPE, text=True, cwd=ROOT)
     assert proc.stdout is not None
     line = proc.stdout.readline().strip()
     if not line.startswith("http://"):
