@@ -35,7 +35,7 @@ from playwright.sync_api import Browser, Page, WebSocketRoute, sync_playwright
 
 from arap.server.connection import _mesh_frame
 from arap.server.meshdata import load_upload
-from bench_studio import DEFAULT_MESH, ROOT, sphere_obj, start_server
+from bench_studio import DEFAULT_MESH, ROOT, server_upload_steps, sphere_obj, start_server
 
 CHROMIUM = "/usr/bin/chromium"
 CHROMIUM_ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--no-first-run", "--disable-background-networking"]
@@ -87,17 +87,6 @@ def _upload(page: Page, mesh: Path, marks: dict[str, float] | None = None) -> fl
     return 1000 * (time.perf_counter() - t0)
 
 
-def _server_upload_times(log: Path, name: str) -> dict[str, Any]:
-    """The server's step times of its last upload of ``name`` (its INFO line), or an empty dict."""
-    found: dict[str, Any] = {}
-    for line in log.read_text(errors="replace").splitlines() if log.is_file() else []:
-        if "upload timings " in line:
-            entry = json.loads(line.split("upload timings ", 1)[1])
-            if entry.get("name") == name:
-                found = entry
-    return found
-
-
 def upload_timeline(page_at: dict[str, float], server: dict[str, Any], mesh_js_ms: float) -> list[tuple[str, float]]:
     """Upload-to-ready split into its steps (ms), from the page's wall-clock marks and the server's log line."""
     steps: list[tuple[str, float]] = [("file input set until the page's change handler", page_at["chosen"]
@@ -140,7 +129,7 @@ def _upload_to_ready(browser: Browser, http: str, mesh: Path,
     time.sleep(0.2)  # the server's log line is written after the state is sent
     shown = [("upload to mesh shown, drawing excluded (page has the file → its JavaScript done)",
               page_at["shown"] - page_at["given"])]
-    return ready_ms, mesh_js_ms, shown + upload_timeline(page_at, _server_upload_times(log, mesh.stem), mesh_js_ms)
+    return ready_ms, mesh_js_ms, shown + upload_timeline(page_at, server_upload_steps(log, mesh.stem), mesh_js_ms)
 
 
 def run(mesh: Path, updates: int, out: Path) -> dict[str, Any]:
