@@ -99,6 +99,7 @@ def upload_timeline(page_at: dict[str, float], server: dict[str, Any], mesh_js_m
         steps += [("transfer to the server (until received whole)", arrived - page_at["sent"]),
                   ("server: frame decoded", server["decode_ms"]), ("server: waiting in the queue", server["queued_ms"]),
                   ("server: parse and repair (in place, under load)", server["parse_repair_ms"]),
+                  ("… of which the thread's CPU time", server.get("parse_repair_cpu_ms", float("nan"))),
                   ("server: mesh message encoded", server["encode_ms"]),
                   ("server: mesh message handed to the socket", server["send_mesh_ms"]),
                   ("transfer to the page (until its message event)", page_at["received"] - mesh_sent)]

@@ -352,9 +352,10 @@ async def payload_report(url: str, mesh: Path, updates: int, log: Path | None = 
     steps = server_upload_steps(log, mesh.stem)
     if steps:
         out["server_steps"] = steps
-        print("  server: " + ", ".join(f"{k.removesuffix('_ms').replace('_', ' ')} {steps[k]:.0f} ms" for k in
-                                       ("decode_ms", "queued_ms", "parse_repair_ms", "encode_ms", "send_mesh_ms",
-                                        "send_state_ms"))
+        keys = ("decode_ms", "queued_ms", "parse_repair_ms", "parse_repair_cpu_ms", "encode_ms", "send_mesh_ms",
+                "send_state_ms")
+        print("  server: " + ", ".join(f"{k.removesuffix('_ms').replace('_', ' ')} {steps.get(k, float('nan')):.0f} ms"
+                                       for k in keys)
               + f"; upload sent to frame received and mesh sent to mesh and state received "
               f"{shown_ms - 1000 * (steps['mesh_sent'] - steps['arrived']) - steps['send_state_ms']:.0f} ms "
               f"(of which the state {1000 * (received - steps['mesh_sent']):.0f} ms after the mesh was sent)")

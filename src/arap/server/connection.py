@@ -101,6 +101,12 @@ def _still_frame_header(seq: int, subset: int, movable: int) -> dict[str, Any]:
                           ms_per_iteration=0.0, subset=subset, movable=movable)
 
 
+def _timed(fn: Callable[..., T], *args: Any) -> tuple[T, float]:
+    """``fn(*args)`` and the CPU time this thread spent in it (seconds)."""
+    t0 = time.thread_time()
+    return fn(*args), time.thread_time() - t0
+
+
 def _mesh_frame(mesh: MeshData) -> bytes:
     header = server_message("mesh", name=mesh.name, n_vertices=mesh.n_vertices, n_faces=mesh.n_faces,
                             report=mesh.report)
@@ -171,7 +177,8 @@ class Connection:
         arrived, decoded = self._arrived.pop(id(msg), (float("nan"), float("nan")))
         started = time.time()
         assert msg.payload is not None
-        mesh = await self._off_loop(load_upload, msg.payload, msg.fields["filename"], self.config.max_vertices)
+        mesh, cpu = await self._off_loop(_timed, load_upload, msg.payload, msg.fields["filename"],
+                                         self.config.max_vertices)
         parsed = time.time()
         self.session.load(mesh)
         self._skipped = 0
@@ -188,6 +195,7 @@ class Connection:
                   "send_state_ms": time.time() - mesh_sent}
             logger.info("upload timings %s", json.dumps({"name": mesh.name, "n_vertices": mesh.n_vertices,
                                                          "arrived": arrived, "mesh_sent": mesh_sent,
+                                                         "parse_repair_cpu_ms": round(1000 * cpu, 2),
                                                          **{k: round(1000 * v, 2) for k, v in ms.items()}}))
 
     async def _send_vertices(self, seq: int, outcome: DragOutcome | None) -> None:
