@@ -35,7 +35,7 @@ from playwright.sync_api import Browser, Page, WebSocketRoute, sync_playwright
 
 from arap.server.connection import _mesh_frame
 from arap.server.meshdata import load_upload
-from bench_studio import DEFAULT_MESH, ROOT, sphere_obj, start_server
+from bench_studio import DEFAULT_MESH, ROOT, server_upload_steps, sphere_obj, start_server
 
 CHROMIUM = "/usr/bin/chromium"
 CHROMIUM_ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--no-first-run", "--disable-background-networking"]
@@ -73,37 +73,77 @@ def _server_parts(mesh: Path) -> dict[str, float]:
     return {"parse_repair_ms": float(np.median(load)), "encode_ms": float(np.median(encode))}
 
 
-def _upload(page: Page, mesh: Path) -> float:
+def _upload(page: Page, mesh: Path, marks: dict[str, float] | None = None) -> float:
     """Hand ``mesh`` to the page's file input; milliseconds from the page having the file (Playwright's transfer
-    of the file into the browser excluded) until it shows the mesh with nothing pending."""
+    of the file into the browser excluded) until it shows the mesh with nothing pending. ``marks`` receives the
+    wall-clock times (ms since the epoch) of both ends."""
     page.wait_for_function("() => window.__arap && window.__arap.ready && !window.__arap.busy", timeout=120_000)
     page.get_by_test_id("file-input").set_input_files(str(mesh))
-    t0 = time.perf_counter()
+    t0, wall0 = time.perf_counter(), time.time()
     page.wait_for_function(f"() => window.__arap.ready && window.__arap.meshName.startsWith('{mesh.stem}')"
                            " && !window.__arap.busy", timeout=300_000, polling=10)
+    if marks is not None:
+        marks.update(given=1000 * wall0, seen=1000 * time.time())
     return 1000 * (time.perf_counter() - t0)
 
 
-def _upload_to_ready(browser: Browser, http: str, mesh: Path) -> tuple[float, float]:
+def upload_timeline(page_at: dict[str, float], server: dict[str, Any], mesh_js_ms: float) -> list[tuple[str, float]]:
+    """Upload-to-ready split into its steps (ms), from the page's wall-clock marks and the server's log line."""
+    steps: list[tuple[str, float]] = [("file input set until the page's change handler", page_at["chosen"]
+                                       - page_at.get("given", float("nan"))),
+                                      ("page reads the file", page_at["read"] - page_at["chosen"]),
+                                      ("page frames and hands it to its WebSocket", page_at["sent"] - page_at["read"])]
+    if server:
+        arrived = 1000 * server["arrived"]
+        mesh_sent = 1000 * server["mesh_sent"]
+        steps += [("transfer to the server (until received whole)", arrived - page_at["sent"]),
+                  ("server: frame decoded", server["decode_ms"]), ("server: waiting in the queue", server["queued_ms"]),
+                  ("server: parse and repair (in place, under load)", server["parse_repair_ms"]),
+                  ("… of which the thread's CPU time", server.get("parse_repair_cpu_ms", float("nan"))),
+                  ("server: mesh message encoded", server["encode_ms"]),
+                  ("server: mesh message handed to the socket", server["send_mesh_ms"]),
+                  ("transfer to the page (until its message event)", page_at["received"] - mesh_sent)]
+    else:
+        steps.append(("transfer, server and transfer back", page_at["received"] - page_at["sent"]))
+    steps += [("page JavaScript for the mesh message", mesh_js_ms),
+              ("first frame drawn (SwiftShader)", page_at.get("drawn", float("nan")) - page_at["shown"]),
+              ("until the benchmark sees the page ready", page_at.get("seen", float("nan"))
+               - page_at.get("drawn", float("nan")))]
+    return steps
+
+
+def _upload_to_ready(browser: Browser, http: str, mesh: Path,
+                     log: Path) -> tuple[float, float, list[tuple[str, float]]]:
     """Upload-to-ready on a page of its own whose WebSocket is not relayed through Playwright (a relayed one
-    carries every byte through this process), and the page's JavaScript time for the mesh message."""
+    carries every byte through this process), the page's JavaScript time for the mesh message, and the steps."""
     page = browser.new_page(viewport={"width": 1280, "height": 800})
     page.goto(http)
-    ready_ms = _upload(page, mesh)
+    marks: dict[str, float] = {}
+    ready_ms = _upload(page, mesh, marks)
     mesh_js_ms = float(page.evaluate("() => (typeof window.__arap.meshMs === 'number' ? window.__arap.meshMs : NaN)"))
+    if not page.evaluate("() => window.__arap.uploadAt !== undefined"):  # a client without the marks
+        page.close()
+        return ready_ms, mesh_js_ms, []
+    page.wait_for_function("() => window.__arap.uploadAt.drawn !== undefined", timeout=60_000)
+    page_at = {**page.evaluate("() => window.__arap.uploadAt"), **marks}
     page.close()
-    return ready_ms, mesh_js_ms
+    time.sleep(0.2)  # the server's log line is written after the state is sent
+    shown = [("upload to mesh shown, drawing excluded (page has the file → its JavaScript done)",
+              page_at["shown"] - page_at["given"])]
+    return ready_ms, mesh_js_ms, shown + upload_timeline(page_at, server_upload_steps(log, mesh.stem), mesh_js_ms)
 
 
 def run(mesh: Path, updates: int, out: Path) -> dict[str, Any]:
-    proc, url = start_server()
-    http = url.replace("ws://", "http://").rsplit("/ws", 1)[0] + "/"
+    log = out / "server.log"
+    log.unlink(missing_ok=True)
     out.mkdir(parents=True, exist_ok=True)
+    proc, url = start_server(log)
+    http = url.replace("ws://", "http://").rsplit("/ws", 1)[0] + "/"
     results: dict[str, Any] = {"mesh": mesh.name}
     try:
         with sync_playwright() as pw:
             browser = pw.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS, timeout=60_000)
-            ready_ms, mesh_js_ms = _upload_to_ready(browser, http, mesh)
+            ready_ms, mesh_js_ms, timeline = _upload_to_ready(browser, http, mesh, log)
             page = browser.new_page(viewport={"width": 1280, "height": 800})
             route: dict[str, WebSocketRoute] = {}
 
@@ -145,8 +185,11 @@ def run(mesh: Path, updates: int, out: Path) -> dict[str, Any]:
         print(f"  upload to ready {ready_ms:.0f} ms: server parse and repair {parts['parse_repair_ms']:.0f} ms, "
               f"mesh message encoded {parts['encode_ms']:.0f} ms, page JavaScript for the mesh {mesh_js_ms:.0f} ms, "
               f"rest (file read, transfers, waiting) {rest:.0f} ms")
+        for k, (label, ms) in enumerate(timeline):
+            print(f"  {label}: {ms:.0f} ms" if k == 0 else f"    {label:<50} {ms:8.1f} ms")
         print(f"  first constraint set to its first drag answered {first_ms:.0f} ms (factorisation {factor:.0f} ms)")
-        results.update(upload_to_ready_ms=ready_ms, mesh_js_ms=mesh_js_ms, first_drag_ms=first_ms,
+        results.update(upload_steps_ms=dict(timeline), upload_to_ready_ms=ready_ms, mesh_js_ms=mesh_js_ms,
+                       first_drag_ms=first_ms,
                        factor_ms=factor, **parts)
         print("  client JavaScript per vertices frame (drawing excluded)")
         for label, times in (("whole mesh (full frames)", whole), ("20% region (subset frames)", region)):

@@ -74,11 +74,17 @@ class Run:
 
 
 # ---------------------------------------------------------------------------------------------- server
-def start_server() -> tuple[subprocess.Popen[str], str]:
-    """Run the studio in a subprocess on a free port; its ws:// URL."""
+def start_server(log: Path | None = None) -> tuple[subprocess.Popen[str], str]:
+    """Run the studio in a subprocess on a free port; its ws:// URL. With ``log``, the server's INFO lines about
+    the connections (e.g. each upload's step times) are written to that file."""
     code = ("import sys\nfrom arap.server import serve\n"
             "serve(port=0, log_level='warning', on_ready=lambda url: print(url, flush=True))\n")
-    proc = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE, text=True, cwd=ROOT)
+    if log is not None:
+        code = ("import logging\nimport sys\nh = logging.FileHandler(sys.argv[1])\nh.setLevel(logging.INFO)\n"
+                "lg = logging.getLogger('arap.server.connection')\nlg.setLevel(logging.INFO)\nlg.addHandler(h)\n"
+                + code)
+    proc = subprocess.Popen([sys.executable, "-c", code, *([str(log)] if log is not None else [])],
+                            stdout=subprocess.PIPE, text=True, cwd=ROOT)
     assert proc.stdout is not None
     line = proc.stdout.readline().strip()
     if not line.startswith("http://"):
@@ -295,7 +301,20 @@ async def _drags(studio: Studio, roi: list[int] | None, fixed: list[int], update
             "server_solve_ms": float(np.median(solve[1:]))}
 
 
-async def payload_report(url: str, mesh: Path, updates: int) -> dict[str, Any]:
+def server_upload_steps(log: Path | None, name: str) -> dict[str, Any]:
+    """The step times the server logged for its last upload of ``name`` (see :func:`start_server`), or {}."""
+    found: dict[str, Any] = {}
+    if log is None or not log.is_file():
+        return found
+    for line in log.read_text(errors="replace").splitlines():
+        if "upload timings " in line:
+            entry = json.loads(line.split("upload timings ", 1)[1])
+            if entry.get("name") == name:
+                found = entry
+    return found
+
+
+async def payload_report(url: str, mesh: Path, updates: int, log: Path | None = None) -> dict[str, Any]:
     """Upload-to-ready, and bytes and server time per update with full frames and with a 20% region."""
     ws = await connect(url, compression=None, max_size=None, open_timeout=60)
     try:
@@ -309,6 +328,7 @@ async def payload_report(url: str, mesh: Path, updates: int) -> dict[str, Any]:
         header, payload = await asyncio.wait_for(studio.expect("mesh"), 300.0)
         await studio.expect("state")
         shown_ms = 1000 * (time.perf_counter() - t0)
+        received = time.time()
         n = header["n_vertices"]
         assert payload is not None
         studio.V = np.frombuffer(bytes(payload[: 12 * n]), dtype="<f4").reshape(n, 3).astype(np.float64)
@@ -329,6 +349,16 @@ async def payload_report(url: str, mesh: Path, updates: int) -> dict[str, Any]:
     print(f"\n{mesh.name}: {n:,} vertices, upload {len(data) / 2**20:.1f} MiB", flush=True)
     print(f"  upload to mesh shown {shown_ms:.0f} ms; to the first drag answered {ready_ms:.0f} ms (constraint set "
           f"to first answer {whole['first_answer_ms']:.0f} ms, of which factorisation {whole['factor_ms']:.0f} ms)")
+    steps = server_upload_steps(log, mesh.stem)
+    if steps:
+        out["server_steps"] = steps
+        keys = ("decode_ms", "queued_ms", "parse_repair_ms", "parse_repair_cpu_ms", "encode_ms", "send_mesh_ms",
+                "send_state_ms")
+        print("  server: " + ", ".join(f"{k.removesuffix('_ms').replace('_', ' ')} {steps.get(k, float('nan')):.0f} ms"
+                                       for k in keys)
+              + f"; upload sent to frame received and mesh sent to mesh and state received "
+              f"{shown_ms - 1000 * (steps['mesh_sent'] - steps['arrived']) - steps['send_state_ms']:.0f} ms "
+              f"(of which the state {1000 * (received - steps['mesh_sent']):.0f} ms after the mesh was sent)")
     for label, r in (("whole mesh (full frames)", whole), ("20% region (subset frames)", region)):
         print(f"  {label:<28} {r['bytes_per_update'] / 1024:>9.1f} KiB/update (first frame "
               f"{r['first_bytes'] / 1024:.1f} KiB), server solve {r['server_solve_ms']:.1f} ms/update")
@@ -355,19 +385,20 @@ def sphere_obj(n_vertices: int, folder: Path) -> Path:
 
 
 async def payload_main(args: argparse.Namespace) -> dict[str, Any]:
-    proc, url = start_server()
-    try:
-        with tempfile.TemporaryDirectory() as tmp:
+    with tempfile.TemporaryDirectory() as tmp:
+        log = Path(tmp) / "server.log"
+        proc, url = start_server(log)
+        try:
             meshes = [args.mesh] + ([subdivided(args.mesh, Path(tmp))] if args.subdivide else [])
             if args.sphere:
                 meshes.append(sphere_obj(args.sphere, Path(tmp)))
-            return {"payload": [await payload_report(url, m, args.updates) for m in meshes]}
-    finally:
-        proc.terminate()
-        try:
-            proc.wait(timeout=10)
-        except subprocess.TimeoutExpired:
-            proc.kill()
+            return {"payload": [await payload_report(url, m, args.updates, log) for m in meshes]}
+        finally:
+            proc.terminate()
+            try:
+                proc.wait(timeout=10)
+            except subprocess.TimeoutExpired:
+                proc.kill()
 
 
 async def main_async(args: argparse.Namespace) -> dict[str, Any]:

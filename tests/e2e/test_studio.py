@@ -273,6 +273,12 @@ def test_upload_obj_with_file_input(page: Page, tmp_path: Path, shoot: Shoot) ->
     wait_idle(page)
     assert page.evaluate("() => window.__arap.nVertices") == n
     expect(page.get_by_test_id("mesh-info")).to_contain_text("small_sphere")
+    # the steps of the upload, marked on the wall clock as the page went through them (bench_client prints them)
+    page.wait_for_function("() => window.__arap.uploadAt.drawn !== undefined")
+    at = page.evaluate("() => window.__arap.uploadAt")
+    steps = ["chosen", "read", "sent", "received", "shown", "drawn"]
+    assert [at[k] for k in steps] == sorted(at[k] for k in steps)
+    assert at["shown"] - at["received"] == pytest.approx(page.evaluate("() => window.__arap.meshMs"), abs=1)
     shoot("06-uploaded")
     assert 1.0 - background_mask(canvas_pixels(page)).mean() > 0.03
 

@@ -2,7 +2,12 @@
 
 from __future__ import annotations
 
+import json
+import logging
+import time
+
 import numpy as np
+import pytest
 
 from arap.io import save_mesh_bytes
 from arap.server.meshdata import load_upload
@@ -65,3 +70,33 @@ def test_a_second_upload_right_behind_constraints_drops_them(studio: StudioClien
     studio.read_mesh()
     assert studio.expect("state").data["constraints"]["fixed"] == []
     studio.error("bad_message")  # no handle group for its transform
+
+
+def test_an_upload_logs_the_time_of_each_step_after_its_mesh_and_state_are_sent(
+        studio: StudioClient, caplog: pytest.LogCaptureFixture) -> None:
+    data, V = _upload()
+    caplog.set_level(logging.INFO, logger="arap.server.connection")
+    before = time.time()
+    studio.send_binary({"type": "upload", "filename": "ball.obj"}, data)
+    assert studio.read_mesh().data["n_vertices"] == len(V)
+    studio.expect("state")
+    studio.ping()  # answered after the upload's handler has returned
+    lines = [r.getMessage() for r in caplog.records if r.getMessage().startswith("upload timings ")]
+    assert len(lines) == 1
+    entry = json.loads(lines[0].removeprefix("upload timings "))
+    assert entry["name"] == "ball" and entry["n_vertices"] == len(V)
+    assert before <= entry["arrived"] <= entry["mesh_sent"] <= time.time()
+    steps = ("decode_ms", "queued_ms", "parse_repair_ms", "encode_ms", "send_mesh_ms", "send_state_ms")
+    assert all(entry[k] >= 0 for k in steps)
+    assert 0 < entry["parse_repair_cpu_ms"] <= entry["parse_repair_ms"] + 1  # the thread's CPU time within it
+    # the steps up to the mesh being sent add up to the time from arrival to then
+    assert sum(entry[k] for k in steps[:-1]) == pytest.approx(1000 * (entry["mesh_sent"] - entry["arrived"]), abs=1)
+
+
+def test_a_failed_upload_logs_no_timings(
+        studio: StudioClient, caplog: pytest.LogCaptureFixture) -> None:
+    caplog.set_level(logging.INFO, logger="arap.server.connection")
+    studio.send_binary({"type": "upload", "filename": "bad.obj"}, b"v 0 0 0\nf 0 1 2\n")
+    assert studio.error("bad_mesh")["request"] == "upload"
+    studio.ping()
+    assert not [r for r in caplog.records if r.getMessage().startswith("upload timings ")]

@@ -99,6 +99,13 @@ export function installTestHook({ app, viewer, selection, gizmo, conn, keeper, p
     get meshMs() {
       return app.meshMs;
     },
+    /**
+     * Wall-clock times (ms since the epoch) of the last upload: chosen, read, sent; then received, shown and drawn,
+     * set by every mesh message (read them right after an upload).
+     */
+    get uploadAt() {
+      return { ...app.uploadAt };
+    },
     get messages() {
       return app.messages;
     },

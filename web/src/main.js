@@ -36,6 +36,7 @@ const app = {
   limits: { max_upload_bytes: 0, max_vertices: 0 },
   frameMs: [], // JavaScript time spent applying each vertices frame (drawing excluded)
   meshMs: NaN, // JavaScript time spent showing the last mesh message (drawing excluded)
+  uploadAt: {}, // wall-clock times (ms since the epoch) of the last upload's steps on this page
   builtins: [],
   role: 'handle',
   lastSeq: -1,
@@ -230,6 +231,7 @@ function onWelcome(msg) {
 
 function onMesh(msg) {
   const t0 = performance.now();
+  app.uploadAt.received = performance.timeOrigin + t0;
   const { positions, faces } = meshArrays(msg.frame);
   viewer.setMesh(positions, faces);
   livePose.reset();
@@ -253,6 +255,10 @@ function onMesh(msg) {
   mirror.meshChanged(positions, faces); // after the status line: it may say that no symmetry was found
   keeper.meshArrived(msg, positions, faces);
   app.meshMs = performance.now() - t0;
+  app.uploadAt.shown = performance.timeOrigin + performance.now();
+  requestAnimationFrame(() => { // after the viewer's own frame callback: the mesh has been drawn once
+    app.uploadAt.drawn = performance.timeOrigin + performance.now();
+  });
 }
 
 function onVertices(msg) {
@@ -319,6 +325,7 @@ function requestMesh(source) {
     panel.showStatus('Not connected to the studio server.', 'error');
     return false;
   }
+  if (source.kind !== 'builtin') app.uploadAt.sent = performance.timeOrigin + performance.now();
   keeper.meshRequested(source);
   setBusy(`Loading ${source.kind === 'builtin' ? source.name : source.filename}…`, SERVER.MESH);
   return true;
@@ -332,7 +339,11 @@ function uploadFile(file) {
     return;
   }
   if (!keeper.confirmReplace(file.name)) return;
-  file.arrayBuffer().then((buf) => requestMesh(fileSource(file.name, buf)));
+  app.uploadAt = { chosen: performance.timeOrigin + performance.now() };
+  file.arrayBuffer().then((buf) => {
+    app.uploadAt.read = performance.timeOrigin + performance.now();
+    requestMesh(fileSource(file.name, buf));
+  });
 }
 
 function applySavedSelection(snap) {

@@ -74,8 +74,8 @@ def parse_plain_obj(data: bytes) -> tuple[NDArray[np.float64], NDArray[np.int64]
         return None
     nv = int(np.count_nonzero(kind == _VERTEX))
     nf = int(np.count_nonzero(kind == _FACE))
-    coords = np.fromstring(vertex_text.decode("ascii"), dtype=np.float64, sep=" ")
-    indices = np.fromstring(face_text.decode("ascii"), dtype=np.int64, sep=" ")
+    coords = np.fromstring(vertex_text, dtype=np.float64, sep=" ")
+    indices = np.fromstring(face_text, dtype=np.int64, sep=" ")
     if len(coords) != 3 * nv or len(indices) != 3 * nf:
         return None
     if indices.min() < 1 or indices.max() > nv:
@@ -119,8 +119,8 @@ def _parse_by_lines(data: bytes) -> tuple[NDArray[np.float64], NDArray[np.int64]
     face_text = _SLASHES.sub(b"", b" ".join(face_lines))
     if not (_NUMBERS.fullmatch(vertex_text) and _INTEGERS.fullmatch(face_text)):
         return None
-    coords = np.fromstring(vertex_text.decode("ascii"), dtype=np.float64, sep=" ")
-    indices = np.fromstring(face_text.decode("ascii"), dtype=np.int64, sep=" ")
+    coords = np.fromstring(vertex_text, dtype=np.float64, sep=" ")
+    indices = np.fromstring(face_text, dtype=np.int64, sep=" ")
     if len(coords) != 3 * len(vertex_lines) or len(indices) != 3 * len(face_lines):
         return None
     if indices.min() < 1 or indices.max() > len(vertex_lines):

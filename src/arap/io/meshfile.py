@@ -24,7 +24,7 @@ from numpy.typing import NDArray
 from arap.errors import MeshError, MeshFormatError, MeshTooLargeError
 from arap.io.atomic import write_atomic
 from arap.io.fastobj import parse_plain_obj
-from arap.io.screening import check_size, screen
+from arap.io.screening import check_obj_zero_index, check_size, screen
 from arap.mesh import MeshLike, RepairResult, mesh_arrays, repair_mesh, triangulate_polygons
 
 __all__ = [
@@ -171,8 +171,10 @@ def load_mesh_bytes_with_report(
     ft = format_of(file_type)
     data = bytes(data)
     check_size(data, ft, name, max_vertices)
-    screened = screen(data, ft, name)
-    plain = parse_plain_obj(screened) if ft == "obj" else None
+    screened = screen(data, ft, name, obj_zero_index=False)
+    plain = parse_plain_obj(screened) if ft == "obj" else None  # takes only face indices from 1 up
+    if plain is None and ft == "obj":
+        check_obj_zero_index(screened, name)
     V, F = plain if plain is not None else _parse(io.BytesIO(screened), ft, name)
     V, F, result = _finish(V, F, repair, name)
     if max_vertices is not None and len(V) > max_vertices:

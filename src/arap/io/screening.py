@@ -17,7 +17,7 @@ import numpy as np
 
 from arap.errors import MeshFormatError, MeshTooLargeError
 
-__all__ = ["check_size", "screen", "vertex_count"]
+__all__ = ["check_obj_zero_index", "check_size", "screen", "vertex_count"]
 
 logger = logging.getLogger(__name__)
 
@@ -77,6 +77,8 @@ def _as_text(data: bytes, what: str, label: str) -> bytes:
     if b"\x00" in data or control > _CONTROL_SHARE * len(data):
         raise MeshFormatError(f"{label} is not {what} file: it holds binary data "
                               f"({control:,} of its {len(data):,} bytes are control characters)")
+    if data.isascii():  # the common case, checked without decoding
+        return data
     try:
         data.decode("utf-8")
     except UnicodeDecodeError as exc:
@@ -85,8 +87,27 @@ def _as_text(data: bytes, what: str, label: str) -> bytes:
     return data
 
 
-def screen(data: bytes, ft: str, label: str) -> bytes:
+def check_obj_zero_index(data: bytes, label: str) -> None:
+    """Refuse an OBJ file with a face naming vertex 0 (OBJ counts from 1, or back from -1).
+
+    Raises
+    ------
+    MeshFormatError
+    """
+    line = _obj_zero_index_line(data)
+    if line is not None:
+        raise MeshFormatError(f"{label}, line {line}: a face names vertex 0, but OBJ vertex indices start "
+                              "at 1 (or count back from -1 for the last vertex)")
+
+
+def screen(data: bytes, ft: str, label: str, obj_zero_index: bool = True) -> bytes:
     """Bytes the parsers can take: text as UTF-8, binary junk and OBJ faces naming vertex 0 refused.
+
+    Parameters
+    ----------
+    obj_zero_index : bool
+        Look for OBJ faces naming vertex 0 (:func:`check_obj_zero_index`); False leaves that to the caller, e.g.
+        for a file the plain OBJ reader accepts, which takes only indices from 1 up.
 
     Raises
     ------
@@ -94,15 +115,12 @@ def screen(data: bytes, ft: str, label: str) -> bytes:
         An empty file, binary data where text is expected, an STL that is neither binary nor ASCII, a PLY without
         its header, an OBJ face naming vertex 0.
     """
-    if not data.strip():
+    if not data or data.isspace():
         raise MeshFormatError(f"{label} contains no vertices (the file is empty)")
     if ft in ("obj", "off"):
         data = _as_text(data, f"an {ft.upper()}", label)
-        if ft == "obj":
-            line = _obj_zero_index_line(data)
-            if line is not None:
-                raise MeshFormatError(f"{label}, line {line}: a face names vertex 0, but OBJ vertex indices start "
-                                      "at 1 (or count back from -1 for the last vertex)")
+        if ft == "obj" and obj_zero_index:
+            check_obj_zero_index(data, label)
     elif ft == "stl":
         if _binary_stl_triangles(data) is None:
             if not data.lstrip()[:5].lower() == b"solid":

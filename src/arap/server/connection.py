@@ -15,6 +15,7 @@ import asyncio
 import contextlib
 import json
 import logging
+import time
 from collections.abc import Callable
 from dataclasses import asdict, dataclass
 from typing import Any, TypeVar
@@ -100,6 +101,12 @@ def _still_frame_header(seq: int, subset: int, movable: int) -> dict[str, Any]:
                           ms_per_iteration=0.0, subset=subset, movable=movable)
 
 
+def _timed(fn: Callable[..., T], *args: Any) -> tuple[T, float]:
+    """``fn(*args)`` and the CPU time this thread spent in it (seconds)."""
+    t0 = time.thread_time()
+    return fn(*args), time.thread_time() - t0
+
+
 def _mesh_frame(mesh: MeshData) -> bytes:
     header = server_message("mesh", name=mesh.name, n_vertices=mesh.n_vertices, n_faces=mesh.n_faces,
                             report=mesh.report)
@@ -139,6 +146,7 @@ class Connection:
         self._skipped = 0
         self._frame_tasks: set[asyncio.Task[None]] = set()
         self._stream = VertexStream(config.subset_frames)
+        self._arrived: dict[int, tuple[float, float]] = {}
 
     # ------------------------------------------------------------------ sending
     async def _send_frame(self, frame: str | bytes) -> None:
@@ -163,6 +171,32 @@ class Connection:
     async def _send_mesh(self, mesh: MeshData) -> None:
         self._stream.reset(mesh.V)
         await self._send_frame(await self._off_loop(_mesh_frame, mesh))
+
+    async def _upload(self, msg: ClientMessage) -> None:
+        """Load an upload and send its mesh and state; the times of each step are logged (INFO, one JSON line)."""
+        arrived, decoded = self._arrived.pop(id(msg), (float("nan"), float("nan")))
+        started = time.time()
+        assert msg.payload is not None
+        mesh, cpu = await self._off_loop(_timed, load_upload, msg.payload, msg.fields["filename"],
+                                         self.config.max_vertices)
+        parsed = time.time()
+        self.session.load(mesh)
+        self._skipped = 0
+        self._stream.reset(mesh.V)
+        frame = await self._off_loop(_mesh_frame, mesh)
+        encoded = time.time()
+        await self._send_frame(frame)
+        del frame
+        mesh_sent = time.time()
+        await self._send_state()
+        if logger.isEnabledFor(logging.INFO):
+            ms = {"decode_ms": decoded - arrived, "queued_ms": started - decoded, "parse_repair_ms": parsed - started,
+                  "encode_ms": encoded - parsed, "send_mesh_ms": mesh_sent - encoded,
+                  "send_state_ms": time.time() - mesh_sent}
+            logger.info("upload timings %s", json.dumps({"name": mesh.name, "n_vertices": mesh.n_vertices,
+                                                         "arrived": arrived, "mesh_sent": mesh_sent,
+                                                         "parse_repair_cpu_ms": round(1000 * cpu, 2),
+                                                         **{k: round(1000 * v, 2) for k, v in ms.items()}}))
 
     async def _send_vertices(self, seq: int, outcome: DragOutcome | None) -> None:
         subset, movable, parts = self._stream.encode(self.session.U, self.session.constraints)
@@ -237,6 +271,7 @@ class Connection:
         while True:
             await self.budget.wait_for_room()
             message = await self.ws.receive()
+            arrived = time.time()
             if message["type"] == "websocket.disconnect":
                 return
             text = message.get("text")
@@ -250,6 +285,8 @@ class Connection:
             else:
                 item = self._decode(text, data, False)
             del message, text, data
+            if isinstance(item, ClientMessage) and item.type == "upload":
+                self._arrived[id(item)] = (arrived, time.time())
             cost = request_cost(size, item.payload is None) if isinstance(item, ClientMessage) else 0
             await self._enqueue(item, cost)
 
@@ -299,6 +336,7 @@ class Connection:
                 self._skipped += 1
                 return
         if len(self._queue) >= self.config.max_pending:
+            self._arrived.pop(id(item), None)
             request = item.type if isinstance(item, ClientMessage) else item.request
             await self._send_error(RequestError("busy", f"{len(self._queue)} requests are already waiting",
                                                 request))
@@ -405,16 +443,14 @@ class Connection:
         elif t == "end_drag":
             s.end_drag()
             await self._send_state()
-        elif t in ("load_builtin", "upload"):
-            if t == "load_builtin":
-                mesh = await self._off_loop(load_builtin, f["name"])
-            else:
-                assert msg.payload is not None
-                mesh = await self._off_loop(load_upload, msg.payload, f["filename"], self.config.max_vertices)
+        elif t == "load_builtin":
+            mesh = await self._off_loop(load_builtin, f["name"])
             await self._off_loop(s.load, mesh)
             self._skipped = 0
             await self._send_mesh(mesh)
             await self._send_state()
+        elif t == "upload":
+            await self._upload(msg)
         elif t == "set_constraints":
             solved = await self._off_loop(s.set_constraints, f["roi"], f["fixed"], f["handle_groups"],
                                           f.get("targets"), f.get("stiffness"), f.get("points"))
