@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -123,3 +124,63 @@ def test_the_stream_falls_back_to_a_full_frame_when_a_still_vertex_moves() -> No
 def test_no_movable_list_without_a_proper_region(roi: list[int] | None) -> None:
     V = np.zeros((10, 3))
     assert movable_vertices(ConstraintSet.build(V, V, roi, [0], [[9]]), 10) is None
+
+
+def test_frames_of_an_interrupted_settle_arrive_before_the_next_answer(static_dir: Path,
+                                                                       monkeypatch: pytest.MonkeyPatch) -> None:
+    """Settling frames are sent by tasks of their own; a slow socket must not let one of them arrive after the
+    answer to the request that interrupted the settle (a frame of the old constraint set would be applied to the
+    new one's movable vertices)."""
+    import asyncio
+    import time
+
+    from arap.server.connection import Connection
+    from arap.server.session import Session
+
+    send_frame = Connection._send_settle_frame
+    settle = Session.settle
+
+    async def slow_socket(self: Connection, *args: object) -> None:
+        await asyncio.sleep(0.3)
+        await send_frame(self, *args)  # type: ignore[arg-type]
+
+    def slow_settle(self: Session, interrupted: Any, on_frame: Any = None) -> Any:
+        def polled() -> bool:
+            time.sleep(0.01)  # iterations of a large mesh: the settle is still running when the request comes
+            return bool(interrupted())
+        return settle(self, polled, on_frame)
+
+    monkeypatch.setattr(Connection, "_send_settle_frame", slow_socket)
+    monkeypatch.setattr(Session, "settle", slow_settle)
+    app = create_app("cactus", static_dir=static_dir, allowed_hosts=["testserver"])
+    with TestClient(app) as http, http.websocket_connect("/ws") as ws:
+        c = StudioClient(ws)
+        c.greet()
+        y = c.V[:, 1]
+        roi = np.flatnonzero(y >= np.quantile(y, 0.4)).tolist()
+        fixed = np.flatnonzero((y >= np.quantile(y, 0.4)) & (y <= np.quantile(y, 0.5))).tolist()
+        top = np.flatnonzero(y >= np.quantile(y, 0.9)).tolist()
+        c.send({"type": "set_constraints", "roi": roi, "fixed": fixed, "handle_groups": [top]})
+        c.expect("state")
+        c.send({"type": "drag", "seq": 1, "transforms": [translation(2.0, 1.0)]})
+        c.expect("vertices")
+        c.send({"type": "end_drag"})
+        c.expect("state")
+        while True:  # settling has streamed a frame: interrupt it with another constraint set
+            reply = c.recv()
+            if reply.type == "settle" and reply.data["iterations"] > 0:
+                break
+            assert not (reply.type == "settle" and reply.data["status"] != "settling"), "settled before a frame"
+        c.send({"type": "set_constraints", "roi": None, "fixed": fixed, "handle_groups": [top[: len(top) // 2]]})
+        while (reply := c.recv()).type != "state":
+            pass  # frames of the interrupted settle: the client applies them (apply_vertices checks each one)
+        frames_after = 0
+        while True:
+            reply = c.recv()
+            if reply.type == "vertices":
+                # The new constraint set's first frame is a full one: a subset frame before it is a stale one.
+                assert frames_after or reply.data["subset"] < 0, "a frame of the interrupted settle came late"
+                frames_after += 1
+            if reply.type == "settle" and reply.data["status"] != "settling":
+                break
+        assert frames_after >= 1

@@ -407,6 +407,11 @@ class Connection:
         except RequestError as exc:
             await self._send_error(exc)
             return
+        finally:
+            # Frames of this run go out before anything that answers the next request: a frame of the old
+            # constraint set or mesh arriving after the new one would be applied to the wrong shape.
+            if self._frame_tasks:
+                await asyncio.gather(*self._frame_tasks, return_exceptions=True)
         if outcome is None:
             return
         if streamed or outcome.moved > 0:  # the client has not seen this shape yet
