@@ -10,6 +10,8 @@ import pytest
 from starlette.testclient import TestClient
 
 from arap.server import create_app
+from arap.server.meshdata import MeshData, load_builtin
+from arap.server.session import Session
 from tests.server.helpers import StudioClient
 
 
@@ -41,3 +43,17 @@ def studio(http: TestClient) -> Iterator[StudioClient]:
         client = StudioClient(ws)
         client.greet()
         yield client
+
+
+@pytest.fixture(scope="module")
+def bar() -> MeshData:
+    """The built-in bar, loaded once per module."""
+    return load_builtin("bar")
+
+
+@pytest.fixture
+def bar_session(bar: MeshData) -> Session:
+    """An editing session (no network) on the bar."""
+    s = Session()
+    s.load(bar)
+    return s

@@ -12,7 +12,6 @@ import pytest
 
 from arap.cli import main as arap_main
 from arap.io import load_mesh
-from arap.server.meshdata import MeshData, load_builtin
 from arap.server.protocol import RequestError
 from arap.server.session import Session
 from tests.server.helpers import StudioClient, column_major, rotation_z, translation
@@ -20,18 +19,6 @@ from tests.server.helpers import StudioClient, column_major, rotation_z, transla
 pytestmark = pytest.mark.timeout(180)
 
 BARY = [0.2, 0.3, 0.5]
-
-
-@pytest.fixture(scope="module")
-def bar() -> MeshData:
-    return load_builtin("bar")
-
-
-@pytest.fixture
-def session(bar: MeshData) -> Session:
-    s = Session()
-    s.load(bar)
-    return s
 
 
 def _diag(V: np.ndarray) -> float:
@@ -52,72 +39,72 @@ def _point_target(V: np.ndarray, F: np.ndarray, face: int, M: np.ndarray) -> np.
     return M[:3, :3] @ p + M[:3, 3]
 
 
-def test_a_dragged_point_meets_its_target_after_settling(session: Session) -> None:
-    V, F = session.V, session.mesh.F
+def test_a_dragged_point_meets_its_target_after_settling(bar_session: Session) -> None:
+    V, F = bar_session.V, bar_session.mesh.F
     fixed, face = _bottom_and_top_face(V, F)
-    session.set_constraints(None, fixed, [], points=[{"face": face, "barycentric": BARY}])
-    assert session.n_groups == 1
-    assert session.state()["constraints"]["points"] == [{"face": face, "barycentric": BARY}]
+    bar_session.set_constraints(None, fixed, [], points=[{"face": face, "barycentric": BARY}])
+    assert bar_session.n_groups == 1
+    assert bar_session.state()["constraints"]["points"] == [{"face": face, "barycentric": BARY}]
     M = rotation_z(0.5, V[F[face]].mean(axis=0), shift=(0.6, 0.0, 0.0))
-    session.drag([column_major(M)])
-    session.end_drag()
-    outcome = session.settle(lambda: False)
+    bar_session.drag([column_major(M)])
+    bar_session.end_drag()
+    outcome = bar_session.settle(lambda: False)
     assert outcome is not None and outcome.converged and outcome.moved > 0
     target = _point_target(V, F, face, M)
-    assert np.abs(_on_surface(session.U, F, face, BARY) - target).max() <= 1e-9 * _diag(V)
+    assert np.abs(_on_surface(bar_session.U, F, face, BARY) - target).max() <= 1e-9 * _diag(V)
 
 
-def test_groups_and_points_each_have_a_transform(session: Session) -> None:
-    V, F = session.V, session.mesh.F
+def test_groups_and_points_each_have_a_transform(bar_session: Session) -> None:
+    V, F = bar_session.V, bar_session.mesh.F
     fixed, face = _bottom_and_top_face(V, F)
     middle = np.flatnonzero(np.abs(V[:, 1] - np.median(V[:, 1])) < 0.05 * np.ptp(V[:, 1]))[:4].tolist()
-    session.set_constraints(None, fixed, [middle], points=[{"face": face, "barycentric": BARY, "weight": 50.0}])
-    assert session.n_groups == 2 and session.state()["constraints"]["points"][0]["weight"] == 50.0
+    bar_session.set_constraints(None, fixed, [middle], points=[{"face": face, "barycentric": BARY, "weight": 50.0}])
+    assert bar_session.n_groups == 2 and bar_session.state()["constraints"]["points"][0]["weight"] == 50.0
     with pytest.raises(RequestError) as err:
-        session.drag([translation(0.1)])
+        bar_session.drag([translation(0.1)])
     assert err.value.code == "bad_message"
-    session.drag([translation(0.0), translation(0.5)])
-    np.testing.assert_allclose(session.U[middle], V[middle], atol=1e-9)  # the group stays, the soft point pulls
-    assert _on_surface(session.U, F, face, BARY)[0] > _on_surface(V, F, face, BARY)[0] + 0.2
+    bar_session.drag([translation(0.0), translation(0.5)])
+    np.testing.assert_allclose(bar_session.U[middle], V[middle], atol=1e-9)  # the group stays, the soft point pulls
+    assert _on_surface(bar_session.U, F, face, BARY)[0] > _on_surface(V, F, face, BARY)[0] + 0.2
 
 
-def test_undo_redo_reset_and_apply_keep_the_points(session: Session) -> None:
-    V, F = session.V, session.mesh.F
+def test_undo_redo_reset_and_apply_keep_the_points(bar_session: Session) -> None:
+    V, F = bar_session.V, bar_session.mesh.F
     fixed, face = _bottom_and_top_face(V, F)
-    session.set_constraints(None, fixed, [])
+    bar_session.set_constraints(None, fixed, [])
     points = [{"face": face, "barycentric": BARY}]
-    session.set_constraints(None, fixed, [], points=points)
-    assert session.undo() and session.state()["constraints"]["points"] == [] and session.n_groups == 0
-    assert session.redo() and session.state()["constraints"]["points"] == points and session.n_groups == 1
+    bar_session.set_constraints(None, fixed, [], points=points)
+    assert bar_session.undo() and bar_session.state()["constraints"]["points"] == [] and bar_session.n_groups == 0
+    assert bar_session.redo() and bar_session.state()["constraints"]["points"] == points and bar_session.n_groups == 1
     M = rotation_z(0.4, V[F[face]].mean(axis=0))
-    session.drag([column_major(M)])
-    session.end_drag()
-    session.settle(lambda: False)
-    bent = session.U.copy()
-    session.reset()
-    assert session.state()["constraints"]["points"] == points
-    np.testing.assert_array_equal(session.U, V)
-    assert session.undo()
-    np.testing.assert_array_equal(session.U, bent)
-    session.apply()
-    assert session.state()["constraints"]["points"] == points
-    np.testing.assert_array_equal(session.V, bent)
-    np.testing.assert_allclose(session.constraints.point_pose[0], _on_surface(bent, F, face, BARY), atol=1e-12)
+    bar_session.drag([column_major(M)])
+    bar_session.end_drag()
+    bar_session.settle(lambda: False)
+    bent = bar_session.U.copy()
+    bar_session.reset()
+    assert bar_session.state()["constraints"]["points"] == points
+    np.testing.assert_array_equal(bar_session.U, V)
+    assert bar_session.undo()
+    np.testing.assert_array_equal(bar_session.U, bent)
+    bar_session.apply()
+    assert bar_session.state()["constraints"]["points"] == points
+    np.testing.assert_array_equal(bar_session.V, bent)
+    np.testing.assert_allclose(bar_session.constraints.point_pose[0], _on_surface(bent, F, face, BARY), atol=1e-12)
 
 
-def test_point_targets_in_set_constraints_are_solved_at_once(session: Session) -> None:
-    V, F = session.V, session.mesh.F
+def test_point_targets_in_set_constraints_are_solved_at_once(bar_session: Session) -> None:
+    V, F = bar_session.V, bar_session.mesh.F
     fixed, face = _bottom_and_top_face(V, F)
     target = (_on_surface(V, F, face, BARY) + np.array([0.4, 0.0, 0.0])).tolist()
     side = int(np.argmax(V[:, 0] + 0.1 * V[:, 1]))
     side_target = (V[side] + np.array([0.1, 0.0, 0.0])).tolist()
-    outcome = session.set_constraints(None, fixed, [[side]], targets=[side_target],
+    outcome = bar_session.set_constraints(None, fixed, [[side]], targets=[side_target],
                                       points=[{"face": face, "barycentric": BARY, "target": target}])
     assert outcome is not None
-    session.settle(lambda: False)
-    assert np.abs(_on_surface(session.U, F, face, BARY) - target).max() <= 1e-9 * _diag(V)
-    np.testing.assert_allclose(session.U[side], side_target, atol=1e-12)
-    assert session.constraints_document()["points"][0]["target"] == pytest.approx(target)
+    bar_session.settle(lambda: False)
+    assert np.abs(_on_surface(bar_session.U, F, face, BARY) - target).max() <= 1e-9 * _diag(V)
+    np.testing.assert_allclose(bar_session.U[side], side_target, atol=1e-12)
+    assert bar_session.constraints_document()["points"][0]["target"] == pytest.approx(target)
 
 
 def test_the_document_gives_the_same_shape_with_arap_deform(studio: StudioClient, tmp_path: Path) -> None:

@@ -1,6 +1,6 @@
-"""Painted stiffness in the studio's session: it reaches the solver (a rigid band stays rigid under a drag), it is
+"""Painted stiffness in the studio's bar_session: it reaches the solver (a rigid band stays rigid under a drag), it is
 part of the constraint set (state, constraints document, undo and redo, reset and apply), and bad paint is
-refused with the session unchanged."""
+refused with the bar_session unchanged."""
 
 from __future__ import annotations
 
@@ -10,23 +10,10 @@ import numpy as np
 import pytest
 
 from arap.constraints import load_constraints
-from arap.server.meshdata import MeshData, load_builtin
 from arap.server.protocol import RequestError, parse_text
 from arap.server.session import Session
 from tests.core.test_stiffness import _rigid_misfit
 from tests.server.helpers import column_major, rotation_z
-
-
-@pytest.fixture(scope="module")
-def bar() -> MeshData:
-    return load_builtin("bar")
-
-
-@pytest.fixture
-def session(bar: MeshData) -> Session:
-    s = Session()
-    s.load(bar)
-    return s
 
 
 def _setup(V: np.ndarray) -> tuple[list[int], list[int], np.ndarray]:
@@ -37,67 +24,68 @@ def _setup(V: np.ndarray) -> tuple[list[int], list[int], np.ndarray]:
     return fixed, top, middle
 
 
-def _bend(session: Session, top: list[int]) -> np.ndarray:
-    V = session.V
+def _bend(bar_session: Session, top: list[int]) -> np.ndarray:
+    V = bar_session.V
     M = rotation_z(0.6, V[top].mean(axis=0), shift=(1.0, 0.0, 0.0))
-    session.drag([column_major(M)])
-    return session.U
+    bar_session.drag([column_major(M)])
+    return bar_session.U
 
 
-def test_a_rigid_band_stays_rigid(session: Session) -> None:
-    V = session.V
+def test_a_rigid_band_stays_rigid(bar_session: Session) -> None:
+    V = bar_session.V
     fixed, top, middle = _setup(V)
-    session.set_constraints(None, fixed, [top])
-    assert _rigid_misfit(V, _bend(session, top), middle) > 1e-3
-    session.reset()
-    session.set_constraints(None, fixed, [top], stiffness=[{"vertices": middle.tolist(), "value": "rigid"}])
-    assert np.isinf(session.constraints.stiffness[middle]).sum() == len(middle)
-    assert session.solver.stiffness is not None
-    assert _rigid_misfit(V, _bend(session, top), middle) < 1e-6
+    bar_session.set_constraints(None, fixed, [top])
+    assert _rigid_misfit(V, _bend(bar_session, top), middle) > 1e-3
+    bar_session.reset()
+    bar_session.set_constraints(None, fixed, [top], stiffness=[{"vertices": middle.tolist(), "value": "rigid"}])
+    assert np.isinf(bar_session.constraints.stiffness[middle]).sum() == len(middle)
+    assert bar_session.solver.stiffness is not None
+    assert _rigid_misfit(V, _bend(bar_session, top), middle) < 1e-6
 
 
-def test_stiffness_in_state_document_and_history(session: Session) -> None:
-    V = session.V
+def test_stiffness_in_state_document_and_history(bar_session: Session) -> None:
+    V = bar_session.V
     fixed, top, middle = _setup(V)
-    session.set_constraints(None, fixed, [top])
+    bar_session.set_constraints(None, fixed, [top])
     paint = [{"vertices": middle[:5].tolist(), "value": 20.0}, {"vertices": middle[5:].tolist(), "value": "rigid"}]
-    session.set_constraints(None, fixed, [top], stiffness=paint)
-    assert session.state()["constraints"]["stiffness"] == paint
-    doc = session.constraints_document()
+    bar_session.set_constraints(None, fixed, [top], stiffness=paint)
+    assert bar_session.state()["constraints"]["stiffness"] == paint
+    doc = bar_session.constraints_document()
     assert doc["version"] == 2 and doc["stiffness"] == paint
     loaded = load_constraints(json.loads(json.dumps(doc)), len(V))
-    np.testing.assert_array_equal(loaded.stiffness, session.constraints.stiffness)
-    assert session.undo() and session.constraints.stiffness is None
-    assert session.state()["constraints"]["stiffness"] is None and "stiffness" not in session.constraints_document()
-    assert session.redo() and session.state()["constraints"]["stiffness"] == paint
-    _bend(session, top)
-    session.end_drag()
-    session.reset()
-    assert session.state()["constraints"]["stiffness"] == paint
-    _bend(session, top)
-    session.apply()
-    assert session.state()["constraints"]["stiffness"] == paint
+    np.testing.assert_array_equal(loaded.stiffness, bar_session.constraints.stiffness)
+    assert bar_session.undo() and bar_session.constraints.stiffness is None
+    assert bar_session.state()["constraints"]["stiffness"] is None
+    assert "stiffness" not in bar_session.constraints_document()
+    assert bar_session.redo() and bar_session.state()["constraints"]["stiffness"] == paint
+    _bend(bar_session, top)
+    bar_session.end_drag()
+    bar_session.reset()
+    assert bar_session.state()["constraints"]["stiffness"] == paint
+    _bend(bar_session, top)
+    bar_session.apply()
+    assert bar_session.state()["constraints"]["stiffness"] == paint
 
 
-def test_unpainted_stiffness_is_no_stiffness(session: Session) -> None:
-    fixed, top, middle = _setup(session.V)
-    session.set_constraints(None, fixed, [top], stiffness=[{"vertices": middle.tolist(), "value": 1.0}])
-    assert session.constraints.stiffness is None and session.solver.stiffness is None
-    assert session.set_constraints(None, fixed, [top], stiffness=[]) is None  # the same selection: nothing to do
-    assert not session.history.can_redo
+def test_unpainted_stiffness_is_no_stiffness(bar_session: Session) -> None:
+    fixed, top, middle = _setup(bar_session.V)
+    bar_session.set_constraints(None, fixed, [top], stiffness=[{"vertices": middle.tolist(), "value": 1.0}])
+    assert bar_session.constraints.stiffness is None and bar_session.solver.stiffness is None
+    assert bar_session.set_constraints(None, fixed, [top], stiffness=[]) is None  # the same selection: nothing to do
+    assert not bar_session.history.can_redo
 
 
 @pytest.mark.parametrize(("paint", "match"), [
     ([{"vertices": [10**6], "value": 2.0}], "out of range"),
     ([{"vertices": [3], "value": 2.0}, {"vertices": [3], "value": 4.0}], "two stiffness values"),
 ])
-def test_bad_paint_leaves_the_session_unchanged(session: Session, paint: list, match: str) -> None:
-    fixed, top, _ = _setup(session.V)
-    session.set_constraints(None, fixed, [top])
-    before = session.constraints
+def test_bad_paint_leaves_the_session_unchanged(bar_session: Session, paint: list, match: str) -> None:
+    fixed, top, _ = _setup(bar_session.V)
+    bar_session.set_constraints(None, fixed, [top])
+    before = bar_session.constraints
     with pytest.raises(RequestError, match=match) as err:
-        session.set_constraints(None, fixed, [top], stiffness=paint)
-    assert err.value.code == "bad_constraints" and session.constraints is before
+        bar_session.set_constraints(None, fixed, [top], stiffness=paint)
+    assert err.value.code == "bad_constraints" and bar_session.constraints is before
 
 
 @pytest.mark.parametrize(("stiffness", "ok"), [
