@@ -22,15 +22,39 @@ from numpy.typing import NDArray
 
 from arap.errors import ArapError
 
-__all__ = ["LbfgsHistory", "gradient"]
+__all__ = ["LbfgsHistory", "gradient", "step_norm"]
 
 
 @nb.njit(cache=True, nogil=True)
 def _dot(a: NDArray[np.float64], b: NDArray[np.float64]) -> float:  # pragma: no cover - compiled
-    total = 0.0
-    for i in range(a.size):
-        total += a[i] * b[i]
-    return total
+    # Eight independent partial sums: one running sum waits on the latency of every addition (about 2× slower).
+    n = a.size
+    s0 = s1 = s2 = s3 = s4 = s5 = s6 = s7 = 0.0
+    m = n - n % 8
+    for i in range(0, m, 8):
+        s0 += a[i] * b[i]
+        s1 += a[i + 1] * b[i + 1]
+        s2 += a[i + 2] * b[i + 2]
+        s3 += a[i + 3] * b[i + 3]
+        s4 += a[i + 4] * b[i + 4]
+        s5 += a[i + 5] * b[i + 5]
+        s6 += a[i + 6] * b[i + 6]
+        s7 += a[i + 7] * b[i + 7]
+    for i in range(m, n):
+        s0 += a[i] * b[i]
+    return ((s0 + s1) + (s2 + s3)) + ((s4 + s5) + (s6 + s7))
+
+
+def step_norm(d: NDArray[np.float64]) -> float:
+    """Euclidean norm of a C-contiguous float64 array over all its entries.
+
+    Example
+    -------
+    >>> step_norm(np.array([[3.0, 0.0, 4.0]]))
+    5.0
+    """
+    flat = d.reshape(-1)
+    return float(np.sqrt(_dot(flat, flat)))
 
 
 @nb.njit(cache=True, nogil=True)
