@@ -158,7 +158,7 @@ def plain_iterations(it: Iterate, energy: float | None, accel: AndersonAccelerat
     return out
 
 
-def lbfgs_iterations(it: Iterate, energy: float | None, window: int) -> Outcome:
+def lbfgs_iterations(it: Iterate, energy: float | None, history: LbfgsHistory) -> Outcome:
     """L-BFGS preconditioned by the global step (see :mod:`arap.lbfgs`), with a backtracking line search.
 
     Each iteration: a direction from the history (the plain step when it is empty, or when ``it.rotations`` were
@@ -172,12 +172,12 @@ def lbfgs_iterations(it: Iterate, energy: float | None, window: int) -> Outcome:
     energy : float or None
         Energy at the start when ``it.rotations`` were fitted to it; None when they were fitted to another shape (a
         warm start towards new targets): the first step is then the plain one.
-    window : int
-        Curvature pairs kept.
+    history : LbfgsHistory
+        Reset before use (a solver keeps one, so that its slots are allocated once).
     """
     out = Outcome()
     nf, U, timings = it.nf, it.U, it.timings
-    history = LbfgsHistory(window)
+    history.reset()
     rhs = np.empty((nf, 3))
 
     def fit_rhs(grad: Array) -> None:

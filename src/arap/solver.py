@@ -23,6 +23,7 @@ from arap.covariance import assemble_rhs, assemble_rhs_and_gradient, covariances
 from arap.errors import ArapError, ConstraintError, OptionError, UnconstrainedRegionError
 from arap.inactive import InactiveCells
 from arap.indexing import check_index_array, find_unconstrained_part, rows_of
+from arap.lbfgs import LbfgsHistory
 from arap.linsolve import NotPositiveDefiniteError, factorize
 from arap.loops import Iterate, lbfgs_iterations, plain_iterations
 from arap.mesh import MeshLike, check_mesh, is_mesh_like, mesh_arrays
@@ -245,6 +246,7 @@ class ArapSolver:
         self._last: NDArray[np.float64] | None = None
         self._live: NDArray[np.float64] | None = None
         self._accelerator: AndersonAccelerator | None = None
+        self._history: LbfgsHistory | None = None
         self._rotations_fresh = False
         self.factor_seconds = time.perf_counter() - t0
 
@@ -380,7 +382,10 @@ class ArapSolver:
             rhs_const = rhs_const - self._points.rhs(P, fixed)  # assemble_rhs subtracts its constant
         it = self._iterate(U, fixed, P, rhs_const, const_E, int(cap), tolerance, callback, timings)
         if acceleration == "lbfgs" and self._lbfgs_applies(P):
-            outcome = lbfgs_iterations(it, E_cur, DEFAULT_LBFGS_MEMORY if window is None else int(window))
+            size = DEFAULT_LBFGS_MEMORY if window is None else int(window)
+            if self._history is None or self._history.window != size:
+                self._history = LbfgsHistory(size)
+            outcome = lbfgs_iterations(it, E_cur, self._history)
         else:
             accel = None
             if acceleration != "none" and nf:
