@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import numba as nb
 import numpy as np
+import scipy.sparse as sp
 
 from arap._parallel import policy
 from arap.cells import Cells, RhsGather
@@ -145,6 +146,38 @@ def _rhs_parallel(ptr, cell, g, R, const, out):  # pragma: no cover - compiled
 
 
 @nb.njit(cache=True, nogil=True)
+def _rhs_gradient_rows(r0, r1, ptr, cell, g, R, const, a_ptr, a_idx, a_val, x, out, grad):  # pragma: no cover
+    _rhs_rows(r0, r1, ptr, cell, g, R, const, out)
+    for r in range(r0, r1):
+        g0 = -out[r, 0]
+        g1 = -out[r, 1]
+        g2 = -out[r, 2]
+        for k in range(np.uint64(a_ptr[r]), np.uint64(a_ptr[r + 1])):
+            j = np.uint64(a_idx[k])
+            v = a_val[k]
+            g0 += v * x[j, 0]
+            g1 += v * x[j, 1]
+            g2 += v * x[j, 2]
+        grad[r, 0] = g0
+        grad[r, 1] = g1
+        grad[r, 2] = g2
+
+
+@nb.njit(cache=True, nogil=True)
+def _rhs_gradient_serial(ptr, cell, g, R, const, a_ptr, a_idx, a_val, x, out, grad):  # pragma: no cover
+    _rhs_gradient_rows(0, ptr.shape[0] - 1, ptr, cell, g, R, const, a_ptr, a_idx, a_val, x, out, grad)
+
+
+@nb.njit(cache=True, nogil=True, parallel=True)
+def _rhs_gradient_parallel(ptr, cell, g, R, const, a_ptr, a_idx, a_val, x, out, grad):  # pragma: no cover
+    rows = ptr.shape[0] - 1
+    step = CHUNK * BLOCK
+    for ch in nb.prange((rows + step - 1) // step):
+        _rhs_gradient_rows(ch * step, min(rows, (ch + 1) * step), ptr, cell, g, R, const, a_ptr, a_idx, a_val, x,
+                           out, grad)
+
+
+@nb.njit(cache=True, nogil=True)
 def _fused_serial(cell_ids, ptr, a, b, w, we, rest_sq, U, R, E, gptr, gcell, g, const, out):  # pragma: no cover
     total = _local_serial(cell_ids, ptr, a, b, w, we, rest_sq, U, R, E)
     _rhs_serial(gptr, gcell, g, R, const, out)
@@ -231,6 +264,28 @@ def assemble_rhs(gather: RhsGather, R: np.ndarray, const: np.ndarray, out: np.nd
     """
     args = (gather.ptr, gather.cell, gather.g, R, const, out)
     policy.run("rhs", len(gather.cell), lambda: _rhs_serial(*args), lambda: _rhs_parallel(*args))
+
+
+def assemble_rhs_and_gradient(gather: RhsGather, R: np.ndarray, const: np.ndarray, A: sp.csr_matrix,
+                              x: np.ndarray, out: np.ndarray, grad: np.ndarray) -> None:
+    """:func:`assemble_rhs` and the residual ``grad = A x − out`` of the global step at ``x``, row by row in one pass.
+
+    With the rotations fitted to ``x``, ``2 grad`` is the energy's gradient in the free positions (see
+    :mod:`arap.lbfgs`).
+
+    Parameters
+    ----------
+    gather, R, const, out
+        As in :func:`assemble_rhs`.
+    A : (r, r) CSR matrix
+        The reduced system matrix (int32 or int64 indices), rows in the order of ``gather``'s.
+    x : (r, 3) C-contiguous float64 array
+    grad : (r, 3) float64 array
+        Output.
+    """
+    args = (gather.ptr, gather.cell, gather.g, R, const, A.indptr, A.indices, A.data, x, out, grad)
+    policy.run("rhs+gradient", len(gather.cell) + A.nnz, lambda: _rhs_gradient_serial(*args),
+               lambda: _rhs_gradient_parallel(*args))
 
 
 def local_step_and_rhs(cells: Cells, cell_ids: np.ndarray, U: np.ndarray, R: np.ndarray, E: np.ndarray,

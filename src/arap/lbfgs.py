@@ -17,16 +17,17 @@ from collections.abc import Callable
 
 import numba as nb
 import numpy as np
-import scipy.sparse as sp
 from numpy.typing import NDArray
 
 from arap.errors import ArapError
 
-__all__ = ["LbfgsHistory", "gradient"]
+__all__ = ["LbfgsHistory", "step_norm"]
 
 
-@nb.njit(cache=True, nogil=True)
+@nb.njit(cache=True, nogil=True, fastmath={"reassoc", "contract"})
 def _dot(a: NDArray[np.float64], b: NDArray[np.float64]) -> float:  # pragma: no cover - compiled
+    # The sum may be reordered into SIMD lanes (a fixed order for a given build): about 4× faster than one running
+    # sum, which waits on the latency of every addition.
     total = 0.0
     for i in range(a.size):
         total += a[i] * b[i]
@@ -45,32 +46,16 @@ def _diff(a: NDArray[np.float64], b: NDArray[np.float64], out: NDArray[np.float6
         out[i] = a[i] - b[i]
 
 
-@nb.njit(cache=True, nogil=True)
-def _gradient(indptr, indices, data, x, rhs, out):  # pragma: no cover - compiled
-    for i in range(len(indptr) - 1):
-        g0 = -rhs[i, 0]
-        g1 = -rhs[i, 1]
-        g2 = -rhs[i, 2]
-        for k in range(indptr[i], indptr[i + 1]):
-            j = indices[k]
-            v = data[k]
-            g0 += v * x[j, 0]
-            g1 += v * x[j, 1]
-            g2 += v * x[j, 2]
-        out[i, 0] = g0
-        out[i, 1] = g1
-        out[i, 2] = g2
+def step_norm(d: NDArray[np.float64]) -> float:
+    """Euclidean norm of a C-contiguous float64 array over all its entries.
 
-
-def gradient(A: sp.csr_matrix, x: NDArray[np.float64], rhs: NDArray[np.float64], out: NDArray[np.float64]) -> None:
-    """``out = A x − rhs`` in one pass (half the energy's gradient when ``rhs`` is ``b(R(x))``).
-
-    Parameters
-    ----------
-    A : (k, k) CSR matrix
-    x, rhs, out : (k, 3) C-contiguous float64 arrays
+    Example
+    -------
+    >>> step_norm(np.array([[3.0, 0.0, 4.0]]))
+    5.0
     """
-    _gradient(A.indptr, A.indices, A.data, x, rhs, out)
+    flat = d.reshape(-1)
+    return float(np.sqrt(_dot(flat, flat)))
 
 
 class LbfgsHistory:
@@ -135,19 +120,17 @@ class LbfgsHistory:
         recorded) when ``sᵀy`` is not positive, where the energy is not convex along the step.
 
         The arrays (any shape, C-contiguous, all of one size) are not kept: their differences are copied into
-        the history.
+        the history. When the window is full, the oldest pair makes room (also when the new pair is refused).
         """
         S, Y = self._slots(x.size)
         free = [k for k in range(self.window) if k not in self._order]
-        slot = free[0] if free else self._order[0]
+        slot = free[0] if free else self._order.pop(0)  # a full window gives up its oldest pair
         s, y = S[slot], Y[slot]
         _diff(x_new.reshape(-1), x.reshape(-1), s)
         _diff(g_new.reshape(-1), g.reshape(-1), y)
         sy = _dot(s, y)
         if not sy > 1e-14 * np.sqrt(_dot(s, s) * _dot(y, y)):
             return False
-        if not free:
-            self._order.pop(0)
         self._order.append(slot)
         self._rho[slot] = 1.0 / sy
         return True

@@ -19,11 +19,13 @@ from arap.cells import (
     scale_cells,
     system_matrix,
 )
-from arap.covariance import assemble_rhs, covariances, local_step
+from arap.covariance import assemble_rhs, assemble_rhs_and_gradient, covariances, local_step
 from arap.errors import ArapError, ConstraintError, OptionError, UnconstrainedRegionError
-from arap.indexing import check_index_array, find_unconstrained_part
-from arap.lbfgs import LbfgsHistory, gradient
+from arap.inactive import InactiveCells
+from arap.indexing import check_index_array, find_unconstrained_part, rows_of
+from arap.lbfgs import LbfgsHistory
 from arap.linsolve import NotPositiveDefiniteError, factorize
+from arap.loops import Iterate, lbfgs_iterations, plain_iterations
 from arap.mesh import MeshLike, check_mesh, is_mesh_like, mesh_arrays
 from arap.points import PointConstraints, PointSystem, check_points
 from arap.result import (
@@ -43,13 +45,6 @@ from arap.smooth import DEFAULT_ALPHA, SWEEP_GAIN, SWEEPS, SmoothRotations, chec
 from arap.start import best_rigid_transform, vertex_areas
 from arap.topology import locality_order, vertex_adjacency
 from arap.weights import DEFAULT_WEIGHTS, WeightType
-
-#: L-BFGS line search: trials from step 1, halving, before the plain step is taken instead.
-LINE_SEARCH_HALVINGS = 5
-#: L-BFGS measures the plain step (a back-substitution) when its own step was at most this many times the tolerance,
-#: and every ``CHECK_EVERY`` iterations.
-CHECK_FACTOR = 10.0
-CHECK_EVERY = 10
 
 
 class ArapSolver:
@@ -233,7 +228,7 @@ class ArapSolver:
             region = rigid_regions(self._inv[F], rigid[self._perm])
             self._rigid = RigidRegions(self._cells, region, self._active)
             self._rigid_all = RigidRegions(self._cells, region, np.arange(n))
-        self._prepare_constant_energy(n)
+        self._inactive = InactiveCells(self._cells, self._active, self._constrained, self._V)
         self.factor = None
         if len(self.free):
             try:
@@ -251,65 +246,11 @@ class ArapSolver:
         self._last: NDArray[np.float64] | None = None
         self._live: NDArray[np.float64] | None = None
         self._accelerator: AndersonAccelerator | None = None
+        self._history: LbfgsHistory | None = None
         self._rotations_fresh = False
         self.factor_seconds = time.perf_counter() - t0
 
     # ------------------------------------------------------------------ set-up helpers
-    def _prepare_constant_energy(self, n: int) -> None:
-        """Cells outside the active set only see non-free vertices: their energy is constant during a solve."""
-        is_active = np.zeros(n, dtype=bool)
-        is_active[self._active] = True
-        tcell = self._cells.cell_of_term()
-        self._inactive_terms = np.flatnonzero(~is_active[tcell])
-        self._inactive_term_cell = tcell[self._inactive_terms]
-        self._inactive_a = self._cells.a[self._inactive_terms]
-        self._inactive_b = self._cells.b[self._inactive_terms]
-        self._R_scratch = np.empty((n, 3, 3))
-        self._E_scratch = np.zeros(n)
-        rest_E = np.zeros(n)
-        inactive = np.flatnonzero(~is_active)
-        if len(inactive):
-            local_step(self._cells, inactive, self._V, np.empty((n, 3, 3)), rest_E)
-        self._rest_E = rest_E
-        self._rest_inactive_sum = float(rest_E[inactive].sum())
-        is_constrained = np.zeros(n, dtype=bool)
-        is_constrained[self._constrained] = True
-        # Inactive cells that some constrained vertex touches: those whose energy changes when all handles move.
-        self._touched_by_any = np.unique(
-            self._inactive_term_cell[is_constrained[self._inactive_a] | is_constrained[self._inactive_b]])
-        self._constant_cache: tuple[np.ndarray, float] | None = None
-        self._V_constrained = self._V[self._constrained]
-        self._touched_cache: tuple[np.ndarray, np.ndarray] | None = None
-
-    def _constant_energy(self, U: np.ndarray, targets: np.ndarray) -> float:
-        """Energy of the inactive cells, whose terms see only non-free vertices (``U`` holds them in place).
-
-        Only cells touching a constrained vertex away from its rest position differ from their rest energy.
-        """
-        if not len(self._inactive_terms):
-            return 0.0
-        cache = self._constant_cache
-        if cache is not None and np.array_equal(cache[0], targets):
-            return cache[1]
-        moved_slots = np.any(targets != self._V_constrained, axis=1)
-        if moved_slots.all():
-            touched = self._touched_by_any
-        elif self._touched_cache is not None and np.array_equal(self._touched_cache[0], moved_slots):
-            touched = self._touched_cache[1]  # the same handles moved again (a drag)
-        else:
-            moved = np.zeros(len(self._V), dtype=bool)
-            moved[self._constrained[moved_slots]] = True
-            is_touched = np.zeros(len(self._V), dtype=bool)
-            is_touched[self._inactive_term_cell[moved[self._inactive_a] | moved[self._inactive_b]]] = True
-            touched = np.flatnonzero(is_touched)
-            self._touched_cache = (moved_slots, touched)
-        value = self._rest_inactive_sum
-        if len(touched):
-            value += local_step(self._cells, touched, U, self._R_scratch, self._E_scratch)
-            value -= float(self._rest_E[touched].sum())
-        self._constant_cache = (targets.copy(), value)
-        return value
-
     def _check_point_targets(self, point_targets: object) -> NDArray[np.float64] | None:
         """Targets of the point constraints, shape (p, 3); required exactly when there are point constraints."""
         p = 0 if self.points is None else len(self.points)
@@ -431,83 +372,62 @@ class ArapSolver:
         self._point_state = None if P is None else (P, fixed)
         timings = {"local": 0.0, "rhs": 0.0, "solve": 0.0, "acceleration": 0.0}
         U, E_cur, start = self._start(T, fixed, initial, timings)
-        const_E = self._constant_energy(U, T)
+        const_E = self._inactive.energy(U, T)
         if E_cur is not None:
             E_cur += const_E
         self._live = U
-        free = self._free
-        nf = len(free)
+        nf = self._nf
         rhs_const = self._L_fn @ fixed
         if self._points is not None and P is not None:
             rhs_const = rhs_const - self._points.rhs(P, fixed)  # assemble_rhs subtracts its constant
-        step_limit = tolerance * self._diagonal * np.sqrt(max(nf, 1))
+        it = self._iterate(U, fixed, P, rhs_const, const_E, int(cap), tolerance, callback, timings)
         if acceleration == "lbfgs" and self._lbfgs_applies(P):
-            memory = DEFAULT_LBFGS_MEMORY if window is None else int(window)
-            return self._solve_lbfgs(U, E_cur, start, const_E, rhs_const, int(cap), step_limit, callback, memory,
-                                     timings, t_start)
-        window = DEFAULT_WINDOW if window is None else int(window)
-        rhs = np.empty((nf, 3))
-        accel = None
-        if acceleration != "none" and nf:
-            if self._accelerator is None or self._accelerator.window != window:
-                self._accelerator = AndersonAccelerator(window, 3 * nf)
-            accel = self._accelerator
-            accel.reset()
-        energies: list[float] = []
-        converged = False
-        residual = float("nan")
-        rejected = 0
-        for it in range(int(cap)):
-            x = U[:nf]  # a view: read before the iterate is overwritten below
-            if self.factor is not None:
-                t = time.perf_counter()
-                assemble_rhs(self._gather, self._R, rhs_const, rhs)
-                t2 = time.perf_counter()
-                g = self.factor.solve(rhs)
-                if self._points is not None and P is not None:
-                    g = self._points.correct(g, P, fixed)
-                timings["rhs"] += t2 - t
-                timings["solve"] += time.perf_counter() - t2
-            else:
-                g = x
-            d = g - x
-            step = float(np.sqrt(np.einsum("ij,ij->", d, d)))
-            residual = step / (self._diagonal * np.sqrt(max(nf, 1)))
-            last = step <= step_limit
-            candidate = None
-            if accel is not None:
-                t = time.perf_counter()
-                candidate = accel.step(x.ravel(), g.ravel())
-                timings["acceleration"] += time.perf_counter() - t
-            if last or E_cur is None:
-                candidate = None
-            U[:nf] = g if candidate is None else candidate.reshape(nf, 3)
-            # The coupled sweep of smooth_rotations starts from the current rotations: keep them for the fallback
-            saved = self._R.copy() if candidate is not None and self._smooth is not None else None
-            e = self._local(U, const_E, timings)
-            if candidate is not None and E_cur is not None and e > E_cur:
-                # Safeguard: the extrapolation raised the energy; take the plain step, which cannot.
-                rejected += 1
-                assert accel is not None
-                accel.reset()
-                U[:nf] = g
-                if saved is not None:
-                    self._R[...] = saved
-                e = self._local(U, const_E, timings)
-            E_cur = e
-            energies.append(e)
-            stop = callback is not None and callback(it + 1, e) is False
-            if tolerance > 0 and last:
-                converged = True
-            if converged or stop:
-                break
+            size = DEFAULT_LBFGS_MEMORY if window is None else int(window)
+            if self._history is None or self._history.window != size:
+                self._history = LbfgsHistory(size)
+            outcome = lbfgs_iterations(it, E_cur, self._history)
+        else:
+            accel = None
+            if acceleration != "none" and nf:
+                size = DEFAULT_WINDOW if window is None else int(window)
+                if self._accelerator is None or self._accelerator.window != size:
+                    self._accelerator = AndersonAccelerator(size, 3 * nf)
+                accel = self._accelerator
+            outcome = plain_iterations(it, E_cur, accel)
         self._last = U
         self._live = None
         # The rotations fit the stored solution only if an iteration ended with a local step on it.
-        self._rotations_fresh = bool(energies) or start != "warm"
+        self._rotations_fresh = bool(outcome.energies) or start != "warm"
         timings["total"] = time.perf_counter() - t_start
-        return ArapResult(vertices=np.take(U, self._inv, axis=0), energies=energies, iterations=len(energies),
-                          converged=converged, timings=timings, residual=residual, start=start, rejected=rejected)
+        return ArapResult(vertices=rows_of(U, self._inv), energies=outcome.energies,
+                          iterations=len(outcome.energies), converged=outcome.converged, timings=timings,
+                          residual=outcome.residual, start=start, rejected=outcome.rejected)
+
+    def _iterate(self, U: NDArray[np.float64], fixed: NDArray[np.float64], P: NDArray[np.float64] | None,
+                 rhs_const: NDArray[np.float64], const_E: float, cap: int, tolerance: float,
+                 callback: IterationCallback | None, timings: dict[str, float]) -> Iterate:
+        """The steps of one :meth:`solve` call for :mod:`arap.loops`."""
+        nf = self._nf
+        A, factor, points = self._A, self.factor, self._points
+
+        def rhs(out: NDArray[np.float64]) -> None:
+            assemble_rhs(self._gather, self._R, rhs_const, out)
+
+        def rhs_gradient(x: NDArray[np.float64], out: NDArray[np.float64], grad: NDArray[np.float64]) -> None:
+            assemble_rhs_and_gradient(self._gather, self._R, rhs_const, A, x, out, grad)
+
+        def solve(B: NDArray[np.float64]) -> NDArray[np.float64]:
+            return B.copy() if factor is None else factor.solve(B)
+
+        correct = None
+        if points is not None and P is not None and points.hard.any():
+            def correct(g: NDArray[np.float64]) -> NDArray[np.float64]:
+                return points.correct(g, P, fixed)
+
+        scale = self._diagonal * np.sqrt(max(nf, 1))
+        return Iterate(U=U, nf=nf, rotations=self._R, local=lambda X: self._local(X, const_E, timings), rhs=rhs,
+                       rhs_gradient=rhs_gradient, solve=solve, correct=correct, coupled=self._smooth is not None,
+                       step_limit=tolerance * scale, scale=scale, cap=cap, callback=callback, timings=timings)
 
     def _lbfgs_applies(self, point_targets: NDArray[np.float64] | None) -> bool:
         """True when the energy's gradient in x is ``2 (A x − b(R))`` with the factored ``A``, evaluated to full
@@ -516,109 +436,6 @@ class ArapSolver:
         hard = self._points is not None and point_targets is not None and bool(self._points.hard.any())
         return (self.factor is not None and self._smooth is None and self._rigid is None and not hard
                 and self._nf > 0)
-
-    def _solve_lbfgs(self, U: NDArray[np.float64], E_cur: float | None, start: str, const_E: float,
-                     rhs_const: NDArray[np.float64], cap: int, step_limit: float,
-                     callback: IterationCallback | None, window: int, timings: dict[str, float],
-                     t_start: float) -> ArapResult:
-        """The iterations of :meth:`solve` with ``acceleration="lbfgs"`` (see :mod:`arap.lbfgs`).
-
-        Each iteration: a direction from the history (the plain step when it is empty, or when the rotations in
-        ``self._R`` were fitted to another shape), a backtracking line search on the energy from step 1, the
-        plain step if no trial lowered it, then the gradient at the new iterate (its right-hand side is the one the
-        next plain step needs). The plain step's size, the convergence measure, costs a back-substitution: it is
-        taken when the step was small, every ``CHECK_EVERY`` iterations, and at the end.
-        """
-        assert self.factor is not None
-        nf = self._nf
-        solve = self.factor.solve
-        history = LbfgsHistory(window)
-        rhs = np.empty((nf, 3))
-
-        def fit_rhs(out: NDArray[np.float64]) -> NDArray[np.float64]:
-            """Right-hand side of the global step for the rotations in ``self._R``; ``A x − b`` at ``x`` into
-            ``out``."""
-            t = time.perf_counter()
-            assemble_rhs(self._gather, self._R, rhs_const, rhs)
-            gradient(self._A, U[:nf], rhs, out)
-            timings["rhs"] += time.perf_counter() - t
-            return out
-
-        def plain_size(step: NDArray[np.float64]) -> float:
-            return float(np.sqrt(np.einsum("ij,ij->", step, step)))
-
-        def plain_step_from_here() -> NDArray[np.float64]:
-            t = time.perf_counter()
-            g = solve(rhs)
-            timings["solve"] += time.perf_counter() - t
-            return g
-
-        scale = self._diagonal * np.sqrt(nf)
-        x = U[:nf].copy()
-        fresh = E_cur is not None  # the rotations in self._R fit x
-        grad, new_grad = np.empty((nf, 3)), np.empty((nf, 3))
-        if fresh:
-            fit_rhs(grad)
-        else:  # stale rotations (a warm start towards new targets): the first step is the plain one, no gradient
-            t = time.perf_counter()
-            assemble_rhs(self._gather, self._R, rhs_const, rhs)
-            timings["rhs"] += time.perf_counter() - t
-        energies: list[float] = []
-        converged = False
-        residual = float("nan")
-        residual_at = -2  # iteration whose iterate the residual was measured at (0: the start)
-        rejected = 0
-        rhs_fresh = True
-        for it in range(1, cap + 1):
-            if fresh and len(history):
-                t = time.perf_counter()
-                d = history.direction(grad, solve)
-                timings["acceleration"] += time.perf_counter() - t
-            else:
-                d = plain_step_from_here() - x
-                residual, residual_at = plain_size(d) / scale, it - 1
-                converged = fresh and residual * scale <= step_limit  # this plain step is the last
-            for _ in range(LINE_SEARCH_HALVINGS):
-                np.add(x, d, out=U[:nf])
-                e = self._local(U, const_E, timings)
-                if E_cur is None or e <= E_cur:
-                    break
-                d *= 0.5
-            else:  # no trial lowered the energy: the plain step from x, which cannot raise it
-                rejected += 1
-                history.reset()
-                d = plain_step_from_here() - x
-                np.add(x, d, out=U[:nf])
-                e = self._local(U, const_E, timings)
-            small = plain_size(d) <= CHECK_FACTOR * step_limit
-            check = not converged and step_limit > 0 and (small or it % CHECK_EVERY == 0)
-            rhs_fresh = it < cap or check  # the last iteration of a capped run (a drag) needs no gradient
-            if rhs_fresh:
-                fit_rhs(new_grad)
-                if fresh:
-                    history.update(U[:nf], x, new_grad, grad)
-            x[:] = U[:nf]
-            grad, new_grad = new_grad, grad
-            fresh = True
-            E_cur = e
-            energies.append(e)
-            stop = callback is not None and callback(it, e) is False
-            if check:
-                residual, residual_at = plain_size(plain_step_from_here() - x) / scale, it
-                if residual * scale <= step_limit:
-                    converged = True
-            if converged or stop:
-                break
-        if energies and residual_at < len(energies) - 1:
-            if not rhs_fresh:
-                fit_rhs(grad)
-            residual = plain_size(plain_step_from_here() - x) / scale
-        self._last = U
-        self._live = None
-        self._rotations_fresh = bool(energies) or start != "warm"
-        timings["total"] = time.perf_counter() - t_start
-        return ArapResult(vertices=np.take(U, self._inv, axis=0), energies=energies, iterations=len(energies),
-                          converged=converged, timings=timings, residual=residual, start=start, rejected=rejected)
 
     def _local(self, U: NDArray[np.float64], const_E: float, timings: dict[str, float]) -> float:
         """Local step on the active cells at ``U``; returns the total energy."""
@@ -655,7 +472,7 @@ class ArapSolver:
             if self._last is None:
                 initial = "auto"
             else:
-                U = self._last.copy()
+                U = self._last  # continued in place: the solver owns it, and the result is a copy
                 warm_fresh = self._rotations_fresh
                 if not warm_fresh:
                     self._local(U, 0.0, timings)

@@ -71,6 +71,37 @@ def test_batched_kernels_agree_with_the_cell_by_cell_ones(mesh: tuple[np.ndarray
     assert total2 == total
 
 
+@pytest.mark.parametrize("energy", ["spokes", "spokes_and_rims"])
+def test_rhs_and_gradient_in_one_pass(armadillo: tuple[np.ndarray, np.ndarray], energy: str) -> None:
+    """The fused kernel gives the right-hand side of assemble_rhs and A x − b, serially and on threads alike."""
+    _, _, constrained, targets = bend_constraints(armadillo[0])
+    solver = ArapSolver(*armadillo, constrained, energy=energy)
+    solver.solve(targets, max_iterations=3)
+    assert solver._last is not None
+    s = _state(*armadillo, energy)
+    A, x = solver._A, np.ascontiguousarray(solver._last[:solver.n_free])
+    rhs = np.empty_like(s.const)
+    covariance.assemble_rhs(solver._gather, solver._R, s.const, rhs)
+    expected = A @ x - rhs
+    args = (solver._gather.ptr, solver._gather.cell, solver._gather.g, solver._R, s.const, A.indptr, A.indices,
+            A.data, x)
+    runs = []
+    saved = numba.get_num_threads()
+    try:
+        for kernel, threads in ((covariance._rhs_gradient_serial, 1),
+                                (covariance._rhs_gradient_parallel, min(2, numba.config.NUMBA_NUM_THREADS))):
+            numba.set_num_threads(threads)
+            out, grad = np.empty_like(rhs), np.empty_like(rhs)
+            kernel(*args, out, grad)
+            runs.append((out, grad))
+    finally:
+        numba.set_num_threads(saved)
+    for out, grad in runs:
+        assert np.array_equal(out, rhs)
+        assert np.abs(grad - expected).max() <= 1e-12 * np.abs(rhs).max()
+    assert np.array_equal(runs[0][1], runs[1][1])
+
+
 def test_rotations_do_not_depend_on_the_starting_guess(knight: tuple[np.ndarray, np.ndarray]) -> None:
     """The previous rotation only bounds the Newton start; identity, the optimum or garbage give the same fit."""
     s = _state(*knight, "spokes")

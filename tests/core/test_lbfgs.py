@@ -7,11 +7,10 @@ import doctest
 
 import numpy as np
 import pytest
-import scipy.sparse as sp
 
 import arap.lbfgs
 from arap.errors import ArapError
-from arap.lbfgs import LbfgsHistory, gradient
+from arap.lbfgs import LbfgsHistory
 
 
 def _bfgs_inverse(H0: np.ndarray, pairs: list[tuple[np.ndarray, np.ndarray]]) -> np.ndarray:
@@ -75,13 +74,26 @@ def test_the_window_must_be_a_positive_integer() -> None:
             LbfgsHistory(bad)  # type: ignore[arg-type]
 
 
-def test_gradient_is_a_x_minus_rhs() -> None:
-    rng = np.random.default_rng(5)
-    A = sp.random(40, 40, density=0.2, random_state=6, format="csr") + sp.eye(40, format="csr")
-    x, rhs = rng.normal(size=(40, 3)), rng.normal(size=(40, 3))
-    out = np.empty((40, 3))
-    gradient(A.tocsr(), x, rhs, out)
-    np.testing.assert_allclose(out, A @ x - rhs, rtol=1e-13, atol=1e-13)
+def test_a_full_window_keeps_the_newest_pairs_after_a_refusal() -> None:
+    """A refused pair takes the oldest pair's slot without corrupting the others: the direction equals the written-out
+    update over the pairs still held."""
+    rng = np.random.default_rng(11)
+    n = 10
+    Q = _spd(rng, n)
+    history = LbfgsHistory(3)
+    pairs = []
+    x, g = np.zeros((n, 1)), np.zeros((n, 1))
+    for _ in range(4):
+        s = rng.normal(size=n)
+        y = Q @ s
+        assert history.update(x + s[:, None], x, g + y[:, None], g)
+        pairs.append((s, y))
+    s = rng.normal(size=n)
+    assert not history.update(x + s[:, None], x, g - s[:, None], g)  # sᵀy < 0: refused
+    assert len(history) == 2
+    g = rng.normal(size=n)
+    d = history.direction(g[:, None].copy(), lambda q: q.copy())
+    np.testing.assert_allclose(d[:, 0], -_bfgs_inverse(np.eye(n), pairs[-2:]) @ g, rtol=1e-10, atol=1e-12)
 
 
 def test_docstring_example() -> None:
