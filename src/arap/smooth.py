@@ -64,8 +64,11 @@ SWEEPS = 8
 """Sweeps of one local step of the solver. One sweep moves each rotation towards its neighbours' only, and at the
 default ``alpha`` the rotation term outweighs the spokes term by far on dense meshes, so the coupled rotations are
 the slow part of a solve: measured on the knight, the camel head, the armadillo and a 20k-vertex scan (one vertex
-pulled, Anderson), more sweeps per iteration reach a lower energy in the same time up to 8 (see
-``benchmarks/README.md``), although each iteration costs more (one sweep: about 1.3× a spokes iteration)."""
+pulled, Anderson), the energy reached depends on the number of sweeps, however they are grouped into iterations,
+while each iteration adds a fixed cost (covariances, rotation term, right-hand side, back-substitution). On the
+armadillo (one thread) an iteration with 1, 2, 4, 8 or 16 sweeps cost 1.5, 2.1, 2.6, 3.5 or 6.0 spokes iterations,
+so the time per sweep falls with more sweeps per iteration (3.5× less from 1 to 8, 15% less from 8 to 16); 8 keeps
+an iteration (a drag's unit of work) affordable. See ``benchmarks/README.md``."""
 
 WINDOW = 2048
 """Consecutive cells whose colours are swept before the next window's (so that a sweep stays in cache)."""
@@ -169,15 +172,8 @@ def _covariance_rows(lo, hi, order, ptr, a, b, w, we, rest_sq, U, S, d):  # prag
             s20 += x2 * d0
             s21 += x2 * d1
             s22 += x2 * d2
-        S[p, 0] = s00
-        S[p, 1] = s01
-        S[p, 2] = s02
-        S[p, 3] = s10
-        S[p, 4] = s11
-        S[p, 5] = s12
-        S[p, 6] = s20
-        S[p, 7] = s21
-        S[p, 8] = s22
+        S[p, 0], S[p, 1], S[p, 2], S[p, 3], S[p, 4], S[p, 5] = s00, s01, s02, s10, s11, s12
+        S[p, 6], S[p, 7], S[p, 8] = s20, s21, s22
         d[p] = cur + rest_sq[c]
 
 
@@ -228,15 +224,8 @@ def _sweep_block(lo, hi, order, nptr, nmid, nidx, nq, S, d, k2, R, E, term, sc, 
         s20 = S[p, 6] + k2 * m20
         s21 = S[p, 7] + k2 * m21
         s22 = S[p, 8] + k2 * m22
-        sc[t] = s00
-        sc[BLOCK + t] = s01
-        sc[2 * BLOCK + t] = s02
-        sc[3 * BLOCK + t] = s10
-        sc[4 * BLOCK + t] = s11
-        sc[5 * BLOCK + t] = s12
-        sc[6 * BLOCK + t] = s20
-        sc[7 * BLOCK + t] = s21
-        sc[8 * BLOCK + t] = s22
+        sc[t], sc[BLOCK + t], sc[2 * BLOCK + t], sc[3 * BLOCK + t], sc[4 * BLOCK + t] = s00, s01, s02, s10, s11
+        sc[5 * BLOCK + t], sc[6 * BLOCK + t], sc[7 * BLOCK + t], sc[8 * BLOCK + t] = s12, s20, s21, s22
         # tr(R_prev M): a lower bound of the optimum that makes the rotation fit converge in few steps
         lower = (R[c, 0, 0] * s00 + R[c, 0, 1] * s10 + R[c, 0, 2] * s20 + R[c, 1, 0] * s01 + R[c, 1, 1] * s11
                  + R[c, 1, 2] * s21 + R[c, 2, 0] * s02 + R[c, 2, 1] * s12 + R[c, 2, 2] * s22)
@@ -248,27 +237,13 @@ def _sweep_block(lo, hi, order, nptr, nmid, nidx, nq, S, d, k2, R, E, term, sc, 
     for t in range(m):
         p = lo + t
         c = np.uint64(order[p])
-        r00 = sc[ROW_R * BLOCK + t]
-        r01 = sc[(ROW_R + 1) * BLOCK + t]
-        r02 = sc[(ROW_R + 2) * BLOCK + t]
-        r10 = sc[(ROW_R + 3) * BLOCK + t]
-        r11 = sc[(ROW_R + 4) * BLOCK + t]
-        r12 = sc[(ROW_R + 5) * BLOCK + t]
-        r20 = sc[(ROW_R + 6) * BLOCK + t]
-        r21 = sc[(ROW_R + 7) * BLOCK + t]
-        r22 = sc[(ROW_R + 8) * BLOCK + t]
-        R[c, 0, 0] = r00
-        R[c, 0, 1] = r01
-        R[c, 0, 2] = r02
-        R[c, 1, 0] = r10
-        R[c, 1, 1] = r11
-        R[c, 1, 2] = r12
-        R[c, 2, 0] = r20
-        R[c, 2, 1] = r21
-        R[c, 2, 2] = r22
-        # tr(R S) with the plain covariance: the data energy is Σ w ‖e'‖² + Σ w ‖e‖² − 2 tr(R S)
-        trace = (r00 * S[p, 0] + r01 * S[p, 3] + r02 * S[p, 6] + r10 * S[p, 1] + r11 * S[p, 4] + r12 * S[p, 7]
-                 + r20 * S[p, 2] + r21 * S[p, 5] + r22 * S[p, 8])
+        for i in range(3):
+            for j in range(3):
+                R[c, i, j] = sc[(ROW_R + 3 * i + j) * BLOCK + t]
+        trace = 0.0  # tr(R S), plain covariance: the data energy is Σ w ‖e'‖² + Σ w ‖e‖² − 2 tr(R S)
+        for i in range(3):
+            for j in range(3):
+                trace += R[c, i, j] * S[p, 3 * j + i]
         e = d[p] - 2.0 * trace
         E[c] = e
         total += e
@@ -276,18 +251,13 @@ def _sweep_block(lo, hi, order, nptr, nmid, nidx, nq, S, d, k2, R, E, term, sc, 
             pairs = 0.0
             if coupled:
                 for k in range(np.uint64(nptr[p]), np.uint64(nmid[p])):  # final neighbours: the pair's both ends
-                    j = np.uint64(nidx[k])
-                    y0 = r00 - R[j, 0, 0]
-                    y1 = r01 - R[j, 0, 1]
-                    y2 = r02 - R[j, 0, 2]
-                    y3 = r10 - R[j, 1, 0]
-                    y4 = r11 - R[j, 1, 1]
-                    y5 = r12 - R[j, 1, 2]
-                    y6 = r20 - R[j, 2, 0]
-                    y7 = r21 - R[j, 2, 1]
-                    y8 = r22 - R[j, 2, 2]
-                    pairs += nq[k] * (y0 * y0 + y1 * y1 + y2 * y2 + y3 * y3 + y4 * y4 + y5 * y5 + y6 * y6
-                                      + y7 * y7 + y8 * y8)
+                    other = np.uint64(nidx[k])
+                    dist = 0.0
+                    for u in range(3):
+                        for v in range(3):
+                            y = R[c, u, v] - R[other, u, v]
+                            dist += y * y
+                    pairs += nq[k] * dist
             term[c] = k2 * pairs
             total += k2 * pairs
     return total
@@ -452,8 +422,9 @@ class SmoothRotations:
 
         Each cell's own best rotation would be the obvious start, but near a moved handle those disagree wildly, and
         the strongly coupled sweeps then settle into a state of far higher energy: from the rest pose with one
-        vertex pulled, 4.3 against 0.067 on the camel head and 29 against 0.49 on a 20k-vertex scan after 400
-        iterations, while from this start a rigid motion of all constraints is exact after one iteration.
+        vertex pulled, 4.3 against 0.067 on the camel head and 29 against 0.49 on a 20k-vertex scan
+        (:func:`arap.shapes.scan_blob`) after 400 iterations; from this start a rigid motion of all constraints is
+        exact after one iteration.
 
         Parameters
         ----------
