@@ -1,11 +1,13 @@
 """Energies compared: spokes, spokes and rims, and smooth rotations (SR-ARAP) on the shared scans.
 
 1. Cost per iteration on the armadillo (bend scenario, the plain local/global iteration, all energies in the same
-   run, median of ``--repeats``): SR-ARAP against spokes.
+   run, median of ``--repeats``): SR-ARAP (with the solver's sweeps per local step, :data:`arap.smooth.SWEEPS`)
+   against spokes.
 2. A single vertex pulled by 20% of the bounding-box diagonal along the longest axis, the lowest 10% anchored
-   (:func:`arap.scenarios.pull`), solved from the rest pose until converged (at most ``--max-iterations``): folded
-   adjacent-face pairs added to the rest shape's (normals' dot < −0.5), the largest change of a dihedral angle, the
-   iterations and whether the solve converged.
+   (:func:`arap.scenarios.pull`), solved from the rest pose with the default acceleration until converged (at most
+   ``--max-iterations``): folded adjacent-face pairs added to the rest shape's (normals' dot < −0.5), the largest
+   change of a dihedral angle, the iterations, whether the solve converged, its seconds (set-up and solve: the time to
+   converge, or to reach the cap) and milliseconds per iteration, and the final energy.
 3. With ``--screenshots DIR``: the three results of each mesh rendered by the studio in headless Chromium and put
    side by side (``DIR/MESH.jpg``, spokes | spokes and rims | smooth rotations).
 
@@ -28,6 +30,7 @@ import numpy as np
 from arap.folds import folded_pairs, max_dihedral_change
 from arap.io import load_mesh, save_mesh
 from arap.scenarios import bend, pull
+from arap.smooth import SWEEPS
 from arap.solver import ArapSolver
 
 SHARED = Path(__file__).resolve().parents[1].parent / "shared" / "meshes"
@@ -66,7 +69,8 @@ def pulled(path: Path, max_iterations: int) -> tuple[np.ndarray, np.ndarray, lis
         shapes.append(U)
         rows.append({"energy": e, "folds": folded_pairs(U, F) - rest_folds, "rest_folds": rest_folds,
                      "dihedral": np.degrees(max_dihedral_change(V, U, F)), "iterations": result.iterations,
-                     "converged": result.converged, "seconds": time.perf_counter() - t})
+                     "converged": result.converged, "seconds": time.perf_counter() - t,
+                     "energy_value": result.energies[-1] if result.energies else float("nan")})
     return V, F, rows, shapes
 
 
@@ -132,20 +136,23 @@ def main(argv: list[str] | None = None) -> int:
 
     timing_mesh = args.meshes[-1]
     ms = per_iteration(timing_mesh, args.iterations, args.repeats)
-    print(f"\nPer iteration on {timing_mesh.name} (bend, plain iteration, median of {args.repeats} runs):")
+    print(f"\nPer iteration on {timing_mesh.name} (bend, plain iteration, median of {args.repeats} runs; "
+          f"smooth rotations: {SWEEPS} sweeps per local step):")
     print("| energy | ms per iteration | ÷ spokes |")
     print("|---|---|---|")
     for e in ENERGIES:
         print(f"| {e} | {ms[e]:.2f} | {ms[e] / ms['spokes']:.2f} |")
 
     print(f"\nOne vertex pulled by 20% of the diagonal, solved until converged (at most {args.max_iterations}):")
-    print("| mesh | energy | folded pairs added (rest) | max dihedral change | iterations | converged |")
-    print("|---|---|---|---|---|---|")
+    print("| mesh | energy | folded pairs added (rest) | max dihedral change | iterations | converged | seconds "
+          "| ms per iteration | final energy |")
+    print("|---|---|---|---|---|---|---|---|---|")
     for path in args.meshes:
         _, F, rows, shapes = pulled(path, args.max_iterations)
         for r in rows:
             print(f"| {path.stem} | {r['energy']} | {r['folds']:+d} ({r['rest_folds']}) | {r['dihedral']:.0f}° | "
-                  f"{r['iterations']} | {'yes' if r['converged'] else 'no'} |")
+                  f"{r['iterations']} | {'yes' if r['converged'] else 'no'} | {r['seconds']:.1f} | "
+                  f"{1000 * r['seconds'] / max(r['iterations'], 1):.2f} | {r['energy_value']:.6g} |")
         if args.screenshots is not None:
             print(f"  rendered: {screenshots(args.screenshots, path.stem, F, shapes)}")
     return 0

@@ -41,7 +41,7 @@ from arap.result import (
     StartName,
 )
 from arap.rigid import RigidRegions, rigid_regions
-from arap.smooth import DEFAULT_ALPHA, SWEEP_GAIN, SWEEPS, SmoothRotations, check_alpha, colour_order
+from arap.smooth import DEFAULT_ALPHA, SWEEPS, SmoothRotations, check_alpha, colour_order
 from arap.start import best_rigid_transform, vertex_areas
 from arap.topology import locality_order, vertex_adjacency
 from arap.weights import DEFAULT_WEIGHTS, WeightType
@@ -442,11 +442,7 @@ class ArapSolver:
         t = time.perf_counter()
         e_term = 0.0
         if self._smooth is not None:
-            e = self._smooth.local_step(U, self._R, self._E, self._term)
-            for _ in range(SWEEPS - 1):  # the coupled rotations settle slowly: sweep again while it pays
-                previous, e = e, self._smooth.local_step(U, self._R, self._E, self._term)
-                if previous - e <= SWEEP_GAIN * abs(e):
-                    break
+            e = self._smooth.relax(U, self._R, self._E, self._term, SWEEPS)
             e_term = float(self._term.sum())
         else:
             e = local_step(self._cells, self._active, U, self._R, self._E)
@@ -507,10 +503,10 @@ class ArapSolver:
         return U, self._local(U, 0.0, timings), "given"
 
     def _fit_each_rotation(self, U: NDArray[np.float64]) -> None:
-        """Before a cold start of ``smooth_rotations``: every cell's own best rotation, from which the coupled
-        sweeps go on (the rotations of an earlier shape, or the identity, would hold a moved start back)."""
+        """Before a cold start of ``smooth_rotations``: the rotations from which the coupled sweeps go on
+        (:meth:`arap.smooth.SmoothRotations.start`)."""
         if self._smooth is not None:
-            local_step(self._cells, self._active, U, self._R, self._E)
+            self._smooth.start(self._V, U, self._areas, self._R)
 
     def _stored_energy(self) -> float:
         """Energy of the active cells from the last local step."""
