@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import numba as nb
 import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components as _cc
@@ -98,3 +99,112 @@ def locality_order(F: np.ndarray, n: int, adjacency: sp.csr_matrix | None = None
     """
     A = vertex_adjacency(F, n) if adjacency is None else adjacency
     return np.asarray(reverse_cuthill_mckee(A, symmetric_mode=True), dtype=np.int64)
+
+
+def leading_subgraph(adjacency: sp.csr_matrix, order: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
+    """The graph of the first ``k`` vertices of ``order``, numbered by their position in it.
+
+    The pattern (without the diagonal) of ``M[order][:, order][:k, :k]`` for any matrix ``M`` with the adjacency's
+    pattern, e.g. the solver's reduced matrix over its free vertices, which come first in its internal order.
+
+    Parameters
+    ----------
+    adjacency : (n, n) scipy.sparse.csr_matrix
+        Symmetric adjacency without self loops (:func:`vertex_adjacency`).
+    order : (n,) int array
+        ``order[i]`` is the vertex numbered ``i``.
+    k : int
+        How many leading vertices to keep.
+
+    Returns
+    -------
+    indptr : (k+1,) int64 array
+    indices : (e,) int32 array
+        Neighbours of every kept vertex among the kept ones, in increasing order.
+    """
+    return _leading_subgraph(adjacency.indptr, adjacency.indices, np.asarray(order, dtype=np.int64), int(k))
+
+
+@nb.njit(cache=True, nogil=True)
+def _leading_subgraph(indptr, indices, order, k):  # pragma: no cover - compiled
+    n = order.shape[0]
+    position = np.empty(n, np.int64)
+    for i in range(n):
+        position[order[i]] = i
+    ptr = np.zeros(k + 1, np.int64)
+    for i in range(k):
+        v = order[i]
+        count = 0
+        for p in range(indptr[v], indptr[v + 1]):
+            if position[indices[p]] < k:
+                count += 1
+        ptr[i + 1] = ptr[i] + count
+    out = np.empty(ptr[k], np.int32)
+    for i in range(k):
+        v = order[i]
+        q = ptr[i]
+        for p in range(indptr[v], indptr[v + 1]):
+            j = position[indices[p]]
+            if j < k:
+                r = q - 1  # insertion into the sorted row
+                while r >= ptr[i] and out[r] > j:
+                    out[r + 1] = out[r]
+                    r -= 1
+                out[r + 1] = j
+                q += 1
+    return ptr, out
+
+
+def free_components(adjacency: sp.csr_matrix, free: np.ndarray) -> tuple[int, np.ndarray, np.ndarray]:
+    """Connected components of the graph of the ``free`` vertices, and which of them touch another vertex.
+
+    Parameters
+    ----------
+    adjacency : (n, n) scipy.sparse.csr_matrix
+        Symmetric vertex adjacency (:func:`vertex_adjacency`).
+    free : (f,) int array
+        Distinct vertex indices.
+
+    Returns
+    -------
+    count : int
+        Number of components.
+    labels : (f,) int64 array
+        Component of ``free[i]``; components are numbered in the order of their first member in ``free`` (as
+        ``scipy.sparse.csgraph.connected_components`` numbers those of ``adjacency[free][:, free]``).
+    pinned : (count,) bool array
+        Whether a vertex of the component has a neighbour outside ``free``.
+    """
+    return _free_components(adjacency.indptr, adjacency.indices, np.asarray(free, dtype=np.int64),
+                            adjacency.shape[0])
+
+
+@nb.njit(cache=True, nogil=True)
+def _free_components(indptr, indices, free, n):  # pragma: no cover - compiled
+    position = np.full(n, -1, np.int64)
+    for i in range(free.shape[0]):
+        position[free[i]] = i
+    labels = np.full(free.shape[0], -1, np.int64)
+    pinned = np.zeros(free.shape[0], np.bool_)
+    queue = np.empty(free.shape[0], np.int64)
+    count = 0
+    for start in range(free.shape[0]):
+        if labels[start] != -1:
+            continue
+        labels[start] = count
+        head = 0
+        tail = 1
+        queue[0] = start
+        while head < tail:
+            v = free[queue[head]]
+            head += 1
+            for p in range(indptr[v], indptr[v + 1]):
+                j = position[indices[p]]
+                if j < 0:
+                    pinned[count] = True
+                elif labels[j] == -1:
+                    labels[j] = count
+                    queue[tail] = j
+                    tail += 1
+        count += 1
+    return count, labels, pinned[:count].copy()
