@@ -8,8 +8,6 @@ import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components as _cc
 from scipy.sparse.csgraph import reverse_cuthill_mckee
 
-from arap._csr import csr_from_face_edges
-
 
 def directed_half_edges(F: np.ndarray) -> np.ndarray:
     """Half-edges of every face, in face order.
@@ -69,10 +67,49 @@ def boundary_edges(F: np.ndarray) -> np.ndarray:
 
 def vertex_adjacency(F: np.ndarray, n: int) -> sp.csr_matrix:
     """Symmetric 0/1 vertex adjacency matrix (no self loops), shape (n, n)."""
-    A = csr_from_face_edges(np.asarray(F, dtype=np.int64), n)
-    M = sp.csr_matrix((np.ones(A.nnz, dtype=np.int8), A.indices, A.indptr), shape=(n, n))
+    ptr, idx = _face_adjacency(np.ascontiguousarray(F, dtype=np.int64), int(n))
+    if len(idx) < np.iinfo(np.int32).max:
+        ptr = ptr.astype(np.int32)
+    M = sp.csr_matrix((np.ones(len(idx), dtype=np.int8), idx, ptr), shape=(n, n))
     M.has_sorted_indices = True
     return M
+
+
+@nb.njit(cache=True, nogil=True)
+def _face_adjacency(F, n):  # pragma: no cover - compiled
+    # Every corner lists its two face neighbours; a stamp per vertex drops repeats, a short sort orders each row.
+    count = np.zeros(n + 1, np.int64)
+    for f in range(F.shape[0]):
+        for k in range(3):
+            count[F[f, k] + 1] += 2
+    for i in range(n):
+        count[i + 1] += count[i]
+    fill = count[:-1].copy()
+    idx = np.empty(count[n], np.int32)
+    for f in range(F.shape[0]):
+        for k in range(3):
+            v = F[f, k]
+            p = fill[v]
+            idx[p] = F[f, (k + 1) % 3]
+            idx[p + 1] = F[f, (k + 2) % 3]
+            fill[v] = p + 2
+    stamp = np.full(n, -1, np.int64)
+    ptr = np.zeros(n + 1, np.int64)
+    out = 0
+    for r in range(n):
+        start = out
+        for p in range(count[r], count[r + 1]):
+            c = idx[p]
+            if stamp[c] != r:
+                stamp[c] = r
+                q = out - 1
+                while q >= start and idx[q] > c:
+                    idx[q + 1] = idx[q]
+                    q -= 1
+                idx[q + 1] = c
+                out += 1
+        ptr[r + 1] = out
+    return ptr, idx[:out].copy()
 
 
 def connected_components(F: np.ndarray, n: int) -> tuple[int, np.ndarray]:
@@ -127,27 +164,34 @@ def leading_subgraph(adjacency: sp.csr_matrix, order: np.ndarray, k: int) -> tup
 
 @nb.njit(cache=True, nogil=True)
 def _leading_subgraph(indptr, indices, order, k):  # pragma: no cover - compiled
+    # Rows read in the adjacency's own order (sequentially), written to their new places, then sorted.
     n = order.shape[0]
     position = np.empty(n, np.int64)
     for i in range(n):
         position[order[i]] = i
     ptr = np.zeros(k + 1, np.int64)
+    for v in range(n):
+        i = position[v]
+        if i < k:
+            count = 0
+            for p in range(indptr[v], indptr[v + 1]):
+                if position[indices[p]] < k:
+                    count += 1
+            ptr[i + 1] = count
     for i in range(k):
-        v = order[i]
-        count = 0
-        for p in range(indptr[v], indptr[v + 1]):
-            if position[indices[p]] < k:
-                count += 1
-        ptr[i + 1] = ptr[i] + count
+        ptr[i + 1] += ptr[i]
     out = np.empty(ptr[k], np.int32)
-    for i in range(k):
-        v = order[i]
-        q = ptr[i]
+    for v in range(n):
+        i = position[v]
+        if i >= k:
+            continue
+        lo = ptr[i]
+        q = lo
         for p in range(indptr[v], indptr[v + 1]):
             j = position[indices[p]]
             if j < k:
                 r = q - 1  # insertion into the sorted row
-                while r >= ptr[i] and out[r] > j:
+                while r >= lo and out[r] > j:
                     out[r + 1] = out[r]
                     r -= 1
                 out[r + 1] = j
