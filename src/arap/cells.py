@@ -10,6 +10,10 @@ Both are built from per-face corner weights: an edge term of face ``f`` opposite
 its two endpoints (spokes) or of all three corners of ``f`` (spokes and rims). Terms of one cell on the same edge are
 merged. The energy's normal equations are ``L p' = Σ_c R_c g_c`` with ``L = Σ_terms w (δ_a − δ_b)(δ_a − δ_b)ᵀ``; the
 right-hand side of vertex ``v`` gathers ``R_c g_vc`` over the cells ``c`` of ``v`` and its neighbours.
+
+The cells, the system matrix and the gather are built by compiled passes (counting placement, a stamp per vertex to
+merge equal terms in the order they come, short sorts): a 1M-vertex sphere's spokes-and-rims cells in about a second
+instead of eight for a sort of all its (cell, a, b) triples, with the same arrays bit for bit.
 """
 
 from __future__ import annotations

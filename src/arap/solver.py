@@ -247,7 +247,7 @@ class ArapSolver:
                     f"through zero-weight edges ({exc})"
                 ) from exc
         self.backend = None if self.factor is None else self.factor.backend
-        self._R = np.tile(np.eye(3), (n, 1, 1))
+        self._R = np.broadcast_to(np.eye(3), (n, 3, 3)).copy()
         self._E = np.zeros(n)
         self._last: NDArray[np.float64] | None = None
         self._live: NDArray[np.float64] | None = None
