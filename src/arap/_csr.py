@@ -1,8 +1,8 @@
 """Compiled builders of compressed sparse rows from unsorted triplets, for the large meshes' set-up.
 
 SciPy's COO → CSR conversion and duplicate summation go through int64 index copies and a full sort; mesh matrices
-have short rows (a vertex's one ring), so a counting sort by row and an insertion sort inside each row is several
-times faster.
+have short rows (a vertex's one ring), so a counting sort by row, duplicates summed in the order they come, and an
+insertion sort of each row's few distinct columns is several times faster.
 """
 
 from __future__ import annotations
@@ -29,6 +29,80 @@ def _triplets_to_csr(rows, cols, vals, n):  # pragma: no cover - compiled
         val[p] = vals[k]
         fill[r] = p + 1
     return _sort_rows_and_merge(count, idx, val, n)
+
+
+@nb.njit(cache=True, nogil=True)
+def _terms_to_csr(a, b, w, n):  # pragma: no cover - compiled
+    # The triplets (a_k, b_k, -w_k) for all k, then (b_k, a_k, -w_k), then (i, i, Σ_a w + Σ_b w) for every vertex i
+    # some term uses, placed row by row in that order, as csr_from_triplets would receive them.
+    diag_a = np.zeros(n)
+    diag_b = np.zeros(n)
+    used = np.zeros(n, np.bool_)
+    count = np.zeros(n + 1, np.int64)
+    for k in range(a.shape[0]):
+        diag_a[a[k]] += w[k]
+        used[a[k]] = True
+        used[b[k]] = True
+        count[a[k] + 1] += 1
+        count[b[k] + 1] += 1
+    for k in range(b.shape[0]):
+        diag_b[b[k]] += w[k]
+    for i in range(n):
+        if used[i]:
+            count[i + 1] += 1
+    for i in range(n):
+        count[i + 1] += count[i]
+    fill = count[:-1].copy()
+    idx = np.empty(count[n], np.int32)
+    val = np.empty(count[n], np.float64)
+    for k in range(a.shape[0]):
+        p = fill[a[k]]
+        idx[p] = b[k]
+        val[p] = -w[k]
+        fill[a[k]] = p + 1
+    for k in range(b.shape[0]):
+        p = fill[b[k]]
+        idx[p] = a[k]
+        val[p] = -w[k]
+        fill[b[k]] = p + 1
+    for i in range(n):
+        if used[i]:
+            p = fill[i]
+            idx[p] = i
+            val[p] = diag_a[i] + diag_b[i]
+            fill[i] = p + 1
+    return _sort_rows_and_merge(count, idx, val, n)
+
+
+@nb.njit(cache=True, nogil=True)
+def _leading_blocks(indptr, indices, data, k):  # pragma: no cover - compiled
+    # Rows [0, k) split by column into [0, k) and [k, n): both keep their sorted order.
+    n_left = 0
+    for p in range(indptr[k]):
+        if indices[p] < k:
+            n_left += 1
+    left_ptr = np.zeros(k + 1, np.int64)
+    right_ptr = np.zeros(k + 1, np.int64)
+    left_idx = np.empty(n_left, np.int32)
+    left_val = np.empty(n_left, np.float64)
+    right_idx = np.empty(indptr[k] - n_left, np.int32)
+    right_val = np.empty(indptr[k] - n_left, np.float64)
+    nl = 0
+    nr = 0
+    for r in range(k):
+        for p in range(indptr[r], indptr[r + 1]):
+            c = indices[p]
+            if c < k:
+                left_idx[nl] = c
+                left_val[nl] = data[p]
+                nl += 1
+            else:
+                right_idx[nr] = c - k
+                right_val[nr] = data[p]
+                nr += 1
+        left_ptr[r + 1] = nl
+        right_ptr[r + 1] = nr
+    return left_ptr, left_idx, left_val, right_ptr, right_idx, right_val
 
 
 @nb.njit(cache=True, nogil=True)
@@ -62,38 +136,42 @@ def _face_edges_to_csr(F, cw, n):  # pragma: no cover - compiled
 
 @nb.njit(cache=True, nogil=True)
 def _sort_rows_and_merge(count, idx, val, n):  # pragma: no cover - compiled
-    # Sort each row by column (stable insertion sort: rows are short) and sum duplicates in place.
+    # Sum the entries of each row that share a column, in the order they were placed (a stamp per column marks
+    # the row that saw it last and where it went), then sort the row's distinct columns (rows are short).
+    stamp = np.full(n, -1, np.int64)
+    slot = np.empty(n, np.int64)
     ptr = np.zeros(n + 1, np.int64)
     out = 0
     for r in range(n):
-        lo = count[r]
-        hi = count[r + 1]
-        for p in range(lo + 1, hi):
+        start = out
+        for p in range(count[r], count[r + 1]):
+            c = idx[p]
+            if stamp[c] == r:
+                val[slot[c]] += val[p]
+            else:
+                stamp[c] = r
+                slot[c] = out
+                idx[out] = c
+                val[out] = val[p]
+                out += 1
+        for p in range(start + 1, out):
             c = idx[p]
             v = val[p]
             q = p - 1
-            while q >= lo and idx[q] > c:
+            while q >= start and idx[q] > c:
                 idx[q + 1] = idx[q]
                 val[q + 1] = val[q]
                 q -= 1
             idx[q + 1] = c
             val[q + 1] = v
-        start = out
-        for p in range(lo, hi):
-            if out > start and idx[out - 1] == idx[p]:
-                val[out - 1] += val[p]
-            else:
-                idx[out] = idx[p]
-                val[out] = val[p]
-                out += 1
         ptr[r + 1] = out
     return ptr, idx[:out].copy(), val[:out].copy()
 
 
-def _to_scipy(ptr: np.ndarray, idx: np.ndarray, val: np.ndarray, n: int) -> sp.csr_matrix:
+def _to_scipy(ptr: np.ndarray, idx: np.ndarray, val: np.ndarray, n: int, cols: int | None = None) -> sp.csr_matrix:
     if n < np.iinfo(np.int32).max and len(val) < np.iinfo(np.int32).max:
         ptr = ptr.astype(np.int32)
-    M = sp.csr_matrix((val, idx, ptr), shape=(n, n))
+    M = sp.csr_matrix((val, idx, ptr), shape=(n, n if cols is None else cols))
     M.has_sorted_indices = True
     return M
 
@@ -140,3 +218,185 @@ def csr_from_triplets(rows: np.ndarray, cols: np.ndarray, vals: np.ndarray, n: i
         np.asarray(rows), np.asarray(cols), np.ascontiguousarray(vals, dtype=np.float64), int(n)
     )
     return _to_scipy(ptr, idx, val, int(n))
+
+
+def csr_from_terms(a: np.ndarray, b: np.ndarray, w: np.ndarray, n: int) -> sp.csr_matrix:
+    """``Σ_k w_k (δ_a − δ_b)(δ_a − δ_b)ᵀ`` over edge terms, the same matrix (bit for bit) as
+    ``csr_from_triplets`` of the triplets ``(a, b, −w)``, ``(b, a, −w)`` and one diagonal entry per used vertex.
+
+    Parameters
+    ----------
+    a, b : (t,) int arrays
+        Term endpoints, each in ``[0, n)``.
+    w : (t,) float array
+        Term weights.
+    n : int
+        Matrix size.
+
+    Returns
+    -------
+    (n, n) scipy.sparse.csr_matrix
+        float64 values, int32 column indices sorted within each row; a diagonal entry only for the vertices some
+        term uses.
+    """
+    ptr, idx, val = _terms_to_csr(np.asarray(a), np.asarray(b), np.ascontiguousarray(w, dtype=np.float64), int(n))
+    return _to_scipy(ptr, idx, val, int(n))
+
+
+def leading_blocks(M: sp.csr_matrix, k: int) -> tuple[sp.csr_matrix, sp.csr_matrix]:
+    """``M[:k, :k]`` and ``M[:k, k:]`` of a square CSR matrix with sorted indices, in one pass.
+
+    Parameters
+    ----------
+    M : (n, n) scipy.sparse.csr_matrix
+        Sorted column indices.
+    k : int
+        Size of the leading block, ``0 ≤ k ≤ n``.
+
+    Returns
+    -------
+    left : (k, k) scipy.sparse.csr_matrix
+    right : (k, n − k) scipy.sparse.csr_matrix
+        float64 values, sorted int32 column indices, explicit zeros kept.
+    """
+    n = M.shape[0]
+    lp, li, lv, rp, ri, rv = _leading_blocks(M.indptr, M.indices, np.ascontiguousarray(M.data, dtype=np.float64),
+                                             int(k))
+    return _to_scipy(lp, li, lv, int(k)), _to_scipy(rp, ri, rv, int(k), n - int(k))
+
+
+def permuted_symmetric(A: sp.csr_matrix, perm: np.ndarray) -> sp.csc_matrix:
+    """``A[perm][:, perm]`` of a symmetric matrix, as CSC with sorted indices (the same arrays as its CSR).
+
+    Both entries of a symmetric pair get the value ``A[min(i, j), max(i, j)]`` of the upper triangle, the one CHOLMOD
+    reads when it permutes the matrix itself (sums of floating-point terms in different orders can make the two
+    triangles differ in the last bits), so a factor of the result equals CHOLMOD's own bit for bit.
+
+    Parameters
+    ----------
+    A : (k, k) scipy.sparse.csr_matrix
+        Symmetric pattern, both triangles stored, sorted indices.
+    perm : (k,) int array
+        A permutation of ``range(k)``.
+
+    Returns
+    -------
+    (k, k) scipy.sparse.csc_matrix
+    """
+    ptr, idx, val = _permute_symmetric(A.indptr, A.indices, np.ascontiguousarray(A.data, dtype=np.float64),
+                                       np.asarray(perm, dtype=np.int64))
+    k = A.shape[0]
+    if k < np.iinfo(np.int32).max and len(val) < np.iinfo(np.int32).max:
+        ptr = ptr.astype(np.int32)
+    C = sp.csc_matrix((val, idx, ptr), shape=(k, k))
+    C.has_sorted_indices = True
+    return C
+
+
+@nb.njit(cache=True, nogil=True)
+def _permute_symmetric(indptr, indices, data, perm):  # pragma: no cover - compiled
+    n = perm.shape[0]
+    inv = np.empty(n, np.int64)
+    for i in range(n):
+        inv[perm[i]] = i
+    ptr = np.zeros(n + 1, np.int64)
+    for i in range(n):
+        ptr[i + 1] = ptr[i] + indptr[perm[i] + 1] - indptr[perm[i]]
+    idx = np.empty(ptr[n], np.int32)
+    val = np.empty(ptr[n], data.dtype)
+    for i in range(n):
+        lo = ptr[i]
+        q = lo
+        o = perm[i]
+        for p in range(indptr[o], indptr[o + 1]):
+            oc = indices[p]
+            c = inv[oc]
+            v = data[p]
+            if oc < o:  # the value of the upper triangle (row < column), as CHOLMOD reads the unpermuted matrix
+                lo_q = indptr[oc]
+                hi_q = indptr[oc + 1] - 1
+                while lo_q < hi_q:
+                    mid = (lo_q + hi_q) // 2
+                    if indices[mid] < o:
+                        lo_q = mid + 1
+                    else:
+                        hi_q = mid
+                v = data[lo_q]
+            r = q - 1
+            while r >= lo and idx[r] > c:
+                idx[r + 1] = idx[r]
+                val[r + 1] = val[r]
+                r -= 1
+            idx[r + 1] = c
+            val[r + 1] = v
+            q += 1
+    return ptr, idx, val
+
+
+def with_diagonal(indptr: np.ndarray, indices: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The pattern of a graph's adjacency with its diagonal added: what a matrix over the graph stores.
+
+    Parameters
+    ----------
+    indptr : (k+1,) int array
+    indices : (e,) int array
+        Sorted rows without the diagonal.
+
+    Returns
+    -------
+    indptr : (k+1,) int32 or int64 array
+        int32 where it fits, as SciPy keeps it.
+    indices : (e+k,) int32 array
+        Sorted rows, each with its diagonal.
+    """
+    ptr, idx = _with_diagonal(np.asarray(indptr), np.asarray(indices))
+    if len(idx) < np.iinfo(np.int32).max:
+        ptr = ptr.astype(np.int32)
+    return ptr, idx
+
+
+@nb.njit(cache=True, nogil=True)
+def _with_diagonal(indptr, indices):  # pragma: no cover - compiled
+    k = indptr.shape[0] - 1
+    ptr = np.empty(k + 1, np.int64)
+    idx = np.empty(indices.shape[0] + k, np.int32)
+    q = 0
+    for i in range(k):
+        ptr[i] = q
+        placed = False
+        for p in range(indptr[i], indptr[i + 1]):
+            if not placed and indices[p] > i:
+                idx[q] = i
+                q += 1
+                placed = True
+            idx[q] = indices[p]
+            q += 1
+        if not placed:
+            idx[q] = i
+            q += 1
+    ptr[k] = q
+    return ptr, idx
+
+
+def permuted_pattern(indptr: np.ndarray, indices: np.ndarray,
+                     perm: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Where :func:`permuted_symmetric` takes each value from, for any matrix with a given pattern.
+
+    Parameters
+    ----------
+    indptr, indices : int arrays
+        A symmetric pattern in compressed rows, sorted.
+    perm : (k,) int array
+
+    Returns
+    -------
+    indptr, indices : int arrays
+        The pattern of ``A[perm][:, perm]``, sorted.
+    source : (nnz,) int64 array
+        ``permuted_symmetric(A, perm).data == A.data[source]`` for every ``A`` with this pattern.
+    """
+    ptr, idx, src = _permute_symmetric(np.asarray(indptr), np.asarray(indices), np.arange(len(indices)),
+                                       np.asarray(perm, dtype=np.int64))
+    if len(idx) < np.iinfo(np.int32).max:
+        ptr = ptr.astype(np.int32)
+    return ptr, idx, src

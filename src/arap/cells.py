@@ -10,6 +10,10 @@ Both are built from per-face corner weights: an edge term of face ``f`` opposite
 its two endpoints (spokes) or of all three corners of ``f`` (spokes and rims). Terms of one cell on the same edge are
 merged. The energy's normal equations are ``L p' = Σ_c R_c g_c`` with ``L = Σ_terms w (δ_a − δ_b)(δ_a − δ_b)ᵀ``; the
 right-hand side of vertex ``v`` gathers ``R_c g_vc`` over the cells ``c`` of ``v`` and its neighbours.
+
+The cells, the system matrix and the gather are built by compiled passes (counting placement, a stamp per vertex to
+merge equal terms in the order they come, short sorts): a 1M-vertex sphere's spokes-and-rims cells in about a second
+instead of eight for a sort of all its (cell, a, b) triples, with the same arrays bit for bit.
 """
 
 from __future__ import annotations
@@ -22,7 +26,7 @@ import numpy as np
 import scipy.sparse as sp
 from numpy.typing import NDArray
 
-from arap._csr import csr_from_triplets
+from arap._csr import csr_from_terms
 from arap.errors import OptionError
 from arap.weights import DEFAULT_WEIGHTS, WEIGHT_TYPES, corner_weights, edge_weight_matrix
 
@@ -99,28 +103,8 @@ def build_cells(V: np.ndarray, F: np.ndarray, energy: str = DEFAULT_ENERGY, weig
     F = np.asarray(F, dtype=np.int64)
     if energy in ("spokes", "smooth_rotations"):  # SR-ARAP adds a rotation term to the spoke cells
         return _spoke_cells(V, F, weights)
-    cw = corner_weights(V, F, weights)
-    # Edge opposite corner k of each face: (F[:, k+1], F[:, k+2]) with weight cw[:, k].
-    ea = np.concatenate([F[:, 1], F[:, 2], F[:, 0]])
-    eb = np.concatenate([F[:, 2], F[:, 0], F[:, 1]])
-    ew = np.concatenate([cw[:, 0], cw[:, 1], cw[:, 2]])
-    ex = np.concatenate([F[:, 0], F[:, 1], F[:, 2]])
-    lo = np.minimum(ea, eb)
-    hi = np.maximum(ea, eb)
-    cell = np.concatenate([ea, eb, ex])
-    # Spokes are oriented away from their cell's vertex, rims canonically (lo, hi).
-    a = np.concatenate([ea, eb, lo])
-    b = np.concatenate([eb, ea, hi])
-    w = np.concatenate([ew, ew, ew])
-    order = np.lexsort((b, a, cell))
-    cell, a, b, w = cell[order], a[order], b[order], w[order]
-    first = np.ones(len(cell), dtype=bool)
-    first[1:] = (cell[1:] != cell[:-1]) | (a[1:] != a[:-1]) | (b[1:] != b[:-1])
-    group = np.cumsum(first) - 1
-    w = np.bincount(group, weights=w)
-    cell, a, b = cell[first], a[first], b[first]
-    ptr = np.zeros(n + 1, dtype=np.int64)
-    np.cumsum(np.bincount(cell, minlength=n), out=ptr[1:])
+    cw = np.ascontiguousarray(corner_weights(V, F, weights), dtype=np.float64)
+    ptr, a, b, w = _rim_cells_kernel(np.ascontiguousarray(F), cw, n)
     return _finish(V, ptr, a, b, w)
 
 
@@ -203,26 +187,149 @@ def _spoke_cells(V: np.ndarray, F: np.ndarray, weights: str) -> Cells:
     return _finish(V, ptr, cell, W.indices, W.data)
 
 
+@nb.njit(cache=True, nogil=True)
+def _rim_cells_kernel(F, cw, n):  # pragma: no cover - compiled
+    # Face f, corner k: the edge (p, q) = (F[f, k+1], F[f, k+2]) of weight cw[f, k] is a spoke of the cells of p and
+    # q and a rim (min, max) of the cell of F[f, k]. A cell's slots hold its spokes (two per face around it) and
+    # then its rims (one per face), face by face. Equal terms are summed in that order; the cell's terms are then
+    # sorted by (a, b): rims with a < c, spokes (a = c) by b, rims with a > c.
+    m = F.shape[0]
+    ptr = np.zeros(n + 1, np.int64)
+    for f in range(m):
+        for k in range(3):
+            ptr[F[f, k] + 1] += 3
+    for i in range(n):
+        ptr[i + 1] += ptr[i]
+    spoke_fill = ptr[:-1].copy()
+    rim_fill = np.empty(n, np.int64)
+    for i in range(n):
+        rim_fill[i] = ptr[i] + 2 * (ptr[i + 1] - ptr[i]) // 3
+    first = np.empty(ptr[n], np.int32)
+    second = np.empty(ptr[n], np.int32)
+    val = np.empty(ptr[n], np.float64)
+    for f in range(m):
+        for k in range(3):
+            x = F[f, k]
+            p = F[f, (k + 1) % 3]
+            q = F[f, (k + 2) % 3]
+            w = cw[f, k]
+            s = spoke_fill[p]
+            second[s] = q
+            val[s] = w
+            spoke_fill[p] = s + 1
+            s = spoke_fill[q]
+            second[s] = p
+            val[s] = w
+            spoke_fill[q] = s + 1
+            s = rim_fill[x]
+            first[s] = min(p, q)
+            second[s] = max(p, q)
+            val[s] = w
+            rim_fill[x] = s + 1
+    stamp = np.full(n, -1, np.int64)
+    slot = np.empty(n, np.int64)
+    a = np.empty(ptr[n], np.int32)
+    b = np.empty(ptr[n], np.int32)
+    w_out = np.empty(ptr[n], np.float64)
+    out_ptr = np.zeros(n + 1, np.int64)
+    out = 0
+    for c in range(n):
+        lo = ptr[c]
+        mid = lo + 2 * (ptr[c + 1] - lo) // 3
+        hi = ptr[c + 1]
+        # spokes: merge equal ends in place (stamp), then sort by end
+        ns = lo
+        for s in range(lo, mid):
+            j = second[s]
+            if stamp[j] == c:
+                val[slot[j]] += val[s]
+            else:
+                stamp[j] = c
+                slot[j] = ns
+                second[ns] = j
+                val[ns] = val[s]
+                ns += 1
+        _sort_pairs(first, second, val, lo, ns, False)
+        # rims: merge equal edges (rare: repeated faces), then sort by (a, b)
+        nr = mid
+        for s in range(mid, hi):
+            r = mid
+            while r < nr and (first[r] != first[s] or second[r] != second[s]):
+                r += 1
+            if r < nr:
+                val[r] += val[s]
+            else:
+                first[nr] = first[s]
+                second[nr] = second[s]
+                val[nr] = val[s]
+                nr += 1
+        _sort_pairs(first, second, val, mid, nr, True)
+        r = mid
+        while r < nr and first[r] < c:
+            a[out] = first[r]
+            b[out] = second[r]
+            w_out[out] = val[r]
+            out += 1
+            r += 1
+        for s in range(lo, ns):
+            a[out] = c
+            b[out] = second[s]
+            w_out[out] = val[s]
+            out += 1
+        while r < nr:
+            a[out] = first[r]
+            b[out] = second[r]
+            w_out[out] = val[r]
+            out += 1
+            r += 1
+        out_ptr[c + 1] = out
+    return out_ptr, a[:out].copy(), b[:out].copy(), w_out[:out].copy()
+
+
+@nb.njit(cache=True, nogil=True)
+def _sort_pairs(first, second, val, lo, hi, by_first):  # pragma: no cover - compiled
+    # Insertion sort of [lo, hi) by (first, second) or by second alone; keys are distinct.
+    for p in range(lo + 1, hi):
+        x = first[p]
+        y = second[p]
+        v = val[p]
+        q = p - 1
+        while q >= lo and ((by_first and (first[q] > x or (first[q] == x and second[q] > y)))
+                           or (not by_first and second[q] > y)):
+            first[q + 1] = first[q]
+            second[q + 1] = second[q]
+            val[q + 1] = val[q]
+            q -= 1
+        first[q + 1] = x
+        second[q + 1] = y
+        val[q + 1] = v
+
+
 def _finish(V: np.ndarray, ptr: np.ndarray, a: np.ndarray, b: np.ndarray, w: np.ndarray) -> Cells:
-    a = a.astype(np.int32)
-    b = b.astype(np.int32)
+    a = np.ascontiguousarray(a, dtype=np.int32)
+    b = np.ascontiguousarray(b, dtype=np.int32)
     w = np.ascontiguousarray(w, dtype=np.float64)
-    e, we = _rest_edges(np.ascontiguousarray(V, dtype=np.float64), a, b, w)
-    rest_sq = np.bincount(np.repeat(np.arange(len(ptr) - 1), np.diff(ptr)), weights=w * np.einsum("ij,ij->i", e, e),
-                          minlength=len(ptr) - 1)
+    we, rest_sq = _rest_edges(np.ascontiguousarray(V, dtype=np.float64), ptr, a, b, w)
     return Cells(ptr=ptr, a=a, b=b, w=w, we=we, rest_sq=rest_sq)
 
 
 @nb.njit(cache=True, nogil=True)
-def _rest_edges(V, a, b, w):  # pragma: no cover - compiled
-    e = np.empty((a.shape[0], 3))
+def _rest_edges(V, ptr, a, b, w):  # pragma: no cover - compiled
+    # Weighted rest edges and, per cell, the weighted sum of squared rest edge lengths (summed in term order).
     we = np.empty((a.shape[0], 3))
-    for k in range(a.shape[0]):
-        for d in range(3):
-            x = V[a[k], d] - V[b[k], d]
-            e[k, d] = x
-            we[k, d] = x * w[k]
-    return e, we
+    rest_sq = np.zeros(ptr.shape[0] - 1)
+    for c in range(ptr.shape[0] - 1):
+        acc = 0.0
+        for k in range(ptr[c], ptr[c + 1]):
+            e0 = V[a[k], 0] - V[b[k], 0]
+            e1 = V[a[k], 1] - V[b[k], 1]
+            e2 = V[a[k], 2] - V[b[k], 2]
+            we[k, 0] = e0 * w[k]
+            we[k, 1] = e1 * w[k]
+            we[k, 2] = e2 * w[k]
+            acc += w[k] * ((e0 * e0 + e2 * e2) + e1 * e1)  # NumPy's einsum order: the same bits as before
+        rest_sq[c] = acc
+    return we, rest_sq
 
 
 def system_matrix(cells: Cells, n: int) -> sp.csr_matrix:
@@ -230,13 +337,7 @@ def system_matrix(cells: Cells, n: int) -> sp.csr_matrix:
 
     For ``spokes`` this is twice the cotangent Laplacian; for ``spokes_and_rims`` three times.
     """
-    a, b, w = cells.a, cells.b, cells.w
-    diagonal = np.bincount(a, weights=w, minlength=n) + np.bincount(b, weights=w, minlength=n)
-    has = np.flatnonzero(np.bincount(a, minlength=n) + np.bincount(b, minlength=n))
-    rows = np.concatenate([a, b, has])
-    cols = np.concatenate([b, a, has])
-    vals = np.concatenate([-w, -w, diagonal[has]])
-    return csr_from_triplets(rows, cols, vals, n)
+    return csr_from_terms(cells.a, cells.b, cells.w, n)
 
 
 @dataclass(frozen=True)
@@ -254,20 +355,24 @@ class RhsGather:
 
 @nb.njit(cache=True, nogil=True)
 def _gather_kernel(ptr, a, b, we, row_of, n_rows):  # pragma: no cover - compiled
-    # Term k of cell c adds +R_c we_k to the row of a_k and −R_c we_k to the row of b_k.
-    count = np.zeros(n_rows + 1, np.int64)
-    for k in range(a.shape[0]):
-        ra = row_of[a[k]]
-        rb = row_of[b[k]]
-        if ra >= 0:
-            count[ra + 1] += 1
-        if rb >= 0:
-            count[rb + 1] += 1
+    # Term k of cell c adds +R_c we_k to the row of a_k and −R_c we_k to the row of b_k. Cells are visited in
+    # increasing order, so a row's entries arrive sorted by cell and those of one cell are consecutive: they are
+    # summed as they arrive (in term order), and a first pass counts the (row, cell) pairs to size the output.
+    last = np.full(n_rows, -1, np.int64)
+    out_ptr = np.zeros(n_rows + 1, np.int64)
+    for c in range(ptr.shape[0] - 1):
+        for k in range(ptr[c], ptr[c + 1]):
+            for end in range(2):
+                r = row_of[a[k]] if end == 0 else row_of[b[k]]
+                if r >= 0 and last[r] != c:
+                    last[r] = c
+                    out_ptr[r + 1] += 1
     for r in range(n_rows):
-        count[r + 1] += count[r]
-    fill = count[:-1].copy()
-    cell = np.empty(count[n_rows], np.int32)
-    g = np.empty((count[n_rows], 3))
+        out_ptr[r + 1] += out_ptr[r]
+    fill = out_ptr[:-1].copy()
+    last[:] = -1
+    cell = np.empty(out_ptr[n_rows], np.int32)
+    g = np.empty((out_ptr[n_rows], 3))
     for c in range(ptr.shape[0] - 1):
         for k in range(ptr[c], ptr[c + 1]):
             for end in range(2):
@@ -275,30 +380,20 @@ def _gather_kernel(ptr, a, b, we, row_of, n_rows):  # pragma: no cover - compile
                 if r < 0:
                     continue
                 sign = 1.0 if end == 0 else -1.0
-                p = fill[r]
-                cell[p] = c
-                g[p, 0] = sign * we[k, 0]
-                g[p, 1] = sign * we[k, 1]
-                g[p, 2] = sign * we[k, 2]
-                fill[r] = p + 1
-    # Cells arrive in increasing order within each row: merge the entries of a row that share a cell.
-    out_ptr = np.zeros(n_rows + 1, np.int64)
-    out = 0
-    for r in range(n_rows):
-        start = out
-        for p in range(count[r], count[r + 1]):
-            if out > start and cell[out - 1] == cell[p]:
-                g[out - 1, 0] += g[p, 0]
-                g[out - 1, 1] += g[p, 1]
-                g[out - 1, 2] += g[p, 2]
-            else:
-                cell[out] = cell[p]
-                g[out, 0] = g[p, 0]
-                g[out, 1] = g[p, 1]
-                g[out, 2] = g[p, 2]
-                out += 1
-        out_ptr[r + 1] = out
-    return out_ptr, cell[:out].copy(), g[:out].copy()
+                if last[r] == c:
+                    p = fill[r] - 1
+                    g[p, 0] += sign * we[k, 0]
+                    g[p, 1] += sign * we[k, 1]
+                    g[p, 2] += sign * we[k, 2]
+                else:
+                    last[r] = c
+                    p = fill[r]
+                    cell[p] = c
+                    g[p, 0] = sign * we[k, 0]
+                    g[p, 1] = sign * we[k, 1]
+                    g[p, 2] = sign * we[k, 2]
+                    fill[r] = p + 1
+    return out_ptr, cell, g
 
 
 def build_rhs_gather(cells: Cells, rows: np.ndarray, n: int) -> RhsGather:

@@ -8,10 +8,9 @@ from typing import Any
 import numba as nb
 import numpy as np
 import scipy.sparse as sp
-from scipy.sparse.csgraph import connected_components
 
 from arap.errors import ConstraintError
-from arap.topology import vertex_adjacency
+from arap.topology import free_components, vertex_adjacency
 
 
 def _show(value: Any) -> str:
@@ -108,14 +107,8 @@ def find_unconstrained_part(F: np.ndarray, n: int, free: np.ndarray,
     if not len(free):
         return None
     A = vertex_adjacency(F, n) if adjacency is None else adjacency
-    is_free = np.zeros(n, dtype=bool)
-    is_free[free] = True
-    A_ff = A[free][:, free]
-    count, labels = connected_components(A_ff, directed=False)
     # A part is pinned if one of its vertices has a non-free neighbour.
-    pinned_vertex = np.asarray(A[free].astype(np.int64) @ (~is_free).astype(np.int64)).ravel() > 0
-    pinned = np.zeros(count, dtype=bool)
-    pinned[labels[pinned_vertex]] = True
+    count, labels, pinned = free_components(A, free)
     if pinned.all():
         return None
     sizes = np.bincount(labels, minlength=count)

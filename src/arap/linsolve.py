@@ -5,7 +5,10 @@ Backends:
 * ``sksparse``: CHOLMOD through ``scikit-sparse`` (optional; needs the system's SuiteSparse, which ``./dev setup``
   installs on Debian). The matrix is ordered by nested dissection (METIS), factorised supernodally with the system's
   optimised BLAS (OpenBLAS), then converted in place to a simplicial factor, whose triangular solves with three
-  right-hand sides are the fastest of CHOLMOD's.
+  right-hand sides are the fastest of CHOLMOD's. The ordering can be given (``factorize(..., permutation=...)``):
+  the solver computes CHOLMOD's own METIS ordering from the mesh graph on a thread while it assembles the matrix
+  (:func:`background_ordering`, :mod:`arap.ordering`), which takes it off the critical path of a large set-up; the
+  factor and the solutions are the same bit for bit.
 * ``cholespy``: CHOLMOD through the self-contained ``cholespy`` wheel (nested dissection, simplicial factorisation
   without BLAS: the same solve speed, several times slower to factorise large meshes).
 * ``scipy``: SciPy's SuperLU in symmetric mode, always available.
@@ -21,13 +24,18 @@ from __future__ import annotations
 
 import logging
 import time
-from typing import Literal, Protocol
+from dataclasses import dataclass
+from typing import Any, Literal, Protocol
 
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
+from numpy.typing import NDArray
 
+from arap._csr import permuted_pattern, permuted_symmetric, with_diagonal
 from arap.errors import OptionError
+from arap.ordering import BackgroundOrdering, metis_available, permute_rows, unpermute_rows
+from arap.topology import leading_subgraph
 
 logger = logging.getLogger(__name__)
 
@@ -38,6 +46,8 @@ ORDERINGS: tuple[str, ...] = ("metis", "nesdis", "amd")
 DEFAULT_ORDERING: Ordering = "metis"
 LARGE_SYSTEM = 250_000
 """Unknowns from which the default backend is ``sksparse`` (when installed)."""
+Permutation = NDArray[np.integer] | BackgroundOrdering
+"""A given fill-reducing ordering: the permutation, or the thread computing it."""
 
 
 class NotPositiveDefiniteError(RuntimeError):
@@ -52,9 +62,11 @@ class Factor(Protocol):
     backend : str
         Which backend computed it.
     timings : dict of str to float
-        Seconds spent building it. ``sksparse``: ``analyse`` (fill-reducing ordering and symbolic analysis),
-        ``factor`` (numeric factorisation) and ``convert`` (to the simplicial form used for solving); the other
-        backends report only ``factor``.
+        Seconds spent building it. ``sksparse``: ``analyse`` (fill-reducing ordering and symbolic analysis, or only
+        the symbolic analysis of a given ordering), ``factor`` (numeric factorisation) and ``convert`` (to the
+        simplicial form used for solving); with a given ordering also ``ordering`` (waiting for it and permuting the
+        matrix) and, for a :class:`~arap.ordering.BackgroundOrdering`, ``ordering_thread`` (its run time on its
+        thread, mostly overlapped with the caller's work). The other backends report only ``factor``.
     """
 
     backend: str
@@ -65,22 +77,78 @@ class Factor(Protocol):
         ...
 
 
+@dataclass(frozen=True)
+class _SymbolicPlan:
+    """CHOLMOD's symbolic analysis of a permuted pattern, done before the matrix's values exist.
+
+    ``pattern_indptr``/``pattern_indices``: the unpermuted matrix's pattern (the graph with its diagonal);
+    ``indptr``/``indices``/``source``: the permuted pattern and where each of its values comes from
+    (:func:`arap._csr.permuted_pattern`); ``factor``: the analysis of the permuted pattern.
+    """
+
+    pattern_indptr: NDArray[np.integer]
+    pattern_indices: NDArray[np.integer]
+    indptr: NDArray[np.integer]
+    indices: NDArray[np.integer]
+    source: NDArray[np.int64]
+    factor: Any
+
+    def fits(self, A: sp.csr_matrix) -> bool:
+        """Whether ``A`` (CSR, sorted) has exactly the pattern analysed."""
+        return (A.nnz == len(self.pattern_indices) and np.array_equal(A.indptr, self.pattern_indptr)
+                and np.array_equal(A.indices, self.pattern_indices))
+
+
+def _plan_symbolic(indptr: NDArray[np.integer], indices: NDArray[np.integer],
+                   perm: NDArray[np.int64]) -> _SymbolicPlan:
+    """Symbolic analysis of a matrix over the graph ``(indptr, indices)``, permuted by ``perm`` (a thread's work)."""
+    from sksparse.cholmod import analyze
+
+    pattern_indptr, pattern_indices = with_diagonal(indptr, indices)
+    ptr, idx, source = permuted_pattern(pattern_indptr, pattern_indices, perm)
+    C = sp.csc_matrix((np.ones(len(idx)), idx, ptr), shape=(len(perm), len(perm)))
+    factor = analyze(C, mode="supernodal", ordering_method="natural")
+    return _SymbolicPlan(pattern_indptr, pattern_indices, ptr, idx, source, factor)
+
+
 class _SksparseFactor:
     backend = "sksparse"
 
-    def __init__(self, A: sp.csr_matrix, ordering: str) -> None:
+    def __init__(self, A: sp.csr_matrix, ordering: str, permutation: Permutation | None = None) -> None:
         from sksparse.cholmod import CholmodError, CholmodNotPositiveDefiniteError, analyze
 
-        # CSC of a symmetric CSR matrix with sorted indices is the same arrays: no copy of the values.
-        C = sp.csc_matrix((A.data, A.indices, A.indptr), shape=A.shape)
         self.timings: dict[str, float] = {}
+        self._perm: NDArray[np.int64] | None = None
         t0 = time.perf_counter()
-        try:
-            factor = analyze(C, mode="supernodal", ordering_method=ordering)
-        except CholmodError:
-            # A CHOLMOD built without METIS cannot use nested dissection; AMD is always there.
-            logger.debug("CHOLMOD ordering %r unavailable, using AMD", ordering)
-            factor = analyze(C, mode="supernodal", ordering_method="amd")
+        if permutation is not None:
+            perm = permutation.result() if isinstance(permutation, BackgroundOrdering) else permutation
+            perm = np.asarray(perm, dtype=np.int64)
+            if perm.shape != (A.shape[0],):
+                raise OptionError(f"the permutation has shape {perm.shape}, the matrix {A.shape}")
+            plan = permutation.prepared if isinstance(permutation, BackgroundOrdering) else None
+            if isinstance(permutation, BackgroundOrdering):
+                self.timings["ordering_thread"] = permutation.seconds
+            self._perm = perm
+            if isinstance(plan, _SymbolicPlan) and plan.fits(A):
+                C = sp.csc_matrix((A.data[plan.source], plan.indices, plan.indptr), shape=A.shape)
+                self.timings["ordering"] = time.perf_counter() - t0
+                t0 = time.perf_counter()
+                factor = plan.factor  # analysed on the ordering's thread
+            else:
+                C = permuted_symmetric(A, perm)
+                self.timings["ordering"] = time.perf_counter() - t0
+                t0 = time.perf_counter()
+                # The permutation is final (postordered): CHOLMOD only analyses the permuted pattern.
+                factor = analyze(C, mode="supernodal", ordering_method="natural")
+        else:
+            # CSC of a symmetric CSR matrix with sorted indices is the same arrays: no copy of the values.
+            C = sp.csc_matrix((A.data, A.indices, A.indptr), shape=A.shape)
+            try:
+                factor = analyze(C, mode="supernodal", ordering_method=ordering)
+            except CholmodError:
+                # A CHOLMOD built without METIS cannot use nested dissection; AMD is always there.
+                logger.debug("CHOLMOD ordering %r unavailable, using AMD", ordering)
+                factor = analyze(C, mode="supernodal", ordering_method="amd")
         t1 = time.perf_counter()
         try:
             factor.cholesky_inplace(C)
@@ -96,7 +164,16 @@ class _SksparseFactor:
         self.timings.update(analyse=t1 - t0, factor=t2 - t1, convert=time.perf_counter() - t2)
 
     def solve(self, B: np.ndarray) -> np.ndarray:
-        return np.asarray(self._factor.solve_A(np.asfortranarray(B, dtype=np.float64)))
+        if self._perm is None:
+            return np.asarray(self._factor.solve_A(np.asfortranarray(B, dtype=np.float64)))
+        B = np.asarray(B, dtype=np.float64)
+        X = np.asarray(self._factor.solve_A(permute_rows(B, self._perm)))
+        return unpermute_rows(X, self._perm, B.ndim)
+
+    @property
+    def permutation(self) -> NDArray[np.int64]:
+        """``perm`` of the factorisation ``A[perm][:, perm] = L Lᵀ`` (CHOLMOD's own or the given one)."""
+        return np.asarray(self._factor.P(), dtype=np.int64) if self._perm is None else self._perm
 
 
 class _CholespyFactor:
@@ -176,8 +253,39 @@ def default_backend(size: int) -> str:
     return "cholespy" if "cholespy" in found else found[0]
 
 
+def background_ordering(adjacency: sp.csr_matrix, order: np.ndarray, size: int,
+                        backend: str | None = None) -> BackgroundOrdering | None:
+    """Start the fill-reducing ordering of a system over the first ``size`` vertices of ``order`` on a thread.
+
+    For the ``sksparse`` backend (named or the default for ``size`` unknowns) with METIS loadable: the ordering
+    :func:`factorize` would compute (CHOLMOD's METIS nested dissection), from the mesh graph alone, so that the
+    matrix can be assembled meanwhile. Pass the result to :func:`factorize` as ``permutation``.
+
+    Parameters
+    ----------
+    adjacency : (n, n) scipy.sparse.csr_matrix
+        The mesh's vertex adjacency (:func:`arap.topology.vertex_adjacency`).
+    order : (n,) int array
+        The system's vertex numbering: ``order[i]`` is the vertex of unknown ``i``; the unknowns are the first
+        ``size``.
+    size : int
+        Number of unknowns.
+    backend : str or None
+        As for :func:`factorize`.
+
+    Returns
+    -------
+    BackgroundOrdering or None
+        None where :func:`factorize` orders by itself (another backend, no METIS library, no unknowns).
+    """
+    if size == 0 or (backend or default_backend(size)) != "sksparse" or not metis_available():
+        return None
+    indptr, indices = leading_subgraph(adjacency, order, size)
+    return BackgroundOrdering(indptr, indices, _plan_symbolic)
+
+
 def factorize(A: sp.csr_matrix | sp.csc_matrix | sp.coo_matrix, backend: str | None = None,
-              ordering: str = DEFAULT_ORDERING) -> Factor:
+              ordering: str = DEFAULT_ORDERING, permutation: Permutation | None = None) -> Factor:
     """Cholesky-factorise a symmetric positive definite sparse matrix.
 
     Parameters
@@ -191,6 +299,11 @@ def factorize(A: sp.csr_matrix | sp.csc_matrix | sp.coo_matrix, backend: str | N
         1.6× less fill than AMD and a quarter faster to compute than ``nesdis``), CHOLMOD's own nested dissection
         (METIS bisections, constrained minimum degree inside; what cholespy uses), or approximate minimum degree
         (fastest to compute, most fill). The other backends choose their own.
+    permutation : (k,) int array, BackgroundOrdering or None
+        A fill-reducing ordering for ``sksparse`` instead of ``ordering``: ``A[perm][:, perm]`` is factorised as it
+        is (CHOLMOD does not postorder it), so pass a postordered one such as :func:`arap.ordering.nested_dissection`
+        returns, or the :class:`~arap.ordering.BackgroundOrdering` computing it (waited for here). The other
+        backends ignore it.
 
     Returns
     -------
@@ -212,7 +325,7 @@ def factorize(A: sp.csr_matrix | sp.csc_matrix | sp.coo_matrix, backend: str | N
     if ordering not in ORDERINGS:
         raise OptionError(f"unknown ordering {ordering!r}; expected one of {ORDERINGS}")
     if name == "sksparse":
-        factor: Factor = _SksparseFactor(A, ordering)
+        factor: Factor = _SksparseFactor(A, ordering, permutation)
     elif name == "cholespy":
         factor = _CholespyFactor(A)
     else:

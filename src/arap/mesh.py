@@ -92,15 +92,9 @@ def _bbox_diagonal(V: np.ndarray) -> float:
 
 def _double_areas(V: np.ndarray, F: np.ndarray) -> np.ndarray:
     """Twice the area of every face, shape (m,)."""
-    a = np.take(V, F[:, 0], axis=0)
-    b = np.take(V, F[:, 1], axis=0)
-    c = np.take(V, F[:, 2], axis=0)
-    b -= a
-    c -= a
-    cx = b[:, 1] * c[:, 2] - b[:, 2] * c[:, 1]
-    cy = b[:, 2] * c[:, 0] - b[:, 0] * c[:, 2]
-    cz = b[:, 0] * c[:, 1] - b[:, 1] * c[:, 0]
-    return np.sqrt(cx * cx + cy * cy + cz * cz)
+    from arap._geometry import double_areas  # compiled: imported on first use, so that importing this stays light
+
+    return double_areas(V, F)
 
 
 def coordinate_problem(V: np.ndarray) -> str | None:

@@ -8,6 +8,7 @@ import numpy as np
 import scipy.sparse as sp
 from numpy.typing import ArrayLike, NDArray
 
+from arap._csr import leading_blocks
 from arap.anderson import AndersonAccelerator
 from arap.cells import (
     DEFAULT_ENERGY,
@@ -24,7 +25,7 @@ from arap.errors import ArapError, ConstraintError, OptionError, UnconstrainedRe
 from arap.inactive import InactiveCells
 from arap.indexing import check_index_array, find_unconstrained_part, rows_of
 from arap.lbfgs import LbfgsHistory
-from arap.linsolve import NotPositiveDefiniteError, factorize
+from arap.linsolve import NotPositiveDefiniteError, background_ordering, factorize
 from arap.loops import Iterate, lbfgs_iterations, plain_iterations
 from arap.mesh import MeshLike, check_mesh, is_mesh_like, mesh_arrays
 from arap.points import PointConstraints, PointSystem, check_points
@@ -189,6 +190,8 @@ class ArapSolver:
         self._perm = np.concatenate([order[is_free[order]], order[~is_free[order]]])
         self._inv = np.empty_like(self._perm)
         self._inv[self._perm] = np.arange(n)
+        # The reduced system's fill-reducing ordering needs only its pattern: it runs beside the set-up below.
+        ordering = background_ordering(adjacency, self._perm, len(self.free), backend)
         self._V = np.ascontiguousarray(V[self._perm])
         self._diagonal = float(np.linalg.norm(V.max(axis=0) - V.min(axis=0))) or 1.0
         self._areas = vertex_areas(self._V, self._inv[F])
@@ -202,9 +205,7 @@ class ArapSolver:
         if self.stiffness is not None:
             self._cells = scale_cells(self._cells, self.stiffness[self._perm])
         L = system_matrix(self._cells, n)
-        L_f = L[self._free]
-        self._L_fn = L_f[:, self._nonfree].tocsr()
-        L_ff = L_f[:, self._free]
+        L_ff, self._L_fn = leading_blocks(L, self._nf)  # free rows first: L[free][:, free], L[free][:, nonfree]
         self._points: PointSystem | None = None
         if self.points is not None and len(self.points) and len(self.free):
             mu = float(L_ff.diagonal().mean())
@@ -232,7 +233,7 @@ class ArapSolver:
         self.factor = None
         if len(self.free):
             try:
-                self.factor = factorize(L_ff, backend)
+                self.factor = factorize(L_ff, backend, permutation=ordering)
                 if self._points is not None:
                     self._points.prepare(self.factor.solve)
             except NotPositiveDefiniteError as exc:
@@ -241,7 +242,7 @@ class ArapSolver:
                     f"through zero-weight edges ({exc})"
                 ) from exc
         self.backend = None if self.factor is None else self.factor.backend
-        self._R = np.tile(np.eye(3), (n, 1, 1))
+        self._R = np.broadcast_to(np.eye(3), (n, 3, 3)).copy()
         self._E = np.zeros(n)
         self._last: NDArray[np.float64] | None = None
         self._live: NDArray[np.float64] | None = None

@@ -13,6 +13,8 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
+from arap._geometry import barycentric_areas
+
 __all__ = ["best_rigid_transform", "vertex_areas"]
 
 
@@ -96,7 +98,4 @@ def vertex_areas(V: NDArray[np.float64], F: NDArray[np.integer]) -> NDArray[np.f
     >>> vertex_areas(V, F).round(4).tolist()
     [0.1667, 0.1667, 0.1667]
     """
-    V = np.asarray(V, dtype=np.float64)
-    F = np.asarray(F)
-    area = 0.5 * np.linalg.norm(np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]]), axis=1)
-    return np.bincount(F.ravel(), weights=np.repeat(area / 3.0, 3), minlength=len(V)).astype(np.float64, copy=False)
+    return barycentric_areas(V, F)

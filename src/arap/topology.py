@@ -2,12 +2,11 @@
 
 from __future__ import annotations
 
+import numba as nb
 import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components as _cc
 from scipy.sparse.csgraph import reverse_cuthill_mckee
-
-from arap._csr import csr_from_face_edges
 
 
 def directed_half_edges(F: np.ndarray) -> np.ndarray:
@@ -68,10 +67,49 @@ def boundary_edges(F: np.ndarray) -> np.ndarray:
 
 def vertex_adjacency(F: np.ndarray, n: int) -> sp.csr_matrix:
     """Symmetric 0/1 vertex adjacency matrix (no self loops), shape (n, n)."""
-    A = csr_from_face_edges(np.asarray(F, dtype=np.int64), n)
-    M = sp.csr_matrix((np.ones(A.nnz, dtype=np.int8), A.indices, A.indptr), shape=(n, n))
+    ptr, idx = _face_adjacency(np.ascontiguousarray(F, dtype=np.int64), int(n))
+    if len(idx) < np.iinfo(np.int32).max:
+        ptr = ptr.astype(np.int32)
+    M = sp.csr_matrix((np.ones(len(idx), dtype=np.int8), idx, ptr), shape=(n, n))
     M.has_sorted_indices = True
     return M
+
+
+@nb.njit(cache=True, nogil=True)
+def _face_adjacency(F, n):  # pragma: no cover - compiled
+    # Every corner lists its two face neighbours; a stamp per vertex drops repeats, a short sort orders each row.
+    count = np.zeros(n + 1, np.int64)
+    for f in range(F.shape[0]):
+        for k in range(3):
+            count[F[f, k] + 1] += 2
+    for i in range(n):
+        count[i + 1] += count[i]
+    fill = count[:-1].copy()
+    idx = np.empty(count[n], np.int32)
+    for f in range(F.shape[0]):
+        for k in range(3):
+            v = F[f, k]
+            p = fill[v]
+            idx[p] = F[f, (k + 1) % 3]
+            idx[p + 1] = F[f, (k + 2) % 3]
+            fill[v] = p + 2
+    stamp = np.full(n, -1, np.int64)
+    ptr = np.zeros(n + 1, np.int64)
+    out = 0
+    for r in range(n):
+        start = out
+        for p in range(count[r], count[r + 1]):
+            c = idx[p]
+            if stamp[c] != r:
+                stamp[c] = r
+                q = out - 1
+                while q >= start and idx[q] > c:
+                    idx[q + 1] = idx[q]
+                    q -= 1
+                idx[q + 1] = c
+                out += 1
+        ptr[r + 1] = out
+    return ptr, idx[:out].copy()
 
 
 def connected_components(F: np.ndarray, n: int) -> tuple[int, np.ndarray]:
@@ -98,3 +136,119 @@ def locality_order(F: np.ndarray, n: int, adjacency: sp.csr_matrix | None = None
     """
     A = vertex_adjacency(F, n) if adjacency is None else adjacency
     return np.asarray(reverse_cuthill_mckee(A, symmetric_mode=True), dtype=np.int64)
+
+
+def leading_subgraph(adjacency: sp.csr_matrix, order: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
+    """The graph of the first ``k`` vertices of ``order``, numbered by their position in it.
+
+    The pattern (without the diagonal) of ``M[order][:, order][:k, :k]`` for any matrix ``M`` with the adjacency's
+    pattern, e.g. the solver's reduced matrix over its free vertices, which come first in its internal order.
+
+    Parameters
+    ----------
+    adjacency : (n, n) scipy.sparse.csr_matrix
+        Symmetric adjacency without self loops (:func:`vertex_adjacency`).
+    order : (n,) int array
+        ``order[i]`` is the vertex numbered ``i``.
+    k : int
+        How many leading vertices to keep.
+
+    Returns
+    -------
+    indptr : (k+1,) int64 array
+    indices : (e,) int32 array
+        Neighbours of every kept vertex among the kept ones, in increasing order.
+    """
+    return _leading_subgraph(adjacency.indptr, adjacency.indices, np.asarray(order, dtype=np.int64), int(k))
+
+
+@nb.njit(cache=True, nogil=True)
+def _leading_subgraph(indptr, indices, order, k):  # pragma: no cover - compiled
+    # Rows read in the adjacency's own order (sequentially), written to their new places, then sorted.
+    n = order.shape[0]
+    position = np.empty(n, np.int64)
+    for i in range(n):
+        position[order[i]] = i
+    ptr = np.zeros(k + 1, np.int64)
+    for v in range(n):
+        i = position[v]
+        if i < k:
+            count = 0
+            for p in range(indptr[v], indptr[v + 1]):
+                if position[indices[p]] < k:
+                    count += 1
+            ptr[i + 1] = count
+    for i in range(k):
+        ptr[i + 1] += ptr[i]
+    out = np.empty(ptr[k], np.int32)
+    for v in range(n):
+        i = position[v]
+        if i >= k:
+            continue
+        lo = ptr[i]
+        q = lo
+        for p in range(indptr[v], indptr[v + 1]):
+            j = position[indices[p]]
+            if j < k:
+                r = q - 1  # insertion into the sorted row
+                while r >= lo and out[r] > j:
+                    out[r + 1] = out[r]
+                    r -= 1
+                out[r + 1] = j
+                q += 1
+    return ptr, out
+
+
+def free_components(adjacency: sp.csr_matrix, free: np.ndarray) -> tuple[int, np.ndarray, np.ndarray]:
+    """Connected components of the graph of the ``free`` vertices, and which of them touch another vertex.
+
+    Parameters
+    ----------
+    adjacency : (n, n) scipy.sparse.csr_matrix
+        Symmetric vertex adjacency (:func:`vertex_adjacency`).
+    free : (f,) int array
+        Distinct vertex indices.
+
+    Returns
+    -------
+    count : int
+        Number of components.
+    labels : (f,) int64 array
+        Component of ``free[i]``; components are numbered in the order of their first member in ``free`` (as
+        ``scipy.sparse.csgraph.connected_components`` numbers those of ``adjacency[free][:, free]``).
+    pinned : (count,) bool array
+        Whether a vertex of the component has a neighbour outside ``free``.
+    """
+    return _free_components(adjacency.indptr, adjacency.indices, np.asarray(free, dtype=np.int64),
+                            adjacency.shape[0])
+
+
+@nb.njit(cache=True, nogil=True)
+def _free_components(indptr, indices, free, n):  # pragma: no cover - compiled
+    position = np.full(n, -1, np.int64)
+    for i in range(free.shape[0]):
+        position[free[i]] = i
+    labels = np.full(free.shape[0], -1, np.int64)
+    pinned = np.zeros(free.shape[0], np.bool_)
+    queue = np.empty(free.shape[0], np.int64)
+    count = 0
+    for start in range(free.shape[0]):
+        if labels[start] != -1:
+            continue
+        labels[start] = count
+        head = 0
+        tail = 1
+        queue[0] = start
+        while head < tail:
+            v = free[queue[head]]
+            head += 1
+            for p in range(indptr[v], indptr[v + 1]):
+                j = position[indices[p]]
+                if j < 0:
+                    pinned[count] = True
+                elif labels[j] == -1:
+                    labels[j] = count
+                    queue[tail] = j
+                    tail += 1
+        count += 1
+    return count, labels, pinned[:count].copy()
