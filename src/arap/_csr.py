@@ -294,7 +294,8 @@ def permuted_symmetric(A: sp.csr_matrix, perm: np.ndarray) -> sp.csc_matrix:
 
 
 @nb.njit(cache=True, nogil=True)
-def _permute_symmetric(indptr, indices, data, perm):  # pragma: no cover - compiled
+def permuted_rows(indptr, perm):  # pragma: no cover - compiled
+    """The inverse of ``perm`` and the row pointers of a CSR pattern whose rows are taken in the order ``perm``."""
     n = perm.shape[0]
     inv = np.empty(n, np.int64)
     for i in range(n):
@@ -302,6 +303,13 @@ def _permute_symmetric(indptr, indices, data, perm):  # pragma: no cover - compi
     ptr = np.zeros(n + 1, np.int64)
     for i in range(n):
         ptr[i + 1] = ptr[i] + indptr[perm[i] + 1] - indptr[perm[i]]
+    return inv, ptr
+
+
+@nb.njit(cache=True, nogil=True)
+def _permute_symmetric(indptr, indices, data, perm):  # pragma: no cover - compiled
+    inv, ptr = permuted_rows(indptr, perm)
+    n = perm.shape[0]
     idx = np.empty(ptr[n], np.int32)
     val = np.empty(ptr[n], data.dtype)
     for i in range(n):

@@ -34,6 +34,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 import arap._numba_cache  # noqa: F401  (a writable cache folder before the kernels below are defined)
+from arap._csr import permuted_rows
 
 __all__ = ["BackgroundOrdering", "metis_available", "nested_dissection", "permute_rows", "unpermute_rows"]
 
@@ -228,13 +229,8 @@ def _postorder(indptr, indices, perm):  # pragma: no cover - compiled
     # Elimination tree of the permuted pattern (Liu's algorithm with path compression), its column counts (Gilbert,
     # Ng and Peyton's skeleton-matrix method) and a depth-first postorder that visits the children of every node in
     # increasing order of their counts (ties by index), so that the heaviest child ends next to its parent.
+    inv, ptr = permuted_rows(indptr, perm)
     n = perm.shape[0]
-    inv = np.empty(n, np.int64)
-    for i in range(n):
-        inv[perm[i]] = i
-    ptr = np.zeros(n + 1, np.int64)
-    for i in range(n):
-        ptr[i + 1] = ptr[i] + indptr[perm[i] + 1] - indptr[perm[i]]
     adj = np.empty(ptr[n], np.int64)
     for i in range(n):
         p = ptr[i]
