@@ -1,8 +1,8 @@
 """Energies compared: spokes, spokes and rims, and smooth rotations (SR-ARAP) on the shared scans.
 
 1. Cost per iteration on the armadillo (bend scenario, the plain local/global iteration, all energies in the same
-   run, median of ``--repeats``): SR-ARAP (with the solver's sweeps per local step, :data:`arap.smooth.SWEEPS`)
-   against spokes.
+   run, median of ``--repeats``): SR-ARAP (with the solver's rotation steps and sweeps per local step,
+   :data:`arap.smooth.STEPS` and :data:`arap.smooth.SWEEPS`) against spokes.
 2. A single vertex pulled by 20% of the bounding-box diagonal along the longest axis, the lowest 10% anchored
    (:func:`arap.scenarios.pull`), solved from the rest pose with the default acceleration until converged (at most
    ``--max-iterations``): folded adjacent-face pairs added to the rest shape's (normals' dot < −0.5), the largest
@@ -30,7 +30,7 @@ import numpy as np
 from arap.folds import folded_pairs, max_dihedral_change
 from arap.io import load_mesh, save_mesh
 from arap.scenarios import bend, pull
-from arap.smooth import SWEEPS
+from arap.smooth import STEPS, SWEEPS
 from arap.solver import ArapSolver
 
 SHARED = Path(__file__).resolve().parents[1].parent / "shared" / "meshes"
@@ -100,7 +100,11 @@ def screenshots(out: Path, name: str, F: np.ndarray, shapes: list[np.ndarray]) -
                 page.set_input_files("#file-input", str(path))
                 page.wait_for_function(f"() => window.__arap.meshName === {path.stem!r}", timeout=120_000)
                 page.wait_for_function(ready, timeout=120_000)
-                page.click("#hud-toggle")  # the statistics would cover the model
+                # the statistics and the first-run guide would cover the model
+                if not page.evaluate("() => document.querySelector('#hud').classList.contains('collapsed')"):
+                    page.click("#hud-toggle")
+                if page.is_visible("#guide"):
+                    page.click("[data-testid=guide-close]")
                 page.wait_for_timeout(300)
                 images.append(page.locator("#view").screenshot(type="png"))
                 page.close()
@@ -137,7 +141,7 @@ def main(argv: list[str] | None = None) -> int:
     timing_mesh = args.meshes[-1]
     ms = per_iteration(timing_mesh, args.iterations, args.repeats)
     print(f"\nPer iteration on {timing_mesh.name} (bend, plain iteration, median of {args.repeats} runs; "
-          f"smooth rotations: {SWEEPS} sweeps per local step):")
+          f"smooth rotations: {STEPS} rotation steps and {SWEEPS} sweeps per local step):")
     print("| energy | ms per iteration | ÷ spokes |")
     print("|---|---|---|")
     for e in ENERGIES:

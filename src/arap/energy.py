@@ -42,20 +42,22 @@ def _inputs(V: Any, F: Any, U: Any) -> tuple[NDArray[np.float64], NDArray[np.int
     return V, F, U
 
 
-SWEEPS = 1000
-"""Most block-coordinate sweeps :func:`cell_energies` runs for the rotations of ``smooth_rotations``."""
+ROUNDS = 1000
+"""Most rounds (a preconditioned rotation step and a block-coordinate sweep) :func:`cell_energies` runs for the
+rotations of ``smooth_rotations``; they stop once the energy no longer falls, in a few dozen rounds on the shared
+scans."""
 
 
 def _settle_rotations(cells: Cells, V: NDArray[np.float64], F: NDArray[np.int64], U: NDArray[np.float64],
                       R: NDArray[np.float64], E: NDArray[np.float64], alpha: float,
                       pair_weights: NDArray[np.float64]) -> None:
-    """Sweep the SR-ARAP local step from the per-cell rotations in ``R`` until the energy stops falling; ``E`` gets
-    each cell's data energy plus its rotation term."""
+    """Relax the SR-ARAP rotations from the per-cell rotations in ``R`` (preconditioned steps and sweeps) until the
+    energy stops falling; ``E`` gets each cell's data energy plus its rotation term."""
     smooth = SmoothRotations(cells, float(vertex_areas(V, F).sum()), check_alpha(alpha), pair_weights)
     term = np.zeros(len(V))
     previous = np.inf
-    for _ in range(SWEEPS):
-        value = smooth.local_step(U, R, E, term)
+    for _ in range(ROUNDS):
+        value = smooth.relax(U, R, E, term, 1, steps=1)
         if previous - value <= 1e-14 * abs(value):
             break
         previous = value

@@ -56,8 +56,8 @@ class Iterate:
     correct : callable or None
         Applied to the global step's solution (hard point handles), or None.
     coupled : bool
-        The rotations are swept from their previous values (``smooth_rotations``): the plain step after a rejected
-        extrapolation restarts the sweep from the rotations before it.
+        The rotations are moved on from their previous values (``smooth_rotations``): the plain step after a
+        rejected extrapolation restarts from the rotations before it.
     step_limit : float
         Converged when the plain step's norm (over all free coordinates) is at most this.
     scale : float

@@ -28,6 +28,11 @@ colour's cells in a window are consecutive) so that it stays in cache; windows t
 and the result does not depend on the thread count. The global step is the spokes one (the rotation term does not
 involve positions).
 
+Sweeps alone converge slowly: a sweep moves each rotation towards its neighbours' only, so a change spreads across
+the mesh like a diffusion. The solver's local step therefore takes a preconditioned step on all rotations at once
+(:mod:`arap.rotation_step`, a Laplacian of the rotation term factorised once) that never raises the energy either:
+see :data:`STEPS`.
+
 Cost. ``S_i`` depends on the positions only: :meth:`SmoothRotations.relax` computes the covariances (and the
 constants of the data energy) once per local step, in a parallel pass, and stores them by sweep position; each
 sweep then reads them back, adds ``2αA Σ_j w⁺_ij R_jᵀ`` (the coupled neighbours listed in sweep order) and refits
@@ -52,6 +57,7 @@ from arap._parallel import policy
 from arap.cells import Cells
 from arap.covariance import CHUNK
 from arap.errors import OptionError
+from arap.rotation_step import RotationStep
 from arap.rotations import BLOCK, ROW_LOWER, ROW_R, SCRATCH_ROWS, rotations_block
 from arap.start import best_rigid_transform
 
@@ -60,15 +66,20 @@ __all__ = ["DEFAULT_ALPHA", "SWEEPS", "WINDOW", "SmoothRotations", "colour_order
 DEFAULT_ALPHA = 0.02
 """Default weight of the rotation term (CGAL's ``SRE_ARAP`` default), relative to the surface area."""
 
-SWEEPS = 8
-"""Sweeps of one local step of the solver. One sweep moves each rotation towards its neighbours' only, and at the
-default ``alpha`` the rotation term outweighs the spokes term by far on dense meshes, so the coupled rotations are
-the slow part of a solve: measured on the knight, the camel head, the armadillo and a 20k-vertex scan (one vertex
-pulled, Anderson), the energy reached depends on the number of sweeps, however they are grouped into iterations,
-while each iteration adds a fixed cost (covariances, rotation term, right-hand side, back-substitution). On the
-armadillo (one thread) an iteration with 1, 2, 4, 8 or 16 sweeps cost 1.5, 2.1, 2.6, 3.5 or 6.0 spokes iterations,
-so the time per sweep falls with more sweeps per iteration (3.5× less from 1 to 8, 15% less from 8 to 16); 8 keeps
-an iteration (a drag's unit of work) affordable. See ``benchmarks/README.md``."""
+STEPS = 1
+"""Preconditioned rotation steps (:class:`arap.rotation_step.RotationStep`) in one local step of the solver. A step
+moves all rotations at once towards the minimum of the coupled rotation energy, where a sweep moves each towards its
+neighbours' only; at the default ``alpha`` the rotation term outweighs the spokes term by far on dense meshes, so the
+coupled rotations were the slow part of a solve with sweeps. One vertex pulled by 20% of the diagonal, Anderson, to
+the default tolerance: with 8 sweeps per local step the knight took 951 iterations, the camel head and the armadillo
+did not converge (21.6 s on the camel head; 24,000 sweeps on the armadillo); with one step and no sweep, 73, 30 and 56
+iterations (0.01, 0.12 and 0.8 s). Two steps per local step halve the iterations but not the time. See
+``benchmarks/README.md``."""
+
+SWEEPS = 0
+"""Block-coordinate sweeps in one local step of the solver, after its :data:`STEPS` (measured: one more sweep made an
+iteration dearer without reducing the iterations). Without a step (``alpha = 0``, nothing coupled) a local step
+sweeps once, which is then the spokes local step."""
 
 WINDOW = 2048
 """Consecutive cells whose colours are swept before the next window's (so that a sweep stays in cache)."""
@@ -414,6 +425,8 @@ class SmoothRotations:
         # covariances and data-energy constants of the current positions, by sweep position
         self._S = np.empty((n, 9))
         self._d = np.empty(n)
+        self._step = (RotationStep(cells, self.q, self.coef, order, self._nptr, self._nidx, self._nq)
+                      if self.coef > 0 and n else None)
 
     def start(self, V: NDArray[np.float64], U: NDArray[np.float64], weights: NDArray[np.float64],
               R: NDArray[np.float64]) -> None:
@@ -463,18 +476,23 @@ class SmoothRotations:
         return self.relax(U, R, E, term, 1)
 
     def relax(self, U: NDArray[np.float64], R: NDArray[np.float64], E: NDArray[np.float64],
-              term: NDArray[np.float64], sweeps: int, gain: float | None = None) -> float:
-        """Up to ``sweeps`` sweeps over the colours at positions ``U``, in place; the covariances are computed once.
+              term: NDArray[np.float64], sweeps: int, gain: float | None = None, steps: int = 0) -> float:
+        """``steps`` preconditioned steps, then up to ``sweeps`` sweeps over the colours at positions ``U``, in place;
+        the covariances are computed once.
 
         Parameters
         ----------
         U, R, E, term
             As in :meth:`local_step`; ``E`` and ``term`` describe the rotations after the last sweep.
         sweeps : int
-            Most sweeps (at least 1).
+            Most sweeps after the steps (at least 1 when no step is taken).
         gain : float or None
             None: exactly ``sweeps`` sweeps, and only the last evaluates the rotation term. Else sweep again while
             the last sweep lowered the energy by more than this fraction of it (every sweep evaluates it).
+        steps : int
+            Preconditioned steps on the rotations (:class:`arap.rotation_step.RotationStep`) before the sweeps; none
+            when nothing is coupled (``alpha = 0``). After a step without a sweep, ``term[c]`` is each cell's own
+            rotation term ``αA Σ_j w⁺_ij ‖R_c − R_j‖²`` (the sum is the same).
 
         Returns
         -------
@@ -486,7 +504,12 @@ class SmoothRotations:
         policy.run("smooth_covariance", len(c.a), lambda: _covariances_serial(*cov),
                    lambda: _covariances_parallel(*cov))
         e = 0.0
-        for i in range(max(int(sweeps), 1)):
+        stepped = self._step is not None and steps > 0
+        sweeps = int(sweeps) if stepped else max(int(sweeps), 1)
+        if self._step is not None:
+            for _ in range(int(steps)):
+                e = self._step.step(self._S, self._d, R, E, term)
+        for i in range(sweeps):
             previous, e = e, self._sweep(R, E, term, gain is not None or i == sweeps - 1)
             if gain is not None and i > 0 and previous - e <= gain * abs(e):
                 break

@@ -42,7 +42,7 @@ from arap.result import (
     StartName,
 )
 from arap.rigid import RigidRegions, rigid_regions
-from arap.smooth import DEFAULT_ALPHA, SWEEPS, SmoothRotations, check_alpha, colour_order
+from arap.smooth import DEFAULT_ALPHA, STEPS, SWEEPS, SmoothRotations, check_alpha, colour_order
 from arap.start import best_rigid_transform, vertex_areas
 from arap.topology import locality_order, vertex_adjacency
 from arap.weights import DEFAULT_WEIGHTS, WeightType
@@ -343,7 +343,7 @@ class ArapSolver:
             :mod:`arap.lbfgs`) with a backtracking line search on the energy; its first direction is the plain
             step, and a search that finds no lower energy takes the plain step, so the energy never rises. Where a
             part of the shape drifts slowly, Anderson's extrapolations are rejected for thousands of iterations
-            while L-BFGS keeps converging. For ``smooth_rotations`` (whose coupled rotations are only swept towards
+            while L-BFGS keeps converging. For ``smooth_rotations`` (whose coupled rotations are only moved towards
             their optimum), hard point handles (met by a projection) and rigid regions, ``lbfgs`` runs
             ``anderson``. ``anderson``: Anderson acceleration of the local/global fixed point (Peng et al. 2018)
             with an energy safeguard: an extrapolated iterate is kept only if its energy is not higher than the
@@ -443,7 +443,7 @@ class ArapSolver:
         t = time.perf_counter()
         e_term = 0.0
         if self._smooth is not None:
-            e = self._smooth.relax(U, self._R, self._E, self._term, SWEEPS)
+            e = self._smooth.relax(U, self._R, self._E, self._term, SWEEPS, steps=STEPS)
             e_term = float(self._term.sum())
         else:
             e = local_step(self._cells, self._active, U, self._R, self._E)
@@ -504,7 +504,7 @@ class ArapSolver:
         return U, self._local(U, 0.0, timings), "given"
 
     def _fit_each_rotation(self, U: NDArray[np.float64]) -> None:
-        """Before a cold start of ``smooth_rotations``: the rotations from which the coupled sweeps go on
+        """Before a cold start of ``smooth_rotations``: the rotations from which the coupled local steps go on
         (:meth:`arap.smooth.SmoothRotations.start`)."""
         if self._smooth is not None:
             self._smooth.start(self._V, U, self._areas, self._R)

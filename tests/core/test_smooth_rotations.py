@@ -166,8 +166,8 @@ def test_sweep_does_not_depend_on_the_thread_count(camelhead: tuple[np.ndarray, 
 
 
 def test_solve_converges_and_anderson_never_raises_the_energy(knight: tuple[np.ndarray, np.ndarray]) -> None:
-    """Several sweeps per local step let the coupled rotations keep up with the positions, so a single-vertex pull
-    converges at the default tolerance; a rejected Anderson step restarts the sweep from the rotations it had."""
+    """The local step's rotation step lets the coupled rotations keep up with the positions, so a single-vertex pull
+    converges at the default tolerance; a rejected Anderson step restarts from the rotations it had."""
     V, F = knight
     s = pull(V)
     for acceleration in ("anderson", "none"):
