@@ -23,7 +23,7 @@ Local step. With the positions and the other rotations fixed, the terms that hol
 ``R_i`` is the rotation fit of ``M_i = S_i + 2αA Σ_j w⁺_ij R_jᵀ``. Neighbouring rotations depend on each other, so
 the vertices are coloured (no two neighbours share a colour) and the colours are updated one after the other, each
 from the current rotations of the others: block-coordinate descent, exact per block, so the energy never rises.
-The sweep goes window by window (:data:`WINDOW` consecutive cells; the solver numbers the vertices so that each
+The sweep goes window by window (:data:`arap.colouring.WINDOW` consecutive cells; the solver numbers the vertices so that each
 colour's cells in a window are consecutive) so that it stays in cache; windows that share no edge run in parallel,
 and the result does not depend on the thread count. The global step is the spokes one (the rotation term does not
 involve positions).
@@ -55,13 +55,14 @@ from numpy.typing import NDArray
 
 from arap._parallel import policy
 from arap.cells import Cells
+from arap.colouring import WINDOW, colour_vertices
 from arap.covariance import CHUNK
 from arap.errors import OptionError
 from arap.rotation_step import RotationStep
 from arap.rotations import BLOCK, ROW_LOWER, ROW_R, SCRATCH_ROWS, rotations_block
 from arap.start import best_rigid_transform
 
-__all__ = ["DEFAULT_ALPHA", "SWEEPS", "WINDOW", "SmoothRotations", "colour_order", "colour_vertices"]
+__all__ = ["DEFAULT_ALPHA", "STEPS", "SWEEPS", "SmoothRotations"]
 
 DEFAULT_ALPHA = 0.02
 """Default weight of the rotation term (CGAL's ``SRE_ARAP`` default), relative to the surface area."""
@@ -80,80 +81,6 @@ SWEEPS = 0
 """Block-coordinate sweeps in one local step of the solver, after its :data:`STEPS` (measured: one more sweep made an
 iteration dearer without reducing the iterations). Without a step (``alpha = 0``, nothing coupled) a local step
 sweeps once, which is then the spokes local step."""
-
-WINDOW = 2048
-"""Consecutive cells whose colours are swept before the next window's (so that a sweep stays in cache)."""
-
-
-@nb.njit(cache=True, nogil=True)
-def _greedy_colours(ptr, nbr):  # pragma: no cover - compiled
-    n = ptr.shape[0] - 1
-    colour = np.full(n, -1, np.int64)
-    used = np.full(64, -1, np.int64)  # used[k] == i: colour k is taken by a neighbour of i
-    for i in range(n):
-        for k in range(ptr[i], ptr[i + 1]):
-            c = colour[nbr[k]]
-            if c >= 0:
-                if c >= used.shape[0]:
-                    grown = np.full(2 * c + 2, -1, np.int64)
-                    grown[: used.shape[0]] = used
-                    used = grown
-                used[c] = i
-        c = 0
-        while c < used.shape[0] and used[c] == i:
-            c += 1
-        colour[i] = c
-    return colour
-
-
-def colour_vertices(ptr: NDArray[np.int64], nbr: NDArray[np.int32]) -> NDArray[np.int64]:
-    """Greedy colouring of a graph in CSR form: no two neighbours share a colour.
-
-    Parameters
-    ----------
-    ptr : (n+1,) int array
-    nbr : (t,) int array
-        Neighbours of ``i`` are ``nbr[ptr[i]:ptr[i+1]]``.
-
-    Returns
-    -------
-    (n,) int64 array
-        Colours ``0..k-1`` (k is at most the largest degree plus one; about 7 on triangle meshes).
-
-    Example
-    -------
-    >>> ptr = np.array([0, 2, 4, 6]); nbr = np.array([1, 2, 0, 2, 0, 1])   # a triangle
-    >>> colour_vertices(ptr, nbr).tolist()
-    [0, 1, 2]
-    """
-    return _greedy_colours(np.ascontiguousarray(ptr, dtype=np.int64), np.ascontiguousarray(nbr, dtype=np.int64))
-
-
-def colour_order(order: NDArray[np.int64], adjacency: sp.csr_matrix) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
-    """Refine a locality order for the coloured sweep: within each window of :data:`WINDOW` positions, the vertices
-    of one colour become consecutive, so that each run of the sweep reads contiguous memory.
-
-    Parameters
-    ----------
-    order : (n,) int array
-        ``order[k]`` is the vertex at position ``k`` (e.g. :func:`arap.topology.locality_order`).
-    adjacency : (n, n) sparse matrix
-        Symmetric vertex adjacency.
-
-    Returns
-    -------
-    order : (n,) int64 array
-        The refined order.
-    colour : (n,) int64 array
-        A colouring of the vertices (indexed by vertex): no two neighbours share a colour.
-    """
-    n = len(order)
-    A = sp.csr_matrix(adjacency)[order][:, order].tocsr()
-    colour_at = colour_vertices(A.indptr.astype(np.int64), A.indices)
-    positions = np.lexsort((colour_at, np.arange(n) // WINDOW))
-    colour = np.empty(n, np.int64)
-    colour[order] = colour_at
-    return np.asarray(order, dtype=np.int64)[positions], colour
 
 
 @nb.njit(cache=True, nogil=True)

@@ -20,6 +20,7 @@ from arap.cells import (
     scale_cells,
     system_matrix,
 )
+from arap.colouring import colour_order
 from arap.covariance import assemble_rhs, assemble_rhs_and_gradient, covariances, local_step
 from arap.errors import ArapError, ConstraintError, OptionError, UnconstrainedRegionError
 from arap.inactive import InactiveCells
@@ -42,7 +43,7 @@ from arap.result import (
     StartName,
 )
 from arap.rigid import RigidRegions, rigid_regions
-from arap.smooth import DEFAULT_ALPHA, STEPS, SWEEPS, SmoothRotations, check_alpha, colour_order
+from arap.smooth import DEFAULT_ALPHA, STEPS, SWEEPS, SmoothRotations, check_alpha
 from arap.start import best_rigid_transform, vertex_areas
 from arap.topology import locality_order, vertex_adjacency
 from arap.weights import DEFAULT_WEIGHTS, WeightType

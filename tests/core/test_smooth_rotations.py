@@ -9,11 +9,11 @@ import pytest
 
 import arap
 from arap import smooth
+from arap.colouring import colour_vertices
 from arap.covariance import covariances as covariances_of
 from arap.errors import OptionError
 from arap.scenarios import bend, pull, rigid
 from arap.shapes import obtuse_cylinder
-from arap.smooth import colour_vertices
 from arap.start import vertex_areas
 from arap.weights import edge_weight_matrix
 
