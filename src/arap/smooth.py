@@ -23,10 +23,10 @@ Local step. With the positions and the other rotations fixed, the terms that hol
 ``R_i`` is the rotation fit of ``M_i = S_i + 2αA Σ_j w⁺_ij R_jᵀ``. Neighbouring rotations depend on each other, so
 the vertices are coloured (no two neighbours share a colour) and the colours are updated one after the other, each
 from the current rotations of the others: block-coordinate descent, exact per block, so the energy never rises.
-The sweep goes window by window (:data:`arap.colouring.WINDOW` consecutive cells; the solver numbers the vertices so that each
-colour's cells in a window are consecutive) so that it stays in cache; windows that share no edge run in parallel,
-and the result does not depend on the thread count. The global step is the spokes one (the rotation term does not
-involve positions).
+The sweep goes window by window (:data:`arap.colouring.WINDOW` consecutive cells; the solver numbers the vertices
+so that each colour's cells in a window are consecutive) so that it stays in cache; windows that share no edge run
+in parallel, and the result does not depend on the thread count. The global step is the spokes one (the rotation
+term does not involve positions).
 
 Sweeps alone converge slowly: a sweep moves each rotation towards its neighbours' only, so a change spreads across
 the mesh like a diffusion. The solver's local step therefore takes a preconditioned step on all rotations at once

@@ -27,7 +27,7 @@ from arap.inactive import InactiveCells
 from arap.indexing import check_index_array, find_unconstrained_part, rows_of
 from arap.lbfgs import LbfgsHistory
 from arap.linsolve import NotPositiveDefiniteError, background_ordering, factorize
-from arap.loops import Iterate, lbfgs_iterations, plain_iterations
+from arap.loops import PLAIN_START, Iterate, lbfgs_iterations, plain_iterations
 from arap.mesh import MeshLike, check_mesh, is_mesh_like, mesh_arrays
 from arap.points import PointConstraints, PointSystem, check_points
 from arap.result import (
@@ -342,7 +342,9 @@ class ArapSolver:
         acceleration : {"lbfgs", "anderson", "none"}
             ``lbfgs``: L-BFGS preconditioned by the global step (Liu, Bouaziz & Kavan 2017; see
             :mod:`arap.lbfgs`) with a backtracking line search on the energy; its first direction is the plain
-            step, and a search that finds no lower energy takes the plain step, so the energy never rises. Where a
+            step (from a cold start, its first ``arap.loops.PLAIN_START`` (10) steps are plain: L-BFGS's early long
+            steps could cross into a higher minimum of the spokes energy), and a search that finds no lower energy
+            takes the plain step, so the energy never rises. Where a
             part of the shape drifts slowly, Anderson's extrapolations are rejected for thousands of iterations
             while L-BFGS keeps converging. For ``smooth_rotations`` (whose coupled rotations are only moved towards
             their optimum), hard point handles (met by a projection) and rigid regions, ``lbfgs`` runs
@@ -387,7 +389,7 @@ class ArapSolver:
             size = DEFAULT_LBFGS_MEMORY if window is None else int(window)
             if self._history is None or self._history.window != size:
                 self._history = LbfgsHistory(size)
-            outcome = lbfgs_iterations(it, E_cur, self._history)
+            outcome = lbfgs_iterations(it, E_cur, self._history, 0 if start == "warm" else PLAIN_START)
         else:
             accel = None
             if acceleration != "none" and nf:
