@@ -126,6 +126,17 @@ def test_no_movable_list_without_a_proper_region(roi: list[int] | None) -> None:
     assert movable_vertices(ConstraintSet.build(V, V, roi, [0], [[9]]), 10) is None
 
 
+def test_a_region_with_nothing_movable_has_only_full_frames() -> None:
+    """Every vertex of the region fixed: a full frame cannot list an empty movable list (``movable`` 0 means none),
+    so no subset frame of zero positions may follow it (the client would have no list to apply it to)."""
+    V = np.arange(30, dtype=np.float64).reshape(10, 3)
+    cs = ConstraintSet.build(V, V, [2, 3], [2, 3], [])
+    assert movable_vertices(cs, 10) is None
+    stream = VertexStream()
+    stream.reset(V)
+    assert [stream.encode(V, cs)[:2] for _ in range(3)] == [(-1, 0)] * 3
+
+
 def test_frames_of_an_interrupted_settle_arrive_before_the_next_answer(static_dir: Path,
                                                                        monkeypatch: pytest.MonkeyPatch) -> None:
     """Settling frames are sent by tasks of their own; a slow socket must not let one of them arrive after the

@@ -33,7 +33,9 @@ def movable_vertices(cs: ConstraintSet, n_vertices: int) -> NDArray[np.int64] | 
     Returns
     -------
     (k,) int64 array or None
-        Sorted indices, or None when every vertex may move (no region of interest, or one covering the mesh).
+        Sorted indices, or None when every vertex may move (no region of interest, or one covering the mesh) or
+        none can (every vertex of the region is fixed): a full frame lists no movable vertices (``movable`` 0), so a
+        client could not apply subset frames of zero positions after it.
     """
     if cs.roi is None or cs.is_empty or len(cs.roi) >= n_vertices:
         return None
@@ -43,7 +45,7 @@ def movable_vertices(cs: ConstraintSet, n_vertices: int) -> NDArray[np.int64] | 
         mask[group] = True
     mask[cs.fixed] = False
     idx = np.flatnonzero(mask)
-    if len(idx) >= n_vertices:
+    if len(idx) == 0 or len(idx) >= n_vertices:
         return None
     return idx.astype(np.int64)
 
