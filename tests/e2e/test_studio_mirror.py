@@ -235,6 +235,17 @@ def test_dragging_a_group_moves_its_partner_mirrored(page: Page, tmp_path: Path)
     after = mirror_state(page)
     assert after["active"] and after["matched"] == 1.0 and after["plane"]["normal"] == [1, 0, 0]
     np.testing.assert_array_equal(after["mirrorOf"], mirror_of)
+    applied = page.evaluate("() => JSON.stringify(window.__arap.mirror().plane)")
+
+    # undo and redo of the apply bring back each rest pose's plane
+    plane_is = "(p) => JSON.stringify(window.__arap.mirror().plane) === p"
+    page.get_by_test_id("undo").click()
+    page.wait_for_function(plane_is, arg=before)
+    wait_idle(page)
+    page.get_by_test_id("redo").click()
+    page.wait_for_function(plane_is, arg=applied)
+    wait_idle(page)
+    assert mirror_state(page)["active"]
 
     # the pairing comes back with the file
     page.get_by_test_id("group-delete-1").click()

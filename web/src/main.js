@@ -122,7 +122,6 @@ function send(msg) {
     return false;
   }
   keeper.sent(msg);
-  mirror.sent(msg);
   return true;
 }
 
@@ -276,7 +275,7 @@ function onVertices(msg) {
 
 function onState(msg) {
   app.awaitingState = false;
-  mirror.stateArrived();
+  mirror.stateArrived(msg.rest_id);
   app.canUndo = !!msg.can_undo;
   app.canRedo = !!msg.can_redo;
   panel.setHistory(app.canUndo, app.canRedo);

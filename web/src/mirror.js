@@ -4,7 +4,6 @@
 // mirror editing is first turned on.
 import * as THREE from 'three';
 import { ignoreTypeAhead } from './keys.js';
-import { CLIENT } from './protocol.js';
 import { detectSymmetry, MIN_MATCHED, reflectionMatrix } from './symmetry.js';
 
 /** Key of the handle-group pairs in a constraints document's "meta" object: [[k, l], ...] of handle_groups. */
@@ -32,8 +31,9 @@ export class MirrorEditing {
     this.axis = 'auto';
     this.result = null; // detectSymmetry's answer for the rest pose, null until needed
     this.rest = null; // rest positions (Float32Array) and faces of the current mesh
+    this.restId = null; // the server's id of that rest pose (null until a state names it)
+    this.rests = new Map(); // rest positions by id: undo and redo of an apply come back to an earlier one
     this.faces = null;
-    this.applying = 0; // apply requests whose state has not arrived yet
     this.matrix = new THREE.Matrix4();
     this.planeMesh = null;
     checkbox.addEventListener('change', () => this.setOn(checkbox.checked));
@@ -56,18 +56,27 @@ export class MirrorEditing {
   meshChanged(positions, faces) {
     this.rest = Float32Array.from(positions);
     this.faces = faces;
+    this.restId = null;
+    this.rests.clear();
     this._invalidate();
   }
 
-  /** A request was sent (an apply makes the current shape the rest pose once its state arrives). */
-  sent(msg) {
-    if (msg.type === CLIENT.APPLY) this.applying++;
-  }
-
-  stateArrived() {
-    if (this.applying <= 0) return;
-    this.applying--;
-    this.rest = Float32Array.from(this.viewer.positions);
+  /**
+   * A state message: when it names another rest pose, the plane is found again on it. A rest pose seen before
+   * (an undo or redo across an apply) comes back from memory; a new one (an apply) is the shape shown, which the apply
+   * made the rest pose.
+   * @param {number | undefined} restId the state's `rest_id`
+   */
+  stateArrived(restId) {
+    if (typeof restId !== 'number' || restId === this.restId) return;
+    if (this.restId === null) {
+      this.restId = restId; // the first state of this mesh: its rest pose is the mesh's
+      this.rests.set(restId, this.rest);
+      return;
+    }
+    this.rest = this.rests.get(restId) ?? Float32Array.from(this.viewer.positions);
+    this.rests.set(restId, this.rest);
+    this.restId = restId;
     this._invalidate();
   }
 

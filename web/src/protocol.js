@@ -479,6 +479,11 @@ export const SERVER_MESSAGES = Object.freeze({
         "name": "stats",
         "kind": "object",
         "required": true
+      },
+      {
+        "name": "rest_id",
+        "kind": "int",
+        "required": true
       }
     ]
   },
@@ -707,6 +712,7 @@ export const SERVER_MESSAGES = Object.freeze({
  * @property {Object<string, any>} constraints roi, fixed, handle_groups, stiffness, points as last accepted
  * @property {number[][]} transforms current transform of each handle group
  * @property {Object<string, any>} stats n_vertices, n_faces, roi_size, n_free, factor_ms
+ * @property {number} rest_id the rest pose: a new value after apply, the earlier one again when an undo or redo goes back to it
  */
 
 /**

@@ -244,7 +244,9 @@ SERVER_MESSAGES: dict[str, MessageSpec] = {
               Field("params", "object", "solver parameters"),
               Field("constraints", "object", "roi, fixed, handle_groups, stiffness, points as last accepted"),
               Field("transforms", "matrices", "current transform of each handle group"),
-              Field("stats", "object", "n_vertices, n_faces, roi_size, n_free, factor_ms")),
+              Field("stats", "object", "n_vertices, n_faces, roi_size, n_free, factor_ms"),
+              Field("rest_id", "int", "the rest pose: a new value after apply, the earlier one again when an undo "
+                    "or redo goes back to it")),
         _spec("constraints", "answer to get_constraints",
               Field("document", "object", "constraints document (command-line format)")),
         _spec("export", "answer to export (payload: the file's bytes)",

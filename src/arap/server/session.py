@@ -518,6 +518,7 @@ class Session:
             params=asdict(self.params),
             constraints=cs.to_json(),
             transforms=matrices_to_json(self.transforms),
+            rest_id=self.rest_id,
             stats={
                 "n_vertices": n,
                 "n_faces": 0 if self.mesh is None else self.mesh.n_faces,
