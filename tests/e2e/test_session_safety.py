@@ -219,9 +219,26 @@ def test_leaving_an_edited_session_warns(page: Page) -> None:
 # ---------------------------------------------------------------------------------------------- autosave
 
 
+def place_pivot(page: Page, point: np.ndarray) -> list[float]:
+    """Place the active group's pivot with the mouse (P, then a click) at the vertex nearest ``point``; returns
+    where the gizmo's pivot is then."""
+    U = positions(page)
+    hit = U[np.argmin(np.linalg.norm(U - point, axis=1))]
+    x, y = page.evaluate("(p) => window.__arap.project(p)", hit.tolist())
+    page.mouse.move(x, y)
+    page.keyboard.press("p")
+    page.mouse.click(x, y)
+    g = page.evaluate("() => window.__arap.gizmo()")
+    assert g["pivotPlaced"], "the click did not place the pivot"
+    return g["pivot"]
+
+
 def test_autosave_restores_the_session_after_a_reload(page: Page) -> None:
     rest = positions(page)
     before = edit_session(page)
+    handle = np.asarray(before["constraints"]["handle_groups"][0])
+    below = before["positions"][handle].mean(axis=0) - np.array([0, 0.1 * np.ptp(rest[:, 1]), 0])
+    pivot = place_pivot(page, below)  # placed after the drag: kept in the group's frame, saved where it is now
     wait_autosaved(page)
     Dialogs(page, accept=True)  # the warning before unloading
     page.reload()
@@ -236,9 +253,11 @@ def test_autosave_restores_the_session_after_a_reload(page: Page) -> None:
     wait_ready(page)
     wait_idle(page)
     assert_restored(page, before, rest)
+    g = page.evaluate("() => window.__arap.gizmo()")
+    assert g["group"] == 0 and g["pivotPlaced"], "the placed pivot was not restored"
+    np.testing.assert_allclose(g["pivot"], pivot, rtol=0, atol=1e-9 * np.ptp(rest[:, 1]))
 
     # the restored session goes on: a drag moves the handles from the restored shape
-    handle = np.asarray(before["constraints"]["handle_groups"][0])
     drag_gizmo_x(page, 60)
     assert np.linalg.norm(positions(page)[handle] - before["positions"][handle], axis=1).min() > 1e-3
     assert not page.evaluate("() => window.__arap.errors")

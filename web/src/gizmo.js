@@ -163,6 +163,23 @@ export class HandleGizmo {
     this.recenter();
   }
 
+  /** Per group, its placed pivot where it is now (world [x, y, z]), or null where it turns about its centroid. */
+  placedPivots() {
+    return this.pivots.map((q, g) => (q ? q.clone().applyMatrix4(this.matrices[g] || new THREE.Matrix4()).toArray() : null));
+  }
+
+  /**
+   * Put back pivots that `placedPivots` gave (world points of the current shape), after a new constraint set made
+   * the current shape every group's frame; entries for groups that do not exist are ignored.
+   */
+  restorePivots(points) {
+    (points || []).forEach((p, g) => {
+      if (g >= this.pivots.length || !Array.isArray(p) || p.length !== 3 || !p.every(Number.isFinite)) return;
+      this.pivots[g] = new THREE.Vector3(p[0], p[1], p[2]).applyMatrix4((this.matrices[g] || new THREE.Matrix4()).clone().invert());
+    });
+    this.recenter();
+  }
+
   /** The active group's pivot back to its centroid. */
   resetPivot() {
     if (this.group >= 0 && this.group < this.pivots.length) this.pivots[this.group] = null;

@@ -9,7 +9,7 @@ import { builtinSource, captureSession, describe, encodePly, fileSource, hasEdit
 
 export class SessionKeeper {
   /**
-   * @param {object} deps app, selection, viewer, panel, send(msg) → bool, requestMesh(source) → bool,
+   * @param {object} deps app, selection, viewer, panel, gizmo, send(msg) → bool, requestMesh(source) → bool,
    *   applySelection(snap) (put a saved selection back and send it), offerParent (element for the offer banner)
    */
   constructor(deps) {

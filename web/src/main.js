@@ -65,13 +65,16 @@ const keeper = new SessionKeeper({
   },
   send,
   requestMesh,
+  get gizmo() {
+    return gizmo;
+  },
   applySelection: applySavedSelection,
   offerParent: document.getElementById('viewport'),
 });
 
 const { gizmo, transformUi } = installManipulation({
   app, viewer, selection, mirror, connection: () => conn,
-  status: (...a) => panel.showStatus(...a), hush: () => panel.hideStatus(),
+  status: (...a) => panel.showStatus(...a), hush: () => panel.hideStatus(), changed: () => keeper.touch(),
 });
 const tools = new SelectionTools(viewer, {
   isGizmoActive: () => gizmo.active,
@@ -352,6 +355,7 @@ function applySavedSelection(snap) {
   mirror.setPartners(snap.partners);
   refreshSelection(true);
   commitConstraints(null, true);
+  gizmo.restorePivots(snap.pivots); // after the new constraint set made the restored shape every group's frame
 }
 
 function loadConstraintsFile(file) {

@@ -20,10 +20,11 @@ function selectionSynced(app, selection) {
  * Create the gizmo and its controls. Call it before the selection tools and the orbit controls are created (the
  * gizmo and the pivot's click on the surface see pointer events first).
  * @param {object} opts app (the studio state), viewer, selection, mirror (MirrorEditing), connection() (the
- *   Connection, created later), status(text, kind, ms) and hush() (the status line)
+ *   Connection, created later), status(text, kind, ms) and hush() (the status line), changed() (a pivot was placed
+ *   or reset: something to save)
  * @returns {{gizmo: HandleGizmo, transformUi: ReturnType<typeof installTransformUi>}}
  */
-export function installManipulation({ app, viewer, selection, mirror, connection, status, hush }) {
+export function installManipulation({ app, viewer, selection, mirror, connection, status, hush, changed }) {
   const gizmo = new HandleGizmo(viewer, {
     onDragStart: () => {
       if (selectionSynced(app, selection)) return true;
@@ -42,7 +43,10 @@ export function installManipulation({ app, viewer, selection, mirror, connection
       connection().endDrag();
       app.awaitingState = true;
     },
-    onPivot: () => mirror.followPivot(gizmo, gizmo.group), // the partner turns about the mirrored pivot
+    onPivot: () => {
+      mirror.followPivot(gizmo, gizmo.group); // the partner turns about the mirrored pivot
+      changed();
+    },
     onDraggingChanged: () => {},
   });
   const transformUi = installTransformUi({

@@ -49,9 +49,10 @@ export function hasEdits({ app, selection }) {
  * The session as a plain object (structured-cloneable): `source` (with its bytes), mesh counts, `roi`, `fixed`,
  * `groups` (one vertex list per client handle group, empty ones included), `groupPoints` (per group, its point
  * handle or null), `stiffness` (painted, as sent to the server, or null), `activeGroup`, `partners` (each group's
- * mirror partner, -1 for none), `positions` (Float32Array of the current shape) and `params`.
+ * mirror partner, -1 for none), `pivots` (per group, its placed pivot as a world point of the current shape, or
+ * null), `positions` (Float32Array of the current shape) and `params`.
  */
-export function captureSession({ app, selection, viewer }) {
+export function captureSession({ app, selection, viewer, gizmo }) {
   const groups = selection.groups.map(() => []);
   const roi = [];
   const fixed = [];
@@ -74,6 +75,7 @@ export function captureSession({ app, selection, viewer }) {
     stiffness: stiffnessToJson(selection.stiff),
     activeGroup: selection.activeGroup,
     partners: selection.groups.map((_, g) => selection.partnerOf(g)),
+    pivots: gizmo ? gizmo.placedPivots() : [],
     positions: new Float32Array(viewer.positions),
     params: { ...app.params },
     edits: hasEdits({ app, selection }),
