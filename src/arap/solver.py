@@ -22,13 +22,14 @@ from arap.cells import (
 )
 from arap.colouring import colour_order
 from arap.covariance import assemble_rhs, assemble_rhs_and_gradient, covariances, local_step
-from arap.errors import ArapError, ConstraintError, OptionError, UnconstrainedRegionError
+from arap.errors import ConstraintError, OptionError
 from arap.inactive import InactiveCells
-from arap.indexing import check_index_array, find_unconstrained_part, rows_of
+from arap.indexing import check_index_array, rows_of
 from arap.lbfgs import LbfgsHistory
 from arap.linsolve import NotPositiveDefiniteError, background_ordering, factorize
 from arap.loops import PLAIN_START, Iterate, lbfgs_iterations, plain_iterations
 from arap.mesh import MeshLike, check_mesh, is_mesh_like, mesh_arrays
+from arap.partition import check_point_targets, check_positions, check_targets, partition_vertices
 from arap.points import PointConstraints, PointSystem, check_points
 from arap.result import (
     ACCELERATIONS,
@@ -146,38 +147,14 @@ class ArapSolver:
         if stiffness is not None:
             self.stiffness, rigid = check_stiffness(stiffness, n)
 
-        fixed_mask = np.zeros(n, dtype=bool)
-        fixed_mask[self.constrained] = True
-        referenced = np.zeros(n, dtype=bool)
-        referenced[F.ravel()] = True
-        held_mask = ~referenced & ~fixed_mask
-        if self.roi is not None:
-            in_roi = np.zeros(n, dtype=bool)
-            in_roi[self.roi] = True
-            held_mask |= ~in_roi & ~fixed_mask
-        self.held = np.flatnonzero(held_mask)
-        self.free = np.flatnonzero(~fixed_mask & ~held_mask)
-        self.nonfree = np.flatnonzero(fixed_mask | held_mask)
         adjacency = vertex_adjacency(F, n)
         self.points: PointConstraints | None = None
         if points is not None:
             p = (points.faces, points.barycentric, points.weights) if isinstance(points, PointConstraints) \
                 else tuple(points)
             self.points = check_points(p[0], p[1], p[2] if len(p) > 2 else None, len(F))
-        # A free part that holds a point handle's corner is pinned by it.
-        pinned = np.zeros(n, dtype=bool)
-        if self.points is not None:
-            pinned[F[self.points.faces].ravel()] = True
-        part = find_unconstrained_part(F, n, self.free[~pinned[self.free]], adjacency)
-        if part is not None:
-            sample, size = part
-            where = "" if self.roi is None else " (region of interest)"
-            raise UnconstrainedRegionError(
-                f"a connected part of {size} free vertices{where} touches no constrained vertex, so its position is "
-                f"undetermined (e.g. vertices {sample}); add an anchor or handle there"
-                + ("" if self.roi is None else " or shrink the region of interest"),
-                vertices=sample, size=size,
-            )
+        self.free, self.held, self.nonfree = partition_vertices(
+            F, n, self.constrained, self.roi, None if self.points is None else self.points.faces, adjacency)
 
         # Internally vertices are renumbered for memory locality (reverse Cuthill-McKee): neighbours get nearby
         # indices, so the gathers of the local step and the right-hand side stay in cache.
@@ -253,20 +230,6 @@ class ArapSolver:
         self.factor_seconds = time.perf_counter() - t0
 
     # ------------------------------------------------------------------ set-up helpers
-    def _check_point_targets(self, point_targets: object) -> NDArray[np.float64] | None:
-        """Targets of the point constraints, shape (p, 3); required exactly when there are point constraints."""
-        p = 0 if self.points is None else len(self.points)
-        if point_targets is None:
-            if p:
-                raise ConstraintError(f"point_targets is missing: the solver has {p} point constraints")
-            return None
-        P = np.asarray(point_targets, dtype=np.float64)
-        if P.shape != (p, 3):
-            raise ConstraintError(f"point_targets must have shape ({p}, 3), got {P.shape}")
-        if not np.isfinite(P).all():
-            raise ConstraintError("point_targets must be finite")
-        return P
-
     def _fixed_positions(self, targets: np.ndarray) -> np.ndarray:
         """Positions of the non-free vertices (constrained at targets, held at rest), in ``nonfree`` order."""
         fixed = self._V[self._nf:].copy()
@@ -277,24 +240,14 @@ class ArapSolver:
         """Rows of a per-vertex array in the solver's internal vertex order."""
         return np.ascontiguousarray(X[self._perm])
 
-    def _check_positions(self, U: np.ndarray, name: str) -> np.ndarray:
-        U = np.asarray(U, dtype=np.float64)
-        n = self.n_vertices
-        if U.shape != (n, 3):
-            raise ArapError(f"{name} must have shape ({n}, 3), got {U.shape}")
-        if not np.all(np.isfinite(U)):
-            raise ArapError(f"{name} has non-finite coordinates")
-        return U
+    def _check_positions(self, U: object, name: str) -> NDArray[np.float64]:
+        return check_positions(U, self.n_vertices, name)
 
-    def _check_targets(self, targets: np.ndarray | list) -> np.ndarray:
-        T = np.asarray(targets, dtype=np.float64)
-        k = len(self._constrained)
-        if T.shape != (k, 3):
-            raise ConstraintError(f"targets must have shape ({k}, 3), one row per constrained vertex; got {T.shape}")
-        if not np.all(np.isfinite(T)):
-            bad = int(np.flatnonzero(~np.all(np.isfinite(T), axis=1))[0])
-            raise ConstraintError(f"targets must be finite; row {bad} is {T[bad].tolist()}")
-        return T
+    def _check_targets(self, targets: object) -> NDArray[np.float64]:
+        return check_targets(targets, len(self._constrained))
+
+    def _check_point_targets(self, point_targets: object) -> NDArray[np.float64] | None:
+        return check_point_targets(point_targets, 0 if self.points is None else len(self.points))
 
     # ------------------------------------------------------------------ solving
     @property
