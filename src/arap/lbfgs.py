@@ -98,6 +98,14 @@ class LbfgsHistory:
         self._q = np.empty(0)
         self._alpha = np.zeros(self.window)
         self._order: list[int] = []  # slots, oldest first
+        self._work: tuple[NDArray[np.float64], ...] = ()
+
+    def buffers(self, rows: int, count: int = 4) -> tuple[NDArray[np.float64], ...]:
+        """``count`` work arrays of shape (rows, 3), allocated once for a given size (a drag calls the loop with
+        one iteration many times; fresh arrays of a large mesh cost page faults on every call)."""
+        if len(self._work) != count or self._work[0].shape != (rows, 3):
+            self._work = tuple(np.empty((rows, 3)) for _ in range(count))
+        return self._work
 
     def __len__(self) -> int:
         return len(self._order)

@@ -187,7 +187,8 @@ def lbfgs_iterations(it: Iterate, energy: float | None, history: LbfgsHistory, p
     out = Outcome()
     nf, U, timings = it.nf, it.U, it.timings
     history.reset()
-    rhs = np.empty((nf, 3))
+    x, grad, new_grad, rhs = history.buffers(nf)
+    x[:] = U[:nf]
 
     def fit_rhs(grad: Array) -> None:
         """Right-hand side for the rotations fitted to ``x``, and the residual ``A x − b`` into ``grad``."""
@@ -201,9 +202,7 @@ def lbfgs_iterations(it: Iterate, energy: float | None, history: LbfgsHistory, p
         timings["solve"] += time.perf_counter() - t
         return g
 
-    x = U[:nf].copy()
     fresh = energy is not None  # the rotations fit x
-    grad, new_grad = np.empty((nf, 3)), np.empty((nf, 3))
     if fresh:
         fit_rhs(grad)
     else:  # stale rotations: the first step is the plain one, no gradient
