@@ -119,6 +119,9 @@ def plain_iterations(it: Iterate, energy: float | None, accel: AndersonAccelerat
     out = Outcome()
     nf, U, timings = it.nf, it.U, it.timings
     rhs = np.empty((nf, 3))
+    # The coupled rotations of smooth_rotations go on from the current ones: kept for the fallback of a rejected
+    # extrapolation, in one buffer for the call.
+    saved = np.empty_like(it.rotations) if accel is not None and it.coupled else None
     if accel is not None:
         accel.reset()
     for k in range(it.cap):
@@ -143,8 +146,8 @@ def plain_iterations(it: Iterate, energy: float | None, accel: AndersonAccelerat
         if last or energy is None:
             candidate = None
         U[:nf] = g if candidate is None else candidate.reshape(nf, 3)
-        # The coupled sweep of smooth_rotations starts from the current rotations: keep them for the fallback.
-        saved = it.rotations.copy() if candidate is not None and it.coupled else None
+        if candidate is not None and saved is not None:
+            np.copyto(saved, it.rotations)
         e = it.local(U)
         if candidate is not None and energy is not None and e > energy:
             # Safeguard: the extrapolation raised the energy; take the plain step, which cannot.
@@ -153,7 +156,7 @@ def plain_iterations(it: Iterate, energy: float | None, accel: AndersonAccelerat
             accel.reset()
             U[:nf] = g
             if saved is not None:
-                it.rotations[...] = saved
+                np.copyto(it.rotations, saved)
             e = it.local(U)
         energy = e
         out.energies.append(e)

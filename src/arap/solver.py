@@ -93,7 +93,10 @@ class ArapSolver:
         Per-vertex cell weights ``w_i`` of the paper's energy ``Σ_i w_i Σ_j w_ij ‖…‖²`` (Sorkine & Alexa 2007):
         1 is the plain energy (None: all 1), larger values make a vertex's cell stiffer, so a region painted stiff
         moves almost rigidly while softer parts bend; ``np.inf`` keeps a region rigid (to about 1e-8 of its size;
-        see :data:`arap.cells.RIGID_STIFFNESS`). The energies reported include the weights.
+        see :data:`arap.cells.RIGID_STIFFNESS`). The energies reported include the weights. With the spoke energies
+        (``spokes``, ``smooth_rotations``) on a mesh with obtuse triangles (negative cotangent weights), unequal
+        weights can leave the energy without a minimum: that raises OptionError (``spokes_and_rims`` or
+        ``weights="clamped"`` work).
     backend : str or None
         Sparse Cholesky backend (see :mod:`arap.linsolve`); None chooses by system size
         (:func:`arap.linsolve.default_backend`).
@@ -215,6 +218,14 @@ class ArapSolver:
                 if self._points is not None:
                     self._points.prepare(self.factor.solve)
             except NotPositiveDefiniteError as exc:
+                negative = int(np.count_nonzero(self._cells.w < 0)) if energy != "spokes_and_rims" else 0
+                if self.stiffness is not None and negative and np.ptp(self.stiffness) > 0:
+                    raise OptionError(
+                        f"painted stiffness needs non-negative edge weights with the {energy} energy: this mesh has "
+                        f"obtuse triangles ({negative} cell terms with a negative cotangent weight), and with "
+                        "unequal cell weights such terms leave the energy without a minimum. Use "
+                        "energy='spokes_and_rims' (the default), or weights='clamped'"
+                    ) from exc
                 raise ConstraintError(
                     "the reduced ARAP system is singular: some free vertices are connected to the constraints only "
                     f"through zero-weight edges ({exc})"

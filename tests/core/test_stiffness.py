@@ -103,3 +103,21 @@ def test_check_stiffness() -> None:
                        ([1.0, np.nan, 1.0], "positive"), (["a", 1, 1], "numbers")):
         with pytest.raises(OptionError, match=match):
             check_stiffness(bad, 3)
+
+
+@pytest.mark.parametrize("energy", ["spokes", "smooth_rotations"])
+def test_stiffness_with_negative_weights_is_refused_with_the_way_out(
+        energy: str, knight: tuple[np.ndarray, np.ndarray]) -> None:
+    """With obtuse triangles, unequal cell weights on the spoke energies can leave them without a minimum (the
+    system matrix is indefinite; on the knight from a stiffness of 10): the error says so and names what works,
+    which then does."""
+    V, F = knight
+    s = bend(V, angle=1.0, shift=0.2)
+    stiffness = np.ones(len(V))
+    stiffness[_band(V, 0.0, 0.3)] = 10.0
+    with pytest.raises(OptionError, match=r"spokes_and_rims.*clamped"):
+        arap.ArapSolver(V, F, s.constrained, energy=energy, stiffness=stiffness)
+    arap.ArapSolver(V, F, s.constrained, energy=energy, stiffness=np.full(len(V), 10.0))  # equal weights: fine
+    for kw in ({"energy": "spokes_and_rims"}, {"energy": energy, "weights": "clamped"}):
+        result = arap.ArapSolver(V, F, s.constrained, stiffness=stiffness, **kw).solve(s.targets)
+        assert result.converged
