@@ -5,11 +5,14 @@ refused with the bar_session unchanged."""
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
 
 from arap.constraints import load_constraints
+from arap.rigid import rigid_regions
+from arap.server.meshdata import load_upload
 from arap.server.protocol import RequestError, parse_text
 from arap.server.session import Session
 from tests.core.test_stiffness import _rigid_misfit
@@ -106,3 +109,27 @@ def test_protocol_checks_the_paint(stiffness: object, ok: bool) -> None:
         with pytest.raises(RequestError) as err:
             parse_text(text)
         assert err.value.code == "bad_message"
+
+
+def test_paint_the_energy_cannot_take_is_refused_with_the_session_unchanged(shared_meshes_dir: Path) -> None:
+    """The paper's spokes energy with a rigid band on a scan with obtuse triangles has no minimum: the studio says
+    why and what to choose instead, and keeps the previous constraint set."""
+    data = (shared_meshes_dir / "decimated-knight.off").read_bytes()
+    session = Session()
+    session.load(load_upload(data, "decimated-knight.off", 10**6))
+    session.set_params(energy="spokes")
+    fixed, top, middle = _setup(session.V)
+    session.set_constraints(None, fixed, [top])
+    before = session.constraints
+    paint = [{"vertices": middle.tolist(), "value": "rigid"}]
+    with pytest.raises(RequestError, match="spokes_and_rims") as err:
+        session.set_constraints(None, fixed, [top], stiffness=paint)
+    assert err.value.code == "bad_constraints" and session.constraints is before
+    session.set_params(energy="spokes_and_rims")
+    session.set_constraints(None, fixed, [top], stiffness=paint)
+    U = _bend(session, top)
+    mask = np.zeros(len(session.V), dtype=bool)
+    mask[middle] = True
+    labels = rigid_regions(session.mesh.F, mask)  # the knight's band is several parts, each rigid on its own
+    for k in range(labels.max() + 1):
+        assert _rigid_misfit(session.V, U, np.flatnonzero(labels == k)) < 1e-6
