@@ -40,10 +40,34 @@ def _axpy(alpha: float, x: NDArray[np.float64], y: NDArray[np.float64]) -> None:
         y[i] += alpha * x[i]
 
 
-@nb.njit(cache=True, nogil=True)
-def _diff(a: NDArray[np.float64], b: NDArray[np.float64], out: NDArray[np.float64]) -> None:  # pragma: no cover
-    for i in range(a.size):
-        out[i] = a[i] - b[i]
+@nb.njit(cache=True, nogil=True, fastmath={"reassoc", "contract"})
+def _axpy_dot(alpha: float, x: NDArray[np.float64], y: NDArray[np.float64],
+              z: NDArray[np.float64]) -> float:  # pragma: no cover - compiled
+    # y += alpha x, and the dot product of z with the new y, in one pass over y (the two loops of the recursion
+    # each follow an update with the next pair's dot product: fused, they read the long vectors once less).
+    total = 0.0
+    for i in range(x.size):
+        v = y[i] + alpha * x[i]
+        y[i] = v
+        total += z[i] * v
+    return total
+
+
+@nb.njit(cache=True, nogil=True, fastmath={"reassoc", "contract"})
+def _pair(x_new, x, g_new, g, s, y):  # pragma: no cover - compiled
+    # s = x_new − x, y = g_new − g and the products sᵀy, sᵀs, yᵀy, in one pass
+    sy = 0.0
+    ss = 0.0
+    yy = 0.0
+    for i in range(x.size):
+        a = x_new[i] - x[i]
+        b = g_new[i] - g[i]
+        s[i] = a
+        y[i] = b
+        sy += a * b
+        ss += a * a
+        yy += b * b
+    return sy, ss, yy
 
 
 def step_norm(d: NDArray[np.float64]) -> float:
@@ -133,11 +157,8 @@ class LbfgsHistory:
         S, Y = self._slots(x.size)
         free = [k for k in range(self.window) if k not in self._order]
         slot = free[0] if free else self._order.pop(0)  # a full window gives up its oldest pair
-        s, y = S[slot], Y[slot]
-        _diff(x_new.reshape(-1), x.reshape(-1), s)
-        _diff(g_new.reshape(-1), g.reshape(-1), y)
-        sy = _dot(s, y)
-        if not sy > 1e-14 * np.sqrt(_dot(s, s) * _dot(y, y)):
+        sy, ss, yy = _pair(x_new.reshape(-1), x.reshape(-1), g_new.reshape(-1), g.reshape(-1), S[slot], Y[slot])
+        if not sy > 1e-14 * np.sqrt(ss * yy):
             return False
         self._order.append(slot)
         self._rho[slot] = 1.0 / sy
@@ -162,14 +183,28 @@ class LbfgsHistory:
         S, Y = self._slots(gradient.size)
         q = self._q
         q[:] = gradient.reshape(-1)
-        for slot in reversed(self._order):
-            a = self._rho[slot] * _dot(S[slot], q)
-            self._alpha[slot] = a
-            _axpy(-a, Y[slot], q)
+        rho, alpha = self._rho, self._alpha
+        newest_first = self._order[::-1]
+        if newest_first:
+            a = rho[newest_first[0]] * _dot(S[newest_first[0]], q)
+        for k, slot in enumerate(newest_first):  # α_i = ρ_i s_iᵀq; q −= α_i y_i (and the next α's product)
+            alpha[slot] = a
+            if k + 1 < len(newest_first):
+                after = newest_first[k + 1]
+                a = rho[after] * _axpy_dot(-a, Y[slot], q, S[after])
+            else:
+                _axpy(-a, Y[slot], q)
         r = np.ascontiguousarray(precondition(q.reshape(gradient.shape)), dtype=np.float64)
         if np.shares_memory(r, q):
             r = r.copy()
         flat = r.reshape(-1)
-        for slot in self._order:
-            _axpy(self._alpha[slot] - self._rho[slot] * _dot(Y[slot], flat), S[slot], flat)
+        oldest_first = self._order
+        if oldest_first:
+            b = rho[oldest_first[0]] * _dot(Y[oldest_first[0]], flat)
+        for k, slot in enumerate(oldest_first):  # β_i = ρ_i y_iᵀr; r += (α_i − β_i) s_i (and the next β's product)
+            if k + 1 < len(oldest_first):
+                after = oldest_first[k + 1]
+                b = rho[after] * _axpy_dot(alpha[slot] - b, S[slot], flat, Y[after])
+            else:
+                _axpy(alpha[slot] - b, S[slot], flat)
         return np.negative(r, out=r)
