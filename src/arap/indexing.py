@@ -149,3 +149,44 @@ def rows_of(X: np.ndarray, index: np.ndarray) -> np.ndarray:
     [[6.0, 7.0, 8.0], [0.0, 1.0, 2.0]]
     """
     return _rows_of(X, index)
+
+
+@nb.njit(cache=True, nogil=True)
+def _with_rows(X: np.ndarray, index: np.ndarray, values: np.ndarray) -> np.ndarray:  # pragma: no cover - compiled
+    out = X.copy()
+    for k in range(index.shape[0]):
+        j = index[k]
+        out[j, 0] = values[k, 0]
+        out[j, 1] = values[k, 1]
+        out[j, 2] = values[k, 2]
+    return out
+
+
+def with_rows(X: np.ndarray, index: np.ndarray, values: np.ndarray) -> np.ndarray:
+    """A copy of the (m, 3) float64 array ``X`` with rows ``index`` set to ``values`` (k, 3), compiled (the solver
+    places the targets among the fixed positions on every call).
+
+    Example
+    -------
+    >>> with_rows(np.zeros((3, 3)), np.array([1]), np.ones((1, 3))).tolist()
+    [[0.0, 0.0, 0.0], [1.0, 1.0, 1.0], [0.0, 0.0, 0.0]]
+    """
+    return _with_rows(X, index, values)
+
+
+@nb.njit(cache=True, nogil=True)
+def assign_rows(dst: np.ndarray, src: np.ndarray) -> bool:  # pragma: no cover - compiled
+    """``dst[:] = src`` for two (m, 3) float64 arrays; returns whether ``dst`` held ``src`` already (one pass).
+
+    Example
+    -------
+    >>> a = np.zeros((2, 3)); assign_rows(a, np.ones((2, 3))), assign_rows(a, np.ones((2, 3)))
+    (False, True)
+    """
+    same = True
+    for i in range(dst.shape[0]):
+        for j in range(3):
+            if dst[i, j] != src[i, j]:
+                same = False
+                dst[i, j] = src[i, j]
+    return same

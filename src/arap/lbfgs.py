@@ -21,7 +21,7 @@ from numpy.typing import NDArray
 
 from arap.errors import ArapError
 
-__all__ = ["LbfgsHistory", "step_norm"]
+__all__ = ["LbfgsHistory", "step_norm", "subtract_norm"]
 
 
 @nb.njit(cache=True, nogil=True, fastmath={"reassoc", "contract"})
@@ -68,6 +68,29 @@ def _pair(x_new, x, g_new, g, s, y):  # pragma: no cover - compiled
         ss += a * a
         yy += b * b
     return sy, ss, yy
+
+
+@nb.njit(cache=True, nogil=True, fastmath={"reassoc", "contract"})
+def _subtract_sq(d: NDArray[np.float64], x: NDArray[np.float64]) -> float:  # pragma: no cover - compiled
+    total = 0.0
+    for i in range(d.shape[0]):
+        for j in range(d.shape[1]):
+            v = d[i, j] - x[i, j]
+            d[i, j] = v
+            total += v * v
+    return total
+
+
+def subtract_norm(d: NDArray[np.float64], x: NDArray[np.float64]) -> float:
+    """``d −= x`` in place and the Euclidean norm of the result, in one pass (float64 arrays of one shape (k, m),
+    any memory layout: a back-substitution may return Fortran order).
+
+    Example
+    -------
+    >>> d = np.array([[4.0, 0.0, 5.0]]); subtract_norm(d, np.array([[1.0, 0.0, 1.0]])), d.tolist()
+    (5.0, [[3.0, 0.0, 4.0]])
+    """
+    return float(np.sqrt(_subtract_sq(d, x)))
 
 
 def step_norm(d: NDArray[np.float64]) -> float:

@@ -17,7 +17,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from arap.anderson import AndersonAccelerator
-from arap.lbfgs import LbfgsHistory, step_norm
+from arap.lbfgs import LbfgsHistory, step_norm, subtract_norm
 from arap.result import IterationCallback
 
 __all__ = ["CHECK_EVERY", "CHECK_FACTOR", "LINE_SEARCH_HALVINGS", "PLAIN_START", "Iterate", "Outcome",
@@ -215,30 +215,32 @@ def lbfgs_iterations(it: Iterate, energy: float | None, history: LbfgsHistory, p
     residual_at = -2  # iteration whose iterate the residual was measured at (0: the start)
     rhs_fresh = True
     for k in range(1, it.cap + 1):
+        d_norm = -1.0  # the norm of d when known (the plain step's), else measured below
         if fresh and len(history) and k > plain_start:
             t = time.perf_counter()
             d = history.direction(grad, it.solve)
             timings["acceleration"] += time.perf_counter() - t
         else:
             d = plain_step_from_here()
-            d -= x
-            out.residual, residual_at = step_norm(d) / it.scale, k - 1
-            out.converged = fresh and out.residual * it.scale <= it.step_limit  # this plain step is the last
+            d_norm = subtract_norm(d, x)
+            out.residual, residual_at = d_norm / it.scale, k - 1
+            out.converged = fresh and d_norm <= it.step_limit  # this plain step is the last
         for _ in range(LINE_SEARCH_HALVINGS):
             np.add(x, d, out=U[:nf])
             e = it.local(U)
             if energy is None or e <= energy:
                 break
             d *= 0.5
+            d_norm *= 0.5
         else:  # no trial lowered the energy: the plain step from x, which cannot raise it
             out.rejected += 1
             history.reset()
             d = plain_step_from_here()
-            d -= x
+            d_norm = subtract_norm(d, x)
             np.add(x, d, out=U[:nf])
             e = it.local(U)
         check = not out.converged and it.step_limit > 0 and (
-            step_norm(d) <= CHECK_FACTOR * it.step_limit or k % CHECK_EVERY == 0)
+            (d_norm if d_norm >= 0 else step_norm(d)) <= CHECK_FACTOR * it.step_limit or k % CHECK_EVERY == 0)
         rhs_fresh = k < it.cap or check  # the last iteration of a capped run (a drag) needs no gradient
         if rhs_fresh:
             fit_rhs(new_grad)
@@ -251,9 +253,7 @@ def lbfgs_iterations(it: Iterate, energy: float | None, history: LbfgsHistory, p
         out.energies.append(e)
         stop = it.callback is not None and it.callback(k, e) is False
         if check:
-            step = plain_step_from_here()
-            step -= x
-            out.residual, residual_at = step_norm(step) / it.scale, k
+            out.residual, residual_at = subtract_norm(plain_step_from_here(), x) / it.scale, k
             if out.residual * it.scale <= it.step_limit:
                 out.converged = True
         if out.converged or stop:
@@ -261,7 +261,5 @@ def lbfgs_iterations(it: Iterate, energy: float | None, history: LbfgsHistory, p
     if out.energies and residual_at < len(out.energies) - 1:
         if not rhs_fresh:
             fit_rhs(grad)
-        step = plain_step_from_here()
-        step -= x
-        out.residual = step_norm(step) / it.scale
+        out.residual = subtract_norm(plain_step_from_here(), x) / it.scale
     return out

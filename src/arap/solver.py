@@ -24,7 +24,7 @@ from arap.colouring import colour_order
 from arap.covariance import assemble_rhs, assemble_rhs_and_gradient, covariances, local_step
 from arap.errors import ConstraintError, OptionError
 from arap.inactive import InactiveCells
-from arap.indexing import check_index_array, rows_of
+from arap.indexing import assign_rows, check_index_array, rows_of, with_rows
 from arap.lbfgs import LbfgsHistory
 from arap.linsolve import NotPositiveDefiniteError, background_ordering, factorize
 from arap.loops import PLAIN_START, Iterate, lbfgs_iterations, plain_iterations
@@ -243,9 +243,7 @@ class ArapSolver:
     # ------------------------------------------------------------------ set-up helpers
     def _fixed_positions(self, targets: np.ndarray) -> np.ndarray:
         """Positions of the non-free vertices (constrained at targets, held at rest), in ``nonfree`` order."""
-        fixed = self._V[self._nf:].copy()
-        fixed[self._constrained_slot] = targets
-        return fixed
+        return with_rows(self._V[self._nf:], self._constrained_slot, targets)
 
     def _to_internal(self, X: np.ndarray) -> np.ndarray:
         """Rows of a per-vertex array in the solver's internal vertex order."""
@@ -440,8 +438,7 @@ class ArapSolver:
                 warm_fresh = self._rotations_fresh
                 if not warm_fresh:
                     self._local(U, 0.0, timings)
-                at_targets = np.array_equal(U[self._nf:], fixed)
-                U[self._nf:] = fixed
+                at_targets = assign_rows(U[self._nf:], fixed)
                 E = self._stored_energy() if at_targets else None
                 return U, E, "warm"
         if isinstance(initial, str):

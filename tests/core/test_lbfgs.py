@@ -10,7 +10,7 @@ import pytest
 
 import arap.lbfgs
 from arap.errors import ArapError
-from arap.lbfgs import LbfgsHistory
+from arap.lbfgs import LbfgsHistory, subtract_norm
 
 
 def _bfgs_inverse(H0: np.ndarray, pairs: list[tuple[np.ndarray, np.ndarray]]) -> np.ndarray:
@@ -98,3 +98,13 @@ def test_a_full_window_keeps_the_newest_pairs_after_a_refusal() -> None:
 
 def test_docstring_example() -> None:
     assert doctest.testmod(arap.lbfgs, raise_on_error=True).attempted > 0
+
+
+def test_subtract_norm_writes_into_any_layout() -> None:
+    """A back-substitution may return a Fortran-ordered array: the difference must land in it all the same."""
+    rng = np.random.default_rng(5)
+    x = rng.normal(size=(50, 3))
+    for d in (rng.normal(size=(50, 3)), np.asfortranarray(rng.normal(size=(50, 3)))):
+        expected = d - x
+        assert subtract_norm(d, x) == pytest.approx(np.linalg.norm(expected), rel=1e-14)
+        np.testing.assert_array_equal(d, expected)
