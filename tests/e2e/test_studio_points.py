@@ -245,3 +245,36 @@ def test_point_handles_and_paint_are_autosaved_and_restored(page: Page) -> None:
     wait_idle(page)
     assert page.evaluate("() => window.__arap.constraints()") == before
     assert not page.evaluate("() => window.__arap.errors"), "the server reported errors"
+
+
+def test_an_energy_the_paint_rules_out_is_refused_and_the_menu_shows_the_one_in_use(
+        page: Page, tmp_path: Path, shared_meshes_dir: Path) -> None:
+    """On a scan with obtuse triangles, the paper's spokes energy has no minimum with a rigid band: switching to it
+    is refused with the reason, and the energy menu goes back to the energy the server still uses."""
+    page.get_by_test_id("file-input").set_input_files(str(shared_meshes_dir / "decimated-knight.off"))
+    page.wait_for_function("() => window.__arap.meshName === 'decimated-knight'")
+    wait_ready(page)
+    rest = positions(page)
+    y = rest[:, 1]
+    order = np.argsort(y)
+    k = len(rest) // 10
+    middle = np.flatnonzero(np.abs(y - np.median(y)) < 0.1 * np.ptp(y))
+    doc = {"version": 2, "fixed": sorted(order[:k].tolist()), "handles": sorted(order[-k:].tolist()),
+           "stiffness": [{"vertices": middle.tolist(), "value": "rigid"}]}
+    path = tmp_path / "knight-rigid.json"
+    path.write_text(json.dumps(doc))
+    page.get_by_test_id("constraints-input").set_input_files(str(path))
+    page.wait_for_function(f"() => window.__arap.counts().fixed === {k}")
+    wait_idle(page)
+    assert page.evaluate("() => window.__arap.constraints().stiffness")
+    assert page.evaluate("() => window.__arap.params.energy") == "spokes_and_rims"
+
+    page.get_by_test_id("energy").select_option("spokes")
+    page.wait_for_function("() => window.__arap.errors.length > 0")
+    expect(page.get_by_test_id("status-text")).to_contain_text("spokes_and_rims")
+    expect(page.get_by_test_id("energy")).to_have_value("spokes_and_rims")
+    assert page.evaluate("() => window.__arap.params.energy") == "spokes_and_rims"
+    # the session goes on with the energy in use
+    page.get_by_test_id("energy").select_option("smooth_rotations")  # spoke cells too: refused the same way
+    page.wait_for_function("() => window.__arap.errors.length > 1")
+    expect(page.get_by_test_id("energy")).to_have_value("spokes_and_rims")

@@ -308,6 +308,7 @@ function onState(msg) {
 function onError(msg) {
   app.errors.push({ code: msg.code, message: msg.message, request: msg.request ?? null });
   if (msg.request === CLIENT.SET_CONSTRAINTS) app.sentKey = null;
+  if (msg.request === CLIENT.SET_PARAMS) panel.setParams(app.params); // the controls show what the server still uses
   if (app.busyFor) setBusy(null);
   if (msg.request === CLIENT.END_DRAG) app.awaitingState = false;
   if (msg.request === CLIENT.GET_DISTORTION) heat.failed();
