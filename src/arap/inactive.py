@@ -87,9 +87,11 @@ class InactiveCells:
             The sum over the inactive cells of their energy at ``U``.
         """
         self.recomputed = 0
-        if not len(self._inactive) or np.array_equal(self._targets, targets):
+        if not len(self._inactive):
             return self._value
         changed = _changed_rows(self._targets, targets)
+        if not changed.any():
+            return self._value
         touched, mixed = self._cells_of(changed)
         cells = mixed if self._moved_rigidly(np.flatnonzero(changed), targets) else touched
         if len(cells):
