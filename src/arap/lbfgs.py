@@ -81,16 +81,31 @@ def _subtract_sq(d: NDArray[np.float64], x: NDArray[np.float64]) -> float:  # pr
     return total
 
 
-def subtract_norm(d: NDArray[np.float64], x: NDArray[np.float64]) -> float:
+@nb.njit(cache=True, nogil=True, fastmath={"reassoc", "contract"})
+def _subtract_sq_place(d, x, out):  # pragma: no cover - compiled
+    total = 0.0
+    for i in range(d.shape[0]):
+        for j in range(d.shape[1]):
+            v = d[i, j] - x[i, j]
+            d[i, j] = v
+            out[i, j] = x[i, j] + v
+            total += v * v
+    return total
+
+
+def subtract_norm(d: NDArray[np.float64], x: NDArray[np.float64], out: NDArray[np.float64] | None = None) -> float:
     """``d −= x`` in place and the Euclidean norm of the result, in one pass (float64 arrays of one shape (k, m),
-    any memory layout: a back-substitution may return Fortran order).
+    any memory layout: a back-substitution may return Fortran order); with ``out``, also ``out = x + d`` (the step
+    taken) in the same pass.
 
     Example
     -------
     >>> d = np.array([[4.0, 0.0, 5.0]]); subtract_norm(d, np.array([[1.0, 0.0, 1.0]])), d.tolist()
     (5.0, [[3.0, 0.0, 4.0]])
     """
-    return float(np.sqrt(_subtract_sq(d, x)))
+    if out is None:
+        return float(np.sqrt(_subtract_sq(d, x)))
+    return float(np.sqrt(_subtract_sq_place(d, x, out)))
 
 
 def step_norm(d: NDArray[np.float64]) -> float:

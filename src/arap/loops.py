@@ -191,7 +191,6 @@ def lbfgs_iterations(it: Iterate, energy: float | None, history: LbfgsHistory, p
     nf, U, timings = it.nf, it.U, it.timings
     history.reset()
     x, grad, new_grad, rhs = history.buffers(nf)
-    x[:] = U[:nf]
 
     def fit_rhs(grad: Array) -> None:
         """Right-hand side for the rotations fitted to ``x``, and the residual ``A x − b`` into ``grad``."""
@@ -205,28 +204,36 @@ def lbfgs_iterations(it: Iterate, energy: float | None, history: LbfgsHistory, p
         timings["solve"] += time.perf_counter() - t
         return g
 
-    fresh = energy is not None  # the rotations fit x
+    fresh = energy is not None  # the rotations fit the start
     if fresh:
+        x[:] = U[:nf]
         fit_rhs(grad)
     else:  # stale rotations: the first step is the plain one, no gradient
         t = time.perf_counter()
         it.rhs(rhs)
         timings["rhs"] += time.perf_counter() - t
+    # The iterate the step starts from. After a stale start the first step is the plain one, taken as it is (no
+    # energy to compare with) and kept in no curvature pair, so it is computed from U in place, without a copy.
+    base = x if fresh else U[:nf]
     residual_at = -2  # iteration whose iterate the residual was measured at (0: the start)
     rhs_fresh = True
     for k in range(1, it.cap + 1):
         d_norm = -1.0  # the norm of d when known (the plain step's), else measured below
+        placed = False  # U already holds x + d
         if fresh and len(history) and k > plain_start:
             t = time.perf_counter()
             d = history.direction(grad, it.solve)
             timings["acceleration"] += time.perf_counter() - t
         else:
             d = plain_step_from_here()
-            d_norm = subtract_norm(d, x)
+            d_norm = subtract_norm(d, base, U[:nf])
+            placed = True
             out.residual, residual_at = d_norm / it.scale, k - 1
             out.converged = fresh and d_norm <= it.step_limit  # this plain step is the last
         for _ in range(LINE_SEARCH_HALVINGS):
-            np.add(x, d, out=U[:nf])
+            if not placed:
+                np.add(x, d, out=U[:nf])
+            placed = False
             e = it.local(U)
             if energy is None or e <= energy:
                 break
@@ -236,8 +243,7 @@ def lbfgs_iterations(it: Iterate, energy: float | None, history: LbfgsHistory, p
             out.rejected += 1
             history.reset()
             d = plain_step_from_here()
-            d_norm = subtract_norm(d, x)
-            np.add(x, d, out=U[:nf])
+            d_norm = subtract_norm(d, x, U[:nf])
             e = it.local(U)
         check = not out.converged and it.step_limit > 0 and (
             (d_norm if d_norm >= 0 else step_norm(d)) <= CHECK_FACTOR * it.step_limit or k % CHECK_EVERY == 0)
@@ -246,20 +252,21 @@ def lbfgs_iterations(it: Iterate, energy: float | None, history: LbfgsHistory, p
             fit_rhs(new_grad)
             if fresh and k >= plain_start:
                 history.update(U[:nf], x, new_grad, grad)
-        x[:] = U[:nf]
         grad, new_grad = new_grad, grad
         fresh = True
         energy = e
         out.energies.append(e)
         stop = it.callback is not None and it.callback(k, e) is False
         if check:
-            out.residual, residual_at = subtract_norm(plain_step_from_here(), x) / it.scale, k
+            out.residual, residual_at = subtract_norm(plain_step_from_here(), U[:nf]) / it.scale, k
             if out.residual * it.scale <= it.step_limit:
                 out.converged = True
-        if out.converged or stop:
+        if out.converged or stop or k == it.cap:
             break
+        x[:] = U[:nf]  # the next iteration's base (the loop's last iterate is read from U)
+        base = x
     if out.energies and residual_at < len(out.energies) - 1:
         if not rhs_fresh:
             fit_rhs(grad)
-        out.residual = subtract_norm(plain_step_from_here(), x) / it.scale
+        out.residual = subtract_norm(plain_step_from_here(), U[:nf]) / it.scale
     return out

@@ -8,7 +8,7 @@ import numpy as np
 import scipy.sparse as sp
 from numpy.typing import ArrayLike, NDArray
 
-from arap._csr import leading_blocks
+from arap._csr import SparseRowsProduct, leading_blocks
 from arap.anderson import AndersonAccelerator
 from arap.cells import (
     DEFAULT_ENERGY,
@@ -187,6 +187,7 @@ class ArapSolver:
             self._cells = scale_cells(self._cells, self.stiffness[self._perm])
         L = system_matrix(self._cells, n)
         L_ff, self._L_fn = leading_blocks(L, self._nf)  # free rows first: L[free][:, free], L[free][:, nonfree]
+        self._coupling = SparseRowsProduct(self._L_fn)  # L_fn @ fixed, the right-hand side's constant
         self._points: PointSystem | None = None
         if self.points is not None and len(self.points) and len(self.free):
             mu = float(L_ff.diagonal().mean())
@@ -343,7 +344,7 @@ class ArapSolver:
             E_cur += const_E
         self._live = U
         nf = self._nf
-        rhs_const = self._L_fn @ fixed
+        rhs_const = self._coupling(fixed)
         if self._points is not None and P is not None:
             rhs_const = rhs_const - self._points.rhs(P, fixed)  # assemble_rhs subtracts its constant
         it = self._iterate(U, fixed, P, rhs_const, const_E, int(cap), tolerance, callback, timings)

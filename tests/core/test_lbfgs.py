@@ -108,3 +108,15 @@ def test_subtract_norm_writes_into_any_layout() -> None:
         expected = d - x
         assert subtract_norm(d, x) == pytest.approx(np.linalg.norm(expected), rel=1e-14)
         np.testing.assert_array_equal(d, expected)
+
+
+def test_subtract_norm_places_the_step_in_the_same_pass() -> None:
+    """With ``out``, the step ``x + (d − x)`` lands in ``out`` (any layout) exactly as ``np.add`` would write it."""
+    rng = np.random.default_rng(6)
+    x = rng.normal(size=(40, 3))
+    for d in (rng.normal(size=(40, 3)), np.asfortranarray(rng.normal(size=(40, 3)))):
+        expected = d - x
+        out = np.full((40, 3), np.nan)
+        assert subtract_norm(d, x, out) == pytest.approx(np.linalg.norm(expected), rel=1e-14)
+        np.testing.assert_array_equal(d, expected)
+        np.testing.assert_array_equal(out, np.add(x, expected))

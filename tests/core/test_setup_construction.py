@@ -9,7 +9,7 @@ import pytest
 import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
-from arap._csr import csr_from_triplets, leading_blocks
+from arap._csr import SparseRowsProduct, csr_from_triplets, leading_blocks
 from arap._geometry import barycentric_areas, double_areas
 from arap.cells import Cells, build_cells, build_rhs_gather, system_matrix
 from arap.shapes import sphere
@@ -191,6 +191,23 @@ def test_leading_blocks_equal_scipy_slicing(camelhead: Mesh) -> None:
         assert got.has_sorted_indices
     assert left.nnz + right.nnz == L[:k].nnz  # explicit zeros kept
 
+
+
+def test_sparse_rows_product_equals_scipy_bit_for_bit_on_every_call(camelhead: Mesh) -> None:
+    """The coupling to the fixed vertices: the same values as SciPy's product, and rows without entries stay zero
+    from call to call in the kept buffer."""
+    V, F = camelhead
+    L = system_matrix(build_cells(V, F), len(V))
+    k = len(V) - 40
+    _, right = leading_blocks(L, k)
+    product = SparseRowsProduct(right)
+    assert 0 < len(product.rows) < k
+    rng = np.random.default_rng(3)
+    for _ in range(3):
+        X = rng.normal(size=(len(V) - k, 3))
+        np.testing.assert_array_equal(product(X), right @ X)
+    with pytest.raises(ValueError, match="shape"):
+        product(np.zeros((len(V) - k, 2)))
 
 def test_geometry_kernels_equal_the_numpy_expressions(knight: Mesh) -> None:
     V, F = knight
