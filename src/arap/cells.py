@@ -27,7 +27,7 @@ import scipy.sparse as sp
 from numpy.typing import NDArray
 
 from arap._csr import csr_from_terms
-from arap.errors import OptionError
+from arap.errors import ArapError, ConstraintError, OptionError
 from arap.weights import DEFAULT_WEIGHTS, WEIGHT_TYPES, corner_weights, edge_weight_matrix
 
 EnergyType = Literal["spokes", "spokes_and_rims", "smooth_rotations"]
@@ -156,6 +156,23 @@ def check_stiffness(stiffness: object, n: int) -> tuple[NDArray[np.float64], NDA
     finite_max = float(s[~rigid].max(initial=1.0))
     s[rigid] = RIGID_STIFFNESS * max(finite_max, 1.0)
     return s, rigid
+
+
+def singular_system_error(cells: Cells, energy: str, stiffness: NDArray[np.float64] | None,
+                          reason: str) -> ArapError:
+    """The error to raise when the reduced system of ``cells`` could not be factorised (``reason``, the solver's
+    message): painted stiffness on spoke cells with negative cotangent weights (:class:`OptionError`: the energy has
+    no minimum), otherwise free vertices tied to the constraints only by zero-weight edges (:class:`ConstraintError`).
+    """
+    negative = int(np.count_nonzero(cells.w < 0)) if energy != "spokes_and_rims" else 0
+    if stiffness is not None and negative and np.ptp(stiffness) > 0:
+        return OptionError(
+            f"painted stiffness needs non-negative edge weights with the {energy} energy: this mesh has obtuse "
+            f"triangles ({negative} cell terms with a negative cotangent weight), and with unequal cell weights such "
+            "terms leave the energy without a minimum. Use energy='spokes_and_rims' (the default), or "
+            "weights='clamped'")
+    return ConstraintError("the reduced ARAP system is singular: some free vertices are connected to the constraints "
+                           f"only through zero-weight edges ({reason})")
 
 
 def scale_cells(cells: Cells, stiffness: NDArray[np.float64]) -> Cells:

@@ -191,8 +191,8 @@ def preconditioner(cells: Cells, q: NDArray[np.float64], coef: float) -> sp.csr_
     -------
     >>> import numpy as np
     >>> from arap.cells import build_cells
-    >>> from arap.shapes import icosphere
-    >>> V, F = icosphere(1)
+    >>> from arap.shapes import sphere
+    >>> V, F = sphere(1)
     >>> cells = build_cells(V, F, "spokes")
     >>> K = preconditioner(cells, np.maximum(cells.w, 0.0), 0.1)
     >>> bool(abs(K - K.T).max() < 1e-15)

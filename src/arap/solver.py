@@ -5,7 +5,6 @@ from __future__ import annotations
 import time
 
 import numpy as np
-import scipy.sparse as sp
 from numpy.typing import ArrayLike, NDArray
 
 from arap._csr import SparseRowsProduct, leading_blocks
@@ -18,10 +17,11 @@ from arap.cells import (
     check_energy_and_weights,
     check_stiffness,
     scale_cells,
+    singular_system_error,
     system_matrix,
 )
 from arap.colouring import colour_order
-from arap.covariance import assemble_rhs, assemble_rhs_and_gradient, covariances, local_step
+from arap.covariance import assemble_rhs, assemble_rhs_and_gradient, local_step
 from arap.errors import ConstraintError, OptionError
 from arap.inactive import InactiveCells
 from arap.indexing import assign_rows, check_index_array, rows_of, with_rows
@@ -45,12 +45,13 @@ from arap.result import (
 )
 from arap.rigid import RigidRegions, rigid_regions
 from arap.smooth import DEFAULT_ALPHA, STEPS, SWEEPS, SmoothRotations, check_alpha
-from arap.start import best_rigid_transform, vertex_areas
+from arap.start import rigid_start, vertex_areas
+from arap.steps import SingleSteps
 from arap.topology import locality_order, vertex_adjacency
 from arap.weights import DEFAULT_WEIGHTS, WeightType
 
 
-class ArapSolver:
+class ArapSolver(SingleSteps):
     """As-Rigid-As-Possible surface deformation (Sorkine & Alexa 2007).
 
     Construction validates the mesh and the constraint set, builds the cells and factorises the reduced global-step
@@ -219,18 +220,7 @@ class ArapSolver:
                 if self._points is not None:
                     self._points.prepare(self.factor.solve)
             except NotPositiveDefiniteError as exc:
-                negative = int(np.count_nonzero(self._cells.w < 0)) if energy != "spokes_and_rims" else 0
-                if self.stiffness is not None and negative and np.ptp(self.stiffness) > 0:
-                    raise OptionError(
-                        f"painted stiffness needs non-negative edge weights with the {energy} energy: this mesh has "
-                        f"obtuse triangles ({negative} cell terms with a negative cotangent weight), and with "
-                        "unequal cell weights such terms leave the energy without a minimum. Use "
-                        "energy='spokes_and_rims' (the default), or weights='clamped'"
-                    ) from exc
-                raise ConstraintError(
-                    "the reduced ARAP system is singular: some free vertices are connected to the constraints only "
-                    f"through zero-weight edges ({exc})"
-                ) from exc
+                raise singular_system_error(self._cells, energy, self.stiffness, str(exc)) from exc
         self.backend = None if self.factor is None else self.factor.backend
         self._R = np.broadcast_to(np.eye(3), (n, 3, 3)).copy()
         self._E = np.zeros(n)
@@ -451,7 +441,7 @@ class ArapSolver:
                 U[self._nf:] = fixed
                 candidates.append(("rest", U))
             if initial in ("auto", "rigid"):
-                candidates.append(("rigid", self._rigid_start(T, fixed)))
+                candidates.append(("rigid", rigid_start(self._V, self._constrained, T, self._areas, fixed)))
             best: tuple[float, str, NDArray[np.float64], NDArray[np.float64]] | None = None
             for name, U in candidates:
                 self._fit_each_rotation(U)
@@ -481,15 +471,6 @@ class ArapSolver:
             value += float(self._term.sum())
         return value
 
-    def _rigid_start(self, T: NDArray[np.float64], fixed: NDArray[np.float64]) -> NDArray[np.float64]:
-        """Rest pose moved by the best-fit rigid motion of the constrained vertices, non-free vertices fixed."""
-        U = self._V.copy()
-        if len(self._constrained):
-            R, t = best_rigid_transform(self._V[self._constrained], T, self._areas[self._constrained])
-            U[self._free] = self._V[self._free] @ R.T + t
-        U[self._nf:] = fixed
-        return U
-
     def current_vertices(self) -> NDArray[np.float64]:
         """Positions of the current iterate during :meth:`solve` (from its callback), else of the last solution.
 
@@ -508,73 +489,7 @@ class ArapSolver:
         self._last = None
         self._rotations_fresh = False
 
-    # ------------------------------------------------------------------ single steps (for analysis and tests)
-    def fit_rotations(self, U: np.ndarray, start: np.ndarray | None = None) -> np.ndarray:
-        """Local step alone: the optimal rotation of every cell for positions ``U``, shape (n, 3, 3).
-
-        For ``smooth_rotations`` the rotations are coupled: this is one block-coordinate sweep from ``start``
-        (n, 3, 3) (None: the solver's current rotations), which never raises the energy.
-        """
-        U = self._to_internal(self._check_positions(U, "U"))
-        R = np.empty((self.n_vertices, 3, 3))
-        E = np.empty(self.n_vertices)
-        if self._smooth is not None:
-            R[:] = self._R if start is None else self._to_internal(np.asarray(start, dtype=np.float64))
-            self._smooth.local_step(U, R, E, np.empty(self.n_vertices))
-        else:
-            local_step(self._cells, np.arange(self.n_vertices), U, R, E)
-        if self._rigid_all is not None:
-            self._rigid_all.share(U, R, E)
-        return R[self._inv]
-
-    def energy(self, U: np.ndarray, R: np.ndarray | None = None) -> float:
-        """Energy of positions ``U`` with rotations ``R`` (None: the optimal ones; for ``smooth_rotations``, those
-        of :meth:`fit_rotations`), summed over all cells."""
-        if R is None and self._smooth is not None:
-            R = self.fit_rotations(U)
-        U = self._to_internal(self._check_positions(U, "U"))
-        if R is None:
-            E = np.empty(self.n_vertices)
-            R_opt = np.empty((self.n_vertices, 3, 3))
-            local_step(self._cells, np.arange(self.n_vertices), U, R_opt, E)
-            if self._rigid_all is not None:
-                self._rigid_all.share(U, R_opt, E)
-            return float(E.sum())
-        d = U[self._cells.a] - U[self._cells.b]
-        cur = float(np.dot(self._cells.w, np.einsum("ij,ij->i", d, d)))
-        S = covariances(self._cells, U)
-        R = self._to_internal(np.asarray(R, dtype=np.float64))
-        value = cur + float(self._cells.rest_sq.sum()) - 2.0 * float(np.einsum("cij,cji->", R, S))
-        if self._smooth is not None:
-            value += self._smooth.rotation_term(np.ascontiguousarray(R), np.empty(self.n_vertices))
-        return value
-
-    def global_step(self, R: np.ndarray, targets: np.ndarray | list,
-                    point_targets: np.ndarray | list | None = None) -> np.ndarray:
-        """Global step alone: positions minimising the energy for fixed rotations ``R`` (n, 3, 3), shape (n, 3)."""
-        T = self._check_targets(targets)
-        fixed = self._fixed_positions(T)
-        P = self._check_point_targets(point_targets)
-        U = self._V.copy()
-        U[self._nf:] = fixed
-        if self.factor is not None:
-            rhs = np.empty((len(self._free), 3))
-            const = self._L_fn @ fixed
-            if self._points is not None and P is not None:
-                const = const - self._points.rhs(P, fixed)  # assemble_rhs subtracts its constant
-            assemble_rhs(self._gather, self._to_internal(np.asarray(R, dtype=np.float64)), const, rhs)
-            g = self.factor.solve(rhs)
-            if self._points is not None and P is not None:
-                g = self._points.correct(g, P, fixed)
-            U[self._free] = g
-        return U[self._inv]
-
     @property
     def system_size(self) -> int:
         """Number of unknown vertices in the linear system (free ROI vertices)."""
         return len(self._free)
-
-    def reduced_matrix(self) -> sp.csr_matrix:
-        """The reduced global-step matrix ``L_ff`` (for inspection; rows in the solver's internal vertex order)."""
-        L = system_matrix(self._cells, self.n_vertices)
-        return L[self._free][:, self._free].tocsr()

@@ -15,7 +15,7 @@ from numpy.typing import NDArray
 
 from arap._geometry import barycentric_areas
 
-__all__ = ["best_rigid_transform", "vertex_areas"]
+__all__ = ["best_rigid_transform", "rigid_start", "vertex_areas"]
 
 
 def best_rigid_transform(
@@ -68,6 +68,29 @@ def best_rigid_transform(
     D[2, 2] = np.sign(np.linalg.det(Vt.T @ U.T)) or 1.0
     R = Vt.T @ D @ U.T
     return R, cq - R @ cp
+
+
+def rigid_start(V: NDArray[np.float64], constrained: NDArray[np.integer], targets: NDArray[np.float64],
+                areas: NDArray[np.float64], fixed: NDArray[np.float64]) -> NDArray[np.float64]:
+    """The rest pose ``V`` moved by the best-fit rigid motion of the constrained vertices to their ``targets``
+    (weighted by ``areas``), with the last ``len(fixed)`` rows (the non-free vertices) set to ``fixed``.
+
+    Example
+    -------
+    One free vertex (row 0) follows the three constrained ones, turned 90° about z and shifted by 5 along x:
+
+    >>> V = np.array([[0.0, 0, 1], [1, 0, 0], [0, 1, 0], [0, 0, 0]])
+    >>> T = np.array([[5.0, 1, 0], [4, 0, 0], [5, 0, 0]])
+    >>> (rigid_start(V, np.array([1, 2, 3]), T, np.ones(4), T).round(9) + 0.0).tolist()
+    [[5.0, 0.0, 1.0], [5.0, 1.0, 0.0], [4.0, 0.0, 0.0], [5.0, 0.0, 0.0]]
+    """
+    nf = len(V) - len(fixed)
+    U = V.copy()
+    if len(constrained):
+        R, t = best_rigid_transform(V[constrained], targets, areas[constrained])
+        U[:nf] = V[:nf] @ R.T + t
+    U[nf:] = fixed
+    return U
 
 
 def _smallest_rotation(a: NDArray[np.float64], b: NDArray[np.float64]) -> NDArray[np.float64]:

@@ -3,12 +3,9 @@ pairs of non-positive curvature are refused, and the window keeps the newest pai
 
 from __future__ import annotations
 
-import doctest
-
 import numpy as np
 import pytest
 
-import arap.lbfgs
 from arap.errors import ArapError
 from arap.lbfgs import LbfgsHistory, subtract_norm
 
@@ -94,10 +91,6 @@ def test_a_full_window_keeps_the_newest_pairs_after_a_refusal() -> None:
     g = rng.normal(size=n)
     d = history.direction(g[:, None].copy(), lambda q: q.copy())
     np.testing.assert_allclose(d[:, 0], -_bfgs_inverse(np.eye(n), pairs[-2:]) @ g, rtol=1e-10, atol=1e-12)
-
-
-def test_docstring_example() -> None:
-    assert doctest.testmod(arap.lbfgs, raise_on_error=True).attempted > 0
 
 
 def test_subtract_norm_writes_into_any_layout() -> None:
