@@ -10,7 +10,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from arap.cli import bench_constraints, main
+from arap.cli import main
+from arap.cli_bench import bench_constraints
 from arap.io import load_mesh, save_mesh
 from arap.shapes import builtin_mesh
 
