@@ -33,6 +33,7 @@ import scipy.sparse.linalg as spla
 from numpy.typing import NDArray
 
 from arap._csr import permuted_pattern, permuted_symmetric, with_diagonal
+from arap._cstdout import c_stdout_to_log
 from arap.errors import OptionError
 from arap.ordering import BackgroundOrdering, metis_available, permute_rows, unpermute_rows
 from arap.topology import leading_subgraph
@@ -185,10 +186,11 @@ class _CholespyFactor:
         self.n = A.shape[0]
         t0 = time.perf_counter()
         try:
-            self._solver = CholeskySolverD(
-                self.n, A.indptr.astype(np.int32), A.indices.astype(np.int32),
-                np.ascontiguousarray(A.data, dtype=np.float64), MatrixType.CSR,
-            )
+            with c_stdout_to_log():  # its CHOLMOD prints warnings on standard output
+                self._solver = CholeskySolverD(
+                    self.n, A.indptr.astype(np.int32), A.indices.astype(np.int32),
+                    np.ascontiguousarray(A.data, dtype=np.float64), MatrixType.CSR,
+                )
         except (ValueError, RuntimeError) as exc:
             raise NotPositiveDefiniteError(str(exc)) from exc
         self.timings = {"factor": time.perf_counter() - t0}

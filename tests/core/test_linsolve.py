@@ -3,6 +3,9 @@
 from __future__ import annotations
 
 import importlib.util
+import logging
+import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -136,3 +139,33 @@ def test_solver_uses_the_default_backend_and_agrees_with_the_fallback() -> None:
     a = fast.solve(targets, max_iterations=3).vertices
     b = ArapSolver(V, F, constrained, backend="scipy").solve(targets, max_iterations=3).vertices
     assert np.abs(a - b).max() < 1e-10
+
+
+@pytest.mark.parametrize("backend", available_backends())
+def test_an_indefinite_matrix_is_refused_without_a_word_on_stdout(
+        backend: str, capfd: pytest.CaptureFixture[str], caplog: pytest.LogCaptureFixture) -> None:
+    """CHOLMOD inside cholespy prints its warning with the C library's printf: it must reach the log, not the
+    standard output that a command's JSON goes to."""
+    A = sp.csr_matrix(sp.diags([2.0, -1.0, 3.0, 1.0]))
+    with caplog.at_level(logging.DEBUG, logger="arap.linsolve"), pytest.raises(NotPositiveDefiniteError):
+        factorize(A, backend)
+    out, _ = capfd.readouterr()
+    assert out == ""
+    if backend == "cholespy":
+        assert any("CHOLMOD" in r.getMessage() for r in caplog.records)
+
+
+def test_other_output_meanwhile_still_reaches_stdout() -> None:
+    """In a process of its own (pytest's capture bypasses file descriptor 1 for Python's prints)."""
+    code = ("import os\n"
+            "from arap._cstdout import c_stdout_to_log\n"
+            "print('before')\n"
+            "with c_stdout_to_log():\n"
+            "    os.write(1, b'CHOLMOD warning: not positive definite\\n')\n"
+            "    os.write(1, b'another thread said this\\n')\n"
+            "    print('a buffered line')\n"
+            "print('after')\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    lines = out.splitlines()
+    assert lines[0] == "before" and lines[-1] == "after"
+    assert sorted(lines[1:-1]) == ["a buffered line", "another thread said this"]
