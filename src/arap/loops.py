@@ -17,7 +17,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from arap.anderson import AndersonAccelerator
-from arap.lbfgs import LbfgsHistory, step_norm, subtract_norm
+from arap.lbfgs import LbfgsHistory, step_dot, step_norm, subtract_norm
 from arap.result import IterationCallback
 
 __all__ = ["CHECK_EVERY", "CHECK_FACTOR", "LINE_SEARCH_HALVINGS", "PLAIN_START", "Iterate", "Outcome",
@@ -75,6 +75,11 @@ class Iterate:
         ``callback(iteration, energy)``; False stops.
     timings : dict of str to float
         Seconds, accumulated: ``local`` (inside ``local``), ``rhs``, ``solve``, ``acceleration``.
+    scale_initial : bool
+        L-BFGS scales its initial inverse Hessian ``A⁻¹`` by the curvature seen along the last step (see
+        :meth:`arap.lbfgs.LbfgsHistory.update`). Its longer steps can end in another minimum of an energy with
+        several (the spokes energy with negative cotangent weights), so the solver asks for it only where every
+        cell's energy is a sum of non-negative terms.
     """
 
     U: Array
@@ -91,6 +96,7 @@ class Iterate:
     cap: int
     callback: IterationCallback | None
     timings: dict[str, float]
+    scale_initial: bool = False
 
 
 @dataclass
@@ -249,9 +255,13 @@ def lbfgs_iterations(it: Iterate, energy: float | None, history: LbfgsHistory, p
             (d_norm if d_norm >= 0 else step_norm(d)) <= CHECK_FACTOR * it.step_limit or k % CHECK_EVERY == 0)
         rhs_fresh = k < it.cap or check  # the last iteration of a capped run (a drag) needs no gradient
         if rhs_fresh:
+            pair = fresh and k >= plain_start
+            # The gradient is A x − b(R): sᵀ(A s − y) = sᵀ(b_new − b_old), for the scale of A⁻¹.
+            before = step_dot(U[:nf], x, rhs) if pair and it.scale_initial else 0.0
             fit_rhs(new_grad)
-            if fresh and k >= plain_start:
-                history.update(U[:nf], x, new_grad, grad)
+            if pair:
+                history.update(U[:nf], x, new_grad, grad,
+                               step_dot(U[:nf], x, rhs) - before if it.scale_initial else None)
         grad, new_grad = new_grad, grad
         fresh = True
         energy = e

@@ -184,6 +184,8 @@ class ArapSolver(SingleSteps):
         self._constrained_slot = np.searchsorted(self._nonfree, self._constrained)
         self._cells = build_cells(self._V, self._inv[F], energy, weights)
         pair_weights = np.maximum(self._cells.w, 0.0)  # the rotation term of smooth_rotations: not scaled by stiffness
+        # every cell's energy a sum of non-negative terms (per triangle for spokes and rims)
+        self._non_negative = energy == "spokes_and_rims" or not bool((self._cells.w < 0).any())
         if self.stiffness is not None:
             self._cells = scale_cells(self._cells, self.stiffness[self._perm])
         L = system_matrix(self._cells, n)
@@ -384,7 +386,8 @@ class ArapSolver(SingleSteps):
         scale = self._diagonal * np.sqrt(max(nf, 1))
         return Iterate(U=U, nf=nf, rotations=self._R, local=lambda X: self._local(X, const_E, timings), rhs=rhs,
                        rhs_gradient=rhs_gradient, solve=solve, correct=correct, coupled=self._smooth is not None,
-                       step_limit=tolerance * scale, scale=scale, cap=cap, callback=callback, timings=timings)
+                       step_limit=tolerance * scale, scale=scale, cap=cap, callback=callback, timings=timings,
+                       scale_initial=self._non_negative)
 
     def _lbfgs_applies(self, point_targets: NDArray[np.float64] | None) -> bool:
         """True when the energy's gradient in x is ``2 (A x − b(R))`` with the factored ``A``, evaluated to full

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from arap.errors import ArapError
-from arap.lbfgs import LbfgsHistory, subtract_norm
+from arap.lbfgs import MAX_SCALE, LbfgsHistory, step_dot, subtract_norm
 
 
 def _bfgs_inverse(H0: np.ndarray, pairs: list[tuple[np.ndarray, np.ndarray]]) -> np.ndarray:
@@ -46,6 +46,38 @@ def test_two_loop_equals_the_written_out_update(window: int) -> None:
     np.testing.assert_allclose(d[:, 0], expected, rtol=1e-10, atol=1e-12)
     assert len(history) == min(window, 6)
 
+
+
+@pytest.mark.parametrize("flatness", [1.0, 2.5, 40.0])
+def test_the_initial_inverse_hessian_is_scaled_by_the_last_pairs_curvature(flatness: float) -> None:
+    """With ``excess = sᵀ(H₀⁻¹s − y)`` the directions are those of the written-out update with ``γ H₀``, γ the
+    Barzilai-Borwein ratio ``sᵀH₀⁻¹s / sᵀy`` of the newest pair clipped to [1, MAX_SCALE]."""
+    rng = np.random.default_rng(7)
+    n = 9
+    M = _spd(rng, n)  # the "system matrix": H₀ = M⁻¹
+    Q = M / flatness  # an energy flatter than M by this factor
+    history = LbfgsHistory(4)
+    pairs = []
+    x, g = np.zeros((n, 1)), np.zeros((n, 1))
+    for _ in range(3):
+        s = rng.normal(size=n)
+        y = Q @ s
+        assert history.update(x + s[:, None], x, g + y[:, None], g, float(s @ (M @ s) - s @ y))
+        x, g = x + s[:, None], g + y[:, None]
+        pairs.append((s, y))
+    gamma = min(max(flatness, 1.0), MAX_SCALE)
+    assert history.scale == pytest.approx(gamma, rel=1e-12)
+    g = rng.normal(size=n)
+    d = history.direction(g[:, None].copy(), lambda q: np.linalg.solve(M, q))
+    np.testing.assert_allclose(d[:, 0], -_bfgs_inverse(gamma * np.linalg.inv(M), pairs) @ g, rtol=1e-9, atol=1e-12)
+    history.reset()
+    assert history.scale == 1.0
+
+
+def test_step_dot() -> None:
+    rng = np.random.default_rng(2)
+    a, b, c = (rng.normal(size=(30, 3)) for _ in range(3))
+    assert step_dot(a, b, c) == pytest.approx(float(((a - b) * c).sum()), rel=1e-13)
 
 def test_an_empty_history_gives_the_preconditioned_gradient_step() -> None:
     g = np.array([[1.0, -2.0], [3.0, 0.5]])
