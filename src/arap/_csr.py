@@ -410,17 +410,24 @@ def permuted_pattern(indptr: np.ndarray, indices: np.ndarray,
     return ptr, idx, src
 
 
+@nb.njit(cache=True, nogil=True, inline="always")
+def row_times(lo, hi, idx, val, X, s0, s1, s2):  # pragma: no cover - compiled
+    """``(s0, s1, s2) + Σ_k val[k] X[idx[k]]`` over the entries ``lo:hi`` of a compressed row and an (m, 3) array
+    ``X``, summed in entry order (SciPy's); inlined into the kernels that call it."""
+    for k in range(np.uint64(lo), np.uint64(hi)):  # unsigned indices spare numba's negative-index fix-ups
+        j = np.uint64(idx[k])
+        v = val[k]
+        s0 += v * X[j, 0]
+        s1 += v * X[j, 1]
+        s2 += v * X[j, 2]
+    return s0, s1, s2
+
+
 @nb.njit(cache=True, nogil=True)
 def _rows_product(rows, ptr, idx, val, X, out):  # pragma: no cover - compiled
     for t in range(rows.shape[0]):
         r = rows[t]
-        s0 = s1 = s2 = 0.0
-        for k in range(ptr[t], ptr[t + 1]):
-            c = idx[k]
-            v = val[k]
-            s0 += v * X[c, 0]
-            s1 += v * X[c, 1]
-            s2 += v * X[c, 2]
+        s0, s1, s2 = row_times(ptr[t], ptr[t + 1], idx, val, X, 0.0, 0.0, 0.0)
         out[r, 0] = s0
         out[r, 1] = s1
         out[r, 2] = s2

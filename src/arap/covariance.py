@@ -17,6 +17,7 @@ import numba as nb
 import numpy as np
 import scipy.sparse as sp
 
+from arap._csr import row_times
 from arap._parallel import policy
 from arap.cells import Cells, RhsGather
 from arap.rotations import BLOCK, ROW_LOWER, ROW_R, ROW_TRACE, SCRATCH_ROWS, rotations_block
@@ -149,15 +150,7 @@ def _rhs_parallel(ptr, cell, g, R, const, out):  # pragma: no cover - compiled
 def _rhs_gradient_rows(r0, r1, ptr, cell, g, R, const, a_ptr, a_idx, a_val, x, out, grad):  # pragma: no cover
     _rhs_rows(r0, r1, ptr, cell, g, R, const, out)
     for r in range(r0, r1):
-        g0 = -out[r, 0]
-        g1 = -out[r, 1]
-        g2 = -out[r, 2]
-        for k in range(np.uint64(a_ptr[r]), np.uint64(a_ptr[r + 1])):
-            j = np.uint64(a_idx[k])
-            v = a_val[k]
-            g0 += v * x[j, 0]
-            g1 += v * x[j, 1]
-            g2 += v * x[j, 2]
+        g0, g1, g2 = row_times(a_ptr[r], a_ptr[r + 1], a_idx, a_val, x, -out[r, 0], -out[r, 1], -out[r, 2])
         grad[r, 0] = g0
         grad[r, 1] = g1
         grad[r, 2] = g2

@@ -25,6 +25,23 @@ def _spd(rng: np.random.Generator, n: int) -> np.ndarray:
     return Q @ Q.T + n * np.eye(n)
 
 
+def _feed(history: LbfgsHistory, rng: np.random.Generator, Q: np.ndarray, count: int,
+          M: np.ndarray | None = None) -> list[tuple[np.ndarray, np.ndarray]]:
+    """``count`` random steps on the quadratic with Hessian ``Q`` into ``history`` (each accepted), with the excess
+    ``sᵀ(M s − y)`` when a system matrix ``M`` is given; returns the pairs ``(s, y)``."""
+    n = len(Q)
+    pairs = []
+    x, g = np.zeros((n, 1)), np.zeros((n, 1))
+    for _ in range(count):
+        s = rng.normal(size=n)
+        y = Q @ s
+        excess = None if M is None else float(s @ (M @ s) - s @ y)
+        assert history.update(x + s[:, None], x, g + y[:, None], g, excess)
+        x, g = x + s[:, None], g + y[:, None]
+        pairs.append((s, y))
+    return pairs
+
+
 @pytest.mark.parametrize("window", [1, 3, 8])
 def test_two_loop_equals_the_written_out_update(window: int) -> None:
     rng = np.random.default_rng(window)
@@ -32,14 +49,7 @@ def test_two_loop_equals_the_written_out_update(window: int) -> None:
     H0 = np.linalg.inv(_spd(rng, n))  # the preconditioner: the inverse of an SPD "system matrix"
     Q = _spd(rng, n)  # the Hessian the pairs come from, so sᵀy > 0
     history = LbfgsHistory(window)
-    pairs = []
-    x, g = np.zeros((n, 1)), np.zeros((n, 1))
-    for _ in range(6):
-        s = rng.normal(size=n)
-        y = Q @ s
-        assert history.update(x + s[:, None], x, g + y[:, None], g)
-        x, g = x + s[:, None], g + y[:, None]
-        pairs.append((s, y))
+    pairs = _feed(history, rng, Q, 6)
     g = rng.normal(size=n)
     d = history.direction(g[:, None].copy(), lambda q: H0 @ q)
     expected = -_bfgs_inverse(H0, pairs[-window:]) @ g
@@ -57,14 +67,7 @@ def test_the_initial_inverse_hessian_is_scaled_by_the_last_pairs_curvature(flatn
     M = _spd(rng, n)  # the "system matrix": H₀ = M⁻¹
     Q = M / flatness  # an energy flatter than M by this factor
     history = LbfgsHistory(4)
-    pairs = []
-    x, g = np.zeros((n, 1)), np.zeros((n, 1))
-    for _ in range(3):
-        s = rng.normal(size=n)
-        y = Q @ s
-        assert history.update(x + s[:, None], x, g + y[:, None], g, float(s @ (M @ s) - s @ y))
-        x, g = x + s[:, None], g + y[:, None]
-        pairs.append((s, y))
+    pairs = _feed(history, rng, Q, 3, M)
     gamma = min(max(flatness, 1.0), MAX_SCALE)
     assert history.scale == pytest.approx(gamma, rel=1e-12)
     g = rng.normal(size=n)
@@ -110,13 +113,8 @@ def test_a_full_window_keeps_the_newest_pairs_after_a_refusal() -> None:
     n = 10
     Q = _spd(rng, n)
     history = LbfgsHistory(3)
-    pairs = []
+    pairs = _feed(history, rng, Q, 4)
     x, g = np.zeros((n, 1)), np.zeros((n, 1))
-    for _ in range(4):
-        s = rng.normal(size=n)
-        y = Q @ s
-        assert history.update(x + s[:, None], x, g + y[:, None], g)
-        pairs.append((s, y))
     s = rng.normal(size=n)
     assert not history.update(x + s[:, None], x, g - s[:, None], g)  # sᵀy < 0: refused
     assert len(history) == 2
