@@ -21,7 +21,7 @@ from numpy.typing import NDArray
 
 from arap.errors import ArapError
 
-__all__ = ["MAX_SCALE", "LbfgsHistory", "step_dot", "step_norm", "subtract_norm"]
+__all__ = ["MAX_SCALE", "LbfgsHistory", "difference_norm", "step_dot", "step_norm", "subtract_norm"]
 
 MAX_SCALE = 4.0
 """Largest factor on the initial inverse Hessian (see :meth:`LbfgsHistory.update`)."""
@@ -102,6 +102,28 @@ def _subtract_sq(d: NDArray[np.float64], x: NDArray[np.float64]) -> float:  # pr
             d[i, j] = v
             total += v * v
     return total
+
+
+@nb.njit(cache=True, nogil=True, fastmath={"reassoc", "contract"})
+def _difference_sq(a, b):  # pragma: no cover - compiled
+    total = 0.0
+    for i in range(a.shape[0]):
+        for j in range(a.shape[1]):
+            v = a[i, j] - b[i, j]
+            total += v * v
+    return total
+
+
+def difference_norm(a: NDArray[np.float64], b: NDArray[np.float64]) -> float:
+    """Euclidean norm of ``a − b`` over all entries, in one pass without a temporary (float64 arrays of one shape
+    (k, m), any memory layout).
+
+    Example
+    -------
+    >>> difference_norm(np.array([[4.0, 0.0, 5.0]]), np.array([[1.0, 0.0, 1.0]]))
+    5.0
+    """
+    return float(np.sqrt(_difference_sq(a, b)))
 
 
 @nb.njit(cache=True, nogil=True, fastmath={"reassoc", "contract"})

@@ -17,7 +17,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from arap.anderson import AndersonAccelerator
-from arap.lbfgs import LbfgsHistory, step_dot, step_norm, subtract_norm
+from arap.lbfgs import LbfgsHistory, difference_norm, step_dot, step_norm, subtract_norm
 from arap.result import IterationCallback
 
 __all__ = ["CHECK_EVERY", "CHECK_FACTOR", "LINE_SEARCH_HALVINGS", "PLAIN_START", "Iterate", "Outcome",
@@ -140,8 +140,10 @@ def plain_iterations(it: Iterate, energy: float | None, accel: AndersonAccelerat
             g = it.correct(g)
         timings["rhs"] += t2 - t
         timings["solve"] += time.perf_counter() - t2
-        d = g - x
-        step = step_norm(d)
+        if accel is None:  # the step, its norm and the new iterate (x is a view of U) in one pass
+            step = subtract_norm(g, x, x)
+        else:
+            step = difference_norm(g, x)
         out.residual = step / it.scale
         last = step <= it.step_limit
         candidate = None
@@ -149,9 +151,9 @@ def plain_iterations(it: Iterate, energy: float | None, accel: AndersonAccelerat
             t = time.perf_counter()
             candidate = accel.step(x.ravel(), g.ravel())
             timings["acceleration"] += time.perf_counter() - t
-        if last or energy is None:
-            candidate = None
-        U[:nf] = g if candidate is None else candidate.reshape(nf, 3)
+            if last or energy is None:
+                candidate = None
+            U[:nf] = g if candidate is None else candidate.reshape(nf, 3)
         if candidate is not None and saved is not None:
             np.copyto(saved, it.rotations)
         e = it.local(U)

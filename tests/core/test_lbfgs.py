@@ -143,3 +143,8 @@ def test_subtract_norm_places_the_step_in_the_same_pass() -> None:
         assert subtract_norm(d, x, out) == pytest.approx(np.linalg.norm(expected), rel=1e-14)
         np.testing.assert_array_equal(d, expected)
         np.testing.assert_array_equal(out, np.add(x, expected))
+    # in place: the step written over the iterate it starts from (the plain iteration's use)
+    d, y = rng.normal(size=(40, 3)), x.copy()
+    expected = d - x
+    assert subtract_norm(d, y, y) == pytest.approx(np.linalg.norm(expected), rel=1e-14)
+    np.testing.assert_array_equal(y, np.add(x, expected))
