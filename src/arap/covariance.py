@@ -20,10 +20,37 @@ import scipy.sparse as sp
 from arap._csr import row_times
 from arap._parallel import policy
 from arap.cells import Cells, RhsGather
-from arap.rotations import BLOCK, ROW_LOWER, ROW_R, ROW_TRACE, SCRATCH_ROWS, rotations_block
+from arap.rotations import BLOCK, ROW_TRACE, SCRATCH_ROWS, put_covariance, rotations_block, take_rotation
 
 CHUNK = 8
 """Blocks per unit of parallel work (``CHUNK * BLOCK`` cells)."""
+
+
+@nb.njit(cache=True, nogil=True, inline="always")
+def cell_covariance(c, ptr, a, b, w, we, U):  # pragma: no cover - compiled
+    """Covariance ``S_c = Σ w e e'ᵀ`` of cell ``c`` (9 values, row-major) and ``Σ w ‖e'‖²`` over its terms."""
+    s00 = s01 = s02 = s10 = s11 = s12 = s20 = s21 = s22 = 0.0
+    cur = 0.0
+    for k in range(np.uint64(ptr[c]), np.uint64(ptr[c + np.uint64(1)])):
+        ia = np.uint64(a[k])  # unsigned indices spare numba's negative-index fix-ups
+        ib = np.uint64(b[k])
+        d0 = U[ia, 0] - U[ib, 0]
+        d1 = U[ia, 1] - U[ib, 1]
+        d2 = U[ia, 2] - U[ib, 2]
+        cur += w[k] * (d0 * d0 + d1 * d1 + d2 * d2)
+        x0 = we[k, 0]
+        x1 = we[k, 1]
+        x2 = we[k, 2]
+        s00 += x0 * d0
+        s01 += x0 * d1
+        s02 += x0 * d2
+        s10 += x1 * d0
+        s11 += x1 * d1
+        s12 += x1 * d2
+        s20 += x2 * d0
+        s21 += x2 * d1
+        s22 += x2 * d2
+    return (s00, s01, s02, s10, s11, s12, s20, s21, s22), cur
 
 
 @nb.njit(cache=True, nogil=True)
@@ -31,51 +58,15 @@ def _local_block(lo, hi, cell_ids, ptr, a, b, w, we, rest_sq, U, R, E, sc, flag)
     """Cells ``cell_ids[lo:hi]`` (at most BLOCK): rotations into ``R``, energies into ``E``; returns their sum."""
     m = hi - lo
     for t in range(m):
-        c = np.uint64(cell_ids[lo + t])  # unsigned indices spare numba's negative-index fix-ups
-        s00 = s01 = s02 = s10 = s11 = s12 = s20 = s21 = s22 = 0.0
-        cur = 0.0
-        for k in range(np.uint64(ptr[c]), np.uint64(ptr[c + np.uint64(1)])):
-            ia = np.uint64(a[k])
-            ib = np.uint64(b[k])
-            d0 = U[ia, 0] - U[ib, 0]
-            d1 = U[ia, 1] - U[ib, 1]
-            d2 = U[ia, 2] - U[ib, 2]
-            cur += w[k] * (d0 * d0 + d1 * d1 + d2 * d2)
-            x0 = we[k, 0]
-            x1 = we[k, 1]
-            x2 = we[k, 2]
-            s00 += x0 * d0
-            s01 += x0 * d1
-            s02 += x0 * d2
-            s10 += x1 * d0
-            s11 += x1 * d1
-            s12 += x1 * d2
-            s20 += x2 * d0
-            s21 += x2 * d1
-            s22 += x2 * d2
-        sc[t] = s00
-        sc[BLOCK + t] = s01
-        sc[2 * BLOCK + t] = s02
-        sc[3 * BLOCK + t] = s10
-        sc[4 * BLOCK + t] = s11
-        sc[5 * BLOCK + t] = s12
-        sc[6 * BLOCK + t] = s20
-        sc[7 * BLOCK + t] = s21
-        sc[8 * BLOCK + t] = s22
-        # tr(R_prev S): a lower bound of the optimum that makes the rotation fit converge in few steps.
-        lower = (R[c, 0, 0] * s00 + R[c, 0, 1] * s10 + R[c, 0, 2] * s20 + R[c, 1, 0] * s01 + R[c, 1, 1] * s11
-                 + R[c, 1, 2] * s21 + R[c, 2, 0] * s02 + R[c, 2, 1] * s12 + R[c, 2, 2] * s22)
-        if not (lower > -np.inf and lower < np.inf):
-            lower = -np.inf
-        sc[ROW_LOWER * BLOCK + t] = lower
+        c = np.uint64(cell_ids[lo + t])
+        s, cur = cell_covariance(c, ptr, a, b, w, we, U)
+        put_covariance(sc, t, s, R, c)
         E[c] = cur + rest_sq[c]
     rotations_block(sc, m, flag)
     total = 0.0
     for t in range(m):
         c = np.uint64(cell_ids[lo + t])
-        for i in range(3):
-            for j in range(3):
-                R[c, i, j] = sc[(ROW_R + 3 * i + j) * BLOCK + t]
+        take_rotation(sc, t, R, c)
         e = E[c] - 2.0 * sc[ROW_TRACE * BLOCK + t]
         E[c] = e
         total += e

@@ -20,6 +20,7 @@ from arap.covariance import local_step
 from arap.errors import ArapError
 from arap.mesh import MeshLike, check_mesh, is_mesh_like, mesh_arrays
 from arap.rigid import RigidRegions, rigid_regions
+from arap.rotations import identity_rotations
 from arap.smooth import DEFAULT_ALPHA, SmoothRotations, check_alpha
 from arap.start import vertex_areas
 from arap.weights import DEFAULT_WEIGHTS, WeightType
@@ -130,7 +131,7 @@ def _cells_and_energies(V: Any, F: Any, U: Any, energy: EnergyType, weights: Wei
     cells = rest if scale is None else scale_cells(rest, scale)
     n = len(Vc)
     E = np.empty(n)
-    R = np.empty((n, 3, 3))
+    R = identity_rotations(n)
     local_step(cells, np.arange(n), Uc, R, E)
     if energy == "smooth_rotations":
         _settle_rotations(cells, Vc, Fc, Uc, R, E, alpha, pair_weights)
@@ -217,7 +218,7 @@ def distortion_from_cells(cells: Cells, V: NDArray[np.float64], F: NDArray[np.in
     """
     n = len(V)
     E = np.empty(n)
-    R = np.empty((n, 3, 3))
+    R = identity_rotations(n)
     local_step(cells, np.arange(n), U, R, E)
     if energy == "smooth_rotations":
         _settle_rotations(cells, V, F, U, R, E, alpha, np.maximum(cells.w, 0.0))

@@ -21,6 +21,7 @@ import arap._numba_cache  # noqa: F401  (a writable cache folder before the kern
 from arap.cells import Cells
 from arap.covariance import local_step
 from arap.horn import best_rotation
+from arap.rotations import identity_rotations
 
 __all__ = ["RIGID_TOLERANCE", "InactiveCells"]
 
@@ -60,11 +61,11 @@ class InactiveCells:
         self._term_cell = tcell[terms]
         self._a = cells.a[terms]
         self._b = cells.b[terms]
-        self._R = np.empty((n, 3, 3))
+        self._R = identity_rotations(n)
         self._E = np.zeros(n)  # energy of every inactive cell at the cached targets
         self._inactive = np.flatnonzero(~is_active)
         if len(self._inactive):
-            local_step(cells, self._inactive, V, np.empty((n, 3, 3)), self._E)
+            local_step(cells, self._inactive, V, identity_rotations(n), self._E)
         self._tolerance = RIGID_TOLERANCE * (float(np.linalg.norm(V.max(axis=0) - V.min(axis=0))) if n else 0.0)
         self._n = n
         self._targets = V[constrained].copy()

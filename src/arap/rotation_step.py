@@ -48,6 +48,46 @@ HALVINGS = 1
 _FLOOR = 1e-3
 
 
+ZERO9 = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+
+
+@nb.njit(cache=True, nogil=True, inline="always")
+def add_transposed(m, f, R, j):  # pragma: no cover - compiled
+    """``m + f R_jᵀ`` for a 3×3 matrix ``m`` given as 9 values, row-major (entry (i, l) gets ``f R_j[l, i]``)."""
+    return (m[0] + f * R[j, 0, 0], m[1] + f * R[j, 1, 0], m[2] + f * R[j, 2, 0],
+            m[3] + f * R[j, 0, 1], m[4] + f * R[j, 1, 1], m[5] + f * R[j, 2, 1],
+            m[6] + f * R[j, 0, 2], m[7] + f * R[j, 1, 2], m[8] + f * R[j, 2, 2])
+
+
+@nb.njit(cache=True, nogil=True, inline="always")
+def plus_scaled(S, p, k, m):  # pragma: no cover - compiled
+    """``S[p] + k m``, 9 values row-major: the matrix ``M = S_c + 2αA Σ_j w⁺_ij R_jᵀ`` a rotation is fitted to."""
+    return (S[p, 0] + k * m[0], S[p, 1] + k * m[1], S[p, 2] + k * m[2],
+            S[p, 3] + k * m[3], S[p, 4] + k * m[4], S[p, 5] + k * m[5],
+            S[p, 6] + k * m[6], S[p, 7] + k * m[7], S[p, 8] + k * m[8])
+
+
+@nb.njit(cache=True, nogil=True, inline="always")
+def rotation_gap(R, c, j):  # pragma: no cover - compiled
+    """``‖R_c − R_j‖²`` (Frobenius)."""
+    dist = 0.0
+    for u in range(3):
+        for v in range(3):
+            y = R[c, u, v] - R[j, u, v]
+            dist += y * y
+    return dist
+
+
+@nb.njit(cache=True, nogil=True, inline="always")
+def trace_with(R, c, S, p):  # pragma: no cover - compiled
+    """``tr(R_c S_p)`` with ``S_p`` stored row-major in ``S[p]``."""
+    trace = 0.0
+    for i in range(3):
+        for j in range(3):
+            trace += R[c, i, j] * S[p, 3 * j + i]
+    return trace
+
+
 @nb.njit(cache=True, nogil=True)
 def _energy_rows(lo, hi, order, nptr, nidx, nq, S, d, coef, R, E, term, G, gradient):  # pragma: no cover
     """Energy of the cells at sweep positions ``lo:hi`` (``E[c]`` the data energy, ``term[c]`` the cell's rotation
@@ -56,52 +96,27 @@ def _energy_rows(lo, hi, order, nptr, nidx, nq, S, d, coef, R, E, term, G, gradi
     k2 = 2.0 * coef
     for p in range(lo, hi):
         c = np.uint64(order[p])
-        m00 = m01 = m02 = m10 = m11 = m12 = m20 = m21 = m22 = 0.0
+        m = ZERO9
         pairs = 0.0
         for k in range(np.uint64(nptr[p]), np.uint64(nptr[p + 1])):
             j = np.uint64(nidx[k])
             f = nq[k]
-            dist = 0.0
-            for u in range(3):
-                for v in range(3):
-                    y = R[c, u, v] - R[j, u, v]
-                    dist += y * y
-            pairs += f * dist
-            if gradient:  # Σ q R_jᵀ: entry (i, l) gets R_j[l, i]
-                m00 += f * R[j, 0, 0]
-                m01 += f * R[j, 1, 0]
-                m02 += f * R[j, 2, 0]
-                m10 += f * R[j, 0, 1]
-                m11 += f * R[j, 1, 1]
-                m12 += f * R[j, 2, 1]
-                m20 += f * R[j, 0, 2]
-                m21 += f * R[j, 1, 2]
-                m22 += f * R[j, 2, 2]
-        trace = 0.0
-        for i in range(3):
-            for j2 in range(3):
-                trace += R[c, i, j2] * S[p, 3 * j2 + i]
-        e = d[p] - 2.0 * trace
+            pairs += f * rotation_gap(R, c, j)
+            if gradient:
+                m = add_transposed(m, f, R, j)
+        e = d[p] - 2.0 * trace_with(R, c, S, p)
         E[c] = e
         term[c] = coef * pairs
         total += e + coef * pairs
         if gradient:
-            m00 = S[p, 0] + k2 * m00
-            m01 = S[p, 1] + k2 * m01
-            m02 = S[p, 2] + k2 * m02
-            m10 = S[p, 3] + k2 * m10
-            m11 = S[p, 4] + k2 * m11
-            m12 = S[p, 5] + k2 * m12
-            m20 = S[p, 6] + k2 * m20
-            m21 = S[p, 7] + k2 * m21
-            m22 = S[p, 8] + k2 * m22
+            m = plus_scaled(S, p, k2, m)
             # P = R_c M: only its antisymmetric part is needed
-            p12 = R[c, 1, 0] * m02 + R[c, 1, 1] * m12 + R[c, 1, 2] * m22
-            p21 = R[c, 2, 0] * m01 + R[c, 2, 1] * m11 + R[c, 2, 2] * m21
-            p20 = R[c, 2, 0] * m00 + R[c, 2, 1] * m10 + R[c, 2, 2] * m20
-            p02 = R[c, 0, 0] * m02 + R[c, 0, 1] * m12 + R[c, 0, 2] * m22
-            p01 = R[c, 0, 0] * m01 + R[c, 0, 1] * m11 + R[c, 0, 2] * m21
-            p10 = R[c, 1, 0] * m00 + R[c, 1, 1] * m10 + R[c, 1, 2] * m20
+            p12 = R[c, 1, 0] * m[2] + R[c, 1, 1] * m[5] + R[c, 1, 2] * m[8]
+            p21 = R[c, 2, 0] * m[1] + R[c, 2, 1] * m[4] + R[c, 2, 2] * m[7]
+            p20 = R[c, 2, 0] * m[0] + R[c, 2, 1] * m[3] + R[c, 2, 2] * m[6]
+            p02 = R[c, 0, 0] * m[2] + R[c, 0, 1] * m[5] + R[c, 0, 2] * m[8]
+            p01 = R[c, 0, 0] * m[1] + R[c, 0, 1] * m[4] + R[c, 0, 2] * m[7]
+            p10 = R[c, 1, 0] * m[0] + R[c, 1, 1] * m[3] + R[c, 1, 2] * m[6]
             G[c, 0] = -2.0 * (p12 - p21)
             G[c, 1] = -2.0 * (p20 - p02)
             G[c, 2] = -2.0 * (p01 - p10)
@@ -110,7 +125,14 @@ def _energy_rows(lo, hi, order, nptr, nidx, nq, S, d, coef, R, E, term, G, gradi
 
 @nb.njit(cache=True, nogil=True)
 def _energy_serial(order, nptr, nidx, nq, S, d, coef, R, E, term, G, gradient):  # pragma: no cover - compiled
-    return _energy_rows(0, order.shape[0], order, nptr, nidx, nq, S, d, coef, R, E, term, G, gradient)
+    # Summed chunk by chunk, as the parallel kernel sums: the thread count must not change the energy's last bits.
+    n = order.shape[0]
+    step = CHUNK * BLOCK
+    total = 0.0
+    for ch in range((n + step - 1) // step):
+        total += _energy_rows(ch * step, min(n, (ch + 1) * step), order, nptr, nidx, nq, S, d, coef, R, E, term,
+                              G, gradient)
+    return total
 
 
 @nb.njit(cache=True, nogil=True, parallel=True)

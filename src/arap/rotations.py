@@ -39,6 +39,28 @@ _ROW_UPPER = 24
 SCRATCH_ROWS = 25
 
 
+@nb.njit(cache=True, nogil=True, inline="always")
+def put_covariance(sc: np.ndarray, t: int, s: tuple, R: np.ndarray, c: int) -> None:  # pragma: no cover - compiled
+    """Column ``t`` of a scratch block: the covariance ``s`` (9 values, row-major) and the lower bound ``tr(R_c s)``
+    of the optimum from the cell's previous rotation (``-inf`` if not finite), which makes the fit converge in few
+    steps."""
+    for i in range(9):
+        sc[i * BLOCK + t] = s[i]
+    lower = (R[c, 0, 0] * s[0] + R[c, 0, 1] * s[3] + R[c, 0, 2] * s[6] + R[c, 1, 0] * s[1] + R[c, 1, 1] * s[4]
+             + R[c, 1, 2] * s[7] + R[c, 2, 0] * s[2] + R[c, 2, 1] * s[5] + R[c, 2, 2] * s[8])
+    if not (lower > -np.inf and lower < np.inf):
+        lower = -np.inf
+    sc[ROW_LOWER * BLOCK + t] = lower
+
+
+@nb.njit(cache=True, nogil=True, inline="always")
+def take_rotation(sc: np.ndarray, t: int, R: np.ndarray, c: int) -> None:  # pragma: no cover - compiled
+    """``R[c]`` from the fitted rotation in column ``t`` of a scratch block."""
+    for i in range(3):
+        for j in range(3):
+            R[c, i, j] = sc[(ROW_R + 3 * i + j) * BLOCK + t]
+
+
 @nb.njit(cache=True, nogil=True, error_model="numpy")
 def rotations_block(sc: np.ndarray, m: int, flag: np.ndarray) -> None:  # pragma: no cover - compiled
     """Best-fit rotations of the ``m`` covariances in the columns of the scratch block ``sc``, in place.
@@ -272,6 +294,16 @@ def fit_rotations_scalar(S: np.ndarray, R: np.ndarray) -> None:  # pragma: no co
     """Cell-by-cell :func:`rotation_from_covariance` of a (k, 3, 3) stack into ``R`` (the reference of the blocks)."""
     for i in range(S.shape[0]):
         best_rotation(S[i], R[i])
+
+
+def identity_rotations(n: int) -> np.ndarray:
+    """``n`` identity matrices, shape (n, 3, 3): the start of a rotation fit without previous rotations.
+
+    The fits (:func:`arap.covariance.local_step`) start their root search from the previous rotation of each cell;
+    any start converges, but to last bits that depend on it, so a fixed start keeps results reproducible (an
+    uninitialised array would not).
+    """
+    return np.broadcast_to(np.eye(3), (n, 3, 3)).copy()
 
 
 def fit_rotations(S: np.ndarray) -> np.ndarray:

@@ -56,10 +56,10 @@ from numpy.typing import NDArray
 from arap._parallel import policy
 from arap.cells import Cells
 from arap.colouring import WINDOW, colour_vertices
-from arap.covariance import CHUNK
+from arap.covariance import CHUNK, cell_covariance
 from arap.errors import OptionError
-from arap.rotation_step import RotationStep
-from arap.rotations import BLOCK, ROW_LOWER, ROW_R, SCRATCH_ROWS, rotations_block
+from arap.rotation_step import ZERO9, RotationStep, add_transposed, plus_scaled, rotation_gap, trace_with
+from arap.rotations import BLOCK, SCRATCH_ROWS, put_covariance, rotations_block, take_rotation
 from arap.start import best_rigid_transform
 
 __all__ = ["DEFAULT_ALPHA", "STEPS", "SWEEPS", "SmoothRotations"]
@@ -89,29 +89,9 @@ def _covariance_rows(lo, hi, order, ptr, a, b, w, we, rest_sq, U, S, d):  # prag
     sweep positions ``lo:hi``, stored by position."""
     for p in range(lo, hi):
         c = np.uint64(order[p])  # unsigned indices spare numba's negative-index fix-ups
-        s00 = s01 = s02 = s10 = s11 = s12 = s20 = s21 = s22 = 0.0
-        cur = 0.0
-        for k in range(np.uint64(ptr[c]), np.uint64(ptr[c + np.uint64(1)])):
-            ia = np.uint64(a[k])
-            ib = np.uint64(b[k])
-            d0 = U[ia, 0] - U[ib, 0]
-            d1 = U[ia, 1] - U[ib, 1]
-            d2 = U[ia, 2] - U[ib, 2]
-            cur += w[k] * (d0 * d0 + d1 * d1 + d2 * d2)
-            x0 = we[k, 0]
-            x1 = we[k, 1]
-            x2 = we[k, 2]
-            s00 += x0 * d0
-            s01 += x0 * d1
-            s02 += x0 * d2
-            s10 += x1 * d0
-            s11 += x1 * d1
-            s12 += x1 * d2
-            s20 += x2 * d0
-            s21 += x2 * d1
-            s22 += x2 * d2
-        S[p, 0], S[p, 1], S[p, 2], S[p, 3], S[p, 4], S[p, 5] = s00, s01, s02, s10, s11, s12
-        S[p, 6], S[p, 7], S[p, 8] = s20, s21, s22
+        cov, cur = cell_covariance(c, ptr, a, b, w, we, U)
+        for i in range(9):
+            S[p, i] = cov[i]
         d[p] = cur + rest_sq[c]
 
 
@@ -139,63 +119,26 @@ def _sweep_block(lo, hi, order, nptr, nmid, nidx, nq, S, d, k2, R, E, term, sc, 
     for t in range(m):
         p = lo + t
         c = np.uint64(order[p])
-        m00 = m01 = m02 = m10 = m11 = m12 = m20 = m21 = m22 = 0.0
+        near = ZERO9
         if coupled:
             for k in range(np.uint64(nptr[p]), np.uint64(nptr[p + 1])):
-                j = np.uint64(nidx[k])
-                f = nq[k]  # Σ q R_jᵀ: entry (i, l) gets R_j[l, i]
-                m00 += f * R[j, 0, 0]
-                m01 += f * R[j, 1, 0]
-                m02 += f * R[j, 2, 0]
-                m10 += f * R[j, 0, 1]
-                m11 += f * R[j, 1, 1]
-                m12 += f * R[j, 2, 1]
-                m20 += f * R[j, 0, 2]
-                m21 += f * R[j, 1, 2]
-                m22 += f * R[j, 2, 2]
-        s00 = S[p, 0] + k2 * m00
-        s01 = S[p, 1] + k2 * m01
-        s02 = S[p, 2] + k2 * m02
-        s10 = S[p, 3] + k2 * m10
-        s11 = S[p, 4] + k2 * m11
-        s12 = S[p, 5] + k2 * m12
-        s20 = S[p, 6] + k2 * m20
-        s21 = S[p, 7] + k2 * m21
-        s22 = S[p, 8] + k2 * m22
-        sc[t], sc[BLOCK + t], sc[2 * BLOCK + t], sc[3 * BLOCK + t], sc[4 * BLOCK + t] = s00, s01, s02, s10, s11
-        sc[5 * BLOCK + t], sc[6 * BLOCK + t], sc[7 * BLOCK + t], sc[8 * BLOCK + t] = s12, s20, s21, s22
-        # tr(R_prev M): a lower bound of the optimum that makes the rotation fit converge in few steps
-        lower = (R[c, 0, 0] * s00 + R[c, 0, 1] * s10 + R[c, 0, 2] * s20 + R[c, 1, 0] * s01 + R[c, 1, 1] * s11
-                 + R[c, 1, 2] * s21 + R[c, 2, 0] * s02 + R[c, 2, 1] * s12 + R[c, 2, 2] * s22)
-        if not (lower > -np.inf and lower < np.inf):
-            lower = -np.inf
-        sc[ROW_LOWER * BLOCK + t] = lower
+                near = add_transposed(near, nq[k], R, np.uint64(nidx[k]))
+        put_covariance(sc, t, plus_scaled(S, p, k2, near), R, c)
     rotations_block(sc, m, flag)
     total = 0.0
     for t in range(m):
         p = lo + t
         c = np.uint64(order[p])
-        for i in range(3):
-            for j in range(3):
-                R[c, i, j] = sc[(ROW_R + 3 * i + j) * BLOCK + t]
-        trace = 0.0  # tr(R S), plain covariance: the data energy is Σ w ‖e'‖² + Σ w ‖e‖² − 2 tr(R S)
-        for i in range(3):
-            for j in range(3):
-                trace += R[c, i, j] * S[p, 3 * j + i]
-        e = d[p] - 2.0 * trace
+        take_rotation(sc, t, R, c)
+        # tr(R S), plain covariance: the data energy is Σ w ‖e'‖² + Σ w ‖e‖² − 2 tr(R S)
+        e = d[p] - 2.0 * trace_with(R, c, S, p)
         E[c] = e
         total += e
         if energy:
             pairs = 0.0
             if coupled:
                 for k in range(np.uint64(nptr[p]), np.uint64(nmid[p])):  # final neighbours: the pair's both ends
-                    other = np.uint64(nidx[k])
-                    dist = 0.0
-                    for u in range(3):
-                        for v in range(3):
-                            y = R[c, u, v] - R[other, u, v]
-                            dist += y * y
-                    pairs += nq[k] * dist
+                    pairs += nq[k] * rotation_gap(R, c, np.uint64(nidx[k]))
             term[c] = k2 * pairs
             total += k2 * pairs
     return total
@@ -247,13 +190,7 @@ def _rotation_term_rows(lo, hi, ptr, b, q, coef, R, out):  # pragma: no cover - 
         e = 0.0
         for k in range(ptr[c], ptr[c + 1]):
             if q[k] != 0.0:
-                j = b[k]
-                d = 0.0
-                for r in range(3):
-                    for s in range(3):
-                        x = R[c, r, s] - R[j, r, s]
-                        d += x * x
-                e += q[k] * d
+                e += q[k] * rotation_gap(R, c, b[k])
         out[c] = coef * e
         total += coef * e
     return total
@@ -261,8 +198,14 @@ def _rotation_term_rows(lo, hi, ptr, b, q, coef, R, out):  # pragma: no cover - 
 
 @nb.njit(cache=True, nogil=True)
 def _rotation_term_serial(ptr, b, q, coef, R, out):  # pragma: no cover - compiled
-    """``out[c] = coef Σ_j q ‖R_c − R_j‖²`` for every cell; returns the sum."""
-    return _rotation_term_rows(0, ptr.shape[0] - 1, ptr, b, q, coef, R, out)
+    """``out[c] = coef Σ_j q ‖R_c − R_j‖²`` for every cell; returns the sum (chunk by chunk, as the parallel kernel
+    sums it, so that the thread count does not change it)."""
+    n = ptr.shape[0] - 1
+    step = CHUNK * BLOCK
+    total = 0.0
+    for ch in range((n + step - 1) // step):
+        total += _rotation_term_rows(ch * step, min(n, (ch + 1) * step), ptr, b, q, coef, R, out)
+    return total
 
 
 @nb.njit(cache=True, nogil=True, parallel=True)

@@ -44,6 +44,7 @@ from arap.result import (
     StartName,
 )
 from arap.rigid import RigidRegions, rigid_regions
+from arap.rotations import identity_rotations
 from arap.smooth import DEFAULT_ALPHA, STEPS, SWEEPS, SmoothRotations, check_alpha
 from arap.start import rigid_start, vertex_areas
 from arap.steps import SingleSteps
@@ -224,7 +225,7 @@ class ArapSolver(SingleSteps):
             except NotPositiveDefiniteError as exc:
                 raise singular_system_error(self._cells, energy, self.stiffness, str(exc)) from exc
         self.backend = None if self.factor is None else self.factor.backend
-        self._R = np.broadcast_to(np.eye(3), (n, 3, 3)).copy()
+        self._R = identity_rotations(n)
         self._E = np.zeros(n)
         self._last: NDArray[np.float64] | None = None
         self._live: NDArray[np.float64] | None = None

@@ -18,6 +18,7 @@ from arap.covariance import assemble_rhs, covariances, local_step
 from arap.linsolve import Factor
 from arap.points import PointSystem
 from arap.rigid import RigidRegions
+from arap.rotations import identity_rotations
 from arap.smooth import SmoothRotations
 
 __all__ = ["SingleSteps"]
@@ -70,7 +71,7 @@ class SingleSteps:
         (n, 3, 3) (None: the solver's current rotations), which never raises the energy.
         """
         U = self._to_internal(self._check_positions(U, "U"))
-        R = np.empty((self.n_vertices, 3, 3))
+        R = identity_rotations(self.n_vertices)
         E = np.empty(self.n_vertices)
         if self._smooth is not None:
             R[:] = self._R if start is None else self._to_internal(np.asarray(start, dtype=np.float64))
@@ -89,7 +90,7 @@ class SingleSteps:
         U = self._to_internal(self._check_positions(U, "U"))
         if R is None:
             E = np.empty(self.n_vertices)
-            R_opt = np.empty((self.n_vertices, 3, 3))
+            R_opt = identity_rotations(self.n_vertices)
             local_step(self._cells, np.arange(self.n_vertices), U, R_opt, E)
             if self._rigid_all is not None:
                 self._rigid_all.share(U, R_opt, E)

@@ -10,7 +10,7 @@ import scipy.sparse as sp
 from scipy.spatial.transform import Rotation
 
 import arap
-from arap import rotation_step
+from arap import rotation_step, smooth
 from arap.rotation_step import RotationStep, preconditioner
 from arap.scenarios import pull
 from arap.smooth import SmoothRotations
@@ -136,3 +136,28 @@ def test_solves_converge_on_dense_meshes(camelhead: tuple[np.ndarray, np.ndarray
     result = solver.solve(s.targets, max_iterations=300)
     assert result.converged and result.iterations < 150, (result.iterations, result.residual)
     assert np.all(np.diff(result.energies) <= 0)
+
+
+def test_energy_and_rotation_term_do_not_depend_on_the_thread_count(camelhead: tuple[np.ndarray, np.ndarray]) -> None:
+    """The serial kernels sum chunk by chunk as the parallel ones do: energies, gradients and totals agree bit for
+    bit (a single running sum differed in the last digits)."""
+    solver, sm, step, _ = _state(camelhead)
+    n = len(solver._R)
+    assert n > 2 * rotation_step.CHUNK * rotation_step.BLOCK  # several chunks
+    runs = []
+    saved = numba.get_num_threads()
+    try:
+        for energy, term_sum, threads in ((rotation_step._energy_serial, smooth._rotation_term_serial, 1),
+                                          (rotation_step._energy_parallel, smooth._rotation_term_parallel,
+                                           min(2, numba.config.NUMBA_NUM_THREADS))):
+            numba.set_num_threads(threads)
+            E, term, G, cell_term = np.zeros(n), np.zeros(n), np.zeros((n, 3)), np.zeros(n)
+            total = energy(step._order, step._nptr, step._nidx, step._nq, sm._S, sm._d, step.coef, solver._R, E,
+                           term, G, True)
+            rotation_total = term_sum(sm.cells.ptr, sm._b, sm.q, sm.coef, solver._R, cell_term)
+            runs.append((E, term, G, cell_term, total, rotation_total))
+    finally:
+        numba.set_num_threads(saved)
+    serial, parallel = runs
+    assert all(np.array_equal(x, y) for x, y in zip(serial[:4], parallel[:4], strict=True))
+    assert serial[4] == parallel[4] and serial[5] == parallel[5]
