@@ -302,6 +302,11 @@ def identity_rotations(n: int) -> np.ndarray:
     The fits (:func:`arap.covariance.local_step`) start their root search from the previous rotation of each cell;
     any start converges, but to last bits that depend on it, so a fixed start keeps results reproducible (an
     uninitialised array would not).
+
+    Example
+    -------
+    >>> identity_rotations(2).shape
+    (2, 3, 3)
     """
     return np.broadcast_to(np.eye(3), (n, 3, 3)).copy()
 
