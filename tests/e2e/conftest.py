@@ -11,6 +11,7 @@ import threading
 import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -59,11 +60,12 @@ def _build_client() -> str | None:
 
 class _ServerThread(threading.Thread):
     """uvicorn serving the studio app on an already bound socket, in a daemon thread (``port`` 0 picks a free
-    port)."""
+    port; ``options``: more arguments of ``create_app``, such as ``max_sessions``)."""
 
-    def __init__(self, port: int = 0) -> None:
+    def __init__(self, port: int = 0, **options: Any) -> None:
         super().__init__(daemon=True, name="studio-server")
-        app = create_app(None, max_upload_bytes=MAX_UPLOAD_BYTES)
+        self.options = options
+        app = create_app(None, max_upload_bytes=MAX_UPLOAD_BYTES, **options)
         self.sock = bind_socket("127.0.0.1", port)
         self.port = int(self.sock.getsockname()[1])
         self.url = studio_url("127.0.0.1", self.sock.getsockname()[1])
@@ -89,7 +91,7 @@ class _ServerThread(threading.Thread):
     def restarted(self) -> _ServerThread:
         """Stop this server and start a new one on the same port (its sessions are gone)."""
         self.stop()
-        again = _ServerThread(self.port)
+        again = _ServerThread(self.port, **self.options)
         again.start()
         again.wait_started()
         return again

@@ -10,7 +10,15 @@ import numpy as np
 import pytest
 from playwright.sync_api import Browser, Dialog, Page, expect
 
-from tests.e2e.conftest import VIEWPORT, positions, screen_points, wait_idle, wait_ready, wait_settled
+from tests.e2e.conftest import (
+    VIEWPORT,
+    _ServerThread,
+    positions,
+    screen_points,
+    wait_idle,
+    wait_ready,
+    wait_settled,
+)
 from tests.e2e.test_studio import box_select, drag_gizmo_x, select_anchor_and_handle, sphere_obj
 
 pytestmark = pytest.mark.e2e
@@ -381,4 +389,97 @@ def test_reconnects_and_restores_after_a_server_restart(browser: Browser, own_se
         expect(page.get_by_test_id("restore-offer")).to_be_hidden()
     finally:
         context.close()
+    assert not page_errors, f"errors in the page: {page_errors}"
+
+
+# ---------------------------------------------------------------------------------------------- undo after a restore
+
+RECORD_SELECTIONS = """() => {
+    // every selection the page shows from now on (the handle groups' sizes, at each change of the group list)
+    window.__shown = [];
+    const record = () => window.__shown.push(window.__arap.counts().groups.slice());
+    new MutationObserver(record).observe(document.getElementById('group-list'), { childList: true, subtree: true });
+    record();
+}"""
+
+
+def test_undo_after_a_restore_never_shows_the_set_that_put_the_shape_back(page: Page) -> None:
+    """A restore first pins every moved vertex as a handle (to put the shape back exactly), then sends the saved
+    selection; that pin set is no state of the user's, so undo and redo step over it."""
+    rest = positions(page)
+    select_anchor_and_handle(page)
+    drag_gizmo_x(page, 100)
+    wait_settled(page)
+    before = page.evaluate(COUNTS)
+    moved = positions(page)
+    n_moved = int((np.abs(moved - rest).max(axis=1) > 0).sum())
+    assert n_moved > 2 * max(before["groups"]), "the drag should move many more vertices than the handle"
+    wait_autosaved(page)
+    Dialogs(page, accept=True)
+    page.reload()
+    wait_ready(page)
+    page.get_by_test_id("restore-accept").click()
+    page.wait_for_function(f"() => window.__arap.counts().fixed === {before['fixed']} && !window.__arap.restoring")
+    wait_idle(page)
+    assert page.evaluate(COUNTS) == before
+    assert page.evaluate("() => window.__arap.canUndo")
+    page.evaluate(RECORD_SELECTIONS)
+
+    # one undo: back to the state before the restore (the rest pose, nothing selected), never to the pin set
+    page.keyboard.press("Control+Z")
+    page.wait_for_function("() => !window.__arap.canUndo && window.__arap.canRedo && !window.__arap.busy")
+    settle(page)
+    diag = float(np.linalg.norm(np.ptp(rest, axis=0)))
+    np.testing.assert_allclose(positions(page), rest, rtol=0, atol=1e-6 * diag)
+    assert page.evaluate(COUNTS)["groups"] == [0]
+
+    # one redo: the restored session again
+    page.keyboard.press("Control+Shift+Z")
+    page.wait_for_function(f"() => window.__arap.counts().fixed === {before['fixed']} && !window.__arap.busy")
+    settle(page)
+    assert page.evaluate(COUNTS) == before
+    np.testing.assert_allclose(positions(page), moved, rtol=0, atol=1e-5 * diag)
+    shown = page.evaluate("() => window.__shown")
+    assert all(max(groups) < n_moved for groups in shown), f"the pin set was shown as a selection: {shown}"
+    assert not page.evaluate("() => window.__arap.errors")
+
+
+# ---------------------------------------------------------------------------------------------- a full server
+
+
+def test_a_tab_the_full_server_refuses_says_why_and_retries_slowly(browser: Browser) -> None:
+    server = _ServerThread(max_sessions=1)
+    server.start()
+    server.wait_started()
+    context = browser.new_context(viewport=VIEWPORT)
+    page_errors: list[str] = []
+    try:
+        first = context.new_page()
+        first.goto(server.url)
+        wait_ready(first)
+        second = context.new_page()
+        second.on("pageerror", lambda exc: page_errors.append(str(exc)))
+        sockets: list[object] = []
+        second.on("websocket", lambda ws: sockets.append(ws))
+        second.goto(server.url)
+        status = second.get_by_test_id("status-text")
+        expect(status).to_contain_text("The studio server is full", timeout=10_000)
+        expect(status).to_contain_text("Close another studio tab")
+        expect(status).not_to_contain_text("work is kept")  # this tab has no work yet
+        expect(second.get_by_test_id("conn-text")).to_have_text("server full")
+        expect(second.get_by_test_id("reconnect")).to_be_visible()
+        assert [e["code"] for e in second.evaluate("() => window.__arap.errors")] == ["busy"]
+        second.wait_for_timeout(3000)
+        assert len(sockets) == 1, f"{len(sockets)} connection attempts in 3 s: it should wait for a tab to close"
+        expect(status).to_contain_text("The studio server is full")
+        assert not second.evaluate("() => window.__arap.ready")
+
+        first.close()
+        second.get_by_test_id("reconnect").click()
+        wait_ready(second)
+        expect(second.get_by_test_id("conn-text")).to_have_text("connected")
+        expect(second.get_by_test_id("statusbar")).to_be_hidden()
+    finally:
+        context.close()
+        server.stop()
     assert not page_errors, f"errors in the page: {page_errors}"

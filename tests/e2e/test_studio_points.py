@@ -9,6 +9,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import trimesh
 from playwright.sync_api import Browser, Page, expect
 
 from tests.e2e.conftest import VIEWPORT, positions, screen_points, wait_idle, wait_ready, wait_settled
@@ -278,3 +279,86 @@ def test_an_energy_the_paint_rules_out_is_refused_and_the_menu_shows_the_one_in_
     page.get_by_test_id("energy").select_option("smooth_rotations")  # spoke cells too: refused the same way
     page.wait_for_function("() => window.__arap.errors.length > 1")
     expect(page.get_by_test_id("energy")).to_have_value("spokes_and_rims")
+
+
+def test_a_refused_point_handle_leaves_the_selection_and_its_error_goes(page: Page) -> None:
+    """A point handle on a triangle whose corners are all anchors cannot move: the server refuses it; the page drops
+    it (saying which), later edits go through, and the error goes once the server accepts a new selection."""
+    _anchor_bottom(page)
+    fixed = set(page.evaluate("() => window.__arap.constraints().fixed"))
+    F = _faces(page)
+    V = positions(page)
+    held = np.asarray([all(int(i) in fixed for i in f) for f in F])
+    centres = V[F[held]].mean(axis=1)
+    on_screen = np.asarray([page.evaluate("(p) => window.__arap.project(p)", c.tolist()) for c in centres])
+    x, y = on_screen[np.argmin(np.linalg.norm(on_screen - np.median(on_screen, axis=0), axis=1))]
+    page.keyboard.press("5")
+    page.mouse.click(x, y)
+    page.wait_for_function("() => window.__arap.errors.length > 0")
+    wait_idle(page)
+    errors = page.evaluate("() => window.__arap.errors")
+    assert [(e["code"], e["request"]) for e in errors] == [("bad_constraints", "set_constraints")], errors
+    assert page.evaluate("() => window.__arap.constraints().points") == [], "the refused point stayed"
+    status = page.get_by_test_id("status-text")
+    expect(status).to_contain_text("Removed point 1")
+    expect(status).to_contain_text("anchor")
+
+    # the rest of the session goes on: a handle, a drag, no further refusal
+    pts = screen_points(page)
+    ymin, ymax = pts[:, 1].min(), pts[:, 1].max()
+    tx, ty = pts[pts[:, 1] <= ymin + 0.03 * (ymax - ymin)].mean(axis=0)
+    page.get_by_test_id("role-handle").click()
+    paint_stroke(page, tx - 6, ty + 8)
+    wait_idle(page)
+    assert page.evaluate("() => window.__arap.counts().groups[0]") > 0
+    expect(page.get_by_test_id("statusbar")).to_be_hidden()  # the server accepted a new selection
+    drag_gizmo_x(page)
+    wait_settled(page)
+    assert page.evaluate("() => window.__arap.lastSeq") > 0, "no drag was answered"
+    assert len(page.evaluate("() => window.__arap.errors")) == 1
+    expect(page.get_by_test_id("statusbar")).to_be_hidden()
+
+
+def _two_spheres(tmp_path: Path) -> Path:
+    mesh = trimesh.creation.icosphere(subdivisions=2)
+    V = np.vstack([mesh.vertices - [1.5, 0, 0], mesh.vertices + [1.5, 0, 0]])
+    F = np.vstack([mesh.faces, mesh.faces + len(mesh.vertices)])
+    lines = [f"v {x:.6f} {y:.6f} {z:.6f}" for x, y, z in V] + [f"f {a + 1} {b + 1} {c + 1}" for a, b, c in F]
+    path = tmp_path / "pair.obj"
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+def test_a_refused_selection_is_explained_where_it_matters_and_the_error_clears(page: Page, tmp_path: Path) -> None:
+    """On two separate spheres a handle on one alone leaves the other free and unpinned: the server refuses the
+    set. A drag then says why on its own; anchoring the other sphere is accepted and takes the error away."""
+    page.get_by_test_id("file-input").set_input_files(str(_two_spheres(tmp_path)))
+    page.wait_for_function("() => window.__arap.meshName === 'pair'")
+    wait_idle(page)
+    pts = screen_points(page)
+    n = len(pts) // 2
+    left, right = pts[:n].mean(axis=0), pts[n:].mean(axis=0)
+    page.get_by_test_id("role-handle").click()
+    paint_stroke(page, left[0] - 6, left[1])
+    page.wait_for_function("() => window.__arap.errors.length > 0")
+    wait_idle(page)
+    assert page.evaluate("() => window.__arap.errors")[0]["code"] == "bad_constraints"
+    refusal = page.evaluate("() => window.__arap.errors")[0]["message"]
+    status = page.get_by_test_id("status-text")
+    expect(status).to_contain_text(refusal)
+    assert page.evaluate("() => window.__arap.counts().groups[0]") > 0, "the handle stays for the user to fix"
+
+    page.get_by_test_id("status-close").click()
+    drag_gizmo_x(page)
+    expect(status).to_contain_text("Cannot drag: the server refused the current selection")
+    expect(status).to_contain_text(refusal)  # the reason, not "see the previous message"
+    assert page.evaluate("() => window.__arap.lastSeq") < 0, "a drag was sent"
+
+    page.get_by_test_id("role-fixed").click()
+    paint_stroke(page, right[0] - 6, right[1])
+    wait_idle(page)
+    assert page.evaluate("() => window.__arap.counts().fixed") > 0
+    expect(page.get_by_test_id("statusbar")).to_be_hidden()
+    assert len(page.evaluate("() => window.__arap.errors")) == 1
+    drag_gizmo_x(page)
+    assert page.evaluate("() => window.__arap.lastSeq") > 0, "no drag was answered"

@@ -127,3 +127,58 @@ def test_frames_are_throttled() -> None:
     assert np.all(np.diff(times) >= SETTLE_FRAME_SECONDS - 1e-3)
     assert iterations == sorted(iterations)
     assert outcome.seconds < 2 * SETTLE_FRAME_SECONDS or times, "a long settle streams frames"
+
+
+def test_undo_redo_apply_and_loading_report_the_shape_shown(studio: StudioClient) -> None:
+    """After undo, redo, apply and loading, a ``settle`` message (iterations 0) gives the status and energy of the
+    shape now shown, so that no client keeps showing those of another shape."""
+    dragged, _ = _drag_and_release(studio, [0.3, 0.6])
+    assert dragged["status"] == "settled" and dragged["energy"] > 1e-6
+
+    def shape_status() -> dict:
+        status = studio.recv()
+        while status.type != "settle":
+            assert status.type in ("vertices", "state", "mesh"), status.data
+            status = studio.recv()
+        return status.data
+
+    studio.send({"type": "undo"})
+    back = shape_status()
+    assert back["status"] == "settled" and back["iterations"] == 0 and abs(back["energy"]) <= 1e-9 * dragged["energy"]
+    studio.send({"type": "redo"})
+    again = shape_status()
+    assert again["status"] == "settled" and again["iterations"] == 0 and again["energy"] == dragged["energy"]
+    studio.send({"type": "apply"})
+    applied = shape_status()
+    assert applied["status"] == "settled" and applied["energy"] == 0.0
+    studio.send({"type": "load_builtin", "name": "bar"})
+    loaded = shape_status()
+    assert loaded["status"] == "settled" and loaded["energy"] == 0.0
+
+
+def test_the_iteration_cap_is_told_apart_from_an_interruption(monkeypatch: pytest.MonkeyPatch) -> None:
+    session, _ = _unsettled_session()
+    interrupted = session.settle(lambda: True)
+    assert interrupted is not None and interrupted.status == "stopped"
+    monkeypatch.setattr("arap.server.session.SETTLE_ITERATIONS", 2)
+    capped = session.settle(lambda: False)
+    assert capped is not None and capped.iterations == 2 and capped.status == "unconverged"
+    assert session.settled  # not repeated until something changes
+
+
+def test_an_export_right_after_a_drag_is_of_the_settled_shape(studio: StudioClient) -> None:
+    fixed, top = studio.bottom_top()
+    studio.set_constraints(fixed, [top])
+    studio.settled()
+    for seq, dx in enumerate([0.3, 0.6]):
+        studio.drag(seq, [translation(dx, 0.5 * dx)])
+    # released and exported at once: the export waits for the shape to settle
+    studio.send({"type": "end_drag"})
+    studio.send({"type": "export", "format": "obj"})
+    studio.expect("state")
+    status, frame = studio.settled()
+    assert status["status"] == "settled" and frame is not None
+    text = studio.expect("export").payload.decode()
+    exported = np.array([[float(x) for x in line.split()[1:4]] for line in text.splitlines()
+                         if line.startswith("v ")])
+    assert np.abs(exported - frame).max() <= 1e-6 * _diag(studio.V)

@@ -1,14 +1,20 @@
 // WebSocket session with the studio server: framing, reconnection and drag coalescing.
-import { CLIENT, decodeBinary, encodeBinary, SERVER } from './protocol.js';
+import { CLIENT, decodeBinary, encodeBinary, ERROR, SERVER } from './protocol.js';
 
 const DRAG_REPLY_TIMEOUT_MS = 5000;
 const RETRY_FIRST_MS = 500; // delay before the first reconnection attempt; doubled after each failure
 const RETRY_MAX_MS = 8000;
+/** Delay between attempts while the server is full (it refused the tab): another tab must close first. */
+export const FULL_RETRY_MS = 15000;
+/** Close code of a server that refuses a session because it serves as many as it allows ("try again later"). */
+const FULL_CLOSE_CODE = 1013;
 
 export class Connection {
   /**
    * @param {string} url WebSocket address
-   * @param {object} handlers onOpen(), onClose(event) (an open connection was lost or closed),
+   * @param {object} handlers onOpen() (the server greeted a new connection: called before its welcome is handed
+   *   on), onClose(event) (an open connection was lost or closed), onRefused({reason, delayMs}) (the server is full:
+   *   it refused the connection, tried again after delayMs; onClose and onRetry are not called),
    *   onRetry({attempt, delayMs}) (a reconnection is scheduled), onMessage(msg); a binary frame arrives as its
    *   header fields plus `frame` ({header, payload}, see decodeBinary)
    */
@@ -25,6 +31,8 @@ export class Connection {
     this.attempt = 0; // failed connection attempts in a row
     this.retryTimer = null;
     this.stopped = false;
+    this.welcomed = false; // the current connection was greeted
+    this.refusal = null; // why the server refused the current connection (its busy error, before any welcome)
   }
 
   /** Connect now (also cancels a scheduled reconnection); a lost connection is retried with backoff. */
@@ -36,19 +44,24 @@ export class Connection {
     const ws = new WebSocket(this.url);
     ws.binaryType = 'arraybuffer';
     this.ws = ws;
+    this.welcomed = false;
+    this.refusal = null;
     let opened = false;
     ws.addEventListener('open', () => {
       opened = true;
       this.open = true;
       this.inFlight = null;
       this.pending = null;
-      this.handlers.onOpen?.();
     });
     ws.addEventListener('close', (ev) => {
       if (this.ws !== ws) return;
       this.open = false;
       this.inFlight = null;
       this.pending = null;
+      if (opened && !this.welcomed && (this.refusal !== null || ev.code === FULL_CLOSE_CODE)) {
+        this._refused(this.refusal || ev.reason);
+        return;
+      }
       if (opened) this.handlers.onClose?.(ev);
       this._scheduleRetry();
     });
@@ -61,6 +74,13 @@ export class Connection {
     clearTimeout(this.retryTimer);
     this.retryTimer = null;
     this.ws?.close();
+  }
+
+  /** The server is full: tell, and try again slowly (a tab must close first). */
+  _refused(reason) {
+    if (this.stopped) return;
+    this.retryTimer = setTimeout(() => this.connect(), FULL_RETRY_MS);
+    this.handlers.onRefused?.({ reason: reason || '', delayMs: FULL_RETRY_MS });
   }
 
   _scheduleRetry() {
@@ -152,7 +172,13 @@ export class Connection {
       this.handlers.onMessage?.({ type: 'error', code: 'bad_message', message: `unreadable frame: ${err}`, request: null });
       return;
     }
-    if (msg.type === SERVER.WELCOME) this.attempt = 0; // a server that accepts and drops at once still backs off
+    if (msg.type === SERVER.WELCOME) {
+      this.attempt = 0; // a server that accepts and drops at once still backs off
+      this.welcomed = true;
+      this.handlers.onOpen?.();
+    } else if (msg.type === SERVER.ERROR && msg.code === ERROR.BUSY && !this.welcomed) {
+      this.refusal = msg.message || 'the studio server is full'; // it closes the connection next
+    }
     if (msg.type === SERVER.VERTICES && typeof msg.seq === 'number' && msg.seq >= 0) this._dragAnswered(msg.seq);
     if (msg.type === SERVER.ERROR && msg.request === CLIENT.DRAG && this.inFlight) this._dragAnswered(this.inFlight.seq);
     this.handlers.onMessage?.(msg);

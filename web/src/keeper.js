@@ -37,6 +37,11 @@ export class SessionKeeper {
     return hasEdits(this.deps);
   }
 
+  /** Work of this page waits for the server: a session to put back after reconnecting, or a chosen restore. */
+  get keepsWork() {
+    return !!(this.lost?.snap?.edits || this.queued);
+  }
+
   /** True when the current session may be replaced: it has no edits, or the user agrees to lose them. */
   confirmReplace(what) {
     if (!this.hasEdits()) return true;

@@ -16,7 +16,7 @@ import { Panel } from './panel.js';
 import { LivePose } from './livepose.js';
 import { PaintModes } from './paintmodes.js';
 import { PointHandles } from './pointhandles.js';
-import { CLIENT, meshArrays, PROTOCOL_VERSION, SERVER } from './protocol.js';
+import { CLIENT, ERROR, meshArrays, PROTOCOL_VERSION, SERVER } from './protocol.js';
 import { constraintsKey, constraintsMessage, Selection } from './selection.js';
 import { builtinSource, fileSource } from './snapshot.js';
 import { UpdateStats } from './stats.js';
@@ -52,6 +52,9 @@ const app = {
   params: {},
   busyFor: null,
   awaitingState: false, // an end_drag whose state has not arrived yet
+  lastHistory: CLIENT.UNDO, // the last history request sent (undo or redo)
+  refusal: null, // why the server refused the last constraint set, until one is accepted
+  errorVersion: -1, // selection.version when a request's error was shown (cleared by a later accepted set)
   brush: { screen: 24, world: 4 },
   source: null, // where the current mesh came from (snapshot.js)
 };
@@ -75,6 +78,7 @@ const keeper = new SessionKeeper({
 const { gizmo, transformUi } = installManipulation({
   app, viewer, selection, mirror, connection: () => conn,
   status: (...a) => panel.showStatus(...a), hush: () => panel.hideStatus(), changed: () => keeper.touch(),
+  refused: (text) => showRequestError(text),
 });
 const tools = new SelectionTools(viewer, {
   isGizmoActive: () => gizmo.active,
@@ -109,6 +113,11 @@ const conn = new Connection(defaultSocketUrl(), {
     keeper.connectionLost();
     panel.connectionLost();
   },
+  onRefused: ({ reason, delayMs }) => {
+    app.ready = false;
+    app.awaitingState = false;
+    panel.serverFull(reason, delayMs, keeper.keepsWork);
+  },
   onRetry: ({ attempt, delayMs }) => panel.setConnection('reconnecting', { attempt, delayMs }),
   onMessage: (msg) => handleMessage(msg),
 });
@@ -126,6 +135,18 @@ function send(msg) {
   }
   keeper.sent(msg);
   return true;
+}
+
+/** Undo or redo (`type`: CLIENT.UNDO or CLIENT.REDO). */
+function stepHistory(type) {
+  app.lastHistory = type;
+  return send({ type });
+}
+
+/** Show the error of a request (or a refused drag): it goes once a later constraint set is accepted. */
+function showRequestError(text) {
+  app.errorVersion = selection.version;
+  panel.showStatus(text, 'error', 0, 'request');
 }
 
 // ------------------------------------------------------------------ selection
@@ -247,6 +268,8 @@ function onMesh(msg) {
   app.groupMap = [];
   app.sentKey = null;
   app.syncedVersion = selection.version;
+  app.refusal = null;
+  app.errorVersion = -1;
   app.serverKey = constraintsKey({ roi: null, fixed: [], handle_groups: [] });
   app.ready = true;
   stats.reset();
@@ -288,15 +311,19 @@ function onState(msg) {
   const c = msg.constraints || { roi: null, fixed: [], handle_groups: [] };
   const key = constraintsKey(c);
   app.serverKey = key;
+  if (app.sentKey === null && keeper.restore.isPinStep(key) && stepOverPin(msg)) return;
   if (app.sentKey !== null && key === app.sentKey) {
     app.sentKey = null;
     app.syncedVersion = app.sentVersion;
+    app.refusal = null;
+    if (app.syncedVersion > app.errorVersion) panel.clearStatus('request'); // the error no longer holds
   } else if (app.sentKey === null && key !== constraintsKey(selection.toConstraints())) {
     // the server's constraints changed under us (undo/redo, loaded document): adopt them
     selection.fromConstraints(c);
     mirror.repair();
     app.groupMap = selection.toConstraints().groupMap;
     app.syncedVersion = selection.version;
+    app.refusal = null;
     refreshSelection(true);
   }
   if (!gizmo.dragging) gizmo.setTransforms(msg.transforms, app.groupMap);
@@ -305,16 +332,56 @@ function onState(msg) {
   keeper.stateArrived(app.sentKey === null);
 }
 
+/**
+ * Undo or redo reached the constraint set with which a restore put the saved shape back (every moved vertex a
+ * handle): not a state the user made, so go on in the same direction (the other one when that is not possible).
+ * False when neither is possible (the state is then shown as it is).
+ */
+function stepOverPin(msg) {
+  const can = (t) => !!(t === CLIENT.UNDO ? msg.can_undo : msg.can_redo);
+  const ahead = app.lastHistory;
+  const back = ahead === CLIENT.UNDO ? CLIENT.REDO : CLIENT.UNDO;
+  const type = can(ahead) ? ahead : can(back) ? back : null;
+  if (type === null) return false;
+  app.canUndo = !!msg.can_undo;
+  app.canRedo = !!msg.can_redo;
+  return conn.send({ type }); // lastHistory stays: a further step over it goes the way the user went
+}
+
 function onError(msg) {
   app.errors.push({ code: msg.code, message: msg.message, request: msg.request ?? null });
-  if (msg.request === CLIENT.SET_CONSTRAINTS) app.sentKey = null;
+  if (msg.request === CLIENT.SET_CONSTRAINTS) {
+    app.sentKey = null;
+    app.refusal = msg.message || msg.code;
+  }
   if (msg.request === CLIENT.SET_PARAMS) panel.setParams(app.params); // the controls show what the server still uses
   if (app.busyFor) setBusy(null);
   if (msg.request === CLIENT.END_DRAG) app.awaitingState = false;
   if (msg.request === CLIENT.GET_DISTORTION) heat.failed();
   keeper.errorArrived(msg);
+  if (!msg.request && msg.code === ERROR.BUSY && !conn.welcomed) return; // the server is full: onRefused tells
+  if (msg.request === CLIENT.SET_CONSTRAINTS && dropStuckPoints()) return;
   const what = msg.request ? ` (${msg.request})` : '';
-  panel.showStatus(`${msg.message || msg.code}${what}`, 'error');
+  showRequestError(`${msg.message || msg.code}${what}`);
+}
+
+/**
+ * After the server refused a constraint set: remove the point handles it can never accept (every corner of their
+ * triangle is held), say which, and send the rest. False when there were none.
+ */
+function dropStuckPoints() {
+  const stuck = points.stuck();
+  if (!stuck.length) return false;
+  const names = stuck.map((g) => `point ${g + 1}`);
+  const list = names.length > 1 ? `${names.slice(0, -1).join(', ')} and ${names.at(-1)}` : names[0];
+  for (let k = stuck.length - 1; k >= 0; k--) selection.removeGroup(stuck[k]);
+  refreshSelection(true);
+  commitConstraints();
+  const one = stuck.length === 1;
+  showRequestError(`Removed ${list}: every corner of ${one ? 'its triangle' : 'their triangles'} is an anchor, a `
+    + 'handle or outside the region of interest, so nothing there can move and the server refused '
+    + `${one ? 'it' : 'them'}. Place point handles on triangles with a free corner.`);
+  return true;
 }
 
 // ------------------------------------------------------------------ actions
@@ -437,8 +504,8 @@ const panel = new Panel({
     setRole(selection.groups[g]?.point ? 'point' : 'handle');
     updateGroupsUi();
   },
-  undo: () => send({ type: CLIENT.UNDO }),
-  redo: () => send({ type: CLIENT.REDO }),
+  undo: () => stepHistory(CLIENT.UNDO),
+  redo: () => stepHistory(CLIENT.REDO),
   setParams: (p) => send({ type: CLIENT.SET_PARAMS, ...p }),
   setFlatShading: (on) => viewer.setFlatShading(on),
   setWireframe: (on) => viewer.setWireframe(on),
@@ -453,8 +520,8 @@ const panel = new Panel({
 // ------------------------------------------------------------------ keyboard and drop
 
 installShortcuts({
-  undo: () => send({ type: CLIENT.UNDO }),
-  redo: () => send({ type: CLIENT.REDO }),
+  undo: () => stepHistory(CLIENT.UNDO),
+  redo: () => stepHistory(CLIENT.REDO),
   keys: describedKeys({
     w: () => setGizmoMode('translate'),
     e: () => setGizmoMode('rotate'),

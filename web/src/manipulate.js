@@ -16,23 +16,26 @@ function selectionSynced(app, selection) {
   return false;
 }
 
+/** Why a drag cannot start while the server has refused the selection shown (`reason`: its words, or null). */
+export function refusedDragText(reason) {
+  const why = reason ? `: ${reason}` : '';
+  return `Cannot drag: the server refused the current selection${why}. Change the selection, or undo.`;
+}
+
 /**
  * Create the gizmo and its controls. Call it before the selection tools and the orbit controls are created (the
  * gizmo and the pivot's click on the surface see pointer events first).
  * @param {object} opts app (the studio state), viewer, selection, mirror (MirrorEditing), connection() (the
- *   Connection, created later), status(text, kind, ms) and hush() (the status line), changed() (a pivot was placed
- *   or reset: something to save)
+ *   Connection, created later), status(text, kind, ms) and hush() (the status line), refused(text) (a request's
+ *   error: a drag was refused), changed() (a pivot was placed or reset: something to save)
  * @returns {{gizmo: HandleGizmo, transformUi: ReturnType<typeof installTransformUi>}}
  */
-export function installManipulation({ app, viewer, selection, mirror, connection, status, hush, changed }) {
+export function installManipulation({ app, viewer, selection, mirror, connection, status, hush, refused, changed }) {
   const gizmo = new HandleGizmo(viewer, {
     onDragStart: () => {
       if (selectionSynced(app, selection)) return true;
-      const pending = app.sentKey !== null;
-      status(pending
-        ? 'The new selection is still being set up; try again in a moment.'
-        : 'The server has not accepted the current selection (see the previous message); change it or undo.',
-      'error', pending ? 3000 : 0);
+      if (app.sentKey === null) refused(refusedDragText(app.refusal));
+      else status('The new selection is still being set up; try again in a moment.', 'error', 3000);
       return false;
     },
     onDrag: () => {

@@ -5,10 +5,30 @@ import { rotationAbout, translationBy } from './transform.js';
 
 const VERB = { translate: 'Move', rotate: 'Rotate' };
 
-/** The number typed so far ('' and lone signs or points count as 0). */
+/** The number typed so far ('' and lone signs or points count as 0; an unfinished exponent as none). */
 export function typedValue(text) {
   const v = Number.parseFloat(text);
   return Number.isFinite(v) ? v : 0;
+}
+
+/**
+ * The text typed so far after one more key (a digit, '.', '-' or 'e'), or null when the key cannot go there: a
+ * number in exponent notation ('1e3', '-2.5e-2'); '-' toggles the sign of the exponent right after 'e', else the
+ * number's.
+ * @param {string} text @param {string} key
+ * @returns {string|null}
+ */
+export function typedText(text, key) {
+  const e = text.search(/e/i);
+  if (/^[0-9]$/.test(key)) return text + key;
+  if (key === '.') return text.includes('.') || e >= 0 ? null : text + key;
+  if (key === 'e' || key === 'E') return e >= 0 || !/[0-9]/.test(text) ? null : `${text}e`;
+  if (key === '-') {
+    if (text.endsWith('e')) return `${text}-`;
+    if (text.endsWith('e-')) return text.slice(0, -1);
+    return text.startsWith('-') ? text.slice(1) : `-${text}`;
+  }
+  return null;
 }
 
 /**
@@ -61,7 +81,7 @@ export class NumericEntry {
       return true;
     }
     if (!this.pointerOver || !this.canStart() || this.gizmo.dragging || !this.gizmo.indices.length) return false;
-    this.entry = { mode, axis: null, text: '', group: this.gizmo.group };
+    this.entry = { mode, axis: null, text: '', group: this.gizmo.group, refused: null };
     this._update();
     return true;
   }
@@ -104,8 +124,10 @@ export class NumericEntry {
     if (m) this.gizmo.preview(m);
     const axis = this._axis();
     const unit = e.mode === 'rotate' ? '°' : '';
+    const refused = e.refused === null ? '' : `  (“${e.refused}” cannot go there)`;
     this.line.textContent = `${VERB[e.mode]} ${axis === 'view' ? 'view axis' : axis.toUpperCase()}: `
-      + `${e.text === '' ? '…' : e.text}${unit}`;
+      + `${e.text === '' ? '…' : e.text}${unit}${refused}`;
+    this.line.classList.toggle('refused', e.refused !== null);
     this.line.hidden = false;
   }
 
@@ -121,15 +143,18 @@ export class NumericEntry {
     ev.preventDefault();
     ev.stopPropagation();
     const lower = k.toLowerCase();
+    e.refused = null;
     if (k === 'Escape') this.cancel();
     else if (k === 'Enter') this.confirm();
     else if (k === 'Backspace') e.text = e.text.slice(0, -1);
     else if (lower === 'x' || lower === 'y' || lower === 'z') e.axis = lower;
     else if (lower === 'g') e.mode = 'translate';
     else if (lower === 'r') e.mode = 'rotate';
-    else if (k === '-') e.text = e.text.startsWith('-') ? e.text.slice(1) : `-${e.text}`;
-    else if (k === '.' && !e.text.includes('.')) e.text += '.';
-    else if (/^[0-9]$/.test(k)) e.text += k;
+    else if (k.length === 1) {
+      const text = typedText(e.text, k); // a key that cannot be part of the number is shown refused
+      if (text === null) e.refused = k;
+      else e.text = text;
+    }
     if (this.entry) this._update();
   }
 

@@ -21,6 +21,33 @@ function fmtInt(v) {
   return Number.isFinite(v) ? v.toLocaleString('en-US') : '–';
 }
 
+/** A count with its noun, singular for 1: "1 iteration", "3,000 iterations". */
+export function countOf(n, noun) {
+  return `${fmtInt(n)} ${n === 1 ? noun : `${noun}s`}`;
+}
+
+/**
+ * The Shape line's text for a `settle` message.
+ * @param {{status: string, iterations?: number, energy?: number|null}} msg
+ */
+export function settleText(msg) {
+  const n = Number.isFinite(msg.iterations) ? msg.iterations : 0;
+  const after = n > 0 ? ` after ${countOf(n, 'iteration')}` : '';
+  const energy = Number.isFinite(msg.energy) ? `, energy ${msg.energy.toPrecision(6)}` : '';
+  switch (msg.status) {
+    case 'settling':
+      return `settling…${after}${energy}`;
+    case 'settled':
+      return `settled${after}${energy}`;
+    case 'stopped': // a request interrupted it; it resumes once the requests are answered
+      return `paused (editing)${after}${energy}`;
+    case 'unconverged': // the server's iteration cap was reached
+      return `not converged after ${countOf(n, 'iteration')}${energy}`;
+    default:
+      return `${msg.status}${after}${energy}`;
+  }
+}
+
 /**
  * Fill a drop-down with the choices of a solver parameter, labelled as the protocol names them.
  * @param {HTMLSelectElement} select
@@ -173,6 +200,7 @@ export class Panel {
     this.setCurrentModel(msg.name);
     this.setMeshInfo(`${msg.name}: ${n(msg.n_vertices)} vertices, ${n(msg.n_faces)} faces`);
     this.setStats({ n_vertices: msg.n_vertices, n_faces: msg.n_faces, ups: NaN, latency_ms: null, ms_per_iteration: null });
+    this.resetSettle(); // the server says how the new mesh's shape settles
     const report = Array.isArray(msg.report) ? msg.report : msg.report ? [String(msg.report)] : [];
     if (report.length) this.showStatus(`Loaded ${msg.name}. Repairs: ${report.join('; ')}`, 'info', 8000);
     else this.hideStatus();
@@ -213,8 +241,24 @@ export class Panel {
   connectionLost() {
     this.setEnabled(false);
     this.setBusy(null);
+    this.settleUnknown();
     this.showStatus('Lost the connection to the studio server; reconnecting… Your work is kept and comes back ' +
       'when the server does.', 'error');
+  }
+
+  /**
+   * The server is full and refused this tab (`reason`: its words); it is tried again after `delayMs`. `keptWork`:
+   * this page holds work from an earlier connection, put back once the server lets it in.
+   */
+  serverFull(reason, delayMs, keptWork) {
+    this.setEnabled(false);
+    this.setBusy(null);
+    this.settleUnknown();
+    this.setConnection('full', { attempt: 0, delayMs });
+    const why = reason ? ` (server: “${reason}”)` : '';
+    const kept = keptWork ? ' Your work is kept and comes back once this tab gets in.' : '';
+    this.showStatus(`The studio server is full and did not let this tab in${why}. Close another studio tab, then `
+      + `press Reconnect; this page also tries again every ${Math.round(delayMs / 1000)} s.${kept}`, 'error');
   }
 
   /** The server speaks another protocol version (a page left open across an upgrade): nothing is sent. */
@@ -224,14 +268,22 @@ export class Panel {
       + 'reload the page.', 'error');
   }
 
-  /** state: 'open', 'connecting', 'closed' or 'reconnecting' (retry: {attempt, delayMs} of the next try). */
+  /**
+   * state: 'open', 'connecting', 'closed', 'reconnecting' or 'full' (the server refused this tab); retry:
+   * {attempt, delayMs} of the next try.
+   */
   setConnection(state, retry = null) {
     const dot = $('conn-dot');
     dot.className = `dot ${state === 'open' ? 'ok' : state === 'connecting' ? '' : 'bad'}`;
-    const text = { open: 'connected', closed: 'disconnected', connecting: 'connecting…', reconnecting: 'reconnecting…' };
+    const text = {
+      open: 'connected', closed: 'disconnected', connecting: 'connecting…', reconnecting: 'reconnecting…',
+      full: 'server full',
+    };
     $('conn-text').textContent = text[state] ?? state;
-    $('conn-text').title = retry ? `attempt ${retry.attempt}, next in ${(retry.delayMs / 1000).toFixed(1)} s` : '';
-    $('btn-reconnect').hidden = state !== 'closed'; // while reconnecting, the retries run by themselves
+    const next = retry ? `next try in ${(retry.delayMs / 1000).toFixed(1)} s` : '';
+    $('conn-text').title = retry?.attempt ? `attempt ${retry.attempt}, ${next}` : next;
+    // while reconnecting, the retries run by themselves; a full server is worth asking again after a tab closed
+    $('btn-reconnect').hidden = state !== 'closed' && state !== 'full';
   }
 
   /** groups: [{id, partner?}] (partner: the id of its mirror partner), active: index, roi/fixed counts. */
@@ -285,23 +337,50 @@ export class Panel {
     if ('latency_ms' in s) set('st-latency', fmtMs(s.latency_ms));
   }
 
-  /** Settling progress from a `settle` message: "settling…", "settled" or "stopped", with the energy. */
+  /**
+   * The Shape line from a `settle` message: settling…, settled, paused (editing) or not converged, with the
+   * iterations and the energy; `data-status` is the message's status.
+   */
   setSettle(msg) {
-    const energy = Number.isFinite(msg.energy) ? `, energy ${msg.energy.toPrecision(6)}` : '';
-    const its = msg.iterations ? ` after ${fmtInt(msg.iterations)} iterations` : '';
-    const text = { settling: 'settling…', settled: 'settled', stopped: 'stopped (editing)' }[msg.status] || msg.status;
-    const cell = $('st-settle');
-    cell.textContent = `${text}${its}${energy}`;
-    cell.dataset.status = msg.status;
+    this._setShape(settleText(msg), msg.status);
   }
 
-  showStatus(text, kind = 'info', timeoutMs = 0) {
+  /** A new mesh: nothing is known of its shape's settling until the server says. */
+  resetSettle() {
+    this._setShape('–', '');
+  }
+
+  /** The connection was lost: a settling the line still shows as under way may never finish. */
+  settleUnknown() {
+    const status = $('st-settle').dataset.status;
+    if (status === 'settling' || status === 'stopped') {
+      this._setShape('unknown: the connection was lost while it settled', 'interrupted');
+    }
+  }
+
+  _setShape(text, status) {
+    const cell = $('st-settle');
+    cell.textContent = text;
+    cell.dataset.status = status;
+  }
+
+  /**
+   * Show a message in the status bar (kind 'info' or 'error'), hidden after `timeoutMs` (0: until replaced or
+   * dismissed). `tag` names what it is about, so that `clearStatus(tag)` takes it away once it no longer holds.
+   */
+  showStatus(text, kind = 'info', timeoutMs = 0, tag = '') {
     const bar = $('statusbar');
     bar.className = kind;
+    bar.dataset.tag = tag;
     $('status-text').textContent = text;
     bar.hidden = false;
     clearTimeout(this._statusTimer);
     if (timeoutMs) this._statusTimer = setTimeout(() => this.hideStatus(), timeoutMs);
+  }
+
+  /** Hide the status bar if it shows a message tagged `tag` (see showStatus). */
+  clearStatus(tag) {
+    if (!$('statusbar').hidden && $('statusbar').dataset.tag === tag) this.hideStatus();
   }
 
   hideStatus() {

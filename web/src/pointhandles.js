@@ -1,6 +1,7 @@
 // Point handles: placed by a click on the surface (a triangle and barycentric coordinates from the raycast hit),
 // drawn as small spheres that follow the deformed surface, removed by a click with the subtract modifier.
 import * as THREE from 'three';
+import { NONE } from './selection.js';
 import { groupColor } from './viewer.js';
 
 /** Marker radius, as a share of the mesh's bounding-box diagonal. */
@@ -75,6 +76,24 @@ export class PointHandles {
       this.selection.addPoint({ ...point, weight: this.weight() });
     }
     this.changed();
+  }
+
+  /**
+   * The point groups that cannot move: every corner of their triangle is an anchor, a handle or (with a region of
+   * interest) outside it. The server refuses a constraint set holding such a point.
+   */
+  stuck() {
+    const { roi, role } = this.selection;
+    const withRoi = this.selection.roiCount > 0;
+    const faces = this.faces;
+    const free = (i) => role[i] === NONE && (!withRoi || roi[i] === 1);
+    const out = [];
+    this.selection.groups.forEach((g, k) => {
+      if (!g.point) return;
+      const f = g.point.face;
+      if (!free(faces[3 * f]) && !free(faces[3 * f + 1]) && !free(faces[3 * f + 2])) out.push(k);
+    });
+    return out;
   }
 
   /** The point group nearest to a world position, within a few marker sizes (or -1). */

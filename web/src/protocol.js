@@ -3,7 +3,7 @@
 // The protocol is described in docs/protocol.md.
 
 /** Bumped on every incompatible protocol change. */
-export const PROTOCOL_VERSION = 2;
+export const PROTOCOL_VERSION = 3;
 
 /** Types of the messages a client sends. */
 export const CLIENT = Object.freeze(/** @type {const} */ ({
@@ -426,7 +426,8 @@ export const SERVER_MESSAGES = Object.freeze({
         "choices": [
           "settling",
           "settled",
-          "stopped"
+          "stopped",
+          "unconverged"
         ]
       },
       {
@@ -696,8 +697,8 @@ export const SERVER_MESSAGES = Object.freeze({
  * progress of settling: after a drag ends (and after loading, undo, redo, reset, apply or a parameter change) the server iterates until converged, streaming vertices frames (seq -1, at most 30 per second); any new request stops it at once
  * @typedef {object} SettleServerMessage
  * @property {"settle"} type
- * @property {"settling"|"settled"|"stopped"} status settling, settled (converged), or stopped (a request interrupted it, or the iteration cap was reached)
- * @property {number} iterations iterations run so far in this settling run
+ * @property {"settling"|"settled"|"stopped"|"unconverged"} status settling, settled (converged; also sent after undo, redo, apply and loading when the shape shown is already settled), stopped (a request interrupted it; it resumes once the requests are answered) or unconverged (the iteration cap was reached)
+ * @property {number} iterations iterations run so far in this settling run (0: the shape was settled already)
  * @property {number} energy current energy, or null before the first iteration
  * @property {number} seconds time since settling started
  */

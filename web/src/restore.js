@@ -1,8 +1,10 @@
 // Restoring a saved session: the solver parameters, the mesh (a built-in model by name, or the mesh file's bytes
 // uploaded again), the shape, then the selection. The shape comes back exactly: one constraint set holds every
 // vertex that had moved at its saved position (the others fixed at rest), then the saved selection replaces it,
-// referring to that shape (as any selection made after a drag does).
+// referring to that shape (as any selection made after a drag does). That first set is an undo step on the server
+// but not a state of the user's: `isPinStep` tells it, and the page steps over it when undo or redo lands there.
 import { CLIENT, PARAMS } from './protocol.js';
+import { constraintsKey } from './selection.js';
 import { mismatch } from './snapshot.js';
 
 export class SessionRestore {
@@ -13,6 +15,12 @@ export class SessionRestore {
   constructor(deps) {
     this.deps = deps;
     this.active = null; // {snap, stage: 'mesh' | 'constraints', onDone}
+    this.pinKey = null; // constraintsKey of the set that put the shape back, while the server's history holds it
+  }
+
+  /** True when the server's constraint set (its constraintsKey) is the one a restore put the shape back with. */
+  isPinStep(key) {
+    return this.pinKey !== null && key === this.pinKey;
   }
 
   get busy() {
@@ -40,6 +48,7 @@ export class SessionRestore {
    * been sent).
    */
   meshArrived(msg, rest) {
+    this.pinKey = null; // a new mesh starts a new history
     const a = this.active;
     if (!a || a.stage !== 'mesh') return false;
     const problem = mismatch(a.snap, msg.n_vertices, msg.n_faces);
@@ -53,6 +62,7 @@ export class SessionRestore {
       this._finish('not connected to the studio server');
       return true;
     }
+    if (shape) this.pinKey = constraintsKey(shape);
     this.deps.applySelection(a.snap);
     return true;
   }

@@ -416,8 +416,7 @@ class Connection:
             return
         if streamed or outcome.moved > 0:  # the client has not seen this shape yet
             await self._send_vertices(-1, None)
-        await self._send_settle_status("settled" if outcome.converged else "stopped", outcome.iterations,
-                                       outcome.energy, outcome.seconds)
+        await self._send_settle_status(outcome.status, outcome.iterations, outcome.energy, outcome.seconds)
 
     def _spawn_settle_frame(self, frame: VertexPayload, iteration: int, energy: float) -> None:
         task = asyncio.ensure_future(self._send_settle_frame(frame, iteration, energy))
@@ -430,6 +429,12 @@ class Connection:
         with contextlib.suppress(WebSocketDisconnect, RuntimeError, OSError):
             await self._send_binary(header, *parts)
             await self._send_settle_status("settling", iteration, energy, None)
+
+    async def _send_shape_status(self) -> None:
+        """``settle`` for a shape that needs no settling (after undo, redo, apply or loading), so that the client's
+        status and energy describe the shape it now shows; a shape that needs it is settled next."""
+        if not self.session.needs_settle:
+            await self._send_settle_status("settled", 0, self.session.energy, 0.0)
 
     async def _send_settle_status(self, status: str, iterations: int, energy: float | None,
                                   seconds: float | None) -> None:
@@ -454,8 +459,10 @@ class Connection:
             self._skipped = 0
             await self._send_mesh(mesh)
             await self._send_state()
+            await self._send_shape_status()
         elif t == "upload":
             await self._upload(msg)
+            await self._send_shape_status()
         elif t == "set_constraints":
             solved = await self._off_loop(s.set_constraints, f["roi"], f["fixed"], f["handle_groups"],
                                           f.get("targets"), f.get("stiffness"), f.get("points"))
@@ -472,7 +479,11 @@ class Connection:
             if s.U is not before and not np.array_equal(s.U, before):
                 await self._send_vertices(-1, None)
             await self._send_state()
+            await self._send_shape_status()
         elif t == "export":
+            # The exported shape must not depend on timing: an unsettled shape settles first (a new request
+            # stops it, and the shape reached is exported).
+            await self._settle()
             filename, mime, data = await self._off_loop(s.export, f["format"])
             await self._send_binary(server_message("export", filename=filename, mime=mime), data)
         elif t == "get_distortion":

@@ -28,6 +28,8 @@ class Snapshot:
         Handle group transforms.
     settled : bool
         ``U`` is the converged shape of the constraints (no settling needed after restoring it).
+    energy : float or None
+        The energy of ``U`` when known (reported again when the step is restored).
     """
 
     rest_id: int
@@ -36,6 +38,7 @@ class Snapshot:
     constraints: ConstraintSet
     transforms: np.ndarray
     settled: bool = False
+    energy: float | None = None
 
 
 class History:

@@ -54,7 +54,7 @@ __all__ = [
     "validate",
 ]
 
-PROTOCOL_VERSION = 2
+PROTOCOL_VERSION = 3
 """Bumped on every incompatible change of the messages below."""
 
 MAX_HANDLE_GROUPS = 256
@@ -197,7 +197,7 @@ CLIENT_MESSAGES: dict[str, MessageSpec] = {
 }
 """Messages a client may send, by type."""
 
-SETTLE_STATUSES: tuple[str, ...] = ("settling", "settled", "stopped")
+SETTLE_STATUSES: tuple[str, ...] = ("settling", "settled", "stopped", "unconverged")
 """Values of the ``status`` field of ``settle`` messages."""
 
 SERVER_MESSAGES: dict[str, MessageSpec] = {
@@ -233,10 +233,12 @@ SERVER_MESSAGES: dict[str, MessageSpec] = {
         _spec("settle", "progress of settling: after a drag ends (and after loading, undo, redo, reset, apply or a "
               "parameter change) the server iterates until converged, streaming vertices frames (seq -1, at most 30 "
               "per second); any new request stops it at once",
-              Field("status", "enum", "settling, settled (converged), or stopped (a request interrupted it, or "
-                    "the iteration cap was reached)",
+              Field("status", "enum", "settling, settled (converged; also sent after undo, redo, apply and "
+                    "loading when the shape shown is already settled), stopped (a request interrupted it; it "
+                    "resumes once the requests are answered) or unconverged (the iteration cap was reached)",
                     choices=SETTLE_STATUSES),
-              Field("iterations", "int", "iterations run so far in this settling run"),
+              Field("iterations", "int", "iterations run so far in this settling run (0: the shape was settled "
+                    "already)"),
               Field("energy", "number", "current energy, or null before the first iteration"),
               Field("seconds", "number", "time since settling started")),
         _spec("state", "session state after any change",

@@ -76,6 +76,13 @@ class SettleOutcome:
     seconds: float
     moved: float
     """Largest coordinate change of the shape (0: the shape was kept as it was)."""
+    interrupted: bool = False
+    """A new request stopped it (it resumes later); else it converged or used up its iterations."""
+
+    @property
+    def status(self) -> str:
+        """The ``settle`` message's status for this run's end."""
+        return "settled" if self.converged else "stopped" if self.interrupted else "unconverged"
 
 
 class Session:
@@ -105,6 +112,8 @@ class Session:
         self.transforms = identity_transforms(0)
         self.solves = 0
         self.settled = True
+        self.energy: float | None = 0.0
+        """Energy of the shape ``U`` when known (0 at a rest pose)."""
 
     # ------------------------------------------------------------------ helpers
     def _require_mesh(self) -> MeshData:
@@ -158,7 +167,8 @@ class Session:
         return solver
 
     def _snapshot(self) -> Snapshot:
-        return Snapshot(self.rest_id, self.V, self.U, self.constraints, self.transforms, self.settled)
+        return Snapshot(self.rest_id, self.V, self.U, self.constraints, self.transforms, self.settled,
+                        self.energy)
 
     def _restore(self, snap: Snapshot) -> None:
         try:
@@ -172,6 +182,7 @@ class Session:
         self._warm = False
         self._dirty = False
         self.settled = snap.settled
+        self.energy = snap.energy
 
     def _commit(self) -> None:
         """Record the current state as a new history step."""
@@ -196,6 +207,7 @@ class Session:
         self._warm = False
         self._dirty = False
         self.settled = True
+        self.energy = 0.0
         self.history.clear(self._snapshot())
 
     def set_constraints(self, roi: list[int] | None, fixed: list[int], groups: list[list[int]],
@@ -264,6 +276,7 @@ class Session:
         self.U = U
         self._warm = moved
         self.settled = False
+        self.energy = outcome.energies[-1] if outcome is not None and outcome.energies else None
         self._commit()
         return outcome
 
@@ -317,6 +330,7 @@ class Session:
             self._check_range(point_targets)
         U, outcome = self._solve(self.solver, targets, None if self._warm else self.U, point_targets=point_targets)
         self.U = U
+        self.energy = outcome.energies[-1] if outcome.energies else None
         self.transforms = T
         self._warm = True
         self._dirty = True
@@ -388,10 +402,12 @@ class Session:
         self._warm = True
         # Settling resumes after an interruption; a run that used up its iterations is not repeated.
         self.settled = not stopped
+        if result.energies:
+            self.energy = float(result.energies[-1])
         if result.converged:
             self.history.replace_current(self._snapshot())
-        energy = float(result.energies[-1]) if result.energies else None
-        return SettleOutcome(result.iterations, energy, result.converged, time.perf_counter() - t0, moved)
+        return SettleOutcome(result.iterations, self.energy, result.converged, time.perf_counter() - t0, moved,
+                             interrupted=stopped)
 
     def end_drag(self) -> bool:
         """Make the deformation since the last step an undo step; True if there was one."""
@@ -423,6 +439,7 @@ class Session:
             self.solver = self._solver_for(self.rest_id, self.V, self.constraints, new)
             self._warm = False
             self.settled = False
+            self.energy = None  # another energy: known once settled
         self.params = new
 
     def undo(self) -> bool:
@@ -465,6 +482,7 @@ class Session:
         self.transforms = identity_transforms(cs.n_groups)
         self._warm = False
         self.settled = False
+        self.energy = None
         self._commit()
 
     def apply(self) -> None:
@@ -487,6 +505,8 @@ class Session:
         self.constraints = cs
         self.transforms = identity_transforms(cs.n_groups)
         self._warm = False
+        self.settled = True  # the rest pose itself: no energy, nothing to settle
+        self.energy = 0.0
         self._commit()
 
     def export(self, fmt: str) -> tuple[str, str, bytes]:
