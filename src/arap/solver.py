@@ -24,7 +24,7 @@ from arap.colouring import colour_order
 from arap.covariance import assemble_rhs, assemble_rhs_and_gradient, local_step
 from arap.errors import ConstraintError, OptionError
 from arap.inactive import InactiveCells
-from arap.indexing import assign_rows, check_index_array, rows_of, with_rows
+from arap.indexing import assign_rows, check_index_array, internal_origin, rows_of, with_rows
 from arap.lbfgs import LbfgsHistory
 from arap.linsolve import NotPositiveDefiniteError, background_ordering, factorize
 from arap.loops import PLAIN_START, Iterate, lbfgs_iterations, plain_iterations
@@ -175,8 +175,9 @@ class ArapSolver(SingleSteps):
         self._inv[self._perm] = np.arange(n)
         # The reduced system's fill-reducing ordering needs only its pattern: it runs beside the set-up below.
         ordering = background_ordering(adjacency, self._perm, len(self.free), backend)
-        self._V = np.ascontiguousarray(V[self._perm])
         self._diagonal = float(np.linalg.norm(V.max(axis=0) - V.min(axis=0))) or 1.0
+        self._origin = internal_origin(V, self._diagonal)
+        self._V = np.ascontiguousarray(V[self._perm] - self._origin)
         self._areas = vertex_areas(self._V, self._inv[F])
         self._constrained = self._inv[self.constrained]
         self._nf = len(self.free)
@@ -244,13 +245,21 @@ class ArapSolver(SingleSteps):
         return np.ascontiguousarray(X[self._perm])
 
     def _check_positions(self, U: object, name: str) -> NDArray[np.float64]:
-        return check_positions(U, self.n_vertices, name)
+        """Checked positions (n, 3), relative to the solver's origin."""
+        return check_positions(U, self.n_vertices, name) - self._origin
 
     def _check_targets(self, targets: object) -> NDArray[np.float64]:
-        return check_targets(targets, len(self._constrained))
+        """Checked targets, relative to the solver's origin."""
+        return check_targets(targets, len(self._constrained)) - self._origin
 
     def _check_point_targets(self, point_targets: object) -> NDArray[np.float64] | None:
-        return check_point_targets(point_targets, 0 if self.points is None else len(self.points))
+        """Checked point-handle targets (or None), relative to the solver's origin."""
+        P = check_point_targets(point_targets, 0 if self.points is None else len(self.points))
+        return None if P is None else P - self._origin
+
+    def _to_caller(self, U: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Internal positions (internal order, relative to the origin) as the caller's: a new array."""
+        return rows_of(U, self._inv, self._origin)
 
     # ------------------------------------------------------------------ solving
     @property
@@ -359,7 +368,7 @@ class ArapSolver(SingleSteps):
         # The rotations fit the stored solution only if an iteration ended with a local step on it.
         self._rotations_fresh = bool(outcome.energies) or start != "warm"
         timings["total"] = time.perf_counter() - t_start
-        return ArapResult(vertices=rows_of(U, self._inv), energies=outcome.energies,
+        return ArapResult(vertices=self._to_caller(U), energies=outcome.energies,
                           iterations=len(outcome.energies), converged=outcome.converged, timings=timings,
                           residual=outcome.residual, start=start, rejected=outcome.rejected)
 
@@ -486,7 +495,7 @@ class ArapSolver(SingleSteps):
         U = self._live if self._live is not None else self._last
         if U is None:
             return self.V.copy()
-        return U[self._inv]
+        return self._to_caller(U)
 
     def reset(self) -> None:
         """Forget the previous solution: the next :meth:`solve` without ``initial`` starts from the rest pose."""

@@ -58,6 +58,7 @@ class _Solver(Protocol):
     def _check_targets(self, targets: object) -> NDArray[np.float64]: ...
     def _check_point_targets(self, point_targets: object) -> NDArray[np.float64] | None: ...
     def _fixed_positions(self, targets: np.ndarray) -> np.ndarray: ...
+    def _to_caller(self, U: np.ndarray) -> np.ndarray: ...
     def fit_rotations(self, U: np.ndarray, start: np.ndarray | None = None) -> np.ndarray: ...
 
 
@@ -122,7 +123,7 @@ class SingleSteps:
             if self._points is not None and P is not None:
                 g = self._points.correct(g, P, fixed)
             U[self._free] = g
-        return U[self._inv]
+        return self._to_caller(U)
 
     def reduced_matrix(self: _Solver) -> sp.csr_matrix:
         """The reduced global-step matrix ``L_ff`` (for inspection; rows in the solver's internal vertex order)."""

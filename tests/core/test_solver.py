@@ -166,3 +166,26 @@ def test_backends_agree(knight: tuple[np.ndarray, np.ndarray]) -> None:
     a = ArapSolver(V, F, constrained, backend="cholespy").solve(targets, max_iterations=5).vertices
     b = ArapSolver(V, F, constrained, backend="scipy").solve(targets, max_iterations=5).vertices
     assert np.abs(a - b).max() < 1e-9 * _diag(V)
+
+
+@pytest.mark.parametrize("energy", ["spokes_and_rims", "smooth_rotations"])
+def test_a_mesh_far_from_the_origin_solves_as_at_the_origin(knight: tuple[np.ndarray, np.ndarray],
+                                                             energy: str) -> None:
+    """Scans in map coordinates sit 1e6–1e8 units from the origin: the solver holds them relative to their centre,
+    so the same shape converges as fast and to the same result (a sphere at 1e7 used to run into the iteration cap,
+    its tolerance of 1e-9 of the size being below the rounding of its absolute coordinates)."""
+    V, F = knight
+    fixed, handles, constrained, targets = bend_constraints(V)
+    near = ArapSolver(V, F, constrained, energy=energy).solve(targets)
+    shift = np.array([5e6, -4e7, 1e8])
+    solver = ArapSolver(V + shift, F, constrained, energy=energy)
+    far = solver.solve(targets + shift)
+    diagonal = np.linalg.norm(V.max(0) - V.min(0))
+    assert near.converged and far.converged
+    assert abs(far.iterations - near.iterations) <= 2
+    assert np.abs((far.vertices - shift) - near.vertices).max() <= 1e-7 * diagonal  # rounding of 1e8: 1.5e-8
+    np.testing.assert_array_equal(far.vertices[constrained], targets + shift)  # constraints met exactly
+    np.testing.assert_array_equal(solver.current_vertices(), far.vertices)
+    R = solver.fit_rotations(far.vertices)
+    np.testing.assert_allclose(solver.global_step(R, targets + shift) - shift, near.vertices, rtol=0,
+                               atol=1e-6 * diagonal)
