@@ -41,8 +41,9 @@ from arap.rotations import BLOCK
 
 __all__ = ["HALVINGS", "RotationStep"]
 
-HALVINGS = 1
-"""Step lengths tried after the full step (halving each time) before the step is abandoned."""
+HALVINGS = 3
+"""Step lengths tried after the full step (halving each time) before the step is abandoned (the local step then
+sweeps instead: see :meth:`arap.smooth.SmoothRotations.relax`)."""
 
 #: Floor of the data-term diagonal of the preconditioner, relative to its mean magnitude.
 _FLOOR = 1e-3
@@ -259,6 +260,8 @@ class RotationStep:
         n = len(order)
         self._G = np.empty((n, 3))
         self._R0 = np.empty((n, 3, 3))
+        self.moved = False
+        """Whether the last :meth:`step` changed the rotations (False: every trial raised ``f``)."""
 
     def energy(self, S: NDArray[np.float64], d: NDArray[np.float64], R: NDArray[np.float64],
                E: NDArray[np.float64], term: NDArray[np.float64], gradient: bool = False) -> float:
@@ -292,7 +295,9 @@ class RotationStep:
             self._rotate(W, t, R)
             value = self.energy(S, d, R, E, term)
             if value <= current:
+                self.moved = True
                 return value
             t *= 0.5
+        self.moved = False
         np.copyto(R, self._R0)
         return self.energy(S, d, R, E, term)

@@ -379,6 +379,12 @@ class SmoothRotations:
         if self._step is not None:
             for _ in range(int(steps)):
                 e = self._step.step(self._S, self._d, R, E, term)
+                if not self._step.moved:
+                    # Far from the minimum (a handle pulled many times the mesh's size) every length of the step
+                    # can raise the energy: a sweep, exact for each colour, still lowers it. Without it the
+                    # rotations, and so the positions, would stop short of a stationary point.
+                    sweeps = max(sweeps, 1)
+                    break
         for i in range(sweeps):
             previous, e = e, self._sweep(R, E, term, gain is not None or i == sweeps - 1)
             if gain is not None and i > 0 and previous - e <= gain * abs(e):
