@@ -100,7 +100,8 @@ def test_check_stiffness() -> None:
     weights, rigid = check_stiffness([1.0, 3.0, np.inf], 3)
     assert weights.tolist() == [1.0, 3.0, 3.0 * RIGID_STIFFNESS] and rigid.tolist() == [False, False, True]
     for bad, match in (([1.0, 2.0], "shape"), ([1.0, 0.0, 1.0], "positive"), ([1.0, -2.0, 1.0], "positive"),
-                       ([1.0, np.nan, 1.0], "positive"), (["a", 1, 1], "numbers")):
+                       ([1.0, np.nan, 1.0], "positive"), (["a", 1, 1], "numbers"),
+                       ([1.0, 1e300, 1.0], "at most 1e\\+06 .*vertex 1.*rigid")):
         with pytest.raises(OptionError, match=match):
             check_stiffness(bad, 3)
 
