@@ -199,4 +199,7 @@ def test_save_rejects_bad_arrays(tmp_path: Path) -> None:
         save_mesh(tmp_path / "a.obj", np.zeros((3, 2)), [[0, 1, 2]])
     with pytest.raises(MeshError, match="out of range"):
         save_mesh(tmp_path / "a.obj", np.zeros((3, 3)), [[0, 1, 3]])
-    assert not (tmp_path / "a.obj").exists()
+    for ext in ("obj", "off", "ply", "stl"):  # a file with NaN would not load again
+        with pytest.raises(MeshError, match="1 vertices have NaN or infinite coordinates \\(vertex 2"):
+            save_mesh(tmp_path / f"a.{ext}", np.array([[0.0, 0, 0], [1, 0, 0], [0, np.nan, 0]]), [[0, 1, 2]])
+    assert not list(tmp_path.iterdir())

@@ -243,6 +243,10 @@ def _check_for_saving(V: np.ndarray, F: np.ndarray) -> tuple[np.ndarray, np.ndar
         raise MeshError(f"faces must have shape (m, 3), got {F.shape}")
     if len(F) and (F.min() < 0 or F.max() >= len(V)):
         raise MeshError(f"face indices out of range [0, {len(V)})")
+    bad = ~np.isfinite(V).all(axis=1)
+    if bad.any():  # such a file would not load again
+        raise MeshError(f"{int(bad.sum())} vertices have NaN or infinite coordinates (vertex {int(np.argmax(bad))} "
+                        "first); the file is not written")
     return V, F
 
 
