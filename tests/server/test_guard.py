@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import contextlib
 import json
+import logging
 import time
 from collections.abc import Iterator
 from pathlib import Path
@@ -206,3 +207,26 @@ def test_live_server_caps_sessions(live_url: str) -> None:
                 extra.recv(timeout=30)
             rcvd = closed.value.rcvd
             assert rcvd is not None and rcvd.code == 1013 and "3 sessions" in rcvd.reason
+
+
+def test_a_refused_websocket_is_logged_once_with_its_reason(live_url: str, caplog: pytest.LogCaptureFixture) -> None:
+    """uvicorn logged every refused handshake as an ERROR without context; the studio logs the reason instead."""
+    errors: list[logging.LogRecord] = []
+
+    class Keep(logging.Handler):
+        def emit(self, record: logging.LogRecord) -> None:
+            errors.append(record)
+
+    uvicorn_log = logging.getLogger("uvicorn.error")
+    keep = Keep(level=logging.ERROR)
+    uvicorn_log.addHandler(keep)
+    caplog.set_level(logging.INFO, logger="arap.server.guard")
+    try:
+        ws_url = live_url.replace("http://", "ws://") + "ws"
+        with pytest.raises(InvalidStatus):
+            connect(ws_url, origin="http://evil.example", open_timeout=10)  # type: ignore[arg-type]
+        time.sleep(0.5)  # the server's task ends after the client has its answer
+    finally:
+        uvicorn_log.removeHandler(keep)
+    assert not [r for r in errors if "handshake" in r.getMessage()]
+    assert any("evil.example" in r.getMessage() and "--allow-origin" in r.getMessage() for r in caplog.records)

@@ -11,7 +11,9 @@ domain re-pointed at 127.0.0.1 (DNS rebinding) sends.
 from __future__ import annotations
 
 import ipaddress
+import logging
 from collections.abc import Iterable
+from contextvars import ContextVar
 from urllib.parse import urlsplit
 
 from starlette.responses import PlainTextResponse
@@ -84,6 +86,30 @@ def _is_ip(name: str) -> bool:
     return True
 
 
+logger = logging.getLogger(__name__)
+
+_refused: ContextVar[bool] = ContextVar("arap_refused_handshake", default=False)
+"""Set in the task that answered a WebSocket handshake with a 403 (see :class:`_RefusalLogFilter`)."""
+
+
+class _RefusalLogFilter(logging.Filter):
+    """Drops uvicorn's "ASGI callable returned without completing handshake." after a deliberate 403.
+
+    uvicorn's WebSocket protocol (websockets' sans-I/O implementation) sends the 403 response the guard gives but
+    never counts the handshake as done, so every refused origin or host was logged at ERROR level without context.
+    The guard logs its own line (INFO, with the reason); the same message in any other case still gets through.
+    """
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        return not (_refused.get() and record.getMessage().startswith("ASGI callable returned without completing"))
+
+
+def _install_refusal_filter() -> None:
+    uvicorn_log = logging.getLogger("uvicorn.error")
+    if not any(isinstance(f, _RefusalLogFilter) for f in uvicorn_log.filters):
+        uvicorn_log.addFilter(_RefusalLogFilter())
+
+
 class RequestGuard:
     """ASGI middleware refusing requests with a foreign ``Host`` or ``Origin`` (403; before any WebSocket accept).
 
@@ -109,6 +135,7 @@ class RequestGuard:
                  allow_origins: Iterable[str] = ()) -> None:
         self.app = app
         self.origins = frozenset(normalize_origin(o) for o in allow_origins)
+        _install_refusal_filter()
         names = set(LOOPBACK_NAMES) | {split_host(h)[0] for h in allowed_hosts}
         names |= {urlsplit(o).hostname or "" for o in self.origins} - {""}
         self.any_ip = False
@@ -176,6 +203,9 @@ class RequestGuard:
             await PlainTextResponse(f"forbidden: {reason}", status_code=403)(scope, receive, send)
             return
         await receive()  # websocket.connect
+        client = scope.get("client")
+        logger.info("refused a WebSocket connection from %s: %s", client[0] if client else "an unknown address", reason)
+        _refused.set(True)
         if "websocket.http.response" in scope.get("extensions", {}):
             body = f"forbidden: {reason}".encode()
             await send({"type": "websocket.http.response.start", "status": 403,
