@@ -413,3 +413,21 @@ def test_solver_parameters_and_gizmo_modes(page: Page) -> None:
     header = page.evaluate("() => window.__arap.lastSeq")
     assert header > 0
     assert not page.evaluate("() => window.__arap.errors")
+
+
+def test_the_panel_does_not_scroll_sideways(page: Page) -> None:
+    """Every control of the side panel fits its width (the panel scrolls only up and down)."""
+    layout = page.evaluate(
+        """() => {
+            const panel = document.getElementById('panel');
+            const right = panel.getBoundingClientRect().left + panel.clientLeft + panel.clientWidth;
+            const out = [];
+            for (const el of panel.querySelectorAll('select, input, button')) {
+                const r = el.getBoundingClientRect();
+                if (r.width && r.right > right + 0.5) out.push(`${el.id || el.dataset.testid} ends at ${r.right}`);
+            }
+            return { out, right, scrollWidth: panel.scrollWidth, clientWidth: panel.clientWidth };
+        }"""
+    )
+    assert not layout["out"], f"past the panel's right edge ({layout['right']}): {layout['out']}"
+    assert layout["scrollWidth"] <= layout["clientWidth"], layout

@@ -321,7 +321,8 @@ def test_a_refused_point_handle_leaves_the_selection_and_its_error_goes(page: Pa
 
 def _two_spheres(tmp_path: Path) -> Path:
     mesh = trimesh.creation.icosphere(subdivisions=2)
-    V = np.vstack([mesh.vertices - [1.5, 0, 0], mesh.vertices + [1.5, 0, 0]])
+    shift = np.array([1.5, 0.0, 0.0])
+    V = np.vstack([mesh.vertices - shift, mesh.vertices + shift])
     F = np.vstack([mesh.faces, mesh.faces + len(mesh.vertices)])
     lines = [f"v {x:.6f} {y:.6f} {z:.6f}" for x, y, z in V] + [f"f {a + 1} {b + 1} {c + 1}" for a, b, c in F]
     path = tmp_path / "pair.obj"

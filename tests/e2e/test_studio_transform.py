@@ -272,6 +272,35 @@ def test_typed_move_applies_exactly_and_escape_cancels(page: Page) -> None:
     assert not page.evaluate("() => window.__arap.errors")
 
 
+def test_typed_amounts_take_exponents_and_refuse_other_keys_visibly(page: Page) -> None:
+    select_anchor_and_handle(page)
+    spy_on_drags(page)
+    page.mouse.move(30, 300)
+    before = transform(page)
+    line = page.get_by_test_id("numeric-line")
+    for key in ("g", "y", "1", "e", "3"):
+        page.keyboard.press(key)
+    expect(line).to_have_text("Move Y: 1e3")  # not 13
+    page.keyboard.press("e")  # a second exponent: refused, and the line says so
+    expect(line).to_contain_text("Move Y: 1e3")
+    expect(line).to_contain_text("“e” cannot go there")
+    expect(line).to_have_class(re.compile(r"\brefused\b"))
+    page.keyboard.press("Backspace")
+    expect(line).to_have_text("Move Y: 1e")
+    expect(line).not_to_have_class(re.compile(r"\brefused\b"))
+    for key in ("-", "1"):
+        page.keyboard.press(key)
+    expect(line).to_have_text("Move Y: 1e-1")
+    page.keyboard.press("q")
+    expect(line).to_contain_text("“q” cannot go there")
+    page.keyboard.press("Enter")
+    wait_idle(page)
+    expected = before.copy()
+    expected[1, 3] += 0.1
+    np.testing.assert_allclose(matrix(last_drag(page)[0]), expected, rtol=0, atol=1e-12)
+    assert not page.evaluate("() => window.__arap.errors")
+
+
 def test_panel_fields_apply_an_exact_rotation(page: Page) -> None:
     select_anchor_and_handle(page)
     pivot = np.asarray(gizmo(page)["pivot"])

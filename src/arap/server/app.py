@@ -268,7 +268,7 @@ def release_memory() -> None:
 
 async def _refuse_full(ws: WebSocket, limit: int) -> None:
     """Tell a client the server is full (an ``error`` it can show, then a close with the reason)."""
-    reason = f"the studio already serves {limit} sessions; close one and reconnect"
+    reason = f"the studio already serves {limit} session{'' if limit == 1 else 's'}; close one and reconnect"
     await ws.accept()
     try:
         await ws.send_json(RequestError("busy", reason).to_message())
