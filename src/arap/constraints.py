@@ -23,8 +23,8 @@ Indices are 0-based in the mesh file's vertex order. ``fixed`` or ``handles`` ma
 Handles may lie outside the region of interest: like every constrained vertex they go to their targets, while the
 unconstrained vertices outside the region stay at rest.
 
-:func:`check_selection` is the one validator of vertex selections: this module, the command line and the studio
-(:mod:`arap.server.constraints`) all use it, so the same bad selection gets the same answer everywhere.
+:func:`arap.selection.check_selection` is the one validator of vertex selections: this module, the command line and
+the studio (:mod:`arap.server.constraints`) all use it, so the same bad selection gets the same answer everywhere.
 """
 
 from __future__ import annotations
@@ -32,7 +32,7 @@ from __future__ import annotations
 import json
 import math
 import os
-from collections.abc import Mapping, Sequence
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -44,6 +44,7 @@ from arap.indexing import check_index_array
 from arap.io.atomic import write_atomic
 from arap.mesh import coordinate_problem
 from arap.points import PointConstraints, check_points
+from arap.selection import check_selection, check_targets
 
 __all__ = ["FORMAT_VERSION", "Constraints", "check_selection", "check_targets", "load_constraints",
            "points_from_json", "save_constraints", "stiffness_from_json", "stiffness_to_json"]
@@ -121,10 +122,14 @@ class Constraints:
     def remapped(self, vertex_map: np.ndarray) -> Constraints:
         """The same constraints after a vertex renumbering (e.g. :attr:`arap.mesh.RepairResult.vertex_map`).
 
+        Copies of one vertex that repair welded together (an STL triangle soup has one per triangle) count once
+        when they agree: fixed copies, or handle copies with the same target.
+
         Raises
         ------
         ConstraintError
-            A constrained vertex was dropped (maps to -1) or two constrained vertices were merged.
+            A constrained vertex was dropped (maps to -1), or welded copies disagree (a fixed copy and a handle copy,
+            or handle copies with different targets).
         """
         vertex_map = np.asarray(vertex_map, dtype=np.int64)
 
@@ -141,20 +146,40 @@ class Constraints:
                                   "mesh file first (arap info shows what repair changes)")
         fixed = remap("fixed", self.fixed)
         handles = remap("handle", self.handles)
-        merged = np.concatenate([fixed, handles])
-        if len(np.unique(merged)) != len(merged):
-            raise ConstraintError("mesh repair welded two constrained vertices into one; "
-                                  "constrain only one of each pair of duplicate vertices")
+        fixed = fixed[np.sort(np.unique(fixed, return_index=True)[1])]
+        welded_with_fixed = np.isin(handles, fixed)
+        if welded_with_fixed.any():
+            k = int(np.argmax(welded_with_fixed))
+            raise ConstraintError(f"mesh repair welded handle vertex {int(self.handles[k])} with a fixed vertex at the "
+                                  "same position; a vertex cannot be both")
+        first = np.sort(np.unique(handles, return_index=True)[1])
+        keep = np.zeros(len(handles), dtype=bool)
+        keep[first] = True
+        if not keep.all():
+            where = {int(v): int(j) for j, v in zip(first, handles[first], strict=True)}
+            tol = 1e-12 * max(float(np.abs(self.targets).max(initial=0.0)), 1.0)
+            for c in np.flatnonzero(~keep):
+                i = where[int(handles[c])]
+                if np.abs(self.targets[c] - self.targets[i]).max() > tol:
+                    raise ConstraintError(
+                        f"mesh repair welded handle vertices {int(self.handles[i])} and {int(self.handles[c])} (copies "
+                        f"of one vertex) but their targets differ: {self.targets[i].tolist()} and "
+                        f"{self.targets[c].tolist()}")
         roi = None if self.roi is None else np.unique(remap("roi", self.roi))
-        groups = None if self.handle_groups is None else [
-            [int(vertex_map[i]) for i in g] for g in self.handle_groups
-        ]
+        groups = None
+        if self.handle_groups is not None:
+            taken: set[int] = set()
+            groups = []
+            for g in self.handle_groups:
+                welded = [int(vertex_map[i]) for i in g]
+                groups.append([v for v in dict.fromkeys(welded) if v not in taken])
+                taken.update(welded)
         stiffness = None
         if self.stiffness is not None:
             kept = vertex_map >= 0
             stiffness = np.ones(int(vertex_map.max(initial=-1)) + 1)
             stiffness[vertex_map[kept]] = self.stiffness[kept]
-        return Constraints(fixed, handles, self.targets.copy(), roi, groups, stiffness)
+        return Constraints(fixed, handles[keep], self.targets[keep].copy(), roi, groups, stiffness)
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready dictionary in the file format."""
@@ -179,112 +204,6 @@ class Constraints:
             out["version"] = FORMAT_VERSION
             out["stiffness"] = stiffness_to_json(self.stiffness)
         return out
-
-
-# ---------------------------------------------------------------------------------------------- validation
-def check_selection(
-    n: int,
-    fixed: Any,
-    handle_groups: Sequence[Any],
-    roi: Any = None,
-    *,
-    group_names: Sequence[str] | None = None,
-) -> tuple[np.ndarray, list[np.ndarray], np.ndarray | None]:
-    """Validate a selection of fixed vertices, handle groups and a region of interest against a mesh.
-
-    Parameters
-    ----------
-    n : int
-        Vertex count of the mesh.
-    fixed : list of int or (f,) integer array
-    handle_groups : sequence of lists of int or of integer arrays
-        Handles, group by group (a constraints file's ``handles`` is one group).
-    roi : list of int, (r,) integer array or None
-        Region of interest; None is the whole mesh.
-    group_names : sequence of str or None
-        Names of the groups in messages; default ``"handle group i"``.
-
-    Returns
-    -------
-    fixed : (f,) int64 array
-    groups : list of (h_g,) int64 arrays
-    roi : (r,) int64 array or None
-
-    Raises
-    ------
-    ConstraintError
-        Not lists of integers (floats such as ``1.0`` and booleans included), indices out of range, a vertex
-        repeated within a list or listed in two of ``fixed`` and the groups, an empty group, or an empty region of
-        interest.
-    """
-    fixed_arr = check_index_array(fixed, n, "fixed")
-    if not isinstance(handle_groups, list | tuple):
-        raise ConstraintError(f"handle groups must be a list of lists of vertex indices, got "
-                              f"{type(handle_groups).__name__}")
-    names = list(group_names) if group_names is not None else [f"handle group {i}" for i in range(len(handle_groups))]
-    groups = [check_index_array(g, n, name, allow_empty=False) for g, name in zip(handle_groups, names, strict=True)]
-    named = [("fixed", fixed_arr), *zip(names, groups, strict=True)]
-    everything = np.concatenate([a for _, a in named])
-    uniq, counts = np.unique(everything, return_counts=True)
-    if np.any(counts > 1):
-        v = int(uniq[np.argmax(counts > 1)])
-        where = [name for name, a in named if np.any(a == v)]
-        raise ConstraintError(f"vertex {v} is in both {where[0]} and {where[1]}; a vertex is either fixed or a "
-                              "handle of one group")
-    roi_arr = None if roi is None else check_index_array(roi, n, "roi", allow_empty=False)
-    return fixed_arr, groups, roi_arr
-
-
-def check_targets(value: Any, k: int) -> np.ndarray:
-    """Validate the target positions of ``k`` handles.
-
-    Parameters
-    ----------
-    value : list of [x, y, z] or (k, 3) array
-    k : int
-        Number of handles.
-
-    Returns
-    -------
-    (k, 3) float64 array
-
-    Raises
-    ------
-    ConstraintError
-        Not ``k`` points of three numbers, or numbers that are not finite doubles (NaN, infinity, or an integer
-        too large for double precision).
-    """
-    if isinstance(value, np.ndarray):
-        if value.dtype.kind not in "iuf":
-            raise ConstraintError(f"targets must hold numbers, got dtype {value.dtype}")
-        arr = value.astype(np.float64)
-    else:
-        if not isinstance(value, list | tuple):
-            raise ConstraintError(f"targets must be a list of [x, y, z] points, got {type(value).__name__}")
-        rows = []
-        for pos, row in enumerate(value):
-            ok = isinstance(row, list | tuple) and len(row) == 3 and all(
-                isinstance(x, int | float | np.number) and not isinstance(x, bool | np.bool_) for x in row)
-            if not ok:
-                text = repr(row)
-                raise ConstraintError(f"targets item {pos} must be [x, y, z] numbers, got "
-                                      f"{text if len(text) <= 40 else text[:37] + '...'}")
-            try:
-                rows.append([float(x) for x in row])
-            except OverflowError:
-                raise ConstraintError(f"targets item {pos} holds an integer too large for a coordinate "
-                                      "(beyond ±1.8e308)") from None
-        arr = np.asarray(rows, dtype=np.float64).reshape(-1, 3)
-    if arr.ndim != 2 or arr.shape[1] != 3:
-        raise ConstraintError(f"targets must have shape (k, 3), got {arr.shape}")
-    if len(arr) != k:
-        raise ConstraintError(f'targets has {len(arr)} points but "handles" has {k} vertices; '
-                              "give one target per handle")
-    finite = np.all(np.isfinite(arr), axis=1)
-    if not finite.all():
-        raise ConstraintError(f"targets has {int((~finite).sum())} non-finite points "
-                              f"(first: item {int(np.flatnonzero(~finite)[0])})")
-    return arr
 
 
 #: Longest integer literal read from a constraints file (Python refuses to convert more than 4,300 digits).
