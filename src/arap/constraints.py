@@ -128,7 +128,8 @@ class Constraints:
         Raises
         ------
         ConstraintError
-            A constrained vertex was dropped (maps to -1), or welded copies disagree (a fixed copy and a handle copy,
+            A constrained vertex was dropped (maps to -1; region-of-interest vertices may be), or welded copies
+            disagree (a fixed copy and a handle copy,
             or handle copies with different targets).
         """
         vertex_map = np.asarray(vertex_map, dtype=np.int64)
@@ -165,7 +166,8 @@ class Constraints:
                         f"mesh repair welded handle vertices {int(self.handles[i])} and {int(self.handles[c])} (copies "
                         f"of one vertex) but their targets differ: {self.targets[i].tolist()} and "
                         f"{self.targets[c].tolist()}")
-        roi = None if self.roi is None else np.unique(remap("roi", self.roi))
+        # a region of interest may name vertices repair dropped (used by no face): they have no cell to move
+        roi = None if self.roi is None else np.unique(vertex_map[self.roi][vertex_map[self.roi] >= 0])
         groups = None
         if self.handle_groups is not None:
             taken: set[int] = set()

@@ -77,6 +77,9 @@ def test_remapped_follows_a_vertex_renumbering() -> None:
     np.testing.assert_array_equal(r.handles, [7, 8])
     with pytest.raises(ConstraintError, match="removed by mesh repair"):
         load_constraints({"fixed": [2]}, N).remapped(vmap)
+    # a region of interest naming a vertex repair dropped (used by no face) keeps the others
+    roi = load_constraints({"fixed": [0], "roi": [0, 1, 2, 3]}, N).remapped(vmap).roi
+    assert roi is not None and roi.tolist() == [3, 4, 5]
     # Copies of one vertex that repair welded (an STL soup has one per triangle) count once when they agree.
     weld = np.array([0, 0, 1, 1, 2, 3, 4, 5, 6, 7])
     both_fixed = load_constraints({"fixed": [0, 1, 2]}, N).remapped(weld)
@@ -86,7 +89,7 @@ def test_remapped_follows_a_vertex_renumbering() -> None:
     np.testing.assert_array_equal(same_target.handles, [1, 2])
     np.testing.assert_array_equal(same_target.targets, [[1, 2, 3], [0, 0, 0]])
     assert same_target.handle_groups == [[1], [2]]
-    with pytest.raises(ConstraintError, match="welded handle vertices 2 and 3 .*targets differ"):
+    with pytest.raises(ConstraintError, match=r"welded handle vertices 2 and 3 .*targets differ"):
         load_constraints({"handles": [2, 3], "targets": [[1, 2, 3], [1, 2, 4]]}, N).remapped(weld)
     with pytest.raises(ConstraintError, match="welded handle vertex 1 with a fixed vertex"):
         load_constraints({"fixed": [0], "handles": [1], "targets": [[0, 0, 0]]}, N).remapped(weld)

@@ -106,7 +106,8 @@ def test_obj_vertex_zero_is_refused(faces: bytes, line: int) -> None:
 
 
 def test_obj_face_beyond_the_vertices_is_named() -> None:
-    with pytest.raises(MeshFormatError, match="a face refers to a vertex the file does not have"):
+    """In the file's terms: OBJ counts vertices from 1, so the 9 of the file, not numpy's 0-based 8."""
+    with pytest.raises(MeshFormatError, match="a face refers to vertex 9, but the file has 3 vertices"):
         load_mesh_bytes(b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 9\n", "obj")
 
 

@@ -174,6 +174,7 @@ def test_missing_file(tmp_path: Path) -> None:
         (b"", "stl", "no vertices"),
         (b"v 0 0 0\nv 1 0 0\nv 0 1 0\n", "obj", "no faces"),
         (b"OFF\n3 0 0\n0 0 0\n1 0 0\n1 1 0\n", "off", "no faces"),
+        (b"OFF\n4 2 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n", "off", "or a truncated file"),
     ],
 )
 def test_bad_content(data: bytes, fmt: str, message: str) -> None:
@@ -203,3 +204,9 @@ def test_save_rejects_bad_arrays(tmp_path: Path) -> None:
         with pytest.raises(MeshError, match="1 vertices have NaN or infinite coordinates \\(vertex 2"):
             save_mesh(tmp_path / f"a.{ext}", np.array([[0.0, 0, 0], [1, 0, 0], [0, np.nan, 0]]), [[0, 1, 2]])
     assert not list(tmp_path.iterdir())
+
+
+def test_a_folder_is_not_a_mesh_file(tmp_path: Path) -> None:
+    (tmp_path / "scans.obj").mkdir()
+    with pytest.raises(MeshFormatError, match="is a folder, not a mesh file"):
+        load_mesh(tmp_path / "scans.obj")

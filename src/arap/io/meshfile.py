@@ -15,6 +15,7 @@ from __future__ import annotations
 import io
 import logging
 import os
+import re
 from pathlib import Path
 from typing import Any
 
@@ -64,6 +65,28 @@ def format_of(name: str | os.PathLike[str]) -> str:
 
 
 # ---------------------------------------------------------------------------------------------- reading
+def _named(file_type: str) -> str:
+    """"an OBJ", "an OFF", "a PLY", "an STL" (for messages)."""
+    name = file_type.upper()
+    return f"{'an' if name[0] in 'AEFHILMNORSX' else 'a'} {name}"
+
+
+def _parse_error(exc: Exception, file_type: str, label: str) -> MeshFormatError:
+    """A parser's failure said in the file's terms (not numpy's): 1-based OBJ indices, counts that do not match."""
+    what = f"cannot parse {label} as {file_type.upper()}"
+    text = str(exc)
+    out_of_range = re.search(r"index (-?\d+) is out of bounds for axis 0 with size (\d+)", text)
+    if isinstance(exc, IndexError) and out_of_range:
+        index, size = int(out_of_range.group(1)), int(out_of_range.group(2))
+        shown = index + 1 if file_type == "obj" and index >= 0 else index  # OBJ counts vertices from 1
+        return MeshFormatError(f"{what}: a face refers to vertex {shown}, but the file has {size:,} vertices")
+    if isinstance(exc, IndexError):
+        return MeshFormatError(f"{what}: a face refers to a vertex the file does not have ({text})")
+    if isinstance(exc, ValueError) and "cannot reshape" in text:
+        return MeshFormatError(f"{what}: the file ends early or its data does not match its counts (truncated?)")
+    return MeshFormatError(f"{what}: {text}")
+
+
 def _parse(stream: io.BytesIO, file_type: str, label: str) -> tuple[np.ndarray, np.ndarray]:
     """Vertices and faces (polygons triangulated) as stored, without any processing."""
     from trimesh.exchange.load import mesh_loaders
@@ -73,11 +96,8 @@ def _parse(stream: io.BytesIO, file_type: str, label: str) -> tuple[np.ndarray, 
         kwargs.update(skip_materials=True, maintain_order=True)
     try:
         loaded = mesh_loaders[file_type](stream, **kwargs)
-    except IndexError as exc:
-        raise MeshFormatError(f"cannot parse {label} as {file_type.upper()}: a face refers to a vertex the file "
-                              f"does not have ({exc})") from exc
     except Exception as exc:  # the parsers raise anything from ValueError to struct.error
-        raise MeshFormatError(f"cannot parse {label} as {file_type.upper()}: {exc}") from exc
+        raise _parse_error(exc, file_type, label) from exc
     parts = list(loaded["geometry"].values()) if "geometry" in loaded else [loaded]
     blocks: list[tuple[np.ndarray, np.ndarray]] = []
     for part in parts:
@@ -88,7 +108,7 @@ def _parse(stream: io.BytesIO, file_type: str, label: str) -> tuple[np.ndarray, 
         F = _faces_array(faces)
         blocks.append((V, F))
     if not blocks or all(len(V) == 0 for V, _ in blocks):
-        raise MeshFormatError(f"{label} contains no vertices (empty or not a {file_type.upper()} file)")
+        raise MeshFormatError(f"{label} contains no vertices (empty, or not {_named(file_type)} file)")
     if all(len(b[0]) == len(blocks[0][0]) and np.array_equal(b[0], blocks[0][0]) for b in blocks):
         # Parts indexing one shared vertex list (OBJ groups and materials keep file order).
         V = blocks[0][0]
@@ -98,7 +118,8 @@ def _parse(stream: io.BytesIO, file_type: str, label: str) -> tuple[np.ndarray, 
         V = np.concatenate([b[0] for b in blocks])
         F = np.concatenate([b[1] + off for b, off in zip(blocks, offsets, strict=True)])
     if len(F) == 0:
-        raise MeshFormatError(f"{label} has {len(V):,} vertices but no faces (a point cloud?); a surface is needed")
+        raise MeshFormatError(f"{label} has {len(V):,} vertices but no faces (a point cloud, or a truncated "
+                              "file?); a surface is needed")
     return V, F
 
 
@@ -206,6 +227,8 @@ def load_mesh_with_report(
         Unknown extension, missing or unreadable file, unparsable content, no faces.
     """
     path = Path(path)
+    if path.is_dir():
+        raise MeshFormatError(f"{path} is a folder, not a mesh file")
     ft = format_of(path.name)
     try:
         data = path.read_bytes()
