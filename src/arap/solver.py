@@ -244,18 +244,22 @@ class ArapSolver(SingleSteps):
         """Rows of a per-vertex array in the solver's internal vertex order."""
         return np.ascontiguousarray(X[self._perm])
 
+    def _relative(self, X: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Positions relative to the solver's origin (``X`` itself when the origin is 0, as for most meshes)."""
+        return X - self._origin if self._origin.any() else X
+
     def _check_positions(self, U: object, name: str) -> NDArray[np.float64]:
         """Checked positions (n, 3), relative to the solver's origin."""
-        return check_positions(U, self.n_vertices, name) - self._origin
+        return self._relative(check_positions(U, self.n_vertices, name))
 
     def _check_targets(self, targets: object) -> NDArray[np.float64]:
         """Checked targets, relative to the solver's origin."""
-        return check_targets(targets, len(self._constrained)) - self._origin
+        return self._relative(check_targets(targets, len(self._constrained)))
 
     def _check_point_targets(self, point_targets: object) -> NDArray[np.float64] | None:
         """Checked point-handle targets (or None), relative to the solver's origin."""
         P = check_point_targets(point_targets, 0 if self.points is None else len(self.points))
-        return None if P is None else P - self._origin
+        return None if P is None else self._relative(P)
 
     def _to_caller(self, U: NDArray[np.float64]) -> NDArray[np.float64]:
         """Internal positions (internal order, relative to the origin) as the caller's: a new array."""
