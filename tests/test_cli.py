@@ -241,6 +241,7 @@ def bad_files(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
         (["info", "junk.obj"], "binary data"),
         (["info", "folder.obj"], "folder.obj is a folder, not a mesh file"),
         (["bench", "sphere:lots"], "bad sphere size"),
+        (["info", "sphere:-5"], "fewer vertices than the smallest sphere"),
         (["bench", "bar", "-n", "0"], "must be >= 1"),
         (["bench", "huge.obj"], "coordinates are too large"),
     ],

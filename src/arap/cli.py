@@ -99,6 +99,9 @@ def load_mesh_argument(spec: str, *, repair: bool = True) -> tuple[np.ndarray, n
                 wanted = int(spec.split(":", 1)[1].replace("_", "").replace(",", ""))
             except ValueError:
                 raise MeshFormatError(f"bad sphere size in {spec!r}; use e.g. sphere:100000") from None
+            if wanted < 12:
+                raise MeshFormatError(f"sphere:{wanted} asks for fewer vertices than the smallest sphere (12); use "
+                                      "e.g. sphere:100000")
             V, F = sphere(frequency=sphere_frequency_for(wanted))
         return V, F, _identity_report(len(V)), "geodesic sphere"
     raise MeshFormatError(f"{spec}: no such file (built-in meshes: {', '.join(BUILTIN_MESHES)}, sphere, sphere:N)")

@@ -60,6 +60,8 @@ class MeshInfo:
         Share of edges whose cotangent weight ``½ Σ cot(opposite angles)`` is negative (0 to 1).
     euler_characteristic : int
         ``V − E + F`` over the referenced vertices.
+    nonfinite_faces : int
+        Faces using a vertex with non-finite coordinates (left out of the edges, components and surface).
     """
 
     n_vertices: int
@@ -85,6 +87,8 @@ class MeshInfo:
     scale_problem: str | None
     negative_weight_share: float
     euler_characteristic: int
+    nonfinite_faces: int = 0
+    """Faces using a vertex with non-finite coordinates: left out of the edges, components and surface above."""
 
     @property
     def n_components(self) -> int:
@@ -101,7 +105,9 @@ class MeshInfo:
         """Defects, one line each: what :func:`check_mesh` rejects, what :func:`repair_mesh` fixes, and flaws of the
         surface (non-manifold edges, inconsistent orientation) that ARAP tolerates but a user should know."""
         items = [
-            (self.nonfinite_vertices, "vertices with NaN or infinite coordinates"),
+            (self.nonfinite_vertices, "vertices with NaN or infinite coordinates"
+                                      + (f" ({self.nonfinite_faces:,} faces use them; the topology above leaves "
+                                         "those faces out)" if self.nonfinite_faces else "")),
             (self.out_of_range_faces, "faces with out-of-range indices"),
             (self.duplicate_vertices, "duplicate vertices"),
             (self.repeated_vertex_faces, "faces repeating a vertex"),
@@ -248,7 +254,11 @@ def inspect_mesh(V: np.ndarray, F: np.ndarray) -> MeshInfo:
     in_range = np.all((F >= 0) & (F < n), axis=1) if m else np.zeros(0, dtype=bool)
     out_of_range = int((~in_range).sum())
     Fv = F[in_range]
-    Fv = Fv[finite[Fv].all(axis=1)] if len(Fv) else Fv
+    used = np.zeros(n, dtype=bool)
+    used[Fv.ravel()] = True  # by any face, also one the topology below leaves out
+    with_finite = finite[Fv].all(axis=1) if len(Fv) else np.zeros(0, dtype=bool)
+    nonfinite_faces = int((~with_finite).sum())
+    Fv = Fv[with_finite]
     referenced = np.zeros(n, dtype=bool)
     referenced[Fv.ravel()] = True
     if finite.any():
@@ -297,10 +307,11 @@ def inspect_mesh(V: np.ndarray, F: np.ndarray) -> MeshInfo:
         repeated_vertex_faces=int(repeated.sum()),
         degenerate_faces=int(degenerate.sum()),
         duplicate_faces=duplicate,
-        unreferenced_vertices=int(n - referenced.sum()),
+        unreferenced_vertices=int(n - used.sum()),
         nonfinite_vertices=int((~finite).sum()),
         out_of_range_faces=out_of_range,
         scale_problem=scale_problem,
         negative_weight_share=_negative_weight_share(V, good),
         euler_characteristic=int(referenced.sum()) - len(edges) + len(Fv),
+        nonfinite_faces=nonfinite_faces,
     )

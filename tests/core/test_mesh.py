@@ -13,6 +13,7 @@ from arap.mesh import (
     repair_mesh,
     triangulate_polygons,
 )
+from arap.shapes import sphere
 
 # A closed tetrahedron, outward-oriented.
 TET_V = np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]])
@@ -246,3 +247,15 @@ def test_welding_along_a_direction_finds_the_groups_a_kd_tree_finds(seed: int) -
     F = np.concatenate([F, F[rng.integers(0, 500, size=40)][:, ::-1]])
     first = [sorted(f) not in [sorted(g) for g in F[:i]] for i, f in enumerate(F.tolist())]
     np.testing.assert_array_equal(_unique_face_mask(F), first)
+
+
+def test_info_on_a_closed_surface_with_a_nan_vertex() -> None:
+    """The faces of a non-finite vertex are left out of the topology, and said to be: the vertex is not "used by no
+    face"."""
+    V, F = sphere(1)
+    V = V.copy()
+    V[5, 0] = np.nan
+    info = inspect_mesh(V, F)
+    uses = int(np.any(F == 5, axis=1).sum())
+    assert info.unreferenced_vertices == 0 and info.nonfinite_faces == uses
+    assert any(f"({uses} faces use them; the topology above leaves those faces out)" in p for p in info.problems)
