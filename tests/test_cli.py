@@ -55,6 +55,18 @@ def test_deform_runs_until_converged_by_default(tmp_path: Path, capsys: pytest.C
     assert "converged" in err and "iteration limit" not in err
 
 
+def test_deform_says_when_the_cap_stopped_it(tmp_path: Path, capsys: pytest.CaptureFixture[str],
+                                            monkeypatch: pytest.MonkeyPatch) -> None:
+    cfile = tmp_path / "c.json"
+    bar_constraints(cfile)
+    monkeypatch.setattr("arap.solver.MAX_ITERATIONS", 3)
+    assert main(["deform", "bar", "--constraints", str(cfile), "-o", str(tmp_path / "o.obj"),
+                 "--energy", "spokes"]) == 0
+    err = capsys.readouterr().err
+    assert "iteration limit reached, not converged (residual" in err and "tolerance 1e-09)" in err
+    assert "the shape written is the last iterate; raise --iterations" in err and "spokes_and_rims" in err
+
+
 def test_deform_file_mesh_quiet_with_options(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     V, F = builtin_mesh("bar")
     mesh = tmp_path / "bar.off"

@@ -198,9 +198,15 @@ def _cmd_deform(args: argparse.Namespace) -> int:
     if not args.quiet:
         if result.energies:
             per_it = 1e3 * seconds / max(result.iterations, 1)
-            status = "converged" if result.converged else "iteration limit reached"
+            status = ("converged" if result.converged else "every iteration run (tolerance 0)" if not args.tolerance
+                      else f"iteration limit reached, not converged (residual {result.residual:.2g}, tolerance "
+                      f"{args.tolerance:g})")
             _err(f"arap: {result.iterations} iterations in {seconds:.2f} s ({per_it:.1f} ms/iteration), "
                  f"energy {result.energies[0]:.6g} -> {result.energies[-1]:.6g}, {status}")
+            if not result.converged and args.tolerance and args.iterations is None:
+                other = "" if args.energy == "spokes_and_rims" else ("; spokes_and_rims (the default energy) often "
+                                                                     "converges much sooner on such meshes")
+                _err(f"arap: note: the shape written is the last iterate; raise --iterations to go on{other}")
             if min(result.energies) < 0:
                 _err(f"arap: note: the energy is below 0 because {args.energy} with {args.weights} weights has "
                      "negative terms on obtuse triangles (see README, 'Energy and weights'); "
