@@ -19,7 +19,7 @@ from arap.mesh import (
     coordinate_problem,
     degenerate_faces,
 )
-from arap.topology import directed_half_edges, edge_face_counts
+from arap.topology import directed_half_edges, edge_face_counts, non_manifold_vertices
 from arap.weights import edge_weight_matrix
 
 __all__ = ["MeshInfo", "inspect_mesh"]
@@ -62,6 +62,8 @@ class MeshInfo:
         ``V − E + F`` over the referenced vertices.
     nonfinite_faces : int
         Faces using a vertex with non-finite coordinates (left out of the edges, components and surface).
+    non_manifold_vertices : int
+        Vertices where separate sheets of faces meet at a point (a bow-tie).
     """
 
     n_vertices: int
@@ -89,6 +91,8 @@ class MeshInfo:
     euler_characteristic: int
     nonfinite_faces: int = 0
     """Faces using a vertex with non-finite coordinates: left out of the edges, components and surface above."""
+    non_manifold_vertices: int = 0
+    """Vertices where separate sheets of faces meet at a point (:func:`arap.topology.non_manifold_vertices`)."""
 
     @property
     def n_components(self) -> int:
@@ -98,7 +102,8 @@ class MeshInfo:
     @property
     def closed(self) -> bool:
         """True when every edge has exactly two faces."""
-        return self.boundary_edges == 0 and self.non_manifold_edges == 0 and self.n_faces > 0
+        return (self.boundary_edges == 0 and self.non_manifold_edges == 0 and self.non_manifold_vertices == 0
+                and self.n_faces > 0)
 
     @property
     def problems(self) -> list[str]:
@@ -115,6 +120,7 @@ class MeshInfo:
             (self.duplicate_faces, "duplicate faces"),
             (self.unreferenced_vertices, "vertices used by no face"),
             (self.non_manifold_edges, "non-manifold edges"),
+            (self.non_manifold_vertices, "non-manifold vertices (separate sheets meeting at a point)"),
             (self.misoriented_faces, "faces oriented against their neighbours "
                                      f"({self.inconsistent_edges:,} edges where adjacent faces disagree)"),
             (self.non_orientable_parts, "non-orientable parts (like a Möbius strip)"),
@@ -314,4 +320,5 @@ def inspect_mesh(V: np.ndarray, F: np.ndarray) -> MeshInfo:
         negative_weight_share=_negative_weight_share(V, good),
         euler_characteristic=int(referenced.sum()) - len(edges) + len(Fv),
         nonfinite_faces=nonfinite_faces,
+        non_manifold_vertices=len(non_manifold_vertices(Fv, n)),
     )

@@ -59,6 +59,35 @@ def edge_face_counts(F: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return np.stack([keys // base, keys % base], axis=1), counts
 
 
+def non_manifold_vertices(F: np.ndarray, n: int) -> np.ndarray:
+    """Vertices where separate sheets of faces meet at a point (a bow-tie), shape (k,), increasing.
+
+    A vertex's faces are linked when they share an edge at it; on a manifold they form one fan (a disc, or a half disc
+    at a boundary), at a bow-tie two or more.
+
+    Example
+    -------
+    >>> non_manifold_vertices(np.array([[0, 1, 2], [0, 3, 4]]), 5).tolist()
+    [0]
+    """
+    F = np.asarray(F, dtype=np.int64)
+    if not len(F):
+        return np.zeros(0, dtype=np.int64)
+    # Each corner (v; a, b) of a face joins v's wedges towards a and towards b: nodes are the (v, neighbour) pairs.
+    v = F.ravel()
+    a = np.roll(F, -1, axis=1).ravel()
+    b = np.roll(F, 1, axis=1).ravel()
+    keys = np.concatenate([v * n + a, v * n + b])
+    nodes, inverse = np.unique(keys, return_inverse=True)
+    k = len(v)
+    graph = sp.coo_matrix((np.ones(k), (inverse[:k], inverse[k:])), shape=(len(nodes), len(nodes)))
+    _, labels = _cc(graph, directed=False)
+    owner = nodes // n
+    fans = np.unique(np.stack([owner, labels], axis=1), axis=0)[:, 0]
+    counts = np.bincount(fans, minlength=n)
+    return np.flatnonzero(counts > 1)
+
+
 def boundary_edges(F: np.ndarray) -> np.ndarray:
     """Edges used by exactly one face, shape (b, 2)."""
     edges, counts = edge_face_counts(F)

@@ -4,11 +4,14 @@ from __future__ import annotations
 
 import numpy as np
 
+from arap.diagnose import inspect_mesh
+from arap.shapes import sphere
 from arap.topology import (
     boundary_edges,
     connected_components,
     edge_face_counts,
     locality_order,
+    non_manifold_vertices,
     unique_edges,
     vertex_adjacency,
 )
@@ -45,3 +48,19 @@ def test_locality_order_is_a_permutation_that_narrows_the_bandwidth(camelhead: t
     before = np.abs(edges[:, 0] - edges[:, 1]).max()
     after = np.abs(inv[edges[:, 0]] - inv[edges[:, 1]]).max()
     assert after < before
+
+
+def test_non_manifold_vertices_are_where_sheets_meet_at_a_point() -> None:
+    """A bow-tie and two spheres sharing one vertex have one; a closed sphere, an open patch and a fin (three faces
+    on an edge) have none."""
+    V, F = sphere(2)
+    n = len(V)
+    assert len(non_manifold_vertices(F, n)) == 0
+    assert len(non_manifold_vertices(F[: len(F) // 2], n)) == 0  # an open patch: boundary vertices are half discs
+    fin = np.array([[0, 1, 2], [0, 1, 3], [0, 1, 4]])
+    assert len(non_manifold_vertices(fin, 5)) == 0
+    assert non_manifold_vertices(np.array([[0, 1, 2], [0, 3, 4]]), 5).tolist() == [0]
+    touching = np.vstack([F, np.where(F == 0, 0, F + n)])  # a second copy of the sphere sharing vertex 0
+    assert non_manifold_vertices(touching, 2 * n).tolist() == [0]
+    info = inspect_mesh(np.vstack([V, V + np.array([3.0, 0.0, 0.0])]), touching)
+    assert not info.closed and info.non_manifold_vertices == 1
