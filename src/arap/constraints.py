@@ -32,6 +32,7 @@ from __future__ import annotations
 import json
 import math
 import os
+import sys
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -208,6 +209,8 @@ class Constraints:
         return out
 
 
+_FLOAT_MAX = sys.float_info.max
+
 #: Longest integer literal read from a constraints file (Python refuses to convert more than 4,300 digits).
 _MAX_INT_DIGITS = 400
 
@@ -353,6 +356,8 @@ def points_from_json(raw: Any, n_faces: int, *, require_target: bool = True
             raise ConstraintError(f'points[{k}] must be an object with "face", "barycentric", {what}')
         if type(item["face"]) is not int:
             raise ConstraintError(f"points[{k}].face must be an integer triangle index")
+        if not 0 <= item["face"] < n_faces:  # compared as Python integers: 10**30 must not overflow int64
+            raise ConstraintError(f"point face {str(item['face'])[:40]} out of range 0..{n_faces - 1}")
         b = item["barycentric"]
         if not isinstance(b, list | tuple) or len(b) != 3 or not all(
                 type(x) in (int, float) for x in b):
@@ -364,6 +369,9 @@ def points_from_json(raw: Any, n_faces: int, *, require_target: bool = True
         w = item.get("weight", math.inf)
         if type(w) not in (int, float):
             raise ConstraintError(f"points[{k}].weight must be a positive number")
+        if type(w) is int and abs(w) > _FLOAT_MAX:
+            raise ConstraintError(f"points[{k}].weight is too large for a number (beyond 1.8e308); leave "
+                                  '"weight" out for a hard handle')
         weights.append(float(w))
     points = check_points(np.asarray(faces, dtype=np.int64), bary, weights, n_faces)
     return points, check_targets(targets, len(faces)), np.asarray(given, dtype=bool)
@@ -372,7 +380,7 @@ def points_from_json(raw: Any, n_faces: int, *, require_target: bool = True
 def _stiffness_value(value: Any, where: str) -> float:
     if value == "rigid":
         return math.inf
-    if type(value) not in (int, float) or not math.isfinite(value) or value <= 0:
+    if type(value) not in (int, float) or not -_FLOAT_MAX <= value <= _FLOAT_MAX or value <= 0:
         raise ConstraintError(f'{where} must be a positive number or "rigid", got {json.dumps(value)[:40]}')
     return float(value)
 

@@ -96,10 +96,10 @@ def check_points(faces: object, barycentric: object, weights: object, n_faces: i
     f = np.asarray(faces)
     if f.ndim != 1 or (f.size and f.dtype.kind not in "iu"):
         raise ConstraintError("point faces must be a flat list of integer triangle indices")
+    out = (f < 0) | (f >= n_faces)  # in the array's own dtype: uint64 beyond int64 must not wrap
+    if out.any():
+        raise ConstraintError(f"point face {int(f[out][0])} out of range 0..{n_faces - 1}")
     f = f.astype(np.int64)
-    if f.size and (f.min() < 0 or f.max() >= n_faces):
-        bad = int(f[(f < 0) | (f >= n_faces)][0])
-        raise ConstraintError(f"point face {bad} out of range 0..{n_faces - 1}")
     try:
         b = np.array(barycentric, dtype=np.float64).reshape(-1, 3) if len(f) else np.zeros((0, 3))
     except (TypeError, ValueError) as exc:

@@ -112,3 +112,27 @@ def test_point_handles_in_files_and_deform(tmp_path: Path) -> None:
             load_constraints(doc | bad, len(V), len(F))
     with pytest.raises(ConstraintError, match="triangle count"):
         load_constraints(doc, len(V))
+
+
+@pytest.mark.parametrize(
+    ("point", "stiffness", "match"),
+    [
+        ({"face": 10**30}, None, r"point face 1000000000000000000000000000000 out of range 0\.\.8623"),
+        ({"face": 2**63}, None, r"point face 9223372036854775808 out of range"),
+        ({"weight": 10**320}, None, r"points\[0\].weight .*too large"),
+        ({}, [{"vertices": [0], "value": 10**320}], r"stiffness\[0\].value must be a positive number .*got 1000"),
+        ({}, [10**320] * 4314, r"stiffness\[0\] must be a positive number .*got 1000"),
+    ],
+)
+def test_integers_too_large_for_a_double_are_refused_by_name(tmp_path: Path, point: dict, stiffness: list | None,
+                                                             match: str, capsys: pytest.CaptureFixture[str]) -> None:
+    V, doc = _bar_document()
+    doc = {"fixed": doc["fixed"], "version": 2,
+           "points": [{"face": 8000, "barycentric": [1, 0, 0], "target": [0.0, 5.0, 0.0]} | point]}
+    if stiffness is not None:
+        doc["stiffness"] = stiffness
+    with pytest.raises(ConstraintError, match=match):
+        load_constraints(doc, len(V), 8624)
+    (tmp_path / "c.json").write_text(json.dumps(doc))
+    assert main(["deform", "bar", "-c", str(tmp_path / "c.json"), "-o", str(tmp_path / "out.obj"), "-q"]) == 1
+    assert "internal error" not in capsys.readouterr().err

@@ -93,6 +93,7 @@ def test_points_alone_pin_a_part() -> None:
     ("faces", "bary", "weights", "match"),
     [
         ([10**6], [[1, 0, 0]], None, "out of range"),
+        ([2**63], [[1, 0, 0]], None, "point face 9223372036854775808 out of range"),
         ([0.5], [[1, 0, 0]], None, "integer"),
         ([0], [[0.5, 0.6, 0.0]], None, "sum to 1"),
         ([0], [[-0.1, 0.6, 0.5]], None, ">= 0"),

@@ -139,6 +139,8 @@ def test_the_document_gives_the_same_shape_with_arap_deform(studio: StudioClient
 @pytest.mark.parametrize(("points", "code", "match"), [
     ([{"face": 10**7, "barycentric": BARY}], "bad_constraints", "out of range"),
     ([{"face": -1, "barycentric": BARY}], "bad_constraints", "out of range"),
+    ([{"face": 10**30, "barycentric": BARY}], "bad_constraints", "out of range"),
+    ([{"face": 2**63, "barycentric": BARY}], "bad_constraints", "out of range"),
     ([{"face": 3, "barycentric": [0.2, 0.2, 0.2]}], "bad_constraints", "sum to 1"),
     ([{"face": 3, "barycentric": [1.5, -0.5, 0.0]}], "bad_constraints", ">= 0"),
     ([{"face": 3, "barycentric": [0.5, 0.5]}], "bad_message", "3 finite numbers"),
