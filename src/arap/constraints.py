@@ -111,11 +111,12 @@ class Constraints:
         Raises
         ------
         ConstraintError
-            The targets and the mesh together span more than :data:`arap.mesh.SIZE_RANGE` allows (targets
-            absurdly far away).
+            The targets (of the point handles too) and the mesh together span more than
+            :data:`arap.mesh.SIZE_RANGE` allows (targets absurdly far away).
         """
         V = np.asarray(V, dtype=np.float64)
-        problem = coordinate_problem(np.concatenate([V, self.targets]).reshape(-1, 3))
+        points = np.zeros((0, 3)) if self.point_targets is None else self.point_targets
+        problem = coordinate_problem(np.concatenate([V, self.targets, points]).reshape(-1, 3))
         if problem is not None and coordinate_problem(V) is None:
             raise ConstraintError(f"the targets lie too far from the mesh: with them, {problem}")
         return self.constrained, np.concatenate([V[self.fixed], self.targets]).reshape(-1, 3)

@@ -136,3 +136,18 @@ def test_integers_too_large_for_a_double_are_refused_by_name(tmp_path: Path, poi
     (tmp_path / "c.json").write_text(json.dumps(doc))
     assert main(["deform", "bar", "-c", str(tmp_path / "c.json"), "-o", str(tmp_path / "out.obj"), "-q"]) == 1
     assert "internal error" not in capsys.readouterr().err
+
+
+def test_point_targets_absurdly_far_are_refused_like_vertex_targets(tmp_path: Path,
+                                                                   capsys: pytest.CaptureFixture[str]) -> None:
+    V, doc = _bar_document()
+    _, F = builtin_mesh("bar")
+    doc = {"fixed": doc["fixed"], "version": 2,
+           "points": [{"face": len(F) - 1, "barycentric": [1, 0, 0], "target": [1e300, 0.0, 0.0]}]}
+    c = load_constraints(doc, len(V), len(F))
+    with pytest.raises(ConstraintError, match="the targets lie too far from the mesh"):
+        c.indices_and_targets(V)
+    (tmp_path / "c.json").write_text(json.dumps(doc))
+    assert main(["deform", "bar", "-c", str(tmp_path / "c.json"), "-o", str(tmp_path / "out.obj"), "-q",
+                 "-n", "3"]) == 1
+    assert "too far" in capsys.readouterr().err and not (tmp_path / "out.obj").exists()
