@@ -293,7 +293,10 @@ def load_constraints(source: str | os.PathLike[str] | Mapping[str, Any], n_verti
     if "meta" in data and not isinstance(data["meta"], Mapping):
         raise ConstraintError("meta must be a JSON object")
     version = data.get("version", 1)
-    if type(version) is not int or not 1 <= version <= FORMAT_VERSION:
+    if type(version) is not int:
+        raise ConstraintError(f"constraints file version must be a JSON integer (1 to {FORMAT_VERSION}), got "
+                              f"{json.dumps(version, default=repr)[:20]}")
+    if not 1 <= version <= FORMAT_VERSION:
         raise ConstraintError(f"unsupported constraints file version {str(version)[:20]}; this arap reads versions "
                               f"1 to {FORMAT_VERSION}")
     stiffness = None

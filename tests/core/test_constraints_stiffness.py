@@ -57,7 +57,9 @@ def test_stiffness_round_trip(tmp_path: Path) -> None:
     [
         ({"stiffness": [{"vertices": [0], "value": 2}]}, "version"),
         ({"version": 3}, "version 3"),
-        ({"version": "2"}, "version"),
+        ({"version": "2"}, r'version must be a JSON integer \(1 to 2\), got "2"'),
+        ({"version": 2.0}, r"version must be a JSON integer \(1 to 2\), got 2\.0"),
+        ({"version": True}, r"version must be a JSON integer \(1 to 2\), got true"),
         ({"version": 2, "stiffness": [{"vertices": [0], "value": 0}]}, "positive"),
         ({"version": 2, "stiffness": [{"vertices": [0], "value": "soft"}]}, "rigid"),
         ({"version": 2, "stiffness": [{"vertices": [0], "value": True}]}, "positive"),
