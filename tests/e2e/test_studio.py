@@ -264,6 +264,28 @@ def test_constraints_file_targets_move_the_handles(page: Page, tmp_path: Path) -
     assert not page.evaluate("() => window.__arap.errors"), "the server reported errors"
 
 
+@pytest.mark.parametrize(("stiffness", "message"), [
+    ([2.0, 2.0, 1.0], "lists one value per vertex"),
+    ("per-vertex-zero", "stiffness[3]"),
+    ([{"vertices": [10**6], "value": 5}], "vertex 1000000"),
+    ([{"vertices": [3, 4], "value": 5}, {"vertices": [4], "value": "rigid"}], "vertex 4 is given two stiffness"),
+])
+def test_constraints_file_with_bad_stiffness_is_refused(page: Page, tmp_path: Path, stiffness: object,
+                                                        message: str) -> None:
+    """Painted stiffness that arap deform refuses is not loaded in part: the file is reported, nothing changes."""
+    n = len(positions(page))
+    if stiffness == "per-vertex-zero":
+        stiffness = [1.0] * n
+        stiffness[3] = 0  # type: ignore[index]
+    path = tmp_path / "stiff.json"
+    path.write_text(json.dumps({"version": 2, "fixed": [0, 1], "stiffness": stiffness}))
+    page.get_by_test_id("constraints-input").set_input_files(str(path))
+    expect(page.get_by_test_id("status-text")).to_contain_text("stiff.json")
+    expect(page.get_by_test_id("status-text")).to_contain_text(message)
+    assert page.evaluate("() => window.__arap.counts().fixed") == 0
+    assert page.evaluate("() => window.__arap.constraints().stiffness") is None
+
+
 def test_upload_obj_with_file_input(page: Page, tmp_path: Path, shoot: Shoot) -> None:
     text, n = sphere_obj(2)
     path = tmp_path / "small_sphere.obj"

@@ -133,24 +133,43 @@ function pointList(doc) {
   });
 }
 
-/** Painted stiffness of a document: [{vertices, value}] (a list of one value per vertex is turned into that). */
-function stiffnessList(doc) {
+const isStiffness = (v) => v === 'rigid' || (isNumber(v) && v > 0);
+
+/**
+ * Painted stiffness of a document: [{vertices, value}] (a list of one value per vertex is turned into that). With
+ * `nVertices`, checked as `arap deform` checks it: a value for each vertex, indices in range, no vertex given two
+ * values.
+ */
+function stiffnessList(doc, nVertices) {
   const s = doc.stiffness;
   if (s === undefined || s === null) return null;
   if (!Array.isArray(s)) throw new Error('"stiffness" must be a list');
-  if (s.length && s.every((v) => typeof v !== 'object')) {
+  if (s.length && s.every((v) => v === null || typeof v !== 'object')) {
+    if (nVertices !== undefined && s.length !== nVertices) {
+      throw new Error(`"stiffness" lists one value per vertex: ${nVertices} expected, ${s.length} given`);
+    }
     const groups = new Map();
     s.forEach((v, i) => {
+      if (!isStiffness(v)) throw new Error(`"stiffness[${i}]" must be a positive number or "rigid"`);
       if (v === 1) return;
       if (!groups.has(v)) groups.set(v, []);
       groups.get(v).push(i);
     });
     return [...groups].map(([value, vertices]) => ({ vertices, value }));
   }
+  const seen = new Set();
   return s.map((g, k) => {
-    const ok = g && typeof g === 'object' && (g.value === 'rigid' || (isNumber(g.value) && g.value > 0));
+    const ok = g && typeof g === 'object' && isStiffness(g.value);
     if (!ok) throw new Error(`"stiffness[${k}]" must be {"vertices": [...], "value": a positive number or "rigid"}`);
-    return { vertices: indexList(g.vertices, `stiffness[${k}].vertices`), value: g.value };
+    const vertices = indexList(g.vertices, `stiffness[${k}].vertices`);
+    for (const i of vertices) {
+      if (nVertices !== undefined && i >= nVertices) {
+        throw new Error(`"stiffness[${k}].vertices" names vertex ${i}, but the mesh has ${nVertices} vertices`);
+      }
+      if (seen.has(i)) throw new Error(`vertex ${i} is given two stiffness values`);
+      seen.add(i);
+    }
+    return { vertices, value: g.value };
   });
 }
 
@@ -159,9 +178,10 @@ function stiffnessList(doc) {
  * {fixed, handles, targets, roi, points, stiffness} (its handles become one group; point handles follow the groups,
  * painted stiffness comes as [{vertices, value}]). With `targets`, the result's `targets` maps each
  * handle vertex to its [x, y, z]; handles outside `handle_groups` (vertices a saved studio session held in place)
- * become one more group. `partners` lists the pairs [k, l] of mirror partner groups saved in "meta".
+ * become one more group. `partners` lists the pairs [k, l] of mirror partner groups saved in "meta". With
+ * `nVertices` (the mesh's), painted stiffness is checked against the mesh.
  */
-export function parseConstraints(text) {
+export function parseConstraints(text, nVertices = undefined) {
   let doc;
   try {
     doc = JSON.parse(text);
@@ -189,7 +209,7 @@ export function parseConstraints(text) {
     groups = [];
   }
   const points = pointList(doc);
-  const stiffness = stiffnessList(doc);
+  const stiffness = stiffnessList(doc, nVertices);
   if (!fixed.length && !groups.length && !points.length) {
     throw new Error('no "fixed" or handle vertices (or "points") in the document');
   }
@@ -208,7 +228,7 @@ export async function readConstraintsFile(file, nVertices, nFaces) {
   const text = await file.text();
   let c;
   try {
-    c = parseConstraints(text);
+    c = parseConstraints(text, nVertices);
   } catch (err) {
     throw new Error(`Cannot read ${file.name}: ${err.message}`);
   }
