@@ -10,6 +10,7 @@ rotation of their rest vectors: the region moves as a rigid body, and the energy
 
 from __future__ import annotations
 
+import numba as nb
 import numpy as np
 import scipy.sparse as sp
 from numpy.typing import NDArray
@@ -19,6 +20,31 @@ from arap.cells import Cells
 from arap.rotations import fit_rotations
 
 __all__ = ["RigidRegions", "rigid_regions"]
+
+
+@nb.njit(cache=True, nogil=True)
+def _region_covariances(a, b, we, region, U, S):  # pragma: no cover - compiled
+    """``S[r] += w e (p'_a − p'_b)ᵀ`` over the terms, ``r`` the region of each term's cell."""
+    for t in range(a.shape[0]):
+        r = region[t]
+        for i in range(3):
+            d = U[a[t], i] - U[b[t], i]
+            for k in range(3):
+                S[r, k, i] += we[t, k] * d
+
+
+@nb.njit(cache=True, nogil=True)
+def _term_energies(a, b, w, e, cell, region, U, R, E):  # pragma: no cover - compiled
+    """``E[c] = Σ w ‖(p'_a − p'_b) − R_r e‖²`` over each cell's terms, term by term (``E`` zeroed for those cells)."""
+    for t in range(a.shape[0]):
+        E[cell[t]] = 0.0
+    for t in range(a.shape[0]):
+        r = region[t]
+        total = 0.0
+        for i in range(3):
+            x = U[a[t], i] - U[b[t], i] - (R[r, i, 0] * e[t, 0] + R[r, i, 1] * e[t, 1] + R[r, i, 2] * e[t, 2])
+            total += x * x
+        E[cell[t]] += w[t] * total
 
 
 def rigid_regions(F: NDArray[np.int64], rigid: NDArray[np.bool_]) -> NDArray[np.int64]:
@@ -104,16 +130,13 @@ class RigidRegions:
         """
         if not len(self._terms):
             return 0.0
-        d = U[self._a] - U[self._b]
-        outer = self._we[:, :, None] * d[:, None, :]  # per term: w e e'ᵀ
         S = np.zeros((self.n_regions, 3, 3))
-        np.add.at(S, self._term_region, outer)
+        _region_covariances(self._a, self._b, self._we, self._term_region, U, S)
         shared = fit_rotations(S)
         # Σ w ‖e' − R e‖² term by term: the expanded form the local step uses would lose the small residuals of
         # rigid cells to cancellation between their large weighted terms.
-        r = d - np.einsum("tij,tj->ti", shared[self._term_region], self._e)
-        energy = np.bincount(self._term_cell, weights=self._w * np.einsum("ti,ti->t", r, r), minlength=self._n)
-        change = float(energy[self.cells].sum() - E[self.cells].sum())
-        E[self.cells] = energy[self.cells]
+        before = float(E[self.cells].sum())
+        _term_energies(self._a, self._b, self._w, self._e, self._term_cell, self._term_region, U, shared, E)
+        change = float(E[self.cells].sum()) - before
         R[self.cells] = shared[self.cell_region]
         return change
