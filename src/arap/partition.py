@@ -84,9 +84,28 @@ def partition_vertices(
     return free, held, nonfree
 
 
+def _floats(value: object, name: str, expected: str, error: type[ArapError]) -> NDArray[np.float64]:
+    """``value`` as a float64 array (no copy when it is one); ``error`` naming ``name`` and the ``expected`` array
+    when it holds anything but real numbers (strings, complex numbers, ragged lists, objects)."""
+    try:
+        raw = np.asarray(value)
+    except ValueError:  # ragged nested lists
+        raise error(f"{name} must be numbers: {expected}") from None
+    if raw.dtype.kind == "c":
+        raise error(f"{name} must be real numbers, got {raw.dtype}")
+    if raw.dtype.kind not in "biuf" and raw.size:
+        try:
+            if raw.dtype.kind in "USV":
+                raise TypeError
+            return raw.astype(np.float64)
+        except (TypeError, ValueError, OverflowError):
+            raise error(f"{name} must be numbers: {expected}") from None
+    return raw.astype(np.float64, copy=False)
+
+
 def check_targets(targets: object, k: int) -> NDArray[np.float64]:
     """Targets of ``k`` constrained vertices as a (k, 3) float64 array; raises ConstraintError otherwise."""
-    T = np.asarray(targets, dtype=np.float64)
+    T = _floats(targets, "targets", f"({k}, 3) floats, one row per constrained vertex", ConstraintError)
     if T.shape != (k, 3):
         raise ConstraintError(f"targets must have shape ({k}, 3), one row per constrained vertex; got {T.shape}")
     if not np.all(np.isfinite(T)):
@@ -101,7 +120,7 @@ def check_point_targets(point_targets: object, p: int) -> NDArray[np.float64] | 
         if p:
             raise ConstraintError(f"point_targets is missing: the solver has {p} point constraints")
         return None
-    P = np.asarray(point_targets, dtype=np.float64)
+    P = _floats(point_targets, "point_targets", f"({p}, 3) floats, one row per point constraint", ConstraintError)
     if P.shape != (p, 3):
         raise ConstraintError(f"point_targets must have shape ({p}, 3), got {P.shape}")
     if not np.isfinite(P).all():
@@ -111,7 +130,7 @@ def check_point_targets(point_targets: object, p: int) -> NDArray[np.float64] | 
 
 def check_positions(U: object, n: int, name: str) -> NDArray[np.float64]:
     """Positions of all ``n`` vertices as an (n, 3) float64 array; raises ArapError (naming ``name``) otherwise."""
-    X = np.asarray(U, dtype=np.float64)
+    X = _floats(U, name, f"({n}, 3) floats, one row per vertex", ArapError)
     if X.shape != (n, 3):
         raise ArapError(f"{name} must have shape ({n}, 3), got {X.shape}")
     if not np.all(np.isfinite(X)):

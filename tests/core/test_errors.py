@@ -81,3 +81,21 @@ def test_bad_options(icosphere: tuple[np.ndarray, np.ndarray]) -> None:
         solver.solve(V[[0]], max_iterations=-1)
     with pytest.raises(ValueError, match="initial"):
         solver.solve(V[[0]], initial=V[:10])
+
+
+def test_targets_initial_and_point_targets_that_are_not_numbers(icosphere: tuple[np.ndarray, np.ndarray]) -> None:
+    V, F = icosphere
+    solver = ArapSolver(V, F, [0, 1], points=([5], [[1, 0, 0]]))
+    P = [[0.0, 0.0, 0.0]]
+    with pytest.raises(ConstraintError, match=r"targets must be numbers: \(2, 3\) floats, one row per constrained"):
+        solver.solve([["a", 0, 0], [1, 1, 1]], point_targets=P)
+    with pytest.raises(ConstraintError, match=r"targets must be numbers"):
+        solver.solve([[0, 0], [1, 1, 1]], point_targets=P)  # ragged
+    with pytest.raises(ConstraintError, match=r"targets must be numbers"):
+        solver.solve({"a": 1}, point_targets=P)
+    with pytest.raises(ConstraintError, match=r"targets must be real numbers, got complex128"):
+        solver.solve(V[[0, 1]] * (1 + 1j), point_targets=P)
+    with pytest.raises(ConstraintError, match=r"point_targets must be numbers"):
+        solver.solve(V[[0, 1]], point_targets=[["x", 0, 0]])
+    with pytest.raises(ArapError, match=r"initial must be numbers"):
+        solver.solve(V[[0, 1]], point_targets=P, initial=np.full((len(V), 3), "a"))
