@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import signal
 import subprocess
 import sys
 from pathlib import Path
@@ -10,6 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from arap import cli
 from arap.cli import main
 from arap.cli_bench import bench_constraints
 from arap.io import load_mesh, save_mesh
@@ -65,6 +67,31 @@ def test_deform_says_when_the_cap_stopped_it(tmp_path: Path, capsys: pytest.Capt
     err = capsys.readouterr().err
     assert "iteration limit reached, not converged (residual" in err and "tolerance 1e-09)" in err
     assert "the shape written is the last iterate; raise --iterations" in err and "spokes_and_rims" in err
+
+
+def test_ctrl_c_during_deform_writes_the_last_iterate(tmp_path: Path, capsys: pytest.CaptureFixture[str],
+                                                      monkeypatch: pytest.MonkeyPatch) -> None:
+    """The first Ctrl-C stops the solve at the end of its iteration: the iterate reached is written (exit 130) and
+    said to be unconverged; the same three iterations run without interruption give the same shape."""
+    cfile = tmp_path / "c.json"
+    bar_constraints(cfile)
+    progress = cli._Progress.__call__
+
+    def press_ctrl_c_at_3(self: cli._Progress, iteration: int, energy: float) -> None:
+        progress(self, iteration, energy)
+        if iteration == 3:
+            signal.raise_signal(signal.SIGINT)
+
+    monkeypatch.setattr(cli._Progress, "__call__", press_ctrl_c_at_3)
+    out = tmp_path / "stopped.obj"
+    assert main(["deform", "bar", "--constraints", str(cfile), "-o", str(out)]) == 130
+    err = capsys.readouterr().err
+    assert "interrupted after 3 iterations: wrote the last iterate" in err and "not converged" in err
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler  # Ctrl-C works as before afterwards
+    monkeypatch.undo()
+    capped = tmp_path / "capped.obj"
+    assert main(["deform", "bar", "--constraints", str(cfile), "-o", str(capped), "-n", "3"]) == 0
+    np.testing.assert_array_equal(load_mesh(out)[0], load_mesh(capped)[0])
 
 
 def test_deform_file_mesh_quiet_with_options(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
@@ -357,3 +384,22 @@ def test_deform_explains_a_negative_energy(tmp_path: Path, capsys: pytest.Captur
     assert main(["deform", str(mesh), "-c", str(cfile), "-o", str(out), "-n", "3"]) == 0
     err = capsys.readouterr().err
     assert "energy -" not in err and "below 0" not in err
+
+
+def test_info_says_vertex_indices_change_only_when_repair_renumbers(tmp_path: Path,
+                                                                   capsys: pytest.CaptureFixture[str]) -> None:
+    V, F = builtin_mesh("bar")
+    path = tmp_path / "dup.obj"
+    save_mesh(path, V, np.concatenate([F, F[:5]]))  # duplicate faces: dropping them keeps every vertex number
+    assert main(["info", str(path)]) == 0
+    out = capsys.readouterr().out
+    assert "repair would: dropped 5 duplicate faces" in out
+    assert f"after repair: {len(V):,} vertices, {len(F):,} faces (vertex indices stay)" in out
+    assert main(["info", str(path), "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["repair"]["renumbers_vertices"] is False
+    path = tmp_path / "unused.obj"
+    save_mesh(path, np.concatenate([[[9.0, 9.0, 9.0]], V]), F + 1)  # an unused first vertex: all shift by one
+    assert main(["info", str(path)]) == 0
+    assert "faces (vertex indices change)" in capsys.readouterr().out
+    assert main(["info", str(path), "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["repair"]["renumbers_vertices"] is True

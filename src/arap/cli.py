@@ -13,7 +13,9 @@ import dataclasses
 import json
 import logging
 import os
+import signal
 import sys
+import threading
 import time
 from collections.abc import Sequence
 from pathlib import Path
@@ -145,6 +147,28 @@ class _Progress:
             self.stream.flush()
 
 
+class _FirstInterrupt:
+    """While active (a ``with`` block in the main thread): the first Ctrl-C only sets :attr:`requested`, so that a
+    solve can stop at the end of its iteration and its iterate be written; a second one interrupts at once."""
+
+    def __init__(self) -> None:
+        self.requested = False
+        self._previous: Any = None
+
+    def _handle(self, signum: int, frame: object) -> None:
+        self.requested = True
+        signal.signal(signal.SIGINT, self._previous)
+
+    def __enter__(self) -> _FirstInterrupt:
+        if threading.current_thread() is threading.main_thread():
+            self._previous = signal.signal(signal.SIGINT, self._handle)
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        if self._previous is not None and not self.requested:
+            signal.signal(signal.SIGINT, self._previous)
+
+
 def _cmd_deform(args: argparse.Namespace) -> int:
     from arap.constraints import load_constraints
     from arap.io import format_of, save_mesh
@@ -184,17 +208,28 @@ def _cmd_deform(args: argparse.Namespace) -> int:
         _err(f"arap: {label}: {len(V):,} vertices, {len(F):,} faces; {len(constraints.fixed):,} fixed, "
              f"{len(constraints.handles):,} handles; precompute {1e3 * solver.factor_seconds:.0f} ms")
     progress = _Progress(args.iterations, sys.stderr, enabled=not args.quiet)
+    interrupt = _FirstInterrupt()
+
+    def callback(iteration: int, energy: float) -> bool:
+        progress(iteration, energy)
+        return not interrupt.requested
+
     t0 = time.perf_counter()
     try:
-        result = solver.solve(targets, initial=args.start, max_iterations=args.iterations, tolerance=args.tolerance,
-                              callback=progress, acceleration=args.acceleration,
-                              point_targets=constraints.point_targets)
+        with interrupt:
+            result = solver.solve(targets, initial=args.start, max_iterations=args.iterations,
+                                  tolerance=args.tolerance, callback=callback, acceleration=args.acceleration,
+                                  point_targets=constraints.point_targets)
     finally:
         progress.close()
     seconds = time.perf_counter() - t0
     if not np.isfinite(result.vertices).all():
         raise ArapError("the solve produced non-finite positions; nothing was written")
     save_mesh(args.output, result.vertices, F)
+    if interrupt.requested:
+        _err(f"arap: interrupted after {result.iterations} iterations: wrote the last iterate to {args.output} "
+             f"(not converged: residual {result.residual:.2g}, tolerance {args.tolerance:g})")
+        return EXIT_INTERRUPTED
     if not args.quiet:
         if result.energies:
             per_it = 1e3 * seconds / max(result.iterations, 1)
@@ -236,8 +271,9 @@ def _info_report(V: np.ndarray, F: np.ndarray, label: str) -> tuple[MeshInfo, di
     except MeshError as exc:
         report["repair"] = {"possible": False, "reason": str(exc)}
     else:
+        renumbers = not np.array_equal(fixed.vertex_map, np.arange(len(V)))
         report["repair"] = {"possible": True, "changes": list(fixed.report), "n_vertices": len(fixed.V),
-                            "n_faces": len(fixed.F)}
+                            "n_faces": len(fixed.F), "renumbers_vertices": renumbers}
     return info, report
 
 
@@ -263,7 +299,9 @@ def _cmd_info(args: argparse.Namespace) -> int:
         _out("  repair: nothing to do")
     else:
         _out(f"  repair would: {'; '.join(repair['changes'])}")
-        _out(f"  after repair: {repair['n_vertices']:,} vertices, {repair['n_faces']:,} faces (vertex indices change)")
+        indices = "change" if repair["renumbers_vertices"] else "stay"
+        _out(f"  after repair: {repair['n_vertices']:,} vertices, {repair['n_faces']:,} faces (vertex indices "
+             f"{indices})")
     return 0
 
 
