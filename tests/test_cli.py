@@ -94,6 +94,16 @@ def test_ctrl_c_during_deform_writes_the_last_iterate(tmp_path: Path, capsys: py
     np.testing.assert_array_equal(load_mesh(out)[0], load_mesh(capped)[0])
 
 
+def test_alpha_out_of_range_is_a_usage_error(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    cfile = tmp_path / "c.json"
+    bar_constraints(cfile)
+    for value in ("-1", "inf", "1e300"):
+        assert main(["deform", "bar", "-c", str(cfile), "-o", str(tmp_path / "o.obj"), "--energy",
+                     "smooth_rotations", "--alpha", value]) == 2
+        assert "alpha must be a number from 0 to 1000" in capsys.readouterr().err
+    assert not (tmp_path / "o.obj").exists()
+
+
 def test_deform_file_mesh_quiet_with_options(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     V, F = builtin_mesh("bar")
     mesh = tmp_path / "bar.off"

@@ -25,10 +25,10 @@ import numpy as np
 
 from arap import __version__
 from arap.cells import DEFAULT_ENERGY, ENERGY_TYPES
-from arap.errors import ArapError, ConstraintError, MeshError, MeshFormatError
+from arap.errors import ArapError, ConstraintError, MeshError, MeshFormatError, OptionError
 from arap.mesh import RepairResult
 from arap.result import ACCELERATIONS, DEFAULT_TOLERANCE, MAX_ITERATIONS, START_NAMES
-from arap.smooth import DEFAULT_ALPHA
+from arap.smooth import DEFAULT_ALPHA, check_alpha
 from arap.weights import DEFAULT_WEIGHTS, WEIGHT_TYPES
 
 if TYPE_CHECKING:
@@ -349,9 +349,10 @@ def _alpha(text: str) -> float:
         value = float(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
-    if not (value >= 0 and value != float("inf")):
-        raise argparse.ArgumentTypeError(f"must be a finite number >= 0, got {text}")
-    return value
+    try:
+        return check_alpha(value)
+    except OptionError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
 
 
 def _positive_int(text: str) -> int:
