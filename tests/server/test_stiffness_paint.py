@@ -133,3 +133,22 @@ def test_paint_the_energy_cannot_take_is_refused_with_the_session_unchanged(shar
     labels = rigid_regions(session.mesh.F, mask)  # the knight's band is several parts, each rigid on its own
     for k in range(labels.max() + 1):
         assert _rigid_misfit(session.V, U, np.flatnonzero(labels == k)) < 1e-6
+
+
+def test_undo_to_paint_the_energy_cannot_take_says_why_a_drag_cannot_solve(shared_meshes_dir: Path) -> None:
+    """Undo back to painted stiffness after switching to the spokes energy (with which that paint has no minimum on
+    the knight) keeps the step; a drag then names the reason and the way out, not an empty selection."""
+    data = (shared_meshes_dir / "decimated-knight.off").read_bytes()
+    session = Session()
+    session.load(load_upload(data, "decimated-knight.off", 10**6))
+    fixed, top, middle = _setup(session.V)
+    session.set_constraints(None, fixed, [top], stiffness=[{"vertices": middle.tolist(), "value": "rigid"}])
+    session.set_constraints(None, fixed, [top])
+    session.set_params(energy="spokes")
+    assert session.undo() and session.constraints.stiffness is not None
+    with pytest.raises(RequestError, match=r"cannot be solved with the spokes energy.*spokes_and_rims") as err:
+        session.drag([column_major(np.eye(4))])
+    assert err.value.code == "bad_constraints"
+    session.set_params(energy="spokes_and_rims")  # the way out works
+    _bend(session, top)
+    assert session.redo() is False  # the drag is an unfinished step

@@ -103,6 +103,8 @@ class Session:
         self._rest_counter = 0
         self._solvers: OrderedDict[tuple[Any, ...], Any] = OrderedDict()
         self.solver: Any = None
+        self._unsolvable: str | None = None
+        """Why the solver rejected the constraints an undo or redo restored (``solver`` is then None)."""
         self._warm = False
         self._dirty = False
         self.rest_id = 0
@@ -171,11 +173,14 @@ class Session:
                         self.energy)
 
     def _restore(self, snap: Snapshot) -> None:
+        self._unsolvable = None
         try:
             solver = self._solver_for(snap.rest_id, snap.V, snap.constraints, self.params)
         except RequestError as exc:
             logger.warning("restored constraints cannot be solved with the current parameters: %s", exc.message)
             solver = None
+            self._unsolvable = (f"the constraints of this step cannot be solved with the {self.params.energy} "
+                                f"energy and {self.params.weights} weights: {exc.message}")
         self.rest_id, self.V, self.U = snap.rest_id, snap.V, snap.U
         self.constraints, self.transforms = snap.constraints, snap.transforms
         self.solver = solver
@@ -321,6 +326,8 @@ class Session:
             raise RequestError("bad_message", f"drag has {len(transforms)} transforms but the constraints have "
                                f"{self.n_groups} handle groups")
         if self.solver is None:
+            if self._unsolvable is not None and not self.constraints.is_empty:
+                raise RequestError("bad_constraints", self._unsolvable)
             raise RequestError("bad_constraints", "nothing to solve: select fixed vertices or handles first")
         T = matrices_from_json(transforms)
         targets = self.constraints.targets(T)
