@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+import arap
 from arap import cli
 from arap.cli import main
 from arap.cli_bench import bench_constraints
@@ -140,6 +141,36 @@ def test_deform_renumbers_constraints_after_repair(tmp_path: Path, capsys: pytes
     assert len(U) == len(V)
     np.testing.assert_allclose(U[handles - 1], targets, atol=1e-12)
     assert "renumbered" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("fmt", ["obj", "ply", "off"])
+def test_deform_writes_the_files_vertex_order(tmp_path: Path, capsys: pytest.CaptureFixture[str], fmt: str) -> None:
+    """Repair drops an unused vertex and welds a duplicate; the output still has the file's vertices in its order
+    (a morph target of the input): the unused one where it was, the duplicate with its twin, the rest deformed as
+    the repaired mesh is, and the file's triangles."""
+    V, F = builtin_mesh("bar")
+    V2 = np.vstack([[[7.0, 7.0, 7.0]], V, V[:1]])  # vertex 0 unused; the last one duplicates vertex 1
+    F2 = F + 1
+    face = np.flatnonzero(np.any(F2 == 1, axis=1))[0]
+    F2[face][F2[face] == 1] = len(V2) - 1  # one face uses the duplicate
+    mesh = tmp_path / f"messy.{fmt}"
+    save_mesh(mesh, V2, F2)
+    fixed = np.flatnonzero(V2[1:-1, 1] < 0.3) + 1
+    handles = np.flatnonzero(V2[1:-1, 1] > 4.7) + 1
+    targets = V2[handles] + [0.3, 0, 0]
+    cfile = tmp_path / "c.json"
+    cfile.write_text(json.dumps({"fixed": fixed.tolist(), "handles": handles.tolist(), "targets": targets.tolist()}))
+    out = tmp_path / f"out.{fmt}"
+    assert main(["deform", str(mesh), "-c", str(cfile), "-o", str(out), "-n", "3"]) == 0
+    assert f"in the vertex order of {mesh} (4,316 vertices)" in capsys.readouterr().err
+    U, G = load_mesh(out, repair=False)
+    assert len(U) == len(V2)
+    np.testing.assert_array_equal(G, F2)
+    np.testing.assert_array_equal(U[0], V2[0])
+    np.testing.assert_array_equal(U[-1], U[1])
+    np.testing.assert_allclose(U[handles], targets, atol=1e-12)
+    solved = arap.ArapSolver(V, F, np.r_[fixed, handles] - 1).solve(np.r_[V2[fixed], targets], max_iterations=3)
+    np.testing.assert_allclose(U[1:-1], solved.vertices, atol=1e-12)
 
 
 def test_info_output(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

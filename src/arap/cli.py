@@ -189,7 +189,7 @@ def _cmd_deform(args: argparse.Namespace) -> int:
     V, F, repair, label = load_mesh_argument(args.mesh)
     n_file = len(repair.vertex_map)
     constraints = load_constraints(args.constraints, n_file, len(F))
-    renumbered = len(V) != n_file or not np.array_equal(repair.vertex_map, np.arange(n_file))
+    renumbered = repair.renumbers
     if repair.report and constraints.points is not None and len(constraints.points):
         raise ConstraintError("point handles refer to the file's triangles, which mesh repair changed; repair the "
                               "mesh file first (arap info shows what repair changes)")
@@ -225,7 +225,13 @@ def _cmd_deform(args: argparse.Namespace) -> int:
     seconds = time.perf_counter() - t0
     if not np.isfinite(result.vertices).all():
         raise ArapError("the solve produced non-finite positions; nothing was written")
-    save_mesh(args.output, result.vertices, F)
+    U_out, F_out = result.vertices, F
+    # The output keeps the file's vertex order and count, as its constraints do (an STL has no vertex identity: its
+    # welded vertices are the mesh).
+    back = repair.in_input_order(result.vertices) if renumbered and format_of(args.mesh) != "stl" else None
+    if back is not None:
+        U_out, F_out = back
+    save_mesh(args.output, U_out, F_out)
     if interrupt.requested:
         _err(f"arap: interrupted after {result.iterations} iterations: wrote the last iterate to {args.output} "
              f"(not converged: residual {result.residual:.2g}, tolerance {args.tolerance:g})")
@@ -246,7 +252,8 @@ def _cmd_deform(args: argparse.Namespace) -> int:
                 _err(f"arap: note: the energy is below 0 because {args.energy} with {args.weights} weights has "
                      "negative terms on obtuse triangles (see README, 'Energy and weights'); "
                      "spokes_and_rims is never negative")
-        _err(f"arap: wrote {args.output}")
+        in_file_order = f" in the vertex order of {label} ({len(U_out):,} vertices)" if back is not None else ""
+        _err(f"arap: wrote {args.output}{in_file_order}")
     return 0
 
 
@@ -271,7 +278,7 @@ def _info_report(V: np.ndarray, F: np.ndarray, label: str) -> tuple[MeshInfo, di
     except MeshError as exc:
         report["repair"] = {"possible": False, "reason": str(exc)}
     else:
-        renumbers = not np.array_equal(fixed.vertex_map, np.arange(len(V)))
+        renumbers = fixed.renumbers
         report["repair"] = {"possible": True, "changes": list(fixed.report), "n_vertices": len(fixed.V),
                             "n_faces": len(fixed.F), "renumbers_vertices": renumbers}
     return info, report

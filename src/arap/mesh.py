@@ -330,6 +330,9 @@ class RepairResult:
     counts : dict of str to int
         ``welded_vertices``, ``triangulated_polygons``, ``repeated_vertex_faces``, ``degenerate_faces``,
         ``duplicate_faces``, ``unreferenced_vertices``.
+    input_V, input_F : (n, 3) float64 and (m0, 3) int64 arrays, or None
+        The input's vertices and triangles (polygons fan-triangulated, nothing dropped), kept when the repair changed
+        the vertex numbering (for :meth:`in_input_order`); else None.
     """
 
     V: np.ndarray
@@ -337,6 +340,48 @@ class RepairResult:
     vertex_map: np.ndarray
     report: list[str] = field(default_factory=list)
     counts: dict[str, int] = field(default_factory=dict)
+    input_V: np.ndarray | None = None
+    input_F: np.ndarray | None = None
+
+    @property
+    def renumbers(self) -> bool:
+        """True if the repaired vertices are not the input's in the same order (welded or dropped vertices)."""
+        return not np.array_equal(self.vertex_map, np.arange(len(self.vertex_map)))
+
+    def in_input_order(self, U: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+        """Positions of the repaired vertices carried back to the input's vertices, with the input's triangles.
+
+        Each input vertex takes the position of the repaired vertex it became (a welded copy keeps its small offset
+        from the vertex it was welded to); a dropped vertex keeps its input position. So a deformed mesh can be
+        written with the vertex order and count of the file it came from.
+
+        Parameters
+        ----------
+        U : (n', 3) float array
+            Positions of the repaired vertices (e.g. a deformation of :attr:`V`).
+
+        Returns
+        -------
+        (V, F) or None
+            (n, 3) positions and the input's (m0, 3) triangles; ``(U, F)`` when the repair kept the numbering. None
+            when a dropped vertex has non-finite coordinates (it cannot be written).
+
+        Example
+        -------
+        >>> r = repair_mesh(np.array([[9.0, 9, 9], [0, 0, 0], [1, 0, 0], [0, 1, 0]]), np.array([[1, 2, 3]]))
+        >>> V, F = r.in_input_order(r.V + 1.0)
+        >>> V.tolist(), F.tolist()
+        ([[9.0, 9.0, 9.0], [1.0, 1.0, 1.0], [2.0, 1.0, 1.0], [1.0, 2.0, 1.0]], [[1, 2, 3]])
+        """
+        if self.input_V is None or self.input_F is None:
+            return U, self.F
+        kept = self.vertex_map >= 0
+        if not np.isfinite(self.input_V[~kept]).all():
+            return None
+        out = self.input_V.copy()
+        to = self.vertex_map[kept]
+        out[kept] = U[to] + (self.input_V[kept] - self.V[to])
+        return out, self.input_F
 
     @property
     def changed(self) -> bool:
@@ -379,6 +424,7 @@ def repair_mesh(
     else:
         F = triangulate_polygons(polygons) if n_polygons else np.zeros((0, 3), dtype=np.int64)
     n = len(V)
+    F_input = F
     counts = {
         "triangulated_polygons": int(len(F) - n_polygons),
         "welded_vertices": 0,
@@ -448,7 +494,10 @@ def repair_mesh(
             report.append(template.format(f"{counts[key]:,}"))
     if report:
         logger.info("repaired mesh: %s", "; ".join(report))
-    return RepairResult(V=V_out, F=F_out, vertex_map=vertex_map, report=report, counts=counts)
+    result = RepairResult(V=V_out, F=F_out, vertex_map=vertex_map, report=report, counts=counts)
+    if result.renumbers:
+        result.input_V, result.input_F = V, F_input
+    return result
 
 
 # ---------------------------------------------------------------------------------------------- inspect
