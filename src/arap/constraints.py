@@ -7,7 +7,8 @@ The JSON format::
       "handles": [40, 41],                      # vertices moved to targets
       "targets": [[0.0, 5.2, 0.1], [0.1, 5.2, 0.0]],   # one [x, y, z] per handle, same order
       "roi":     [0, 1, 2, 3, ...],             # optional region of interest (only these vertices move)
-      "handle_groups": [[40, 41]],              # optional, informative (how an editor grouped the handles)
+      "handle_groups": [[40, 41]],              # optional, informative (how an editor grouped the handles; each
+                                                #   handle in one group at most)
       "stiffness": [{"vertices": [7, 8], "value": 10.0},      # optional (version 2): per-vertex cell weights,
                     {"vertices": [9], "value": "rigid"}],     # 1 where not given; "rigid" keeps a region rigid
       "points": [{"face": 12, "barycentric": [0.2, 0.3, 0.5],        # optional (version 2): handles inside
@@ -290,6 +291,7 @@ def load_constraints(source: str | os.PathLike[str] | Mapping[str, Any], n_verti
         if not isinstance(raw, list | tuple):
             raise ConstraintError("handle_groups must be a list of lists of vertex indices")
         handle_groups = [[int(i) for i in check_index_array(g, n, f"handle_groups[{k}]")] for k, g in enumerate(raw)]
+        _check_handle_groups(handle_groups, handles)
     if "meta" in data and not isinstance(data["meta"], Mapping):
         raise ConstraintError("meta must be a JSON object")
     version = data.get("version", 1)
@@ -313,6 +315,21 @@ def load_constraints(source: str | os.PathLike[str] | Mapping[str, Any], n_verti
         points, point_targets = _points(data["points"], int(n_faces))
     return Constraints(fixed=fixed, handles=handles, targets=targets, roi=roi, handle_groups=handle_groups,
                        stiffness=stiffness, points=points, point_targets=point_targets)
+
+
+def _check_handle_groups(groups: list[list[int]], handles: np.ndarray) -> None:
+    """Handle groups name handles only, each in one group (as the studio, which reads them, requires)."""
+    is_handle = set(handles.tolist())
+    group_of: dict[int, int] = {}
+    for k, g in enumerate(groups):
+        for i in g:
+            if i not in is_handle:
+                raise ConstraintError(f'handle_groups[{k}] names vertex {i}, which is not in "handles"; groups '
+                                      'list handle vertices (or leave "handle_groups" out)')
+            if i in group_of:
+                raise ConstraintError(f"vertex {i} is in handle_groups[{group_of[i]}] and handle_groups[{k}]; a "
+                                      "handle belongs to one group")
+            group_of[i] = k
 
 
 def _points(raw: Any, n_faces: int) -> tuple[PointConstraints, np.ndarray]:

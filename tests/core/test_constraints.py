@@ -121,6 +121,8 @@ def test_remapped_follows_a_vertex_renumbering() -> None:
         ({"roi": [0, 0, 8, 9]}, "more than once"),
         ({"handle_groups": [[8, 11]]}, "out of range"),
         ({"handle_groups": 8}, "list of lists"),
+        ({"handle_groups": [[8], [0]]}, r'handle_groups\[1\] names vertex 0, which is not in "handles"'),
+        ({"handle_groups": [[8, 9], [9]]}, r"vertex 9 is in handle_groups\[0\] and handle_groups\[1\]"),
         ({"meta": 3}, "JSON object"),
     ],
 )
