@@ -132,8 +132,8 @@ class Constraints:
         ------
         ConstraintError
             A constrained vertex was dropped (maps to -1; region-of-interest vertices may be), or welded copies
-            disagree (a fixed copy and a handle copy,
-            or handle copies with different targets).
+            disagree (a fixed copy and a handle copy, handle copies with different targets, or copies with different
+            stiffness).
         """
         vertex_map = np.asarray(vertex_map, dtype=np.int64)
 
@@ -181,9 +181,17 @@ class Constraints:
                 taken.update(welded)
         stiffness = None
         if self.stiffness is not None:
-            kept = vertex_map >= 0
+            kept = np.flatnonzero(vertex_map >= 0)
             stiffness = np.ones(int(vertex_map.max(initial=-1)) + 1)
             stiffness[vertex_map[kept]] = self.stiffness[kept]
+            differs = stiffness[vertex_map[kept]] != self.stiffness[kept]
+            if differs.any():
+                one = int(kept[np.argmax(differs)])
+                copies = kept[vertex_map[kept] == vertex_map[one]]
+                pair = sorted((one, int(copies[self.stiffness[copies] != self.stiffness[one]][0])))
+                a, b = ("rigid" if math.isinf(self.stiffness[k]) else f"{self.stiffness[k]:g}" for k in pair)
+                raise ConstraintError(f"mesh repair welded vertices {pair[0]} and {pair[1]} (copies of one vertex) "
+                                      f"but their stiffness differs: {a} and {b}")
         return Constraints(fixed, handles[keep], self.targets[keep].copy(), roi, groups, stiffness)
 
     def to_dict(self) -> dict[str, Any]:

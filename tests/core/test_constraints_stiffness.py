@@ -153,3 +153,14 @@ def test_point_targets_absurdly_far_are_refused_like_vertex_targets(tmp_path: Pa
     assert main(["deform", "bar", "-c", str(tmp_path / "c.json"), "-o", str(tmp_path / "out.obj"), "-q",
                  "-n", "3"]) == 1
     assert "too far" in capsys.readouterr().err and not (tmp_path / "out.obj").exists()
+
+
+def test_welded_copies_with_different_stiffness_are_named() -> None:
+    """Mesh repair welds the copies of a vertex (an STL soup has one per triangle): copies painted alike count once,
+    copies painted differently are refused, as handle copies with different targets are."""
+    weld = np.array([0, 0, 1, 1, 2, 3])
+    same = load_constraints({"version": 2, "fixed": [5], "stiffness": [2, 2, "rigid", "rigid", 1, 1]}, 6)
+    np.testing.assert_array_equal(same.remapped(weld).stiffness, [2.0, np.inf, 1.0, 1.0])
+    differ = load_constraints({"version": 2, "fixed": [5], "stiffness": [2, 2, 3, "rigid", 1, 1]}, 6)
+    with pytest.raises(ConstraintError, match=r"welded vertices 2 and 3 .*stiffness differs: 3(\.0)? and rigid"):
+        differ.remapped(weld)
