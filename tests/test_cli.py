@@ -62,7 +62,7 @@ def test_deform_says_when_the_cap_stopped_it(tmp_path: Path, capsys: pytest.Capt
                                             monkeypatch: pytest.MonkeyPatch) -> None:
     cfile = tmp_path / "c.json"
     bar_constraints(cfile)
-    monkeypatch.setattr("arap.solver.MAX_ITERATIONS", 3)
+    monkeypatch.setattr("arap.result.MAX_ITERATIONS", 3)
     assert main(["deform", "bar", "--constraints", str(cfile), "-o", str(tmp_path / "o.obj"),
                  "--energy", "spokes"]) == 0
     err = capsys.readouterr().err

@@ -44,7 +44,7 @@ import numpy as np
 from arap.errors import ConstraintError
 from arap.indexing import check_index_array
 from arap.io.atomic import write_atomic
-from arap.mesh import coordinate_problem
+from arap.partition import check_reach
 from arap.points import PointConstraints, check_points
 from arap.selection import check_selection, check_targets
 
@@ -117,9 +117,8 @@ class Constraints:
         """
         V = np.asarray(V, dtype=np.float64)
         points = np.zeros((0, 3)) if self.point_targets is None else self.point_targets
-        problem = coordinate_problem(np.concatenate([V, self.targets, points]).reshape(-1, 3))
-        if problem is not None and coordinate_problem(V) is None:
-            raise ConstraintError(f"the targets lie too far from the mesh: with them, {problem}")
+        if len(V):
+            check_reach(np.stack([V.min(axis=0), V.max(axis=0)]), np.concatenate([self.targets, points]).reshape(-1, 3))
         return self.constrained, np.concatenate([V[self.fixed], self.targets]).reshape(-1, 3)
 
     def remapped(self, vertex_map: np.ndarray) -> Constraints:

@@ -14,8 +14,9 @@ from numpy.typing import NDArray
 
 from arap.errors import ArapError, ConstraintError, UnconstrainedRegionError
 from arap.indexing import find_unconstrained_part
+from arap.mesh import coordinate_problem
 
-__all__ = ["check_point_targets", "check_positions", "check_targets", "partition_vertices"]
+__all__ = ["check_point_targets", "check_positions", "check_reach", "check_targets", "partition_vertices"]
 
 
 def partition_vertices(
@@ -126,6 +127,32 @@ def check_point_targets(point_targets: object, p: int) -> NDArray[np.float64] | 
     if not np.isfinite(P).all():
         raise ConstraintError("point_targets must be finite")
     return P
+
+
+def check_reach(bounds: NDArray[np.float64], X: NDArray[np.float64], what: str = "targets") -> None:
+    """Refuse targets so far from the mesh that the two together have a scale the computations cannot represent
+    (:func:`arap.mesh.coordinate_problem`: a target at 1e300 would give NaN energies and a mesh 1e300 across).
+
+    Parameters
+    ----------
+    bounds : (2, 3) float array
+        The mesh's bounding box: minimum and maximum corner.
+    X : (k, 3) float array
+        Finite targets.
+    what : str
+        What they are, for the message.
+
+    Raises
+    ------
+    ConstraintError
+        Naming the scale the targets give the problem (nothing is raised for a mesh that alone has a bad scale).
+    """
+    if not len(X) or coordinate_problem(bounds) is not None:
+        return
+    corners = np.stack([np.minimum(bounds[0], X.min(axis=0)), np.maximum(bounds[1], X.max(axis=0))])
+    problem = coordinate_problem(corners)
+    if problem is not None:
+        raise ConstraintError(f"the {what} lie too far from the mesh: with them, {problem}")
 
 
 def check_positions(U: object, n: int, name: str) -> NDArray[np.float64]:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import numbers
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Literal
@@ -9,8 +10,10 @@ from typing import Literal
 import numpy as np
 from numpy.typing import NDArray
 
+from arap.errors import OptionError
+
 __all__ = ["ACCELERATIONS", "DEFAULT_LBFGS_MEMORY", "DEFAULT_TOLERANCE", "DEFAULT_WINDOW", "MAX_ITERATIONS",
-           "START_NAMES", "Acceleration", "ArapResult", "IterationCallback", "StartName"]
+           "START_NAMES", "Acceleration", "ArapResult", "IterationCallback", "StartName", "check_solve_options"]
 
 IterationCallback = Callable[[int, float], "bool | None"]
 Acceleration = Literal["lbfgs", "anderson", "none"]
@@ -66,3 +69,26 @@ class ArapResult:
     residual: float = float("nan")
     start: str = "rest"
     rejected: int = 0
+
+
+def _number(value: object) -> float | None:
+    """``value`` as a float if it is a real number (``3``, ``2.5``, ``np.int64(3)``; not ``True`` or ``"3"``), else
+    None."""
+    return float(value) if isinstance(value, numbers.Real) and not isinstance(value, bool) else None
+
+
+def check_solve_options(max_iterations: object, tolerance: object, acceleration: object, window: object) -> int:
+    """Check the options of :meth:`arap.ArapSolver.solve` (:class:`~arap.errors.OptionError` naming the bad one) and
+    return the iteration cap (``MAX_ITERATIONS`` for ``max_iterations=None``)."""
+    cap = _number(max_iterations)
+    if not (max_iterations is None or (cap is not None and cap.is_integer() and cap >= 0)):
+        raise OptionError(f"max_iterations must be a non-negative integer or None, got {max_iterations!r}")
+    tol = _number(tolerance)
+    if not (tol is not None and tol >= 0):
+        raise OptionError(f"tolerance must be a number >= 0, got {tolerance!r}")
+    if acceleration not in ACCELERATIONS:
+        raise OptionError(f"unknown acceleration {acceleration!r}; expected one of {ACCELERATIONS}")
+    size = _number(window)
+    if not (window is None or (size is not None and size.is_integer() and size >= 1)):
+        raise OptionError(f"window must be a positive integer or None, got {window!r}")
+    return MAX_ITERATIONS if cap is None else int(cap)

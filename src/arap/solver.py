@@ -29,19 +29,18 @@ from arap.lbfgs import LbfgsHistory
 from arap.linsolve import NotPositiveDefiniteError, background_ordering, factorize
 from arap.loops import PLAIN_START, Iterate, lbfgs_iterations, plain_iterations
 from arap.mesh import MeshLike, check_mesh, is_mesh_like, mesh_arrays
-from arap.partition import check_point_targets, check_positions, check_targets, partition_vertices
+from arap.partition import check_point_targets, check_positions, check_reach, check_targets, partition_vertices
 from arap.points import PointConstraints, PointSystem, check_points
 from arap.result import (
-    ACCELERATIONS,
     DEFAULT_LBFGS_MEMORY,
     DEFAULT_TOLERANCE,
     DEFAULT_WINDOW,
-    MAX_ITERATIONS,
     START_NAMES,
     Acceleration,
     ArapResult,
     IterationCallback,
     StartName,
+    check_solve_options,
 )
 from arap.rigid import RigidRegions, rigid_regions
 from arap.rotations import identity_rotations
@@ -175,7 +174,8 @@ class ArapSolver(SingleSteps):
         self._inv[self._perm] = np.arange(n)
         # The reduced system's fill-reducing ordering needs only its pattern: it runs beside the set-up below.
         ordering = background_ordering(adjacency, self._perm, len(self.free), backend)
-        self._diagonal = float(np.linalg.norm(V.max(axis=0) - V.min(axis=0))) or 1.0
+        self._bounds = np.stack([V.min(axis=0), V.max(axis=0)])
+        self._diagonal = float(np.linalg.norm(self._bounds[1] - self._bounds[0])) or 1.0
         self._origin = internal_origin(V, self._diagonal)
         self._V = np.ascontiguousarray(V[self._perm] - self._origin)
         self._areas = vertex_areas(self._V, self._inv[F])
@@ -254,11 +254,15 @@ class ArapSolver(SingleSteps):
 
     def _check_targets(self, targets: object) -> NDArray[np.float64]:
         """Checked targets, relative to the solver's origin."""
-        return self._relative(check_targets(targets, len(self._constrained)))
+        T = check_targets(targets, len(self._constrained))
+        check_reach(self._bounds, T)
+        return self._relative(T)
 
     def _check_point_targets(self, point_targets: object) -> NDArray[np.float64] | None:
         """Checked point-handle targets (or None), relative to the solver's origin."""
         P = check_point_targets(point_targets, 0 if self.points is None else len(self.points))
+        if P is not None:
+            check_reach(self._bounds, P, "point targets")
         return None if P is None else self._relative(P)
 
     def _to_caller(self, U: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -331,15 +335,7 @@ class ArapSolver(SingleSteps):
         """
         t_start = time.perf_counter()
         T = self._check_targets(targets)
-        cap = MAX_ITERATIONS if max_iterations is None else max_iterations
-        if int(cap) != cap or cap < 0:
-            raise OptionError(f"max_iterations must be a non-negative integer or None, got {max_iterations!r}")
-        if not tolerance >= 0:
-            raise OptionError(f"tolerance must be >= 0, got {tolerance!r}")
-        if acceleration not in ACCELERATIONS:
-            raise OptionError(f"unknown acceleration {acceleration!r}; expected one of {ACCELERATIONS}")
-        if window is not None and (int(window) != window or window < 1):
-            raise OptionError(f"window must be a positive integer or None, got {window!r}")
+        cap = check_solve_options(max_iterations, tolerance, acceleration, window)
         fixed = self._fixed_positions(T)
         P = self._check_point_targets(point_targets)
         self._point_state = None if P is None else (P, fixed)
@@ -461,7 +457,7 @@ class ArapSolver(SingleSteps):
                 candidates.append(("rigid", rigid_start(self._V, self._constrained, T, self._areas, fixed)))
             best: tuple[float, str, NDArray[np.float64], NDArray[np.float64]] | None = None
             for name, U in candidates:
-                self._fit_each_rotation(U)
+                self._cold_rotations(U)
                 E = self._local(U, 0.0, timings)
                 if best is None or E < best[0]:
                     best = (E, name, U, self._R.copy() if len(candidates) > 1 else self._R)
@@ -472,14 +468,17 @@ class ArapSolver(SingleSteps):
             return U, E, name
         U = self._to_internal(self._check_positions(initial, "initial"))
         U[self._nf:] = fixed
-        self._fit_each_rotation(U)
+        self._cold_rotations(U)
         return U, self._local(U, 0.0, timings), "given"
 
-    def _fit_each_rotation(self, U: NDArray[np.float64]) -> None:
-        """Before a cold start of ``smooth_rotations``: the rotations from which the coupled local steps go on
-        (:meth:`arap.smooth.SmoothRotations.start`)."""
+    def _cold_rotations(self, U: NDArray[np.float64]) -> None:
+        """Before a cold start: the rotations the first local step goes on from. Identities (the rotation fits start
+        their search there, so that a cold start does not depend on earlier solves, to the last bit), or for
+        ``smooth_rotations`` the start of the coupled local steps (:meth:`arap.smooth.SmoothRotations.start`)."""
         if self._smooth is not None:
             self._smooth.start(self._V, U, self._areas, self._R)
+        else:
+            self._R[:] = np.eye(3)
 
     def _stored_energy(self) -> float:
         """Energy of the active cells from the last local step."""

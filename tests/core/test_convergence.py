@@ -8,7 +8,7 @@ import pytest
 
 from arap import ArapSolver, arap_energy
 from arap.errors import ArapError
-from arap.scenarios import pull, rotation
+from arap.scenarios import bend, pull, rotation
 from arap.start import best_rigid_transform
 
 from .scenarios import bend_constraints, random_rigid
@@ -198,9 +198,26 @@ def test_bad_options_are_arap_errors(knight: tuple[np.ndarray, np.ndarray]) -> N
     solver = ArapSolver(V, F, [0, 1, 2])
     T = V[[0, 1, 2]]
     for kwargs in ({"acceleration": "nesterov"}, {"window": 0}, {"initial": "middle"}, {"tolerance": -1.0},
-                   {"max_iterations": 2.5}):
+                   {"max_iterations": 2.5}, {"tolerance": "1"}, {"tolerance": None}, {"tolerance": True},
+                   {"max_iterations": "3"}, {"max_iterations": [1]}, {"window": "5"}, {"window": 2.5}):
         with pytest.raises(ArapError):
             solver.solve(T, **kwargs)
+    solver.solve(T, max_iterations=np.int64(2), tolerance=np.float32(1e-6), window=np.int32(3))  # NumPy numbers
+
+
+def test_a_cold_start_does_not_depend_on_earlier_solves(knight: tuple[np.ndarray, np.ndarray]) -> None:
+    """The same cold solve gives the same result to the last bit, whatever the solver did before (the rotation
+    fits start their search from identities, not from the rotations an earlier solve left)."""
+    V, F = knight
+    s = bend(V, angle=1.5, shift=0.3)
+    other = bend(V, angle=-0.7, shift=0.1)
+    solver = ArapSolver(V, F, s.constrained, energy="spokes")
+    first = solver.solve(s.targets, initial="rigid", max_iterations=60)
+    solver.solve(other.targets)
+    solver.reset()
+    again = solver.solve(s.targets, initial="rigid", max_iterations=60)
+    assert first.energies == again.energies
+    np.testing.assert_array_equal(first.vertices, again.vertices)
 
 
 def test_best_rigid_transform_handles_degenerate_point_sets() -> None:

@@ -97,5 +97,9 @@ def test_targets_initial_and_point_targets_that_are_not_numbers(icosphere: tuple
         solver.solve(V[[0, 1]] * (1 + 1j), point_targets=P)
     with pytest.raises(ConstraintError, match=r"point_targets must be numbers"):
         solver.solve(V[[0, 1]], point_targets=[["x", 0, 0]])
+    with pytest.raises(ConstraintError, match=r"the targets lie too far from the mesh: with them, the coordinates"):
+        solver.solve([[1e300, 0, 0], [1, 1, 1]], point_targets=P)  # gave NaN energies, not converged, no error
+    with pytest.raises(ConstraintError, match=r"the point targets lie too far from the mesh"):
+        solver.solve(V[[0, 1]], point_targets=[[0, -1e300, 0]])
     with pytest.raises(ArapError, match=r"initial must be numbers"):
         solver.solve(V[[0, 1]], point_targets=P, initial=np.full((len(V), 3), "a"))
