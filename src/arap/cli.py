@@ -169,6 +169,28 @@ class _FirstInterrupt:
             signal.signal(signal.SIGINT, self._previous)
 
 
+def _start_shape(spec: str, repair: RepairResult, label: str) -> np.ndarray:
+    """The positions of a ``--start`` mesh file, in the order of the (repaired) mesh being deformed: the file has
+    the mesh file's vertices (as ``arap deform`` writes them) or the repaired mesh's (as the studio exports them)."""
+    from arap.io import load_mesh
+
+    path = Path(spec)
+    if not path.exists():
+        raise ArapError(f"--start must be one of {', '.join(START_NAMES)} or a mesh file; {spec} does not exist")
+    U, _ = load_mesh(path, repair=False)
+    n_file, n_mesh = len(repair.vertex_map), int(repair.vertex_map.max(initial=-1)) + 1
+    if len(U) == n_file:
+        kept = repair.vertex_map >= 0
+        out = np.empty((n_mesh, 3))
+        out[repair.vertex_map[kept]] = U[kept]
+        return out
+    if len(U) == n_mesh:
+        return U
+    after = f" ({n_mesh:,} after repair)" if n_mesh != n_file else ""
+    raise ArapError(f"--start {spec} has {len(U):,} vertices, but {label} has {n_file:,}{after}: the start must be a "
+                    "shape of the same mesh")
+
+
 def _cmd_deform(args: argparse.Namespace) -> int:
     from arap.constraints import load_constraints
     from arap.io import format_of, save_mesh
@@ -200,6 +222,7 @@ def _cmd_deform(args: argparse.Namespace) -> int:
         if not args.quiet:
             _err("arap: vertex indices changed by the repair; constraints were renumbered to match")
     indices, targets = constraints.indices_and_targets(V)
+    start = args.start if args.start in START_NAMES else _start_shape(args.start, repair, label)
 
     _warm_up_kernels(args.quiet)
     solver = ArapSolver(V, F, indices, energy=args.energy, weights=args.weights, roi=constraints.roi,
@@ -217,7 +240,7 @@ def _cmd_deform(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
     try:
         with interrupt:
-            result = solver.solve(targets, initial=args.start, max_iterations=args.iterations,
+            result = solver.solve(targets, initial=start, max_iterations=args.iterations,
                                   tolerance=args.tolerance, callback=callback, acceleration=args.acceleration,
                                   point_targets=constraints.point_targets)
     finally:
@@ -405,9 +428,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("-t", "--tolerance", type=float, default=DEFAULT_TOLERANCE,
                    help="converged when the plain iteration's step (RMS over the free vertices) is at most this "
                         f"many bounding-box diagonals (default: {DEFAULT_TOLERANCE:g}; 0 runs all iterations)")
-    p.add_argument("--start", choices=START_NAMES, default="auto",
-                   help="starting pose: the rest pose, its best-fit rigid motion onto the targets, or whichever "
-                        "has the lower energy (default: auto)")
+    p.add_argument("--start", default="auto", metavar="{" + ",".join(START_NAMES) + "} or SHAPE",
+                   help="starting pose: the rest pose, its best-fit rigid motion onto the targets, whichever has the "
+                        "lower energy (default: auto), or a mesh file with MESH's vertices, e.g. a shape exported "
+                        "from the studio (where the energy has several minima, the solve then ends in that shape's)")
     p.add_argument("--acceleration", choices=ACCELERATIONS, default="lbfgs",
                    help="L-BFGS preconditioned by the global step (Liu et al. 2017), Anderson acceleration (Peng et "
                         "al. 2018) or the plain iteration (default: lbfgs)")
