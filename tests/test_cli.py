@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 import arap
-from arap import cli
+from arap import cli_deform
 from arap.cli import main
 from arap.cli_bench import bench_constraints
 from arap.io import load_mesh, save_mesh
@@ -76,14 +76,14 @@ def test_ctrl_c_during_deform_writes_the_last_iterate(tmp_path: Path, capsys: py
     said to be unconverged; the same three iterations run without interruption give the same shape."""
     cfile = tmp_path / "c.json"
     bar_constraints(cfile)
-    progress = cli._Progress.__call__
+    progress = cli_deform._Progress.__call__
 
-    def press_ctrl_c_at_3(self: cli._Progress, iteration: int, energy: float) -> None:
+    def press_ctrl_c_at_3(self: cli_deform._Progress, iteration: int, energy: float) -> None:
         progress(self, iteration, energy)
         if iteration == 3:
             signal.raise_signal(signal.SIGINT)
 
-    monkeypatch.setattr(cli._Progress, "__call__", press_ctrl_c_at_3)
+    monkeypatch.setattr(cli_deform._Progress, "__call__", press_ctrl_c_at_3)
     out = tmp_path / "stopped.obj"
     assert main(["deform", "bar", "--constraints", str(cfile), "-o", str(out)]) == 130
     err = capsys.readouterr().err

@@ -1,0 +1,193 @@
+"""``arap deform``: deform a mesh file with a constraints file, with progress lines, a clean stop on Ctrl-C and
+the result written in the input file's vertex order."""
+
+from __future__ import annotations
+
+import argparse
+import os
+import signal
+import sys
+import threading
+import time
+from pathlib import Path
+from typing import Any, TextIO
+
+import numpy as np
+
+from arap.cli import EXIT_INTERRUPTED, _err, _warm_up_kernels, load_mesh_argument
+from arap.errors import ArapError, ConstraintError, MeshFormatError
+from arap.mesh import RepairResult
+from arap.result import START_NAMES
+
+__all__ = ["run_deform"]
+
+
+class _Progress:
+    """Per-iteration line on a stream: ``iteration k/N  energy E  change r``."""
+
+    def __init__(self, total: int | None, stream: TextIO, enabled: bool) -> None:
+        self.total = total
+        self.stream = stream
+        self.enabled = enabled
+        self.tty = enabled and stream.isatty()
+        self.previous: float | None = None
+        self.start = time.perf_counter()
+        self.last_line = 0.0
+
+    def __call__(self, iteration: int, energy: float) -> None:
+        if not self.enabled:
+            return
+        change = "" if self.previous is None else (
+            f"  change {abs(self.previous - energy) / max(abs(self.previous), 1e-300):.2e}")
+        self.previous = energy
+        elapsed = time.perf_counter() - self.start
+        # Without a terminal, a line per half second at most: a converging solve runs hundreds of iterations.
+        if not self.tty and iteration > 1 and elapsed - self.last_line < 0.5:
+            return
+        self.last_line = elapsed
+        of = "" if self.total is None else f"/{self.total}"
+        line = f"iteration {iteration}{of}  energy {energy:.9g}{change}  ({elapsed:.2f} s)"
+        if self.tty:
+            self.stream.write("\r" + line.ljust(78))
+        else:
+            self.stream.write(line + "\n")
+        self.stream.flush()
+
+    def close(self) -> None:
+        if self.tty and self.previous is not None:
+            self.stream.write("\n")
+            self.stream.flush()
+
+
+class _FirstInterrupt:
+    """While active (a ``with`` block in the main thread): the first Ctrl-C only sets :attr:`requested`, so that a
+    solve can stop at the end of its iteration and its iterate be written; a second one interrupts at once."""
+
+    def __init__(self) -> None:
+        self.requested = False
+        self._previous: Any = None
+
+    def _handle(self, signum: int, frame: object) -> None:
+        self.requested = True
+        signal.signal(signal.SIGINT, self._previous)
+
+    def __enter__(self) -> _FirstInterrupt:
+        if threading.current_thread() is threading.main_thread():
+            self._previous = signal.signal(signal.SIGINT, self._handle)
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        if self._previous is not None and not self.requested:
+            signal.signal(signal.SIGINT, self._previous)
+
+
+def _start_shape(spec: str, repair: RepairResult, label: str) -> np.ndarray:
+    """The positions of a ``--start`` mesh file, in the order of the (repaired) mesh being deformed: the file has
+    the mesh file's vertices (as ``arap deform`` writes them) or the repaired mesh's (as the studio exports them)."""
+    from arap.io import load_mesh
+
+    path = Path(spec)
+    if not path.exists():
+        raise ArapError(f"--start must be one of {', '.join(START_NAMES)} or a mesh file; {spec} does not exist")
+    U, _ = load_mesh(path, repair=False)
+    n_file, n_mesh = len(repair.vertex_map), int(repair.vertex_map.max(initial=-1)) + 1
+    if len(U) == n_file:
+        kept = repair.vertex_map >= 0
+        out = np.empty((n_mesh, 3))
+        out[repair.vertex_map[kept]] = U[kept]
+        return out
+    if len(U) == n_mesh:
+        return U
+    after = f" ({n_mesh:,} after repair)" if n_mesh != n_file else ""
+    raise ArapError(f"--start {spec} has {len(U):,} vertices, but {label} has {n_file:,}{after}: the start must be a "
+                    "shape of the same mesh")
+
+
+def run_deform(args: argparse.Namespace) -> int:
+    """``arap deform``: solve the constraints file's problem on the mesh and write the result; the exit status."""
+    from arap.constraints import load_constraints
+    from arap.io import format_of, save_mesh
+    from arap.solver import ArapSolver
+
+    format_of(args.output)  # fail before any work on an unsupported output type or a missing folder
+    folder = Path(args.output).parent
+    if not folder.is_dir():
+        raise MeshFormatError(f"cannot write {args.output}: the folder {folder} does not exist")
+    if Path(args.output).is_dir():
+        raise MeshFormatError(f"cannot write {args.output}: it is a folder")
+    if not os.access(folder, os.W_OK):
+        raise MeshFormatError(f"cannot write {args.output}: the folder {folder} is not writable")
+    if args.iterations is not None and args.iterations < 0:
+        raise ArapError(f"--iterations must be >= 0, got {args.iterations}")
+    if not args.tolerance >= 0:
+        raise ArapError(f"--tolerance must be >= 0, got {args.tolerance}")
+    V, F, repair, label = load_mesh_argument(args.mesh)
+    n_file = len(repair.vertex_map)
+    constraints = load_constraints(args.constraints, n_file, len(F))
+    renumbered = repair.renumbers
+    if repair.report and constraints.points is not None and len(constraints.points):
+        raise ConstraintError("point handles refer to the file's triangles, which mesh repair changed; repair the "
+                              "mesh file first (arap info shows what repair changes)")
+    if repair.report and not args.quiet:
+        _err(f"arap: repaired {label}: {'; '.join(repair.report)}")
+    if renumbered:
+        constraints = constraints.remapped(repair.vertex_map)
+        if not args.quiet:
+            _err("arap: vertex indices changed by the repair; constraints were renumbered to match")
+    indices, targets = constraints.indices_and_targets(V)
+    start = args.start if args.start in START_NAMES else _start_shape(args.start, repair, label)
+
+    _warm_up_kernels(args.quiet)
+    solver = ArapSolver(V, F, indices, energy=args.energy, weights=args.weights, roi=constraints.roi,
+                        stiffness=constraints.stiffness, alpha=args.alpha, points=constraints.points)
+    if not args.quiet:
+        _err(f"arap: {label}: {len(V):,} vertices, {len(F):,} faces; {len(constraints.fixed):,} fixed, "
+             f"{len(constraints.handles):,} handles; precompute {1e3 * solver.factor_seconds:.0f} ms")
+    progress = _Progress(args.iterations, sys.stderr, enabled=not args.quiet)
+    interrupt = _FirstInterrupt()
+
+    def callback(iteration: int, energy: float) -> bool:
+        progress(iteration, energy)
+        return not interrupt.requested
+
+    t0 = time.perf_counter()
+    try:
+        with interrupt:
+            result = solver.solve(targets, initial=start, max_iterations=args.iterations,
+                                  tolerance=args.tolerance, callback=callback, acceleration=args.acceleration,
+                                  point_targets=constraints.point_targets)
+    finally:
+        progress.close()
+    seconds = time.perf_counter() - t0
+    if not np.isfinite(result.vertices).all():
+        raise ArapError("the solve produced non-finite positions; nothing was written")
+    U_out, F_out = result.vertices, F
+    # The output keeps the file's vertex order and count, as its constraints do (an STL has no vertex identity: its
+    # welded vertices are the mesh).
+    back = repair.in_input_order(result.vertices) if renumbered and format_of(args.mesh) != "stl" else None
+    if back is not None:
+        U_out, F_out = back
+    save_mesh(args.output, U_out, F_out)
+    if interrupt.requested:
+        _err(f"arap: interrupted after {result.iterations} iterations: wrote the last iterate to {args.output} "
+             f"(not converged: residual {result.residual:.2g}, tolerance {args.tolerance:g})")
+        return EXIT_INTERRUPTED
+    if not args.quiet:
+        if result.energies:
+            per_it = 1e3 * seconds / max(result.iterations, 1)
+            status = ("converged" if result.converged else "every iteration run (tolerance 0)" if not args.tolerance
+                      else f"iteration limit reached, not converged (residual {result.residual:.2g}, tolerance "
+                      f"{args.tolerance:g})")
+            _err(f"arap: {result.iterations} iterations in {seconds:.2f} s ({per_it:.1f} ms/iteration), "
+                 f"energy {result.energies[0]:.6g} -> {result.energies[-1]:.6g}, {status}")
+            if not result.converged and args.tolerance and args.iterations is None:
+                other = "" if args.energy == "spokes_and_rims" else ("; spokes_and_rims (the default energy) often "
+                                                                     "converges much sooner on such meshes")
+                _err(f"arap: note: the shape written is the last iterate; raise --iterations to go on{other}")
+            if min(result.energies) < 0:
+                _err(f"arap: note: the energy is below 0 because {args.energy} with {args.weights} weights has "
+                     "negative terms on obtuse triangles (see README, 'Energy and weights'); "
+                     "spokes_and_rims is never negative")
+        in_file_order = f" in the vertex order of {label} ({len(U_out):,} vertices)" if back is not None else ""
+        _err(f"arap: wrote {args.output}{in_file_order}")
+    return 0
