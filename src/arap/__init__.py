@@ -44,7 +44,7 @@ _LAZY: dict[str, str] = {
     "check_mesh": "arap.mesh",
     "mesh_arrays": "arap.mesh",
     "MeshLike": "arap.mesh",
-    "repair_mesh": "arap.mesh",
+    "repair_mesh": "arap.repair",
     "inspect_mesh": "arap.diagnose",
     "load_mesh": "arap.io",
     "load_mesh_with_report": "arap.io",
@@ -55,7 +55,7 @@ _LAZY: dict[str, str] = {
     "sphere": "arap.shapes",
     "Constraints": "arap.constraints",
     "save_constraints": "arap.constraints",
-    "RepairResult": "arap.mesh",
+    "RepairResult": "arap.repair",
     "MeshInfo": "arap.diagnose",
     "builtin_mesh": "arap.shapes",
     "BUILTIN_MESHES": "arap.shapes",
@@ -108,8 +108,9 @@ if TYPE_CHECKING:
     from arap.diagnose import MeshInfo, inspect_mesh
     from arap.energy import arap_energy, cell_energies
     from arap.io import MESH_FORMATS, load_mesh, load_mesh_bytes, load_mesh_with_report, save_mesh, save_mesh_bytes
-    from arap.mesh import MeshLike, RepairResult, check_mesh, mesh_arrays, repair_mesh
+    from arap.mesh import MeshLike, check_mesh, mesh_arrays
     from arap.notebook import Studio, studio
+    from arap.repair import RepairResult, repair_mesh
     from arap.rotations import fit_rotations
     from arap.shapes import BUILTIN_MESHES, builtin_mesh, sphere
     from arap.solver import ArapResult, ArapSolver

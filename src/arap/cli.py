@@ -22,7 +22,7 @@ import numpy as np
 from arap import __version__
 from arap.cells import DEFAULT_ENERGY, ENERGY_TYPES
 from arap.errors import ArapError, MeshError, MeshFormatError, OptionError
-from arap.mesh import RepairResult
+from arap.repair import RepairResult
 from arap.result import ACCELERATIONS, DEFAULT_TOLERANCE, MAX_ITERATIONS, START_NAMES
 from arap.smooth import DEFAULT_ALPHA, check_alpha
 from arap.weights import DEFAULT_WEIGHTS, WEIGHT_TYPES
@@ -116,7 +116,8 @@ def _cmd_deform(args: argparse.Namespace) -> int:
 def _info_report(V: np.ndarray, F: np.ndarray, label: str) -> tuple[MeshInfo, dict[str, Any]]:
     """What ``arap info`` reports: the mesh description and the JSON-ready report of ``arap info --json``."""
     from arap.diagnose import inspect_mesh
-    from arap.mesh import check_mesh, repair_mesh
+    from arap.mesh import check_mesh
+    from arap.repair import repair_mesh
 
     info = inspect_mesh(V, F)
     report: dict[str, Any] = {"mesh": label}

@@ -16,7 +16,7 @@ import numpy as np
 
 from arap.cli import EXIT_INTERRUPTED, _err, _warm_up_kernels, load_mesh_argument
 from arap.errors import ArapError, ConstraintError, MeshFormatError
-from arap.mesh import RepairResult
+from arap.repair import RepairResult
 from arap.result import START_NAMES
 
 __all__ = ["run_deform"]

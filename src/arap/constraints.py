@@ -122,7 +122,7 @@ class Constraints:
         return self.constrained, np.concatenate([V[self.fixed], self.targets]).reshape(-1, 3)
 
     def remapped(self, vertex_map: np.ndarray) -> Constraints:
-        """The same constraints after a vertex renumbering (e.g. :attr:`arap.mesh.RepairResult.vertex_map`).
+        """The same constraints after a vertex renumbering (e.g. :attr:`arap.repair.RepairResult.vertex_map`).
 
         Copies of one vertex that repair welded together (an STL triangle soup has one per triangle) count once
         when they agree: fixed copies, or handle copies with the same target.

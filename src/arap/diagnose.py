@@ -8,14 +8,13 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components as _cc
 
+from arap._weld import _unique_face_mask, _weld_groups
 from arap.mesh import (
     WELD_TOLERANCE,
     _as_faces,
     _as_vertices,
     _bbox_diagonal,
     _repeated_vertex_faces,
-    _unique_face_mask,
-    _weld_groups,
     coordinate_problem,
     degenerate_faces,
 )
@@ -50,7 +49,7 @@ class MeshInfo:
         Connected parts (across manifold edges) that no choice of face orientations makes consistent, such as a
         Möbius strip.
     duplicate_vertices : int
-        Vertices :func:`repair_mesh` would weld into an earlier one.
+        Vertices :func:`arap.repair.repair_mesh` would weld into an earlier one.
     repeated_vertex_faces, degenerate_faces, duplicate_faces : int
         Faces repeating a vertex, other zero-area faces, and repeated faces.
     unreferenced_vertices, nonfinite_vertices, out_of_range_faces : int
@@ -107,8 +106,9 @@ class MeshInfo:
 
     @property
     def problems(self) -> list[str]:
-        """Defects, one line each: what :func:`check_mesh` rejects, what :func:`repair_mesh` fixes, and flaws of the
-        surface (non-manifold edges, inconsistent orientation) that ARAP tolerates but a user should know."""
+        """Defects, one line each: what :func:`check_mesh` rejects, what :func:`arap.repair.repair_mesh` fixes, and
+        flaws of the surface (non-manifold edges, inconsistent orientation) that ARAP tolerates but a user should
+        know."""
         items = [
             (self.nonfinite_vertices, "vertices with NaN or infinite coordinates"
                                       + (f" ({self.nonfinite_faces:,} faces use them; the topology above leaves "

@@ -21,7 +21,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from arap.errors import OptionError
-from arap.mesh import repair_mesh
+from arap.repair import repair_mesh
 
 __all__ = ["BUILTIN_MESHES", "builtin_mesh", "obtuse_cylinder", "scan_blob", "sphere", "sphere_frequency_for"]
 

@@ -10,9 +10,9 @@ from arap.errors import MeshError
 from arap.mesh import (
     check_mesh,
     degenerate_faces,
-    repair_mesh,
     triangulate_polygons,
 )
+from arap.repair import repair_mesh
 from arap.shapes import sphere
 
 # A closed tetrahedron, outward-oriented.

@@ -8,7 +8,8 @@ import pytest
 
 from arap.diagnose import inspect_mesh
 from arap.errors import MeshError
-from arap.mesh import SIZE_RANGE, check_mesh, repair_mesh
+from arap.mesh import SIZE_RANGE, check_mesh
+from arap.repair import repair_mesh
 from arap.shapes import builtin_mesh, sphere
 from arap.solver import ArapSolver
 

@@ -2,7 +2,7 @@
 
 Reading goes through trimesh's format parsers without any processing, so vertices keep their file order (vertex
 indices in constraint files refer to that order). Polygons are fan-triangulated. By default the loaded mesh goes
-through :func:`arap.mesh.repair_mesh`, which welds STL triangle soups and drops degenerate faces; a clean mesh
+through :func:`arap.repair.repair_mesh`, which welds STL triangle soups and drops degenerate faces; a clean mesh
 comes back unchanged.
 
 Before parsing, :mod:`arap.io.screening` decodes text robustly, refuses binary junk and OBJ faces naming vertex
@@ -26,7 +26,8 @@ from arap.errors import MeshError, MeshFormatError, MeshTooLargeError
 from arap.io.atomic import write_atomic
 from arap.io.fastobj import parse_plain_obj
 from arap.io.screening import check_obj_zero_index, check_size, screen
-from arap.mesh import MeshLike, RepairResult, mesh_arrays, repair_mesh, triangulate_polygons
+from arap.mesh import MeshLike, mesh_arrays, triangulate_polygons
+from arap.repair import RepairResult, repair_mesh
 
 __all__ = [
     "MESH_FORMATS",
@@ -162,7 +163,7 @@ def load_mesh_bytes_with_report(
     file_type : str
         ``"obj"``, ``"off"``, ``"ply"`` or ``"stl"`` (a file name or ``".obj"`` also works).
     repair : bool
-        Run :func:`arap.mesh.repair_mesh` (weld duplicates, drop degenerate faces). If False the arrays are
+        Run :func:`arap.repair.repair_mesh` (weld duplicates, drop degenerate faces). If False the arrays are
         returned as stored, unvalidated, and the result has an identity ``vertex_map``.
     name : str
         Label for messages.
@@ -245,7 +246,7 @@ def load_mesh(path: str | os.PathLike[str], *, repair: bool = True) -> tuple[np.
     path : path-like
     repair : bool
         Weld duplicate vertices (STL soups), drop degenerate, duplicate and unused elements
-        (:func:`arap.mesh.repair_mesh`); a clean mesh is returned unchanged.
+        (:func:`arap.repair.repair_mesh`); a clean mesh is returned unchanged.
 
     Returns
     -------
