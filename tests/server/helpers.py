@@ -82,6 +82,8 @@ class StudioClient:
     state: dict[str, Any] = field(default_factory=dict)
     held: np.ndarray = field(default_factory=lambda: np.zeros((0, 3), dtype="<f4"))
     movable: np.ndarray | None = None
+    vertex_map: np.ndarray | None = None
+    """Mesh vertex of each vertex of the uploaded file when repair renumbered them (the ``mesh`` frame's map)."""
 
     def recv(self) -> Reply:
         message = self.ws.receive()
@@ -135,10 +137,11 @@ class StudioClient:
 
     def read_mesh(self) -> Reply:
         reply = self.expect("mesh")
-        n, m = reply.data["n_vertices"], reply.data["n_faces"]
-        assert reply.payload is not None and len(reply.payload) == 12 * n + 12 * m
+        n, m, k = reply.data["n_vertices"], reply.data["n_faces"], reply.data["file_vertices"]
+        assert reply.payload is not None and len(reply.payload) == 12 * n + 12 * m + 4 * k
+        self.vertex_map = np.frombuffer(reply.payload[12 * (n + m):], dtype="<i4").astype(np.int64) if k else None
         self.V = np.frombuffer(reply.payload[: 12 * n], dtype="<f4").reshape(n, 3).astype(np.float64)
-        self.F = np.frombuffer(reply.payload[12 * n :], dtype="<u4").reshape(m, 3).astype(np.int64)
+        self.F = np.frombuffer(reply.payload[12 * n : 12 * (n + m)], dtype="<u4").reshape(m, 3).astype(np.int64)
         self.held = np.frombuffer(reply.payload[: 12 * n], dtype="<f4").reshape(n, 3).copy()
         self.movable = None
         return reply
@@ -189,3 +192,31 @@ def running_server(**options: Any) -> Iterator[str]:
         thread.join(timeout=30)
         sock.close()
 
+
+
+def renumbered_bar_obj() -> tuple[str, np.ndarray]:
+    """:func:`renumbered_obj` of the built-in bar."""
+    import arap
+
+    return renumbered_obj(*arap.builtin_mesh("bar"))
+
+
+def renumbered_obj(V: np.ndarray, F: np.ndarray) -> tuple[str, np.ndarray]:
+    """OBJ text of a clean mesh that mesh repair renumbers, and the map it gives (file vertex → mesh vertex).
+
+    The file has a vertex that no face uses first (dropped by repair), then the mesh's vertices, then copies of its
+    lowest, middle and highest vertex along y, each used by one face instead of the original (welded back by
+    repair). The repaired mesh is ``(V, F)`` itself.
+    """
+    n = len(V)
+    y = V[:, 1]
+    picks = [int(np.argmin(y)), int(np.argmin(np.abs(y - 0.5 * (y.min() + y.max())))), int(np.argmax(y))]
+    file_V = np.concatenate([[[9.0, 9.0, 9.0]], V, V[picks]])
+    file_F = F + 1
+    for j, v in enumerate(picks):
+        f = int(np.flatnonzero((F == v).any(axis=1))[0])
+        file_F[f][file_F[f] == v + 1] = n + 1 + j
+    lines = [f"v {x!r} {y!r} {z!r}" for x, y, z in file_V.tolist()]
+    lines += [f"f {a + 1} {b + 1} {c + 1}" for a, b, c in file_F.tolist()]
+    vertex_map = np.concatenate([[-1], np.arange(n), picks]).astype(np.int64)
+    return "\n".join(lines) + "\n", vertex_map

@@ -1,5 +1,6 @@
 // File input, drag and drop of meshes, downloads and constraint documents.
 import { PARTNERS_KEY } from './mirror.js';
+import { toMeshNumbering } from './numbering.js';
 import { UPLOAD_EXTENSIONS } from './protocol.js';
 
 export const MESH_EXTENSIONS = UPLOAD_EXTENSIONS.map((e) => e.replace(/^\./, '').toLowerCase());
@@ -219,24 +220,41 @@ export function parseConstraints(text, nVertices = undefined) {
 
 /**
  * Read a constraints file (parseConstraints) and check it against the mesh; rejects with an Error whose message
- * names the file.
+ * names the file. Its indices are the mesh file's (as `arap deform` reads them): with `vertexMap` (the mesh vertex of
+ * each file vertex when repair renumbered them, numbering.js) they are put into the mesh's numbering. Point handles
+ * are refused on a mesh that repair changed (`repaired`), as `arap deform` refuses them: they name the file's
+ * triangles.
  * @param {File} file
  * @param {number} nVertices
  * @param {number} nFaces
+ * @param {Int32Array|null} vertexMap
+ * @param {boolean} repaired
  */
-export async function readConstraintsFile(file, nVertices, nFaces) {
+export async function readConstraintsFile(file, nVertices, nFaces, vertexMap = null, repaired = false) {
   const text = await file.text();
+  const nFile = vertexMap ? vertexMap.length : nVertices;
   let c;
   try {
-    c = parseConstraints(text, nVertices);
+    c = parseConstraints(text, nFile);
   } catch (err) {
     throw new Error(`Cannot read ${file.name}: ${err.message}`);
   }
-  const bad = [...(c.roi || []), ...c.fixed, ...c.handle_groups.flat()].find((i) => i >= nVertices);
-  if (bad !== undefined) throw new Error(`${file.name} refers to vertex ${bad}, but the mesh has ${nVertices} vertices.`);
+  const bad = [...(c.roi || []), ...c.fixed, ...c.handle_groups.flat()].find((i) => i >= nFile);
+  if (bad !== undefined) {
+    throw new Error(`${file.name} refers to vertex ${bad}, but the mesh ${vertexMap ? 'file ' : ''}has ${nFile} vertices.`);
+  }
+  if (c.points.length && repaired) {
+    throw new Error(`Cannot load ${file.name}: its point handles refer to the file's triangles, which mesh repair `
+      + 'changed (arap deform refuses them too); repair the mesh file first (arap info shows what repair changes).');
+  }
   const badFace = c.points.find((p) => p.face >= nFaces);
   if (badFace) throw new Error(`${file.name} refers to triangle ${badFace.face}, but the mesh has ${nFaces} triangles.`);
-  return c;
+  if (!vertexMap) return c;
+  try {
+    return toMeshNumbering(c, vertexMap, nVertices);
+  } catch (err) {
+    throw new Error(`Cannot load ${file.name}: ${err.message}.`);
+  }
 }
 
 /** The mirror partners of handle groups saved in the document's "meta" (pairs [k, l] of groups; others skipped). */

@@ -33,6 +33,9 @@ const app = {
   incompatible: false, // the server speaks another protocol version
   meshName: null,
   nFaces: 0,
+  /** @type {Int32Array|null} */
+  vertexMap: null, // mesh vertex of each vertex of the mesh file, when repair renumbered them
+  repaired: false, // repair changed the mesh (its triangles are not the file's)
   limits: { max_upload_bytes: 0, max_vertices: 0 },
   frameMs: [], // JavaScript time spent applying each vertices frame (drawing excluded)
   meshMs: NaN, // JavaScript time spent showing the last mesh message (drawing excluded)
@@ -255,7 +258,7 @@ function onWelcome(msg) {
 function onMesh(msg) {
   const t0 = performance.now();
   app.uploadAt.received = performance.timeOrigin + t0;
-  const { positions, faces } = meshArrays(msg.frame);
+  const { positions, faces, vertexMap } = meshArrays(msg.frame);
   viewer.setMesh(positions, faces);
   livePose.reset();
   selection.reset(msg.n_vertices);
@@ -264,6 +267,8 @@ function onMesh(msg) {
   transformUi.meshChanged();
   app.meshName = msg.name;
   app.nFaces = msg.n_faces;
+  app.vertexMap = vertexMap; // constraints documents name the file's vertices (numbering.js)
+  app.repaired = (msg.report || []).length > 0;
   app.lastSeq = -1;
   app.groupMap = [];
   app.sentKey = null;
@@ -427,7 +432,7 @@ function applySavedSelection(snap) {
 }
 
 function loadConstraintsFile(file) {
-  readConstraintsFile(file, viewer.nVertices, app.nFaces).then((c) => {
+  readConstraintsFile(file, viewer.nVertices, app.nFaces, app.vertexMap, app.repaired).then((c) => {
     selection.fromConstraints(c);
     mirror.setPairs(c.partners);
     refreshSelection(true);

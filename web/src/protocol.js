@@ -3,7 +3,7 @@
 // The protocol is described in docs/protocol.md.
 
 /** Bumped on every incompatible protocol change. */
-export const PROTOCOL_VERSION = 3;
+export const PROTOCOL_VERSION = 4;
 
 /** Types of the messages a client sends. */
 export const CLIENT = Object.freeze(/** @type {const} */ ({
@@ -345,7 +345,7 @@ export const SERVER_MESSAGES = Object.freeze({
   },
   "mesh": {
     "binary": true,
-    "doc": "a new mesh (payload: float32[n_vertices*3], uint32[n_faces*3]); history is cleared",
+    "doc": "a new mesh (payload: float32[n_vertices*3], uint32[n_faces*3], then int32[file_vertices]); history is cleared",
     "fields": [
       {
         "name": "name",
@@ -365,6 +365,11 @@ export const SERVER_MESSAGES = Object.freeze({
       {
         "name": "report",
         "kind": "list",
+        "required": true
+      },
+      {
+        "name": "file_vertices",
+        "kind": "int",
         "required": true
       }
     ]
@@ -670,13 +675,14 @@ export const SERVER_MESSAGES = Object.freeze({
  */
 
 /**
- * a new mesh (payload: float32[n_vertices*3], uint32[n_faces*3]); history is cleared
+ * a new mesh (payload: float32[n_vertices*3], uint32[n_faces*3], then int32[file_vertices]); history is cleared
  * @typedef {object} MeshServerMessage
  * @property {"mesh"} type
  * @property {string} name model name
  * @property {number} n_vertices number of vertices
  * @property {number} n_faces number of triangles
  * @property {Array<any>} report repairs made while loading, one line each
+ * @property {number} file_vertices vertices of the mesh file when repair renumbered them (the payload then ends with the mesh vertex each file vertex became, -1 for one dropped), else 0: constraints documents use the file's numbering
  */
 
 /**
@@ -808,19 +814,23 @@ function floatView(payload, offsetBytes, count) {
 }
 
 /**
- * Arrays of a `mesh` frame.
+ * Arrays of a `mesh` frame: positions, triangles and, when repair renumbered the file's vertices, `vertexMap` (the
+ * mesh vertex each file vertex became, -1 for a dropped one; else null).
  * @param {{header: object, payload: Uint8Array}} frame result of decodeBinary.
- * @returns {{positions: Float32Array, faces: Uint32Array}}
+ * @returns {{positions: Float32Array, faces: Uint32Array, vertexMap: Int32Array|null}}
  */
 export function meshArrays(frame) {
   const nv = frame.header.n_vertices * 3;
   const nf = frame.header.n_faces * 3;
+  const nm = frame.header.file_vertices | 0;
   const positions = floatView(frame.payload, 0, nv);
   const start = frame.payload.byteOffset + 4 * nv;
   const faces = start % 4 === 0
     ? new Uint32Array(frame.payload.buffer, start, nf)
     : new Uint32Array(frame.payload.slice(4 * nv, 4 * (nv + nf)).buffer);
-  return { positions, faces };
+  // a copy: the map outlives the frame (constraints documents are read with it)
+  const vertexMap = nm > 0 ? new Int32Array(frame.payload.slice(4 * (nv + nf), 4 * (nv + nf + nm)).buffer) : null;
+  return { positions, faces, vertexMap };
 }
 
 /**

@@ -1,5 +1,6 @@
 // A snapshot of the editing session (what autosave stores and restoring puts back): where the mesh came from,
 // the selection with every handle group, the current shape and the solver parameters.
+import { inFileNumbering } from './numbering.js';
 import { FIXED, HANDLE0 } from './selection.js';
 import { stiffnessToJson } from './stiffness.js';
 
@@ -17,8 +18,16 @@ export function fileSource(filename, bytes) {
   return { kind: 'file', filename, bytes, key: ++sourceKeys };
 }
 
-/** Binary little-endian PLY of a triangle mesh (float32 positions, uint32 faces). */
-export function encodePly(positions, faces) {
+/**
+ * Binary little-endian PLY of a triangle mesh (float32 positions, uint32 faces). With `vertexMap` (the mesh vertex of
+ * each vertex of the mesh file it came from, when repair renumbered them), in the file's numbering: uploaded again,
+ * it is repaired into the same mesh with the same map (numbering.js inFileNumbering).
+ * @param {ArrayLike<number>} positions
+ * @param {ArrayLike<number>} faces
+ * @param {Int32Array|null} vertexMap
+ */
+export function encodePly(positions, faces, vertexMap = null) {
+  if (vertexMap) ({ positions, faces } = inFileNumbering(positions, faces, vertexMap));
   const nv = positions.length / 3;
   const nf = faces.length / 3;
   const header = new TextEncoder().encode(

@@ -108,10 +108,13 @@ def _timed(fn: Callable[..., T], *args: Any) -> tuple[T, float]:
 
 
 def _mesh_frame(mesh: MeshData) -> bytes:
+    vmap = mesh.vertex_map
     header = server_message("mesh", name=mesh.name, n_vertices=mesh.n_vertices, n_faces=mesh.n_faces,
-                            report=mesh.report)
-    return encode_binary(header, np.ascontiguousarray(mesh.V, dtype="<f4").tobytes(),
-                         np.ascontiguousarray(mesh.F, dtype="<u4").tobytes())
+                            report=mesh.report, file_vertices=0 if vmap is None else len(vmap))
+    parts = [np.ascontiguousarray(mesh.V, dtype="<f4").tobytes(), np.ascontiguousarray(mesh.F, dtype="<u4").tobytes()]
+    if vmap is not None:
+        parts.append(np.ascontiguousarray(vmap, dtype="<i4").tobytes())
+    return encode_binary(header, *parts)
 
 
 class Connection:

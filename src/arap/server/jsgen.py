@@ -75,19 +75,23 @@ function floatView(payload, offsetBytes, count) {
 }
 
 /**
- * Arrays of a `mesh` frame.
+ * Arrays of a `mesh` frame: positions, triangles and, when repair renumbered the file's vertices, `vertexMap` (the
+ * mesh vertex each file vertex became, -1 for a dropped one; else null).
  * @param {{header: object, payload: Uint8Array}} frame result of decodeBinary.
- * @returns {{positions: Float32Array, faces: Uint32Array}}
+ * @returns {{positions: Float32Array, faces: Uint32Array, vertexMap: Int32Array|null}}
  */
 export function meshArrays(frame) {
   const nv = frame.header.n_vertices * 3;
   const nf = frame.header.n_faces * 3;
+  const nm = frame.header.file_vertices | 0;
   const positions = floatView(frame.payload, 0, nv);
   const start = frame.payload.byteOffset + 4 * nv;
   const faces = start % 4 === 0
     ? new Uint32Array(frame.payload.buffer, start, nf)
     : new Uint32Array(frame.payload.slice(4 * nv, 4 * (nv + nf)).buffer);
-  return { positions, faces };
+  // a copy: the map outlives the frame (constraints documents are read with it)
+  const vertexMap = nm > 0 ? new Int32Array(frame.payload.slice(4 * (nv + nf), 4 * (nv + nf + nm)).buffer) : null;
+  return { positions, faces, vertexMap };
 }
 
 /**

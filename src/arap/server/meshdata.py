@@ -38,21 +38,40 @@ class MeshData:
     F : (m, 3) int64 array
     report : list of str
         Repairs made while loading, one line each.
+    vertex_map : (n_file,) int64 array or None
+        When repair renumbered the file's vertices (welded or dropped some): the index in :attr:`V` of each vertex
+        of the file, -1 for one dropped (:attr:`arap.repair.RepairResult.vertex_map`). None when the numbering is
+        the file's (clean files, built-in models, arrays). Constraints documents use the file's numbering
+        (:mod:`arap.server.numbering`).
     """
 
     name: str
     V: np.ndarray
     F: np.ndarray
     report: list[str] = field(default_factory=list)
+    vertex_map: np.ndarray | None = None
 
     @classmethod
-    def make(cls, name: str, V: np.ndarray, F: np.ndarray, report: list[str] | None = None) -> MeshData:
-        """Freeze copies of the arrays into a :class:`MeshData`."""
+    def make(cls, name: str, V: np.ndarray, F: np.ndarray, report: list[str] | None = None,
+             vertex_map: np.ndarray | None = None) -> MeshData:
+        """Freeze copies of the arrays into a :class:`MeshData` (an identity ``vertex_map`` becomes None)."""
         V = np.array(V, dtype=np.float64)
         F = np.array(F, dtype=np.int64)
         V.setflags(write=False)
         F.setflags(write=False)
-        return cls(name, V, F, list(report or []))
+        vmap = None
+        if vertex_map is not None and not np.array_equal(vertex_map, np.arange(len(V))):
+            vmap = np.array(vertex_map, dtype=np.int64)
+            if vmap.ndim != 1 or vmap.max(initial=-1) >= len(V) or vmap.min(initial=0) < -1 or \
+                    not np.isin(np.arange(len(V)), vmap).all():
+                raise ValueError("vertex_map must map the file's vertices onto every mesh vertex (-1: dropped)")
+            vmap.setflags(write=False)
+        return cls(name, V, F, list(report or []), vmap)
+
+    @property
+    def n_file_vertices(self) -> int:
+        """Vertices of the mesh file (:attr:`n_vertices` when repair kept the numbering)."""
+        return self.n_vertices if self.vertex_map is None else len(self.vertex_map)
 
     @property
     def n_vertices(self) -> int:
@@ -104,7 +123,7 @@ def load_default(spec: str | os.PathLike[str] | MeshData | None) -> MeshData:
     if not path.exists():
         raise MeshFormatError(f"{spec}: no such file (built-in meshes: {', '.join(builtin_names())})")
     V, F, repair = load_mesh_with_report(path)
-    return MeshData.make(path.stem, V, F, repair.report)
+    return MeshData.make(path.stem, V, F, repair.report, repair.vertex_map if repair.renumbers else None)
 
 
 _SAFE_NAME = re.compile(r"[^A-Za-z0-9._ -]+")
@@ -153,7 +172,7 @@ def load_upload(data: bytes | memoryview, filename: str, max_vertices: int) -> M
     except ArapError as exc:
         raise RequestError("bad_mesh", str(exc)) from exc
     logger.info("loaded upload %s%s: %d vertices, %d faces", name, ext, len(V), len(F))
-    return MeshData.make(name, V, F, repair.report)
+    return MeshData.make(name, V, F, repair.report, repair.vertex_map if repair.renumbers else None)
 
 
 def export_mesh(name: str, U: np.ndarray, F: np.ndarray, fmt: str) -> tuple[str, str, bytes]:

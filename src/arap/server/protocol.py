@@ -54,7 +54,7 @@ __all__ = [
     "validate",
 ]
 
-PROTOCOL_VERSION = 3
+PROTOCOL_VERSION = 4
 """Bumped on every incompatible change of the messages below."""
 
 MAX_HANDLE_GROUPS = 256
@@ -209,11 +209,15 @@ SERVER_MESSAGES: dict[str, MessageSpec] = {
               Field("builtin_meshes", "list", "names accepted by load_builtin"),
               Field("limits", "object", "max_upload_bytes, max_vertices, max_frame_bytes, max_handle_groups"),
               Field("params", "object", "current solver parameters")),
-        _spec("mesh", "a new mesh (payload: float32[n_vertices*3], uint32[n_faces*3]); history is cleared",
+        _spec("mesh", "a new mesh (payload: float32[n_vertices*3], uint32[n_faces*3], then int32[file_vertices]); "
+              "history is cleared",
               Field("name", "string", "model name"),
               Field("n_vertices", "int", "number of vertices"),
               Field("n_faces", "int", "number of triangles"),
               Field("report", "list", "repairs made while loading, one line each"),
+              Field("file_vertices", "int", "vertices of the mesh file when repair renumbered them (the payload then "
+                    "ends with the mesh vertex each file vertex became, -1 for one dropped), else 0: constraints "
+                    "documents use the file's numbering"),
               binary=True),
         _spec("vertices", "current deformed positions (payload: float32[n_vertices*3] then uint32[movable] in a "
               "full frame, float32[subset*3] in a subset frame)",

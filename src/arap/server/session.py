@@ -22,6 +22,7 @@ from arap.errors import ArapError
 from arap.server.constraints import ConstraintSet, identity_transforms, matrices_from_json, matrices_to_json
 from arap.server.history import History, Snapshot
 from arap.server.meshdata import MeshData, export_mesh
+from arap.server.numbering import document_in_file_numbering
 from arap.server.protocol import PARAMS, RequestError, server_message
 from arap.weights import WeightType
 
@@ -525,9 +526,10 @@ class Session:
             raise RequestError("bad_mesh", f"cannot export: {exc}") from exc
 
     def constraints_document(self) -> dict[str, Any]:
-        """The current constraints in the command-line format."""
-        self._require_mesh()
-        return self.constraints.document(self.V, self.transforms)
+        """The current constraints in the command-line format, in the mesh file's vertex numbering (as ``arap
+        deform`` reads them; :func:`arap.server.numbering.document_in_file_numbering`)."""
+        mesh = self._require_mesh()
+        return document_in_file_numbering(self.constraints.document(self.V, self.transforms), mesh)
 
     # ------------------------------------------------------------------ replies
     def vertices_f32(self) -> bytes:
