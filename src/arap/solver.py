@@ -42,7 +42,7 @@ from arap.result import (
     StartName,
     check_solve_options,
 )
-from arap.rigid import RigidRegions, rigid_regions
+from arap.rigid import RIGID_TOLERANCE, RigidRegions, rigid_regions
 from arap.rotations import identity_rotations
 from arap.smooth import DEFAULT_ALPHA, STEPS, SWEEPS, SmoothRotations, check_alpha
 from arap.start import rigid_start, vertex_areas
@@ -308,7 +308,7 @@ class ArapSolver(SingleSteps):
             Converged when the step of the plain local/global iteration from the current iterate, root mean square
             over the free vertices, is at most ``tolerance`` times the bounding-box diagonal. That step is the
             energy gradient preconditioned by the system matrix, so it vanishes exactly at a stationary point.
-            0 runs all ``max_iterations``.
+            0 runs all ``max_iterations``. With rigid regions, at least :data:`arap.rigid.RIGID_TOLERANCE` (1e-9).
         callback : callable or None
             ``callback(iteration, energy)`` after each iteration (1-based); returning False stops early.
             :meth:`current_vertices` gives the iterate meanwhile.
@@ -336,6 +336,8 @@ class ArapSolver(SingleSteps):
         t_start = time.perf_counter()
         T = self._check_targets(targets)
         cap = check_solve_options(max_iterations, tolerance, acceleration, window)
+        if self._rigid is not None and tolerance > 0:
+            tolerance = max(float(tolerance), RIGID_TOLERANCE)
         fixed = self._fixed_positions(T)
         P = self._check_point_targets(point_targets)
         self._point_state = None if P is None else (P, fixed)

@@ -36,7 +36,7 @@ def test_accelerated_solves_never_report_a_rising_energy(request: pytest.Fixture
     # Warm-started drags keep the guarantee from their second iteration on.
     moved = targets + 0.05 * _diag(V) * np.array([1.0, 0.0, 0.0])
     drag = solver.solve(moved, max_iterations=60, acceleration=acceleration)
-    assert np.all(np.diff(drag.energies) <= 0.0)
+    assert np.all(np.diff(drag.energies) <= 1e-14 * np.abs(drag.energies).max())  # converged: down to rounding
 
 
 @pytest.mark.parametrize("acceleration", ACCELERATED)
@@ -64,7 +64,7 @@ def test_lbfgs_converges_where_anderson_stalls(camelhead: tuple[np.ndarray, np.n
     assert not stalled.converged
     assert result.converged
     assert result.energies[-1] <= stalled.energies[-1]
-    assert np.all(np.diff(result.energies) <= 0.0)
+    assert np.all(np.diff(result.energies) <= 1e-14 * np.abs(result.energies).max())  # down to rounding
     assert result.energies[-1] == pytest.approx(arap_energy(V, F, result.vertices, "spokes"), rel=1e-9)
 
 
@@ -265,3 +265,33 @@ def test_lbfgs_starts_with_plain_steps_and_keeps_the_lower_minimum(armadillo: tu
     warm_plain = reference.solve(moved, max_iterations=3, acceleration="none")
     np.testing.assert_allclose(warm.energies[:2], warm_plain.energies[:2], rtol=1e-12)
     assert abs(warm.energies[2] - warm_plain.energies[2]) > 1e-9 * abs(warm_plain.energies[2])
+
+
+def test_a_settled_drag_and_a_cold_solve_agree_on_the_armadillo(armadillo: tuple[np.ndarray, np.ndarray]) -> None:
+    """The studio settles a drag from where the drag left the shape; ``arap deform`` solves the saved constraints
+    from a cold start. With the default tolerance both must end within 1e-6 of the diagonal at every vertex (with the
+    former 1e-9 the armadillo's first two drags ended 3.7e-6 and 3.1e-6 apart: the plain step understates the
+    distance to the minimum along soft modes by about 1,000 at the worst vertex)."""
+    V, F = armadillo
+    y = V[:, 1]
+    fixed, handle = np.flatnonzero(y <= np.quantile(y, 0.1)), np.flatnonzero(y >= np.quantile(y, 0.9))
+    centre, height = V[handle].mean(axis=0), float(np.ptp(y))
+
+    def targets(t: float) -> np.ndarray:
+        a, angle = 0.25 * height, 0.35 * np.sin(2 * np.pi * t / 3.0)
+        c, s = np.cos(angle), np.sin(angle)
+        R = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+        shift = np.array([a * np.sin(np.pi * t), 0.1 * a * np.sin(2 * np.pi * t / 1.5), 0.0])
+        return np.concatenate([V[fixed], (V[handle] - centre) @ R.T + centre + shift])
+
+    constrained = np.concatenate([fixed, handle])
+    studio, cold = ArapSolver(V, F, constrained), ArapSolver(V, F, constrained)
+    studio.solve(targets(0.0))
+    for t in (0.3, 0.7):
+        for k in range(1, 6):  # the drag: one iteration per mouse event
+            studio.solve(targets(t * k / 5), max_iterations=1, tolerance=0)
+        settled = studio.solve(targets(t))
+        cold.reset()
+        reference = cold.solve(targets(t))
+        assert settled.converged and reference.converged
+        assert np.abs(settled.vertices - reference.vertices).max() < 1e-6 * _diag(V)
