@@ -9,9 +9,8 @@ from __future__ import annotations
 
 import logging
 import time
-from collections import OrderedDict
 from collections.abc import Callable
-from dataclasses import asdict, dataclass
+from dataclasses import asdict
 from typing import Any
 
 import numpy as np
@@ -23,7 +22,9 @@ from arap.server.constraints import ConstraintSet, identity_transforms, matrices
 from arap.server.history import History, Snapshot
 from arap.server.meshdata import MeshData, export_mesh
 from arap.server.numbering import document_in_file_numbering
-from arap.server.protocol import PARAMS, RequestError, server_message
+from arap.server.protocol import RequestError, server_message
+from arap.server.records import DragOutcome, Params, SettleOutcome
+from arap.server.solvers import SolverCache
 from arap.weights import WeightType
 
 __all__ = ["DragOutcome", "Params", "Session", "SettleOutcome"]
@@ -38,53 +39,6 @@ SETTLE_FRAME_SECONDS = 1.0 / 30.0
 """Least time between two intermediate frames streamed while settling (at most 30 per second)."""
 SETTLE_ITERATIONS = 3000
 """Most iterations of one settling run: past them the shape is left as reached (reported not converged)."""
-
-_SOLVER_CACHE_VERTICES = 200_000
-"""Meshes up to this size keep two factorised solvers (undo across a selection change is instant)."""
-
-
-@dataclass
-class Params:
-    """Solver parameters of a session."""
-
-    iterations: int = PARAMS["iterations"]["default"]
-    energy: EnergyType = PARAMS["energy"]["default"]
-    weights: WeightType = PARAMS["weights"]["default"]
-    alpha: float = PARAMS["alpha"]["default"]
-
-
-@dataclass
-class DragOutcome:
-    """What one solve did (for the ``vertices`` header)."""
-
-    iterations: int
-    energies: list[float]
-    solve_ms: float
-
-    @property
-    def ms_per_iteration(self) -> float:
-        """Solve time per iteration."""
-        return self.solve_ms / max(self.iterations, 1)
-
-
-@dataclass
-class SettleOutcome:
-    """What one settling run did (for the ``settle`` message)."""
-
-    iterations: int
-    energy: float | None
-    converged: bool
-    seconds: float
-    moved: float
-    """Largest coordinate change of the shape (0: the shape was kept as it was)."""
-    interrupted: bool = False
-    """A new request stopped it (it resumes later); else it converged or used up its iterations."""
-
-    @property
-    def status(self) -> str:
-        """The ``settle`` message's status for this run's end."""
-        return "settled" if self.converged else "stopped" if self.interrupted else "unconverged"
-
 
 class Session:
     """One client's editing session.
@@ -102,7 +56,7 @@ class Session:
         self.params = Params()
         self.history = History(max_history_steps, max_history_bytes)
         self._rest_counter = 0
-        self._solvers: OrderedDict[tuple[Any, ...], Any] = OrderedDict()
+        self._solvers = SolverCache()
         self.solver: Any = None
         self._unsolvable: str | None = None
         """Why the solver rejected the constraints an undo or redo restored (``solver`` is then None)."""
@@ -148,26 +102,7 @@ class Session:
 
         Raises RequestError (``bad_constraints``) when the solver rejects the constraints.
         """
-        if cs.is_empty:
-            return None
-        alpha = params.alpha if params.energy == "smooth_rotations" else None  # other energies ignore it
-        key = (rest_id, params.energy, params.weights, alpha, cs.solver_digest())
-        solver = self._solvers.get(key)
-        if solver is not None:
-            self._solvers.move_to_end(key)
-            return solver
-        mesh = self._require_mesh()
-        try:
-            solver = arap.ArapSolver(V, mesh.F, cs.constrained, energy=params.energy, weights=params.weights,
-                                     roi=cs.roi, alpha=params.alpha, stiffness=cs.stiffness, points=cs.points)
-        except ArapError as exc:
-            raise RequestError("bad_constraints", str(exc)) from exc
-        logger.debug("factorised %d free vertices in %.1f ms", solver.n_free, 1000 * solver.factor_seconds)
-        self._solvers[key] = solver
-        keep = 2 if mesh.n_vertices <= _SOLVER_CACHE_VERTICES else 1
-        while len(self._solvers) > keep:
-            self._solvers.popitem(last=False)
-        return solver
+        return self._solvers.get(rest_id, V, self._require_mesh().F, cs, params)
 
     def _snapshot(self) -> Snapshot:
         return Snapshot(self.rest_id, self.V, self.U, self.constraints, self.transforms, self.settled,
