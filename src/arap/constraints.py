@@ -44,6 +44,7 @@ import numpy as np
 from arap.errors import ConstraintError
 from arap.indexing import check_index_array
 from arap.io.atomic import write_atomic
+from arap.mesh import bounding_box
 from arap.partition import check_reach
 from arap.points import PointConstraints, check_points
 from arap.selection import check_selection, check_targets
@@ -118,7 +119,7 @@ class Constraints:
         V = np.asarray(V, dtype=np.float64)
         points = np.zeros((0, 3)) if self.point_targets is None else self.point_targets
         if len(V):
-            check_reach(np.stack([V.min(axis=0), V.max(axis=0)]), np.concatenate([self.targets, points]).reshape(-1, 3))
+            check_reach(bounding_box(V), np.concatenate([self.targets, points]).reshape(-1, 3))
         return self.constrained, np.concatenate([V[self.fixed], self.targets]).reshape(-1, 3)
 
     def remapped(self, vertex_map: np.ndarray) -> Constraints:

@@ -21,6 +21,7 @@ import arap._numba_cache  # noqa: F401  (a writable cache folder before the kern
 from arap.cells import Cells
 from arap.covariance import local_step
 from arap.horn import best_rotation
+from arap.mesh import bounding_box
 from arap.rotations import identity_rotations
 
 __all__ = ["RIGID_TOLERANCE", "InactiveCells"]
@@ -66,7 +67,8 @@ class InactiveCells:
         self._inactive = np.flatnonzero(~is_active)
         if len(self._inactive):
             local_step(cells, self._inactive, V, identity_rotations(n), self._E)
-        self._tolerance = RIGID_TOLERANCE * (float(np.linalg.norm(V.max(axis=0) - V.min(axis=0))) if n else 0.0)
+        box = bounding_box(V) if n else np.zeros((2, 3))
+        self._tolerance = RIGID_TOLERANCE * float(np.linalg.norm(box[1] - box[0]))
         self._n = n
         self._targets = V[constrained].copy()
         self._value = float(self._E[self._inactive].sum())

@@ -10,6 +10,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from arap.errors import ConstraintError
+from arap.mesh import bounding_box
 from arap.topology import free_components, vertex_adjacency
 
 
@@ -219,5 +220,6 @@ def internal_origin(V: np.ndarray, diagonal: float) -> np.ndarray:
     """
     if not len(V):
         return np.zeros(3)
-    centre = 0.5 * (V.min(axis=0) + V.max(axis=0))
+    box = bounding_box(V)
+    centre = 0.5 * (box[0] + box[1])
     return np.where(np.abs(centre) > FAR * diagonal, centre, 0.0)

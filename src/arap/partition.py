@@ -14,7 +14,7 @@ from numpy.typing import NDArray
 
 from arap.errors import ArapError, ConstraintError, UnconstrainedRegionError
 from arap.indexing import find_unconstrained_part
-from arap.mesh import MIN_RELATIVE_SIZE, SIZE_RANGE, coordinate_problem
+from arap.mesh import MIN_RELATIVE_SIZE, SIZE_RANGE, bounding_box, coordinate_problem
 
 __all__ = ["check_point_targets", "check_positions", "check_reach", "check_targets", "partition_vertices"]
 
@@ -156,7 +156,8 @@ def check_reach(bounds: NDArray[np.float64], X: NDArray[np.float64], what: str =
     reach = max(-lo, hi)
     if hi - lo <= SIZE_RANGE[1] and float((bounds[1] - bounds[0]).max()) >= MIN_RELATIVE_SIZE * reach:
         return
-    corners = np.stack([np.minimum(bounds[0], X.min(axis=0)), np.maximum(bounds[1], X.max(axis=0))])
+    box = bounding_box(X)
+    corners = np.stack([np.minimum(bounds[0], box[0]), np.maximum(bounds[1], box[1])])
     problem = coordinate_problem(corners)
     if problem is not None and coordinate_problem(bounds) is None:
         raise ConstraintError(f"the {what} lie too far from the mesh: with them, {problem}")

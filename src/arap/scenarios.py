@@ -13,6 +13,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from arap.errors import ArapError
+from arap.mesh import bounding_box
 
 __all__ = ["SCENARIO_NAMES", "Scenario", "bend", "make_scenario", "pull", "rigid", "rotation", "twist"]
 
@@ -44,13 +45,15 @@ class Scenario:
 
 
 def _diagonal(V: NDArray[np.float64]) -> float:
-    return float(np.linalg.norm(V.max(axis=0) - V.min(axis=0)))
+    box = bounding_box(V)
+    return float(np.linalg.norm(box[1] - box[0]))
 
 
 def _ends(V: NDArray[np.float64], axis: int | None, share: float) -> tuple[int, NDArray[np.int64], NDArray[np.int64]]:
     """Longest axis (unless given) and the vertices in its lowest and highest ``share``."""
     if axis is None:
-        axis = int(np.argmax(V.max(axis=0) - V.min(axis=0)))
+        box = bounding_box(V)
+        axis = int(np.argmax(box[1] - box[0]))
     x = V[:, axis]
     lo, hi = np.quantile(x, [share, 1.0 - share])
     return axis, np.flatnonzero(x <= lo), np.flatnonzero(x >= hi)

@@ -28,7 +28,7 @@ from arap.indexing import assign_rows, check_index_array, internal_origin, rows_
 from arap.lbfgs import LbfgsHistory
 from arap.linsolve import NotPositiveDefiniteError, background_ordering, factorize
 from arap.loops import PLAIN_START, Iterate, lbfgs_iterations, plain_iterations
-from arap.mesh import MeshLike, check_mesh, is_mesh_like, mesh_arrays
+from arap.mesh import MeshLike, bounding_box, check_mesh, is_mesh_like, mesh_arrays
 from arap.partition import check_point_targets, check_positions, check_reach, check_targets, partition_vertices
 from arap.points import PointConstraints, PointSystem, check_points
 from arap.result import (
@@ -174,7 +174,7 @@ class ArapSolver(SingleSteps):
         self._inv[self._perm] = np.arange(n)
         # The reduced system's fill-reducing ordering needs only its pattern: it runs beside the set-up below.
         ordering = background_ordering(adjacency, self._perm, len(self.free), backend)
-        self._bounds = np.stack([V.min(axis=0), V.max(axis=0)])
+        self._bounds = bounding_box(V)
         self._diagonal = float(np.linalg.norm(self._bounds[1] - self._bounds[0])) or 1.0
         self._origin = internal_origin(V, self._diagonal)
         self._V = np.ascontiguousarray(V[self._perm] - self._origin)
