@@ -57,16 +57,16 @@ class InactiveCells:
         self._constrained = constrained
         is_active = np.zeros(n, dtype=bool)
         is_active[active] = True
-        tcell = cells.cell_of_term()
-        terms = np.flatnonzero(~is_active[tcell])
-        self._term_cell = tcell[terms]
+        counts = np.diff(cells.ptr)
+        self._inactive = np.flatnonzero(~is_active)
+        terms = np.flatnonzero(np.repeat(~is_active, counts))  # (a cell per term would take 8 bytes a term)
+        self._term_cell = np.repeat(self._inactive, counts[self._inactive])
         self._a = cells.a[terms]
         self._b = cells.b[terms]
-        self._R = identity_rotations(n)
+        self._R = identity_rotations(n)  # the rest pose's rotations: where later fits start
         self._E = np.zeros(n)  # energy of every inactive cell at the cached targets
-        self._inactive = np.flatnonzero(~is_active)
         if len(self._inactive):
-            local_step(cells, self._inactive, V, identity_rotations(n), self._E)
+            local_step(cells, self._inactive, V, self._R, self._E)
         box = bounding_box(V) if n else np.zeros((2, 3))
         self._tolerance = RIGID_TOLERANCE * float(np.linalg.norm(box[1] - box[0]))
         self._n = n
