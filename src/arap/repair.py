@@ -65,8 +65,10 @@ class RepairResult:
         """Positions of the repaired vertices carried back to the input's vertices, with the input's triangles.
 
         Each input vertex takes the position of the repaired vertex it became (a welded copy keeps its small offset
-        from the vertex it was welded to); a dropped vertex keeps its input position. So a deformed mesh can be
-        written with the vertex order and count of the file it came from.
+        from the vertex it was welded to). A vertex used only by dropped faces (a zero-area sliver, a face repeating
+        a vertex) follows the kept vertices of such a face (on their segment where it lay on it, else at its offset
+        from one of them), so the written faces make no spike back to the rest pose; a vertex no face uses keeps its
+        input position. So a deformed mesh can be written with the vertex order and count of the file it came from.
 
         Parameters
         ----------
@@ -94,12 +96,40 @@ class RepairResult:
         out = self.input_V.copy()
         to = self.vertex_map[kept]
         out[kept] = U[to] + (self.input_V[kept] - self.V[to])
+        _follow_kept_corners(out, self.input_V, self.input_F, kept)
         return out, self.input_F
 
     @property
     def changed(self) -> bool:
         """True if anything was repaired."""
         return any(self.counts.values())
+
+
+def _follow_kept_corners(out: np.ndarray, V: np.ndarray, F: np.ndarray, kept: np.ndarray) -> None:
+    """Move (in ``out``) the dropped vertices of faces that also have kept vertices with those: a vertex between
+    two kept corners ``a``, ``b`` of a face keeps its parameter ``t`` along ``a → b`` (and its small offset from that
+    line), one beside a single kept corner its offset from it. ``V`` are the rest positions, ``out`` the positions
+    of the kept vertices already carried over."""
+    K = kept[F]
+    rows = np.flatnonzero(~K.all(axis=1) & K.any(axis=1))
+    if not len(rows):
+        return
+    G, K = F[rows], K[rows]
+    n_kept = K.sum(axis=1)
+    for count in (1, 2):  # a face with two kept corners places its vertex last, so it wins over one with one
+        for c in range(3):
+            sel = ~K[:, c] & (n_kept == count)
+            if not sel.any():
+                continue
+            p, o1, o2 = G[sel, c], G[sel, (c + 1) % 3], G[sel, (c + 2) % 3]
+            if count == 1:
+                a = np.where(K[sel, (c + 1) % 3], o1, o2)
+                out[p] = out[a] + (V[p] - V[a])
+                continue
+            d = V[o2] - V[o1]
+            dd = np.einsum("ij,ij->i", d, d)
+            t = np.divide(np.einsum("ij,ij->i", V[p] - V[o1], d), dd, out=np.zeros(len(p)), where=dd > 0)[:, None]
+            out[p] = out[o1] + t * (out[o2] - out[o1]) + (V[p] - (V[o1] + t * d))
 
 
 def repair_mesh(

@@ -259,3 +259,24 @@ def test_info_on_a_closed_surface_with_a_nan_vertex() -> None:
     uses = int(np.any(F == 5, axis=1).sum())
     assert info.unreferenced_vertices == 0 and info.nonfinite_faces == uses
     assert any(f"({uses} faces use them; the topology above leaves those faces out)" in p for p in info.problems)
+
+
+def test_in_input_order_moves_vertices_of_dropped_faces_with_their_neighbours() -> None:
+    """A vertex used only by faces that repair dropped (a zero-area sliver with a vertex in the middle of an edge, a
+    face repeating a vertex) follows the face's kept vertices, so the written file has no spike back to the rest
+    pose; a vertex no face uses stays where it was."""
+    V, F = grid(2)
+    a, b = F[0][0], F[0][1]
+    n = len(V)
+    V2 = np.vstack([V, 0.25 * V[a] + 0.75 * V[b], V[a] + [0.0, 0.0, 0.1], [[5.0, 5.0, 5.0]]])
+    F2 = np.vstack([F, [a, n, b], [a, a, n + 1]])
+    r = repair_mesh(V2, F2)
+    assert r.vertex_map[n:].tolist() == [-1, -1, -1]
+    U = r.V @ np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]]).T + [3.0, 0.0, 0.0]  # turned, moved
+    out = r.in_input_order(U)
+    assert out is not None
+    W, G = out
+    np.testing.assert_array_equal(G, F2)
+    np.testing.assert_allclose(W[n], 0.25 * W[a] + 0.75 * W[b], atol=1e-12)  # still on its edge
+    np.testing.assert_allclose(W[n + 1], W[a] + [0.0, 0.0, 0.1], atol=1e-12)
+    np.testing.assert_array_equal(W[n + 2], [5.0, 5.0, 5.0])
