@@ -478,3 +478,47 @@ def test_info_says_vertex_indices_change_only_when_repair_renumbers(tmp_path: Pa
     assert "faces (vertex indices change)" in capsys.readouterr().out
     assert main(["info", str(path), "--json"]) == 0
     assert json.loads(capsys.readouterr().out)["repair"]["renumbers_vertices"] is True
+
+
+def test_start_shapes_that_are_not_of_the_mesh_are_refused(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """``--start``: a shape with NaN coordinates is refused naming the option and the vertex (also when a welded copy
+    of that vertex is finite), a file of the same vertex count with other triangles is refused, an unreadable one
+    is named as the start; an STL written by ``arap deform`` (triangles only) is a start like the OBJ it came from."""
+    V, F = builtin_mesh("bar")
+    V2 = np.vstack([V, V[:1]])  # the last vertex duplicates vertex 0; a face uses it
+    F2 = F.copy()
+    face = np.flatnonzero(np.any(F2 == 0, axis=1))[0]
+    F2[face][F2[face] == 0] = len(V)
+    mesh = tmp_path / "mesh.obj"
+    save_mesh(mesh, V2, F2)
+    cfile = tmp_path / "c.json"
+    bar_constraints(cfile)
+    out = tmp_path / "out.obj"
+    assert main(["deform", str(mesh), "-c", str(cfile), "-o", str(out), "-n", "5", "-q"]) == 0
+    U, _ = load_mesh(out, repair=False)
+
+    def start_error(U_start: np.ndarray, F_start: np.ndarray, name: str) -> str:
+        path = tmp_path / name
+        save_mesh(path, U_start, F_start) if np.isfinite(U_start).all() else path.write_text(
+            "".join(f"v {x!r} {y!r} {z!r}\n" for x, y, z in U_start.tolist())
+            + "".join(f"f {a} {b} {c}\n" for a, b, c in (F_start + 1).tolist()))
+        assert main(["deform", str(mesh), "-c", str(cfile), "-o", str(tmp_path / "o.obj"), "--start", str(path)]) == 1
+        return capsys.readouterr().err
+
+    for vertex in (100, 0):  # vertex 0 has a finite welded copy
+        bad = U.copy()
+        bad[vertex] = np.nan
+        assert f"--start {tmp_path / 'nan.obj'}: vertex {vertex} has NaN or infinite coordinates" in start_error(
+            bad, F2, "nan.obj")
+    assert "has the vertex count of" in start_error(U, np.roll(F2, 7), "other.obj")  # other triangles
+    (tmp_path / "folder.obj").mkdir()
+    assert main(["deform", str(mesh), "-c", str(cfile), "-o", str(out), "--start", str(tmp_path / "folder.obj")]) == 1
+    assert "--start: " in capsys.readouterr().err
+    stl = tmp_path / "shape.stl"
+    assert main(["deform", str(mesh), "-c", str(cfile), "-o", str(stl), "-n", "5", "-q"]) == 0
+    from_obj, from_stl = tmp_path / "from_obj.obj", tmp_path / "from_stl.obj"
+    for start, result in ((out, from_obj), (stl, from_stl)):
+        assert main(["deform", str(mesh), "-c", str(cfile), "-o", str(result), "-n", "3", "-q", "--start",
+                     str(start)]) == 0
+    diagonal = np.linalg.norm(np.ptp(V, axis=0))
+    np.testing.assert_allclose(load_mesh(from_stl)[0], load_mesh(from_obj)[0], atol=1e-6 * diagonal)

@@ -263,8 +263,9 @@ def build_parser() -> argparse.ArgumentParser:
                         f"many bounding-box diagonals (default: {DEFAULT_TOLERANCE:g}; 0 runs all iterations)")
     p.add_argument("--start", default="auto", metavar="{" + ",".join(START_NAMES) + "} or SHAPE",
                    help="starting pose: the rest pose, its best-fit rigid motion onto the targets, whichever has the "
-                        "lower energy (default: auto), or a mesh file with MESH's vertices, e.g. a shape exported "
-                        "from the studio (where the energy has several minima, the solve then ends in that shape's)")
+                        "lower energy (default: auto), or a mesh file with MESH's vertices and triangles (or an STL "
+                        "of its triangles), e.g. a shape exported from the studio (where the energy has several "
+                        "minima, the solve then ends in that shape's)")
     p.add_argument("--acceleration", choices=ACCELERATIONS, default="lbfgs",
                    help="L-BFGS preconditioned by the global step (Liu et al. 2017), Anderson acceleration (Peng et "
                         "al. 2018) or the plain iteration (default: lbfgs)")

@@ -15,7 +15,7 @@ from typing import Any, TextIO
 import numpy as np
 
 from arap.cli import EXIT_INTERRUPTED, _err, _warm_up_kernels, load_mesh_argument
-from arap.errors import ArapError, ConstraintError, MeshFormatError
+from arap.errors import ArapError, ConstraintError, MeshError, MeshFormatError
 from arap.repair import RepairResult
 from arap.result import START_NAMES
 
@@ -81,26 +81,68 @@ class _FirstInterrupt:
             signal.signal(signal.SIGINT, self._previous)
 
 
-def _start_shape(spec: str, repair: RepairResult, label: str) -> np.ndarray:
-    """The positions of a ``--start`` mesh file, in the order of the (repaired) mesh being deformed: the file has
-    the mesh file's vertices (as ``arap deform`` writes them) or the repaired mesh's (as the studio exports them)."""
-    from arap.io import load_mesh
+def _start_shape(spec: str, repair: RepairResult, F: np.ndarray, label: str) -> np.ndarray:
+    """The positions of a ``--start`` mesh file, in the order of the (repaired) mesh being deformed, whose triangles
+    are ``F``: the file has the mesh file's vertices (as ``arap deform`` writes them) or the repaired mesh's (as the
+    studio exports them), or is an STL of the mesh file's or the repaired mesh's triangles in their order."""
+    from arap.io import format_of, load_mesh
 
     path = Path(spec)
     if not path.exists():
         raise ArapError(f"--start must be one of {', '.join(START_NAMES)} or a mesh file; {spec} does not exist")
-    U, _ = load_mesh(path, repair=False)
+    try:
+        U, G = load_mesh(path, repair=False)
+    except (MeshFormatError, MeshError) as exc:
+        raise MeshFormatError(f"--start: {exc}") from None
     n_file, n_mesh = len(repair.vertex_map), int(repair.vertex_map.max(initial=-1)) + 1
+    same = "the start must be a shape of the same mesh"
+    if format_of(path.name) == "stl":  # a triangle soup: each corner is a vertex of the mesh's triangles
+        if len(G) == len(F):
+            corners = F.ravel()
+        elif repair.input_F is not None and len(G) == len(repair.input_F):
+            corners = repair.vertex_map[repair.input_F.ravel()]
+        else:
+            after = f" ({len(F):,} after repair)" if repair.input_F is not None else ""
+            n_file_faces = len(repair.input_F) if repair.input_F is not None else len(F)
+            raise ArapError(f"--start {spec} has {len(G):,} triangles, but {label} has {n_file_faces:,}{after}: {same}")
+        U = U[G.ravel()]
+        _check_finite(U, corners >= 0, spec, np.arange(len(U)) // 3, "triangle")
+        out = np.zeros((n_mesh, 3))
+        out[corners[corners >= 0]] = U[corners >= 0]
+        spread = float(np.abs(U[corners >= 0] - out[corners[corners >= 0]]).max(initial=0.0))
+        if spread > 1e-5 * max(float(np.linalg.norm(np.ptp(out, axis=0))), 1e-300):
+            raise ArapError(f"--start {spec} has the triangle count of {label}, but its triangles are not the mesh's "
+                            f"in their order (corners of one vertex lie {spread:.3g} apart): {same}")
+        return out
     if len(U) == n_file:
         kept = repair.vertex_map >= 0
+        _check_finite(U, kept, spec, np.arange(n_file), "vertex")
         out = np.empty((n_mesh, 3))
         out[repair.vertex_map[kept]] = U[kept]
-        return out
-    if len(U) == n_mesh:
-        return U
-    after = f" ({n_mesh:,} after repair)" if n_mesh != n_file else ""
-    raise ArapError(f"--start {spec} has {len(U):,} vertices, but {label} has {n_file:,}{after}: the start must be a "
-                    "shape of the same mesh")
+        G = repair.vertex_map[G]
+    elif len(U) == n_mesh:
+        _check_finite(U, np.ones(n_mesh, dtype=bool), spec, np.arange(n_mesh), "vertex")
+        out = U
+    else:
+        after = f" ({n_mesh:,} after repair)" if n_mesh != n_file else ""
+        raise ArapError(f"--start {spec} has {len(U):,} vertices, but {label} has {n_file:,}{after}: {same}")
+    # Every triangle of the mesh must be one of the start's (the start may keep faces repair dropped).
+    G = np.sort(G[(G >= 0).all(axis=1)], axis=1)
+    mine = np.unique(np.sort(F, axis=1), axis=0)
+    if len(np.unique(np.vstack([G, mine]), axis=0)) != len(np.unique(G, axis=0)):
+        raise ArapError(f"--start {spec} has the vertex count of {label} but not its triangles: {same}, with its "
+                        "vertices in the mesh file's order or the repaired mesh's")
+    return out
+
+
+def _check_finite(U: np.ndarray, used: np.ndarray, spec: str, names: np.ndarray, what: str) -> None:
+    """Refuse a ``--start`` whose used rows ``U[used]`` are not finite, naming the first bad one as ``what`` number
+    ``names[row]``."""
+    bad = used & ~np.isfinite(U).all(axis=1)
+    if bad.any():
+        first = int(np.argmax(bad))
+        raise ArapError(f"--start {spec}: {what} {int(names[first])} has NaN or infinite coordinates; the start must "
+                        "be a finite shape (as arap deform or the studio write it)")
 
 
 def run_deform(args: argparse.Namespace) -> int:
@@ -135,7 +177,7 @@ def run_deform(args: argparse.Namespace) -> int:
         if not args.quiet:
             _err("arap: vertex indices changed by the repair; constraints were renumbered to match")
     indices, targets = constraints.indices_and_targets(V)
-    start = args.start if args.start in START_NAMES else _start_shape(args.start, repair, label)
+    start = args.start if args.start in START_NAMES else _start_shape(args.start, repair, F, label)
 
     _warm_up_kernels(args.quiet)
     solver = ArapSolver(V, F, indices, energy=args.energy, weights=args.weights, roi=constraints.roi,
