@@ -522,3 +522,22 @@ def test_start_shapes_that_are_not_of_the_mesh_are_refused(tmp_path: Path, capsy
                      str(start)]) == 0
     diagonal = np.linalg.norm(np.ptp(V, axis=0))
     np.testing.assert_allclose(load_mesh(from_stl)[0], load_mesh(from_obj)[0], atol=1e-6 * diagonal)
+
+
+def test_deform_says_when_it_cannot_keep_the_files_vertex_order(tmp_path: Path,
+                                                                 capsys: pytest.CaptureFixture[str]) -> None:
+    """An unused vertex with NaN coordinates cannot be written: the output has the repaired mesh's vertices, and
+    the command says so (naming the vertex) instead of leaving the numbering change unsaid."""
+    V, F = builtin_mesh("bar")
+    mesh = tmp_path / "nan.obj"
+    mesh.write_text("v nan nan nan\n" + "".join(f"v {x!r} {y!r} {z!r}\n" for x, y, z in V.tolist())
+                    + "".join(f"f {a} {b} {c}\n" for a, b, c in (F + 2).tolist()))
+    cfile = tmp_path / "c.json"
+    fixed, handles = np.flatnonzero(V[:, 1] < 0.3) + 1, np.flatnonzero(V[:, 1] > 4.7) + 1
+    cfile.write_text(json.dumps({"fixed": fixed.tolist(), "handles": handles.tolist(),
+                                 "targets": (V[handles - 1] + [0.5, 0, 0]).tolist()}))
+    out = tmp_path / "out.obj"
+    assert main(["deform", str(mesh), "-c", str(cfile), "-o", str(out), "-n", "2"]) == 0
+    err = capsys.readouterr().err
+    assert f"not in the vertex order of {mesh}: its vertex 0, used by no face, has NaN" in err
+    assert len(load_mesh(out, repair=False)[0]) == len(V)

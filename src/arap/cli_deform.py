@@ -232,4 +232,9 @@ def run_deform(args: argparse.Namespace) -> int:
                      "spokes_and_rims is never negative")
         in_file_order = f" in the vertex order of {label} ({len(U_out):,} vertices)" if back is not None else ""
         _err(f"arap: wrote {args.output}{in_file_order}")
+        if back is None and renumbered and format_of(args.mesh) != "stl" and repair.input_V is not None:
+            nan = int(np.argmax(~np.isfinite(repair.input_V).all(axis=1)))
+            _err(f"arap: note: {args.output} has the repaired mesh's {len(U_out):,} vertices, not in the vertex "
+                 f"order of {label}: its vertex {nan}, used by no face, has NaN or infinite coordinates, which "
+                 "cannot be written; remove it from the file to keep the numbering")
     return 0
