@@ -95,6 +95,26 @@ def test_ctrl_c_during_deform_writes_the_last_iterate(tmp_path: Path, capsys: py
     np.testing.assert_array_equal(load_mesh(out)[0], load_mesh(capped)[0])
 
 
+def test_an_ignored_ctrl_c_stays_ignored(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A job started with SIGINT ignored (as a shell starts background jobs) runs to the end; the setting is kept."""
+    cfile = tmp_path / "c.json"
+    bar_constraints(cfile)
+    progress = cli_deform._Progress.__call__
+
+    def press_ctrl_c_at_3(self: cli_deform._Progress, iteration: int, energy: float) -> None:
+        progress(self, iteration, energy)
+        if iteration == 3:
+            signal.raise_signal(signal.SIGINT)
+
+    monkeypatch.setattr(cli_deform._Progress, "__call__", press_ctrl_c_at_3)
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        assert main(["deform", "bar", "--constraints", str(cfile), "-o", str(tmp_path / "o.obj"), "-n", "6"]) == 0
+        assert signal.getsignal(signal.SIGINT) is signal.SIG_IGN
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
 def test_alpha_out_of_range_is_a_usage_error(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     cfile = tmp_path / "c.json"
     bar_constraints(cfile)

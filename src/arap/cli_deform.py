@@ -72,7 +72,9 @@ class _FirstInterrupt:
         signal.signal(signal.SIGINT, self._previous)
 
     def __enter__(self) -> _FirstInterrupt:
-        if threading.current_thread() is threading.main_thread():
+        # Only Python's own handlers are replaced: an ignored SIGINT (a job started with it ignored) stays ignored,
+        # and a handler installed outside Python could not be put back.
+        if threading.current_thread() is threading.main_thread() and callable(signal.getsignal(signal.SIGINT)):
             self._previous = signal.signal(signal.SIGINT, self._handle)
         return self
 
