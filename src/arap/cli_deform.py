@@ -232,7 +232,8 @@ def run_deform(args: argparse.Namespace) -> int:
                 _err(f"arap: note: the energy is below 0 because {args.energy} with {args.weights} weights has "
                      "negative terms on obtuse triangles (see README, 'Energy and weights'); "
                      "spokes_and_rims is never negative")
-        in_file_order = f" in the vertex order of {label} ({len(U_out):,} vertices)" if back is not None else ""
+        in_file_order = (f" in the vertex order of {label} ({len(U_out):,} vertices)"
+                         if back is not None and format_of(args.output) != "stl" else "")  # an STL has no vertices
         _err(f"arap: wrote {args.output}{in_file_order}")
         if back is None and renumbered and format_of(args.mesh) != "stl" and repair.input_V is not None:
             nan = int(np.argmax(~np.isfinite(repair.input_V).all(axis=1)))
