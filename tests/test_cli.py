@@ -70,20 +70,25 @@ def test_deform_says_when_the_cap_stopped_it(tmp_path: Path, capsys: pytest.Capt
     assert "the shape written is the last iterate; raise --iterations" in err and "spokes_and_rims" in err
 
 
+def _press_ctrl_c_at_iteration_3(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Make ``arap deform`` send itself SIGINT (as Ctrl-C does) after its third iteration."""
+    progress = cli_deform._Progress.__call__
+
+    def press(self: cli_deform._Progress, iteration: int, energy: float) -> None:
+        progress(self, iteration, energy)
+        if iteration == 3:
+            signal.raise_signal(signal.SIGINT)
+
+    monkeypatch.setattr(cli_deform._Progress, "__call__", press)
+
+
 def test_ctrl_c_during_deform_writes_the_last_iterate(tmp_path: Path, capsys: pytest.CaptureFixture[str],
                                                       monkeypatch: pytest.MonkeyPatch) -> None:
     """The first Ctrl-C stops the solve at the end of its iteration: the iterate reached is written (exit 130) and
     said to be unconverged; the same three iterations run without interruption give the same shape."""
     cfile = tmp_path / "c.json"
     bar_constraints(cfile)
-    progress = cli_deform._Progress.__call__
-
-    def press_ctrl_c_at_3(self: cli_deform._Progress, iteration: int, energy: float) -> None:
-        progress(self, iteration, energy)
-        if iteration == 3:
-            signal.raise_signal(signal.SIGINT)
-
-    monkeypatch.setattr(cli_deform._Progress, "__call__", press_ctrl_c_at_3)
+    _press_ctrl_c_at_iteration_3(monkeypatch)
     out = tmp_path / "stopped.obj"
     assert main(["deform", "bar", "--constraints", str(cfile), "-o", str(out)]) == 130
     err = capsys.readouterr().err
@@ -99,14 +104,7 @@ def test_an_ignored_ctrl_c_stays_ignored(tmp_path: Path, monkeypatch: pytest.Mon
     """A job started with SIGINT ignored (as a shell starts background jobs) runs to the end; the setting is kept."""
     cfile = tmp_path / "c.json"
     bar_constraints(cfile)
-    progress = cli_deform._Progress.__call__
-
-    def press_ctrl_c_at_3(self: cli_deform._Progress, iteration: int, energy: float) -> None:
-        progress(self, iteration, energy)
-        if iteration == 3:
-            signal.raise_signal(signal.SIGINT)
-
-    monkeypatch.setattr(cli_deform._Progress, "__call__", press_ctrl_c_at_3)
+    _press_ctrl_c_at_iteration_3(monkeypatch)
     previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
     try:
         assert main(["deform", "bar", "--constraints", str(cfile), "-o", str(tmp_path / "o.obj"), "-n", "6"]) == 0
