@@ -6,9 +6,10 @@ Backends:
   installs on Debian). The matrix is ordered by nested dissection (METIS), factorised supernodally with the system's
   optimised BLAS (OpenBLAS), then converted in place to a simplicial factor, whose triangular solves with three
   right-hand sides are the fastest of CHOLMOD's. The ordering can be given (``factorize(..., permutation=...)``):
-  the solver computes CHOLMOD's own METIS ordering from the mesh graph on a thread while it assembles the matrix
-  (:func:`background_ordering`, :mod:`arap.ordering`), which takes it off the critical path of a large set-up; the
-  factor and the solutions are the same bit for bit.
+  the solver computes METIS' nested dissection from the mesh graph on a thread while it assembles the matrix
+  (:func:`background_ordering`, :mod:`arap.ordering`), which takes it off the critical path of a large set-up. Below
+  :data:`arap.ordering.SPLIT_VERTICES` unknowns it is CHOLMOD's own ordering (the same factor bit for bit); above,
+  METIS orders the two halves of the graph at once, on two threads.
 * ``cholespy``: CHOLMOD through the self-contained ``cholespy`` wheel (nested dissection, simplicial factorisation
   without BLAS: the same solve speed, several times slower to factorise large meshes).
 * ``scipy``: SciPy's SuperLU in symmetric mode, always available.

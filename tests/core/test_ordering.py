@@ -3,6 +3,7 @@ own nested dissection, a fallback where METIS is missing, and the solver's use o
 
 from __future__ import annotations
 
+import ctypes
 import importlib.util
 
 import numpy as np
@@ -202,3 +203,104 @@ def test_fewer_refinement_passes_still_give_a_comparable_ordering(solver: ArapSo
         f.cholesky_inplace(C)
         fills[passes] = f.L().nnz
     assert fills[1] < 1.1 * fills[None]
+
+
+needs_second_metis = pytest.mark.skipif(not (HAVE_SKSPARSE and ordering._second_metis() is not None),
+                                        reason="scikit-sparse is not installed or METIS cannot be loaded twice")
+
+
+def _factor_nonzeros(A: sp.csr_matrix, perm: np.ndarray) -> int:
+    from sksparse.cholmod import analyze
+
+    C = permuted_symmetric(A, perm)
+    f = analyze(C, mode="simplicial", ordering_method="natural")
+    f.cholesky_inplace(C)
+    return int(f.L().nnz)
+
+
+@needs_second_metis
+def test_halves_ordered_at_once_are_reproducible_and_fill_no_more(solver: ArapSolver) -> None:
+    A = solver.reduced_matrix()
+    graph = _graph(A)
+    whole = nested_dissection(*graph, halves=False)
+    split = nested_dissection(*graph, halves=True)
+    assert np.array_equal(np.sort(split), np.arange(A.shape[0]))
+    assert not np.array_equal(split, whole)  # the halves were ordered apart
+    for _ in range(3):  # the two copies of METIS draw from their own generators: no dependence on timing
+        np.testing.assert_array_equal(nested_dissection(*graph, halves=True), split)
+    assert _factor_nonzeros(A, split) < 1.05 * _factor_nonzeros(A, whole)
+    B = np.random.default_rng(3).normal(size=(A.shape[0], 3))
+    X = factorize(A, "sksparse", permutation=split).solve(B)
+    assert np.linalg.norm(A @ X - B) / np.linalg.norm(B) < 1e-12
+
+
+def _raw_handlers() -> list[tuple[bytes, bytes, int]]:
+    # GNU C's struct sigaction: the handler, the signal mask (of which the kernel keeps the first 64 bits; the C
+    # library leaves the rest undefined), the flags (less SA_RESTORER, which it adds to every handler it installs).
+    return [(buffer.raw[:8], buffer.raw[8:16], int.from_bytes(buffer.raw[136:140], "little") & ~0x04000000)
+            for _, buffer in ordering._signal_handlers()]
+
+
+@needs_second_metis
+def test_halves_leave_the_c_signal_handlers_as_they_were(solver: ArapSolver) -> None:
+    import signal
+
+    previous = signal.signal(signal.SIGTERM, lambda *args: None)
+    try:
+        before = _raw_handlers()
+        assert len(before) == 2
+        for _ in range(3):
+            nested_dissection(*_graph(solver.reduced_matrix()), halves=True)
+            assert _raw_handlers() == before
+        # The restore itself: a handler changed behind Python's back is put back.
+        saved = ordering._signal_handlers()
+        ordering._libc().signal(signal.SIGTERM, ctypes.c_void_p(1))  # SIG_IGN
+        assert _raw_handlers() != before
+        ordering._restore_signal_handlers(saved)
+        assert _raw_handlers() == before
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
+@needs_second_metis
+def test_an_error_in_either_half_reaches_the_caller(monkeypatch: pytest.MonkeyPatch, solver: ArapSolver) -> None:
+    def failing(*args: object) -> int:
+        return -4
+
+    monkeypatch.setattr(ordering, "_second_metis", lambda: failing)
+    before = _raw_handlers()
+    with pytest.raises(RuntimeError, match="status -4"):
+        nested_dissection(*_graph(solver.reduced_matrix()), halves=True)
+    assert _raw_handlers() == before
+
+
+@needs_cholmod
+def test_without_a_second_metis_the_whole_graph_is_ordered_in_one_call(monkeypatch: pytest.MonkeyPatch,
+                                                                        solver: ArapSolver) -> None:
+    graph = _graph(solver.reduced_matrix())
+    whole = nested_dissection(*graph, halves=False)
+    monkeypatch.setattr(ordering, "_second_metis", lambda: None)
+    np.testing.assert_array_equal(nested_dissection(*graph, halves=True), whole)
+    monkeypatch.undo()
+    monkeypatch.setattr(ordering, "_glibc_has_private_namespaces", lambda: False)
+    ordering._second_metis.cache_clear()
+    try:
+        assert ordering._second_metis() is None
+    finally:
+        ordering._second_metis.cache_clear()
+
+
+@needs_second_metis
+def test_the_solver_over_halves_agrees_with_scipy(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(ordering, "SPLIT_VERTICES", 100)
+    monkeypatch.setattr(ordering, "_cpus", lambda: 2)
+    V, F = sphere(4)
+    constrained = _caps(V, 0.1)
+    targets = V[constrained] + np.where(V[constrained, 1:2] > 0, 0.2, 0.0)
+    fast = ArapSolver(V, F, constrained, backend="sksparse")
+    graph = leading_subgraph(vertex_adjacency(F, len(V)), fast._perm, fast.n_free)
+    assert not np.array_equal(fast.factor.permutation, nested_dissection(*graph, halves=False))
+    reference = ArapSolver(V, F, constrained, backend="scipy")
+    a = fast.solve(targets, max_iterations=5).vertices
+    b = reference.solve(targets, max_iterations=5).vertices
+    assert np.abs(a - b).max() < 1e-10
