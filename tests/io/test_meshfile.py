@@ -182,6 +182,33 @@ def test_bad_content(data: bytes, fmt: str, message: str) -> None:
         load_mesh_bytes(data, fmt)
 
 
+@pytest.mark.parametrize("fmt", ["off", "ply"])
+def test_a_truncated_file_is_refused_not_loaded_with_faces_missing(mesh: tuple[np.ndarray, np.ndarray],
+                                                                    fmt: str) -> None:
+    """A file cut inside its last face loses that face without a word from the parser: fewer faces than its
+    header announces is refused as truncated."""
+    V, F = mesh
+    if fmt == "off":
+        data = save_mesh_bytes(V, F, "off")
+    else:  # an ASCII PLY, whose parser reads what is there (a binary one is refused for its length)
+        header = (f"ply\nformat ascii 1.0\nelement vertex {len(V)}\nproperty double x\nproperty double y\n"
+                  f"property double z\nelement face {len(F)}\nproperty list uchar int vertex_indices\nend_header\n")
+        vertices = "".join(f"{x!r} {y!r} {z!r}\n" for x, y, z in V.tolist())
+        data = (header + vertices + "".join(f"3 {a} {b} {c}\n" for a, b, c in F.tolist())).encode()
+    assert len(load_mesh_bytes(data, fmt)[1]) == len(F)
+    cut = data[:data.rstrip().rfind(b" ")]  # the last face loses its last index
+    with pytest.raises(MeshFormatError, match=rf"header announces {len(F):,} faces, but only {len(F) - 1:,} could "
+                                              r"be read \(a truncated file\?\)"):
+        load_mesh_bytes(cut, fmt)
+
+
+def test_an_obj_cut_inside_a_vertex_line_is_a_format_error() -> None:
+    """Two coordinates on the last line: a mesh format error saying the file ends early, not numpy's reshape
+    error."""
+    with pytest.raises(MeshFormatError, match=r"cannot parse .* as OBJ: the file ends early"):
+        load_mesh_bytes(b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\nv 0 0.", "obj")
+
+
 def test_bad_file_on_disk_names_the_file(tmp_path: Path) -> None:
     path = tmp_path / "broken.off"
     path.write_text("OFF\n3 1 0\n0 0 0\n1 0 0\n")

@@ -25,7 +25,7 @@ from numpy.typing import NDArray
 from arap.errors import MeshError, MeshFormatError, MeshTooLargeError
 from arap.io.atomic import write_atomic
 from arap.io.fastobj import parse_plain_obj
-from arap.io.screening import check_obj_zero_index, check_size, screen
+from arap.io.screening import announced_faces, check_obj_zero_index, check_size, screen
 from arap.mesh import MeshLike, mesh_arrays, triangulate_polygons
 from arap.repair import RepairResult, repair_mesh
 
@@ -83,7 +83,7 @@ def _parse_error(exc: Exception, file_type: str, label: str) -> MeshFormatError:
         return MeshFormatError(f"{what}: a face refers to vertex {shown}, but the file has {size:,} vertices")
     if isinstance(exc, IndexError):
         return MeshFormatError(f"{what}: a face refers to a vertex the file does not have ({text})")
-    if isinstance(exc, ValueError) and "cannot reshape" in text:
+    if isinstance(exc, ValueError) and ("cannot reshape" in text or "inhomogeneous" in text):
         return MeshFormatError(f"{what}: the file ends early or its data does not match its counts (truncated?)")
     return MeshFormatError(f"{what}: {text}")
 
@@ -104,9 +104,11 @@ def _parse(stream: io.BytesIO, file_type: str, label: str) -> tuple[np.ndarray, 
     for part in parts:
         if not isinstance(part, dict) or "vertices" not in part:
             continue
-        V = np.asarray(part["vertices"], dtype=np.float64).reshape(-1, 3)
-        faces = part.get("faces")
-        F = _faces_array(faces)
+        try:  # a line cut short (a truncated file) leaves a coordinate count that is not a multiple of 3
+            V = np.asarray(part["vertices"], dtype=np.float64).reshape(-1, 3)
+            F = _faces_array(part.get("faces"))
+        except (ValueError, IndexError) as exc:
+            raise _parse_error(exc, file_type, label) from exc
         blocks.append((V, F))
     if not blocks or all(len(V) == 0 for V, _ in blocks):
         raise MeshFormatError(f"{label} contains no vertices (empty, or not {_named(file_type)} file)")
@@ -198,6 +200,10 @@ def load_mesh_bytes_with_report(
     if plain is None and ft == "obj":
         check_obj_zero_index(screened, name)
     V, F = plain if plain is not None else _parse(io.BytesIO(screened), ft, name)
+    announced = announced_faces(screened, ft)
+    if announced is not None and len(F) < announced:  # polygons are triangulated: never fewer triangles than faces
+        raise MeshFormatError(f"{name} ends early: its header announces {announced:,} faces, but only {len(F):,} "
+                              "could be read (a truncated file?)")
     V, F, result = _finish(V, F, repair, name)
     if max_vertices is not None and len(V) > max_vertices:
         raise MeshTooLargeError(f"{name} has {len(V):,} vertices; at most {max_vertices:,} vertices are accepted",

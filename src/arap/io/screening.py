@@ -17,7 +17,7 @@ import numpy as np
 
 from arap.errors import MeshFormatError, MeshTooLargeError
 
-__all__ = ["check_obj_zero_index", "check_size", "screen", "vertex_count"]
+__all__ = ["announced_faces", "check_obj_zero_index", "check_size", "screen", "vertex_count"]
 
 logger = logging.getLogger(__name__)
 
@@ -137,6 +137,21 @@ def screen(data: bytes, ft: str, label: str, obj_zero_index: bool = True) -> byt
     return data
 
 
+def _off_count(data: bytes, position: int) -> int | None:
+    """Count number ``position`` of an OFF header (1: vertices, 2: faces), or None when it cannot be read."""
+    tokens: list[bytes] = []
+    for line in data[:1 << 16].splitlines():
+        tokens += line.split(b"#", 1)[0].split()
+        if len(tokens) >= 3:
+            break
+    if len(tokens) < 3 or not tokens[0].upper().endswith(b"OFF"):
+        return None
+    try:
+        return int(tokens[position])
+    except ValueError:
+        return None
+
+
 def vertex_count(data: bytes, ft: str) -> tuple[int, str] | None:
     """The vertices a file holds, read cheaply from its header or its lines before parsing, with what was counted.
 
@@ -147,18 +162,8 @@ def vertex_count(data: bytes, ft: str) -> tuple[int, str] | None:
         count = data.count(b"\nv ") + data.count(b"\nv\t") + int(data.startswith((b"v ", b"v\t")))
         return count, f"{count:,} vertices"
     if ft == "off":
-        tokens: list[bytes] = []
-        for line in data[:1 << 16].splitlines():
-            tokens += line.split(b"#", 1)[0].split()
-            if len(tokens) >= 3:
-                break
-        if len(tokens) < 3 or not tokens[0].upper().endswith(b"OFF"):
-            return None
-        try:
-            count = int(tokens[1])
-        except ValueError:
-            return None
-        return count, f"{count:,} vertices"
+        vertices = _off_count(data, 1)
+        return None if vertices is None else (vertices, f"{vertices:,} vertices")
     if ft == "ply":
         header = data[:data.find(b"end_header", 0, 1 << 20)]
         counts = {name: int(n) for name, n in _PLY_ELEMENT.findall(header)}
@@ -169,6 +174,22 @@ def vertex_count(data: bytes, ft: str) -> tuple[int, str] | None:
     if triangles is None:
         triangles = (data.count(b"vertex") + data.count(b"VERTEX") + data.count(b"Vertex")) // 3
     return triangles // 2, f"{triangles:,} triangles (about {triangles // 2:,} vertices once welded)"
+
+
+def announced_faces(data: bytes, ft: str) -> int | None:
+    """The face count an OFF or PLY header announces, or None (other formats, or a header that cannot be read).
+
+    Example
+    -------
+    >>> announced_faces(b"OFF\\n# a comment\\n4 2 0\\n", "off")
+    2
+    """
+    if ft == "off":
+        return _off_count(data, 2)
+    if ft == "ply":
+        header = data[:data.find(b"end_header", 0, 1 << 20)]
+        return {name: int(n) for name, n in _PLY_ELEMENT.findall(header)}.get(b"face")
+    return None
 
 
 def check_size(data: bytes, ft: str, label: str, max_vertices: int | None) -> None:
