@@ -259,6 +259,19 @@ def test_bench_prints_a_table(capsys: pytest.CaptureFixture[str]) -> None:
     assert "2,892 vertices" in out  # 10 · 17² + 2
 
 
+def test_bench_holds_floating_islands(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A scan with a small island beside the main part: the island holds no constraint of the bend scenario, so it
+    is held at rest instead of stopping the bench as a part that nothing pins down."""
+    V, F = builtin_mesh("bar")
+    tet = np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]]) * 0.01 + V.mean(axis=0) + [0, 0, 2 * np.ptp(V[:, 2])]
+    path = tmp_path / "islands.obj"
+    save_mesh(path, np.vstack([V, tet]), np.vstack([F, np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]])
+                                                    + len(V)]))
+    assert main(["bench", str(path), "--iterations", "2", "--repeats", "1"]) == 0
+    out = capsys.readouterr().out
+    assert "4 vertices of parts without one held at rest" in out
+
+
 def test_bench_constraints_scenario() -> None:
     V, _ = builtin_mesh("bar")
     fixed, handles, targets = bench_constraints(V)
@@ -414,6 +427,22 @@ def test_unconstrained_part_is_reported(tmp_path: Path, capsys: pytest.CaptureFi
     assert "touches no constrained vertex" in capsys.readouterr().err
 
 
+def test_unconstrained_part_is_named_in_the_file_numbering(tmp_path: Path,
+                                                          capsys: pytest.CaptureFixture[str]) -> None:
+    """Repair drops the file's first five vertices (used by no face): the vertices of the part that touches no
+    constraint are named as the constraints file names them, not by their index in the repaired mesh."""
+    V, F = builtin_mesh("bar")
+    two = tmp_path / "two.obj"
+    stray = np.full((5, 3), 7.0)
+    save_mesh(two, np.vstack([stray, V, V + np.array([3.0, 0, 0])]), np.vstack([F, F + len(V)]) + len(stray))
+    cfile = tmp_path / "c.json"
+    cfile.write_text(json.dumps({"fixed": [len(stray)]}))  # the first bar's first vertex
+    assert main(["deform", str(two), "-c", str(cfile), "-o", str(tmp_path / "o.obj")]) == 1
+    err = capsys.readouterr().err
+    second = list(range(len(stray) + len(V), len(stray) + len(V) + 5))  # the second bar's first vertices
+    assert f"(e.g. vertices {second} of the file)" in err, err
+
+
 def test_info_reports_inconsistent_orientation(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     V, F = builtin_mesh("cylinder")
     F = F.copy()
@@ -436,6 +465,16 @@ def test_usage_errors_and_help(capsys: pytest.CaptureFixture[str]) -> None:
     out = capsys.readouterr().out
     for command in ("deform", "info", "bench", "studio"):
         assert command in out
+
+
+@pytest.mark.parametrize("command", ["deform", "info", "bench", "studio"])
+def test_help_shows_percent_signs_once(command: str, capsys: pytest.CaptureFixture[str]) -> None:
+    """A description is printed as written (argparse expands ``%%`` only in argument help)."""
+    assert main([command, "--help"]) == 0
+    out = capsys.readouterr().out
+    assert "%%" not in out
+    if command == "bench":
+        assert "lowest 10% along the longest axis" in " ".join(out.split())
 
 
 def test_studio_calls_the_server(monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]) -> None:

@@ -287,8 +287,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=_cmd_info)
 
     p = sub.add_parser("bench", help="time the solver on a mesh",
-                       description="Fix the lowest 10%% along the longest axis, move the top 10%%, and time the "
-                                   "precompute and the iterations.")
+                       description="Fix the lowest 10% along the longest axis, move the top 10% (connected parts with "
+                                   "neither stay at rest), and time the precompute and the iterations.")
     p.add_argument("mesh", metavar="MESH", nargs="?", default="sphere",
                    help="default: a geodesic sphere of 40,962 vertices")
     p.add_argument("-n", "--iterations", type=int, default=10, help="iterations per run (default: 10)")

@@ -15,7 +15,7 @@ from typing import Any, TextIO
 import numpy as np
 
 from arap.cli import EXIT_INTERRUPTED, _err, _warm_up_kernels, load_mesh_argument
-from arap.errors import ArapError, ConstraintError, MeshError, MeshFormatError
+from arap.errors import ArapError, ConstraintError, MeshError, MeshFormatError, UnconstrainedRegionError
 from arap.repair import RepairResult
 from arap.result import START_NAMES
 
@@ -147,6 +147,16 @@ def _check_finite(U: np.ndarray, used: np.ndarray, spec: str, names: np.ndarray,
                         "be a finite shape (as arap deform or the studio write it)")
 
 
+def _in_file_numbering(exc: UnconstrainedRegionError, repair: RepairResult) -> UnconstrainedRegionError:
+    """The error with its sample vertices named by their (first) index in the mesh file, as the constraints file
+    names them, rather than by their index in the repaired mesh."""
+    mesh_vertices, first = np.unique(repair.vertex_map, return_index=True)
+    in_file = first[np.searchsorted(mesh_vertices, exc.vertices)]
+    sample = [int(i) for i in in_file]
+    message = str(exc).replace(f"vertices {exc.vertices}", f"vertices {sample} of the file", 1)
+    return UnconstrainedRegionError(message, vertices=sample, size=exc.size)
+
+
 def run_deform(args: argparse.Namespace) -> int:
     """``arap deform``: solve the constraints file's problem on the mesh and write the result; the exit status."""
     from arap.constraints import load_constraints
@@ -182,8 +192,13 @@ def run_deform(args: argparse.Namespace) -> int:
     start = args.start if args.start in START_NAMES else _start_shape(args.start, repair, F, label)
 
     _warm_up_kernels(args.quiet)
-    solver = ArapSolver(V, F, indices, energy=args.energy, weights=args.weights, roi=constraints.roi,
-                        stiffness=constraints.stiffness, alpha=args.alpha, points=constraints.points)
+    try:
+        solver = ArapSolver(V, F, indices, energy=args.energy, weights=args.weights, roi=constraints.roi,
+                            stiffness=constraints.stiffness, alpha=args.alpha, points=constraints.points)
+    except UnconstrainedRegionError as exc:
+        if not renumbered:
+            raise
+        raise _in_file_numbering(exc, repair) from None
     if not args.quiet:
         _err(f"arap: {label}: {len(V):,} vertices, {len(F):,} faces; {len(constraints.fixed):,} fixed, "
              f"{len(constraints.handles):,} handles; precompute {1e3 * solver.factor_seconds:.0f} ms")

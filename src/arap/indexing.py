@@ -86,7 +86,7 @@ def check_index_array(indices: Any, n: int, name: str, *, allow_empty: bool = Tr
 
 
 def find_unconstrained_part(F: np.ndarray, n: int, free: np.ndarray,
-                            adjacency: sp.csr_matrix | None = None) -> tuple[list[int], int] | None:
+                            adjacency: sp.csr_matrix | None = None) -> tuple[list[int], int, int, int] | None:
     """Find a connected part of the free vertices with no edge to a non-free vertex.
 
     Such a part has no constraint, so the global step's matrix is singular there.
@@ -102,8 +102,9 @@ def find_unconstrained_part(F: np.ndarray, n: int, free: np.ndarray,
 
     Returns
     -------
-    (sample, size) or None
-        Up to five vertex indices of the largest offending part and its size; None if every part is pinned.
+    (sample, size, parts, vertices) or None
+        Up to five vertex indices of the largest offending part and its size, the number of offending parts and
+        their vertices in all; None if every part is pinned.
     """
     if not len(free):
         return None
@@ -116,7 +117,7 @@ def find_unconstrained_part(F: np.ndarray, n: int, free: np.ndarray,
     bad = np.flatnonzero(~pinned)
     worst = bad[np.argmax(sizes[bad])]
     members = free[labels == worst]
-    return [int(v) for v in members[:5]], int(sizes[worst])
+    return [int(v) for v in members[:5]], int(sizes[worst]), len(bad), int(sizes[bad].sum())
 
 
 @nb.njit(cache=True, nogil=True)

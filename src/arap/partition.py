@@ -74,11 +74,14 @@ def partition_vertices(
         pinned[F[point_faces].ravel()] = True
     part = find_unconstrained_part(F, n, free[~pinned[free]], adjacency)
     if part is not None:
-        sample, size = part
+        sample, size, parts, in_all = part
         where = "" if roi is None else " (region of interest)"
+        others = "" if parts == 1 else (f", and so {'are' if parts > 2 else 'is'} {parts - 1} more such "
+                                        f"part{'s' if parts > 2 else ''} ({in_all - size} vertices)")
         raise UnconstrainedRegionError(
             f"a connected part of {size} free vertices{where} touches no constrained vertex, so its position is "
-            f"undetermined (e.g. vertices {sample}); add an anchor or handle there"
+            f"undetermined (e.g. vertices {sample}){others}; add an anchor or handle "
+            + ("there" if parts == 1 else "to each")
             + ("" if roi is None else " or shrink the region of interest"),
             vertices=sample, size=size,
         )

@@ -61,6 +61,15 @@ def test_component_without_constraint_is_named(icosphere: tuple[np.ndarray, np.n
     assert isinstance(info.value, ArapError)
 
 
+def test_every_part_without_constraint_is_counted(icosphere: tuple[np.ndarray, np.ndarray]) -> None:
+    """Floating islands: the message names the largest part and says how many more there are."""
+    V, F = icosphere
+    copies = [V + np.array([3.0 * k, 0.0, 0.0]) for k in range(4)]
+    with pytest.raises(UnconstrainedRegionError, match=rf"and so are 2 more such parts \({2 * len(V)} vertices\); "
+                                                       "add an anchor or handle to each$"):
+        ArapSolver(np.concatenate(copies), np.concatenate([F + k * len(V) for k in range(4)]), [0])
+
+
 def test_roi_part_without_constraint(icosphere: tuple[np.ndarray, np.ndarray]) -> None:
     V, F = icosphere
     V2 = np.concatenate([V, V + np.array([3.0, 0.0, 0.0])])
