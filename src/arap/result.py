@@ -13,7 +13,8 @@ from numpy.typing import NDArray
 from arap.errors import OptionError
 
 __all__ = ["ACCELERATIONS", "DEFAULT_LBFGS_MEMORY", "DEFAULT_TOLERANCE", "DEFAULT_WINDOW", "MAX_ITERATIONS",
-           "START_NAMES", "Acceleration", "ArapResult", "IterationCallback", "StartName", "check_solve_options"]
+           "ROUNDING_FLOOR", "START_NAMES", "Acceleration", "ArapResult", "IterationCallback", "StartName",
+           "check_solve_options", "rounding_floor"]
 
 IterationCallback = Callable[[int, float], "bool | None"]
 Acceleration = Literal["lbfgs", "anderson", "none"]
@@ -27,6 +28,11 @@ START_NAMES: tuple[str, ...] = ("auto", "rest", "rigid")
 #: the same constraints solved from a cold start (as ``arap deform`` does) ended up to 3.7e-6 diagonals apart at
 #: 1e-9, and at most 4.1e-7 at 1e-10 (13-27% more iterations), within the 1e-6 the two must agree to.
 DEFAULT_TOLERANCE = 1e-10
+#: The least tolerance of :meth:`ArapSolver.solve`, in units of the rounding of the largest coordinate the solve
+#: handles (relative to the diagonal): targets placed ``k`` diagonals beyond the mesh leave the plain step a rounding
+#: floor of about 6-11 ``ε k`` (measured at ``k`` = 1e6 and 1e9), which a tolerance of 1e-10 would never reach from
+#: ``k`` ≈ 1e5 on. Within ordinary reach (``k`` below about 7,000) the floor is below the default tolerance.
+ROUNDING_FLOOR = 64.0
 #: Hard cap on iterations when ``max_iterations`` is None.
 MAX_ITERATIONS = 10_000
 #: Default Anderson window (iterates used).
@@ -95,3 +101,30 @@ def check_solve_options(max_iterations: object, tolerance: object, acceleration:
     if not (window is None or (size is not None and size.is_integer() and size >= 1)):
         raise OptionError(f"window must be a positive integer or None, got {window!r}")
     return MAX_ITERATIONS if cap is None else int(cap)
+
+
+def rounding_floor(diagonal: float, *targets: NDArray[np.float64] | None) -> float:
+    """The least meaningful tolerance of a solve: :data:`ROUNDING_FLOOR` times the rounding of the largest
+    coordinate, relative to the diagonal (the plain step cannot fall below it).
+
+    Parameters
+    ----------
+    diagonal : float
+        The mesh's bounding-box diagonal; the rest shape lies within it of the solver's origin.
+    *targets : (k, 3) float arrays or None
+        Target positions, relative to the solver's origin.
+
+    Returns
+    -------
+    float
+
+    Example
+    -------
+    >>> rounding_floor(1.0, np.zeros((2, 3))) < DEFAULT_TOLERANCE < rounding_floor(1.0, np.full((2, 3), 1e6))
+    True
+    """
+    reach = diagonal
+    for X in targets:
+        if X is not None and X.size:
+            reach = max(reach, -float(X.min()), float(X.max()))  # whole-array reductions: fast on (k, 3) arrays
+    return ROUNDING_FLOOR * float(np.finfo(np.float64).eps) * reach / diagonal

@@ -41,6 +41,7 @@ from arap.result import (
     IterationCallback,
     StartName,
     check_solve_options,
+    rounding_floor,
 )
 from arap.rigid import RIGID_TOLERANCE, RigidRegions, rigid_regions
 from arap.rotations import identity_rotations
@@ -309,6 +310,8 @@ class ArapSolver(SingleSteps):
             over the free vertices, is at most ``tolerance`` times the bounding-box diagonal. That step is the
             energy gradient preconditioned by the system matrix, so it vanishes exactly at a stationary point.
             0 runs all ``max_iterations``. With rigid regions, at least :data:`arap.rigid.RIGID_TOLERANCE` (1e-9).
+            Always at least the rounding of the targets' coordinates (:func:`arap.result.rounding_floor`), which
+            matters only for targets thousands of diagonals away.
         callback : callable or None
             ``callback(iteration, energy)`` after each iteration (1-based); returning False stops early.
             :meth:`current_vertices` gives the iterate meanwhile.
@@ -340,6 +343,8 @@ class ArapSolver(SingleSteps):
             tolerance = max(float(tolerance), RIGID_TOLERANCE)
         fixed = self._fixed_positions(T)
         P = self._check_point_targets(point_targets)
+        if tolerance > 0:
+            tolerance = max(float(tolerance), rounding_floor(self._diagonal, T, P))
         self._point_state = None if P is None else (P, fixed)
         timings = {"local": 0.0, "rhs": 0.0, "solve": 0.0, "acceleration": 0.0}
         U, E_cur, start = self._start(T, fixed, initial, timings)

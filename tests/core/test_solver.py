@@ -168,6 +168,21 @@ def test_backends_agree(knight: tuple[np.ndarray, np.ndarray]) -> None:
     assert np.abs(a - b).max() < 1e-9 * _diag(V)
 
 
+@pytest.mark.parametrize("distance", [1e6, 1e9])
+def test_targets_far_beyond_the_mesh_converge_at_the_rounding_of_their_coordinates(
+        knight: tuple[np.ndarray, np.ndarray], distance: float) -> None:
+    """Every constraint carried ``distance`` diagonals away by one translation: the rigid start is the answer, but
+    the plain step's rounding at such coordinates (about 1e-9 of the diagonal at 1e6) is above the default
+    tolerance, and the solve used to run its 10,000 iterations and report no convergence."""
+    V, F = knight
+    _, _, constrained, _ = bend_constraints(V)
+    diagonal = _diag(V)
+    shift = np.array([distance * diagonal, 0.0, 0.0])
+    result = ArapSolver(V, F, constrained).solve(V[constrained] + shift)
+    assert result.converged and result.iterations <= 3
+    assert np.abs(result.vertices - (V + shift)).max() <= 1e-13 * distance * diagonal
+
+
 @pytest.mark.parametrize("energy", ["spokes_and_rims", "smooth_rotations"])
 def test_a_mesh_far_from_the_origin_solves_as_at_the_origin(knight: tuple[np.ndarray, np.ndarray],
                                                              energy: str) -> None:
