@@ -518,6 +518,31 @@ def test_deform_explains_a_negative_energy(tmp_path: Path, capsys: pytest.Captur
     assert "energy -" not in err and "below 0" not in err
 
 
+def test_deform_warns_of_nearly_flat_faces_with_the_spokes_energies(tmp_path: Path,
+                                                                     capsys: pytest.CaptureFixture[str]) -> None:
+    from arap.scenarios import bend
+
+    V, F = builtin_mesh("bar")
+    a, b, c = F[0]
+    cap = 0.5 * (V[a] + V[b]) + 1e-4 * (V[c] - 0.5 * (V[a] + V[b]))  # a point just off the middle of edge ab
+    V2 = np.vstack([V, cap])
+    m = len(V)
+    F2 = np.vstack([F[1:], [[a, b, m], [b, c, m], [c, a, m]]])
+    mesh = tmp_path / "capped.obj"
+    save_mesh(mesh, V2, F2)
+    s = bend(V2)
+    cfile = tmp_path / "c.json"
+    cfile.write_text(json.dumps({"fixed": s.fixed.tolist(), "handles": s.handles.tolist(),
+                                 "targets": s.targets[len(s.fixed):].tolist()}))
+    out = tmp_path / "out.obj"
+    for energy in ("spokes", "smooth_rotations"):
+        assert main(["deform", str(mesh), "-c", str(cfile), "-o", str(out), "-n", "2", "--energy", energy]) == 0
+        assert "1 faces are nearly flat (an angle above 179°)" in capsys.readouterr().err
+    for options in ([], ["--energy", "spokes", "--weights", "clamped"]):
+        assert main(["deform", str(mesh), "-c", str(cfile), "-o", str(out), "-n", "2", *options]) == 0
+        assert "nearly flat" not in capsys.readouterr().err
+
+
 def test_info_says_vertex_indices_change_only_when_repair_renumbers(tmp_path: Path,
                                                                    capsys: pytest.CaptureFixture[str]) -> None:
     V, F = builtin_mesh("bar")

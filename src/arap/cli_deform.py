@@ -157,6 +157,20 @@ def _in_file_numbering(exc: UnconstrainedRegionError, repair: RepairResult) -> U
     return UnconstrainedRegionError(message, vertices=sample, size=exc.size)
 
 
+def _note_flat_faces(V: np.ndarray, F: np.ndarray, energy: str, weights: str) -> None:
+    """Warn that nearly flat triangles can make the spokes energies fold or blow up (their cotangent weights are
+    large and negative); spokes and rims, and clamped or uniform weights, have no negative terms."""
+    if energy == "spokes_and_rims" or weights != "cotangent":
+        return
+    from arap.diagnose import FLAT_ANGLE_DEGREES, flat_faces
+
+    count = flat_faces(V, F)
+    if count:
+        _err(f"arap: note: {count:,} faces are nearly flat (an angle above {FLAT_ANGLE_DEGREES:g}°): their cotangent "
+             f"weights are large and negative, and {energy} can fold or blow up the shape there; --energy "
+             "spokes_and_rims (the default) cannot")
+
+
 def run_deform(args: argparse.Namespace) -> int:
     """``arap deform``: solve the constraints file's problem on the mesh and write the result; the exit status."""
     from arap.constraints import load_constraints
@@ -202,6 +216,7 @@ def run_deform(args: argparse.Namespace) -> int:
     if not args.quiet:
         _err(f"arap: {label}: {len(V):,} vertices, {len(F):,} faces; {len(constraints.fixed):,} fixed, "
              f"{len(constraints.handles):,} handles; precompute {1e3 * solver.factor_seconds:.0f} ms")
+        _note_flat_faces(V, F, args.energy, args.weights)
     progress = _Progress(args.iterations, sys.stderr, enabled=not args.quiet)
     interrupt = _FirstInterrupt()
 

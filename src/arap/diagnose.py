@@ -19,9 +19,13 @@ from arap.mesh import (
     degenerate_faces,
 )
 from arap.topology import directed_half_edges, edge_face_counts, non_manifold_vertices
-from arap.weights import edge_weight_matrix
+from arap.weights import edge_weight_matrix, face_cotangents
 
-__all__ = ["MeshInfo", "inspect_mesh"]
+FLAT_ANGLE_DEGREES = 179.0
+"""Triangles with an angle above this are reported as nearly flat: their cotangent weights (below about −57) can
+make the spokes energies fold or blow up there (a 1e-4-high cap on a sphere sent the shape 31× its size)."""
+
+__all__ = ["FLAT_ANGLE_DEGREES", "MeshInfo", "flat_faces", "inspect_mesh"]
 
 
 @dataclass
@@ -92,6 +96,10 @@ class MeshInfo:
     """Faces using a vertex with non-finite coordinates: left out of the edges, components and surface above."""
     non_manifold_vertices: int = 0
     """Vertices where separate sheets of faces meet at a point (:func:`arap.topology.non_manifold_vertices`)."""
+    flat_faces: int = 0
+    """Faces with an angle above :data:`FLAT_ANGLE_DEGREES` (nearly flat, not degenerate)."""
+    lowest_weight: float = 0.0
+    """The most negative cotangent edge weight ``½ Σ cot(opposite angles)`` (0 when none is negative)."""
 
     @property
     def n_components(self) -> int:
@@ -150,7 +158,10 @@ class MeshInfo:
             f"bounding box: [{lo}] to [{hi}] (diagonal {self.diagonal:.4g})",
             f"components: {self.n_components:,} ({sizes} vertices)",
             f"surface: {shape}; Euler characteristic {self.euler_characteristic}",
-            f"negative cotangent weights: {100 * self.negative_weight_share:.1f}% of edges",
+            f"negative cotangent weights: {100 * self.negative_weight_share:.1f}% of edges" + (
+                f"; {self.flat_faces:,} nearly flat faces (an angle above {FLAT_ANGLE_DEGREES:g}°, weights down to "
+                f"{self.lowest_weight:.3g}), where the spokes energies can fold or blow up: spokes_and_rims (the "
+                "default) does not" if self.flat_faces else ""),
         ]
         problems = self.problems
         out.append("defects: " + ("none" if not problems else "; ".join(problems)))
@@ -160,13 +171,30 @@ class MeshInfo:
         return "\n".join(self.lines())
 
 
-def _negative_weight_share(V: np.ndarray, F: np.ndarray) -> float:
-    """Share of undirected edges whose summed cotangent weight is negative."""
+def _negative_weights(V: np.ndarray, F: np.ndarray) -> tuple[float, float]:
+    """Share of undirected edges whose summed cotangent weight is negative, and the most negative weight (or 0)."""
     if not len(F):
-        return 0.0
+        return 0.0, 0.0
     with np.errstate(invalid="ignore"):
         upper = sp.triu(edge_weight_matrix(V, F), k=1).tocsr()
-    return float((upper.data < 0).mean())
+    lowest = float(np.nanmin(upper.data, initial=0.0))
+    return float((upper.data < 0).mean()), lowest
+
+
+def flat_faces(V: np.ndarray, F: np.ndarray) -> int:
+    """Number of faces with an angle above :data:`FLAT_ANGLE_DEGREES` (nearly flat triangles of positive area).
+
+    Example
+    -------
+    >>> V = np.array([[0.0, 0, 0], [2, 0, 0], [1, 1e-3, 0], [1, 1, 0]])
+    >>> flat_faces(V, np.array([[0, 1, 2], [0, 1, 3]]))
+    1
+    """
+    if not len(F):
+        return 0
+    with np.errstate(invalid="ignore", divide="ignore"):
+        cot = face_cotangents(np.asarray(V, dtype=np.float64), np.asarray(F))
+    return int(np.count_nonzero((cot < 1.0 / np.tan(np.radians(FLAT_ANGLE_DEGREES))).any(axis=1)))
 
 
 def _orientation(F: np.ndarray) -> tuple[int, int, int]:
@@ -295,6 +323,7 @@ def inspect_mesh(V: np.ndarray, F: np.ndarray) -> MeshInfo:
         component_sizes = []
     good = Fv[~repeated & ~degenerate] if len(Fv) else Fv
     inconsistent, misoriented, non_orientable = _orientation(Fv[~repeated & _unique_face_mask(Fv)])
+    negative_share, lowest_weight = _negative_weights(V, good)
     return MeshInfo(
         n_vertices=n,
         n_faces=m,
@@ -317,8 +346,10 @@ def inspect_mesh(V: np.ndarray, F: np.ndarray) -> MeshInfo:
         nonfinite_vertices=int((~finite).sum()),
         out_of_range_faces=out_of_range,
         scale_problem=scale_problem,
-        negative_weight_share=_negative_weight_share(V, good),
+        negative_weight_share=negative_share,
         euler_characteristic=int(referenced.sum()) - len(edges) + len(Fv),
         nonfinite_faces=nonfinite_faces,
         non_manifold_vertices=len(non_manifold_vertices(Fv, n)),
+        flat_faces=flat_faces(V, good),
+        lowest_weight=lowest_weight,
     )

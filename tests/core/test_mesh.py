@@ -231,6 +231,23 @@ def test_inspect_negative_weight_share() -> None:
     assert inspect_mesh(TET_V, TET_F).negative_weight_share == 0.0
 
 
+def test_inspect_reports_nearly_flat_faces() -> None:
+    from arap.shapes import sphere
+
+    V, F = sphere(2)
+    info = inspect_mesh(V, F)
+    assert info.flat_faces == 0 and "nearly flat" not in "\n".join(info.lines())
+    # Split three faces around a point 1e-4 of an edge's length off its midpoint: one nearly flat cap each.
+    extra, faces = [], [F[3:]]
+    for a, b, c in F[:3]:
+        m = len(V) + len(extra)
+        extra.append(0.5 * (V[a] + V[b]) + 1e-4 * np.linalg.norm(V[b] - V[a]) * (V[c] - 0.5 * (V[a] + V[b])))
+        faces.append(np.array([[a, b, m], [b, c, m], [c, a, m]]))
+    capped = inspect_mesh(np.vstack([V, extra]), np.vstack(faces))
+    assert capped.flat_faces == 3 and capped.lowest_weight < -1e3
+    assert "3 nearly flat faces (an angle above 179°" in "\n".join(capped.lines())
+
+
 @pytest.mark.parametrize("seed", range(6))
 def test_welding_along_a_direction_finds_the_groups_a_kd_tree_finds(seed: int) -> None:
     from arap._weld import _unique_face_mask, _weld_groups, _weld_groups_tree
