@@ -29,6 +29,16 @@ def bar_constraints(path: Path, shift: float = 1.0) -> tuple[np.ndarray, np.ndar
     return V, fixed, handles, targets
 
 
+def bend_constraints_file(path: Path, V: np.ndarray) -> Path:
+    """Writes the bend scenario of ``V`` (:func:`arap.scenarios.bend`) as a constraints file at ``path``."""
+    from arap.scenarios import bend
+
+    s = bend(V)
+    path.write_text(json.dumps({"fixed": s.fixed.tolist(), "handles": s.handles.tolist(),
+                                "targets": s.targets[len(s.fixed):].tolist()}))
+    return path
+
+
 @pytest.mark.parametrize("fmt", ["obj", "ply"])
 def test_deform_builtin_bar(tmp_path: Path, capsys: pytest.CaptureFixture[str], fmt: str) -> None:
     cfile = tmp_path / "c.json"
@@ -498,16 +508,12 @@ def test_studio_calls_the_server(monkeypatch: pytest.MonkeyPatch, capsys: pytest
 
 
 def test_deform_explains_a_negative_energy(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    from arap.scenarios import bend
     from arap.shapes import scan_blob
 
     V, F = scan_blob(n=400)
     mesh = tmp_path / "blob.off"
     save_mesh(mesh, V, F)
-    s = bend(V)
-    cfile = tmp_path / "c.json"
-    cfile.write_text(json.dumps({"fixed": s.fixed.tolist(), "handles": s.handles.tolist(),
-                                 "targets": s.targets[len(s.fixed):].tolist()}))
+    cfile = bend_constraints_file(tmp_path / "c.json", V)
     out = tmp_path / "out.off"
     assert main(["deform", str(mesh), "-c", str(cfile), "-o", str(out), "-n", "3", "--energy", "spokes"]) == 0
     err = capsys.readouterr().err
@@ -520,7 +526,6 @@ def test_deform_explains_a_negative_energy(tmp_path: Path, capsys: pytest.Captur
 
 def test_deform_warns_of_nearly_flat_faces_with_the_spokes_energies(tmp_path: Path,
                                                                      capsys: pytest.CaptureFixture[str]) -> None:
-    from arap.scenarios import bend
 
     V, F = builtin_mesh("bar")
     a, b, c = F[0]
@@ -530,10 +535,7 @@ def test_deform_warns_of_nearly_flat_faces_with_the_spokes_energies(tmp_path: Pa
     F2 = np.vstack([F[1:], [[a, b, m], [b, c, m], [c, a, m]]])
     mesh = tmp_path / "capped.obj"
     save_mesh(mesh, V2, F2)
-    s = bend(V2)
-    cfile = tmp_path / "c.json"
-    cfile.write_text(json.dumps({"fixed": s.fixed.tolist(), "handles": s.handles.tolist(),
-                                 "targets": s.targets[len(s.fixed):].tolist()}))
+    cfile = bend_constraints_file(tmp_path / "c.json", V2)
     out = tmp_path / "out.obj"
     for energy in ("spokes", "smooth_rotations"):
         assert main(["deform", str(mesh), "-c", str(cfile), "-o", str(out), "-n", "2", "--energy", energy]) == 0
