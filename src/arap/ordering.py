@@ -80,6 +80,9 @@ def _metis() -> tuple[Any, type[np.integer]] | None:
         set_defaults.restype = ctypes.c_int
         node_nd.argtypes = [ctypes.c_void_p] * 7
         node_nd.restype = ctypes.c_int
+        if hasattr(lib, "METIS_ComputeVertexSeparator"):  # for the ordering by halves
+            lib.METIS_ComputeVertexSeparator.argtypes = [ctypes.c_void_p] * 7
+            lib.METIS_ComputeVertexSeparator.restype = ctypes.c_int
         # METIS_SetDefaultOptions writes METIS_NOPTIONS values of -1: 40 int32 words for a 32-bit idx_t, 80 for a
         # 64-bit one. A probe twice that long tells which.
         probe = np.zeros(2 * _METIS_NOPTIONS, dtype=np.int32)
@@ -111,16 +114,13 @@ def _second_metis() -> Any | None:
     """``METIS_NodeND`` of a second copy of the METIS library, loaded in a new link namespace with its own C library
     (own random generator), or None where that is not possible."""
     found = _metis()
-    if found is None or not _glibc_has_private_namespaces():
+    if found is None or not _glibc_has_private_namespaces() or not hasattr(found[0], "METIS_ComputeVertexSeparator"):
         return None
     try:
-        separator = found[0].METIS_ComputeVertexSeparator
         libc = _libc()
         dlmopen, dlsym = libc.dlmopen, libc.dlsym
     except (OSError, AttributeError):
         return None
-    separator.argtypes = [ctypes.c_void_p] * 7
-    separator.restype = ctypes.c_int
     dlmopen.restype = ctypes.c_void_p
     dlmopen.argtypes = [ctypes.c_long, ctypes.c_char_p, ctypes.c_int]
     dlsym.restype = ctypes.c_void_p
