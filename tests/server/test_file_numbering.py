@@ -14,8 +14,7 @@ import pytest
 import arap
 from arap.cli import main as arap_main
 from arap.io import load_mesh
-from arap.server.connection import _mesh_frame
-from arap.server.meshdata import load_builtin, load_default, load_upload
+from arap.server.meshdata import load_builtin, load_default, load_upload, mesh_frame
 from arap.server.numbering import FileNumbering, document_in_file_numbering
 from arap.server.session import Session
 from tests.server.helpers import StudioClient, renumbered_bar_obj, translation
@@ -43,7 +42,7 @@ def _mesh_vertices(vertex_map: np.ndarray, file_indices: list[int]) -> list[int]
     return list(dict.fromkeys(vertex_map[np.asarray(file_indices, dtype=np.int64)].tolist()))
 
 
-def test_the_map_comes_with_loaded_meshes_and_the_mesh_frame(tmp_path: Path, studio: StudioClient) -> None:
+def test_the_map_comes_with_loaded_meshes_and_themesh_frame(tmp_path: Path, studio: StudioClient) -> None:
     text, vertex_map = renumbered_bar_obj()
     path = tmp_path / "bar.obj"
     path.write_text(text)
@@ -218,7 +217,7 @@ def test_the_client_gets_the_map_and_its_saved_sessions_keep_it(tmp_path: Path) 
     mesh with the same map, so that its documents keep the file's numbering."""
     text, vertex_map = renumbered_bar_obj()
     mesh = load_upload(text.encode(), "bar.obj", 10**6)
-    (tmp_path / "mesh.bin").write_bytes(_mesh_frame(mesh))
+    (tmp_path / "mesh.bin").write_bytes(mesh_frame(mesh))
     script = tmp_path / "check.mjs"
     script.write_text(NODE_SCRIPT % {"web": ROOT / "web" / "src", "dir": tmp_path})
     done = subprocess.run(["node", str(script)], capture_output=True, text=True, timeout=60, check=False)

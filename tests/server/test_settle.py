@@ -12,7 +12,8 @@ import pytest
 from arap import ArapSolver
 from arap.constraints import load_constraints
 from arap.server.meshdata import load_builtin
-from arap.server.session import SETTLE_FRAME_SECONDS, Session
+from arap.server.session import Session
+from arap.server.settling import SETTLE_FRAME_MOTION, SETTLE_FRAME_SECONDS
 from arap.shapes import builtin_mesh
 from tests.server.helpers import StudioClient, translation
 
@@ -114,10 +115,10 @@ def test_frames_are_throttled() -> None:
     times: list[float] = []
     iterations: list[int] = []
 
-    def on_frame(U: np.ndarray, iteration: int, energy: float) -> None:
+    def on_frame(U: np.ndarray | None, iteration: int, energy: float) -> None:
         times.append(time.perf_counter())
         iterations.append(iteration)
-        assert U.shape == session.V.shape and np.isfinite(energy)
+        assert (U is None or U.shape == session.V.shape) and np.isfinite(energy)
         time.sleep(0.002)
 
     start = time.perf_counter()
@@ -127,6 +128,35 @@ def test_frames_are_throttled() -> None:
     assert np.all(np.diff(times) >= SETTLE_FRAME_SECONDS - 1e-3)
     assert iterations == sorted(iterations)
     assert outcome.seconds < 2 * SETTLE_FRAME_SECONDS or times, "a long settle streams frames"
+
+
+def test_only_visible_motion_is_streamed(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Progress comes at every frame time; the vertices only when some vertex moved more than
+    ``SETTLE_FRAME_MOTION`` of the diagonal since the last vertices given (or since the shape shown)."""
+    monkeypatch.setattr("arap.server.settling.SETTLE_FRAME_SECONDS", 0.0)  # a frame time at every iteration
+    session, _ = _unsettled_session()
+    shown = session.U.copy()
+    visible = SETTLE_FRAME_MOTION * _diag(session.V)
+    sent: list[int] = []
+    skipped: list[int] = []
+
+    def on_frame(U: np.ndarray | None, iteration: int, energy: float) -> None:
+        nonlocal shown
+        current = session.solver.current_vertices()
+        motion = np.abs(current - shown).max()
+        if U is None:
+            assert motion <= visible
+            skipped.append(iteration)
+        else:
+            assert motion > visible and np.array_equal(U, current)
+            shown = U.copy()
+            sent.append(iteration)
+
+    outcome = session.settle(lambda: False, on_frame)
+    assert outcome is not None and outcome.converged
+    assert sorted(sent + skipped) == list(range(1, outcome.iterations + 1))
+    assert sent and skipped, "a settle moves visibly, then creeps"
+    assert sent[0] == 1
 
 
 def test_undo_redo_apply_and_loading_report_the_shape_shown(studio: StudioClient) -> None:
@@ -160,7 +190,7 @@ def test_the_iteration_cap_is_told_apart_from_an_interruption(monkeypatch: pytes
     session, _ = _unsettled_session()
     interrupted = session.settle(lambda: True)
     assert interrupted is not None and interrupted.status == "stopped"
-    monkeypatch.setattr("arap.server.session.SETTLE_ITERATIONS", 2)
+    monkeypatch.setattr("arap.server.settling.SETTLE_ITERATIONS", 2)
     capped = session.settle(lambda: False)
     assert capped is not None and capped.iterations == 2 and capped.status == "unconverged"
     assert session.settled  # not repeated until something changes

@@ -28,8 +28,8 @@ import arap
 from arap.server.budget import ByteBudget, RequestQueue, request_cost
 from arap.server.decoder import PROCESS_BYTES, FrameDecoder
 from arap.server.heatmap import distortion_frame
-from arap.server.liveframes import VertexPayload, VertexStream
-from arap.server.meshdata import MeshData, builtin_names, load_builtin, load_upload
+from arap.server.liveframes import VertexPayload, VertexStream, still_frame_header
+from arap.server.meshdata import MeshData, builtin_names, load_builtin, load_upload, mesh_frame
 from arap.server.protocol import (
     MAX_HANDLE_GROUPS,
     PROTOCOL_VERSION,
@@ -95,26 +95,10 @@ def _dumps(message: dict[str, Any]) -> str:
     return json.dumps(message, separators=(",", ":"), allow_nan=False)
 
 
-def _still_frame_header(seq: int, subset: int, movable: int) -> dict[str, Any]:
-    """Header of a ``vertices`` frame that ran no solve (a settling frame, or the pose after a change)."""
-    return server_message("vertices", seq=seq, skipped=0, iterations=0, energies=[], solve_ms=0.0,
-                          ms_per_iteration=0.0, subset=subset, movable=movable)
-
-
 def _timed(fn: Callable[..., T], *args: Any) -> tuple[T, float]:
     """``fn(*args)`` and the CPU time this thread spent in it (seconds)."""
     t0 = time.thread_time()
     return fn(*args), time.thread_time() - t0
-
-
-def _mesh_frame(mesh: MeshData) -> bytes:
-    vmap = mesh.vertex_map
-    header = server_message("mesh", name=mesh.name, n_vertices=mesh.n_vertices, n_faces=mesh.n_faces,
-                            report=mesh.report, file_vertices=0 if vmap is None else len(vmap))
-    parts = [np.ascontiguousarray(mesh.V, dtype="<f4").tobytes(), np.ascontiguousarray(mesh.F, dtype="<u4").tobytes()]
-    if vmap is not None:
-        parts.append(np.ascontiguousarray(vmap, dtype="<i4").tobytes())
-    return encode_binary(header, *parts)
 
 
 class Connection:
@@ -173,7 +157,7 @@ class Connection:
 
     async def _send_mesh(self, mesh: MeshData) -> None:
         self._stream.reset(mesh.V)
-        await self._send_frame(await self._off_loop(_mesh_frame, mesh))
+        await self._send_frame(await self._off_loop(mesh_frame, mesh))
 
     async def _upload(self, msg: ClientMessage) -> None:
         """Load an upload and send its mesh and state; the times of each step are logged (INFO, one JSON line)."""
@@ -186,7 +170,7 @@ class Connection:
         self.session.load(mesh)
         self._skipped = 0
         self._stream.reset(mesh.V)
-        frame = await self._off_loop(_mesh_frame, mesh)
+        frame = await self._off_loop(mesh_frame, mesh)
         encoded = time.time()
         await self._send_frame(frame)
         del frame
@@ -204,7 +188,7 @@ class Connection:
     async def _send_vertices(self, seq: int, outcome: DragOutcome | None) -> None:
         subset, movable, parts = self._stream.encode(self.session.U, self.session.constraints)
         if outcome is None:
-            header = _still_frame_header(seq, subset, movable)
+            header = still_frame_header(seq, subset, movable)
         else:
             header = server_message("vertices", seq=seq, skipped=self._skipped, iterations=outcome.iterations,
                                     energies=[e if np.isfinite(e) else None for e in outcome.energies],
@@ -388,8 +372,9 @@ class Connection:
     async def _settle(self) -> None:
         """Iterate the session's shape until converged, off the event loop; a queued request stops it at once.
 
-        Intermediate shapes are streamed as ``vertices`` frames (seq -1) with a ``settle`` status, at most 30 per
-        second; the settled (or interrupted) shape is sent last.
+        Progress is streamed as ``settle`` status messages, at most 30 per second, each after a ``vertices`` frame
+        (seq -1) of the intermediate shape when it moved visibly since the last one sent; the settled (or
+        interrupted) shape is sent last.
         """
         s = self.session
         if not s.needs_settle:
@@ -397,10 +382,12 @@ class Connection:
         loop = asyncio.get_running_loop()
         streamed = 0
 
-        def on_frame(U: np.ndarray, iteration: int, energy: float) -> None:
+        def on_frame(U: np.ndarray | None, iteration: int, energy: float) -> None:
             nonlocal streamed
-            streamed += 1
-            frame = self._stream.encode(U, s.constraints)
+            frame = None
+            if U is not None:
+                streamed += 1
+                frame = self._stream.encode(U, s.constraints)
             with contextlib.suppress(RuntimeError):  # the loop has closed: the connection is gone
                 loop.call_soon_threadsafe(self._spawn_settle_frame, frame, iteration, energy)
 
@@ -421,16 +408,16 @@ class Connection:
             await self._send_vertices(-1, None)
         await self._send_settle_status(outcome.status, outcome.iterations, outcome.energy, outcome.seconds)
 
-    def _spawn_settle_frame(self, frame: VertexPayload, iteration: int, energy: float) -> None:
+    def _spawn_settle_frame(self, frame: VertexPayload | None, iteration: int, energy: float) -> None:
         task = asyncio.ensure_future(self._send_settle_frame(frame, iteration, energy))
         self._frame_tasks.add(task)
         task.add_done_callback(self._frame_tasks.discard)
 
-    async def _send_settle_frame(self, frame: VertexPayload, iteration: int, energy: float) -> None:
-        subset, movable, parts = frame
-        header = _still_frame_header(-1, subset, movable)
+    async def _send_settle_frame(self, frame: VertexPayload | None, iteration: int, energy: float) -> None:
         with contextlib.suppress(WebSocketDisconnect, RuntimeError, OSError):
-            await self._send_binary(header, *parts)
+            if frame is not None:
+                subset, movable, parts = frame
+                await self._send_binary(still_frame_header(-1, subset, movable), *parts)
             await self._send_settle_status("settling", iteration, energy, None)
 
     async def _send_shape_status(self) -> None:

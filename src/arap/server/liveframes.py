@@ -15,8 +15,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from arap.server.constraints import ConstraintSet
+from arap.server.protocol import server_message
 
-__all__ = ["VertexPayload", "VertexStream", "movable_vertices"]
+__all__ = ["VertexPayload", "VertexStream", "movable_vertices", "still_frame_header"]
 
 VertexPayload = tuple[int, int, list[bytes]]
 """``(subset, movable, parts)`` of one ``vertices`` frame (see :meth:`VertexStream.encode`)."""
@@ -107,3 +108,9 @@ class VertexStream:
             return -1, 0, [U32.tobytes()]
         self._still = np.setdiff1d(np.arange(len(U32)), movable, assume_unique=True)
         return -1, len(movable), [U32.tobytes(), movable.astype("<u4").tobytes()]
+
+
+def still_frame_header(seq: int, subset: int, movable: int) -> dict[str, Any]:
+    """Header of a ``vertices`` frame that ran no solve (a settling frame, or the pose after a change)."""
+    return server_message("vertices", seq=seq, skipped=0, iterations=0, energies=[], solve_ms=0.0,
+                          ms_per_iteration=0.0, subset=subset, movable=movable)

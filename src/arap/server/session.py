@@ -18,12 +18,14 @@ import numpy as np
 import arap
 from arap.cells import EnergyType
 from arap.errors import ArapError
+from arap.mesh import bounding_box
 from arap.server.constraints import ConstraintSet, identity_transforms, matrices_from_json, matrices_to_json
 from arap.server.history import History, Snapshot
 from arap.server.meshdata import MeshData, export_mesh
 from arap.server.numbering import document_in_file_numbering
 from arap.server.protocol import RequestError, server_message
 from arap.server.records import DragOutcome, Params, SettleOutcome
+from arap.server.settling import FrameCallback, settle_solve
 from arap.server.solvers import SolverCache
 from arap.weights import WeightType
 
@@ -35,11 +37,6 @@ _TARGET_RANGE = 1e6
 """Handle targets farther from the origin than this times (1 + the mesh's largest coordinate) are rejected."""
 LOAD_ITERATIONS = 200
 """Iteration cap of the solve that answers constraints loaded with explicit targets (settling then goes on)."""
-SETTLE_FRAME_SECONDS = 1.0 / 30.0
-"""Least time between two intermediate frames streamed while settling (at most 30 per second)."""
-SETTLE_ITERATIONS = 3000
-"""Most iterations of one settling run: past them the shape is left as reached (reported not converged)."""
-
 class Session:
     """One client's editing session.
 
@@ -87,6 +84,14 @@ class Session:
     def scale(self) -> float:
         """Largest absolute rest coordinate (1 without a mesh): the size float32 frames resolve against."""
         return max(float(np.abs(self.V).max(initial=0.0)), 1e-300) if self.mesh is not None else 1.0
+
+    @property
+    def diagonal(self) -> float:
+        """Bounding-box diagonal of the rest pose (0 without a mesh)."""
+        if self.mesh is None or not len(self.V):
+            return 0.0
+        lo, hi = bounding_box(self.V)
+        return float(np.linalg.norm(hi - lo))
 
     @property
     def n_groups(self) -> int:
@@ -286,7 +291,7 @@ class Session:
         return not self.settled and not self._dirty and self.solver is not None and self.mesh is not None
 
     def settle(self, interrupted: Callable[[], bool],
-               on_frame: Callable[[np.ndarray, int, float], None] | None = None) -> SettleOutcome | None:
+               on_frame: FrameCallback | None = None) -> SettleOutcome | None:
         """Iterate the current constraints until converged, unless :attr:`settled` already.
 
         Parameters
@@ -295,7 +300,9 @@ class Session:
             Polled after every iteration; True stops at once (a new request is waiting). The shape reached so far
             is kept: it is what the client was shown, and settling resumes from it later.
         on_frame : callable or None
-            ``on_frame(vertices, iteration, energy)``, at most every :data:`SETTLE_FRAME_SECONDS`.
+            ``on_frame(vertices, iteration, energy)``, at most every
+            :data:`~arap.server.settling.SETTLE_FRAME_SECONDS`; ``vertices`` is None when no vertex moved more than
+            :data:`~arap.server.settling.SETTLE_FRAME_MOTION` of the diagonal since the last vertices given.
 
         Returns
         -------
@@ -309,27 +316,12 @@ class Session:
         if self.settled or solver is None or self.mesh is None:
             self.settled = True
             return None
-        targets = self.constraints.targets(self.transforms)
         t0 = time.perf_counter()
-        last_frame = t0
-
-        stopped = False
-
-        def callback(iteration: int, energy: float) -> bool:
-            nonlocal last_frame, stopped
-            if interrupted():
-                stopped = True
-                return False
-            now = time.perf_counter()
-            if on_frame is not None and now - last_frame >= SETTLE_FRAME_SECONDS:
-                last_frame = now
-                on_frame(solver.current_vertices(), iteration, energy)
-            return True
-
         try:
-            result = solver.solve(targets, initial=None if self._warm else self.U, callback=callback,
-                                  max_iterations=SETTLE_ITERATIONS,
-                                  point_targets=self.constraints.point_targets(self.transforms))
+            result, stopped = settle_solve(solver, self.constraints.targets(self.transforms),
+                                           self.constraints.point_targets(self.transforms),
+                                           None if self._warm else self.U, self.U, self.diagonal, interrupted,
+                                           on_frame)
         except ArapError as exc:
             self.settled = True
             raise RequestError("bad_message", str(exc)) from exc
