@@ -22,9 +22,9 @@ from arap.cells import (
 )
 from arap.colouring import colour_order
 from arap.covariance import assemble_rhs, assemble_rhs_and_gradient, local_step
-from arap.errors import ConstraintError, OptionError
+from arap.errors import ConstraintError
 from arap.inactive import InactiveCells
-from arap.indexing import assign_rows, check_index_array, internal_origin, rows_of, with_rows
+from arap.indexing import check_index_array, internal_origin, rows_of, with_rows
 from arap.lbfgs import LbfgsHistory
 from arap.linsolve import NotPositiveDefiniteError, background_ordering, factorize
 from arap.loops import PLAIN_START, Iterate, lbfgs_iterations, plain_iterations
@@ -35,7 +35,6 @@ from arap.result import (
     DEFAULT_LBFGS_MEMORY,
     DEFAULT_TOLERANCE,
     DEFAULT_WINDOW,
-    START_NAMES,
     Acceleration,
     ArapResult,
     IterationCallback,
@@ -46,13 +45,14 @@ from arap.result import (
 from arap.rigid import RIGID_TOLERANCE, RigidRegions, rigid_regions
 from arap.rotations import identity_rotations
 from arap.smooth import DEFAULT_ALPHA, STEPS, SWEEPS, SmoothRotations, check_alpha
-from arap.start import rigid_start, vertex_areas
+from arap.solve_start import SolveStart
+from arap.start import vertex_areas
 from arap.steps import SingleSteps
 from arap.topology import locality_order, vertex_adjacency
 from arap.weights import DEFAULT_WEIGHTS, WeightType
 
 
-class ArapSolver(SingleSteps):
+class ArapSolver(SolveStart, SingleSteps):
     """As-Rigid-As-Possible surface deformation (Sorkine & Alexa 2007).
 
     Construction validates the mesh and the constraint set, builds the cells and factorises the reduced global-step
@@ -431,68 +431,6 @@ class ArapSolver(SingleSteps):
             e += self._points.penalty(U[:self._nf], *self._point_state)
         timings["local"] += time.perf_counter() - t
         return e + const_E
-
-    def _start(
-        self, T: NDArray[np.float64], fixed: NDArray[np.float64],
-        initial: NDArray[np.float64] | str | None, timings: dict[str, float]
-    ) -> tuple[NDArray[np.float64], float | None, str]:
-        """Starting positions (internal order, non-free vertices at their fixed positions), their active-cell
-        energy (None when the rotations in ``self._R`` were not fitted to them) and the name of the start.
-
-        Leaves in ``self._R`` the rotations the first global step uses.
-        """
-        if initial is None:
-            if self._last is None:
-                initial = "auto"
-            else:
-                U = self._last  # continued in place: the solver owns it, and the result is a copy
-                warm_fresh = self._rotations_fresh
-                if not warm_fresh:
-                    self._local(U, 0.0, timings)
-                at_targets = assign_rows(U[self._nf:], fixed)
-                E = self._stored_energy() if at_targets else None
-                return U, E, "warm"
-        if isinstance(initial, str):
-            if initial not in START_NAMES:
-                raise OptionError(f"unknown initial {initial!r}; expected one of {START_NAMES}, an array or None")
-            candidates = []
-            if initial in ("auto", "rest"):
-                U = self._V.copy()
-                U[self._nf:] = fixed
-                candidates.append(("rest", U))
-            if initial in ("auto", "rigid"):
-                candidates.append(("rigid", rigid_start(self._V, self._constrained, T, self._areas, fixed)))
-            best: tuple[float, str, NDArray[np.float64], NDArray[np.float64]] | None = None
-            for name, U in candidates:
-                self._cold_rotations(U)
-                E = self._local(U, 0.0, timings)
-                if best is None or E < best[0]:
-                    best = (E, name, U, self._R.copy() if len(candidates) > 1 else self._R)
-            assert best is not None
-            E, name, U, R = best
-            if R is not self._R:
-                self._R[:] = R
-            return U, E, name
-        U = self._to_internal(self._check_positions(initial, "initial"))
-        U[self._nf:] = fixed
-        self._cold_rotations(U)
-        return U, self._local(U, 0.0, timings), "given"
-
-    def _cold_rotations(self, U: NDArray[np.float64]) -> None:
-        """Before a cold start: the rotations the first local step goes on from. Identities (the rotation fits start
-        their search there, so that a cold start does not depend on earlier solves, to the last bit), or for
-        ``smooth_rotations`` the start of the coupled local steps (:meth:`arap.smooth.SmoothRotations.start`)."""
-        if self._smooth is not None:
-            self._smooth.start(self._V, U, self._areas, self._R)
-        else:
-            self._R[:] = np.eye(3)
-
-    def _stored_energy(self) -> float:
-        """Energy of the active cells from the last local step."""
-        value = float(self._E[self._active].sum())
-        if self._smooth is not None:
-            value += float(self._term.sum())
-        return value
 
     def current_vertices(self) -> NDArray[np.float64]:
         """Positions of the current iterate during :meth:`solve` (from its callback), else of the last solution.
