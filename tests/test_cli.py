@@ -246,9 +246,15 @@ def test_info_output(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None
     assert main(["info", str(path)]) == 0
     out = capsys.readouterr().out
     assert f"vertices: {3 * len(F):,}" in out  # the raw soup
-    assert "duplicate vertices" in out
-    assert f"ready for ARAP: yes (each of the {len(F):,} components needs a constrained vertex" in out
-    assert f"after repair: {len(V):,} vertices" in out and "welded" in out
+    assert "duplicate vertices" in out and f"components: {len(F):,} (3, 3," in out
+    # What loading leaves is one component, not a constrained vertex per triangle.
+    assert (f"ready for ARAP: yes ({len(F):,} components as stored; 1 after the repair below, which arap deform "
+            "and the studio apply on loading)") in out
+    assert f"after repair: {len(V):,} vertices, {len(F):,} faces, 1 component (vertex indices change)" in out
+    assert "welded" in out
+    assert main(["info", str(path), "--json"]) == 0
+    report = json.loads(capsys.readouterr().out)
+    assert report["n_components"] == len(F) and report["repair"]["n_components"] == 1
 
 
 def test_info_reports_defects(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
@@ -553,13 +559,13 @@ def test_info_says_vertex_indices_change_only_when_repair_renumbers(tmp_path: Pa
     assert main(["info", str(path)]) == 0
     out = capsys.readouterr().out
     assert "repair would: dropped 5 duplicate faces" in out
-    assert f"after repair: {len(V):,} vertices, {len(F):,} faces (vertex indices stay)" in out
+    assert f"after repair: {len(V):,} vertices, {len(F):,} faces, 1 component (vertex indices stay)" in out
     assert main(["info", str(path), "--json"]) == 0
     assert json.loads(capsys.readouterr().out)["repair"]["renumbers_vertices"] is False
     path = tmp_path / "unused.obj"
     save_mesh(path, np.concatenate([[[9.0, 9.0, 9.0]], V]), F + 1)  # an unused first vertex: all shift by one
     assert main(["info", str(path)]) == 0
-    assert "faces (vertex indices change)" in capsys.readouterr().out
+    assert "faces, 1 component (vertex indices change)" in capsys.readouterr().out
     assert main(["info", str(path), "--json"]) == 0
     assert json.loads(capsys.readouterr().out)["repair"]["renumbers_vertices"] is True
 

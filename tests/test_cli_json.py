@@ -22,7 +22,7 @@ def test_info_json_matches_the_mesh(tmp_path: Path, capsys: pytest.CaptureFixtur
     assert report["n_vertices"] == 6490 and report["closed"] is True and report["n_components"] == 1
     assert report["ready"] is True and report["not_ready_reason"] is None
     assert report["repair"] == {"possible": True, "changes": [], "n_vertices": 6490, "n_faces": report["n_faces"],
-                                "renumbers_vertices": False}
+                                "renumbers_vertices": False, "n_components": 1}
     assert len(report["bbox_min"]) == 3 and report["diagonal"] > 0
 
     # A triangle soup: every face its own component, and repair welds it back to the bar.

@@ -135,8 +135,10 @@ def _info_report(V: np.ndarray, F: np.ndarray, label: str) -> tuple[MeshInfo, di
         report["repair"] = {"possible": False, "reason": str(exc)}
     else:
         renumbers = fixed.renumbers
+        repaired = inspect_mesh(fixed.V, fixed.F) if fixed.report else info
         report["repair"] = {"possible": True, "changes": list(fixed.report), "n_vertices": len(fixed.V),
-                            "n_faces": len(fixed.F), "renumbers_vertices": renumbers}
+                            "n_faces": len(fixed.F), "renumbers_vertices": renumbers,
+                            "n_components": repaired.n_components}
     return info, report
 
 
@@ -149,13 +151,18 @@ def _cmd_info(args: argparse.Namespace) -> int:
     _out(label)
     for line in info.lines():
         _out(f"  {line}")
+    repair = report["repair"]
     if report["ready"]:
         n = report["n_components"]
         note = "" if n <= 1 else f" (each of the {n:,} components needs a constrained vertex of its own)"
+        after = repair.get("n_components", n)
+        if after < n:  # e.g. an STL, whose triangles share no vertex until welded
+            each = "; each needs a constrained vertex of its own" if after > 1 else ""
+            note = (f" ({n:,} components as stored; {after:,} after the repair below, which arap deform and the "
+                    f"studio apply on loading{each})")
         _out(f"  ready for ARAP: yes{note}")
     else:
         _out(f"  ready for ARAP: no ({report['not_ready_reason']})")
-    repair = report["repair"]
     if not repair["possible"]:
         _out(f"  repair: impossible ({repair['reason']})")
     elif not repair["changes"]:
@@ -163,8 +170,9 @@ def _cmd_info(args: argparse.Namespace) -> int:
     else:
         _out(f"  repair would: {'; '.join(repair['changes'])}")
         indices = "change" if repair["renumbers_vertices"] else "stay"
-        _out(f"  after repair: {repair['n_vertices']:,} vertices, {repair['n_faces']:,} faces (vertex indices "
-             f"{indices})")
+        parts = repair["n_components"]
+        _out(f"  after repair: {repair['n_vertices']:,} vertices, {repair['n_faces']:,} faces, {parts:,} "
+             f"component{'s' if parts != 1 else ''} (vertex indices {indices})")
     return 0
 
 
