@@ -209,6 +209,28 @@ def test_an_obj_cut_inside_a_vertex_line_is_a_format_error() -> None:
         load_mesh_bytes(b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\nv 0 0.", "obj")
 
 
+@pytest.mark.parametrize("last", [b"f 2 4", b"f 2/1/1 4/1/1\r", b"  f 2", b"f", b"f 2 4 # cut"])
+def test_an_obj_face_of_fewer_than_three_vertices_is_refused_not_dropped(last: bytes) -> None:
+    """A file cut inside its last face line: the parser would drop the short face without a word (3 of the 4
+    triangles loaded); the error names the line."""
+    data = b"v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\nf 1 2 3\nf 2 4 3\nf 1 3 4\n" + last
+    with pytest.raises(MeshFormatError, match=r"mesh\.obj, line 8: a face with fewer than 3 vertices"):
+        load_mesh_bytes_with_report(data, "obj", name="mesh.obj")
+    # Whole faces, polygons, indented lines and texture/normal indices load.
+    whole = b"v 2 0 0\nv 2 1 0\n  f 2/1/1 5/1/1 6/1/1\nf 5 6 4 2\n"
+    V, F = load_mesh_bytes(data[: -len(last)] + whole, "obj", repair=False)
+    assert len(V) == 6 and len(F) == 6
+
+
+@pytest.mark.parametrize("lines", [b"  f 2 5 6\nf 5 6 4 2\n", b"f 2 5 6\n\tf 5 6 4 2\n"])
+def test_indented_face_lines_load_beside_polygons(lines: bytes) -> None:
+    """An indented face line in a file with a polygon: every face loads (the general parser dropped it)."""
+    data = b"v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\nf 1 2 3\nf 2 4 3\nv 2 0 0\nv 2 1 0\n" + lines
+    V, F = load_mesh_bytes(data, "obj", repair=False)
+    assert len(V) == 6
+    assert sorted(map(tuple, F.tolist())) == [(0, 1, 2), (1, 3, 2), (1, 4, 5), (3, 1, 4), (4, 5, 3)]
+
+
 def test_bad_file_on_disk_names_the_file(tmp_path: Path) -> None:
     path = tmp_path / "broken.off"
     path.write_text("OFF\n3 1 0\n0 0 0\n1 0 0\n")

@@ -25,7 +25,14 @@ from numpy.typing import NDArray
 from arap.errors import MeshError, MeshFormatError, MeshTooLargeError
 from arap.io.atomic import write_atomic
 from arap.io.fastobj import parse_plain_obj
-from arap.io.screening import announced_faces, check_obj_zero_index, check_size, screen
+from arap.io.screening import (
+    announced_faces,
+    check_obj_short_faces,
+    check_obj_zero_index,
+    check_size,
+    screen,
+    unindent_obj,
+)
 from arap.mesh import MeshLike, mesh_arrays, triangulate_polygons
 from arap.repair import RepairResult, repair_mesh
 
@@ -199,6 +206,8 @@ def load_mesh_bytes_with_report(
     plain = parse_plain_obj(screened) if ft == "obj" else None  # takes only face indices from 1 up
     if plain is None and ft == "obj":
         check_obj_zero_index(screened, name)
+        check_obj_short_faces(screened, name)
+        screened = unindent_obj(screened)
     V, F = plain if plain is not None else _parse(io.BytesIO(screened), ft, name)
     announced = announced_faces(screened, ft)
     if announced is not None and len(F) < announced:  # polygons are triangulated: never fewer triangles than faces

@@ -17,7 +17,8 @@ import numpy as np
 
 from arap.errors import MeshFormatError, MeshTooLargeError
 
-__all__ = ["announced_faces", "check_obj_zero_index", "check_size", "screen", "vertex_count"]
+__all__ = ["announced_faces", "check_obj_short_faces", "check_obj_zero_index", "check_size", "screen", "unindent_obj",
+           "vertex_count"]
 
 logger = logging.getLogger(__name__)
 
@@ -85,6 +86,50 @@ def _as_text(data: bytes, what: str, label: str) -> bytes:
         logger.debug("%s is not UTF-8 (%s); reading it as Latin-1", label, exc.reason)
         return data.decode("latin-1").encode("utf-8")
     return data
+
+
+_INDENT = re.compile(rb"^[ \t]+", re.MULTILINE)
+
+
+def unindent_obj(data: bytes) -> bytes:
+    """The OBJ text with the blanks at the start of its lines removed (line numbers unchanged).
+
+    trimesh's OBJ parser drops indented face lines without a word once the file has a polygon: ``  f 2 5 6``
+    before ``f 5 6 4 2`` loads one triangle fewer, and an indented quad is lost.
+
+    Example
+    -------
+    >>> unindent_obj(b"v 0 0 0\\n  f 1 2 3\\n\\tf 1 2 3 4\\n")
+    b'v 0 0 0\\nf 1 2 3\\nf 1 2 3 4\\n'
+    """
+    return _INDENT.sub(b"", data) if _INDENT.search(data) else data
+
+
+_SHORT_FACE = re.compile(rb"^[ \t]*f(?:[ \t]+[^ \t\r\n#]+){0,2}[ \t]*(?:#[^\n]*)?\r?$", re.MULTILINE)
+"""An OBJ face line naming fewer than three vertices (a comment may follow)."""
+
+
+def check_obj_short_faces(data: bytes, label: str) -> None:
+    """Refuse an OBJ file with a face of fewer than three vertices, which the parser would drop without a word: a
+    file cut inside its last face line leaves one.
+
+    Raises
+    ------
+    MeshFormatError
+
+    Example
+    -------
+    >>> check_obj_short_faces(b"v 0 0 0\\nv 1 0 0\\nv 0 1 0\\nf 1 2 3\\nf 1 2", "cut.obj")
+    Traceback (most recent call last):
+    ...
+    arap.errors.MeshFormatError: cut.obj, line 5: a face with fewer than 3 vertices ('f 1 2'; the file may be cut short)
+    """
+    found = _SHORT_FACE.search(data)
+    if found is not None:
+        line = data.count(b"\n", 0, found.start()) + 1
+        text = found.group().strip().decode("utf-8", "replace")
+        raise MeshFormatError(f"{label}, line {line}: a face with fewer than 3 vertices ({text!r}; the file may be "
+                              "cut short)")
 
 
 def check_obj_zero_index(data: bytes, label: str) -> None:
