@@ -222,9 +222,11 @@ def test_an_obj_face_of_fewer_than_three_vertices_is_refused_not_dropped(last: b
     assert len(V) == 6 and len(F) == 6
 
 
-@pytest.mark.parametrize("lines", [b"  f 2 5 6\nf 5 6 4 2\n", b"f 2 5 6\n\tf 5 6 4 2\n"])
-def test_indented_face_lines_load_beside_polygons(lines: bytes) -> None:
-    """An indented face line in a file with a polygon: every face loads (the general parser dropped it)."""
+@pytest.mark.parametrize("lines", [b"  f 2 5 6\nf 5 6 4 2\n", b"f 2 5 6\n\tf 5 6 4 2\n",
+                                   b"f 2 5 6 # side\nf 5 6 4 2#quad\n# end\n"])
+def test_indented_or_commented_face_lines_load_beside_polygons(lines: bytes) -> None:
+    """An indented face line in a file with a polygon: every face loads (the general parser dropped it); a comment
+    after a face is a comment (it failed to parse)."""
     data = b"v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\nf 1 2 3\nf 2 4 3\nv 2 0 0\nv 2 1 0\n" + lines
     V, F = load_mesh_bytes(data, "obj", repair=False)
     assert len(V) == 6

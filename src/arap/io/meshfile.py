@@ -30,8 +30,8 @@ from arap.io.screening import (
     check_obj_short_faces,
     check_obj_zero_index,
     check_size,
+    plain_obj_lines,
     screen,
-    unindent_obj,
 )
 from arap.mesh import MeshLike, mesh_arrays, triangulate_polygons
 from arap.repair import RepairResult, repair_mesh
@@ -207,7 +207,7 @@ def load_mesh_bytes_with_report(
     if plain is None and ft == "obj":
         check_obj_zero_index(screened, name)
         check_obj_short_faces(screened, name)
-        screened = unindent_obj(screened)
+        screened = plain_obj_lines(screened)
     V, F = plain if plain is not None else _parse(io.BytesIO(screened), ft, name)
     announced = announced_faces(screened, ft)
     if announced is not None and len(F) < announced:  # polygons are triangulated: never fewer triangles than faces

@@ -17,8 +17,8 @@ import numpy as np
 
 from arap.errors import MeshFormatError, MeshTooLargeError
 
-__all__ = ["announced_faces", "check_obj_short_faces", "check_obj_zero_index", "check_size", "screen", "unindent_obj",
-           "vertex_count"]
+__all__ = ["announced_faces", "check_obj_short_faces", "check_obj_zero_index", "check_size", "plain_obj_lines",
+           "screen", "vertex_count"]
 
 logger = logging.getLogger(__name__)
 
@@ -89,19 +89,23 @@ def _as_text(data: bytes, what: str, label: str) -> bytes:
 
 
 _INDENT = re.compile(rb"^[ \t]+", re.MULTILINE)
+_COMMENT = re.compile(rb"#[^\n]*")
 
 
-def unindent_obj(data: bytes) -> bytes:
-    """The OBJ text with the blanks at the start of its lines removed (line numbers unchanged).
+def plain_obj_lines(data: bytes) -> bytes:
+    """The OBJ text without blanks at the start of its lines and without comments (line numbers unchanged).
 
-    trimesh's OBJ parser drops indented face lines without a word once the file has a polygon: ``  f 2 5 6``
-    before ``f 5 6 4 2`` loads one triangle fewer, and an indented quad is lost.
+    trimesh's OBJ parser drops indented face lines without a word once the file has a polygon (``  f 2 5 6``
+    before ``f 5 6 4 2`` loads one triangle fewer, and an indented quad is lost), and fails on a comment after a
+    face (``f 1 2 3 # cap``).
 
     Example
     -------
-    >>> unindent_obj(b"v 0 0 0\\n  f 1 2 3\\n\\tf 1 2 3 4\\n")
-    b'v 0 0 0\\nf 1 2 3\\nf 1 2 3 4\\n'
+    >>> plain_obj_lines(b"v 0 0 0\\n  f 1 2 3  # cap\\n\\tf 1 2 3 4\\n")
+    b'v 0 0 0\\nf 1 2 3  \\nf 1 2 3 4\\n'
     """
+    if _COMMENT.search(data):
+        data = _COMMENT.sub(b"", data)
     return _INDENT.sub(b"", data) if _INDENT.search(data) else data
 
 
