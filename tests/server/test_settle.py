@@ -215,3 +215,20 @@ def test_an_export_right_after_a_drag_is_of_the_settled_shape(studio: StudioClie
     exported = np.array([[float(x) for x in line.split()[1:4]] for line in text.splitlines()
                          if line.startswith("v ")])
     assert np.abs(exported - frame).max() <= 1e-6 * _diag(studio.V)
+
+
+def test_a_rigid_pose_reports_an_energy_of_zero_not_rounding(studio: StudioClient) -> None:
+    """Every constraint moved by one translation: the shape moves rigidly, and the energies reported, per iteration
+    and settled, are 0 rather than the ±1e-16-relative rounding of a sum of cancelling terms."""
+    fixed, top = studio.bottom_top()
+    studio.set_constraints([], [fixed + top])
+    studio.settled()
+    raw: list[float] = []
+    for seq, dx in enumerate([0.3, 0.7, 1.1]):
+        reply = studio.drag(seq, [translation(dx, 0.2 * dx, -0.4 * dx)])
+        raw.extend(reply.data["energies"])
+    studio.send({"type": "end_drag"})
+    studio.expect("state")
+    status, _ = studio.settled()
+    assert raw and all(e == 0.0 for e in raw), raw
+    assert status["status"] == "settled" and status["energy"] == 0.0

@@ -41,6 +41,7 @@ from arap.server.protocol import (
     parse_text,
     server_message,
 )
+from arap.server.records import readable_energy
 from arap.server.session import DragOutcome, Session
 
 __all__ = ["Connection", "StudioConfig"]
@@ -191,7 +192,7 @@ class Connection:
             header = still_frame_header(seq, subset, movable)
         else:
             header = server_message("vertices", seq=seq, skipped=self._skipped, iterations=outcome.iterations,
-                                    energies=[e if np.isfinite(e) else None for e in outcome.energies],
+                                    energies=[readable_energy(e, self.session.diagonal) for e in outcome.energies],
                                     solve_ms=round(outcome.solve_ms, 3),
                                     ms_per_iteration=round(outcome.ms_per_iteration, 3),
                                     subset=subset, movable=movable)
@@ -429,7 +430,7 @@ class Connection:
     async def _send_settle_status(self, status: str, iterations: int, energy: float | None,
                                   seconds: float | None) -> None:
         await self._send_json(server_message("settle", status=status, iterations=iterations,
-                                             energy=energy if energy is None or np.isfinite(energy) else None,
+                                             energy=readable_energy(energy, self.session.diagonal),
                                              seconds=None if seconds is None else round(seconds, 4)))
 
     # ------------------------------------------------------------------ requests

@@ -2,13 +2,33 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 from arap.cells import EnergyType
 from arap.server.protocol import PARAMS
 from arap.weights import WeightType
 
-__all__ = ["DragOutcome", "Params", "SettleOutcome"]
+__all__ = ["ENERGY_ZERO", "DragOutcome", "Params", "SettleOutcome", "readable_energy"]
+
+ENERGY_ZERO = 1e-12
+"""Energies within this many squared bounding-box diagonals of 0 are reported as 0."""
+
+
+def readable_energy(value: float | None, diagonal: float) -> float | None:
+    """An energy as the studio shows it: None when unknown or not finite, 0 when within :data:`ENERGY_ZERO` squared
+    diagonals of 0. A shape's energy is a sum over its cells of differences of terms of the order of the squared
+    edge lengths, so a rigid pose gives about ±1e-16 of their sum instead of 0: a user would read ``-2.4e-15`` under
+    an energy that cannot be negative as a sign of trouble.
+
+    Example
+    -------
+    >>> readable_energy(-2.4e-15, 1.0), readable_energy(3e-4, 1.0), readable_energy(float("nan"), 1.0)
+    (0.0, 0.0003, None)
+    """
+    if value is None or not math.isfinite(value):
+        return None
+    return 0.0 if abs(value) <= ENERGY_ZERO * diagonal * diagonal else float(value)
 
 
 @dataclass

@@ -68,6 +68,7 @@ class Session:
         self.settled = True
         self.energy: float | None = 0.0
         """Energy of the shape ``U`` when known (0 at a rest pose)."""
+        self._diagonal = (-1, 0.0)  # (rest_id, the rest pose's bounding-box diagonal)
 
     # ------------------------------------------------------------------ helpers
     def _require_mesh(self) -> MeshData:
@@ -90,8 +91,10 @@ class Session:
         """Bounding-box diagonal of the rest pose (0 without a mesh)."""
         if self.mesh is None or not len(self.V):
             return 0.0
-        lo, hi = bounding_box(self.V)
-        return float(np.linalg.norm(hi - lo))
+        if self._diagonal[0] != self.rest_id:
+            lo, hi = bounding_box(self.V)
+            self._diagonal = (self.rest_id, float(np.linalg.norm(hi - lo)))
+        return self._diagonal[1]
 
     @property
     def n_groups(self) -> int:
