@@ -363,3 +363,18 @@ def test_a_refused_selection_is_explained_where_it_matters_and_the_error_clears(
     assert len(page.evaluate("() => window.__arap.errors")) == 1
     drag_gizmo_x(page)
     assert page.evaluate("() => window.__arap.lastSeq") > 0, "no drag was answered"
+
+
+@pytest.mark.parametrize("typed", ["1e", "--2"])
+def test_a_point_weight_that_is_no_number_is_refused_visibly(page: Page, typed: str) -> None:
+    """Text that is no number leaves the field empty and sends no change: it is refused with a message, not
+    taken as a hard handle."""
+    page.keyboard.press("5")
+    field = page.get_by_test_id("point-weight")
+    field.click()
+    page.keyboard.type(typed)
+    assert page.evaluate("() => document.getElementById('point-weight').validity.badInput")
+    page.keyboard.press("Enter")
+    expect(page.get_by_test_id("status-text")).to_contain_text("Point weight must be a positive number")
+    expect(field).to_have_value("")
+    assert not page.evaluate("() => document.getElementById('point-weight').validity.badInput")

@@ -108,6 +108,7 @@ const conn = new Connection(defaultSocketUrl(), {
   onOpen: () => {
     panel.setConnection('open');
     panel.setEnabled(true);
+    roleControls();
     panel.setHistory(app.canUndo, app.canRedo);
   },
   onClose: () => {
@@ -223,6 +224,7 @@ function handleMessage(msg) {
     case SERVER.STATE:
       return onState(msg);
     case SERVER.SETTLE:
+      if (Number.isFinite(msg.energy)) stats.noteEnergies([msg.energy]);
       return panel.setSettle(msg);
     case SERVER.CONSTRAINTS: // the document carries the mirror pairs of its handle groups in "meta"
       return panel.showStatus(downloadConstraints(mirror.documentWithPartners(msg.document, app.groupMap),
@@ -448,7 +450,14 @@ function setRole(role) {
   panel.setSegment('role-seg', 'role', role);
   modes.showRole(role);
   refreshSelection(false);
-  /** @type {HTMLButtonElement} */ (document.getElementById('btn-invert')).disabled = !selection.invertible(role);
+  roleControls();
+}
+
+/** The controls that depend on the role: Invert where the role can be inverted, the stiffness brush's slider. */
+function roleControls() {
+  /** @type {HTMLButtonElement} */ (document.getElementById('btn-invert')).disabled = !panel.enabled
+    || !selection.invertible(app.role);
+  modes.enable(panel.enabled);
 }
 
 function setTool(tool) {

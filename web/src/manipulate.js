@@ -33,6 +33,10 @@ export function refusedDragText(reason) {
 export function installManipulation({ app, viewer, selection, mirror, connection, status, hush, refused, changed }) {
   const gizmo = new HandleGizmo(viewer, {
     onDragStart: () => {
+      if (!connection().open) {
+        status('Not connected to the studio server: the handles can be moved again once it is back.', 'error');
+        return false;
+      }
       if (selectionSynced(app, selection)) return true;
       if (app.sentKey === null) refused(refusedDragText(app.refusal));
       else status('The new selection is still being set up; try again in a moment.', 'error', 3000);

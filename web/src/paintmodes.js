@@ -16,6 +16,7 @@ export class PaintModes {
     this.rigid = $('stiffness-rigid');
     this.eraser = $('stiffness-erase');
     this.weightInput = $('point-weight');
+    this.on = true; // the panel's controls take input
     document.getElementById('role-seg-2').addEventListener('click', (e) => {
       const b = /** @type {Element} */ (e.target).closest('button');
       if (b instanceof HTMLButtonElement && !b.disabled) setRole(b.dataset.role);
@@ -35,14 +36,24 @@ export class PaintModes {
     this.weightInput.addEventListener('keydown', (e) => {
       if (e.key === 'Enter') this.weightInput.blur();
     });
+    // text that is no number ("1e", "--2") leaves the field's value empty and sends no change
+    this.weightInput.addEventListener('blur', () => {
+      if (this.weightInput.validity.badInput) this.weight();
+    });
     this._update();
   }
 
   _update() {
     const value = this.rigid.checked ? Infinity : sliderToStiffness(Number(this.slider.value));
     this.selection.stiffnessValue = value;
-    this.slider.disabled = this.rigid.checked;
+    this.slider.disabled = !this.on || this.rigid.checked;
     document.getElementById('stiffness-val').textContent = stiffnessLabel(value);
+  }
+
+  /** Enable the strength slider with the panel's controls (`on`), except while rigid is ticked. */
+  enable(on) {
+    this.on = on;
+    this.slider.disabled = !on || this.rigid.checked;
   }
 
   /** Whether a stroke in `role` removes (the modifier held, or the stiffness eraser on). */
@@ -52,6 +63,12 @@ export class PaintModes {
 
   /** The weight of new point handles: null (hard) when the field is empty or not a positive number. */
   weight() {
+    if (this.weightInput.validity.badInput) {
+      this.onWeightProblem('Point weight must be a positive number (or empty for a hard handle); what was typed is '
+        + 'not a number.');
+      this.weightInput.value = '';
+      return null;
+    }
     const text = this.weightInput.value.trim();
     if (!text) return null;
     const w = Number(text);

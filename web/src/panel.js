@@ -69,6 +69,7 @@ export class Panel {
   constructor(actions) {
     this.actions = actions;
     this._statusTimer = null;
+    this.enabled = true; // the controls take input (not while the server is away)
 
     $('builtin-select').addEventListener('change', (e) => actions.loadBuiltin(source(e).value));
     $('btn-open').addEventListener('click', () => $('file-input').click());
@@ -230,6 +231,7 @@ export class Panel {
   }
 
   setEnabled(on) {
+    this.enabled = on;
     for (const b of document.querySelectorAll('#panel button, #panel select, #panel input')) {
       if (!(b instanceof HTMLButtonElement || b instanceof HTMLSelectElement || b instanceof HTMLInputElement)) continue;
       if (b.id === 'btn-reconnect' || b.id === 'btn-help') continue;

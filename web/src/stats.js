@@ -24,11 +24,17 @@ export class UpdateStats {
     return this.updateTimes.length;
   }
 
-  /** A new mesh: the plots start over. */
+  /** A new mesh: the plots start over, without the note on energies below 0. */
   reset() {
     this.updateTimes = [];
     this.iterPlot.clear();
     this.timePlot.clear();
+    document.getElementById('energy-note').hidden = true;
+  }
+
+  /** Show the note on energies below 0 while the energies last reported include one. */
+  noteEnergies(energies) {
+    document.getElementById('energy-note').hidden = !energies.some((e) => e < 0);
   }
 
   /** A vertices frame of a solve (iterations > 0): its energies, timings and the update rate. */
@@ -37,7 +43,7 @@ export class UpdateStats {
     const energies = (msg.energies || []).filter((e) => e !== null);
     this.iterPlot.set(energies);
     if (energies.length) this.timePlot.push(energies[energies.length - 1]);
-    document.getElementById('energy-note').hidden = !energies.some((e) => e < 0);
+    if (energies.length) this.noteEnergies(energies); // a settling frame carries none: its `settle` message does
     const latency = this.latencyMs();
     this.panel().setStats({
       ms_per_iteration: msg.ms_per_iteration,
