@@ -18,6 +18,7 @@ from arap.server.app import (
     create_app,
     frame_limit,
 )
+from arap.server.headtimeout import DEFAULT_HEAD_TIMEOUT, head_timeout_protocol
 from arap.server.meshdata import MeshData
 
 __all__ = ["bind_socket", "make_server", "serve", "studio_url"]
@@ -79,6 +80,7 @@ def make_server(
     max_sessions: int = DEFAULT_MAX_SESSIONS,
     allow_origins: Iterable[str] = (),
     log_level: str = "warning",
+    head_timeout: float = DEFAULT_HEAD_TIMEOUT,
 ) -> tuple[uvicorn.Server, socket.socket, str]:
     """Build the studio's uvicorn server and bind its socket, without serving yet.
 
@@ -97,6 +99,7 @@ def make_server(
                      allow_origins=allow_origins, bind_host=host)
     config = uvicorn.Config(
         app,
+        http=head_timeout_protocol(head_timeout),
         log_level=log_level,
         ws_per_message_deflate=False,
         ws_max_size=frame_limit(max_upload_bytes),
@@ -118,6 +121,7 @@ def serve(
     allow_origins: Iterable[str] = (),
     log_level: str = "warning",
     on_ready: Callable[[str], None] | None = None,
+    head_timeout: float = DEFAULT_HEAD_TIMEOUT,
 ) -> None:
     """Run the studio until interrupted (Ctrl-C).
 
@@ -144,6 +148,9 @@ def serve(
         uvicorn's log level.
     on_ready : callable or None
         Called with the studio's URL once the socket is bound, before serving (e.g. to print it).
+    head_timeout : float
+        Seconds a client has to send a request's line and headers before its connection is closed
+        (see :mod:`arap.server.headtimeout`).
 
     Raises
     ------
@@ -154,7 +161,8 @@ def serve(
     """
     server, sock, url = make_server(mesh, host, port, max_upload_bytes=max_upload_bytes,
                                     max_vertices=max_vertices, max_sessions=max_sessions,
-                                    allow_origins=allow_origins, log_level=log_level)
+                                    allow_origins=allow_origins, log_level=log_level,
+                                    head_timeout=head_timeout)
     logger.info("ARAP Studio listening on %s", url)
     if on_ready is not None:
         on_ready(url)
