@@ -202,17 +202,57 @@ def _cmd_studio(args: argparse.Namespace) -> int:
         _err(f"arap: error: the studio needs its server packages, and {missing} is not installed: "
              f"{STUDIO_EXTRA_HINT}")
         return EXIT_USAGE
+    from arap.server.guard import is_loopback_host
+
     _warm_up_kernels(quiet=False)  # compile before serving, not on the first drag
 
     def announce(url: str) -> None:
-        _out(f"ARAP Studio running at {url}  (Ctrl-C to stop)")
+        if is_loopback_host(args.host):
+            _out(f"ARAP Studio running at {url}  (Ctrl-C to stop)")
+            return
+        network = _network_url(url, args.host)
+        _out(f"ARAP Studio serving the network at {network}  (Ctrl-C to stop)")
+        if network != url:
+            _out(f"  on this machine: {url}")
+        _out("  The token in this URL is required: requests without it are refused. Anyone who has the URL can use "
+             "the studio and read its meshes; share it only with them, and stop the studio when done "
+             "(plain HTTP: the network can see it).")
 
     try:
         serve(args.mesh, host=args.host, port=args.port, open_browser=args.open, max_sessions=args.max_sessions,
-              allow_origins=args.allow_origin, on_ready=announce)
+              allow_origins=args.allow_origin, on_ready=announce, token=args.token)
     except KeyboardInterrupt:
         _err("stopped")
     return 0
+
+
+def _network_url(url: str, host: str) -> str:
+    """The studio's URL as other machines reach it: for a wildcard address (whose ``url`` names loopback), this
+    machine's address on its default route, when one is found."""
+    import socket
+    from urllib.parse import urlsplit, urlunsplit
+
+    bound = host.strip("[]")
+    if bound not in ("", "0.0.0.0", "::"):
+        return url
+    family, probe = (socket.AF_INET6, "2001:db8::1") if bound == "::" else (socket.AF_INET, "192.0.2.1")
+    try:
+        with socket.socket(family, socket.SOCK_DGRAM) as s:
+            s.connect((probe, 9))  # no packet is sent: this only picks the outgoing interface
+            address = str(s.getsockname()[0])
+    except OSError:
+        return url
+    if address.startswith(("127.", "::1")) or address in ("0.0.0.0", "::"):
+        return url
+    parts = urlsplit(url)
+    netloc = f"[{address}]" if ":" in address else address
+    return urlunsplit(parts._replace(netloc=f"{netloc}:{parts.port}"))
+
+
+def _token(text: str) -> str:
+    if not text or any(c.isspace() for c in text):
+        raise argparse.ArgumentTypeError("a token must be non-empty, without spaces")
+    return text
 
 
 def _alpha(text: str) -> float:
@@ -311,7 +351,9 @@ def build_parser() -> argparse.ArgumentParser:
                        description="Serve ARAP Studio; open the printed URL in a browser.")
     p.add_argument("mesh", metavar="MESH", nargs="?", default=None,
                    help="mesh every session starts with: a file or a built-in name (default: the first built-in)")
-    p.add_argument("--host", default="127.0.0.1", help="address to bind (default: 127.0.0.1, this machine only)")
+    p.add_argument("--host", default="127.0.0.1",
+                   help="address to bind (default: 127.0.0.1, this machine only); any other address serves the "
+                        "network and requires a token")
     p.add_argument("--port", type=int, default=8000, help="TCP port (default: 8000; 0 picks a free one)")
     p.add_argument("--open", action="store_true", help="open the studio in the default browser")
     p.add_argument("--max-sessions", type=_positive_int, default=32, metavar="N",
@@ -319,6 +361,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--allow-origin", action="append", default=[], type=_origin, metavar="ORIGIN",
                    help="let pages from ORIGIN (http(s)://host[:port]) use the studio; repeatable (default: only "
                         "the studio's own pages)")
+    p.add_argument("--token", type=_token, default=None, metavar="TOKEN",
+                   help="secret every page and client must present (?token=TOKEN in the printed URL); default: a "
+                        "random one when --host is not a loopback address, none on this machine only")
     p.set_defaults(func=_cmd_studio)
     return parser
 

@@ -8,8 +8,10 @@
 >>> s.stop()                       # doctest: +SKIP
 
 The server is the one ``arap studio`` runs (:mod:`arap.server`), on a free port of 127.0.0.1, in a thread of the
-calling process. The handle reads the shape and the selection of the most recently opened browser session; they stay
-readable after the page is closed, until :meth:`Studio.stop`.
+calling process. It has a random token, carried by the handle's URL (``?token=...``): pages and programs without it
+are refused, whether in another browser tab or another local process. The handle reads the shape and the selection
+of the most recently opened browser session of its own URL; they stay readable after the page is closed, until
+:meth:`Studio.stop`.
 """
 
 from __future__ import annotations
@@ -74,15 +76,17 @@ class Studio:
     Attributes
     ----------
     url : str
-        The page to open (``http://127.0.0.1:PORT/``).
+        The page to open (``http://127.0.0.1:PORT/?token=...``); it holds the token that the server asks of every
+        page and program, so share it only with whoever may edit (and read) this mesh.
     """
 
-    def __init__(self, server: uvicorn.Server, sock: socket.socket, url: str, V: NDArray[np.float64],
+    def __init__(self, server: uvicorn.Server, sock: socket.socket, url: str, token: str, V: NDArray[np.float64],
                  F: NDArray[np.int64], height: int) -> None:
         self.url = url
         app: Any = server.config.app
         self._shared = app.state.studio
         self._shared.keep_latest = True
+        self._token = token
         self._server = server
         self._sock = sock
         self._V = V
@@ -108,7 +112,7 @@ class Studio:
 
     @property
     def _session(self) -> Session | None:
-        session: Session | None = self._shared.latest
+        session: Session | None = self._shared.latest_session(self._token)
         return session
 
     @property
@@ -127,8 +131,8 @@ class Studio:
 
     @property
     def vertices(self) -> NDArray[np.float64]:
-        """(n, 3) float64 array: the current deformed shape of the most recent browser session (the given mesh
-        before any page has connected)."""
+        """(n, 3) float64 array: the current deformed shape of the most recent browser session opened with this
+        handle's URL (the given mesh before any page has connected)."""
         session = self._session
         if session is None or session.mesh is None:
             return self._V.copy()
@@ -136,7 +140,8 @@ class Studio:
 
     @property
     def constraints(self) -> Selection:
-        """The selection of the most recent browser session (empty before any page has connected)."""
+        """The selection of the most recent browser session opened with this handle's URL (empty before any page
+        has connected)."""
         session = self._session
         if session is None or session.mesh is None:
             empty = np.zeros(0, dtype=np.int64)
@@ -166,9 +171,11 @@ class Studio:
     def _repr_html_(self) -> str:
         url = html.escape(self.url, quote=True)
         if not self.running:
-            return f"<p>ARAP Studio stopped (it served {url}).</p>"
+            served = html.escape(self.url.split("?")[0], quote=True)  # the token is of no use to anyone now
+            return f"<p>ARAP Studio stopped (it served {served}).</p>"
         return (f'<iframe src="{url}" width="100%" height="{self._height}" style="border:0" '
-                f'title="ARAP Studio"></iframe><p><a href="{url}" target="_blank">Open the studio in a new tab</a></p>')
+                f'title="ARAP Studio"></iframe><p><a href="{url}" target="_blank" rel="noopener">Open the studio in '
+                'a new tab</a></p>')
 
     def __repr__(self) -> str:
         state = "running" if self.running else "stopped"
@@ -231,15 +238,16 @@ def studio(
     prepare = None if constraints is None else _initial_constraints(constraints, len(V))
     try:
         from arap.server.meshdata import MeshData
-        from arap.server.runner import make_server
+        from arap.server.runner import make_server, new_token
     except ImportError as exc:
         raise ArapError(f'the studio needs its server stack: pip install "arap[studio]" ({exc.name} is missing)'
                         ) from exc
-    server, sock, url = make_server(MeshData.make(name, V, F), "127.0.0.1", port, log_level="warning")
+    token = new_token()
+    server, sock, url = make_server(MeshData.make(name, V, F), "127.0.0.1", port, log_level="warning", token=token)
     if prepare is not None:
         app: Any = server.config.app
         app.state.studio.prepare_session = prepare
-    handle = Studio(server, sock, url, V, F, height)
+    handle = Studio(server, sock, url, token, V, F, height)
     handle._start()
     if show:
         _display(handle)

@@ -6,6 +6,7 @@ from __future__ import annotations
 import json
 import socket
 from typing import Any
+from urllib.parse import urlsplit
 
 import numpy as np
 import pytest
@@ -35,7 +36,13 @@ def _expect(ws: ClientConnection, kind: str) -> tuple[dict[str, Any], bytes | No
 
 
 def _origin(url: str) -> str:
-    return url.rstrip("/")
+    return url.split("?")[0].rstrip("/")
+
+
+def _ws_url(url: str) -> str:
+    """The WebSocket address of a studio page's URL, with its token (as the page's client builds it)."""
+    page, _, query = url.partition("?")
+    return page.replace("http://", "ws://") + "ws" + (f"?{query}" if query else "")
 
 
 def test_studio_serves_the_arrays_and_reads_the_session_back() -> None:
@@ -45,7 +52,7 @@ def test_studio_serves_the_arrays_and_reads_the_session_back() -> None:
         assert s.running and s.url.startswith("http://127.0.0.1:")
         np.testing.assert_array_equal(s.vertices, V)  # no page yet: the given mesh
         assert s.constraints.fixed.size == 0 and s.constraints.handle_groups == []
-        with connect(s.url.replace("http://", "ws://") + "ws", origin=_origin(s.url), max_size=None) as ws:
+        with connect(_ws_url(s.url), origin=_origin(s.url), max_size=None) as ws:
             _expect(ws, "welcome")
             header, payload = _expect(ws, "mesh")
             assert header["name"] == "bar" and header["n_vertices"] == len(V)
@@ -79,7 +86,7 @@ def test_studio_serves_the_arrays_and_reads_the_session_back() -> None:
         np.testing.assert_allclose(sel.targets, V[top] + [0.4, 0.0, 0.1], atol=1e-12)
         assert sel.document["fixed"] == fixed
         np.testing.assert_array_equal(s.faces, F)
-        port = int(s.url.rsplit(":", 1)[1].strip("/"))
+        port = urlsplit(s.url).port
     finally:
         s.stop()
     assert not s.running
@@ -113,7 +120,7 @@ def test_studio_opens_pages_with_initial_constraints_solved() -> None:
     moved = V[top] + [0.5, -0.2, 0.0]
     document = {"fixed": fixed.tolist(), "handles": top.tolist(), "targets": moved.tolist(), "handle_groups": groups}
     with arap.studio(V, F, show=False, constraints=document) as s:
-        with connect(s.url.replace("http://", "ws://") + "ws", origin=_origin(s.url), max_size=None) as ws:
+        with connect(_ws_url(s.url), origin=_origin(s.url), max_size=None) as ws:
             _expect(ws, "welcome")
             _expect(ws, "mesh")
             state, _ = _expect(ws, "state")

@@ -185,8 +185,16 @@ export class Connection {
   }
 }
 
-export function defaultSocketUrl() {
-  const proto = location.protocol === 'https:' ? 'wss:' : 'ws:';
-  const base = location.pathname.replace(/[^/]*$/, '');
-  return `${proto}//${location.host}${base}ws`;
+/**
+ * WebSocket address of the studio that served this page: `ws(s)://host/path/ws`, with the page's `?token=` when it
+ * has one (a studio serving a network, or a notebook's, refuses connections without its token).
+ * @param {{protocol: string, host: string, pathname: string, search: string}} [loc] the page's location
+ * @returns {string}
+ */
+export function defaultSocketUrl(loc = location) {
+  const proto = loc.protocol === 'https:' ? 'wss:' : 'ws:';
+  const base = loc.pathname.replace(/[^/]*$/, '');
+  const token = new URLSearchParams(loc.search).get('token');
+  const query = token === null ? '' : `?token=${encodeURIComponent(token)}`;
+  return `${proto}//${loc.host}${base}ws${query}`;
 }

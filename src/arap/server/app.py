@@ -27,7 +27,7 @@ import arap
 from arap.server.connection import Connection, StudioConfig
 from arap.server.decoder import FrameDecoder
 from arap.server.errors import RequestError
-from arap.server.guard import RequestGuard, normalize_origin
+from arap.server.guard import RequestGuard, normalize_origin, presented_token, token_matches
 from arap.server.meshdata import MeshData, load_default
 from arap.server.session import Session
 
@@ -80,7 +80,8 @@ def frame_limit(max_upload_bytes: int) -> int:
 class _Studio:
     """Shared state of the application: configuration, default mesh, live sessions."""
 
-    def __init__(self, config: StudioConfig, default_mesh: MeshData, static_dir: Path, max_sessions: int) -> None:
+    def __init__(self, config: StudioConfig, default_mesh: MeshData, static_dir: Path, max_sessions: int,
+                 token: str | None = None) -> None:
         self.config = config
         self.default_mesh = default_mesh
         self.static_dir = static_dir
@@ -88,11 +89,26 @@ class _Studio:
         self.sessions = 0
         self.connections: weakref.WeakSet[Connection] = weakref.WeakSet()
         self.decoder = FrameDecoder()
+        self.token = token
+        """Secret every client must present (None: none); see :mod:`arap.server.guard`."""
         self.keep_latest = False
-        """Keep the most recently opened session in :attr:`latest`, even after it closed (for a notebook)."""
-        self.latest: Session | None = None
+        """Keep the most recently opened session of the token's holders, even after it closed (for a notebook; see
+        :meth:`latest_session`)."""
+        self._latest: Session | None = None
         self.prepare_session: Callable[[Session], object] | None = None
         """Called with each new session once it holds the default mesh (initial constraints, for a notebook)."""
+
+    def opened(self, session: Session, token: str | None) -> None:
+        """Note a new session and the token its client presented."""
+        if self.keep_latest and self.token is not None and token_matches(token, self.token):
+            self._latest = session
+
+    def latest_session(self, token: str) -> Session | None:
+        """The most recently opened session whose client presented ``token``: None before one, or when ``token`` is
+        not this server's (a server without a token keeps none)."""
+        if self.token is None or not token_matches(token, self.token):
+            return None
+        return self._latest
 
 
 class _ClientFiles:
@@ -128,6 +144,7 @@ def create_app(
     bind_host: str | None = None,
     allowed_hosts: Iterable[str] = (),
     static_dir: str | os.PathLike[str] | None = None,
+    token: str | None = None,
 ) -> Starlette:
     """Build the studio application.
 
@@ -163,6 +180,9 @@ def create_app(
         More host names accepted in ``Host``.
     static_dir : path-like or None
         Built client (default: the package's ``static`` folder).
+    token : str or None
+        Secret every request must present, as ``?token=...`` in its URL or an ``Authorization: token ...``
+        header (the client's static files excepted); 403 without it. None: no token (loopback servers).
 
     Returns
     -------
@@ -175,7 +195,7 @@ def create_app(
     arap.errors.ArapError
         The default mesh cannot be loaded.
     ValueError
-        A limit is not positive, or an allowed origin is not an http(s) origin.
+        A limit is not positive, an allowed origin is not an http(s) origin, or the token is empty.
     """
     for name, value in (("max_upload_bytes", max_upload_bytes), ("max_vertices", max_vertices),
                         ("max_history_steps", max_history_steps), ("max_pending", max_pending),
@@ -197,14 +217,17 @@ def create_app(
     origins = tuple(allow_origins)
     for origin in origins:
         normalize_origin(origin)  # a mistyped origin fails here, not on the first request
-    guard = Middleware(RequestGuard, bind_host=bind_host, allowed_hosts=tuple(allowed_hosts), allow_origins=origins)
+    if token is not None and not token:
+        raise ValueError("the token must not be empty")
+    guard = Middleware(RequestGuard, bind_host=bind_host, allowed_hosts=tuple(allowed_hosts), allow_origins=origins,
+                       token=token)
     mesh = load_default(default_mesh)
     logger.info("default mesh %s: %d vertices, %d faces", mesh.name, mesh.n_vertices, mesh.n_faces)
     static = Path(static_dir) if static_dir is not None else STATIC_DIR
     advice = client_missing_advice(static)
     if advice is not None:
         logger.warning("%s The server answers its pages with 503 until then.", advice)
-    studio = _Studio(config, mesh, static, int(max_sessions))
+    studio = _Studio(config, mesh, static, int(max_sessions), token)
 
     async def index(request: Request) -> Response:
         page = static / "index.html"
@@ -225,8 +248,7 @@ def create_app(
         try:
             connection = Connection(ws, studio.config, studio.default_mesh, studio.decoder, studio.prepare_session)
             studio.connections.add(connection)
-            if studio.keep_latest:
-                studio.latest = connection.session
+            studio.opened(connection.session, presented_token(ws.scope))
             await connection.run()
         finally:
             studio.sessions -= 1

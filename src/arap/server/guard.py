@@ -6,20 +6,27 @@ allowed one is refused, ``Origin: null`` included. Requests without an ``Origin`
 clients; browsers always send one with a WebSocket upgrade) are let through. A request whose ``Host`` names
 neither a loopback name, the bound address nor an allowed name is refused too: that is what a page on a
 domain re-pointed at 127.0.0.1 (DNS rebinding) sends.
+
+A studio given a token (always when it serves a network, see ``arap studio --host``; always for a notebook's
+:func:`arap.studio`) also refuses every request that does not present it: as ``?token=...`` in the URL (the page
+passes it on to its WebSocket) or an ``Authorization: token ...`` header. Only the built client's static files
+(``/assets/...``: the same code as in the package) are served without it.
 """
 
 from __future__ import annotations
 
+import hmac
 import ipaddress
 import logging
 from collections.abc import Iterable
 from contextvars import ContextVar
-from urllib.parse import urlsplit
+from urllib.parse import parse_qsl, urlsplit
 
 from starlette.responses import PlainTextResponse
 from starlette.types import ASGIApp, Receive, Scope, Send
 
-__all__ = ["LOOPBACK_NAMES", "RequestGuard", "normalize_origin", "split_host"]
+__all__ = ["LOOPBACK_NAMES", "TOKEN_PARAM", "RequestGuard", "is_loopback_host", "normalize_origin", "presented_token",
+           "split_host", "token_matches"]
 
 LOOPBACK_NAMES = frozenset({"localhost", "127.0.0.1", "::1"})
 """Host names that always reach this machine only."""
@@ -27,6 +34,51 @@ LOOPBACK_NAMES = frozenset({"localhost", "127.0.0.1", "::1"})
 WILDCARD_ADDRESSES = frozenset({"", "0.0.0.0", "::"})
 
 _DEFAULT_PORTS = {"http": 80, "https": 443, "ws": 80, "wss": 443}
+
+TOKEN_PARAM = "token"
+"""Query parameter carrying the studio's token (``http://host:port/?token=...``)."""
+
+PUBLIC_PREFIX = "/assets/"
+"""Path of the built client's static files, served without a token (a page cannot add it to its script URLs)."""
+
+
+def is_loopback_host(host: str) -> bool:
+    """Whether a bind address reaches this machine only (``localhost``, ``127.0.0.0/8``, ``::1``).
+
+    Examples
+    --------
+    >>> is_loopback_host("127.0.0.1"), is_loopback_host("[::1]"), is_loopback_host("0.0.0.0")
+    (True, True, False)
+    """
+    name = host.strip().strip("[]").lower().rstrip(".")
+    if name == "localhost":
+        return True
+    try:
+        return ipaddress.ip_address(name).is_loopback
+    except ValueError:
+        return False
+
+
+def presented_token(scope: Scope) -> str | None:
+    """The token a request presents: the first ``token`` query parameter, else an ``Authorization: token ...`` (or
+    ``Bearer``) header; None when it has none."""
+    query = scope.get("query_string", b"").decode("latin-1")
+    for key, value in parse_qsl(query, keep_blank_values=True):
+        if key == TOKEN_PARAM:
+            return value
+    for key, value in scope.get("headers", []):
+        if key.lower() == b"authorization":
+            scheme, _, credential = value.decode("latin-1").strip().partition(" ")
+            if scheme.lower() in ("token", "bearer"):
+                return credential.strip()
+    return None
+
+
+def token_matches(presented: str | None, expected: str) -> bool:
+    """Whether a presented token is the expected one (compared in constant time)."""
+    if presented is None:
+        return False
+    return hmac.compare_digest(presented.encode("utf-8", "surrogateescape"), expected.encode("utf-8"))
 
 
 def split_host(value: str) -> tuple[str, int | None]:
@@ -124,6 +176,9 @@ class RequestGuard:
     allow_origins : iterable of str
         Origins allowed besides the studio's own (``http(s)://host[:port]``); their host names are accepted as
         hosts too (a reverse proxy in front of the studio).
+    token : str or None
+        Secret every request must present (see :func:`presented_token`), but for the client's static files
+        (``/assets/...``); None: no token.
 
     Raises
     ------
@@ -132,8 +187,11 @@ class RequestGuard:
     """
 
     def __init__(self, app: ASGIApp, *, bind_host: str | None = None, allowed_hosts: Iterable[str] = (),
-                 allow_origins: Iterable[str] = ()) -> None:
+                 allow_origins: Iterable[str] = (), token: str | None = None) -> None:
         self.app = app
+        if token is not None and not token:
+            raise ValueError("the token must not be empty")
+        self.token = token
         self.origins = frozenset(normalize_origin(o) for o in allow_origins)
         _install_refusal_filter()
         names = set(LOOPBACK_NAMES) | {split_host(h)[0] for h in allowed_hosts}
@@ -189,7 +247,21 @@ class RequestGuard:
         if not self.origin_allowed(headers.get("origin"), host, scope.get("scheme", "http")):
             return (f"origin {headers['origin'][:100]!r} may not use the studio (start it with --allow-origin to "
                     "allow it)")
+        if self.token is None or self._public(scope):
+            return None
+        token = presented_token(scope)
+        if token is None:
+            return "this studio needs its token: open the URL it printed when it started (with its ?token=...)"
+        if not token_matches(token, self.token):
+            return "wrong token: open the URL the studio printed when it started"
         return None
+
+    @staticmethod
+    def _public(scope: Scope) -> bool:
+        """A GET or HEAD of the built client's static files (no token needed)."""
+        path = scope.get("path", "")
+        return (scope["type"] == "http" and scope.get("method") in ("GET", "HEAD") and path.startswith(PUBLIC_PREFIX)
+                and ".." not in path and "\\" not in path)
 
     async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
         if scope["type"] not in ("http", "websocket"):

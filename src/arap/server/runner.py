@@ -4,10 +4,12 @@ from __future__ import annotations
 
 import logging
 import os
+import secrets
 import socket
 import threading
 import webbrowser
 from collections.abc import Callable, Iterable
+from urllib.parse import quote
 
 import uvicorn
 
@@ -18,16 +20,17 @@ from arap.server.app import (
     create_app,
     frame_limit,
 )
+from arap.server.guard import TOKEN_PARAM, is_loopback_host
 from arap.server.headtimeout import DEFAULT_HEAD_TIMEOUT, head_timeout_protocol
 from arap.server.meshdata import MeshData
 
-__all__ = ["bind_socket", "make_server", "serve", "studio_url"]
+__all__ = ["bind_socket", "make_server", "new_token", "serve", "studio_url"]
 
 logger = logging.getLogger(__name__)
 
 
-def studio_url(host: str = "127.0.0.1", port: int = 8000) -> str:
-    """URL a browser on this machine opens for a server bound to ``host:port``.
+def studio_url(host: str = "127.0.0.1", port: int = 8000, token: str | None = None) -> str:
+    """URL a browser on this machine opens for a server bound to ``host:port`` (with ``?token=`` when it has one).
 
     A wildcard address (``0.0.0.0``, ``::``) is shown as the loopback address; IPv6 addresses are bracketed.
 
@@ -37,6 +40,8 @@ def studio_url(host: str = "127.0.0.1", port: int = 8000) -> str:
     'http://127.0.0.1:8000/'
     >>> studio_url("::", 9000)
     'http://[::1]:9000/'
+    >>> studio_url("0.0.0.0", 8000, token="s3cret")
+    'http://127.0.0.1:8000/?token=s3cret'
     """
     h = host.strip("[]")
     if h in ("", "0.0.0.0"):
@@ -45,7 +50,13 @@ def studio_url(host: str = "127.0.0.1", port: int = 8000) -> str:
         h = "::1"
     if ":" in h:
         h = f"[{h}]"
-    return f"http://{h}:{int(port)}/"
+    url = f"http://{h}:{int(port)}/"
+    return url if token is None else f"{url}?{TOKEN_PARAM}={quote(token, safe='')}"
+
+
+def new_token() -> str:
+    """A fresh random token (256 bits, URL-safe)."""
+    return secrets.token_urlsafe(32)
 
 
 def bind_socket(host: str = "127.0.0.1", port: int = 8000) -> socket.socket:
@@ -80,6 +91,7 @@ def make_server(
     max_sessions: int = DEFAULT_MAX_SESSIONS,
     allow_origins: Iterable[str] = (),
     log_level: str = "warning",
+    token: str | None = None,
     head_timeout: float = DEFAULT_HEAD_TIMEOUT,
 ) -> tuple[uvicorn.Server, socket.socket, str]:
     """Build the studio's uvicorn server and bind its socket, without serving yet.
@@ -93,10 +105,12 @@ def make_server(
     sock : socket.socket
         The bound, listening socket.
     url : str
-        The studio's URL (with the actual port when ``port`` is 0).
+        The studio's URL (with the actual port when ``port`` is 0, and the token when there is one).
     """
+    if token is None and not is_loopback_host(host):
+        token = new_token()
     app = create_app(mesh, max_upload_bytes=max_upload_bytes, max_vertices=max_vertices, max_sessions=max_sessions,
-                     allow_origins=allow_origins, bind_host=host)
+                     allow_origins=allow_origins, bind_host=host, token=token)
     config = uvicorn.Config(
         app,
         http=head_timeout_protocol(head_timeout),
@@ -106,7 +120,7 @@ def make_server(
         lifespan="on",
     )
     sock = bind_socket(host, port)
-    return uvicorn.Server(config), sock, studio_url(host, sock.getsockname()[1])
+    return uvicorn.Server(config), sock, studio_url(host, sock.getsockname()[1], token)
 
 
 def serve(
@@ -121,6 +135,7 @@ def serve(
     allow_origins: Iterable[str] = (),
     log_level: str = "warning",
     on_ready: Callable[[str], None] | None = None,
+    token: str | None = None,
     head_timeout: float = DEFAULT_HEAD_TIMEOUT,
 ) -> None:
     """Run the studio until interrupted (Ctrl-C).
@@ -132,7 +147,8 @@ def serve(
     mesh : str, path-like or None
         Default mesh of new sessions (see :func:`arap.server.create_app`).
     host : str
-        Address to bind; the default only accepts connections from this machine.
+        Address to bind; the default only accepts connections from this machine. Any other address (a network
+        interface, ``0.0.0.0``) gets a token when none is given.
     port : int
         TCP port; 0 picks a free one (the URL passed to ``on_ready`` has it).
     open_browser : bool
@@ -147,7 +163,11 @@ def serve(
     log_level : str
         uvicorn's log level.
     on_ready : callable or None
-        Called with the studio's URL once the socket is bound, before serving (e.g. to print it).
+        Called with the studio's URL once the socket is bound, before serving (e.g. to print it); it carries the
+        token (``?token=...``) when there is one.
+    token : str or None
+        Secret every request must present (see :mod:`arap.server.guard`). None: a random one when ``host`` is not
+        a loopback address, none on loopback.
     head_timeout : float
         Seconds a client has to send a request's line and headers before its connection is closed
         (see :mod:`arap.server.headtimeout`).
@@ -161,9 +181,9 @@ def serve(
     """
     server, sock, url = make_server(mesh, host, port, max_upload_bytes=max_upload_bytes,
                                     max_vertices=max_vertices, max_sessions=max_sessions,
-                                    allow_origins=allow_origins, log_level=log_level,
+                                    allow_origins=allow_origins, log_level=log_level, token=token,
                                     head_timeout=head_timeout)
-    logger.info("ARAP Studio listening on %s", url)
+    logger.info("ARAP Studio listening on %s", url.split("?")[0])
     if on_ready is not None:
         on_ready(url)
     if open_browser:
