@@ -80,6 +80,7 @@ def load_mesh_argument(spec: str, *, repair: bool = True) -> tuple[np.ndarray, n
         Name for messages.
     """
     from arap.io import load_mesh_with_report
+    from arap.io.paths import folder_problem
     from arap.shapes import BUILTIN_MESHES, builtin_mesh, sphere, sphere_frequency_for
 
     path = Path(spec)
@@ -102,6 +103,9 @@ def load_mesh_argument(spec: str, *, repair: bool = True) -> tuple[np.ndarray, n
                                       "e.g. sphere:100000")
             V, F = sphere(frequency=sphere_frequency_for(wanted))
         return V, F, _identity_report(len(V)), "geodesic sphere"
+    problem = folder_problem(path.parent)  # a missing folder, or a file where the path needs a folder
+    if problem is not None:
+        raise MeshFormatError(f"{spec}: no such file ({problem})")
     raise MeshFormatError(f"{spec}: no such file (built-in meshes: {', '.join(BUILTIN_MESHES)}, sphere, sphere:N)")
 
 

@@ -88,10 +88,14 @@ def _start_shape(spec: str, repair: RepairResult, F: np.ndarray, label: str) -> 
     are ``F``: the file has the mesh file's vertices (as ``arap deform`` writes them) or the repaired mesh's (as the
     studio exports them), or is an STL of the mesh file's or the repaired mesh's triangles in their order."""
     from arap.io import format_of, load_mesh
+    from arap.io.paths import folder_problem
 
     path = Path(spec)
     if not path.exists():
-        raise ArapError(f"--start must be one of {', '.join(START_NAMES)} or a mesh file; {spec} does not exist")
+        problem = folder_problem(path.parent)  # a missing folder, or a file where the path needs a folder
+        why = "" if problem is None else f" ({problem})"
+        raise ArapError(f"--start must be one of {', '.join(START_NAMES)} or a mesh file; {spec} does not "
+                        f"exist{why}")
     try:
         U, G = load_mesh(path, repair=False)
     except (MeshFormatError, MeshError) as exc:
@@ -175,14 +179,17 @@ def run_deform(args: argparse.Namespace) -> int:
     """``arap deform``: solve the constraints file's problem on the mesh and write the result; the exit status."""
     from arap.constraints import load_constraints
     from arap.io import format_of, save_mesh
+    from arap.io.paths import write_destination
     from arap.solver import ArapSolver
 
-    format_of(args.output)  # fail before any work on an unsupported output type or a missing folder
-    folder = Path(args.output).parent
-    if not folder.is_dir():
-        raise MeshFormatError(f"cannot write {args.output}: the folder {folder} does not exist")
-    if Path(args.output).is_dir():
-        raise MeshFormatError(f"cannot write {args.output}: it is a folder")
+    # Fail before any work on an unsupported output type, a missing folder (or a file where a folder should be), or
+    # an output that is not a regular file (a folder, a FIFO, a device, or a symbolic link to one).
+    format_of(args.output)
+    try:
+        destination = write_destination(args.output)
+    except OSError as exc:
+        raise MeshFormatError(f"cannot write {args.output}: {exc.strerror or exc}") from None
+    folder = destination.parent
     if not os.access(folder, os.W_OK):
         raise MeshFormatError(f"cannot write {args.output}: the folder {folder} is not writable")
     if args.iterations is not None and args.iterations < 0:

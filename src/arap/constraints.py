@@ -44,6 +44,7 @@ import numpy as np
 from arap.errors import ConstraintError
 from arap.indexing import check_index_array
 from arap.io.atomic import write_atomic
+from arap.io.paths import read_regular_file
 from arap.mesh import bounding_box
 from arap.partition import check_reach
 from arap.points import PointConstraints, check_points
@@ -227,7 +228,7 @@ _MAX_INT_DIGITS = 400
 
 def _read_json(path: Path) -> Any:
     try:
-        text = path.read_text(encoding="utf-8")
+        text = read_regular_file(path).decode("utf-8")  # a FIFO or a device is refused before it is opened
     except OSError as exc:
         raise ConstraintError(f"cannot read constraints file {path}: {exc.strerror or exc}") from exc
     except UnicodeDecodeError as exc:

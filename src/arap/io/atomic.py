@@ -4,6 +4,11 @@ The data goes to a temporary file in the destination's folder (same file system)
 renamed over the destination with :func:`os.replace`, which is atomic on POSIX and Windows. A writer killed before
 the rename leaves the destination untouched (and at most a hidden ``.NAME.XXXXXXXX.tmp`` file beside it); a write
 that fails removes its temporary file.
+
+Only regular files are replaced (:func:`arap.io.paths.write_destination`): a destination that is a folder, a FIFO, a
+device or a socket, named directly or through symbolic links, is refused before anything is written. A symbolic link
+is kept and the regular file it points to is replaced, its temporary file written beside that file; a dangling link
+gets the file it names, when that file's folder exists.
 """
 
 from __future__ import annotations
@@ -15,6 +20,8 @@ import stat
 from collections.abc import Iterator
 from pathlib import Path
 from typing import BinaryIO
+
+from arap.io.paths import not_regular, write_destination
 
 __all__ = ["atomic_output", "temporary_name", "write_atomic"]
 
@@ -45,8 +52,8 @@ def atomic_output(path: str | os.PathLike[str]) -> Iterator[BinaryIO]:
     Parameters
     ----------
     path : path-like
-        Destination. A symbolic link is followed (its target is replaced); an existing file keeps its permission
-        bits.
+        Destination. A symbolic link is kept and followed: the regular file it points to is replaced (or, for a
+        dangling link, created). An existing file keeps its permission bits.
 
     Yields
     ------
@@ -55,13 +62,14 @@ def atomic_output(path: str | os.PathLike[str]) -> Iterator[BinaryIO]:
 
     Raises
     ------
+    arap.io.paths.SpecialFileError
+        The destination is not a regular file (a folder, a FIFO, a device, a socket, or a link to one), or its
+        folder is missing or is a file; nothing is written.
     OSError
-        The folder does not exist or is not writable, or the destination is a folder. The temporary file is
-        removed and the destination is left as it was.
+        The folder is not writable, or the write fails. The temporary file is removed and the destination is left
+        as it was.
     """
-    dest = Path(path)
-    if dest.is_symlink():
-        dest = Path(os.path.realpath(dest))
+    dest = write_destination(path)
     tmp = temporary_name(dest)
     fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_BINARY", 0), 0o666)
     try:
@@ -69,8 +77,14 @@ def atomic_output(path: str | os.PathLike[str]) -> Iterator[BinaryIO]:
             yield stream
             stream.flush()
             os.fsync(stream.fileno())
-        with contextlib.suppress(FileNotFoundError):
-            os.chmod(tmp, stat.S_IMODE(dest.stat().st_mode))
+        try:
+            mode = dest.stat().st_mode
+        except FileNotFoundError:
+            pass
+        else:
+            if not stat.S_ISREG(mode):  # put there while the data was written
+                raise not_regular(Path(path), mode)
+            os.chmod(tmp, stat.S_IMODE(mode))
         os.replace(tmp, dest)
     except BaseException:
         with contextlib.suppress(OSError):

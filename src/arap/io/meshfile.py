@@ -25,6 +25,7 @@ from numpy.typing import NDArray
 from arap.errors import MeshError, MeshFormatError, MeshTooLargeError
 from arap.io.atomic import write_atomic
 from arap.io.fastobj import parse_plain_obj
+from arap.io.paths import read_regular_file
 from arap.io.screening import (
     announced_faces,
     check_obj_short_faces,
@@ -240,14 +241,15 @@ def load_mesh_with_report(
     Raises
     ------
     MeshFormatError
-        Unknown extension, missing or unreadable file, unparsable content, no faces.
+        Unknown extension, missing or unreadable file, a path that is not a regular file (a folder, a FIFO, a
+        device, a socket, or a link to one), unparsable content, no faces.
     """
     path = Path(path)
     if path.is_dir():
         raise MeshFormatError(f"{path} is a folder, not a mesh file")
     ft = format_of(path.name)
-    try:
-        data = path.read_bytes()
+    try:  # a FIFO, a device (/dev/zero) or a socket is refused before it is opened
+        data = read_regular_file(path)
     except OSError as exc:
         raise MeshFormatError(f"cannot read {path}: {exc.strerror or exc}") from exc
     return load_mesh_bytes_with_report(data, ft, repair=repair, name=str(path), max_vertices=max_vertices)
@@ -348,6 +350,9 @@ def save_mesh(path: str | os.PathLike[str], V: NDArray[np.floating] | MeshLike,
     The write is atomic (:func:`arap.io.atomic.write_atomic`): an earlier file at ``path`` stays intact until the
     complete new one replaces it, even when the writer is killed.
 
+    A symbolic link is kept and the regular file it points to is replaced. A destination that is not a regular
+    file, such as a folder, a FIFO, a device, a socket or a link to one, is refused and left as it is.
+
     Parameters
     ----------
     path : path-like
@@ -360,7 +365,8 @@ def save_mesh(path: str | os.PathLike[str], V: NDArray[np.floating] | MeshLike,
     Raises
     ------
     MeshFormatError
-        Unknown extension or the file cannot be written (``path`` is then unchanged).
+        Unknown extension, a destination that is not a regular file, or the file cannot be written (``path`` is
+        then unchanged).
     MeshError
         Unusable arrays.
     """
