@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 import signal
 import subprocess
 import sys
@@ -108,6 +109,86 @@ def test_ctrl_c_during_deform_writes_the_last_iterate(tmp_path: Path, capsys: py
     capped = tmp_path / "capped.obj"
     assert main(["deform", "bar", "--constraints", str(cfile), "-o", str(capped), "-n", "3"]) == 0
     np.testing.assert_array_equal(load_mesh(out)[0], load_mesh(capped)[0])
+
+
+def _press_ctrl_c_at(monkeypatch: pytest.MonkeyPatch, iteration: int) -> None:
+    progress = cli_deform._Progress.__call__
+
+    def press(self: cli_deform._Progress, k: int, energy: float) -> None:
+        progress(self, k, energy)
+        if k == iteration:
+            signal.raise_signal(signal.SIGINT)
+
+    monkeypatch.setattr(cli_deform._Progress, "__call__", press)
+
+
+def test_ctrl_c_in_the_last_iteration_leaves_a_complete_output(tmp_path: Path, capsys: pytest.CaptureFixture[str],
+                                                                monkeypatch: pytest.MonkeyPatch) -> None:
+    """A Ctrl-C during the iteration that ends the solve anyway (the cap, or convergence) stops nothing: the output
+    is the complete result, exit status 0, and it is not called unconverged."""
+    cfile = tmp_path / "c.json"
+    bar_constraints(cfile)
+    capped = tmp_path / "capped.obj"
+    assert main(["deform", "bar", "--constraints", str(cfile), "-o", str(capped), "-n", "3"]) == 0
+    converged = tmp_path / "converged.obj"
+    assert main(["deform", "bar", "--constraints", str(cfile), "-o", str(converged)]) == 0
+    err = capsys.readouterr().err
+    assert "converged" in err
+    n = int(re.findall(r"arap: (\d+) iterations in", err)[-1])
+
+    _press_ctrl_c_at(monkeypatch, 3)
+    out = tmp_path / "out.obj"
+    assert main(["deform", "bar", "--constraints", str(cfile), "-o", str(out), "-n", "3"]) == 0
+    err = capsys.readouterr().err
+    assert "interrupted at the end of the solve: " in err and "was written in full" in err
+    assert "interrupted after" not in err and "iteration limit reached, not converged (residual" in err
+    np.testing.assert_array_equal(load_mesh(out)[0], load_mesh(capped)[0])
+    monkeypatch.undo()
+
+    _press_ctrl_c_at(monkeypatch, n)
+    assert main(["deform", "bar", "--constraints", str(cfile), "-o", str(out)]) == 0
+    err = capsys.readouterr().err
+    assert f"{n} iterations in" in err and ", converged" in err and "not converged" not in err
+    assert "was written in full" in err
+    np.testing.assert_array_equal(load_mesh(out)[0], load_mesh(converged)[0])
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+
+
+def test_ctrl_c_while_the_output_is_written_lets_it_finish(tmp_path: Path, capsys: pytest.CaptureFixture[str],
+                                                          monkeypatch: pytest.MonkeyPatch) -> None:
+    """A Ctrl-C that comes once the solve has ended, while or after the output is written: the output is written in
+    full and the exit status (0) says so, not 130."""
+    import arap.io
+
+    cfile = tmp_path / "c.json"
+    bar_constraints(cfile)
+    save = arap.io.save_mesh
+
+    def save_then_press(*args: object) -> None:
+        save(*args)  # type: ignore[arg-type]
+        signal.raise_signal(signal.SIGINT)
+
+    monkeypatch.setattr(arap.io, "save_mesh", save_then_press)
+    out = tmp_path / "out.obj"
+    assert main(["deform", "bar", "--constraints", str(cfile), "-o", str(out), "-n", "3"]) == 0
+    err = capsys.readouterr().err
+    assert "was written in full" in err and "arap: wrote" in err
+    assert load_mesh(out)[0].shape == builtin_mesh("bar")[0].shape
+    monkeypatch.undo()
+
+    err_line = cli_deform._err
+
+    def press_after_wrote(text: str) -> None:  # Ctrl-C as the closing lines are printed
+        err_line(text)
+        if text.startswith("arap: wrote"):
+            signal.raise_signal(signal.SIGINT)
+
+    monkeypatch.setattr(cli_deform, "_err", press_after_wrote)
+    out.unlink()
+    assert main(["deform", "bar", "--constraints", str(cfile), "-o", str(out), "-n", "3"]) == 0
+    assert "was written in full" in capsys.readouterr().err
+    assert load_mesh(out)[0].shape == builtin_mesh("bar")[0].shape
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
 
 
 def test_an_ignored_ctrl_c_stays_ignored(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:

@@ -10,14 +10,18 @@ import sys
 import threading
 import time
 from pathlib import Path
-from typing import Any, TextIO
+from typing import TYPE_CHECKING, Any, TextIO
 
 import numpy as np
 
+import arap.result
 from arap.cli import EXIT_INTERRUPTED, _err, _warm_up_kernels, load_mesh_argument
 from arap.errors import ArapError, ConstraintError, MeshError, MeshFormatError, UnconstrainedRegionError
 from arap.repair import RepairResult
 from arap.result import START_NAMES
+
+if TYPE_CHECKING:
+    from arap.result import ArapResult
 
 __all__ = ["run_deform"]
 
@@ -226,33 +230,56 @@ def run_deform(args: argparse.Namespace) -> int:
         _note_flat_faces(V, F, args.energy, args.weights)
     progress = _Progress(args.iterations, sys.stderr, enabled=not args.quiet)
     interrupt = _FirstInterrupt()
+    stopped_at: list[int] = []  # the iteration after which the callback stopped the solve
 
     def callback(iteration: int, energy: float) -> bool:
         progress(iteration, energy)
-        return not interrupt.requested
+        if interrupt.requested:
+            stopped_at.append(iteration)
+            return False
+        return True
 
     t0 = time.perf_counter()
-    try:
-        with interrupt:
+    # A first Ctrl-C stops the solve at the end of its iteration; one that comes later, while the output is written,
+    # is only noted, so that the output is written in full and the exit status says so.
+    with interrupt:
+        try:
             result = solver.solve(targets, initial=start, max_iterations=args.iterations,
                                   tolerance=args.tolerance, callback=callback, acceleration=args.acceleration,
                                   point_targets=constraints.point_targets)
-    finally:
-        progress.close()
-    seconds = time.perf_counter() - t0
-    if not np.isfinite(result.vertices).all():
-        raise ArapError("the solve produced non-finite positions; nothing was written")
-    U_out, F_out = result.vertices, F
-    # The output keeps the file's vertex order and count, as its constraints do (an STL has no vertex identity: its
-    # welded vertices are the mesh).
-    back = repair.in_input_order(result.vertices) if renumbered and format_of(args.mesh) != "stl" else None
-    if back is not None:
-        U_out, F_out = back
-    save_mesh(args.output, U_out, F_out)
-    if interrupt.requested:
+        finally:
+            progress.close()
+        seconds = time.perf_counter() - t0
+        if not np.isfinite(result.vertices).all():
+            raise ArapError("the solve produced non-finite positions; nothing was written")
+        U_out, F_out = result.vertices, F
+        # The output keeps the file's vertex order and count, as its constraints do (an STL has no vertex identity:
+        # its welded vertices are the mesh).
+        back = repair.in_input_order(result.vertices) if renumbered and format_of(args.mesh) != "stl" else None
+        if back is not None:
+            U_out, F_out = back
+        save_mesh(args.output, U_out, F_out)
+    # The solve was cut short only when Ctrl-C stopped it before it converged or ran its last iteration: a Ctrl-C
+    # during the last iteration, after it, or while the output was written leaves the complete result written.
+    cap = args.iterations if args.iterations is not None else arap.result.MAX_ITERATIONS
+    if stopped_at and not result.converged and result.iterations < cap:
         _err(f"arap: interrupted after {result.iterations} iterations: wrote the last iterate to {args.output} "
              f"(not converged: residual {result.residual:.2g}, tolerance {args.tolerance:g})")
         return EXIT_INTERRUPTED
+    try:
+        _report(args, result, seconds, label, U_out, back, repair, renumbered)
+    except KeyboardInterrupt:
+        interrupt.requested = True
+    if interrupt.requested:
+        _err(f"arap: interrupted at the end of the solve: {args.output} was written in full")
+    return 0
+
+
+def _report(args: argparse.Namespace, result: ArapResult, seconds: float, label: str, U_out: np.ndarray,
+            back: tuple[np.ndarray, np.ndarray] | None, repair: RepairResult, renumbered: bool) -> None:
+    """The lines ``arap deform`` prints after a complete solve whose result was written."""
+    from arap.io import format_of
+
     if not args.quiet:
         if result.energies:
             per_it = 1e3 * seconds / max(result.iterations, 1)
@@ -277,4 +304,3 @@ def run_deform(args: argparse.Namespace) -> int:
             _err(f"arap: note: {args.output} has the repaired mesh's {len(U_out):,} vertices, not in the vertex "
                  f"order of {label}: its vertex {nan}, used by no face, has NaN or infinite coordinates, which "
                  "cannot be written; remove it from the file to keep the numbering")
-    return 0
