@@ -580,7 +580,8 @@ def test_studio_calls_the_server(monkeypatch: pytest.MonkeyPatch, capsys: pytest
     calls: list[tuple[object, dict[str, object]]] = []
 
     def fake_serve(mesh: object = None, host: str = "127.0.0.1", port: int = 8000, open_browser: bool = False,
-                   *, max_sessions: int = 0, allow_origins: object = None, on_ready: object = None) -> None:
+                   *, max_sessions: int = 0, allow_origins: object = None, on_ready: object = None,
+                   token: object = None) -> None:
         calls.append((mesh, {"host": host, "port": port, "open_browser": open_browser,
                              "max_sessions": max_sessions, "allow_origins": allow_origins}))
         assert callable(on_ready)
