@@ -23,9 +23,14 @@ from numpy.typing import NDArray
 from arap.errors import OptionError
 from arap.repair import repair_mesh
 
-__all__ = ["BUILTIN_MESHES", "builtin_mesh", "obtuse_cylinder", "scan_blob", "sphere", "sphere_frequency_for"]
+__all__ = ["BUILTIN_MESHES", "DEFAULT_SPHERE_SUBDIVISIONS", "builtin_mesh", "obtuse_cylinder", "scan_blob", "sphere",
+           "sphere_frequency_for"]
 
 BUILTIN_MESHES = ("cactus", "bar", "cylinder")
+"""The named demo shapes. :func:`builtin_mesh` also takes ``"sphere"`` and ``"sphere:N"`` (about N vertices)."""
+
+DEFAULT_SPHERE_SUBDIVISIONS = 6
+"""Subdivisions of the built-in ``"sphere"``: 40,962 vertices."""
 
 MAX_SPHERE_VERTICES = 20_000_000
 """Largest sphere :func:`sphere` builds (about 4 GB of arrays and more to solve on it)."""
@@ -419,11 +424,14 @@ _BUILDERS: dict[str, Callable[[], tuple[np.ndarray, np.ndarray]]] = {
 
 
 def builtin_mesh(name: str) -> tuple[np.ndarray, np.ndarray]:
-    """One of the built-in meshes (see the module description).
+    """One of the built-in meshes (see the module description), or a geodesic sphere.
 
     Parameters
     ----------
-    name : {"cactus", "bar", "cylinder"}
+    name : {"cactus", "bar", "cylinder", "sphere"} or "sphere:N"
+        ``"sphere"`` is a geodesic sphere of 40,962 vertices (:data:`DEFAULT_SPHERE_SUBDIVISIONS`), ``"sphere:N"``
+        one of about ``N`` vertices (at least 12, at most :data:`MAX_SPHERE_VERTICES`): the names ``arap`` takes on
+        the command line.
 
     Returns
     -------
@@ -432,12 +440,37 @@ def builtin_mesh(name: str) -> tuple[np.ndarray, np.ndarray]:
 
     Raises
     ------
-    ValueError
-        Unknown name.
+    OptionError
+        Unknown name, or a sphere size that is not a whole number in range.
+
+    Example
+    -------
+    >>> V, F = builtin_mesh("sphere:1000")
+    >>> V.shape
+    (1002, 3)
     """
+    if name == "sphere" or name.startswith("sphere:"):
+        return _named_sphere(name)
     try:
         build = _BUILDERS[name]
     except KeyError:
-        raise OptionError(f"unknown built-in mesh {name!r}; choose one of {', '.join(BUILTIN_MESHES)}") from None
+        raise OptionError(f"unknown built-in mesh {name!r}; choose one of {', '.join(BUILTIN_MESHES)}, sphere or "
+                          "sphere:N (about N vertices)") from None
     V, F = build()
     return np.ascontiguousarray(V, dtype=np.float64), np.ascontiguousarray(F, dtype=np.int64)
+
+
+def _named_sphere(name: str) -> tuple[np.ndarray, np.ndarray]:
+    """``"sphere"`` or ``"sphere:N"`` (see :func:`builtin_mesh`)."""
+    if name == "sphere":
+        return sphere(DEFAULT_SPHERE_SUBDIVISIONS)
+    text = name.partition(":")[2].replace("_", "")
+    try:
+        wanted = int(text)
+    except ValueError:
+        raise OptionError(f"bad sphere size in {name!r}; use e.g. sphere:100000") from None
+    if wanted < 12:
+        raise OptionError(f"{name} asks for fewer vertices than the smallest sphere (12); use e.g. sphere:100000")
+    if wanted > MAX_SPHERE_VERTICES:
+        raise OptionError(f"{name} asks for more than {MAX_SPHERE_VERTICES:,} vertices, the largest sphere built")
+    return sphere(frequency=sphere_frequency_for(wanted))

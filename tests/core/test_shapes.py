@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from arap.diagnose import inspect_mesh
+from arap.errors import OptionError
 from arap.mesh import check_mesh
 from arap.shapes import BUILTIN_MESHES, builtin_mesh, obtuse_cylinder, scan_blob, sphere, sphere_frequency_for
 
@@ -131,3 +132,19 @@ def test_obtuse_mesh_options_are_checked() -> None:
         obtuse_cylinder(squash=0.0)
     with pytest.raises(ValueError, match="n >= 20"):
         scan_blob(n=10)
+
+
+def test_the_sphere_names_of_the_command_line_are_built_in_meshes_too() -> None:
+    """``arap --help`` lists ``sphere`` and ``sphere:N`` among the built-in meshes: the library takes them as well."""
+    from arap.shapes import DEFAULT_SPHERE_SUBDIVISIONS
+
+    V, F = builtin_mesh("sphere")
+    V0, F0 = sphere(DEFAULT_SPHERE_SUBDIVISIONS)
+    assert len(V) == 40_962 and np.array_equal(V, V0) and np.array_equal(F, F0)
+    V, F = builtin_mesh("sphere:1000")
+    assert len(V) == 1002 and len(F) == 2000
+    assert builtin_mesh("sphere:1_000")[0].shape == (1002, 3)
+    for bad, words in [("sphere:x", "bad sphere size"), ("sphere:3", "fewer vertices"),
+                       ("sphere:99999999999", "more than"), ("spheres", "sphere:N")]:
+        with pytest.raises(OptionError, match=words):
+            builtin_mesh(bad)
