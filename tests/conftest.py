@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+import os
 import shutil
 import tempfile
+from collections.abc import Generator
 from pathlib import Path
 
 import pytest
@@ -11,6 +13,34 @@ import pytest
 REPO_ROOT = Path(__file__).resolve().parents[1]
 
 _HYPOTHESIS_HOME = Path(tempfile.mkdtemp(prefix="arap-hypothesis-"))
+
+STRICT_ENV = "ARAP_TEST_STRICT"
+"""With ``ARAP_TEST_STRICT=1`` (as ``.ci/run`` sets it) a skipped test fails: a missing Chromium, Node.js, libigl,
+CHOLMOD or shared meshes folder would otherwise remove a whole area of tests from a green run without a word."""
+STRICT_ALLOWED = ("cannot make a device node here",)
+"""Skip reasons that strict runs keep as skips: what the machine forbids rather than what set-up forgot."""
+
+
+def strict_failure(reason: str) -> str | None:
+    """The failure message for a skip with ``reason`` in a strict run, or None where the skip stands."""
+    if os.environ.get(STRICT_ENV) != "1" or any(allowed in reason for allowed in STRICT_ALLOWED):
+        return None
+    return (f"skipped ({reason}), and {STRICT_ENV}=1 makes every skip fail: install what the test needs "
+            "(./dev test sets it all up)")
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo[None]) -> Generator[None, None, None]:
+    """In strict runs (:data:`STRICT_ENV`), a skip is reported as a failure."""
+    outcome = yield
+    report = outcome.get_result()  # type: ignore[attr-defined]
+    if report.skipped and not hasattr(report, "wasxfail"):
+        longrepr = report.longrepr
+        reason = longrepr[2] if isinstance(longrepr, tuple) and len(longrepr) == 3 else str(longrepr)
+        message = strict_failure(str(reason))
+        if message is not None:
+            report.outcome = "failed"
+            report.longrepr = message
 
 
 def pytest_configure(config: pytest.Config) -> None:
