@@ -48,6 +48,7 @@ const app = {
   sentVersion: -1, // selection.version that set_constraints carried
   syncedVersion: -1, // selection.version known to match the server's constraints
   serverKey: '',
+  serverTransforms: [], // the transforms of the server's handle groups (last state)
   errors: [],
   messages: 0,
   canUndo: false,
@@ -200,7 +201,15 @@ function commitConstraints(targets = null, force = false, pointTargets = null) {
   const c = selection.toConstraints();
   const key = constraintsKey(c);
   const moving = !!targets || !!pointTargets?.some((t) => t);
-  if (key === app.serverKey && app.sentKey === null && !moving && !force) return;
+  if (key === app.serverKey && app.sentKey === null && !moving && !force) {
+    // the server holds this selection already (e.g. a refused point handle was taken away again): drags must
+    // carry its groups, not those of the set it refused
+    const regrouped = c.groupMap.join() !== app.groupMap.join();
+    app.groupMap = c.groupMap;
+    app.syncedVersion = selection.version;
+    if (regrouped && !gizmo.dragging) gizmo.setTransforms(app.serverTransforms, app.groupMap);
+    return;
+  }
   app.groupMap = c.groupMap;
   app.sentKey = key;
   app.sentVersion = selection.version;
@@ -273,6 +282,7 @@ function onMesh(msg) {
   app.repaired = (msg.report || []).length > 0;
   app.lastSeq = -1;
   app.groupMap = [];
+  app.serverTransforms = [];
   app.sentKey = null;
   app.syncedVersion = selection.version;
   app.refusal = null;
@@ -324,7 +334,9 @@ function onState(msg) {
     app.syncedVersion = app.sentVersion;
     app.refusal = null;
     if (app.syncedVersion > app.errorVersion) panel.clearStatus('request'); // the error no longer holds
-  } else if (app.sentKey === null && key !== constraintsKey(selection.toConstraints())) {
+  } else if (app.sentKey === null && key === constraintsKey(selection.toConstraints())) {
+    app.groupMap = selection.toConstraints().groupMap; // the server's groups are the ones shown
+  } else if (app.sentKey === null) {
     // the server's constraints changed under us (undo/redo, loaded document): adopt them
     selection.fromConstraints(c);
     mirror.repair();
@@ -333,6 +345,7 @@ function onState(msg) {
     app.refusal = null;
     refreshSelection(true);
   }
+  app.serverTransforms = msg.transforms || [];
   if (!gizmo.dragging) gizmo.setTransforms(msg.transforms, app.groupMap);
   if (app.busyFor === SERVER.STATE) setBusy(null);
   updateGroupsUi();
