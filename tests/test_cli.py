@@ -13,9 +13,9 @@ import numpy as np
 import pytest
 
 import arap
-from arap import cli_deform
+from arap.cli import deform as cli_deform
 from arap.cli import main
-from arap.cli_bench import bench_constraints
+from arap.cli.bench import bench_constraints
 from arap.io import load_mesh, save_mesh
 from arap.shapes import builtin_mesh
 
@@ -176,14 +176,14 @@ def test_ctrl_c_while_the_output_is_written_lets_it_finish(tmp_path: Path, capsy
     assert load_mesh(out)[0].shape == builtin_mesh("bar")[0].shape
     monkeypatch.undo()
 
-    err_line = cli_deform._err
+    err_line = cli_deform.err
 
     def press_after_wrote(text: str) -> None:  # Ctrl-C as the closing lines are printed
         err_line(text)
         if text.startswith("arap: wrote"):
             signal.raise_signal(signal.SIGINT)
 
-    monkeypatch.setattr(cli_deform, "_err", press_after_wrote)
+    monkeypatch.setattr(cli_deform, "err", press_after_wrote)
     out.unlink()
     assert main(["deform", "bar", "--constraints", str(cfile), "-o", str(out), "-n", "3"]) == 0
     assert "was written in full" in capsys.readouterr().err

@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from arap.cli_bench import bench_constraints
+from arap.cli.bench import bench_constraints
 from arap.jit import _counts, warm_up_kernels
 from arap.shapes import builtin_mesh
 from arap.solver import ArapSolver

@@ -10,11 +10,28 @@ import time
 
 import numpy as np
 
-from arap.cli import _out, _warm_up_kernels, load_mesh_argument
-from arap.errors import ArapError
-from arap.solver import ArapSolver
+from arap.cells import DEFAULT_ENERGY, ENERGY_TYPES
+from arap.cli.common import alpha_value, check_bench_runs, load_mesh_argument, out, warm_up_kernels
+from arap.smooth import DEFAULT_ALPHA
+from arap.weights import DEFAULT_WEIGHTS, WEIGHT_TYPES
 
-__all__ = ["bench_constraints", "constrained_components", "run_bench"]
+__all__ = ["add_parser", "bench_constraints", "constrained_components", "run_bench"]
+
+
+def add_parser(commands: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    """Add ``arap bench`` and its options to the subcommands of ``arap``."""
+    p = commands.add_parser("bench", help="time the solver on a mesh",
+                            description="Fix the lowest 10% along the longest axis, move the top 10% (connected parts "
+                                        "with neither stay at rest), and time the precompute and the iterations.")
+    p.add_argument("mesh", metavar="MESH", nargs="?", default="sphere",
+                   help="default: a geodesic sphere of 40,962 vertices")
+    p.add_argument("-n", "--iterations", type=int, default=10, help="iterations per run (default: 10)")
+    p.add_argument("-r", "--repeats", type=int, default=3, help="runs; the median is reported (default: 3)")
+    p.add_argument("--energy", choices=ENERGY_TYPES, default=DEFAULT_ENERGY)
+    p.add_argument("--weights", choices=WEIGHT_TYPES, default=DEFAULT_WEIGHTS)
+    p.add_argument("--alpha", type=alpha_value, default=DEFAULT_ALPHA, help="rotation term weight of smooth_rotations")
+    p.add_argument("--json", action="store_true", help="print one JSON object instead of a table")
+    p.set_defaults(func=run_bench)
 
 
 def bench_constraints(V: np.ndarray, share: float = 0.1) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -54,13 +71,14 @@ def constrained_components(F: np.ndarray, n: int, indices: np.ndarray) -> np.nda
 
 def run_bench(args: argparse.Namespace) -> int:
     """``arap bench``: time precompute and iterations on a mesh (the bend scenario); prints a table or JSON."""
-    if args.iterations < 1 or args.repeats < 1:
-        raise ArapError("--iterations and --repeats must be >= 1")
+    from arap.solver import ArapSolver
+
+    check_bench_runs(args.iterations, args.repeats)
     V, F, _, label = load_mesh_argument(args.mesh)
     fixed, handles, targets = bench_constraints(V)
     indices = np.concatenate([fixed, handles])
     all_targets = np.concatenate([V[fixed], targets])
-    kernels = _warm_up_kernels(quiet=args.json)
+    kernels = warm_up_kernels(quiet=args.json)
     t0 = time.perf_counter()
     roi = constrained_components(F, len(V), indices)
     solver = ArapSolver(V, F, indices, energy=args.energy, weights=args.weights, alpha=args.alpha, roi=roi)
@@ -76,7 +94,7 @@ def run_bench(args: argparse.Namespace) -> int:
     split = {key: 1e3 * best.timings[key] / k for key in ("local", "rhs", "solve")}
     backend = getattr(solver, "backend", None) or "?"
     if args.json:
-        _out(json.dumps({
+        out(json.dumps({
             "mesh": label, "n_vertices": len(V), "n_faces": len(F),
             "n_fixed": len(fixed), "n_handles": len(handles),
             "energy": args.energy, "weights": args.weights, "linear_solver": str(backend),
@@ -103,5 +121,5 @@ def run_bench(args: argparse.Namespace) -> int:
     ]
     width = max(len(name) for name, _ in rows)
     for name, value in rows:
-        _out(f"{name.ljust(width)}  {value}")
+        out(f"{name.ljust(width)}  {value}")
     return 0

@@ -15,15 +15,57 @@ from typing import TYPE_CHECKING, Any, TextIO
 import numpy as np
 
 import arap.result
-from arap.cli import EXIT_INTERRUPTED, _err, _warm_up_kernels, load_mesh_argument
+from arap.cells import DEFAULT_ENERGY, ENERGY_TYPES
+from arap.cli.common import (
+    EXIT_INTERRUPTED,
+    alpha_value,
+    check_iterations_and_tolerance,
+    err,
+    load_mesh_argument,
+    warm_up_kernels,
+)
 from arap.errors import ArapError, ConstraintError, MeshError, MeshFormatError, UnconstrainedRegionError
 from arap.repair import RepairResult
-from arap.result import START_NAMES
+from arap.result import ACCELERATIONS, DEFAULT_TOLERANCE, MAX_ITERATIONS, START_NAMES
+from arap.smooth import DEFAULT_ALPHA
+from arap.weights import DEFAULT_WEIGHTS, WEIGHT_TYPES
 
 if TYPE_CHECKING:
     from arap.result import ArapResult
 
-__all__ = ["run_deform"]
+__all__ = ["add_parser", "run_deform"]
+
+
+def add_parser(commands: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    """Add ``arap deform`` and its options to the subcommands of ``arap``."""
+    p = commands.add_parser("deform", help="deform a mesh with a constraints file",
+                            description="Deform MESH so the handles reach their targets and the fixed vertices stay.")
+    p.add_argument("mesh", metavar="MESH")
+    p.add_argument("-c", "--constraints", required=True, metavar="FILE.json",
+                   help='JSON with "fixed", "handles", "targets" and optionally "roi" (file vertex indices)')
+    p.add_argument("-o", "--output", required=True, metavar="OUT", help="output mesh file (.obj .off .ply .stl)")
+    p.add_argument("-n", "--iterations", type=int, default=None,
+                   help=f"maximum iterations (default: until converged, at most {MAX_ITERATIONS:,})")
+    p.add_argument("-t", "--tolerance", type=float, default=DEFAULT_TOLERANCE,
+                   help="converged when the plain iteration's step (RMS over the free vertices) is at most this "
+                        f"many bounding-box diagonals (default: {DEFAULT_TOLERANCE:g}; 0 runs all iterations)")
+    p.add_argument("--start", default="auto", metavar="{" + ",".join(START_NAMES) + "} or SHAPE",
+                   help="starting pose: the rest pose, its best-fit rigid motion onto the targets, whichever has the "
+                        "lower energy (default: auto), or a mesh file with MESH's vertices and triangles (or an STL "
+                        "of its triangles), e.g. a shape exported from the studio (where the energy has several "
+                        "minima, the solve then ends in that shape's)")
+    p.add_argument("--acceleration", choices=ACCELERATIONS, default="lbfgs",
+                   help="L-BFGS preconditioned by the global step (Liu et al. 2017), Anderson acceleration (Peng et "
+                        "al. 2018) or the plain iteration (default: lbfgs)")
+    p.add_argument("--energy", choices=ENERGY_TYPES, default=DEFAULT_ENERGY,
+                   help=f"cell definition (default: {DEFAULT_ENERGY}; spokes is the 2007 paper's)")
+    p.add_argument("--weights", choices=WEIGHT_TYPES, default=DEFAULT_WEIGHTS,
+                   help=f"edge weights (default: {DEFAULT_WEIGHTS})")
+    p.add_argument("--alpha", type=alpha_value, default=DEFAULT_ALPHA,
+                   help=f"weight of the rotation term of smooth_rotations (SR-ARAP), relative to the surface area "
+                        f"(default: {DEFAULT_ALPHA})")
+    p.add_argument("-q", "--quiet", action="store_true", help="print nothing but errors")
+    p.set_defaults(func=run_deform)
 
 
 class _Progress:
@@ -174,7 +216,7 @@ def _note_flat_faces(V: np.ndarray, F: np.ndarray, energy: str, weights: str) ->
 
     count = flat_faces(V, F)
     if count:
-        _err(f"arap: note: {count:,} faces are nearly flat (an angle above {FLAT_ANGLE_DEGREES:g}°): their cotangent "
+        err(f"arap: note: {count:,} faces are nearly flat (an angle above {FLAT_ANGLE_DEGREES:g}°): their cotangent "
              f"weights are large and negative, and {energy} can fold or blow up the shape there; --energy "
              "spokes_and_rims (the default) cannot")
 
@@ -196,10 +238,7 @@ def run_deform(args: argparse.Namespace) -> int:
     folder = destination.parent
     if not os.access(folder, os.W_OK):
         raise MeshFormatError(f"cannot write {args.output}: the folder {folder} is not writable")
-    if args.iterations is not None and args.iterations < 0:
-        raise ArapError(f"--iterations must be >= 0, got {args.iterations}")
-    if not args.tolerance >= 0:
-        raise ArapError(f"--tolerance must be >= 0, got {args.tolerance}")
+    check_iterations_and_tolerance(args.iterations, args.tolerance)
     V, F, repair, label = load_mesh_argument(args.mesh)
     n_file = len(repair.vertex_map)
     constraints = load_constraints(args.constraints, n_file, len(F))
@@ -208,15 +247,15 @@ def run_deform(args: argparse.Namespace) -> int:
         raise ConstraintError("point handles refer to the file's triangles, which mesh repair changed; repair the "
                               "mesh file first (arap info shows what repair changes)")
     if repair.report and not args.quiet:
-        _err(f"arap: repaired {label}: {'; '.join(repair.report)}")
+        err(f"arap: repaired {label}: {'; '.join(repair.report)}")
     if renumbered:
         constraints = constraints.remapped(repair.vertex_map)
         if not args.quiet:
-            _err("arap: vertex indices changed by the repair; constraints were renumbered to match")
+            err("arap: vertex indices changed by the repair; constraints were renumbered to match")
     indices, targets = constraints.indices_and_targets(V)
     start = args.start if args.start in START_NAMES else _start_shape(args.start, repair, F, label)
 
-    _warm_up_kernels(args.quiet)
+    warm_up_kernels(args.quiet)
     try:
         solver = ArapSolver(V, F, indices, energy=args.energy, weights=args.weights, roi=constraints.roi,
                             stiffness=constraints.stiffness, alpha=args.alpha, points=constraints.points)
@@ -225,7 +264,7 @@ def run_deform(args: argparse.Namespace) -> int:
             raise
         raise _in_file_numbering(exc, repair) from None
     if not args.quiet:
-        _err(f"arap: {label}: {len(V):,} vertices, {len(F):,} faces; {len(constraints.fixed):,} fixed, "
+        err(f"arap: {label}: {len(V):,} vertices, {len(F):,} faces; {len(constraints.fixed):,} fixed, "
              f"{len(constraints.handles):,} handles; precompute {1e3 * solver.factor_seconds:.0f} ms")
         _note_flat_faces(V, F, args.energy, args.weights)
     progress = _Progress(args.iterations, sys.stderr, enabled=not args.quiet)
@@ -263,7 +302,7 @@ def run_deform(args: argparse.Namespace) -> int:
     # during the last iteration, after it, or while the output was written leaves the complete result written.
     cap = args.iterations if args.iterations is not None else arap.result.MAX_ITERATIONS
     if stopped_at and not result.converged and result.iterations < cap:
-        _err(f"arap: interrupted after {result.iterations} iterations: wrote the last iterate to {args.output} "
+        err(f"arap: interrupted after {result.iterations} iterations: wrote the last iterate to {args.output} "
              f"(not converged: residual {result.residual:.2g}, tolerance {args.tolerance:g})")
         return EXIT_INTERRUPTED
     try:
@@ -271,7 +310,7 @@ def run_deform(args: argparse.Namespace) -> int:
     except KeyboardInterrupt:
         interrupt.requested = True
     if interrupt.requested:
-        _err(f"arap: interrupted at the end of the solve: {args.output} was written in full")
+        err(f"arap: interrupted at the end of the solve: {args.output} was written in full")
     return 0
 
 
@@ -286,21 +325,21 @@ def _report(args: argparse.Namespace, result: ArapResult, seconds: float, label:
             status = ("converged" if result.converged else "every iteration run (tolerance 0)" if not args.tolerance
                       else f"iteration limit reached, not converged (residual {result.residual:.2g}, tolerance "
                       f"{args.tolerance:g})")
-            _err(f"arap: {result.iterations} iterations in {seconds:.2f} s ({per_it:.1f} ms/iteration), "
+            err(f"arap: {result.iterations} iterations in {seconds:.2f} s ({per_it:.1f} ms/iteration), "
                  f"energy {result.energies[0]:.6g} -> {result.energies[-1]:.6g}, {status}")
             if not result.converged and args.tolerance and args.iterations is None:
                 other = "" if args.energy == "spokes_and_rims" else ("; spokes_and_rims (the default energy) often "
                                                                      "converges much sooner on such meshes")
-                _err(f"arap: note: the shape written is the last iterate; raise --iterations to go on{other}")
+                err(f"arap: note: the shape written is the last iterate; raise --iterations to go on{other}")
             if min(result.energies) < 0:
-                _err(f"arap: note: the energy is below 0 because {args.energy} with {args.weights} weights has "
+                err(f"arap: note: the energy is below 0 because {args.energy} with {args.weights} weights has "
                      "negative terms on obtuse triangles (see README, 'Energy and weights'); "
                      "spokes_and_rims is never negative")
         in_file_order = (f" in the vertex order of {label} ({len(U_out):,} vertices)"
                          if back is not None and format_of(args.output) != "stl" else "")  # an STL has no vertices
-        _err(f"arap: wrote {args.output}{in_file_order}")
+        err(f"arap: wrote {args.output}{in_file_order}")
         if back is None and renumbered and format_of(args.mesh) != "stl" and repair.input_V is not None:
             nan = int(np.argmax(~np.isfinite(repair.input_V).all(axis=1)))
-            _err(f"arap: note: {args.output} has the repaired mesh's {len(U_out):,} vertices, not in the vertex "
+            err(f"arap: note: {args.output} has the repaired mesh's {len(U_out):,} vertices, not in the vertex "
                  f"order of {label}: its vertex {nan}, used by no face, has NaN or infinite coordinates, which "
                  "cannot be written; remove it from the file to keep the numbering")

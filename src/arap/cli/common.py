@@ -1,0 +1,176 @@
+"""What the commands of ``arap`` share: output lines, exit statuses, the mesh argument, the kernel warm-up and the
+checks of option values (each option is checked here, and only here).
+
+This module imports no other module of :mod:`arap.cli`, and none of the server stack.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from arap.errors import ArapError, MeshFormatError, OptionError
+from arap.repair import RepairResult
+from arap.smooth import check_alpha
+
+__all__ = [
+    "DEFAULT_SPHERE",
+    "EXIT_BAD_INPUT",
+    "EXIT_INTERRUPTED",
+    "EXIT_OK",
+    "EXIT_USAGE",
+    "alpha_value",
+    "check_bench_runs",
+    "check_iterations_and_tolerance",
+    "err",
+    "load_mesh_argument",
+    "one_line",
+    "origin_value",
+    "out",
+    "positive_int",
+    "token_value",
+    "warm_up_kernels",
+]
+
+#: Exit statuses: success, bad input (files or values), bad usage (reported by argparse), interrupted.
+EXIT_OK, EXIT_BAD_INPUT, EXIT_USAGE, EXIT_INTERRUPTED = 0, 1, 2, 130
+
+DEFAULT_SPHERE = 6  # subdivisions of the built-in "sphere": 40,962 vertices
+
+
+# ---------------------------------------------------------------------------------------------- output
+def out(text: str) -> None:
+    """A line of command output on stdout."""
+    sys.stdout.write(text + "\n")
+    sys.stdout.flush()
+
+
+def err(text: str) -> None:
+    """A line of progress or diagnostics on stderr."""
+    sys.stderr.write(text + "\n")
+    sys.stderr.flush()
+
+
+def one_line(exc: BaseException) -> str:
+    """An exception's message on one line of at most 500 characters."""
+    text = " ".join(str(exc).split()) or type(exc).__name__
+    return text if len(text) <= 500 else text[:497] + "..."
+
+
+def warm_up_kernels(quiet: bool) -> dict[str, object]:
+    """Compile (first run) or load the kernels before anything is timed; says so when it compiled."""
+    from arap.jit import warm_up_kernels as compile_or_load
+
+    warm = compile_or_load()
+    if warm.compiled and not quiet:
+        err(f"arap: compiling kernels (first run only)… {warm.seconds:.1f} s (cached in {warm.cache_dir})")
+    return {"compiled": warm.compiled > 0, "seconds": warm.seconds, "cache_dir": warm.cache_dir}
+
+
+# ---------------------------------------------------------------------------------------------- meshes
+def _identity_report(n: int) -> RepairResult:
+    return RepairResult(V=np.zeros((0, 3)), F=np.zeros((0, 3), dtype=np.int64),
+                        vertex_map=np.arange(n, dtype=np.int64))
+
+
+def load_mesh_argument(spec: str, *, repair: bool = True) -> tuple[np.ndarray, np.ndarray, RepairResult, str]:
+    """A mesh named on the command line: a file, a built-in name, ``sphere`` or ``sphere:N``.
+
+    Returns
+    -------
+    V : (n, 3) float64 array
+    F : (m, 3) int64 array
+    repair : RepairResult
+        What loading repaired (identity ``vertex_map`` for generated meshes).
+    label : str
+        Name for messages.
+    """
+    from arap.io import load_mesh_with_report
+    from arap.io.paths import folder_problem
+    from arap.shapes import BUILTIN_MESHES, builtin_mesh, sphere, sphere_frequency_for
+
+    path = Path(spec)
+    if path.exists():
+        V, F, report = load_mesh_with_report(path, repair=repair)
+        return V, F, report, str(path)
+    if spec in BUILTIN_MESHES:
+        V, F = builtin_mesh(spec)
+        return V, F, _identity_report(len(V)), f"built-in {spec}"
+    if spec == "sphere" or spec.startswith("sphere:"):
+        if spec == "sphere":
+            V, F = sphere(DEFAULT_SPHERE)
+        else:
+            try:
+                wanted = int(spec.split(":", 1)[1].replace("_", "").replace(",", ""))
+            except ValueError:
+                raise MeshFormatError(f"bad sphere size in {spec!r}; use e.g. sphere:100000") from None
+            if wanted < 12:
+                raise MeshFormatError(f"sphere:{wanted} asks for fewer vertices than the smallest sphere (12); use "
+                                      "e.g. sphere:100000")
+            V, F = sphere(frequency=sphere_frequency_for(wanted))
+        return V, F, _identity_report(len(V)), "geodesic sphere"
+    problem = folder_problem(path.parent)  # a missing folder, or a file where the path needs a folder
+    if problem is not None:
+        raise MeshFormatError(f"{spec}: no such file ({problem})")
+    raise MeshFormatError(f"{spec}: no such file (built-in meshes: {', '.join(BUILTIN_MESHES)}, sphere, sphere:N)")
+
+
+# ---------------------------------------------------------------------------------------------- option values
+# Argument types: argparse reports what they refuse as bad usage (exit status 2).
+def alpha_value(text: str) -> float:
+    """``--alpha``: a number that the library's own check accepts."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+    try:
+        return check_alpha(value)
+    except OptionError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+def positive_int(text: str) -> int:
+    """An integer of at least 1 (``arap studio --max-sessions``)."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not an integer: {text!r}") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be at least 1, got {value}")
+    return value
+
+
+def token_value(text: str) -> str:
+    """``arap studio --token``: non-empty, without spaces."""
+    if not text or any(c.isspace() for c in text):
+        raise argparse.ArgumentTypeError("a token must be non-empty, without spaces")
+    return text
+
+
+def origin_value(text: str) -> str:
+    """``arap studio --allow-origin``: an origin the studio's guard accepts (``http(s)://host[:port]``)."""
+    from arap.server.guard import normalize_origin
+
+    try:
+        normalize_origin(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+    return text
+
+
+# Checks once the arguments are parsed: what they refuse is bad input (exit status 1).
+def check_iterations_and_tolerance(iterations: int | None, tolerance: float) -> None:
+    """``arap deform -n/--iterations`` (None: until converged) and ``-t/--tolerance``."""
+    if iterations is not None and iterations < 0:
+        raise ArapError(f"--iterations must be >= 0, got {iterations}")
+    if not tolerance >= 0:
+        raise ArapError(f"--tolerance must be >= 0, got {tolerance}")
+
+
+def check_bench_runs(iterations: int, repeats: int) -> None:
+    """``arap bench -n/--iterations`` and ``-r/--repeats``."""
+    if iterations < 1 or repeats < 1:
+        raise ArapError("--iterations and --repeats must be >= 1")

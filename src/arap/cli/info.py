@@ -1,0 +1,92 @@
+"""``arap info``: describe a mesh, its defects and what repair would change, as text or as JSON."""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from arap.cli.common import load_mesh_argument, out
+from arap.errors import MeshError
+
+if TYPE_CHECKING:
+    from arap.diagnose import MeshInfo
+
+__all__ = ["add_parser", "info_report", "run_info"]
+
+
+def add_parser(commands: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    """Add ``arap info`` and its options to the subcommands of ``arap``."""
+    p = commands.add_parser("info", help="describe a mesh and its defects",
+                            description="Counts, components, boundary, defects, negative cotangent weights, and what "
+                                        "repair would change.")
+    p.add_argument("mesh", metavar="MESH")
+    p.add_argument("--json", action="store_true", help="print one JSON object instead of text")
+    p.set_defaults(func=run_info)
+
+
+def info_report(V: np.ndarray, F: np.ndarray, label: str) -> tuple[MeshInfo, dict[str, Any]]:
+    """What ``arap info`` reports: the mesh description and the JSON-ready report of ``arap info --json``."""
+    from arap.diagnose import inspect_mesh
+    from arap.mesh import check_mesh
+    from arap.repair import repair_mesh
+
+    info = inspect_mesh(V, F)
+    report: dict[str, Any] = {"mesh": label}
+    for key, value in dataclasses.asdict(info).items():
+        report[key] = value.tolist() if isinstance(value, np.ndarray) else value
+    report.update(n_components=info.n_components, closed=info.closed, problems=info.problems)
+    try:
+        check_mesh(V, F)
+        report["ready"], report["not_ready_reason"] = True, None
+    except MeshError as exc:
+        report["ready"], report["not_ready_reason"] = False, str(exc)
+    try:
+        fixed = repair_mesh(V, F)
+    except MeshError as exc:
+        report["repair"] = {"possible": False, "reason": str(exc)}
+    else:
+        renumbers = fixed.renumbers
+        repaired = inspect_mesh(fixed.V, fixed.F) if fixed.report else info
+        report["repair"] = {"possible": True, "changes": list(fixed.report), "n_vertices": len(fixed.V),
+                            "n_faces": len(fixed.F), "renumbers_vertices": renumbers,
+                            "n_components": repaired.n_components}
+    return info, report
+
+
+def run_info(args: argparse.Namespace) -> int:
+    """``arap info``: print the description of the mesh (text or JSON); the exit status."""
+    V, F, _, label = load_mesh_argument(args.mesh, repair=False)
+    info, report = info_report(V, F, label)
+    if args.json:
+        out(json.dumps(report, indent=2))
+        return 0
+    out(label)
+    for line in info.lines():
+        out(f"  {line}")
+    repair = report["repair"]
+    if report["ready"]:
+        n = report["n_components"]
+        note = "" if n <= 1 else f" (each of the {n:,} components needs a constrained vertex of its own)"
+        after = repair.get("n_components", n)
+        if after < n:  # e.g. an STL, whose triangles share no vertex until welded
+            each = "; each needs a constrained vertex of its own" if after > 1 else ""
+            note = (f" ({n:,} components as stored; {after:,} after the repair below, which arap deform and the "
+                    f"studio apply on loading{each})")
+        out(f"  ready for ARAP: yes{note}")
+    else:
+        out(f"  ready for ARAP: no ({report['not_ready_reason']})")
+    if not repair["possible"]:
+        out(f"  repair: impossible ({repair['reason']})")
+    elif not repair["changes"]:
+        out("  repair: nothing to do")
+    else:
+        out(f"  repair would: {'; '.join(repair['changes'])}")
+        indices = "change" if repair["renumbers_vertices"] else "stay"
+        parts = repair["n_components"]
+        out(f"  after repair: {repair['n_vertices']:,} vertices, {repair['n_faces']:,} faces, {parts:,} "
+            f"component{'s' if parts != 1 else ''} (vertex indices {indices})")
+    return 0
