@@ -13,6 +13,7 @@ the map with the mesh (the ``mesh`` frame's ``file_vertices``).
 
 from __future__ import annotations
 
+import re
 from collections.abc import Mapping
 from typing import Any
 
@@ -21,7 +22,7 @@ import numpy as np
 from arap.server.meshdata import MeshData
 from arap.server.protocol import RequestError
 
-__all__ = ["FileNumbering", "document_in_file_numbering"]
+__all__ = ["FileNumbering", "document_in_file_numbering", "message_in_file_numbering"]
 
 
 class FileNumbering:
@@ -86,6 +87,49 @@ class FileNumbering:
             return [1.0 if i < 0 else values[i] for i in self.vertex_map.tolist()]
         return [{"vertices": self.copies(np.asarray(g["vertices"], dtype=np.int64)).tolist(), "value": g["value"]}
                 for g in raw]
+
+
+_VERTEX_MENTIONS = re.compile(r"(?P<lead>\bvertex |\bvertices |\(first: )(?P<idx>\[[0-9, ]*\]|[0-9]+)")
+"""Where a constraint or solver message names mesh vertices: ``vertex 12``, ``vertices [3, 4]``, ``(first: 12)``
+(a repeated index; "first: item k = i" names a position in a list, not a vertex, and is left alone)."""
+
+
+def message_in_file_numbering(message: str, mesh: MeshData | None) -> str:
+    """A message about the session's constraints that names vertices, with each named as the mesh file numbers it.
+
+    The studio works on the repaired mesh, whose numbering may differ from the file's (see the module's notes);
+    the user knows the file's. A vertex that repair welded from several file copies is named as its lowest copy.
+    Unchanged when repair kept the numbering, and for indices beyond the mesh (out of range: the index as sent).
+
+    Examples
+    --------
+    >>> V = np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0]])
+    >>> mesh = MeshData.make("m", V, [[0, 1, 2]], ["1 unused vertex removed"], np.array([-1, 0, 1, 2]))
+    >>> message_in_file_numbering("vertex 2 is in both fixed and handle group 0", mesh)
+    'vertex 3 is in both fixed and handle group 0'
+    >>> message_in_file_numbering("undetermined (e.g. vertices [0, 1])", mesh)
+    'undetermined (e.g. vertices [1, 2])'
+    """
+    if mesh is None or mesh.vertex_map is None:
+        return message
+    numbering = FileNumbering(mesh.vertex_map, mesh.n_vertices)
+
+    def file_index(i: int) -> int:
+        if not 0 <= i < numbering.n_vertices:
+            return i
+        copies = numbering.copies(np.asarray([i], dtype=np.int64))
+        return int(copies[0]) if len(copies) else i
+
+    def renumber(match: re.Match[str]) -> str:
+        idx = match["idx"]
+        if idx.startswith("["):
+            items = [int(x) for x in idx[1:-1].replace(",", " ").split()]
+            idx = "[" + ", ".join(str(file_index(i)) for i in items) + "]"
+        else:
+            idx = str(file_index(int(idx)))
+        return match["lead"] + idx
+
+    return _VERTEX_MENTIONS.sub(renumber, message)
 
 
 def _points_refused(mesh: MeshData) -> str:

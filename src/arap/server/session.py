@@ -22,7 +22,7 @@ from arap.mesh import bounding_box
 from arap.server.constraints import ConstraintSet, identity_transforms, matrices_from_json, matrices_to_json
 from arap.server.history import History, Snapshot
 from arap.server.meshdata import MeshData, export_mesh
-from arap.server.numbering import document_in_file_numbering
+from arap.server.numbering import document_in_file_numbering, message_in_file_numbering
 from arap.server.protocol import RequestError, server_message
 from arap.server.records import DragOutcome, Params, SettleOutcome
 from arap.server.settling import FrameCallback, settle_solve
@@ -110,7 +110,25 @@ class Session:
 
         Raises RequestError (``bad_constraints``) when the solver rejects the constraints.
         """
-        return self._solvers.get(rest_id, V, self._require_mesh().F, cs, params)
+        try:
+            return self._solvers.get(rest_id, V, self._require_mesh().F, cs, params)
+        except RequestError as exc:
+            raise self._in_file_numbering(exc) from exc.__cause__
+
+    def _in_file_numbering(self, exc: RequestError) -> RequestError:
+        """``exc`` with the vertices its message names numbered as in the mesh file (the user's numbering)."""
+        message = message_in_file_numbering(exc.message, self.mesh)
+        if message == exc.message:
+            return exc
+        return RequestError(exc.code, message, exc.request)
+
+    def _build(self, rest: np.ndarray, pose: np.ndarray, roi: Any, fixed: Any, groups: Any,
+               **kwargs: Any) -> ConstraintSet:
+        """:meth:`ConstraintSet.build` for the current mesh, its errors naming vertices in the file's numbering."""
+        try:
+            return ConstraintSet.build(rest, pose, roi, fixed, groups, faces=self._require_mesh().F, **kwargs)
+        except RequestError as exc:
+            raise self._in_file_numbering(exc) from exc.__cause__
 
     def _snapshot(self) -> Snapshot:
         return Snapshot(self.rest_id, self.V, self.U, self.constraints, self.transforms, self.settled,
@@ -192,7 +210,7 @@ class Session:
             ``bad_constraints`` for invalid indices or constraints the solver rejects, ``bad_message`` for
             targets of the wrong shape or absurdly far away.
         """
-        mesh = self._require_mesh()
+        self._require_mesh()
         positions = None
         n_handles = sum(len(g) for g in groups)
         if targets is not None:
@@ -202,8 +220,8 @@ class Session:
                                    "vertex")
             self._check_range(given)
             positions = given if n_handles else None
-        cs = ConstraintSet.build(self.V, self.U, roi, fixed, groups, handle_positions=positions,
-                                 stiffness=stiffness, points=points, faces=mesh.F)
+        cs = self._build(self.V, self.U, roi, fixed, groups, handle_positions=positions, stiffness=stiffness,
+                         points=points)
         moved = positions is not None or any("target" in p for p in points or [])
         if moved:
             self._check_range(cs.point_pose)
@@ -403,7 +421,7 @@ class Session:
 
     def reset(self) -> None:
         """Back to the rest pose, keeping the selection (an undo step)."""
-        mesh = self._require_mesh()
+        self._require_mesh()
         self._commit_pending_drag()
         old = self.constraints
         at_rest = (self.U is self.V and old.pose is self.V
@@ -412,8 +430,8 @@ class Session:
             return
         groups = [g.tolist() for g in old.groups]
         roi = None if old.roi is None else old.roi.tolist()
-        cs = ConstraintSet.build(self.V, self.V, roi, old.fixed.tolist(), groups, stiffness=old.stiffness_json(),
-                                 points=old.points_json(), faces=mesh.F)
+        cs = self._build(self.V, self.V, roi, old.fixed.tolist(), groups, stiffness=old.stiffness_json(),
+                         points=old.points_json())
         self.solver = self._solver_for(self.rest_id, self.V, cs, self.params)
         self.U = self.V
         self.constraints = cs
@@ -434,9 +452,8 @@ class Session:
         except ArapError as exc:
             raise RequestError("bad_mesh", f"the deformed shape cannot become the rest pose: {exc}") from exc
         old = self.constraints
-        cs = ConstraintSet.build(V, V, None if old.roi is None else old.roi.tolist(), old.fixed.tolist(),
-                                 [g.tolist() for g in old.groups], stiffness=old.stiffness_json(),
-                                 points=old.points_json(), faces=mesh.F)
+        cs = self._build(V, V, None if old.roi is None else old.roi.tolist(), old.fixed.tolist(),
+                         [g.tolist() for g in old.groups], stiffness=old.stiffness_json(), points=old.points_json())
         rest_id = self._new_rest_id()
         self.solver = self._solver_for(rest_id, V, cs, self.params)
         self.rest_id, self.V, self.U = rest_id, V, V
