@@ -16,8 +16,12 @@ export function takesKeys(el) {
 /**
  * Studio shortcuts on the whole document: Ctrl/Cmd+Z undo, Ctrl/Cmd+Shift+Z and Ctrl/Cmd+Y redo, and `keys`
  * (lower-case key → action) without modifiers. Events aimed at a control that takes keys are left alone.
+ * `unbound(key)`, when given, hears of a printable key (no Ctrl, Cmd or Alt) that is no shortcut, so that the
+ * page can say so instead of nothing happening.
+ * @param {{undo: () => unknown, redo: () => unknown, keys: Record<string, () => unknown>,
+ *   unbound?: (key: string) => unknown}} opts
  */
-export function installShortcuts({ undo, redo, keys }) {
+export function installShortcuts({ undo, redo, keys, unbound }) {
   document.addEventListener('keydown', (e) => {
     if (e.defaultPrevented || e.isComposing || takesKeys(e.target)) return;
     const k = e.key.toLowerCase();
@@ -28,9 +32,11 @@ export function installShortcuts({ undo, redo, keys }) {
       return;
     }
     if (e.ctrlKey || e.metaKey || e.altKey) return;
-    if (keys[k]) {
+    if (Object.hasOwn(keys, k)) {
       keys[k]();
       e.preventDefault();
+    } else if (unbound && e.key.length === 1 && e.key.trim() !== '' && !e.repeat) {
+      unbound(e.key);
     }
   });
 }

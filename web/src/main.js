@@ -135,17 +135,41 @@ function setBusy(text, forType) {
 /** @param {import('./protocol.js').ClientMessage} msg @returns {boolean} */
 function send(msg) {
   if (!conn.send(msg)) {
-    panel.showStatus('Not connected to the studio server.', 'error');
+    notConnected();
     return false;
   }
   keeper.sent(msg);
   return true;
 }
 
-/** Undo or redo (`type`: CLIENT.UNDO or CLIENT.REDO). */
+/** Say that nothing can be sent, unless the status bar already says why (connection lost, server full). */
+function notConnected() {
+  if (!panel.showing('connection')) panel.showStatus('Not connected to the studio server.', 'error');
+}
+
+/** Undo or redo (`type`: CLIENT.UNDO or CLIENT.REDO); a step there is none of says so instead. */
 function stepHistory(type) {
+  const undo = type === CLIENT.UNDO;
+  if (!conn.open) {
+    notConnected();
+    return false;
+  }
+  // a drag or selection under way (its state not back yet) may make a step where the last state had none
+  const pending = app.awaitingState || app.sentKey !== null || gizmo.dragging;
+  if (app.ready && !pending && !(undo ? app.canUndo : app.canRedo)) {
+    panel.hint(undo ? 'Nothing to undo.' : 'Nothing to redo.', 2000);
+    return false;
+  }
   app.lastHistory = type;
   return send({ type });
+}
+
+/** Grow or shrink the current role by a ring from the keyboard; says so when there is nothing to grow. */
+function ringKey(shrink) {
+  if (surface.ring(shrink)) return;
+  const what = app.role === 'point' ? 'Point handles have no rings' : 'Nothing of the current role to '
+    + `${shrink ? 'shrink' : 'grow'}: paint some first`;
+  panel.hint(`${what} (+ and − grow and shrink the painted role by one ring).`);
 }
 
 /** Show the error of a request (or a refused drag): it goes once a later constraint set is accepted. */
@@ -412,7 +436,7 @@ function requestMesh(source) {
     ? conn.send({ type: CLIENT.LOAD_BUILTIN, name: source.name })
     : conn.sendBinary({ type: CLIENT.UPLOAD, filename: source.filename }, source.bytes);
   if (!ok) {
-    panel.showStatus('Not connected to the studio server.', 'error');
+    notConnected();
     return false;
   }
   if (source.kind !== 'builtin') app.uploadAt.sent = performance.timeOrigin + performance.now();
@@ -563,15 +587,16 @@ installShortcuts({
     4: () => setRole('erase'),
     5: () => setRole('point'),
     6: () => setRole('stiffness'),
-    '+': () => surface.ring(false),
-    '=': () => surface.ring(false),
-    '-': () => surface.ring(true),
+    '+': () => ringKey(false),
+    '=': () => ringKey(false),
+    '-': () => ringKey(true),
     h: () => heat.setOn(!heat.on),
     m: () => mirror.setOn(!mirror.on),
     '?': () => help.toggle(),
     escape: () => (help.shown ? help.hide() : panel.hideStatus()),
     ...transformUi.keys,
   }),
+  unbound: (key) => panel.hint(`“${key}” is not a shortcut; press ? for the list of keys.`),
 });
 installSurfaceControls(surface, tools, (text) => panel.showStatus(text, 'info', 3000));
 installHud(document.getElementById('hud'), document.querySelector('#hud .hud-head'), document.getElementById('hud-toggle'));

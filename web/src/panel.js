@@ -245,7 +245,7 @@ export class Panel {
     this.setBusy(null);
     this.settleUnknown();
     this.showStatus('Lost the connection to the studio server; reconnecting… Your work is kept and comes back ' +
-      'when the server does.', 'error');
+      'when the server does.', 'error', 0, 'connection');
   }
 
   /**
@@ -260,14 +260,15 @@ export class Panel {
     const why = reason ? ` (server: “${reason}”)` : '';
     const kept = keptWork ? ' Your work is kept and comes back once this tab gets in.' : '';
     this.showStatus(`The studio server is full and did not let this tab in${why}. Close another studio tab, then `
-      + `press Reconnect; this page also tries again every ${Math.round(delayMs / 1000)} s.${kept}`, 'error');
+      + `press Reconnect; this page also tries again every ${Math.round(delayMs / 1000)} s.${kept}`, 'error', 0,
+    'connection');
   }
 
   /** The server speaks another protocol version (a page left open across an upgrade): nothing is sent. */
   protocolMismatch(ours, theirs) {
     this.setEnabled(false);
     this.showStatus(`This page speaks version ${ours} of the studio protocol and the server version ${theirs}: `
-      + 'reload the page.', 'error');
+      + 'reload the page.', 'error', 0, 'connection');
   }
 
   /**
@@ -378,6 +379,20 @@ export class Panel {
     bar.hidden = false;
     clearTimeout(this._statusTimer);
     if (timeoutMs) this._statusTimer = setTimeout(() => this.hideStatus(), timeoutMs);
+  }
+
+  /** True while the status bar shows a message tagged `tag` (see showStatus). */
+  showing(tag) {
+    return !$('statusbar').hidden && $('statusbar').dataset.tag === tag;
+  }
+
+  /**
+   * A short hint (a key that does nothing now, and why): shown for `timeoutMs` unless the status bar holds an
+   * error, which it must not hide.
+   */
+  hint(text, timeoutMs = 3000) {
+    if (!$('statusbar').hidden && $('statusbar').className === 'error') return;
+    this.showStatus(text, 'info', timeoutMs, 'hint');
   }
 
   /** Hide the status bar if it shows a message tagged `tag` (see showStatus). */

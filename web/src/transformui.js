@@ -87,7 +87,13 @@ export function installTransformUi({ viewer, gizmo, canStart, say, hush }) {
   };
 
   const startEntry = (what) => {
-    if (!entry.start(what) && !gizmo.indices.length) say('Pick a handle group first: G and R move or turn it.');
+    if (entry.start(what)) return;
+    const key = what === 'rotate' ? 'R' : 'G';
+    if (!gizmo.indices.length) say('Pick a handle group first: G and R move or turn it.');
+    else if (!entry.pointerOver && canStart() && !gizmo.dragging) {
+      say(`Point at the 3D view, then press ${key}: the typed ${what === 'rotate' ? 'rotation' : 'move'} starts `
+        + 'there.');
+    }
   };
 
   return {
