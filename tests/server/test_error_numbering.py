@@ -26,7 +26,7 @@ def test_a_vertex_both_fixed_and_a_handle_is_named_as_in_the_file(studio: Studio
     v = fixed[3]
     file_v = int(np.flatnonzero(vertex_map == v)[0])
     assert file_v != v
-    studio.send({"type": "set_constraints", "roi": None, "fixed": fixed, "handle_groups": [top + [v]]})
+    studio.send({"type": "set_constraints", "roi": None, "fixed": fixed, "handle_groups": [[*top, v]]})
     error = studio.error("bad_constraints")
     assert f"vertex {file_v} is in both" in error["message"], error["message"]
 
@@ -34,7 +34,7 @@ def test_a_vertex_both_fixed_and_a_handle_is_named_as_in_the_file(studio: Studio
 def _two_bars(vertex_map: bool) -> MeshData:
     V, F = arap.builtin_mesh("bar")
     n = len(V)
-    V2 = np.concatenate([V, V + [10.0, 0.0, 0.0]])
+    V2 = np.concatenate([V, V + np.array([10.0, 0.0, 0.0])])
     F2 = np.concatenate([F, F + n])
     if not vertex_map:
         return MeshData.make("bars", V2, F2)
