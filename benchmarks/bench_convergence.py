@@ -27,7 +27,7 @@ import numpy as np
 from arap import ArapSolver, arap_energy
 from arap.io import load_mesh
 from arap.io.atomic import write_atomic
-from arap.result import ACCELERATIONS, Acceleration
+from arap.options import ACCELERATIONS, Acceleration
 from arap.scenarios import make_scenario
 from arap.shapes import builtin_mesh
 from arap.start import best_rigid_transform

@@ -73,7 +73,7 @@ def test_deform_says_when_the_cap_stopped_it(tmp_path: Path, capsys: pytest.Capt
                                             monkeypatch: pytest.MonkeyPatch) -> None:
     cfile = tmp_path / "c.json"
     bar_constraints(cfile)
-    monkeypatch.setattr("arap.result.MAX_ITERATIONS", 3)
+    monkeypatch.setattr("arap.options.MAX_ITERATIONS", 3)
     assert main(["deform", "bar", "--constraints", str(cfile), "-o", str(tmp_path / "o.obj"),
                  "--energy", "spokes"]) == 0
     err = capsys.readouterr().err
@@ -713,3 +713,31 @@ def test_deform_says_when_it_cannot_keep_the_files_vertex_order(tmp_path: Path,
     err = capsys.readouterr().err
     assert f"not in the vertex order of {mesh}: its vertex 0, used by no face, has NaN" in err
     assert len(load_mesh(out, repair=False)[0]) == len(V)
+
+
+def test_the_command_modules_import_only_common() -> None:
+    """No import cycle in arap.cli, imports inside functions included: the package imports the command modules,
+    they import arap.cli.common only, and common imports none of them."""
+    import ast
+
+    import arap.cli
+
+    folder = Path(arap.cli.__file__).parent
+    found: dict[str, set[str]] = {}
+    for path in folder.glob("*.py"):
+        imported: set[str] = set()
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if isinstance(node, ast.ImportFrom) and node.module == "arap.cli":
+                imported |= {f"arap.cli.{a.name}" if (folder / f"{a.name}.py").exists() else "arap.cli"
+                             for a in node.names}
+            elif isinstance(node, ast.ImportFrom) and (node.module or "").startswith("arap.cli."):
+                imported.add(str(node.module))
+            elif isinstance(node, ast.Import):
+                imported |= {a.name for a in node.names if a.name == "arap.cli" or a.name.startswith("arap.cli.")}
+        found[path.stem] = imported
+    commands = {"deform", "info", "bench", "studio"}
+    assert found["__init__"] == {f"arap.cli.{name}" for name in commands | {"common"}}
+    assert found["common"] == set()
+    for name in commands:
+        assert found[name] == {"arap.cli.common"}, name
+    assert found["__main__"] == {"arap.cli"}

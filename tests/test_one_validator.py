@@ -1,25 +1,39 @@
 """One validator, one answer: the library, the command line and the studio's session layer accept and refuse the
-same constraint selections, with the same message."""
+same constraint selections, with the same message; the solver's options are named, defaulted and checked in
+arap.options only."""
 
 from __future__ import annotations
 
+import ast
 import json
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pytest
 
+import arap.options
+from arap.cells import build_cells
 from arap.cli import main
 from arap.constraints import load_constraints
-from arap.errors import ConstraintError
+from arap.errors import ConstraintError, OptionError
 from arap.io import load_mesh
+from arap.options import (
+    DEFAULT_ENERGY,
+    DEFAULT_WEIGHTS,
+    check_alpha,
+    check_energy_and_weights,
+    check_solve_options,
+    check_weights,
+)
 from arap.server.constraints import ConstraintSet
 from arap.server.meshdata import MeshData
 from arap.server.protocol import RequestError
 from arap.server.session import Session
 from arap.shapes import builtin_mesh
 from arap.solver import ArapSolver
+from arap.weights import corner_weights, edge_weight_matrix
 
 V, F = builtin_mesh("bar")
 N = len(V)
@@ -136,3 +150,75 @@ def test_point_handles_are_refused_alike_by_files_and_the_studio(point: dict[str
     with pytest.raises(RequestError, match=expected) as err:
         session.set_constraints(None, BOTTOM, [], points=[point])
     assert err.value.code == "bad_constraints"
+
+
+# ---------------------------------------------------------------------------------------------- solver options
+SRC = Path(arap.__file__).parent
+
+
+def _top_level_names(path: Path) -> set[str]:
+    """The names a module defines at its top level (functions, classes, assignments; not imports)."""
+    names: set[str] = set()
+    for node in ast.parse(path.read_text(encoding="utf-8")).body:
+        if isinstance(node, ast.FunctionDef | ast.ClassDef):
+            names.add(node.name)
+        elif isinstance(node, ast.Assign):
+            names |= {n.id for target in node.targets for n in ast.walk(target) if isinstance(n, ast.Name)}
+        elif isinstance(node, ast.AnnAssign) and isinstance(node.target, ast.Name):
+            names.add(node.target.id)
+    return names
+
+
+def _definitions() -> dict[str, list[str]]:
+    where: dict[str, list[str]] = {}
+    for path in sorted(SRC.rglob("*.py")):
+        for name in _top_level_names(path):
+            where.setdefault(name, []).append(path.relative_to(SRC).as_posix())
+    return where
+
+
+def test_each_option_name_default_and_check_is_defined_once() -> None:
+    """The solver's option vocabulary (names, defaults, checks) is defined in arap/options.py and nowhere else; the
+    command line's checks of its option values in arap/cli/common.py; the studio's labels in arap/server/labels.py."""
+    where = _definitions()
+    homes = {name: "options.py" for name in arap.options.__all__}
+    homes |= {name: "cli/common.py" for name in ("alpha_value", "positive_int", "token_value", "origin_value",
+                                                  "check_iterations_and_tolerance", "check_bench_runs")}
+    homes |= {"ENERGY_LABELS": "server/labels.py", "WEIGHT_LABELS": "server/labels.py"}
+    for name, home in homes.items():
+        assert where.get(name) == [home], f"{name} is defined in {where.get(name)}, expected only in {home}"
+
+
+def test_the_library_refuses_bad_options_with_the_checks_of_arap_options() -> None:
+    def message(call: Callable[[], object]) -> str:
+        with pytest.raises(OptionError) as info:
+            call()
+        return str(info.value)
+
+    energy = message(lambda: check_energy_and_weights("twist", DEFAULT_WEIGHTS))
+    assert "unknown energy 'twist'" in energy
+    assert message(lambda: ArapSolver(V, F, BOTTOM, energy="twist")) == energy  # type: ignore[arg-type]
+    assert message(lambda: build_cells(V, F, energy="twist")) == energy
+    weights = message(lambda: check_weights("heavy"))
+    assert "unknown weights 'heavy'" in weights
+    assert message(lambda: check_energy_and_weights(DEFAULT_ENERGY, "heavy")) == weights
+    assert message(lambda: ArapSolver(V, F, BOTTOM, weights="heavy")) == weights  # type: ignore[arg-type]
+    assert message(lambda: corner_weights(V, F, "heavy")) == weights
+    assert message(lambda: edge_weight_matrix(V, F, "heavy")) == weights
+    alpha = message(lambda: check_alpha(-1.0))
+    assert alpha.startswith("alpha must be a number from 0 to")
+    assert message(lambda: ArapSolver(V, F, BOTTOM, energy="smooth_rotations", alpha=-1.0)) == alpha
+    solver = ArapSolver(V, F, BOTTOM)
+    for options in ({"acceleration": "fast"}, {"tolerance": -1.0}, {"max_iterations": 2.5}, {"window": 0}):
+        checked = {"max_iterations": None, "tolerance": 0.0, "acceleration": "lbfgs", "window": None} | options
+        expected = message(lambda checked=checked: check_solve_options(**checked))  # type: ignore[misc]
+        assert message(lambda options=options: solver.solve(V[BOTTOM], **options)) == expected  # type: ignore[misc]
+
+
+def test_the_command_line_refuses_a_bad_alpha_with_the_library_message(tmp_path: Path,
+                                                                        capsys: pytest.CaptureFixture[str]) -> None:
+    with pytest.raises(OptionError) as library:
+        check_alpha(-1.0)
+    for command in (["deform", "bar", "-c", str(tmp_path / "c.json"), "-o", str(tmp_path / "o.obj")], ["bench"]):
+        assert main([*command, "--alpha", "-1"]) == 2
+        assert f"argument --alpha: {library.value}" in capsys.readouterr().err

@@ -19,7 +19,6 @@ instead of eight for a sort of all its (cell, a, b) triples, with the same array
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Literal, get_args
 
 import numba as nb
 import numpy as np
@@ -28,17 +27,9 @@ from numpy.typing import NDArray
 
 from arap._csr import csr_from_terms
 from arap.errors import ArapError, ConstraintError, OptionError
-from arap.weights import DEFAULT_WEIGHTS, WEIGHT_TYPES, corner_weights, edge_weight_matrix
-
-EnergyType = Literal["spokes", "spokes_and_rims", "smooth_rotations"]
-ENERGY_TYPES: tuple[str, ...] = get_args(EnergyType)
-"""Energy names: the one list the library, the command line, the studio protocol and its client use."""
-ENERGY_LABELS: dict[str, str] = {"spokes": "spokes (2007 paper)", "spokes_and_rims": "spokes and rims",
-                                 "smooth_rotations": "smooth rotations (SR-ARAP)"}
-"""How the studio names each energy."""
-DEFAULT_ENERGY: EnergyType = "spokes_and_rims"
-"""The default cells: unlike ``spokes`` with cotangent weights, they do not fold meshes with obtuse triangles, and
-their energy is a sum of non-negative per-triangle terms (see ``benchmarks/bench_folds.py``)."""
+from arap.options import DEFAULT_ENERGY, DEFAULT_WEIGHTS, check_energy_and_weights
+from arap.options import EnergyType as EnergyType  # the name the server modules import from here
+from arap.weights import corner_weights, edge_weight_matrix
 
 
 @dataclass(frozen=True)
@@ -73,14 +64,6 @@ class Cells:
     def cell_of_term(self) -> np.ndarray:
         """(t,) cell index of each term."""
         return np.repeat(np.arange(self.n_cells), np.diff(self.ptr))
-
-
-def check_energy_and_weights(energy: str, weights: str) -> None:
-    """Refuse an unknown energy or weights name (:class:`~arap.errors.OptionError`): the one check of both names."""
-    if energy not in ENERGY_TYPES:
-        raise OptionError(f"unknown energy {energy!r}; expected one of {ENERGY_TYPES}")
-    if weights not in WEIGHT_TYPES:
-        raise OptionError(f"unknown weights {weights!r}; expected one of {WEIGHT_TYPES}")
 
 
 def build_cells(V: np.ndarray, F: np.ndarray, energy: str = DEFAULT_ENERGY, weights: str = DEFAULT_WEIGHTS) -> Cells:

@@ -7,23 +7,23 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from arap.cells import (
-    DEFAULT_ENERGY,
-    Cells,
-    EnergyType,
-    build_cells,
-    check_energy_and_weights,
-    check_stiffness,
-    scale_cells,
-)
+from arap.cells import Cells, build_cells, check_stiffness, scale_cells
 from arap.covariance import local_step
 from arap.errors import ArapError
 from arap.mesh import MeshLike, check_mesh, is_mesh_like, mesh_arrays
+from arap.options import (
+    DEFAULT_ALPHA,
+    DEFAULT_ENERGY,
+    DEFAULT_WEIGHTS,
+    EnergyType,
+    WeightType,
+    check_alpha,
+    check_energy_and_weights,
+)
 from arap.rigid import RigidRegions, rigid_regions
 from arap.rotations import identity_rotations
-from arap.smooth import DEFAULT_ALPHA, SmoothRotations, check_alpha
+from arap.smooth import SmoothRotations
 from arap.start import vertex_areas
-from arap.weights import DEFAULT_WEIGHTS, WeightType
 
 __all__ = ["arap_energy", "cell_distortion", "cell_energies", "distortion_from_cells"]
 

@@ -46,8 +46,6 @@ Start. A cold start does not sweep from each cell's own best rotation (:meth:`Sm
 
 from __future__ import annotations
 
-import math
-
 import numba as nb
 import numpy as np
 import scipy.sparse as sp
@@ -57,15 +55,11 @@ from arap._parallel import policy
 from arap.cells import Cells
 from arap.colouring import WINDOW, colour_vertices
 from arap.covariance import CHUNK, cell_covariance
-from arap.errors import OptionError
 from arap.rotation_step import ZERO9, RotationStep, add_transposed, plus_scaled, rotation_gap, trace_with
 from arap.rotations import BLOCK, SCRATCH_ROWS, put_covariance, rotations_block, take_rotation
 from arap.start import best_rigid_transform
 
-__all__ = ["DEFAULT_ALPHA", "MAX_ALPHA", "STEPS", "SWEEPS", "SmoothRotations"]
-
-DEFAULT_ALPHA = 0.02
-"""Default weight of the rotation term (CGAL's ``SRE_ARAP`` default), relative to the surface area."""
+__all__ = ["STEPS", "SWEEPS", "SmoothRotations"]
 
 STEPS = 1
 """Preconditioned rotation steps (:class:`arap.rotation_step.RotationStep`) in one local step of the solver. A step
@@ -221,19 +215,6 @@ def _rotation_term_parallel(ptr, b, q, coef, R, out):  # pragma: no cover - comp
         total += part[ch]
     return total
 
-
-MAX_ALPHA = 1e3
-"""Largest ``alpha``. Already at 1 the rotation term holds neighbouring rotations together so strongly that larger
-values hardly change the shape (the cactus bend: energy 0.69956 at 1e3, 0.69960 at 1e6), while far larger ones lose
-the data term to round-off: at 1e12 the iteration stopped after 2 iterations at 0.734, and at 1e300 the rotation
-step's matrix could not be factorised."""
-
-
-def check_alpha(alpha: object) -> float:
-    """Refuse an ``alpha`` that is not a number between 0 and :data:`MAX_ALPHA` (:class:`~arap.errors.OptionError`)."""
-    if not (isinstance(alpha, int | float) and math.isfinite(alpha) and 0 <= alpha <= MAX_ALPHA):
-        raise OptionError(f"alpha must be a number from 0 to {MAX_ALPHA:g}, got {alpha!r}")
-    return float(alpha)
 
 
 class SmoothRotations:

@@ -11,7 +11,7 @@ from numpy.typing import NDArray
 
 from arap.errors import OptionError
 from arap.indexing import assign_rows
-from arap.result import START_NAMES
+from arap.options import START_NAMES
 from arap.smooth import SmoothRotations
 from arap.start import rigid_start
 

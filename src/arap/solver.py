@@ -10,11 +10,8 @@ from numpy.typing import ArrayLike, NDArray
 from arap._csr import SparseRowsProduct, leading_blocks
 from arap.anderson import AndersonAccelerator
 from arap.cells import (
-    DEFAULT_ENERGY,
-    EnergyType,
     build_cells,
     build_rhs_gather,
-    check_energy_and_weights,
     check_stiffness,
     scale_cells,
     singular_system_error,
@@ -29,27 +26,31 @@ from arap.lbfgs import LbfgsHistory
 from arap.linsolve import NotPositiveDefiniteError, background_ordering, factorize
 from arap.loops import PLAIN_START, Iterate, lbfgs_iterations, plain_iterations
 from arap.mesh import MeshLike, bounding_box, check_mesh, is_mesh_like, mesh_arrays
-from arap.partition import check_point_targets, check_positions, check_reach, check_targets, partition_vertices
-from arap.points import PointConstraints, PointSystem, check_points
-from arap.result import (
+from arap.options import (
+    DEFAULT_ALPHA,
+    DEFAULT_ENERGY,
     DEFAULT_LBFGS_MEMORY,
     DEFAULT_TOLERANCE,
+    DEFAULT_WEIGHTS,
     DEFAULT_WINDOW,
     Acceleration,
-    ArapResult,
-    IterationCallback,
+    EnergyType,
     StartName,
+    WeightType,
+    check_alpha,
+    check_energy_and_weights,
     check_solve_options,
-    rounding_floor,
 )
+from arap.partition import check_point_targets, check_positions, check_reach, check_targets, partition_vertices
+from arap.points import PointConstraints, PointSystem, check_points
+from arap.result import ArapResult, IterationCallback, rounding_floor
 from arap.rigid import RIGID_TOLERANCE, RigidRegions, rigid_regions
 from arap.rotations import identity_rotations
-from arap.smooth import DEFAULT_ALPHA, STEPS, SWEEPS, SmoothRotations, check_alpha
+from arap.smooth import STEPS, SWEEPS, SmoothRotations
 from arap.solve_start import SolveStart
 from arap.start import vertex_areas
 from arap.steps import SingleSteps
 from arap.topology import locality_order, vertex_adjacency
-from arap.weights import DEFAULT_WEIGHTS, WeightType
 
 
 class ArapSolver(SolveStart, SingleSteps):

@@ -9,22 +9,13 @@
 
 from __future__ import annotations
 
-from typing import Literal, get_args
-
 import numba as nb
 import numpy as np
 import scipy.sparse as sp
 
 from arap._csr import csr_from_face_edges
-from arap.errors import OptionError
-
-WeightType = Literal["cotangent", "clamped", "uniform"]
-WEIGHT_TYPES: tuple[str, ...] = get_args(WeightType)
-"""Weight names: the one list the library, the command line, the studio protocol and its client use."""
-WEIGHT_LABELS: dict[str, str] = {"cotangent": "cotangent", "clamped": "cotangent, clamped at 0", "uniform": "uniform"}
-"""How the studio names each weighting."""
-DEFAULT_WEIGHTS: WeightType = "cotangent"
-"""The default edge weights."""
+from arap.options import WeightType as WeightType  # the name the server modules import from here
+from arap.options import check_weights
 
 
 def face_cotangents(V: np.ndarray, F: np.ndarray) -> np.ndarray:
@@ -85,13 +76,12 @@ def corner_weights(V: np.ndarray, F: np.ndarray, weights: str = "cotangent") -> 
     -------
     (m, 3) float64 array
     """
+    check_weights(weights)
     if weights == "cotangent":
         return 0.5 * face_cotangents(V, F)
     if weights == "clamped":
         return np.maximum(0.5 * face_cotangents(V, F), 0.0)
-    if weights == "uniform":
-        return np.full((len(F), 3), 0.5)
-    raise OptionError(f"unknown weights {weights!r}; expected one of {WEIGHT_TYPES}")
+    return np.full((len(F), 3), 0.5)  # uniform
 
 
 def edge_weight_matrix(V: np.ndarray, F: np.ndarray, weights: str = "cotangent") -> sp.csr_matrix:

@@ -5,13 +5,14 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from arap.cells import DEFAULT_ENERGY, build_cells, system_matrix
+from arap.cells import build_cells, system_matrix
 from arap.energy import arap_energy, cell_energies
 from arap.folds import adjacent_face_pairs, dihedral_turns, folded_pairs, max_dihedral_change
+from arap.options import DEFAULT_ENERGY, DEFAULT_WEIGHTS
 from arap.scenarios import bend
 from arap.shapes import obtuse_cylinder, scan_blob
 from arap.solver import ArapResult, ArapSolver
-from arap.weights import DEFAULT_WEIGHTS, cotangent_laplacian, edge_weight_matrix
+from arap.weights import cotangent_laplacian, edge_weight_matrix
 
 from .scenarios import random_rigid
 

@@ -5,10 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from arap.cells import ENERGY_TYPES
 from arap.energy import arap_energy
+from arap.options import ENERGY_TYPES, WEIGHT_TYPES
 from arap.solver import ArapSolver
-from arap.weights import WEIGHT_TYPES
 
 from .scenarios import bend_constraints, random_rigid
 

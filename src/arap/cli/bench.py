@@ -10,10 +10,8 @@ import time
 
 import numpy as np
 
-from arap.cells import DEFAULT_ENERGY, ENERGY_TYPES
 from arap.cli.common import alpha_value, check_bench_runs, load_mesh_argument, out, warm_up_kernels
-from arap.smooth import DEFAULT_ALPHA
-from arap.weights import DEFAULT_WEIGHTS, WEIGHT_TYPES
+from arap.options import DEFAULT_ALPHA, DEFAULT_ENERGY, DEFAULT_WEIGHTS, ENERGY_TYPES, WEIGHT_TYPES
 
 __all__ = ["add_parser", "bench_constraints", "constrained_components", "run_bench"]
 

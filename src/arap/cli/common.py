@@ -13,8 +13,8 @@ from pathlib import Path
 import numpy as np
 
 from arap.errors import ArapError, MeshFormatError, OptionError
+from arap.options import check_alpha
 from arap.repair import RepairResult
-from arap.smooth import check_alpha
 
 __all__ = [
     "DEFAULT_SPHERE",

@@ -14,8 +14,7 @@ from typing import TYPE_CHECKING, Any, TextIO
 
 import numpy as np
 
-import arap.result
-from arap.cells import DEFAULT_ENERGY, ENERGY_TYPES
+import arap.options
 from arap.cli.common import (
     EXIT_INTERRUPTED,
     alpha_value,
@@ -25,10 +24,18 @@ from arap.cli.common import (
     warm_up_kernels,
 )
 from arap.errors import ArapError, ConstraintError, MeshError, MeshFormatError, UnconstrainedRegionError
+from arap.options import (
+    ACCELERATIONS,
+    DEFAULT_ALPHA,
+    DEFAULT_ENERGY,
+    DEFAULT_TOLERANCE,
+    DEFAULT_WEIGHTS,
+    ENERGY_TYPES,
+    MAX_ITERATIONS,
+    START_NAMES,
+    WEIGHT_TYPES,
+)
 from arap.repair import RepairResult
-from arap.result import ACCELERATIONS, DEFAULT_TOLERANCE, MAX_ITERATIONS, START_NAMES
-from arap.smooth import DEFAULT_ALPHA
-from arap.weights import DEFAULT_WEIGHTS, WEIGHT_TYPES
 
 if TYPE_CHECKING:
     from arap.result import ArapResult
@@ -300,7 +307,7 @@ def run_deform(args: argparse.Namespace) -> int:
         save_mesh(args.output, U_out, F_out)
     # The solve was cut short only when Ctrl-C stopped it before it converged or ran its last iteration: a Ctrl-C
     # during the last iteration, after it, or while the output was written leaves the complete result written.
-    cap = args.iterations if args.iterations is not None else arap.result.MAX_ITERATIONS
+    cap = args.iterations if args.iterations is not None else arap.options.MAX_ITERATIONS
     if stopped_at and not result.converged and result.iterations < cap:
         err(f"arap: interrupted after {result.iterations} iterations: wrote the last iterate to {args.output} "
              f"(not converged: residual {result.residual:.2g}, tolerance {args.tolerance:g})")

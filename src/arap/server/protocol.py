@@ -21,12 +21,11 @@ from typing import Any
 
 import numpy as np
 
-from arap.cells import DEFAULT_ENERGY, ENERGY_LABELS, ENERGY_TYPES
+from arap.options import DEFAULT_ALPHA, DEFAULT_ENERGY, DEFAULT_WEIGHTS, ENERGY_TYPES, WEIGHT_TYPES
 from arap.server.errors import ERROR_CODES, RequestError
 from arap.server.fields import check_field
 from arap.server.frames import MAX_HEADER_BYTES, decode_binary, encode_binary, loads_json
-from arap.smooth import DEFAULT_ALPHA
-from arap.weights import DEFAULT_WEIGHTS, WEIGHT_LABELS, WEIGHT_TYPES
+from arap.server.labels import ENERGY_LABELS, WEIGHT_LABELS
 
 __all__ = [
     "CLIENT_MESSAGES",
