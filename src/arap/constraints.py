@@ -51,7 +51,7 @@ from arap.points import PointConstraints, check_points
 from arap.selection import check_selection, check_targets
 
 __all__ = ["FORMAT_VERSION", "Constraints", "check_selection", "check_targets", "load_constraints",
-           "points_from_json", "save_constraints", "stiffness_from_json", "stiffness_to_json"]
+           "points_from_json", "read_json", "save_constraints", "stiffness_from_json", "stiffness_to_json"]
 
 _KEYS = ("fixed", "handles", "targets", "roi", "handle_groups", "stiffness", "points", "version", "meta")
 
@@ -226,7 +226,8 @@ _FLOAT_MAX = sys.float_info.max
 _MAX_INT_DIGITS = 400
 
 
-def _read_json(path: Path) -> Any:
+def read_json(path: Path) -> Any:
+    """A JSON document of this module's kind (constraints, keyframes), refusing what is not plain JSON data."""
     try:
         text = read_regular_file(path).decode("utf-8")  # a FIFO or a device is refused before it is opened
     except OSError as exc:
@@ -276,7 +277,7 @@ def load_constraints(source: str | os.PathLike[str] | Mapping[str, Any], n_verti
         Unreadable or invalid JSON (nested too deeply, integers of hundreds of digits included), unknown keys, and
         what :func:`check_selection` and :func:`check_targets` refuse, or no constraint at all.
     """
-    data = source if isinstance(source, Mapping) else _read_json(Path(source))
+    data = source if isinstance(source, Mapping) else read_json(Path(source))
     if not isinstance(data, Mapping):
         raise ConstraintError(f"constraints must be a JSON object, got {type(data).__name__}")
     unknown = sorted(str(key)[:40] for key in set(data) - set(_KEYS))

@@ -1,0 +1,149 @@
+"""Keyframe animation: frames at the keys are the solver's shapes, poses between them interpolate as documented,
+and the written files hold every frame."""
+
+from __future__ import annotations
+
+import json
+import struct
+from pathlib import Path
+
+import numpy as np
+import pytest
+import trimesh
+
+import arap
+from arap.animation import Keyframes, animate, frame_paths, frame_times, load_keyframes, save_animation
+from arap.errors import ConstraintError, OptionError
+
+
+def _bar() -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    V, F = arap.builtin_mesh("bar")
+    y = V[:, 1]
+    return V, F, np.flatnonzero(y < 0.2), np.flatnonzero(y > 4.8)
+
+
+def _rotation_z(angle: float, pivot: np.ndarray) -> list[list[float]]:
+    c, s = np.cos(angle), np.sin(angle)
+    R = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    T = np.eye(4)
+    T[:3, :3] = R
+    T[:3, 3] = pivot - R @ pivot
+    return T.tolist()
+
+
+def test_frames_at_the_keys_are_the_solvers_shapes_and_poses_between_are_linear() -> None:
+    V, F, fixed, top = _bar()
+    diag = float(np.linalg.norm(V.max(0) - V.min(0)))
+    poses = [V[top], V[top] + [0.8, 0.0, 0.0], V[top] + [-0.5, 0.05, 0.4]]  # no compression: one minimum
+    doc = {"fixed": fixed.tolist(), "handles": top.tolist(),
+           "keyframes": [{"time": t, "targets": p.tolist()} for t, p in zip([0.0, 0.4, 1.0], poses, strict=True)]}
+    keys = Keyframes.from_json(doc, V)
+    np.testing.assert_allclose(keys.handle_targets(0.2), (poses[0] + poses[1]) / 2, atol=1e-12)
+    np.testing.assert_allclose(keys.handle_targets(0.7), (poses[1] + poses[2]) / 2, atol=1e-12)
+    np.testing.assert_array_equal(keys.handle_targets(-1.0), poses[0])  # held before the first key
+    np.testing.assert_array_equal(keys.handle_targets(9.0), poses[2])  # and after the last
+    anim = animate(V, F, keys, fps=10)
+    np.testing.assert_allclose(anim.times, np.arange(11) / 10, atol=1e-12)
+    assert anim.converged.all() and anim.vertices.shape == (11, len(V), 3)
+    cold = arap.ArapSolver(V, F, np.concatenate([fixed, top]))
+    for t, pose in ((0.4, poses[1]), (1.0, poses[2])):
+        k = int(np.argmin(np.abs(anim.times - t)))
+        expected = cold.solve(np.concatenate([V[fixed], pose]), initial="auto").vertices
+        assert np.abs(anim.vertices[k] - expected).max() <= 1e-6 * diag
+    np.testing.assert_allclose(anim.vertices[5][top], keys.handle_targets(0.5), atol=1e-12)  # handles on target
+
+
+def test_transform_keyframes_turn_about_the_group_pivot() -> None:
+    V, _F, fixed, top = _bar()
+    pivot = V[top].mean(axis=0)
+    doc = {"fixed": fixed.tolist(), "handles": top.tolist(),
+           "keyframes": [{"time": 0.0, "transforms": [np.eye(4).tolist()]},
+                         {"time": 2.0, "transforms": [_rotation_z(np.pi / 2, pivot)]}]}
+    keys = load_keyframes(doc, V)
+    half = keys.handle_targets(1.0)
+    rotated = (V[top] - pivot) @ np.array(_rotation_z(np.pi / 4, np.zeros(3)))[:3, :3].T + pivot
+    np.testing.assert_allclose(half, rotated, atol=1e-12)
+    # a linear blend of the two poses would pull the handles towards the pivot: the turn keeps their distances
+    np.testing.assert_allclose(np.linalg.norm(half - pivot, axis=1), np.linalg.norm(V[top] - pivot, axis=1))
+
+
+def test_a_glb_animation_holds_every_frame(tmp_path: Path) -> None:
+    V, F, fixed, top = _bar()
+    doc = {"fixed": fixed.tolist(), "handles": top.tolist(),
+           "keyframes": [{"time": 0.0, "targets": V[top].tolist()},
+                         {"time": 0.3, "targets": (V[top] + [0.6, 0.0, 0.0]).tolist()}]}
+    anim = animate(V, F, doc, fps=10)
+    out = tmp_path / "bend.glb"
+    assert save_animation(out, F, anim) == [out]
+    data = out.read_bytes()
+    magic, version, total = struct.unpack("<4sII", data[:12])
+    assert (magic, version, total) == (b"glTF", 2, len(data))
+    n_json = struct.unpack("<I", data[12:16])[0]
+    gltf = json.loads(data[20:20 + n_json])
+    binary = data[20 + n_json + 8:]
+    primitive = gltf["meshes"][0]["primitives"][0]
+    assert len(primitive["targets"]) == len(anim.times) == 4
+
+    def accessor(i: int, width: int) -> np.ndarray:
+        a = gltf["accessors"][i]
+        view = gltf["bufferViews"][a["bufferView"]]
+        dtype = "<f4" if a["componentType"] == 5126 else "<u4"
+        raw = np.frombuffer(binary, dtype=dtype, count=a["count"] * width, offset=view["byteOffset"])
+        return raw.reshape(a["count"], width) if width > 1 else raw
+
+    base = accessor(primitive["attributes"]["POSITION"], 3)
+    for k, target in enumerate(primitive["targets"]):
+        frame = base + accessor(target["POSITION"], 3)
+        np.testing.assert_allclose(frame, anim.vertices[k], atol=1e-5)
+    sampler = gltf["animations"][0]["samplers"][0]
+    np.testing.assert_allclose(accessor(sampler["input"], 1), anim.times - anim.times[0], atol=1e-6)
+    np.testing.assert_array_equal(accessor(sampler["output"], 1).reshape(4, 4), np.eye(4))
+    loaded = trimesh.load(out, force="mesh")
+    np.testing.assert_allclose(loaded.vertices, anim.vertices[0], atol=1e-5)
+
+
+def test_numbered_frames(tmp_path: Path) -> None:
+    V, F, fixed, top = _bar()
+    doc = {"fixed": fixed.tolist(), "handles": top.tolist(),
+           "keyframes": [{"time": 0.0, "targets": V[top].tolist()},
+                         {"time": 0.2, "targets": (V[top] + [0.3, 0.0, 0.0]).tolist()}]}
+    anim = animate(V, F, doc, fps=10)
+    paths = save_animation(tmp_path / "frame_##.ply", F, anim)
+    assert [p.name for p in paths] == ["frame_00.ply", "frame_01.ply", "frame_02.ply"]
+    for p, frame in zip(paths, anim.vertices, strict=True):
+        np.testing.assert_allclose(arap.load_mesh(p)[0], frame)
+    assert [p.name for p in frame_paths("a#/f#.obj", 12)][-1] == "f11.obj"
+    with pytest.raises(OptionError, match="####"):
+        save_animation(tmp_path / "frames.obj", F, anim)
+
+
+@pytest.mark.parametrize(("change", "words"), [
+    (lambda d: d["keyframes"].append({"time": 0.0, "targets": d["keyframes"][0]["targets"]}), "not after"),
+    (lambda d: d["keyframes"][0].update(transforms=[np.eye(4).tolist()]), "not both"),
+    (lambda d: d["keyframes"][0].update(targets=[[0, 0, 0]]), "keyframes\\[0\\]"),
+    (lambda d: d["keyframes"].__setitem__(0, {"time": 0.0, "transforms": [np.diag([-1, 1, 1, 1]).tolist()]}),
+     "mirrors"),
+    (lambda d: d["keyframes"][0].update(time=float("nan")), "finite"),
+    (lambda d: d.__setitem__("keyframes", []), "needs \"keyframes\""),
+    (lambda d: d["keyframes"][0].update(speed=2), "unknown keys"),
+])
+def test_bad_keyframes_are_refused_by_name(change: object, words: str) -> None:
+    V, _F, fixed, top = _bar()
+    doc = {"fixed": fixed.tolist(), "handles": top.tolist(),
+           "keyframes": [{"time": 0.0, "targets": V[top].tolist()}]}
+    change(doc)  # type: ignore[operator]
+    with pytest.raises(ConstraintError, match=words):
+        load_keyframes(doc, V)
+
+
+def test_frame_rate_is_checked() -> None:
+    V, _F, fixed, top = _bar()
+    keys = load_keyframes({"fixed": fixed.tolist(), "handles": top.tolist(),
+                           "keyframes": [{"time": 0.0, "targets": V[top].tolist()},
+                                         {"time": 0.25, "targets": V[top].tolist()}]}, V)
+    np.testing.assert_allclose(frame_times(keys, 10), [0.0, 0.1, 0.2, 0.25])  # the last key is a frame
+    for bad in (0, -1, float("inf"), True):
+        with pytest.raises(OptionError, match="fps"):
+            frame_times(keys, bad)  # type: ignore[arg-type]
+    with pytest.raises(OptionError, match="more than"):
+        frame_times(keys, 1e9)
