@@ -67,6 +67,9 @@ export function installTestHook({ app, viewer, selection, gizmo, conn, keeper, p
     get nFaces() {
       return app.nFaces;
     },
+    get repaired() {
+      return app.repaired;
+    },
     get lastSeq() {
       return app.lastSeq;
     },

@@ -82,7 +82,7 @@ export class SessionKeeper {
   meshArrived(msg, positions, faces) {
     const { app } = this.deps;
     app.source = this.pendingSource
-      ?? (app.builtins.includes(msg.name) ? builtinSource(msg.name) : fileSource(`${msg.name}.ply`, encodePly(positions, faces, app.vertexMap)));
+      ?? (app.builtins.includes(msg.name) ? builtinSource(msg.name) : fileSource(`${msg.name}.ply`, encodePly(positions, faces, app.vertexMap), app.repaired));
     this.pendingSource = null;
     if (this.restore.meshArrived(msg, positions)) return;
     if (this.lost) {
@@ -105,7 +105,7 @@ export class SessionKeeper {
       this.applying--;
       const bytes = encodePly(viewer.positions, viewer.geometry.index.array, app.vertexMap);
       if (!app.limits.max_upload_bytes || bytes.byteLength <= app.limits.max_upload_bytes) {
-        app.source = fileSource(`${app.meshName}.ply`, bytes);
+        app.source = fileSource(`${app.meshName}.ply`, bytes, app.repaired);
       }
     }
     this.restore.stateArrived(synced);

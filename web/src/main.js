@@ -260,6 +260,7 @@ function handleMessage(msg) {
       if (Number.isFinite(msg.energy)) stats.noteEnergies([msg.energy]);
       return panel.setSettle(msg);
     case SERVER.CONSTRAINTS: // the document carries the mirror pairs of its handle groups in "meta"
+      if (app.repaired && msg.document?.points?.length) return showRequestError(POINTS_NOT_SAVED(app.meshName));
       return panel.showStatus(downloadConstraints(mirror.documentWithPartners(msg.document, app.groupMap),
         app.meshName), 'info', 2500);
     case SERVER.EXPORT:
@@ -272,6 +273,15 @@ function handleMessage(msg) {
       return undefined;
   }
 }
+
+/**
+ * Why point handles are not saved for a mesh that repair changed (the server says the same of a mesh it repaired
+ * itself; a session restored from the PLY of such a mesh is one it did not repair).
+ */
+const POINTS_NOT_SAVED = (name) => `Point handles cannot be saved in a constraints document for ${name}: they refer `
+  + 'to the triangles of the mesh as repaired when it was loaded, not to the file\'s, and arap deform refuses point '
+  + 'handles on a mesh that repair changes; remove the point handles, or repair the mesh file first (arap info shows '
+  + 'what repair changes).';
 
 function onWelcome(msg) {
   app.incompatible = msg.protocol !== PROTOCOL_VERSION;
@@ -320,6 +330,7 @@ function onMesh(msg) {
   setBusy(null);
   mirror.meshChanged(positions, faces); // after the status line: it may say that no symmetry was found
   keeper.meshArrived(msg, positions, faces);
+  if (app.source?.repaired) app.repaired = true; // a PLY written from a repaired mesh: still not the file's triangles
   app.meshMs = performance.now() - t0;
   app.uploadAt.shown = performance.timeOrigin + performance.now();
   requestAnimationFrame(() => { // after the viewer's own frame callback: the mesh has been drawn once

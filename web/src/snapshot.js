@@ -6,7 +6,9 @@ import { stiffnessToJson } from './stiffness.js';
 
 /**
  * Where the session's rest mesh comes from: a built-in model by name, or the bytes of a mesh file (an upload, or
- * the vertices and faces the server sent, written as PLY). `key` changes whenever the source does.
+ * the vertices and faces the server sent, written as PLY). `key` changes whenever the source does. `repaired`: the
+ * bytes are a mesh that repair changed when its file was loaded (a PLY written from it loads without repairs, but
+ * its triangles are still not the file's).
  */
 let sourceKeys = 0;
 
@@ -14,8 +16,8 @@ export function builtinSource(name) {
   return { kind: 'builtin', name, key: ++sourceKeys };
 }
 
-export function fileSource(filename, bytes) {
-  return { kind: 'file', filename, bytes, key: ++sourceKeys };
+export function fileSource(filename, bytes, repaired = false) {
+  return { kind: 'file', filename, bytes, key: ++sourceKeys, repaired };
 }
 
 /**
