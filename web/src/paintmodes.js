@@ -36,11 +36,41 @@ export class PaintModes {
     this.weightInput.addEventListener('keydown', (e) => {
       if (e.key === 'Enter') this.weightInput.blur();
     });
+    // A decimal comma becomes a point as it is typed or pasted: the number field would take "1,5" as 15 (the comma
+    // read as a thousands separator), and its value never shows what was typed.
+    this.weightInput.addEventListener('beforeinput', (e) => {
+      if (e.inputType === 'insertText' && e.data === ',') {
+        e.preventDefault();
+        this._insertDecimal();
+      }
+    });
+    this.weightInput.addEventListener('paste', (e) => {
+      const text = e.clipboardData?.getData('text/plain') ?? '';
+      if (!text.includes(',')) return;
+      e.preventDefault();
+      const trimmed = text.trim();
+      if (/^\d*,\d+$/.test(trimmed) || /^\d+,\d*$/.test(trimmed)) {
+        document.execCommand('insertText', false, trimmed.replace(',', '.'));
+      } else {
+        this.onWeightProblem(`Point weight must be one positive number, such as 1.5 or 1,5; "${trimmed.slice(0, 40)}" `
+          + 'was not pasted.');
+      }
+    });
     // text that is no number ("1e", "--2") leaves the field's value empty and sends no change
     this.weightInput.addEventListener('blur', () => {
       if (this.weightInput.validity.badInput) this.weight();
     });
     this._update();
+  }
+
+  /** A decimal comma typed into the weight: a point instead, or a message when the number has one already. */
+  _insertDecimal() {
+    const field = this.weightInput;
+    if (field.value.includes('.') || field.value.toLowerCase().includes('e')) {
+      this.onWeightProblem('Point weight takes one decimal separator (a point or a comma), as in 1.5 or 1,5.');
+      return;
+    }
+    document.execCommand('insertText', false, '.');
   }
 
   _update() {
