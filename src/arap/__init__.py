@@ -62,11 +62,16 @@ _LAZY: dict[str, str] = {
     "load_constraints": "arap.constraints",
     "studio": "arap.notebook",
     "Studio": "arap.notebook",
+    "animate": "arap.animation",
+    "load_keyframes": "arap.animation",
+    "Animation": "arap.animation",
+    "batch": "arap.batching",
 }
 
 __all__ = [
     "BUILTIN_MESHES",
     "MESH_FORMATS",
+    "Animation",
     "ArapError",
     "ArapResult",
     "ArapSolver",
@@ -82,7 +87,9 @@ __all__ = [
     "Studio",
     "UnconstrainedRegionError",
     "__version__",
+    "animate",
     "arap_energy",
+    "batch",
     "builtin_mesh",
     "cell_distortion",
     "cell_energies",
@@ -91,6 +98,7 @@ __all__ = [
     "fit_rotations",
     "inspect_mesh",
     "load_constraints",
+    "load_keyframes",
     "load_mesh",
     "load_mesh_bytes",
     "load_mesh_with_report",
@@ -104,6 +112,8 @@ __all__ = [
 ]
 
 if TYPE_CHECKING:
+    from arap.animation import Animation, animate, load_keyframes
+    from arap.batching import batch
     from arap.constraints import Constraints, load_constraints, save_constraints
     from arap.diagnose import MeshInfo, inspect_mesh
     from arap.energy import arap_energy, cell_energies

@@ -464,7 +464,7 @@ def _named_sphere(name: str) -> tuple[np.ndarray, np.ndarray]:
     """``"sphere"`` or ``"sphere:N"`` (see :func:`builtin_mesh`)."""
     if name == "sphere":
         return sphere(DEFAULT_SPHERE_SUBDIVISIONS)
-    text = name.partition(":")[2].replace("_", "")
+    text = name.partition(":")[2].replace("_", "").replace(",", "")
     try:
         wanted = int(text)
     except ValueError:

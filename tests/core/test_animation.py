@@ -147,3 +147,27 @@ def test_frame_rate_is_checked() -> None:
             frame_times(keys, bad)  # type: ignore[arg-type]
     with pytest.raises(OptionError, match="more than"):
         frame_times(keys, 1e9)
+
+
+def test_arap_animate_writes_the_frames_the_library_solves(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    from arap.cli import main
+
+    V, F, fixed, top = _bar()
+    pivot = V[top].mean(axis=0)
+    doc = {"fixed": fixed.tolist(), "handles": top.tolist(),
+           "keyframes": [{"time": 0.0, "transforms": [np.eye(4).tolist()]},
+                         {"time": 0.3, "transforms": [_rotation_z(0.6, pivot)]}]}
+    keys = tmp_path / "keys.json"
+    keys.write_text(json.dumps(doc))
+    assert main(["animate", "bar", "-k", str(keys), "-o", str(tmp_path / "f_###.obj"), "--fps", "10"]) == 0
+    err = capsys.readouterr().err
+    assert "4 frames solved" in err and "frame 4/4" in err
+    expected = animate(V, F, doc, fps=10)
+    for k in range(4):
+        np.testing.assert_allclose(arap.load_mesh(tmp_path / f"f_{k:03d}.obj")[0], expected.vertices[k], atol=1e-9)
+    assert main(["animate", "bar", "-k", str(keys), "-o", str(tmp_path / "a.glb"), "-q"]) == 0
+    assert (tmp_path / "a.glb").read_bytes()[:4] == b"glTF"
+    assert main(["animate", "bar", "-k", str(keys), "-o", str(tmp_path / "frames.obj")]) == 1
+    assert "####" in capsys.readouterr().err
+    assert main(["animate", "bar", "-k", str(keys), "-o", str(tmp_path / "f_#.obj"), "--fps", "0"]) == 1
+    assert "fps must be a positive number" in capsys.readouterr().err

@@ -13,15 +13,25 @@ from pathlib import Path
 import numpy as np
 
 from arap.errors import ArapError, MeshFormatError, OptionError
-from arap.options import check_alpha
+from arap.options import (
+    DEFAULT_ALPHA,
+    DEFAULT_ENERGY,
+    DEFAULT_TOLERANCE,
+    DEFAULT_WEIGHTS,
+    ENERGY_TYPES,
+    MAX_ITERATIONS,
+    WEIGHT_TYPES,
+    check_alpha,
+)
 from arap.repair import RepairResult
 
 __all__ = [
-    "DEFAULT_SPHERE",
     "EXIT_BAD_INPUT",
     "EXIT_INTERRUPTED",
     "EXIT_OK",
     "EXIT_USAGE",
+    "add_energy_options",
+    "add_iteration_options",
     "alpha_value",
     "check_bench_runs",
     "check_iterations_and_tolerance",
@@ -38,7 +48,27 @@ __all__ = [
 #: Exit statuses: success, bad input (files or values), bad usage (reported by argparse), interrupted.
 EXIT_OK, EXIT_BAD_INPUT, EXIT_USAGE, EXIT_INTERRUPTED = 0, 1, 2, 130
 
-DEFAULT_SPHERE = 6  # subdivisions of the built-in "sphere": 40,962 vertices
+
+
+# ---------------------------------------------------------------------------------------------- shared options
+def add_iteration_options(p: argparse.ArgumentParser) -> None:
+    """``-n/--iterations`` and ``-t/--tolerance``, as :meth:`arap.ArapSolver.solve` takes them."""
+    p.add_argument("-n", "--iterations", type=int, default=None,
+                   help=f"maximum iterations (default: until converged, at most {MAX_ITERATIONS:,})")
+    p.add_argument("-t", "--tolerance", type=float, default=DEFAULT_TOLERANCE,
+                   help="converged when the plain iteration's step (RMS over the free vertices) is at most this "
+                        f"many bounding-box diagonals (default: {DEFAULT_TOLERANCE:g}; 0 runs all iterations)")
+
+
+def add_energy_options(p: argparse.ArgumentParser) -> None:
+    """``--energy``, ``--weights`` and ``--alpha``, as :class:`arap.ArapSolver` takes them."""
+    p.add_argument("--energy", choices=ENERGY_TYPES, default=DEFAULT_ENERGY,
+                   help=f"cell definition (default: {DEFAULT_ENERGY}; spokes is the 2007 paper's)")
+    p.add_argument("--weights", choices=WEIGHT_TYPES, default=DEFAULT_WEIGHTS,
+                   help=f"edge weights (default: {DEFAULT_WEIGHTS})")
+    p.add_argument("--alpha", type=alpha_value, default=DEFAULT_ALPHA,
+                   help=f"weight of the rotation term of smooth_rotations (SR-ARAP), relative to the surface area "
+                        f"(default: {DEFAULT_ALPHA})")
 
 
 # ---------------------------------------------------------------------------------------------- output
@@ -90,7 +120,7 @@ def load_mesh_argument(spec: str, *, repair: bool = True) -> tuple[np.ndarray, n
     """
     from arap.io import load_mesh_with_report
     from arap.io.paths import folder_problem
-    from arap.shapes import BUILTIN_MESHES, builtin_mesh, sphere, sphere_frequency_for
+    from arap.shapes import BUILTIN_MESHES, builtin_mesh
 
     path = Path(spec)
     if path.exists():
@@ -100,17 +130,10 @@ def load_mesh_argument(spec: str, *, repair: bool = True) -> tuple[np.ndarray, n
         V, F = builtin_mesh(spec)
         return V, F, _identity_report(len(V)), f"built-in {spec}"
     if spec == "sphere" or spec.startswith("sphere:"):
-        if spec == "sphere":
-            V, F = sphere(DEFAULT_SPHERE)
-        else:
-            try:
-                wanted = int(spec.split(":", 1)[1].replace("_", "").replace(",", ""))
-            except ValueError:
-                raise MeshFormatError(f"bad sphere size in {spec!r}; use e.g. sphere:100000") from None
-            if wanted < 12:
-                raise MeshFormatError(f"sphere:{wanted} asks for fewer vertices than the smallest sphere (12); use "
-                                      "e.g. sphere:100000")
-            V, F = sphere(frequency=sphere_frequency_for(wanted))
+        try:
+            V, F = builtin_mesh(spec)
+        except OptionError as exc:
+            raise MeshFormatError(str(exc)) from None
         return V, F, _identity_report(len(V)), "geodesic sphere"
     problem = folder_problem(path.parent)  # a missing folder, or a file where the path needs a folder
     if problem is not None:

@@ -17,7 +17,8 @@ import numpy as np
 import arap.options
 from arap.cli.common import (
     EXIT_INTERRUPTED,
-    alpha_value,
+    add_energy_options,
+    add_iteration_options,
     check_iterations_and_tolerance,
     err,
     load_mesh_argument,
@@ -26,14 +27,7 @@ from arap.cli.common import (
 from arap.errors import ArapError, ConstraintError, MeshError, MeshFormatError, UnconstrainedRegionError
 from arap.options import (
     ACCELERATIONS,
-    DEFAULT_ALPHA,
-    DEFAULT_ENERGY,
-    DEFAULT_TOLERANCE,
-    DEFAULT_WEIGHTS,
-    ENERGY_TYPES,
-    MAX_ITERATIONS,
     START_NAMES,
-    WEIGHT_TYPES,
 )
 from arap.repair import RepairResult
 
@@ -51,11 +45,7 @@ def add_parser(commands: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     p.add_argument("-c", "--constraints", required=True, metavar="FILE.json",
                    help='JSON with "fixed", "handles", "targets" and optionally "roi" (file vertex indices)')
     p.add_argument("-o", "--output", required=True, metavar="OUT", help="output mesh file (.obj .off .ply .stl)")
-    p.add_argument("-n", "--iterations", type=int, default=None,
-                   help=f"maximum iterations (default: until converged, at most {MAX_ITERATIONS:,})")
-    p.add_argument("-t", "--tolerance", type=float, default=DEFAULT_TOLERANCE,
-                   help="converged when the plain iteration's step (RMS over the free vertices) is at most this "
-                        f"many bounding-box diagonals (default: {DEFAULT_TOLERANCE:g}; 0 runs all iterations)")
+    add_iteration_options(p)
     p.add_argument("--start", default="auto", metavar="{" + ",".join(START_NAMES) + "} or SHAPE",
                    help="starting pose: the rest pose, its best-fit rigid motion onto the targets, whichever has the "
                         "lower energy (default: auto), or a mesh file with MESH's vertices and triangles (or an STL "
@@ -64,13 +54,7 @@ def add_parser(commands: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     p.add_argument("--acceleration", choices=ACCELERATIONS, default="lbfgs",
                    help="L-BFGS preconditioned by the global step (Liu et al. 2017), Anderson acceleration (Peng et "
                         "al. 2018) or the plain iteration (default: lbfgs)")
-    p.add_argument("--energy", choices=ENERGY_TYPES, default=DEFAULT_ENERGY,
-                   help=f"cell definition (default: {DEFAULT_ENERGY}; spokes is the 2007 paper's)")
-    p.add_argument("--weights", choices=WEIGHT_TYPES, default=DEFAULT_WEIGHTS,
-                   help=f"edge weights (default: {DEFAULT_WEIGHTS})")
-    p.add_argument("--alpha", type=alpha_value, default=DEFAULT_ALPHA,
-                   help=f"weight of the rotation term of smooth_rotations (SR-ARAP), relative to the surface area "
-                        f"(default: {DEFAULT_ALPHA})")
+    add_energy_options(p)
     p.add_argument("-q", "--quiet", action="store_true", help="print nothing but errors")
     p.set_defaults(func=run_deform)
 

@@ -1,0 +1,149 @@
+"""Batches of deformations on a process pool, a Ray cluster or a Dask cluster (``arap batch``, :func:`batch`).
+
+Jobs (:mod:`arap.batching.jobs`) are grouped by solver: jobs on the same mesh with the same options and constraint set
+(their targets aside) run one after another in one worker, which factorises the system once for all of them
+(:mod:`arap.batching.worker`). Where there are fewer groups than workers, large groups are split so that every worker
+has work, each part factorising once.
+
+A job whose output exists is skipped (a second run finishes what the first left), unless ``skip_existing=False``.
+Outputs are written atomically, so an interrupted batch leaves finished files and no partial ones. A job that fails
+(a bad file, a constraint set with a free part no constraint holds) is reported with its manifest line and reason
+while the others finish.
+
+Example
+-------
+>>> import json, pathlib, tempfile, numpy as np, arap
+>>> folder = pathlib.Path(tempfile.mkdtemp())
+>>> V, F = arap.builtin_mesh("bar")
+>>> y = V[:, 1]
+>>> fixed, top = np.flatnonzero(y < 0.2).tolist(), np.flatnonzero(y > 4.8)
+>>> for k in range(2):
+...     pose = {"fixed": fixed, "handles": top.tolist(), "targets": (V[top] + [0.2 * k, 0, 0]).tolist()}
+...     _ = (folder / f"pose{k}.json").write_text(json.dumps(pose))
+>>> jobs = [{"mesh": "bar", "constraints": f"pose{k}.json", "output": f"bar{k}.ply"} for k in range(2)]
+>>> report = batch(jobs, backend="serial", base=folder, progress=False)
+>>> report.counts()
+{'done': 2, 'skipped': 0, 'failed': 0}
+"""
+
+from __future__ import annotations
+
+import os
+import time
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from arap.batching.backends import BACKENDS, run_chunks
+from arap.batching.jobs import Job, JobOutcome, chunks_for, job_from_json, read_manifest
+from arap.errors import ArapError, OptionError
+
+__all__ = ["BACKENDS", "BatchReport", "Job", "JobOutcome", "batch", "read_manifest"]
+
+
+@dataclass
+class BatchReport:
+    """Outcomes of a batch, in manifest order, with the backend, workers and wall time."""
+
+    outcomes: list[JobOutcome]
+    backend: str
+    workers: int
+    seconds: float
+
+    def counts(self) -> dict[str, int]:
+        """Jobs done, skipped and failed."""
+        return {s: sum(o.status == s for o in self.outcomes) for s in ("done", "skipped", "failed")}
+
+    @property
+    def failed(self) -> list[JobOutcome]:
+        return [o for o in self.outcomes if o.status == "failed"]
+
+    @property
+    def factorisations(self) -> int:
+        """Factorisations run (fewer than jobs done where jobs shared a constraint set)."""
+        return sum(o.factorised for o in self.outcomes)
+
+    def summary(self) -> str:
+        """One line: counts, factorisations, wall time and throughput."""
+        c = self.counts()
+        rate = c["done"] / self.seconds if self.seconds > 0 else 0.0
+        return (f"{c['done']} done, {c['skipped']} skipped (output exists), {c['failed']} failed; "
+                f"{self.factorisations} factorisations; {self.seconds:.1f} s on {self.workers} {self.backend} "
+                f"worker{'s' if self.workers != 1 else ''} ({rate:.2f} jobs/s)")
+
+
+def _jobs(jobs: Iterable[Job | Mapping[str, Any]], base: Path) -> tuple[list[Job], list[JobOutcome]]:
+    out: list[Job] = []
+    failed: list[JobOutcome] = []
+    for k, job in enumerate(jobs, start=1):
+        if isinstance(job, Job):
+            out.append(job)
+            continue
+        try:
+            out.append(job_from_json(job, k, base))
+        except ArapError as exc:
+            failed.append(JobOutcome(line=k, output="", status="failed", reason=str(exc)))
+    return out, failed
+
+
+def batch(jobs: Iterable[Job | Mapping[str, Any]] | str | os.PathLike[str], backend: str = "process",
+          workers: int | None = None, address: str | None = None, *, skip_existing: bool = True,
+          progress: bool = True, base: str | os.PathLike[str] | None = None) -> BatchReport:
+    """Run deformation jobs.
+
+    Parameters
+    ----------
+    jobs : iterable of Job or dict, or a manifest path
+        Jobs as :class:`Job` or as manifest-line dicts (see :mod:`arap.batching.jobs`), or a JSON Lines manifest.
+    backend : {"process", "ray", "dask", "serial"}
+        ``process``: a pool of worker processes on this machine; ``ray`` / ``dask``: tasks on a Ray or Dask cluster
+        (a local one started for the batch, or the one at ``address``); ``serial``: this process, one job after
+        another.
+    workers : int or None
+        Worker processes (None: the machine's cores); for a cluster at ``address``, the tasks run at once.
+    address : str or None
+        A running cluster: Ray's ``ray://host:10001`` or ``auto``, Dask's scheduler ``tcp://host:8786``.
+    skip_existing : bool
+        Skip jobs whose output exists.
+    progress : bool
+        A progress bar (tqdm) on stderr.
+    base : path-like or None
+        Folder that relative paths in dict jobs are relative to (default: the current folder; a manifest's paths
+        are relative to the manifest's folder).
+
+    Returns
+    -------
+    BatchReport
+    """
+    if backend not in BACKENDS:
+        raise OptionError(f"unknown backend {backend!r}; expected one of {BACKENDS}")
+    if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int) or workers < 1):
+        raise OptionError(f"workers must be a positive integer, got {workers!r}")
+    if address is not None and backend not in ("ray", "dask"):
+        raise OptionError(f"address is for the ray and dask backends, not {backend!r}")
+    t0 = time.perf_counter()
+    if isinstance(jobs, str | os.PathLike):
+        todo, failed = read_manifest(jobs)
+    else:
+        todo, failed = _jobs(jobs, Path(base) if base is not None else Path.cwd())
+    outcomes = list(failed)
+    seen: dict[str, int] = {}
+    runnable: list[Job] = []
+    for job in todo:
+        if job.output in seen:
+            outcomes.append(JobOutcome(line=job.line, output=job.output, status="failed",
+                                       reason=f"line {seen[job.output]} writes the same output"))
+        elif skip_existing and os.path.exists(job.output):
+            seen[job.output] = job.line
+            outcomes.append(JobOutcome(line=job.line, output=job.output, status="skipped"))
+        else:
+            seen[job.output] = job.line
+            runnable.append(job)
+    count = workers or os.cpu_count() or 1
+    if backend == "serial":
+        count = 1
+    chunks = chunks_for(runnable, count) if runnable else []
+    outcomes += run_chunks(chunks, backend, count, address, progress, total=len(runnable))
+    outcomes.sort(key=lambda o: o.line)
+    return BatchReport(outcomes=outcomes, backend=backend, workers=count, seconds=time.perf_counter() - t0)

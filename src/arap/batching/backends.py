@@ -1,0 +1,162 @@
+"""Where batch chunks run: this process, a process pool, Ray tasks or Dask tasks.
+
+Each backend runs :func:`arap.batching.worker.run_chunk` on every chunk and gathers the outcomes as chunks finish,
+advancing a progress bar. Workers on this machine get ``cores / workers`` threads each (at least one), so that the
+kernels of workers side by side do not fight over the cores. A chunk whose worker dies (killed for memory, say)
+fails its jobs with that reason; the other chunks go on. Ray and Dask are optional (``arap[ray]``, ``arap[dask]``)
+and are imported only when asked for.
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+import os
+from collections.abc import Callable, Iterator
+from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
+from contextlib import contextmanager
+from typing import Any
+
+from arap.batching.jobs import Job, JobOutcome
+from arap.batching.worker import environment, run_chunk, worker_environment
+from arap.errors import OptionError
+
+__all__ = ["BACKENDS", "run_chunks"]
+
+BACKENDS = ("process", "ray", "dask", "serial")
+"""Backend names of :func:`arap.batch` and ``arap batch --backend``."""
+
+
+def _crashed(chunk: list[Job], exc: BaseException) -> list[JobOutcome]:
+    reason = f"the worker running it ended: {type(exc).__name__}: {exc}"[:500]
+    return [JobOutcome(line=j.line, output=j.output, status="failed", reason=reason) for j in chunk]
+
+
+@contextmanager
+def _bar(total: int, enabled: bool) -> Iterator[Callable[[list[JobOutcome]], None]]:
+    from tqdm import tqdm
+
+    # On a terminal only (tqdm's None), so that logs and captured output get no bar.
+    with tqdm(total=total, disable=None if enabled else True, unit="job", desc="arap batch", dynamic_ncols=True) as bar:
+        def update(outcomes: list[JobOutcome]) -> None:
+            bar.update(len(outcomes))
+            failed = sum(o.status == "failed" for o in outcomes)
+            if failed:
+                bar.set_postfix_str(f"{failed} failed", refresh=False)
+        yield update
+
+
+def _threads(workers: int) -> dict[str, str]:
+    return worker_environment((os.cpu_count() or 1) // max(workers, 1))
+
+
+def _serial(chunks: list[list[Job]], update: Callable[[list[JobOutcome]], None]) -> list[JobOutcome]:
+    outcomes: list[JobOutcome] = []
+    for chunk in chunks:
+        done = run_chunk(chunk)
+        update(done)
+        outcomes += done
+    return outcomes
+
+
+def _process(chunks: list[list[Job]], workers: int, update: Callable[[list[JobOutcome]], None]) -> list[JobOutcome]:
+    # "spawn": a fresh interpreter per worker, never a fork of a process whose kernel threads are running.
+    count = min(workers, len(chunks))
+    outcomes: list[JobOutcome] = []
+    pool = ProcessPoolExecutor(max_workers=count, mp_context=multiprocessing.get_context("spawn"))
+    try:
+        with environment(_threads(count)):  # the workers start inside, with these thread counts
+            pending: dict[Future[list[JobOutcome]], list[Job]] = {pool.submit(run_chunk, c): c for c in chunks}
+        while pending:
+            finished, _ = wait(pending, return_when=FIRST_COMPLETED)
+            for future in finished:
+                chunk = pending.pop(future)
+                try:
+                    done = future.result()
+                except Exception as exc:  # noqa: BLE001 - a dead worker fails its chunk, not the batch
+                    done = _crashed(chunk, exc)
+                update(done)
+                outcomes += done
+    except BaseException:
+        pool.shutdown(wait=False, cancel_futures=True)
+        raise
+    pool.shutdown()
+    return outcomes
+
+
+def _ray(chunks: list[list[Job]], workers: int, address: str | None,
+         update: Callable[[list[JobOutcome]], None]) -> list[JobOutcome]:
+    try:
+        import ray
+    except ImportError:
+        raise OptionError("the ray backend needs Ray: pip install 'arap[ray]'") from None
+    started = not ray.is_initialized()
+    if started:
+        options: dict[str, Any] = {"include_dashboard": False, "log_to_driver": False,
+                                   "runtime_env": {"env_vars": _threads(workers)}}
+        if address is None:
+            options["num_cpus"] = workers
+        ray.init(address=address, **options)
+    try:
+        remote = ray.remote(num_cpus=1, max_retries=0)(run_chunk)
+        pending = {remote.remote(c): c for c in chunks}
+        outcomes: list[JobOutcome] = []
+        while pending:
+            ready, _ = ray.wait(list(pending), num_returns=1)
+            for ref in ready:
+                chunk = pending.pop(ref)
+                try:
+                    done = ray.get(ref)
+                except Exception as exc:  # noqa: BLE001 - a dead worker fails its chunk, not the batch
+                    done = _crashed(chunk, exc)
+                update(done)
+                outcomes += done
+        return outcomes
+    finally:
+        if started:
+            ray.shutdown()
+
+
+def _dask(chunks: list[list[Job]], workers: int, address: str | None,
+          update: Callable[[list[JobOutcome]], None]) -> list[JobOutcome]:
+    try:
+        from dask.distributed import Client, LocalCluster, as_completed
+    except ImportError:
+        raise OptionError("the dask backend needs Dask's distributed scheduler: pip install 'arap[dask]'") from None
+    cluster = None
+    if address is None:
+        with environment(_threads(workers)):
+            cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None)
+    client = Client(address if address is not None else cluster)
+    try:
+        futures = client.map(run_chunk, chunks, pure=False, retries=0)
+        chunk_of = {f.key: c for f, c in zip(futures, chunks, strict=True)}
+        outcomes: list[JobOutcome] = []
+        for future in as_completed(futures):
+            try:
+                done = future.result()
+            except Exception as exc:  # noqa: BLE001 - a dead worker fails its chunk, not the batch
+                done = _crashed(chunk_of[future.key], exc)
+            update(done)
+            outcomes += done
+        return outcomes
+    finally:
+        client.close()
+        if cluster is not None:
+            cluster.close()
+
+
+def run_chunks(chunks: list[list[Job]], backend: str, workers: int, address: str | None, progress: bool,
+               total: int) -> list[JobOutcome]:
+    """Run every chunk on ``backend`` with ``workers`` workers; the outcomes of all their jobs."""
+    if not chunks:
+        return []
+    with _bar(total, progress) as update:
+        if backend == "serial":
+            return _serial(chunks, update)
+        if backend == "process":
+            return _process(chunks, workers, update)
+        if backend == "ray":
+            return _ray(chunks, workers, address, update)
+        if backend == "dask":
+            return _dask(chunks, workers, address, update)
+    raise OptionError(f"unknown backend {backend!r}; expected one of {BACKENDS}")
