@@ -741,3 +741,17 @@ def test_the_command_modules_import_only_common() -> None:
     for name in commands:
         assert found[name] == {"arap.cli.common"}, name
     assert found["__main__"] == {"arap.cli"}
+
+
+def test_deform_warns_when_no_vertex_is_free(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A region of interest made only of constrained vertices (as the old reference example had it) moves the handles
+    alone: the command says so even with -q, and stays silent when vertices are free."""
+    V, _ = builtin_mesh("bar")
+    cons = tmp_path / "c.json"
+    cons.write_text(json.dumps({"fixed": [0, 1, 2], "handles": [40, 41],
+                                "targets": (V[[40, 41]] + 0.1).tolist(), "roi": [0, 1, 2, 40, 41]}))
+    assert main(["deform", "bar", "-c", str(cons), "-o", str(tmp_path / "o.obj"), "-q"]) == 0
+    assert "no vertex of the region of interest is free to move" in capsys.readouterr().err
+    cons.write_text(json.dumps({"fixed": [0, 1, 2], "handles": [40, 41], "targets": (V[[40, 41]] + 0.1).tolist()}))
+    assert main(["deform", "bar", "-c", str(cons), "-o", str(tmp_path / "o.obj"), "-q"]) == 0
+    assert "free to move" not in capsys.readouterr().err

@@ -258,6 +258,11 @@ def run_deform(args: argparse.Namespace) -> int:
         err(f"arap: {label}: {len(V):,} vertices, {len(F):,} faces; {len(constraints.fixed):,} fixed, "
              f"{len(constraints.handles):,} handles; precompute {1e3 * solver.factor_seconds:.0f} ms")
         _note_flat_faces(V, F, args.energy, args.weights)
+    if solver.n_free == 0:  # even with -q: the result is the constraints alone, which is rarely what was meant
+        where = "of the region of interest " if constraints.roi is not None else ""
+        err(f"arap: warning: no vertex {where}is free to move (every one is fixed or a handle): the handles jump to "
+            "their targets and nothing follows them; leave vertices out of \"fixed\" and \"handles\""
+            f"{' or widen the region' if constraints.roi is not None else ''}")
     progress = _Progress(args.iterations, sys.stderr, enabled=not args.quiet)
     interrupt = _FirstInterrupt()
     stopped_at: list[int] = []  # the iteration after which the callback stopped the solve
