@@ -82,7 +82,7 @@ const keeper = new SessionKeeper({
 const { gizmo, transformUi } = installManipulation({
   app, viewer, selection, mirror, connection: () => conn,
   status: (...a) => panel.showStatus(...a), hush: () => panel.hideStatus(), changed: () => keeper.touch(),
-  refused: (text) => showRequestError(text),
+  refused: (text) => showRequestError(text), hint: (text) => panel.hint(text, 5000),
 });
 const tools = new SelectionTools(viewer, {
   isGizmoActive: () => gizmo.active,

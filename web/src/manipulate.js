@@ -3,7 +3,7 @@
 // Enter, the panel's Apply) reaches the server through `onDrag` below, where mirror editing first moves the
 // group's partner by the mirrored transform, so both travel in the same drag message.
 import { HandleGizmo } from './gizmo.js';
-import { constraintsKey } from './selection.js';
+import { constraintsKey, FIXED } from './selection.js';
 import { installTransformUi } from './transformui.js';
 
 /** True when the server holds the local selection (so drags refer to the groups shown). */
@@ -14,6 +14,20 @@ function selectionSynced(app, selection) {
     return true;
   }
   return false;
+}
+
+/** What a drag of a selection without anchors does, said as it starts. */
+export const NO_ANCHORS_HINT = 'No anchors: the model moves rigidly; mark anchors (2) to hold part of it.';
+
+/**
+ * True when nothing holds the model against the dragged group: no anchors, no region of interest (outside it the
+ * shape is held) and one handle group or point handle. The whole model then follows it rigidly.
+ */
+export function movesRigidly(app, selection) {
+  if (app.groupMap.length !== 1 || selection.roiCount > 0) return false;
+  const { role } = selection;
+  for (let i = 0; i < role.length; i++) if (role[i] === FIXED) return false;
+  return true;
 }
 
 /** Why a drag cannot start while the server has refused the selection shown (`reason`: its words, or null). */
@@ -27,17 +41,23 @@ export function refusedDragText(reason) {
  * gizmo and the pivot's click on the surface see pointer events first).
  * @param {object} opts app (the studio state), viewer, selection, mirror (MirrorEditing), connection() (the
  *   Connection, created later), status(text, kind, ms) and hush() (the status line), refused(text) (a request's
- *   error: a drag was refused), changed() (a pivot was placed or reset: something to save)
+ *   error: a drag was refused), changed() (a pivot was placed or reset: something to save), hint(text) (a short
+ *   note that hides no error)
  * @returns {{gizmo: HandleGizmo, transformUi: ReturnType<typeof installTransformUi>}}
  */
-export function installManipulation({ app, viewer, selection, mirror, connection, status, hush, refused, changed }) {
+export function installManipulation({
+  app, viewer, selection, mirror, connection, status, hush, refused, changed, hint,
+}) {
   const gizmo = new HandleGizmo(viewer, {
     onDragStart: () => {
       if (!connection().open) {
         status('Not connected to the studio server: the handles can be moved again once it is back.', 'error');
         return false;
       }
-      if (selectionSynced(app, selection)) return true;
+      if (selectionSynced(app, selection)) {
+        if (movesRigidly(app, selection)) hint(NO_ANCHORS_HINT);
+        return true;
+      }
       if (app.sentKey === null) refused(refusedDragText(app.refusal));
       else status('The new selection is still being set up; try again in a moment.', 'error', 3000);
       return false;
