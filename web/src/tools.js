@@ -100,12 +100,58 @@ export class SelectionTools {
       return;
     }
     if (this.tool !== 'brush') return;
-    const p = this._hit(x, y);
-    if (!p) return; // empty space: let the camera orbit
+    // just off the silhouette (the brush's circle reaches the model) the stroke starts at the nearest vertex;
+    // farther out it is empty space: let the camera orbit
+    const p = this._hit(x, y) ?? this._nearby(x, y);
+    if (!p) return;
     this.painting = true;
     this.erasing = subtract;
     this._takePointer(e);
     this._paintAt(p);
+  }
+
+  /** The brush's radius in canvas pixels (at the model's centre for a radius in model units). */
+  _radiusPx() {
+    if (this.units !== 'world' || !this.viewer.geometry) return this.radiusPx;
+    const box = this.viewer.geometry.boundingBox;
+    const centre = box.getCenter(new THREE.Vector3());
+    return this.worldRadius(centre) / this.viewer.worldPerPixel(centre);
+  }
+
+  /**
+   * The position of the vertex that shows nearest to canvas pixel (x, y) within the brush's radius (at least a few
+   * pixels; front-facing ones only with `frontOnly`), or null: a press that misses the surface but whose brush
+   * circle reaches the model. The face under the brush is then unknown (`_hitFace` null: straight distances).
+   */
+  _nearby(x, y) {
+    const v = this.viewer;
+    if (!v.geometry) return null;
+    const reach = Math.max(6, this._radiusPx());
+    const w = v.canvas.clientWidth;
+    const h = v.canvas.clientHeight;
+    const m = new THREE.Matrix4().multiplyMatrices(v.camera.projectionMatrix, v.camera.matrixWorldInverse).elements;
+    const cam = v.camera.position;
+    const pos = v.positions;
+    const nrm = v.geometry.attributes.normal.array;
+    let best = -1;
+    let bestD = reach * reach;
+    for (let i = 0, n = pos.length / 3; i < n; i++) {
+      const px = pos[3 * i];
+      const py = pos[3 * i + 1];
+      const pz = pos[3 * i + 2];
+      const cw = m[3] * px + m[7] * py + m[11] * pz + m[15];
+      if (cw <= 0) continue;
+      const dx = (((m[0] * px + m[4] * py + m[8] * pz + m[12]) / cw + 1) / 2) * w - x;
+      const dy = ((1 - (m[1] * px + m[5] * py + m[9] * pz + m[13]) / cw) / 2) * h - y;
+      const d = dx * dx + dy * dy;
+      if (d > bestD) continue;
+      if (this.frontOnly
+        && nrm[3 * i] * (cam.x - px) + nrm[3 * i + 1] * (cam.y - py) + nrm[3 * i + 2] * (cam.z - pz) < 0) continue;
+      best = i;
+      bestD = d;
+    }
+    this._hitFace = null;
+    return best < 0 ? null : new THREE.Vector3(pos[3 * best], pos[3 * best + 1], pos[3 * best + 2]);
   }
 
   _takePointer(e) {
