@@ -605,7 +605,7 @@ def test_deform_explains_a_negative_energy(tmp_path: Path, capsys: pytest.Captur
     out = tmp_path / "out.off"
     assert main(["deform", str(mesh), "-c", str(cfile), "-o", str(out), "-n", "3", "--energy", "spokes"]) == 0
     err = capsys.readouterr().err
-    assert "energy -" in err and "below 0" in err and "README" in err
+    assert "energy -" in err and "below 0" in err and "docs/solver.md" in err
     # The default energy is never negative and needs no note.
     assert main(["deform", str(mesh), "-c", str(cfile), "-o", str(out), "-n", "3"]) == 0
     err = capsys.readouterr().err

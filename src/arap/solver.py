@@ -72,7 +72,7 @@ class ArapSolver(SolveStart, SingleSteps):
         ``spokes_and_rims`` (default): cells over all edges of the triangles around a vertex (Chao et al. 2010); a
         sum of non-negative per-triangle terms even with obtuse triangles, so it does not fold scans.
         ``spokes``: the paper's one-ring cells (Sorkine & Alexa 2007); with negative cotangent weights its energy can
-        be negative and its minima fold scans (see the README's "Energy and weights").
+        be negative and its minima fold scans (see "Energy and weights" in docs/solver.md).
         ``smooth_rotations``: SR-ARAP (Levi & Gotsman 2015), the spokes energy plus ``α A Σ_i Σ_j w⁺_ij ‖R_i −
         R_j‖²`` that makes neighbouring rotations agree (see :mod:`arap.smooth`).
     weights : {"cotangent", "clamped", "uniform"}

@@ -329,7 +329,7 @@ def _report(args: argparse.Namespace, result: ArapResult, seconds: float, label:
                 err(f"arap: note: the shape written is the last iterate; raise --iterations to go on{other}")
             if min(result.energies) < 0:
                 err(f"arap: note: the energy is below 0 because {args.energy} with {args.weights} weights has "
-                     "negative terms on obtuse triangles (see README, 'Energy and weights'); "
+                     "negative terms on obtuse triangles (see 'Energy and weights' in docs/solver.md); "
                      "spokes_and_rims is never negative")
         in_file_order = (f" in the vertex order of {label} ({len(U_out):,} vertices)"
                          if back is not None and format_of(args.output) != "stl" else "")  # an STL has no vertices
