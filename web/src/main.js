@@ -48,7 +48,7 @@ const app = {
   sentVersion: -1, // selection.version that set_constraints carried
   syncedVersion: -1, // selection.version known to match the server's constraints
   serverKey: '',
-  serverTransforms: [], // the transforms of the server's handle groups (last state)
+  serverTransforms: [], // the transforms of the server's handle groups (last state): one per group a drag moves
   errors: [],
   messages: 0,
   canUndo: false,

@@ -55,6 +55,8 @@ export function installManipulation({
         return false;
       }
       if (selectionSynced(app, selection)) {
+        // the server holds the selection shown: a drag carries one transform per group of it
+        if (app.groupMap.length !== app.serverTransforms.length) app.groupMap = selection.toConstraints().groupMap;
         if (movesRigidly(app, selection)) hint(NO_ANCHORS_HINT);
         return true;
       }
