@@ -52,6 +52,9 @@ _LAZY: dict[str, str] = {
     "save_mesh": "arap.io",
     "save_mesh_bytes": "arap.io",
     "MESH_FORMATS": "arap.io",
+    "MeshAsset": "arap.io",
+    "load_asset": "arap.io",
+    "save_asset": "arap.io",
     "sphere": "arap.shapes",
     "Constraints": "arap.constraints",
     "save_constraints": "arap.constraints",
@@ -77,6 +80,7 @@ __all__ = [
     "ArapSolver",
     "ConstraintError",
     "Constraints",
+    "MeshAsset",
     "MeshError",
     "MeshFormatError",
     "MeshInfo",
@@ -97,6 +101,7 @@ __all__ = [
     "cotangent_laplacian",
     "fit_rotations",
     "inspect_mesh",
+    "load_asset",
     "load_constraints",
     "load_keyframes",
     "load_mesh",
@@ -104,6 +109,7 @@ __all__ = [
     "load_mesh_with_report",
     "mesh_arrays",
     "repair_mesh",
+    "save_asset",
     "save_constraints",
     "save_mesh",
     "save_mesh_bytes",
@@ -117,7 +123,17 @@ if TYPE_CHECKING:
     from arap.constraints import Constraints, load_constraints, save_constraints
     from arap.diagnose import MeshInfo, inspect_mesh
     from arap.energy import arap_energy, cell_energies
-    from arap.io import MESH_FORMATS, load_mesh, load_mesh_bytes, load_mesh_with_report, save_mesh, save_mesh_bytes
+    from arap.io import (
+        MESH_FORMATS,
+        MeshAsset,
+        load_asset,
+        load_mesh,
+        load_mesh_bytes,
+        load_mesh_with_report,
+        save_asset,
+        save_mesh,
+        save_mesh_bytes,
+    )
     from arap.mesh import MeshLike, check_mesh, mesh_arrays
     from arap.notebook import Studio, studio
     from arap.repair import RepairResult, repair_mesh

@@ -1,5 +1,14 @@
-"""Mesh files: OBJ, OFF, PLY and STL from paths or bytes, in file vertex order."""
+"""Mesh files: OBJ, OFF, PLY, STL, GLB and glTF from paths or bytes, in file vertex order; textured models (their
+UVs, normals, colours, materials, textures and scenes kept) through :mod:`arap.io.assets`."""
 
+from arap.io.assets import (
+    ASSET_FORMATS,
+    MeshAsset,
+    SolveMesh,
+    load_asset,
+    load_asset_bytes,
+    save_asset,
+)
 from arap.io.meshfile import (
     MESH_FORMATS,
     format_of,
@@ -12,12 +21,18 @@ from arap.io.meshfile import (
 )
 
 __all__ = [
+    "ASSET_FORMATS",
     "MESH_FORMATS",
+    "MeshAsset",
+    "SolveMesh",
     "format_of",
+    "load_asset",
+    "load_asset_bytes",
     "load_mesh",
     "load_mesh_bytes",
     "load_mesh_bytes_with_report",
     "load_mesh_with_report",
+    "save_asset",
     "save_mesh",
     "save_mesh_bytes",
 ]

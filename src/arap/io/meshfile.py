@@ -1,7 +1,12 @@
-"""Reading and writing triangle meshes (OBJ, OFF, PLY, STL), from paths or from bytes.
+"""Reading and writing triangle meshes (OBJ, OFF, PLY, STL, glTF/GLB), from paths or from bytes.
 
-Reading goes through trimesh's format parsers without any processing, so vertices keep their file order (vertex
-indices in constraint files refer to that order). Polygons are fan-triangulated. By default the loaded mesh goes
+Reading goes through format parsers without any processing, so vertices keep their file order (vertex indices in
+constraint files refer to that order): OBJ through :mod:`arap.io.fastobj` or :mod:`arap.io.obj_asset` (texture
+coordinates, normals, groups and materials do not change the ``v`` numbering), glTF and GLB through
+:mod:`arap.io.gltf_asset` (the POSITION accessors of the triangle primitives in order, node transforms applied),
+OFF, PLY and STL through trimesh's parsers. Polygons are fan-triangulated. Attributes other than positions are
+read and written by :mod:`arap.io.assets` (:func:`~arap.io.assets.load_asset`, :func:`~arap.io.assets.save_asset`,
+or :func:`save_mesh` given a :class:`~arap.io.assets.MeshAsset`). By default the loaded mesh goes
 through :func:`arap.repair.repair_mesh`, which welds STL triangle soups and drops degenerate faces; a clean mesh
 comes back unchanged.
 
@@ -51,7 +56,7 @@ __all__ = [
 logger = logging.getLogger(__name__)
 
 #: File types read and written, named by their usual extension.
-MESH_FORMATS = ("obj", "off", "ply", "stl")
+MESH_FORMATS = ("obj", "off", "ply", "stl", "glb", "gltf")
 
 
 def format_of(name: str | os.PathLike[str]) -> str:
@@ -134,6 +139,21 @@ def _parse(stream: io.BytesIO, file_type: str, label: str) -> tuple[np.ndarray, 
     return V, F
 
 
+def _parse_obj(data: bytes, label: str) -> tuple[np.ndarray, np.ndarray]:
+    """Vertices (``v`` lines in order) and triangles of an OBJ file with any statements: texture coordinates,
+    normals, groups and materials leave the vertex numbering as it is."""
+    from arap.io.assets import fan
+    from arap.io.obj_asset import parse_obj
+
+    V, obj, _, _ = parse_obj(data, label)
+    if len(V) == 0:
+        raise MeshFormatError(f"{label} contains no vertices (empty, or not an OBJ file)")
+    if len(obj.face_sizes) == 0:
+        raise MeshFormatError(f"{label} has {len(V):,} vertices but no faces (a point cloud, or a truncated "
+                              "file?); a surface is needed")
+    return V, fan(obj.face_sizes, obj.corner_vertices)
+
+
 def _faces_array(faces: Any) -> np.ndarray:
     if faces is None:
         return np.zeros((0, 3), dtype=np.int64)
@@ -162,7 +182,8 @@ def _finish(
 
 
 def load_mesh_bytes_with_report(
-    data: bytes, file_type: str, *, repair: bool = True, name: str = "uploaded mesh", max_vertices: int | None = None
+    data: bytes, file_type: str, *, repair: bool = True, name: str = "uploaded mesh", max_vertices: int | None = None,
+    folder: str | os.PathLike[str] | None = None,
 ) -> tuple[np.ndarray, np.ndarray, RepairResult]:
     """Read a mesh from the bytes of a file, with what repair did.
 
@@ -171,7 +192,7 @@ def load_mesh_bytes_with_report(
     data : bytes
         The whole file content.
     file_type : str
-        ``"obj"``, ``"off"``, ``"ply"`` or ``"stl"`` (a file name or ``".obj"`` also works).
+        ``"obj"``, ``"off"``, ``"ply"``, ``"stl"``, ``"glb"`` or ``"gltf"`` (a file name or ``".obj"`` also works).
     repair : bool
         Run :func:`arap.repair.repair_mesh` (weld duplicates, drop degenerate faces). If False the arrays are
         returned as stored, unvalidated, and the result has an identity ``vertex_map``.
@@ -202,6 +223,15 @@ def load_mesh_bytes_with_report(
     """
     ft = format_of(file_type)
     data = bytes(data)
+    if ft in ("glb", "gltf"):
+        from arap.io.gltf_asset import read_gltf_asset
+
+        asset = read_gltf_asset(data, name, Path(folder) if folder is not None else None, max_vertices)
+        V, F, result = _finish(asset.vertices, asset.faces, repair, name)
+        if max_vertices is not None and len(V) > max_vertices:
+            raise MeshTooLargeError(f"{name} has {len(V):,} vertices; at most {max_vertices:,} vertices are "
+                                    "accepted", len(V), max_vertices)
+        return V, F, result
     check_size(data, ft, name, max_vertices)
     screened = screen(data, ft, name, obj_zero_index=False)
     plain = parse_plain_obj(screened) if ft == "obj" else None  # takes only face indices from 1 up
@@ -209,6 +239,7 @@ def load_mesh_bytes_with_report(
         check_obj_zero_index(screened, name)
         check_obj_short_faces(screened, name)
         screened = plain_obj_lines(screened)
+        plain = _parse_obj(screened, name)
     V, F = plain if plain is not None else _parse(io.BytesIO(screened), ft, name)
     announced = announced_faces(screened, ft)
     if announced is not None and len(F) < announced:  # polygons are triangulated: never fewer triangles than faces
@@ -252,11 +283,12 @@ def load_mesh_with_report(
         data = read_regular_file(path)
     except OSError as exc:
         raise MeshFormatError(f"cannot read {path}: {exc.strerror or exc}") from exc
-    return load_mesh_bytes_with_report(data, ft, repair=repair, name=str(path), max_vertices=max_vertices)
+    return load_mesh_bytes_with_report(data, ft, repair=repair, name=str(path), max_vertices=max_vertices,
+                                       folder=path.parent)
 
 
 def load_mesh(path: str | os.PathLike[str], *, repair: bool = True) -> tuple[np.ndarray, np.ndarray]:
-    """Read a triangle mesh file (OBJ, OFF, PLY or STL) in file vertex order.
+    """Read a triangle mesh file (OBJ, OFF, PLY, STL, GLB or glTF) in file vertex order.
 
     Parameters
     ----------
@@ -316,14 +348,15 @@ def save_mesh_bytes(V: np.ndarray, F: np.ndarray, file_type: str) -> bytes:
     """Encode a triangle mesh as the bytes of a file.
 
     OBJ and OFF are written as text with 17 significant digits and PLY as binary doubles, so they round-trip
-    exactly; STL is binary single precision (a triangle soup, by the format's definition).
+    exactly; STL is binary single precision (a triangle soup, by the format's definition); GLB and glTF (its buffer
+    in a data URI) hold single precision positions and 32-bit indices.
 
     Parameters
     ----------
     V : (n, 3) float array
     F : (m, 3) int array
     file_type : str
-        ``"obj"``, ``"off"``, ``"ply"`` or ``"stl"`` (or a file name with that extension).
+        ``"obj"``, ``"off"``, ``"ply"``, ``"stl"``, ``"glb"`` or ``"gltf"`` (or a file name with that extension).
 
     Returns
     -------
@@ -337,6 +370,12 @@ def save_mesh_bytes(V: np.ndarray, F: np.ndarray, file_type: str) -> bytes:
         return _text_bytes(V, F, "", "v ", "f ", 1)
     if ft == "off":
         return _text_bytes(V, F, f"OFF\n{len(V)} {len(F)} 0\n", "", "3 ", 0)
+    if ft in ("glb", "gltf"):
+        from arap.io.gltf_asset import geometry_glb
+
+        if np.abs(V).max(initial=0.0) > np.finfo(np.float32).max:
+            raise MeshError("coordinates beyond the range of single precision, which glTF stores; not written")
+        return geometry_glb(V, F, binary=ft == "glb")
     import trimesh
 
     mesh = trimesh.Trimesh(vertices=V, faces=F, process=False, validate=False)
@@ -347,6 +386,10 @@ def save_mesh(path: str | os.PathLike[str], V: NDArray[np.floating] | MeshLike,
               F: NDArray[np.integer] | None = None) -> None:
     """Write a triangle mesh; the format follows the extension (see :func:`save_mesh_bytes`).
 
+    Given a :class:`~arap.io.assets.MeshAsset` (``save_mesh(path, asset)``) in its own format (OBJ, PLY, or GLB and
+    glTF), its texture coordinates, normals, colours, materials and groups are written too
+    (:func:`~arap.io.assets.save_asset`); in another format, its geometry.
+
     The write is atomic (:func:`arap.io.atomic.write_atomic`): an earlier file at ``path`` stays intact until the
     complete new one replaces it, even when the writer is killed.
 
@@ -356,7 +399,7 @@ def save_mesh(path: str | os.PathLike[str], V: NDArray[np.floating] | MeshLike,
     Parameters
     ----------
     path : path-like
-        ``.obj``, ``.off``, ``.ply`` or ``.stl``.
+        ``.obj``, ``.off``, ``.ply``, ``.stl``, ``.glb`` or ``.gltf``.
     V : (n, 3) float array or MeshLike
         Vertex positions, or a mesh object with ``vertices`` and ``faces`` (``save_mesh(path, mesh)``).
     F : (m, 3) int array or None
@@ -371,6 +414,14 @@ def save_mesh(path: str | os.PathLike[str], V: NDArray[np.floating] | MeshLike,
         Unusable arrays.
     """
     path = Path(path)
+    from arap.io.assets import ASSET_FORMATS, MeshAsset, save_asset
+
+    if isinstance(V, MeshAsset) and F is None:
+        ft = format_of(path.name)
+        family = {"glb": "gltf"}
+        if ft in ASSET_FORMATS and family.get(ft, ft) == family.get(V.format, V.format):
+            save_asset(path, V)
+            return
     V, F = mesh_arrays(V, F)
     data = save_mesh_bytes(V, F, path.name)
     try:
