@@ -26,6 +26,9 @@ from arap.io.atomic import write_atomic
 from arap.scenarios import bend
 from arap.solver import ArapSolver
 
+# The cell-by-cell reference kernels live with the tests (tests/core/reference_kernels.py).
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
 DEFAULT_MESH = Path(__file__).resolve().parents[1].parent / "shared" / "meshes" / "armadillo.obj"
 
 
@@ -91,10 +94,12 @@ def run_igl(V: np.ndarray, F: np.ndarray, b: np.ndarray, bc: np.ndarray, iterati
 
 def backend_choices(V: np.ndarray, F: np.ndarray, b: np.ndarray, U: np.ndarray, repeats: int) -> list[str]:
     """Measure what the solver's design chooses between: sparse Cholesky backends and rotation kernels."""
+    from tests.core.reference_kernels import fit_rotations_scalar
+
     from arap.cells import build_cells
     from arap.covariance import covariances
     from arap.linsolve import available_backends, factorize
-    from arap.rotations import fit_rotations, fit_rotations_scalar, fit_rotations_svd
+    from arap.rotations import fit_rotations, fit_rotations_svd
 
     A = ArapSolver(V, F, b).reduced_matrix()
     B = np.random.default_rng(0).normal(size=(A.shape[0], 3))
@@ -135,9 +140,9 @@ def kernel_comparison(V: np.ndarray, F: np.ndarray, b: np.ndarray, bc: np.ndarra
     parallel as the thread policy chooses); "before" is the cell-by-cell kernels on all of numba's threads.
     """
     import numba
+    from tests.core.reference_kernels import assemble_rhs_reference, local_step_reference
 
     from arap._parallel import policy
-    from arap._reference import assemble_rhs_reference, local_step_reference
     from arap.covariance import _local_parallel, _local_serial, _rhs_parallel, _rhs_serial, assemble_rhs, local_step
 
     solver = ArapSolver(V, F, b)

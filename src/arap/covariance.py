@@ -161,29 +161,6 @@ def _rhs_gradient_parallel(ptr, cell, g, R, const, a_ptr, a_idx, a_val, x, out, 
                            out, grad)
 
 
-@nb.njit(cache=True, nogil=True)
-def _fused_serial(cell_ids, ptr, a, b, w, we, rest_sq, U, R, E, gptr, gcell, g, const, out):  # pragma: no cover
-    total = _local_serial(cell_ids, ptr, a, b, w, we, rest_sq, U, R, E)
-    _rhs_serial(gptr, gcell, g, R, const, out)
-    return total
-
-
-@nb.njit(cache=True, nogil=True, parallel=True)
-def _fused_parallel(cell_ids, ptr, a, b, w, we, rest_sq, U, R, E, gptr, gcell, g, const, out):  # pragma: no cover
-    n_chunks = (cell_ids.shape[0] + CHUNK * BLOCK - 1) // (CHUNK * BLOCK)
-    part = np.empty(n_chunks)
-    for ch in nb.prange(n_chunks):
-        part[ch] = _local_chunk(ch, cell_ids, ptr, a, b, w, we, rest_sq, U, R, E)
-    rows = gptr.shape[0] - 1
-    step = CHUNK * BLOCK
-    for ch in nb.prange((rows + step - 1) // step):
-        _rhs_rows(ch * step, min(rows, (ch + 1) * step), gptr, gcell, g, R, const, out)
-    total = 0.0
-    for ch in range(n_chunks):
-        total += part[ch]
-    return total
-
-
 def _local_work(cells: Cells, cell_ids: np.ndarray) -> int:
     """Edge terms in ``cell_ids`` (estimated from the mean cell size)."""
     return len(cell_ids) * len(cells.a) // max(cells.n_cells, 1)
@@ -270,28 +247,3 @@ def assemble_rhs_and_gradient(gather: RhsGather, R: np.ndarray, const: np.ndarra
     args = (gather.ptr, gather.cell, gather.g, R, const, A.indptr, A.indices, A.data, x, out, grad)
     policy.run("rhs+gradient", len(gather.cell) + A.nnz, lambda: _rhs_gradient_serial(*args),
                lambda: _rhs_gradient_parallel(*args))
-
-
-def local_step_and_rhs(cells: Cells, cell_ids: np.ndarray, U: np.ndarray, R: np.ndarray, E: np.ndarray,
-                       gather: RhsGather, const: np.ndarray, out: np.ndarray) -> float:
-    """:func:`local_step` followed by :func:`assemble_rhs` with the new rotations, in one compiled call.
-
-    One iteration's kernels behind one thread decision and one launch (instead of two), for the solver's loop.
-    ``cell_ids`` must contain every cell that ``gather`` reads (the solver's active cells).
-
-    Parameters
-    ----------
-    cells, cell_ids, U, R, E
-        As in :func:`local_step`.
-    gather, const, out
-        As in :func:`assemble_rhs`.
-
-    Returns
-    -------
-    float
-        ``Σ E[c]`` over ``cell_ids`` (as :func:`local_step`).
-    """
-    args = (cell_ids, cells.ptr, cells.a, cells.b, cells.w, cells.we, cells.rest_sq, U, R, E,
-            gather.ptr, gather.cell, gather.g, const, out)
-    work = _local_work(cells, cell_ids) + len(gather.cell)
-    return float(policy.run("local+rhs", work, lambda: _fused_serial(*args), lambda: _fused_parallel(*args)))

@@ -18,7 +18,7 @@ import numpy as np
 
 from arap._parallel import policy
 from arap.errors import ArapError
-from arap.horn import _det3, best_rotation, rotation_from_covariance
+from arap.horn import _det3, rotation_from_covariance
 
 # Scratch layout of a block of cells for :func:`rotations_block`.
 BLOCK = 64
@@ -287,13 +287,6 @@ def _fit_serial(S: np.ndarray, R: np.ndarray) -> None:  # pragma: no cover - com
 def _fit_parallel(S: np.ndarray, R: np.ndarray) -> None:  # pragma: no cover - compiled
     for ch in nb.prange((S.shape[0] + _FIT_CHUNK * BLOCK - 1) // (_FIT_CHUNK * BLOCK)):
         _fit_chunk(ch, S, R)
-
-
-@nb.njit(cache=True, nogil=True)
-def fit_rotations_scalar(S: np.ndarray, R: np.ndarray) -> None:  # pragma: no cover - compiled
-    """Cell-by-cell :func:`rotation_from_covariance` of a (k, 3, 3) stack into ``R`` (the reference of the blocks)."""
-    for i in range(S.shape[0]):
-        best_rotation(S[i], R[i])
 
 
 def identity_rotations(n: int) -> np.ndarray:

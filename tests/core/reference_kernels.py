@@ -1,4 +1,5 @@
-"""Cell-by-cell kernels of the local step and the right-hand side: the reference for the batched kernels.
+"""Cell-by-cell kernels of the local step, the rotation fit and the right-hand side: the reference for the batched
+kernels of the package (tests only; ``benchmarks/bench_armadillo.py`` times one against the other).
 
 These are the straightforward per-cell loops (one covariance, one scalar rotation fit
 (:func:`arap.horn.rotation_from_covariance`), one energy per cell; one gathered row per vertex), parallel over
@@ -13,7 +14,7 @@ import numpy as np
 
 from arap._parallel import kernel_lock
 from arap.cells import Cells, RhsGather
-from arap.horn import rotation_from_covariance
+from arap.horn import best_rotation, rotation_from_covariance
 
 
 @nb.njit(cache=True, parallel=True, nogil=True)
@@ -79,3 +80,10 @@ def assemble_rhs_reference(gather: RhsGather, R: np.ndarray, const: np.ndarray, 
     """Row-by-row version of :func:`arap.covariance.assemble_rhs` (same arguments)."""
     with kernel_lock:
         _rhs_kernel(gather.ptr, gather.cell, gather.g, R, const, out)
+
+
+@nb.njit(cache=True, nogil=True)
+def fit_rotations_scalar(S: np.ndarray, R: np.ndarray) -> None:  # pragma: no cover - compiled
+    """Cell-by-cell :func:`arap.horn.best_rotation` of a (k, 3, 3) stack into ``R`` (the reference of the blocks)."""
+    for i in range(S.shape[0]):
+        best_rotation(S[i], R[i])
