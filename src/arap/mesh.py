@@ -228,13 +228,64 @@ def is_mesh_like(obj: object) -> bool:
     return not isinstance(obj, np.ndarray) and isinstance(obj, MeshLike)
 
 
-def mesh_arrays(V: np.ndarray | MeshLike, F: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+def _type_names(obj: object) -> set[str]:
+    """``module.Class`` names of an object's type and its bases (to recognise optional libraries' types without
+    importing them)."""
+    return {f"{cls.__module__.split('.')[0]}.{cls.__name__}" for cls in type(obj).__mro__}
+
+
+_FOREIGN = "trimesh.Trimesh or trimesh.Scene, pyvista.PolyData, meshio.Mesh, arap.io.MeshAsset"
+
+
+def _foreign_mesh(obj: object) -> tuple[np.ndarray, np.ndarray] | None:
+    """The arrays of a mesh from another library that has no ``vertices``/``faces`` pair, or None for anything
+    else. The libraries are optional: nothing is imported here."""
+    names = _type_names(obj)
+    mesh: Any = obj
+    if "trimesh.Scene" in names:
+        parts = [g for g in mesh.dump(concatenate=False) if hasattr(g, "faces") and len(g.faces)]
+        if not parts:
+            raise MeshError("the trimesh.Scene holds no triangle mesh")
+        offsets = np.cumsum([0] + [len(g.vertices) for g in parts[:-1]])
+        V = np.concatenate([np.asarray(g.vertices, dtype=np.float64) for g in parts])
+        F = np.concatenate([np.asarray(g.faces, dtype=np.int64) + k for g, k in zip(parts, offsets, strict=True)])
+        return V, F  # node transforms applied by dump, geometry in the scene's order
+    if "pyvista.PolyData" in names:
+        if not mesh.is_all_triangles:
+            mesh = mesh.triangulate()
+        faces = np.asarray(mesh.faces, dtype=np.int64)
+        if faces.size == 0:
+            raise MeshError("the pyvista.PolyData has no polygons (only points or lines?); a surface is needed")
+        if faces.size % 4 or not np.all(faces.reshape(-1, 4)[:, 0] == 3):
+            raise MeshError("the pyvista.PolyData's faces are not all triangles after triangulate()")
+        return np.asarray(mesh.points), faces.reshape(-1, 4)[:, 1:]
+    if any(name.startswith("pyvista.") for name in names):
+        raise MeshError(f"a {type(obj).__name__} from pyvista is not a surface mesh: give a pyvista.PolyData "
+                        "(for a volume grid, grid.extract_surface())")
+    if "meshio.Mesh" in names:
+        blocks = [np.asarray(block.data, dtype=np.int64) for block in mesh.cells if block.type == "triangle"]
+        if not blocks:
+            kinds = sorted({str(block.type) for block in mesh.cells})
+            raise MeshError(f"the meshio.Mesh has no triangle cells (it has {', '.join(kinds) or 'no cells'}); "
+                            "triangulate it first")
+        V = np.asarray(mesh.points)
+        if V.ndim == 2 and V.shape[1] == 2:
+            raise MeshError("the meshio.Mesh has 2-d points; ARAP surface modeling needs 3-d coordinates")
+        return V, np.concatenate(blocks)
+    return None
+
+
+def mesh_arrays(V: np.ndarray | MeshLike | Any, F: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """The ``(V, F)`` arrays of a mesh given as arrays or as a mesh object.
 
     Parameters
     ----------
-    V : (n, 3) float array or MeshLike
-        Vertex positions, or a mesh object (``trimesh.Trimesh`` or anything with ``vertices`` and ``faces``).
+    V : (n, 3) float array or mesh object
+        Vertex positions, or a mesh object: a ``trimesh.Trimesh``, a ``trimesh.Scene`` (its triangle meshes
+        concatenated in the scene's order, node transforms applied), a ``pyvista.PolyData`` (triangulated first when
+        it has other polygons), a ``meshio.Mesh`` (its ``"triangle"`` cells), an :class:`arap.io.MeshAsset` (file
+        numbering; see its ``solve_mesh`` for the welded mesh), or anything with ``vertices`` and ``faces``. None of
+        those libraries is needed unless its objects are passed.
     F : (m, 3) int array or None
         Triangles; None when ``V`` is a mesh object.
 
@@ -247,7 +298,8 @@ def mesh_arrays(V: np.ndarray | MeshLike, F: np.ndarray | None = None) -> tuple[
     Raises
     ------
     MeshError
-        A mesh object together with ``F``, or arrays without ``F``.
+        A mesh object together with ``F``, arrays without ``F``, an object of none of these kinds, or one without
+        triangles.
 
     Example
     -------
@@ -256,12 +308,18 @@ def mesh_arrays(V: np.ndarray | MeshLike, F: np.ndarray | None = None) -> tuple[
     >>> V.shape, F.shape
     ((8, 3), (12, 3))
     """
-    if is_mesh_like(V):
+    foreign = _foreign_mesh(V) if not isinstance(V, np.ndarray) else None
+    if foreign is not None or is_mesh_like(V):
         if F is not None:
             raise MeshError("give either a mesh object or the arrays V and F, not both")
+        if foreign is not None:
+            return foreign
         mesh: Any = V
         return np.asarray(mesh.vertices), np.asarray(mesh.faces)
     if F is None:
+        if not isinstance(V, (np.ndarray, list, tuple)):
+            raise MeshError(f"cannot take a mesh from a {type(V).__module__}.{type(V).__name__}: give the arrays V "
+                            f"and F, or a mesh object ({_FOREIGN}, or anything with vertices and faces)")
         raise MeshError("F (the triangles) is missing: give V and F, or a mesh object with vertices and faces")
     return np.asarray(V), np.asarray(F)
 

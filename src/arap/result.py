@@ -6,9 +6,13 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
+
+if TYPE_CHECKING:
+    import trimesh
 
 __all__ = ["ROUNDING_FLOOR", "ArapResult", "IterationCallback", "rounding_floor"]
 
@@ -56,6 +60,19 @@ class ArapResult:
     residual: float = float("nan")
     start: str = "rest"
     rejected: int = 0
+
+    def to_trimesh(self, mesh: Any) -> trimesh.Trimesh:
+        """The deformed mesh as a ``trimesh.Trimesh``.
+
+        Parameters
+        ----------
+        mesh : (m, 3) int array or arap.io.MeshAsset
+            The faces the solve used, or the asset the solve came from (its ``solve_mesh()`` or its file vertices):
+            then its texture (first UV set and image) or vertex colours are kept.
+        """
+        from arap.io.assets import result_trimesh
+
+        return result_trimesh(self.vertices, mesh)
 
 
 def rounding_floor(diagonal: float, *targets: NDArray[np.float64] | None) -> float:
