@@ -22,6 +22,7 @@ from arap.covariance import assemble_rhs, assemble_rhs_and_gradient, local_step
 from arap.errors import ConstraintError
 from arap.inactive import InactiveCells
 from arap.indexing import check_index_array, internal_origin, rows_of, with_rows
+from arap.jit import announce_first_compile
 from arap.lbfgs import LbfgsHistory
 from arap.linsolve import NotPositiveDefiniteError, background_ordering, factorize
 from arap.loops import PLAIN_START, Iterate, lbfgs_iterations, plain_iterations
@@ -134,6 +135,7 @@ class ArapSolver(SolveStart, SingleSteps):
         points: PointConstraints | tuple[ArrayLike, ArrayLike] | tuple[ArrayLike, ArrayLike, ArrayLike] | None = None,
     ) -> None:
         t0 = time.perf_counter()
+        announce_first_compile()
         check_energy_and_weights(energy, weights)
         alpha = check_alpha(alpha)
         if constrained is None and is_mesh_like(V) and F is not None:
