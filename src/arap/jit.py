@@ -34,7 +34,7 @@ def first_compile_pending() -> bool:
     try:
         from arap.covariance import _local_serial
 
-        index = _local_serial._cache._cache_file._index_path
+        index = _local_serial._cache._cache_file._index_path  # type: ignore[attr-defined]
     except (AttributeError, ImportError):  # caching off, or another numba layout: nothing to say
         return False
     return not os.path.exists(index)
