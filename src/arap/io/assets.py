@@ -218,6 +218,9 @@ class MeshAsset:
 def weld_rows(A: NDArray[Any]) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
     """Group equal rows of ``A`` (bitwise, -0.0 and 0.0 apart), numbered in the order of their first occurrence.
 
+    Rows are hashed to 64 bits and sorted by hash; rows found equal by their hash are compared in full, and a
+    collision (never seen in practice) falls back to an exact :func:`numpy.unique`.
+
     Returns
     -------
     inverse : (n,) int64 array
@@ -229,42 +232,41 @@ def weld_rows(A: NDArray[Any]) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
     n = len(A)
     if n == 0:
         return np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64)
-    words = A.view(np.uint8).reshape(n, -1)
-    if words.shape[1] % 4 == 0:
-        words = words.view(np.uint32)
-    # A 64-bit hash of each row; equal rows have equal hashes, and rows found equal by hash are checked.
-    h = np.full(n, 1469598103934665603, dtype=np.uint64)
+    raw = A.view(np.uint8).reshape(n, -1)
+    words = raw.view(np.uint64) if raw.shape[1] % 8 == 0 else raw.view(np.uint32) if raw.shape[1] % 4 == 0 else raw
     with np.errstate(over="ignore"):
-        for j in range(words.shape[1]):
-            h = (h ^ words[:, j].astype(np.uint64)) * np.uint64(1099511628211)
-            h ^= h >> np.uint64(29)
-    order = np.argsort(h, kind="stable")
+        h = words[:, 0].astype(np.uint64) * np.uint64(0x9E3779B97F4A7C15)
+        for j in range(1, words.shape[1]):
+            h ^= h >> np.uint64(31)
+            h = (h ^ words[:, j].astype(np.uint64)) * np.uint64(0xBF58476D1CE4E5B9)
+        h ^= h >> np.uint64(29)
+    order = np.argsort(h)
     hs = h[order]
     starts = np.ones(n, dtype=bool)
     starts[1:] = hs[1:] != hs[:-1]
+    begin = np.flatnonzero(starts)
     group_sorted = np.cumsum(starts) - 1
-    first_sorted = order[np.flatnonzero(starts)]  # stable sort: the first row of each hash
-    rep = first_sorted[group_sorted]
-    if not np.array_equal(words[order], words[rep]):  # a hash collision: exact (slower) grouping
+    first_of_group = np.minimum.reduceat(order, begin)
+    if not np.array_equal(words[order], words[first_of_group[group_sorted]]):  # a collision: exact grouping
         _, first_u, inverse_u = np.unique(words, axis=0, return_index=True, return_inverse=True)
-        inverse_u = inverse_u.reshape(-1)
         rank = np.empty(len(first_u), dtype=np.int64)
-        rank[np.argsort(first_u, kind="stable")] = np.arange(len(first_u))
-        inverse = rank[inverse_u]
-        return inverse.astype(np.int64), np.sort(first_u).astype(np.int64)
-    # Renumber groups in the order of their first rows.
-    rank = np.empty(len(first_sorted), dtype=np.int64)
-    by_first = np.argsort(first_sorted, kind="stable")
-    rank[by_first] = np.arange(len(first_sorted))
+        rank[np.argsort(first_u)] = np.arange(len(first_u))
+        return rank[inverse_u.reshape(-1)], np.sort(first_u).astype(np.int64)
+    by_first = np.argsort(first_of_group)
+    rank = np.empty(len(begin), dtype=np.int64)
+    rank[by_first] = np.arange(len(begin))
     inverse = np.empty(n, dtype=np.int64)
     inverse[order] = rank[group_sorted]
-    return inverse, first_sorted[by_first].astype(np.int64)
+    return inverse, first_of_group[by_first].astype(np.int64)
 
 
 def face_normals(V: NDArray[np.float64], F: NDArray[np.int64]) -> NDArray[np.float64]:
-    """Area-weighted normals of triangles (the cross product of two edges, twice the area long)."""
-    a, b, c = V[F[:, 0]], V[F[:, 1]], V[F[:, 2]]
-    return np.cross(b - a, c - a)
+    """Area-weighted normals of triangles (the cross product of two edges, twice the area long), shape (m, 3)."""
+    x, y, z = (np.ascontiguousarray(V[:, k]) for k in range(3))
+    a, b, c = F[:, 0], F[:, 1], F[:, 2]
+    ux, uy, uz = x[b] - x[a], y[b] - y[a], z[b] - z[a]
+    vx, vy, vz = x[c] - x[a], y[c] - y[a], z[c] - z[a]
+    return np.stack([uy * vz - uz * vy, uz * vx - ux * vz, ux * vy - uy * vx], axis=1)
 
 
 def group_normals(V: NDArray[np.float64], F: NDArray[np.int64], corner_group: NDArray[np.int64],
@@ -282,16 +284,36 @@ def group_normals(V: NDArray[np.float64], F: NDArray[np.int64], corner_group: ND
     valid : (n_groups,) bool array
         False where the sum vanishes (only degenerate triangles); those normals are zero.
     """
-    N = np.repeat(face_normals(V, F), 3, axis=0)
-    g = corner_group.reshape(-1)
-    keep = g >= 0
-    g, N = g[keep], N[keep]
-    sums = np.stack([np.bincount(g, weights=N[:, k], minlength=n_groups) for k in range(3)], axis=1).astype(
-        np.float64)
+    N = face_normals(V, F)
+    sums = np.zeros((n_groups, 3))
+    for corner in range(3):
+        g = corner_group[:, corner]
+        keep = g >= 0
+        if not keep.all():
+            g = g[keep]
+        for k in range(3):
+            w = N[:, k] if keep.all() else N[keep, k]
+            sums[:, k] += np.bincount(g, weights=w, minlength=n_groups)
     length = np.sqrt(np.einsum("ij,ij->i", sums, sums))
     valid = length > 0
     sums[valid] /= length[valid, None]
     return sums, valid
+
+
+def vertex_normal_groups(to_solve: NDArray[np.int64], normals: NDArray[np.float32]) -> NDArray[np.int64]:
+    """Normal groups of vertices with one normal each (glTF, PLY): copies of one welded vertex with bit-identical
+    normals share a group (a UV seam stays smooth), other vertices are their own. Each group is named by its first
+    vertex; vertices without a normal (NaN) get -1."""
+    n = len(to_solve)
+    group = np.arange(n, dtype=np.int64)
+    copies = np.flatnonzero(np.bincount(to_solve, minlength=n)[to_solve] > 1)
+    if len(copies):
+        keys = np.concatenate([to_solve[copies, None].view(np.uint32).reshape(len(copies), -1),
+                               np.ascontiguousarray(normals[copies], dtype=np.float32).view(np.uint32)], axis=1)
+        inverse, first = weld_rows(keys)
+        group[copies] = copies[first][inverse]
+    group[np.isnan(normals[:, 0])] = -1
+    return group
 
 
 def fan(face_sizes: NDArray[np.int64], corners: NDArray[Any]) -> NDArray[Any]:

@@ -27,7 +27,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from arap.errors import MeshError, MeshFormatError, MeshTooLargeError
-from arap.io.assets import MeshAsset, group_normals, missing_file_warning, weld_rows, write_beside
+from arap.io.assets import MeshAsset, group_normals, missing_file_warning, vertex_normal_groups, write_beside
 
 __all__ = ["GltfData", "geometry_glb", "read_gltf_asset", "write_gltf_asset"]
 
@@ -420,11 +420,8 @@ def _new_normals(asset: MeshAsset, gltf: GltfData, V: NDArray[np.float64],
         block = old[start:start + count]
         empty = np.isnan(block[:, 0])
         block[empty] = values[:count][empty]
-    has = ~np.isnan(old[:, 0])
-    keys = np.concatenate([asset.vertices, old.astype(np.float64)], axis=1)
-    group, first = weld_rows(keys)
-    group[~has] = -1
-    normals, valid = group_normals(V, asset.faces, group[asset.faces], len(first))
+    group = vertex_normal_groups(asset.solve_mesh().to_solve, old)
+    normals, valid = group_normals(V, asset.faces, group[asset.faces], n)
     for pos, normal in gltf.normals:
         k = gltf.positions.index(pos)
         target = accessor_array(gltf.document, buffers, normal, "the asset")

@@ -19,7 +19,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from arap.errors import MeshFormatError, MeshTooLargeError
-from arap.io.assets import MeshAsset, fan, group_normals, missing_file_warning, weld_rows, write_beside
+from arap.io.assets import MeshAsset, fan, group_normals, missing_file_warning, vertex_normal_groups, write_beside
 from arap.io.screening import screen
 
 __all__ = ["PlyData", "PlyElement", "read_ply_asset", "write_ply_asset"]
@@ -219,10 +219,10 @@ def ply_bytes(asset: MeshAsset, V: NDArray[np.float64] | None) -> bytes:
                 types[axis] = (np.dtype("<f8"), None)
             if all(k in data for k in ("nx", "ny", "nz")):
                 old = np.stack([data[k] for k in ("nx", "ny", "nz")], axis=1)
-                keys = np.concatenate([asset.vertices, old.astype(np.float64)], axis=1)
-                group, first = weld_rows(keys)
-                new, valid = group_normals(V, asset.faces, group[asset.faces], len(first))
-                normals = np.where(valid[group][:, None], new[group], old)
+                group = vertex_normal_groups(asset.solve_mesh().to_solve, old.astype(np.float32))
+                new, valid = group_normals(V, asset.faces, group[asset.faces], len(group))
+                rows = np.maximum(group, 0)
+                normals = np.where(((group >= 0) & valid[rows])[:, None], new[rows], old)
                 for k, axis in enumerate(("nx", "ny", "nz")):
                     data[axis] = normals[:, k].astype(element.properties[axis][0])
         header.append(f"element {element.name} {element.count}")
