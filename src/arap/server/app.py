@@ -3,9 +3,6 @@
 from __future__ import annotations
 
 import contextlib
-import ctypes
-import ctypes.util
-import gc
 import html
 import logging
 import os
@@ -28,6 +25,7 @@ from arap.server.connection import Connection, StudioConfig
 from arap.server.decoder import FrameDecoder
 from arap.server.errors import RequestError
 from arap.server.guard import RequestGuard, normalize_origin, presented_token, token_matches
+from arap.server.memory import release_memory
 from arap.server.meshdata import MeshData, load_default
 from arap.server.session import Session
 
@@ -271,21 +269,6 @@ def create_app(
     ], middleware=[guard])
     app.state.studio = studio
     return app
-
-
-def release_memory() -> None:
-    """Collect garbage and return freed heap pages to the operating system (glibc's ``malloc_trim``, where present).
-
-    Large NumPy arrays are returned by ``free`` at once, but the many mid-sized blocks of a session (factor, cells,
-    history) stay in the allocator's arenas; without trimming, a server that served many sessions keeps their peak.
-    """
-    gc.collect()
-    try:
-        libc = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6")
-        trim = libc.malloc_trim
-    except (OSError, AttributeError):
-        return
-    trim(0)
 
 
 async def _refuse_full(ws: WebSocket, limit: int) -> None:

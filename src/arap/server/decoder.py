@@ -1,13 +1,19 @@
-"""Decoding of large text frames in a separate process.
+"""Decoding of large text frames in separate processes, with bounded memory and fairly between sessions.
 
 JSON decoding builds one Python object per number while holding the interpreter lock: a thread decoding a 50 MB
 constraint set (millions of indices) would take the lock from the event loop, and from every other session, for
-seconds. Text frames of :data:`PROCESS_BYTES` or more are therefore decoded and validated in one worker process
-shared by all sessions, and their index and point lists come back as NumPy arrays, which cross the process
-boundary as flat buffers and need no per-number work in the server. Smaller frames are decoded on the event loop
-or a thread (see :mod:`arap.server.connection`).
+seconds. Text frames of :data:`PROCESS_BYTES` or more are therefore decoded and validated in worker processes
+shared by all sessions, with :func:`arap.server.protocol.parse_large_text`: long lists of numbers are counted
+against their limits before they are decoded and become NumPy arrays (never Python lists), which cross the
+process boundary as flat buffers and need no per-number work in the server. Smaller frames are decoded on the
+event loop or a thread (see :mod:`arap.server.connection`).
 
-If the worker process cannot be started or dies, the frame is decoded on a thread instead: slower for the other
+Fairness: frames of :data:`LARGE_BYTES` or more are decoded by a worker of their own (the large lane), the others
+by another (the small lane), so a frame of a few megabytes never waits behind another session's 50 MB ones. Each
+session decodes one frame at a time (its reader waits for it), so a lane's queue holds at most one frame per
+session and serves them in turn.
+
+If a worker process cannot be started or dies, the frame is decoded on a thread instead: slower for the other
 sessions, never lost.
 """
 
@@ -26,17 +32,33 @@ from typing import Any
 import anyio.to_thread
 import numpy as np
 
-from arap.server.protocol import ClientMessage, parse_text
+from arap.server.memory import release_memory
+from arap.server.protocol import ClientMessage, parse_large_text
 
-__all__ = ["PROCESS_BYTES", "FrameDecoder", "arrays_from_lists", "decode_text_frame"]
+__all__ = ["LARGE_BYTES", "PROCESS_BYTES", "FrameDecoder", "arrays_from_lists", "decode_text_frame", "lane_of"]
 
 logger = logging.getLogger(__name__)
 
 PROCESS_BYTES = 2 * 2**20
-"""Text frames at least this large are decoded in the worker process."""
+"""Text frames at least this large are decoded in a worker process."""
+
+LARGE_BYTES = 8 * 2**20
+"""Text frames at least this large are decoded in the large lane (a worker of their own)."""
+
+LANES = ("small", "large")
+
+TRIM_BYTES = 4 * 2**20
+"""A worker hands its freed memory back to the system after decoding a frame at least this large."""
 
 
-def _int_array(values: list[int]) -> np.ndarray | list[int]:
+def lane_of(size: int) -> str:
+    """The lane that decodes a text frame of ``size`` characters: ``"small"`` or ``"large"``."""
+    return "large" if size >= LARGE_BYTES else "small"
+
+
+def _int_array(values: list[int] | np.ndarray) -> np.ndarray | list[int]:
+    if isinstance(values, np.ndarray):
+        return values  # from parse_large_text: int32 or int64
     try:
         return np.array(values, dtype=np.int64)
     except OverflowError:
@@ -54,7 +76,8 @@ def arrays_from_lists(msg: ClientMessage) -> ClientMessage:
     Returns
     -------
     ClientMessage
-        ``roi``, ``fixed`` and each handle group as (k,) int64 arrays, ``targets`` as a (t, 3) float64 array.
+        ``roi``, ``fixed`` and each handle group as (k,) integer arrays (int64 from lists; int32 or int64 from
+        :func:`arap.server.protocol.parse_large_text`), ``targets`` as a (t, 3) float64 array.
     """
     if msg.type != "set_constraints":
         return msg
@@ -64,19 +87,27 @@ def arrays_from_lists(msg: ClientMessage) -> ClientMessage:
         fields["roi"] = _int_array(fields["roi"])
     fields["handle_groups"] = [_int_array(g) for g in fields["handle_groups"]]
     if fields.get("targets") is not None:
-        fields["targets"] = np.array(fields["targets"], dtype=np.float64).reshape(-1, 3)
+        fields["targets"] = np.asarray(fields["targets"], dtype=np.float64).reshape(-1, 3)
     return ClientMessage(msg.type, fields, msg.payload)
 
 
-def decode_text_frame(data: bytes) -> ClientMessage:
-    """Decode and validate a UTF-8 text frame with arrays for its long lists (runs in the worker process).
+def decode_text_frame(data: bytes | str) -> ClientMessage:
+    """Decode and validate a UTF-8 text frame with arrays for its long lists (runs in a worker process).
 
     Raises
     ------
     arap.server.protocol.RequestError
-        As :func:`arap.server.protocol.parse_text`.
+        As :func:`arap.server.protocol.parse_large_text`.
     """
-    return arrays_from_lists(parse_text(data.decode("utf-8")))
+    size = len(data)
+    if isinstance(data, str):
+        data = data.encode("utf-8")
+    try:
+        return arrays_from_lists(parse_large_text(data))
+    finally:
+        if size >= TRIM_BYTES:
+            del data
+            release_memory()
 
 
 def _exit_with_parent(parent: int) -> None:
@@ -90,52 +121,56 @@ def _exit_with_parent(parent: int) -> None:
     threading.Thread(target=watch, name="arap-decoder-watchdog", daemon=True).start()
 
 
-def _decode_on_thread(data: bytes) -> ClientMessage:
-    return arrays_from_lists(parse_text(data.decode("utf-8"), cooperative=True))
+def _decode_on_thread(text: str) -> ClientMessage:
+    return arrays_from_lists(parse_large_text(text.encode("utf-8")))
 
 
 class FrameDecoder:
-    """The worker process that decodes large text frames, started on first use and shared by all sessions."""
+    """The worker processes that decode large text frames, one per lane (see :func:`lane_of`), each started on
+    first use and shared by all sessions."""
 
     def __init__(self) -> None:
-        self._pool: ProcessPoolExecutor | None = None
+        self._pools: dict[str, ProcessPoolExecutor] = {}
         self._lock = threading.Lock()
         self._closed = False
 
-    def _executor(self) -> ProcessPoolExecutor:
+    def _executor(self, lane: str) -> ProcessPoolExecutor:
         with self._lock:
             if self._closed:
                 raise RuntimeError("the frame decoder is closed")
-            if self._pool is None:
+            pool = self._pools.get(lane)
+            if pool is None:
                 # "spawn": the server has threads, which a forked child must not inherit half-way through.
-                self._pool = ProcessPoolExecutor(max_workers=1, mp_context=multiprocessing.get_context("spawn"),
-                                                 initializer=_exit_with_parent, initargs=(os.getpid(),))
-            return self._pool
+                pool = self._pools[lane] = ProcessPoolExecutor(
+                    max_workers=1, mp_context=multiprocessing.get_context("spawn"), initializer=_exit_with_parent,
+                    initargs=(os.getpid(),))
+            return pool
 
     @property
     def started(self) -> bool:
-        """Whether the worker process is running (it starts with the first large frame)."""
-        return self._pool is not None
+        """Whether a worker process is running (each starts with the first frame of its lane)."""
+        return bool(self._pools)
 
     def _discard(self, pool: ProcessPoolExecutor) -> None:
         with self._lock:
-            if self._pool is pool:
-                self._pool = None
+            for lane, p in list(self._pools.items()):
+                if p is pool:
+                    del self._pools[lane]
         pool.shutdown(wait=False, cancel_futures=True)
 
     async def decode(self, text: str) -> ClientMessage:
-        """Decode and validate a text frame in the worker process (on a thread if the process is unusable).
+        """Decode and validate a text frame in its lane's worker process (on a thread if the process is unusable).
 
         Raises
         ------
         arap.server.protocol.RequestError
             The frame is not a valid message.
         """
-        data = await anyio.to_thread.run_sync(str.encode, text)
         pool: ProcessPoolExecutor | None = None
         try:
-            pool = self._executor()
-            return await asyncio.get_running_loop().run_in_executor(pool, decode_text_frame, data)
+            pool = self._executor(lane_of(len(text)))
+            # the text itself goes to the worker (pickled once as UTF-8): no encoded copy waits here meanwhile
+            return await asyncio.get_running_loop().run_in_executor(pool, decode_text_frame, text)
         except BrokenProcessPool as exc:
             # raised by submit or by the result: the worker died (killed, out of memory); start a new one next time
             logger.warning("the decoder process ended (%r); decoding on a thread", exc)
@@ -143,18 +178,19 @@ class FrameDecoder:
                 self._discard(pool)
         except (RuntimeError, OSError) as exc:
             logger.warning("cannot use the decoder process (%r); decoding on a thread", exc)
-        return await anyio.to_thread.run_sync(_decode_on_thread, data)
+        return await anyio.to_thread.run_sync(_decode_on_thread, text)
 
     def close(self, wait: bool = True) -> None:
-        """Stop the worker process; frames waiting to be decoded are dropped.
+        """Stop the worker processes; frames waiting to be decoded are dropped.
 
         Parameters
         ----------
         wait : bool
-            Wait until the worker process has ended (at most the frame it is decoding).
+            Wait until the worker processes have ended (at most the frames they are decoding).
         """
         with self._lock:
             self._closed = True
-            pool, self._pool = self._pool, None
-        if pool is not None:
+            pools = list(self._pools.values())
+            self._pools.clear()
+        for pool in pools:
             pool.shutdown(wait=wait, cancel_futures=True)

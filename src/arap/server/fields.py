@@ -10,6 +10,7 @@ import math
 import sys
 from typing import TYPE_CHECKING, Any
 
+from arap.server.bulkjson import NumberList
 from arap.server.errors import RequestError
 
 if TYPE_CHECKING:
@@ -35,7 +36,14 @@ def _is_number(x: Any) -> bool:
     return type(x) is int and -_FLOAT_MAX <= x <= _FLOAT_MAX
 
 
-def _check_index_list(value: Any, where: str) -> list[int]:
+SHORT_LIST_BYTES = 2**20
+"""A :class:`~arap.server.bulkjson.NumberList` where a list of objects or matrices is expected is decoded into
+Python lists (and then refused or accepted by the usual checks) only up to this length of text."""
+
+
+def _check_index_list(value: Any, where: str) -> Any:
+    if isinstance(value, NumberList):
+        return value.integers(where)
     if not isinstance(value, list):
         raise RequestError("bad_message", f"{where} must be a list of vertex indices")
     if not all(type(x) is int for x in value):
@@ -54,6 +62,8 @@ def check_field(f: Field, value: Any, mtype: str) -> Any:
     """
     where = f"{mtype}.{f.name}"
     kind = f.kind
+    if isinstance(value, NumberList):
+        value = _number_list(f, value, where)
     if kind == "int":
         if not _is_int(value):
             raise RequestError("bad_message", f"{where} must be an integer")
@@ -79,6 +89,8 @@ def check_field(f: Field, value: Any, mtype: str) -> Any:
     if kind in ("indices", "indices_or_null"):
         return _check_index_list(value, where)
     if kind == "index_groups":
+        if isinstance(value, NumberList):
+            return value.integer_groups(where)
         if not isinstance(value, list):
             raise RequestError("bad_message", f"{where} must be a list of lists of vertex indices")
         if f.max_length is not None and len(value) > f.max_length:
@@ -102,6 +114,8 @@ def check_field(f: Field, value: Any, mtype: str) -> Any:
     if kind == "points_or_null":
         if value is None:
             return None
+        if isinstance(value, NumberList):
+            return value.points(where)
         if not isinstance(value, list):
             raise RequestError("bad_message", f"{where} must be a list of [x, y, z] points or null")
         for i, p in enumerate(value):
@@ -118,7 +132,7 @@ def check_field(f: Field, value: Any, mtype: str) -> Any:
         for i, item in enumerate(value):
             if not isinstance(item, dict) or set(item) != {"vertices", "value"}:
                 raise RequestError("bad_message", f'{where}[{i}] must be an object with "vertices" and "value"')
-            _check_index_list(item["vertices"], f"{where}[{i}].vertices")
+            item["vertices"] = _check_index_list(item["vertices"], f"{where}[{i}].vertices")
             v = item["value"]
             if v != "rigid" and not (_is_number(v) and v > 0):
                 raise RequestError("bad_message", f'{where}[{i}].value must be a positive number or "rigid"')
@@ -126,6 +140,26 @@ def check_field(f: Field, value: Any, mtype: str) -> Any:
     if kind == "point_handles_or_null":
         return _check_point_handles(f, value, where)
     raise AssertionError(f"field kind {kind!r} cannot be received")
+
+
+def _number_list(f: Field, value: NumberList, where: str) -> Any:
+    """A long list of numbers (or of lists of numbers) given for field ``f``: counted against the field's limit
+    before anything is decoded; kept for the fields that take it as arrays, else decoded into Python lists when
+    short (the usual checks then answer), else refused."""
+    if f.max_length is not None and len(value) > f.max_length:
+        what = {"index_groups": "groups", "matrices": "matrices", "stiffness_or_null": "groups",
+                "point_handles_or_null": "point handles"}.get(f.kind, "elements")
+        raise RequestError("bad_message", f"{where} has {len(value)} {what}, at most {f.max_length}")
+    if f.kind in ("indices", "indices_or_null") and not value.nested:
+        return value
+    if f.kind in ("index_groups", "points_or_null") and (value.nested or not len(value)):
+        return value if len(value) else []
+    if f.kind in ("int", "number", "string", "enum"):
+        return value  # not of the field's kind: refused as any list would be
+    if value.nbytes > SHORT_LIST_BYTES:
+        raise RequestError("bad_message", f"{where} is a list of {len(value):,} "
+                           f"{'lists of numbers' if value.nested else 'numbers'}, not what it must hold")
+    return value.tolist()
 
 
 _POINT_KEYS = frozenset({"face", "barycentric", "weight", "target"})
@@ -148,6 +182,8 @@ def _check_point_handles(f: Field, value: Any, where: str) -> Any:
             raise RequestError("bad_message", f"{where}[{i}].face must be an integer triangle index")
         for key in ("barycentric", "target"):
             p = item.get(key, [0, 0, 0])
+            if isinstance(p, NumberList) and p.nbytes <= SHORT_LIST_BYTES:
+                p = item[key] = p.tolist()
             if not isinstance(p, list) or len(p) != 3 or not all(_is_number(x) for x in p):
                 raise RequestError("bad_message", f"{where}[{i}].{key} must be a list of 3 finite numbers")
         w = item.get("weight", 1)

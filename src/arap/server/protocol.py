@@ -22,6 +22,7 @@ from typing import Any
 import numpy as np
 
 from arap.options import DEFAULT_ALPHA, DEFAULT_ENERGY, DEFAULT_WEIGHTS, ENERGY_TYPES, WEIGHT_TYPES
+from arap.server.bulkjson import NumberList, loads_bulk
 from arap.server.errors import ERROR_CODES, RequestError
 from arap.server.fields import check_field
 from arap.server.frames import MAX_HEADER_BYTES, decode_binary, encode_binary, loads_json
@@ -48,6 +49,7 @@ __all__ = [
     "encode_binary",
     "main",
     "parse_binary",
+    "parse_large_text",
     "parse_text",
     "server_message",
     "validate",
@@ -372,7 +374,8 @@ def validate(obj: Any, binary: bool, payload: memoryview | None = None) -> Clien
         ``bad_message`` for anything that does not match.
     """
     if not isinstance(obj, dict):
-        raise RequestError("bad_message", f"a message must be a JSON object, got {type(obj).__name__}")
+        kind = "list" if isinstance(obj, NumberList) else type(obj).__name__
+        raise RequestError("bad_message", f"a message must be a JSON object, got {kind}")
     request = _request_name(obj)
     if "type" not in obj:
         raise RequestError("bad_message", "message has no 'type'")
@@ -414,6 +417,18 @@ def parse_text(text: str, *, cooperative: bool = False) -> ClientMessage:
     return validate(loads_json(text, cooperative=cooperative), binary=False)
 
 
+def parse_large_text(data: bytes) -> ClientMessage:
+    """Decode and validate a large UTF-8 text frame in memory proportional to its size. Raises
+    :class:`RequestError`.
+
+    Long lists of numbers are counted against their field's limits before they are decoded, and come back as
+    NumPy arrays: index lists as (k,) int32 arrays (int64 when an index exceeds int32, a list when one exceeds
+    int64), handle groups as a list
+    of them, targets as a (t, 3) float64 array (see :mod:`arap.server.bulkjson`); short ones as Python lists.
+    """
+    return validate(loads_bulk(data), binary=False)
+
+
 def parse_binary(data: bytes | bytearray | memoryview) -> ClientMessage:
     """Decode and validate a binary frame. Raises :class:`RequestError`."""
     header, payload = decode_binary(data)
@@ -422,6 +437,8 @@ def parse_binary(data: bytes | bytearray | memoryview) -> ClientMessage:
 
 def _first_out_of_range(values: list[int] | np.ndarray, n: int) -> int | None:
     if isinstance(values, np.ndarray):
+        if not values.size or (values.min() >= 0 and values.max() < n):  # no temporary arrays when all are in range
+            return None
         bad = np.flatnonzero((values < 0) | (values >= n))
         return int(values[bad[0]]) if bad.size else None
     return next((v for v in values if v < 0 or v >= n), None)
@@ -442,7 +459,8 @@ def check_against_mesh(msg: ClientMessage, n_vertices: int, n_groups: int) -> No
     Raises
     ------
     RequestError
-        ``bad_constraints`` for an index out of range, ``bad_message`` for a wrong number of transforms.
+        ``bad_constraints`` for an index out of range or a list longer than the mesh has vertices (some must
+        repeat), ``bad_message`` for a wrong number of transforms.
     """
     if msg.type == "set_constraints":
         lists: list[tuple[str, list[int] | np.ndarray]] = [("fixed", msg.fields["fixed"])]
@@ -454,6 +472,10 @@ def check_against_mesh(msg: ClientMessage, n_vertices: int, n_groups: int) -> No
             if bad is not None:
                 raise RequestError("bad_constraints",
                                    f"{name}: vertex index {str(bad)[:40]} out of range 0..{n_vertices - 1}", msg.type)
+            if len(values) > n_vertices:
+                # checked here, before the session copies the list to look for the repeated ones
+                raise RequestError("bad_constraints", f"{name} lists {len(values):,} vertex indices, more than the "
+                                   f"mesh's {n_vertices:,} vertices: some repeat", msg.type)
     elif msg.type == "drag":
         got = len(msg.fields["transforms"])
         if got != n_groups:

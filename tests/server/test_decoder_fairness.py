@@ -1,0 +1,59 @@
+"""A session's frame of a few megabytes is decoded while another session's large frame is still being decoded: it
+never waits behind it."""
+
+from __future__ import annotations
+
+import json
+import time
+from typing import Any
+
+import pytest
+from starlette.testclient import TestClient
+
+from arap.server.decoder import LARGE_BYTES, PROCESS_BYTES, decode_text_frame, lane_of
+from tests.server.helpers import StudioClient
+
+pytestmark = pytest.mark.timeout(120)
+
+SLOW_SECONDS = 6.0
+
+
+def _padded(message: dict[str, Any], size: int) -> str:
+    text = json.dumps(message)
+    return text[:-1] + " " * (size - len(text)) + "}"
+
+
+def _slow_when_asked(data: bytes | str) -> Any:
+    """Runs in the decoder process: a frame with a ``slow`` field takes SLOW_SECONDS to decode."""
+    if ('"slow"' if isinstance(data, str) else b'"slow"') in data:
+        time.sleep(SLOW_SECONDS)
+    return decode_text_frame(data)
+
+
+def test_lanes() -> None:
+    assert lane_of(PROCESS_BYTES) == lane_of(LARGE_BYTES - 1) == "small"
+    assert lane_of(LARGE_BYTES) == lane_of(64 * 2**20) == "large"
+
+
+def test_a_small_frame_does_not_wait_behind_another_sessions_large_one(http: TestClient,
+                                                                       monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr("arap.server.decoder.decode_text_frame", _slow_when_asked)
+    small = _padded({"type": "undo"}, PROCESS_BYTES + 1000)
+    large = _padded({"type": "undo"}, LARGE_BYTES + 1000)
+    with http.websocket_connect("/ws") as ws_a, http.websocket_connect("/ws") as ws_b:
+        a, b = StudioClient(ws_a), StudioClient(ws_b)
+        a.greet()
+        b.greet()
+        for text in (large, small):  # both decoder processes started
+            b.send(text)
+            b.expect("state")
+        a.send(_padded({"type": "undo", "slow": 1}, LARGE_BYTES + 1000))
+        time.sleep(0.5)  # A's frame is being decoded
+        t0 = time.monotonic()
+        b.send(small)
+        b.expect("state")
+        waited = time.monotonic() - t0
+        assert waited < SLOW_SECONDS / 3, f"the small frame waited {waited:.1f} s"
+        assert "unknown field 'slow'" in a.error("bad_message")["message"]  # A is answered too, later
+        a.ping()
+        b.ping()
