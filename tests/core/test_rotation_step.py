@@ -135,7 +135,9 @@ def test_solves_converge_on_dense_meshes(camelhead: tuple[np.ndarray, np.ndarray
     solver = arap.ArapSolver(V, F, s.constrained, energy="smooth_rotations")
     result = solver.solve(s.targets, max_iterations=300)
     assert result.converged and result.iterations < 150, (result.iterations, result.residual)
-    assert np.all(np.diff(result.energies) <= 0)
+    # never rising beyond rounding: the kernels' thread choice (measured at run time) changes the last bits of a sum
+    energies = np.asarray(result.energies)
+    assert np.all(np.diff(energies) <= 1e-14 * np.abs(energies[1:]))
 
 
 def test_energy_and_rotation_term_do_not_depend_on_the_thread_count(camelhead: tuple[np.ndarray, np.ndarray]) -> None:
