@@ -397,3 +397,21 @@ def test_writing_refuses_other_formats_and_special_destinations(tmp_path: Path) 
         save_asset(tmp_path / "folder.glb", asset)
     with pytest.raises(MeshError, match="NaN"):
         save_asset(tmp_path / "nan.glb", asset, np.full((24, 3), np.nan))
+
+
+def test_obj_reader_handles_mixed_corners_relative_indices_and_continued_lines() -> None:
+    text = ("v 0 0 0 # origin\nv 1 0 0\n  v 1 1 0\nv 0 1 0\nv 0.5 0.5 1 \\\n\nvt 0 0\nvt 1 0\nvt 1 1\nvn 0 0 1\n"
+            "usemtl a\nf 1/1/1 2//1 3/3\nf -5/-3 -2/-1/-1 4\n\tf 1 4 5 3 2 # a pentagon\ng\nusemtl\nf 2/0/1 5/1/9 3\n")
+    asset = load_asset_bytes(text.encode(), "obj")
+    obj = asset.data
+    assert obj.face_sizes.tolist() == [3, 3, 5, 3]
+    assert obj.corner_vertices.tolist() == [0, 1, 2, 0, 3, 3, 0, 3, 4, 2, 1, 1, 4, 2]
+    assert obj.corner_texcoords.tolist() == [0, -1, 2, 0, 2, -1, -1, -1, -1, -1, -1, -1, 0, -1]
+    assert obj.corner_normals.tolist() == [0, 0, -1, -1, 0, -1, -1, -1, -1, -1, -1, 0, -1, -1]
+    assert asset.materials == ["a"] and asset.face_materials.tolist() == [0, 0, 0, 0, 0, -1]
+    assert asset.faces.tolist() == [[0, 1, 2], [0, 3, 3], [0, 3, 4], [0, 4, 2], [0, 2, 1], [1, 4, 2]]
+    assert _same(asset.vertices[4], np.array([0.5, 0.5, 1.0]))
+    with pytest.raises(MeshFormatError, match="line 2: a face names vertex -3, but only 1 come before it"):
+        load_asset_bytes(b"v 0 0 0\nf 1 -3 1\nv 1 1 1\n", "obj")
+    with pytest.raises(MeshFormatError, match=r"line 1: vertex '1 x 2' is not a list of numbers"):
+        load_asset_bytes(b"v 1 x 2\nv 0 0 0\nv 1 1 1\nf 1 2 3\n", "obj")

@@ -33,10 +33,7 @@ from arap.io.fastobj import parse_plain_obj
 from arap.io.paths import read_regular_file
 from arap.io.screening import (
     announced_faces,
-    check_obj_short_faces,
-    check_obj_zero_index,
     check_size,
-    plain_obj_lines,
     screen,
 )
 from arap.mesh import MeshLike, mesh_arrays, triangulate_polygons
@@ -235,10 +232,7 @@ def load_mesh_bytes_with_report(
     check_size(data, ft, name, max_vertices)
     screened = screen(data, ft, name, obj_zero_index=False)
     plain = parse_plain_obj(screened) if ft == "obj" else None  # takes only face indices from 1 up
-    if plain is None and ft == "obj":
-        check_obj_zero_index(screened, name)
-        check_obj_short_faces(screened, name)
-        screened = plain_obj_lines(screened)
+    if plain is None and ft == "obj":  # refuses vertex 0 and short faces, naming the line
         plain = _parse_obj(screened, name)
     V, F = plain if plain is not None else _parse(io.BytesIO(screened), ft, name)
     announced = announced_faces(screened, ft)

@@ -8,9 +8,13 @@ Vertices keep the numbering of the ``v`` lines; polygons are kept (and fan-trian
 
 from __future__ import annotations
 
+import itertools
 import logging
+import re
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -74,50 +78,102 @@ class ObjData:
     statements: list[str] = field(default_factory=list)
 
 
-def _numbers(rows: list[list[str]], width: int, what: str, label: str, lines: list[int]) -> NDArray[np.float64]:
-    """Rows of number words as a float array at least ``width`` wide, NaN-padded."""
+def _parse_numbers(text: str, dtype: type) -> NDArray[Any] | None:
+    """All the numbers in ``text`` (separated by blanks), or None when a word is not one."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", DeprecationWarning)
+        try:
+            return np.fromstring(text, sep=" ", dtype=dtype)
+        except (ValueError, DeprecationWarning):
+            return None
+
+
+def _word_counts(rows: list[str]) -> NDArray[np.int64]:
+    """The number of blank-separated words on each row (without splitting them in Python)."""
+    if not rows:
+        return np.zeros(0, dtype=np.int64)
+    a = np.frombuffer(("\n".join(rows) + "\n").encode("utf-8"), dtype=np.uint8)
+    newline = a == 10
+    blank = newline | (a == 32) | (a == 9) | (a == 13) | (a == 11) | (a == 12)
+    start = ~blank
+    start[1:] &= blank[:-1]
+    line = np.cumsum(newline)
+    return np.bincount(line[start], minlength=len(rows)).astype(np.int64)
+
+
+def _numbers(rows: list[str], width: int, what: str, label: str, lines: list[int],
+             counts: NDArray[np.int64] | None = None) -> NDArray[np.float64]:
+    """Rows of numbers (text after the keyword) as a float array at least ``width`` wide, NaN-padded."""
     if not rows:
         return np.zeros((0, width))
-    longest = max(width, max(len(r) for r in rows))
-    try:
-        if all(len(r) == longest for r in rows):
-            return np.array(rows, dtype=np.float64).reshape(len(rows), longest)
-        out = np.full((len(rows), longest), np.nan)
-        for i, r in enumerate(rows):
+    counts = _word_counts(rows) if counts is None else counts
+    longest = max(width, int(counts.max()))
+    if (counts == longest).all():
+        values = _parse_numbers(" ".join(rows), float)
+        if values is not None and values.size == len(rows) * longest:
+            return values.reshape(len(rows), longest)
+    out = np.full((len(rows), longest), np.nan)
+    for i, r in enumerate(r.split() for r in rows):
+        try:
             out[i, :len(r)] = [float(x) for x in r]
-        return out
-    except ValueError:
-        for i, r in enumerate(rows):
+        except ValueError:
+            raise MeshFormatError(f"cannot parse {label} as OBJ: line {lines[i]}: {what} {' '.join(r)!r} is not a "
+                                  "list of numbers") from None
+    return out
+
+
+_WHAT = ("vertex", "texture coordinate", "normal")
+
+
+def _corner_indices(rows: list[str], n: int, label: str, corner_lines: NDArray[np.int64]) -> NDArray[np.int64]:
+    """The (n, 3) v/vt/vn numbers of the ``n`` corners of face rows as written (0 where a corner has none)."""
+    joined = " ".join(rows)
+    slashes, doubles = joined.count("/"), joined.count("//")
+    layouts = {(0, 0): [0], (n, 0): [0, 1], (2 * n, 0): [0, 1, 2], (2 * n, n): [0, 2]}
+    columns = layouts.get((slashes, doubles))
+    if columns is not None:  # every corner written alike: one parse of all the numbers
+        values = _parse_numbers(joined.replace("/", " "), np.int64)
+        if values is not None and values.size == n * len(columns):
+            out = np.zeros((n, 3), dtype=np.int64)
+            out[:, columns] = values.reshape(n, len(columns))
+            if not (out[:, columns] == 0).any():
+                return out
+    out = np.zeros((n, 3), dtype=np.int64)
+    for c, word in enumerate(itertools.chain.from_iterable(r.split() for r in rows)):
+        for k, part in enumerate(word.split("/")[:3]):
+            if not part and k:
+                continue
             try:
-                [float(x) for x in r]
+                out[c, k] = int(part)
             except ValueError:
-                raise MeshFormatError(f"cannot parse {label} as OBJ: line {lines[i]}: {what} {' '.join(r)!r} is not "
-                                      "a list of numbers") from None
-        raise
+                raise MeshFormatError(f"cannot parse {label} as OBJ: line {int(corner_lines[c])}: face index "
+                                      f"{part!r} is not a whole number") from None
+            if out[c, k] == 0 and k == 0:  # a texture coordinate or normal 0 is read as none
+                raise MeshFormatError(f"{label}, line {int(corner_lines[c])}: a face names vertex 0, but OBJ vertex "
+                                      "indices start at 1 (or count back from -1 for the last vertex)")
+    return out
 
 
-def _resolve(word: str, count: int, what: str, label: str, line: int) -> int:
-    """A face index from 0 (-1: a texture coordinate or normal before the first one, which is read as none)."""
-    try:
-        i = int(word)
-    except ValueError:
-        raise MeshFormatError(f"cannot parse {label} as OBJ: line {line}: face index {word!r} is not a whole "
-                              "number") from None
-    if i > 0:
-        return i - 1
-    if i < 0 and count + i >= 0:
-        return count + i
-    if i == 0:
-        raise MeshFormatError(f"cannot parse {label} as OBJ: line {line}: a face names {what} 0, but OBJ counts "
-                              "from 1")
-    if what != "vertex":
-        return -1
-    raise MeshFormatError(f"cannot parse {label} as OBJ: line {line}: a face names {what} {i}, but only {count:,} "
-                          f"come before it")
+def _resolve(index: NDArray[np.int64], before: NDArray[np.int64], what: str, label: str,
+             corner_lines: NDArray[np.int64]) -> NDArray[np.int64]:
+    """Indices from 0: ``i`` > 0 is ``i - 1``, ``i`` < 0 counts back from the ``before`` entries above its line; 0
+    (none written) is -1. A texture coordinate or normal before the first one is read as none."""
+    out = np.where(index > 0, index - 1, np.where(index < 0, before + index, -1))
+    bad = (index < 0) & (out < 0)
+    if bad.any():
+        c = int(np.argmax(bad))
+        if what != "vertex":
+            out[bad] = -1
+        else:
+            raise MeshFormatError(f"cannot parse {label} as OBJ: line {int(corner_lines[c])}: a face names {what} "
+                                  f"{int(index[c])}, but only {int(before[c]):,} come before it")
+    return out
 
 
 def parse_obj(text: bytes, label: str) -> tuple[NDArray[np.float64], ObjData, list[str], list[str]]:
     """Positions and attributes of OBJ text (UTF-8).
+
+    Lines are sorted by their keyword in one pass; the numbers of each kind are then parsed together.
 
     Returns
     -------
@@ -126,99 +182,101 @@ def parse_obj(text: bytes, label: str) -> tuple[NDArray[np.float64], ObjData, li
     materials, groups : list of str
         Names in the order faces first use them.
     """
-    lines = text.decode("utf-8", errors="replace").splitlines()
-    v_rows: list[list[str]] = []
-    v_lines: list[int] = []
-    vt_rows: list[list[str]] = []
-    vt_lines: list[int] = []
-    vn_rows: list[list[str]] = []
-    vn_lines: list[int] = []
-    sizes: list[int] = []
-    cv: list[int] = []
-    ct: list[int] = []
-    cn: list[int] = []
-    tables: dict[str, dict[str, int]] = {"m": {}, "g": {}, "o": {}, "s": {}}
-    state: dict[str, str | None] = {"m": None, "g": None, "o": None, "s": None}
-    ids: dict[str, list[int]] = {"m": [], "g": [], "o": [], "s": []}
+    decoded = text.decode("utf-8", errors="replace")
+    if "\\\n" in decoded or "\\\r\n" in decoded:  # continued lines
+        decoded = re.sub(r"\\\r?\n", " ", decoded)
+    rows: dict[str, list[str]] = {"v": [], "vt": [], "vn": [], "f": []}
+    numbers: dict[str, list[int]] = {"v": [], "vt": [], "vn": [], "f": []}
+    state: list[str | None] = [None, None, None, None]  # material, group, object, smoothing
+    runs: list[tuple[int, tuple[str | None, ...]]] = []
+    changed = True
     mtllibs: list[str] = []
     statements: list[str] = []
-    pending = ""
-    for number, raw in enumerate(lines, 1):
-        if raw.endswith("\\"):  # a continued line
-            pending += raw[:-1] + " "
+    v_rows, v_numbers, f_rows, f_numbers = rows["v"], numbers["v"], rows["f"], numbers["f"]
+    for number, line in enumerate(decoded.splitlines(), 1):
+        c = line[:1]
+        if c == " " or c == "\t":
+            line = line.lstrip()
+            c = line[:1]
+        if not c or c == "#":
             continue
-        line = (pending + raw).strip()
-        pending = ""
-        if not line or line[0] == "#":
+        second = line[1:2]
+        if c == "v" and (second == " " or second == "\t"):
+            v_rows.append(line[2:])
+            v_numbers.append(number)
+            continue
+        if c == "f" and (second == " " or second == "\t"):
+            if changed:
+                runs.append((len(f_rows), tuple(state)))
+                changed = False
+            f_rows.append(line[2:])
+            f_numbers.append(number)
             continue
         split = line.split(None, 1)
-        head, rest = split[0], (split[1] if len(split) > 1 else "")
-        if head in ("v", "vt", "vn", "f"):
-            words = rest.split("#", 1)[0].split()
-            if head == "v":
-                v_rows.append(words)
-                v_lines.append(number)
-            elif head == "vt":
-                vt_rows.append(words)
-                vt_lines.append(number)
-            elif head == "vn":
-                vn_rows.append(words)
-                vn_lines.append(number)
-            else:
-                if len(words) < 3:
-                    raise MeshFormatError(f"cannot parse {label} as OBJ: line {number}: a face needs at least 3 "
-                                          f"vertices, this one has {len(words)}")
-                nv, nt, nn = len(v_rows), len(vt_rows), len(vn_rows)
-                for word in words:
-                    parts = word.split("/")
-                    cv.append(_resolve(parts[0], nv, "vertex", label, number))
-                    ct.append(_resolve(parts[1], nt, "texture coordinate", label, number)
-                              if len(parts) > 1 and parts[1] else -1)
-                    cn.append(_resolve(parts[2], nn, "normal", label, number)
-                              if len(parts) > 2 and parts[2] else -1)
-                sizes.append(len(words))
-                for key in "mgos":
-                    name = state[key]
-                    if name is None:
-                        ids[key].append(-1)
-                    else:
-                        ids[key].append(tables[key].setdefault(name, len(tables[key])))
-            continue
-        rest = rest.strip()
-        if head == "usemtl":
-            state["m"] = rest or None
-        elif head == "g":
-            state["g"] = " ".join(rest.split()) or None
-        elif head == "o":
-            state["o"] = rest or None
-        elif head == "s":
-            state["s"] = None if rest.lower() in ("", "off", "0") else rest
+        head, rest = split[0], (split[1].strip() if len(split) > 1 else "")
+        if head in ("vt", "vn"):
+            rows[head].append(rest)
+            numbers[head].append(number)
+        elif head == "f":
+            raise MeshFormatError(f"{label}, line {number}: a face with fewer than 3 vertices ({line.strip()!r}; the "
+                                  "file may be cut short)")
+        elif head in ("usemtl", "g", "o", "s"):
+            value: str | None = " ".join(rest.split()) if head == "g" else rest
+            if head == "s" and rest.lower() in ("off", "0"):
+                value = None
+            state[("usemtl", "g", "o", "s").index(head)] = value or None
+            changed = True
         elif head == "mtllib":
             words = rest.split()
             several = len(words) > 1 and all(w.lower().endswith(".mtl") for w in words)
             mtllibs.extend(words if several else [rest] if rest else [])
         else:
-            statements.append(line)
-    short = [i for i, r in enumerate(v_rows) if len(r) < 3]
-    if short:
-        i = short[0]
+            statements.append(line.strip())
+    for key in rows:  # comments after the numbers
+        rows[key] = [r.split("#", 1)[0] if "#" in r else r for r in rows[key]]
+    f_rows = rows["f"]
+    v_counts = _word_counts(rows["v"])
+    if len(v_counts) and v_counts.min() < 3:
+        i = int(np.argmax(v_counts < 3))
         raise MeshFormatError(f"cannot parse {label} as OBJ: the file ends early or a line is cut (line "
-                              f"{v_lines[i]}: a vertex with {len(v_rows[i])} coordinates; truncated?)")
-    V_all = _numbers(v_rows, 3, "vertex", label, v_lines)
+                              f"{v_numbers[i]}: a vertex with {int(v_counts[i])} coordinates; truncated?)")
+    V_all = _numbers(rows["v"], 3, "vertex", label, v_numbers, v_counts)
+    texcoords = _numbers(rows["vt"], 3, "texture coordinate", label, numbers["vt"])[:, :3]
+    normals = _numbers(rows["vn"], 3, "normal", label, numbers["vn"])[:, :3]
+    sizes = _word_counts(f_rows)
+    if len(sizes) and sizes.min() < 3:
+        i = int(np.argmax(sizes < 3))
+        raise MeshFormatError(f"{label}, line {f_numbers[i]}: a face with fewer than 3 vertices "
+                              f"({('f ' + f_rows[i]).strip()!r}; the file may be cut short)")
+    corner_lines = np.repeat(np.asarray(f_numbers, dtype=np.int64), sizes)
+    raw = _corner_indices(f_rows, int(sizes.sum()), label, corner_lines)
+    resolved = []
+    for k, key in enumerate(("v", "vt", "vn")):
+        before = np.searchsorted(np.asarray(numbers[key], dtype=np.int64), corner_lines)
+        resolved.append(_resolve(raw[:, k], before, _WHAT[k], label, corner_lines))
+    # Materials, groups, objects and smoothing groups: named in the order faces first use them.
+    tables: list[dict[str, int]] = [{}, {}, {}, {}]
+    ids = np.full((len(f_rows), 4), -1, dtype=np.int64)
+    bounds = [start for start, _ in runs] + [len(f_rows)]
+    for (start, names), end in zip(runs, bounds[1:], strict=True):
+        if end > start:
+            for k, name in enumerate(names):
+                if name is not None:
+                    ids[start:end, k] = tables[k].setdefault(name, len(tables[k]))
     data = ObjData(
         vertex_extra=np.ascontiguousarray(V_all[:, 3:]),
-        texcoords=_numbers(vt_rows, 3, "texture coordinate", label, vt_lines)[:, :3],
-        normals=_numbers(vn_rows, 3, "normal", label, vn_lines)[:, :3],
-        face_sizes=np.asarray(sizes, dtype=np.int64),
-        corner_vertices=np.asarray(cv, dtype=np.int64),
-        corner_texcoords=np.asarray(ct, dtype=np.int64),
-        corner_normals=np.asarray(cn, dtype=np.int64),
-        polygon_materials=np.asarray(ids["m"], dtype=np.int64),
-        polygon_groups=np.asarray(ids["g"], dtype=np.int64),
-        polygon_objects=np.asarray(ids["o"], dtype=np.int64),
-        polygon_smoothing=np.asarray(ids["s"], dtype=np.int64),
-        objects=list(tables["o"]),
-        smoothing=list(tables["s"]),
+        texcoords=texcoords,
+        normals=normals,
+        face_sizes=sizes,
+        corner_vertices=resolved[0],
+        corner_texcoords=resolved[1],
+        corner_normals=resolved[2],
+        polygon_materials=ids[:, 0].copy(),
+        polygon_groups=ids[:, 1].copy(),
+        polygon_objects=ids[:, 2].copy(),
+        polygon_smoothing=ids[:, 3].copy(),
+        objects=list(tables[2]),
+        smoothing=list(tables[3]),
         mtllibs=mtllibs,
         statements=statements,
     )
@@ -233,7 +291,7 @@ def parse_obj(text: bytes, label: str) -> tuple[NDArray[np.float64], ObjData, li
             logger.info("%s: %d face corners refer to %s the file does not have; read without", label,
                         int(bad.sum()), what)
             corners[bad] = -1
-    return V, data, list(tables["m"]), list(tables["g"])
+    return V, data, list(tables[0]), list(tables[1])
 
 
 def mtl_texture_references(mtl: bytes) -> list[str]:
