@@ -46,7 +46,7 @@ function gizmoInfo(viewer, gizmo, transformUi) {
   };
 }
 
-export function installTestHook({ app, viewer, selection, gizmo, conn, keeper, points, mirror, transformUi }) {
+export function installTestHook({ app, viewer, livePose, selection, gizmo, conn, keeper, points, mirror, transformUi }) {
   const toPage = ([x, y]) => {
     const r = viewer.canvas.getBoundingClientRect();
     return [x + r.left, y + r.top];
@@ -73,9 +73,14 @@ export function installTestHook({ app, viewer, selection, gizmo, conn, keeper, p
     get lastSeq() {
       return app.lastSeq;
     },
-    /** True while a request that changes the view is unanswered. */
+    /** True while a request that changes the view is unanswered, or a shape received is not drawn yet. */
     get busy() {
-      return app.busyFor !== null || app.sentKey !== null || app.awaitingState || conn.dragBusy || keeper.restore.busy;
+      return app.busyFor !== null || app.sentKey !== null || app.awaitingState || conn.dragBusy || keeper.restore.busy
+        || livePose.pending;
+    },
+    /** Vertices frames received and applied (the others were replaced by newer ones before being drawn). */
+    get frames() {
+      return { received: livePose.received, applied: livePose.applied };
     },
     get canUndo() {
       return app.canUndo;
@@ -95,7 +100,7 @@ export function installTestHook({ app, viewer, selection, gizmo, conn, keeper, p
     get errors() {
       return app.errors.map((e) => ({ ...e }));
     },
-    /** Milliseconds of JavaScript per vertices frame (the newest 256; drawing excluded). */
+    /** Milliseconds of JavaScript per vertices frame applied (the newest 256; drawing excluded). */
     get frameMs() {
       return app.frameMs.slice();
     },
@@ -108,6 +113,23 @@ export function installTestHook({ app, viewer, selection, gizmo, conn, keeper, p
      */
     get uploadAt() {
       return { ...app.uploadAt };
+    },
+    /**
+     * Make the page slow at showing shapes: applying each vertices frame takes `ms` more milliseconds of
+     * JavaScript (0: as fast as it is). For tests of how the page keeps up with frames that arrive faster.
+     */
+    slowDrawing: (ms) => {
+      const v = /** @type {any} */ (viewer);
+      for (const name of ['updatePositions', 'updateSubset']) {
+        const own = Object.getPrototypeOf(v)[name];
+        if (ms > 0) {
+          v[name] = (...args) => {
+            const until = performance.now() + ms;
+            while (performance.now() < until);
+            return own.apply(v, args);
+          };
+        } else delete v[name];
+      }
     },
     get messages() {
       return app.messages;

@@ -25,7 +25,7 @@ import { SelectionTools } from './tools.js';
 import { Viewer } from './viewer.js';
 
 const viewer = new Viewer(document.getElementById('view'));
-const livePose = new LivePose(viewer);
+const livePose = new LivePose(viewer, (w, ms) => shapeApplied(w, ms));
 const selection = new Selection();
 const mirror = new MirrorEditing({ viewer, selection, tell: (text) => panel.showStatus(text, 'info', 6000) });
 const app = {
@@ -37,7 +37,7 @@ const app = {
   vertexMap: null, // mesh vertex of each vertex of the mesh file, when repair renumbered them
   repaired: false, // repair changed the mesh (its triangles are not the file's)
   limits: { max_upload_bytes: 0, max_vertices: 0 },
-  frameMs: [], // JavaScript time spent applying each vertices frame (drawing excluded)
+  frameMs: [], // JavaScript time spent applying each vertices frame applied (drawing excluded)
   meshMs: NaN, // JavaScript time spent showing the last mesh message (drawing excluded)
   uploadAt: {}, // wall-clock times (ms since the epoch) of the last upload's steps on this page
   builtins: [],
@@ -247,6 +247,9 @@ function handleMessage(msg) {
   app.messages++;
   if (msg.type !== SERVER.WELCOME && app.incompatible) return undefined;
   keeper.touch();
+  // a shape received and not drawn yet is shown before anything that may read it; settling progress is not such
+  if (msg.type === SERVER.MESH) livePose.reset();
+  else if (msg.type !== SERVER.VERTICES && !(msg.type === SERVER.SETTLE && msg.status === 'settling')) livePose.flush();
   switch (msg.type) {
     case SERVER.WELCOME:
       return onWelcome(msg);
@@ -338,17 +341,25 @@ function onMesh(msg) {
   });
 }
 
+/** A vertices frame: kept until the next animation frame, when the newest one received is drawn. */
 function onVertices(msg) {
-  const t0 = performance.now();
-  const applied = livePose.apply(msg.frame);
-  app.frameMs.push(performance.now() - t0);
+  if (livePose.receive(msg.frame, msg) && msg.iterations > 0) stats.received(msg);
+}
+
+/**
+ * The newest shape received was applied (livePose): what depends on it follows. `w.seq` is the newest request it
+ * answers (-1: only frames the server sent on its own, settling or undo).
+ * @param {import('./livepose.js').Waiting} w
+ * @param {number} ms
+ */
+function shapeApplied(w, ms) {
+  app.frameMs.push(ms);
   if (app.frameMs.length > 256) app.frameMs.shift();
-  if (!applied) return;
   heat.shapeChanged();
-  if (msg.seq >= 0) app.lastSeq = msg.seq; // -1: a frame the server sent on its own (settling, undo)
+  if (w.seq >= 0) app.lastSeq = w.seq;
   gizmo.recenter();
   points.refresh();
-  if (msg.iterations > 0) stats.frame(msg); // not for a pose change without a solve (undo, reset)
+  if (w.solved) stats.frame(w.solved); // not for a pose change without a solve (undo, reset)
 }
 
 function onState(msg) {
@@ -616,7 +627,7 @@ releaseFocusAfterPointerUse(document.getElementById('panel'));
 
 installDropTarget(document.getElementById('viewport'), document.getElementById('drop-overlay'), uploadFile);
 
-installTestHook({ app, viewer, selection, gizmo, conn, keeper, points, mirror, transformUi });
+installTestHook({ app, viewer, livePose, selection, gizmo, conn, keeper, points, mirror, transformUi });
 
 // ------------------------------------------------------------------ start
 

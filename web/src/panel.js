@@ -346,11 +346,40 @@ export class Panel {
    */
   setSettle(msg) {
     this._setShape(settleText(msg), msg.status);
+    this._settleBadge(msg);
+  }
+
+  /**
+   * The badge over the view: the settling's progress while the server iterates, then for a moment how it ended
+   * (not for a shape that was settled already, after undo, redo or loading).
+   */
+  _settleBadge(msg) {
+    const badge = $('settle-badge');
+    clearTimeout(this._badgeTimer);
+    const ran = msg.status === 'settling' || badge.dataset.status === 'settling' || badge.dataset.status === 'stopped';
+    if (!ran) {
+      badge.hidden = true;
+      badge.dataset.status = '';
+      return;
+    }
+    const text = settleText(msg);
+    badge.textContent = text.charAt(0).toUpperCase() + text.slice(1);
+    badge.dataset.status = msg.status;
+    badge.hidden = false;
+    if (msg.status !== 'settling' && msg.status !== 'stopped') {
+      this._badgeTimer = setTimeout(() => {
+        badge.hidden = true;
+        badge.dataset.status = '';
+      }, 2500);
+    }
   }
 
   /** A new mesh: nothing is known of its shape's settling until the server says. */
   resetSettle() {
     this._setShape('–', '');
+    clearTimeout(this._badgeTimer);
+    $('settle-badge').hidden = true;
+    $('settle-badge').dataset.status = '';
   }
 
   /** The connection was lost: a settling the line still shows as under way may never finish. */
@@ -358,6 +387,8 @@ export class Panel {
     const status = $('st-settle').dataset.status;
     if (status === 'settling' || status === 'stopped') {
       this._setShape('unknown: the connection was lost while it settled', 'interrupted');
+      $('settle-badge').hidden = true;
+      $('settle-badge').dataset.status = '';
     }
   }
 

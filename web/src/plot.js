@@ -15,11 +15,12 @@ export class LinePlot {
     this.draw();
   }
 
-  push(value) {
+  /** Append a value; `draw` false leaves the drawing to a later draw(). */
+  push(value, draw = true) {
     if (!Number.isFinite(value)) return;
     this.values.push(value);
     if (this.maxPoints && this.values.length > this.maxPoints) this.values.splice(0, this.values.length - this.maxPoints);
-    this.draw();
+    if (draw) this.draw();
   }
 
   clear() {

@@ -37,12 +37,18 @@ export class UpdateStats {
     document.getElementById('energy-note').hidden = !energies.some((e) => e < 0);
   }
 
-  /** A vertices frame of a solve (iterations > 0): its energies, timings and the update rate. */
-  frame(msg) {
+  /** A vertices frame of a solve (iterations > 0) arrived: counted, and its last energy noted (drawn later). */
+  received(msg) {
     this.updateTimes.push(performance.now());
     const energies = (msg.energies || []).filter((e) => e !== null);
+    if (energies.length) this.timePlot.push(energies[energies.length - 1], false);
+  }
+
+  /** The newest vertices frame of a solve was drawn: its energies, timings and the update rate. */
+  frame(msg) {
+    const energies = (msg.energies || []).filter((e) => e !== null);
     this.iterPlot.set(energies);
-    if (energies.length) this.timePlot.push(energies[energies.length - 1]);
+    this.timePlot.draw();
     if (energies.length) this.noteEnergies(energies); // a settling frame carries none: its `settle` message does
     const latency = this.latencyMs();
     this.panel().setStats({
