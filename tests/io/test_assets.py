@@ -415,3 +415,43 @@ def test_obj_reader_handles_mixed_corners_relative_indices_and_continued_lines()
         load_asset_bytes(b"v 0 0 0\nf 1 -3 1\nv 1 1 1\n", "obj")
     with pytest.raises(MeshFormatError, match=r"line 1: vertex '1 x 2' is not a list of numbers"):
         load_asset_bytes(b"v 1 x 2\nv 0 0 0\nv 1 1 1\nf 1 2 3\n", "obj")
+
+
+def test_binary_ply_with_polygons_and_corner_texcoords_round_trip(tmp_path: Path) -> None:
+    """Big-endian, a quad and a triangle (lists of two lengths), texture coordinates per corner."""
+    header = (b"ply\nformat binary_big_endian 1.0\nelement vertex 5\nproperty float x\nproperty float y\n"
+              b"property float z\nproperty uchar red\nproperty uchar green\nproperty uchar blue\nelement face 2\n"
+              b"property list uchar int vertex_indices\nproperty list uchar float texcoord\nend_header\n")
+    V = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0], [0.5, 1.5, 0.25]], dtype=">f4")
+    body = b"".join(v.tobytes() + bytes([10 * i, 20 * i, 30 * i]) for i, v in enumerate(V))
+    quad, tri = [0, 1, 2, 3], [3, 2, 4]
+    quad_uv = (np.arange(8) / 8).astype(">f4")
+    tri_uv = (np.arange(6) / 6 + 0.01).astype(">f4")
+    body += bytes([4]) + np.array(quad, ">i4").tobytes() + bytes([8]) + quad_uv.tobytes()
+    body += bytes([3]) + np.array(tri, ">i4").tobytes() + bytes([6]) + tri_uv.tobytes()
+    (tmp_path / "poly.ply").write_bytes(header + body)
+    asset = load_asset(tmp_path / "poly.ply")
+    assert asset.faces.tolist() == [[0, 1, 2], [2, 3, 0], [3, 2, 4]]
+    assert asset.uvs is not None
+    np.testing.assert_array_equal(asset.uvs[2], tri_uv.astype(np.float64).reshape(3, 2))
+    np.testing.assert_array_equal(asset.uvs[1], quad_uv.astype(np.float64).reshape(4, 2)[[2, 3, 0]])
+    moved = asset.vertices + np.array([0.0, 0.0, 2.0])
+    save_asset(tmp_path / "out.ply", asset, moved)
+    back = load_asset(tmp_path / "out.ply")
+    assert _same(back.vertices, moved)
+    for name in ("faces", "uvs", "vertex_colors"):
+        assert _same(getattr(back, name), getattr(asset, name)), name
+    assert b"format binary_little_endian" in (tmp_path / "out.ply").read_bytes()[:40]
+
+
+def test_gltf_missing_image_warns_and_still_writes(tmp_path: Path) -> None:
+    path = cube_gltf(tmp_path)
+    (tmp_path / "images" / "checker one.png").unlink()
+    with pytest.warns(UserWarning, match=r"the texture 'images/checker%20one\.png' cannot be read"):
+        asset = load_asset(path)
+    assert asset.textures == {}
+    written = save_asset(tmp_path / "again.gltf", asset, asset.vertices * 2)
+    assert [p.name for p in written] == ["again.gltf", "again.bin"]
+    with pytest.warns(UserWarning, match="cannot be read"):  # still missing, still referenced
+        again = load_asset_bytes((tmp_path / "again.gltf").read_bytes(), "gltf", folder=tmp_path)
+    assert again.data.document["images"] == asset.data.document["images"]

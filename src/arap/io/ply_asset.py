@@ -8,7 +8,6 @@ A ``comment TextureFile NAME`` names the texture image, read from and written be
 
 from __future__ import annotations
 
-import io
 import logging
 import re
 from dataclasses import dataclass, field
@@ -29,7 +28,6 @@ logger = logging.getLogger(__name__)
 _UV_NAMES = (("s", "t"), ("u", "v"), ("texture_u", "texture_v"), ("texture_s", "texture_t"))
 _COLOR_NAMES = (("red", "green", "blue", "alpha"), ("r", "g", "b", "a"),
                 ("diffuse_red", "diffuse_green", "diffuse_blue", "diffuse_alpha"))
-_LIST = re.compile(r"^\s*(\S+),\s*\((?:\$LIST|\d+),\)\s*(\S+)\s*$")
 
 
 @dataclass(eq=False)
@@ -58,49 +56,186 @@ class PlyData:
         return next((e for e in self.elements if e.name == name), None)
 
 
-def _column(values: Any, count: int) -> NDArray[Any]:
-    A = np.asarray(values)
-    if A.dtype.names:  # a binary list of one length: (count, items) records
-        A = A[A.dtype.names[-1]]
-    if A.dtype == object:
-        return A
-    if A.ndim == 2 and A.shape[1] == 1:
-        return A[:, 0]
-    return A.reshape(count, -1) if A.ndim > 1 else A
+_TYPES = {"char": "i1", "int8": "i1", "uchar": "u1", "uint8": "u1", "short": "i2", "int16": "i2", "ushort": "u2",
+          "uint16": "u2", "int": "i4", "int32": "i4", "uint": "u4", "uint32": "u4", "float": "f4", "float32": "f4",
+          "double": "f8", "float64": "f8"}
+
+
+def _header(data: bytes, label: str) -> tuple[str, list[tuple[str, int, list[tuple[str, str, str | None]]]],
+                                               list[str], int]:
+    """Format, elements (name, count, properties (name, item type, count type or None)), comments and the offset of
+    the body."""
+    end = data.find(b"end_header")
+    body = data.find(b"\n", end) + 1
+    lines = data[:end].decode("utf-8", errors="replace").splitlines()
+    fmt = ""
+    elements: list[tuple[str, int, list[tuple[str, str, str | None]]]] = []
+    comments: list[str] = []
+    for number, raw in enumerate(lines[1:], 2):
+        words = raw.split()
+        if not words:
+            continue
+        try:
+            if words[0] == "format":
+                fmt = words[1]
+            elif words[0] in ("comment", "obj_info"):
+                comments.append(raw.strip())
+            elif words[0] == "element":
+                elements.append((words[1], int(words[2]), []))
+            elif words[0] == "property" and words[1] == "list":
+                elements[-1][2].append((words[4], _TYPES[words[3]], _TYPES[words[2]]))
+            elif words[0] == "property":
+                elements[-1][2].append((words[2], _TYPES[words[1]], None))
+        except (IndexError, KeyError, ValueError) as exc:
+            raise MeshFormatError(f"cannot parse {label} as PLY: header line {number} ({raw.strip()!r}) is not "
+                                  "understood") from exc
+    if fmt not in ("ascii", "binary_little_endian", "binary_big_endian"):
+        raise MeshFormatError(f"cannot parse {label} as PLY: unknown format {fmt!r}")
+    return fmt, elements, comments, body
+
+
+def _binary_element(buf: bytes, at: int, count: int, props: list[tuple[str, str, str | None]], order: str,
+                    label: str, name: str) -> tuple[dict[str, NDArray[Any]], int]:
+    """The columns of one binary element starting at byte ``at``, and the byte after it."""
+    def short() -> MeshFormatError:
+        return MeshFormatError(f"cannot parse {label} as PLY: the file ends early in element {name!r} (truncated?)")
+
+    # Lists of one length (read from the first row) make fixed-size records: one read for the whole element.
+    fields: list[tuple[str, str] | tuple[str, str, tuple[int]]] = []
+    cursor = at
+    for prop, item, counter in props:
+        if counter is None:
+            fields.append((prop, order + item))
+            cursor += np.dtype(item).itemsize
+            continue
+        if cursor + np.dtype(counter).itemsize > len(buf):
+            raise short()
+        n = int(np.frombuffer(buf, dtype=order + counter, count=1, offset=cursor)[0]) if count else 0
+        fields.append((f"{prop} count", order + counter))
+        fields.append((prop, order + item, (n,)))
+        cursor += np.dtype(counter).itemsize + n * np.dtype(item).itemsize
+    record = np.dtype(fields)
+    lists = [(prop, counter) for prop, _, counter in props if counter is not None]
+    if at + record.itemsize * count <= len(buf):
+        rows = np.frombuffer(buf, dtype=record, count=count, offset=at)
+        if all((rows[f"{prop} count"] == rows.dtype[f"{prop}"].shape[0]).all() for prop, _ in lists):
+            return {prop: np.ascontiguousarray(rows[prop]) for prop, _, _ in props}, at + record.itemsize * count
+    if not lists:
+        raise short()
+    # Lists of several lengths: row by row.
+    columns: dict[str, list[Any]] = {prop: [] for prop, _, _ in props}
+    for _ in range(count):
+        for prop, item, counter in props:
+            kind = np.dtype(order + (counter or item))
+            if at + kind.itemsize > len(buf):
+                raise short()
+            value = np.frombuffer(buf, dtype=kind, count=1, offset=at)[0]
+            at += kind.itemsize
+            if counter is None:
+                columns[prop].append(value)
+                continue
+            items = np.dtype(order + item)
+            if at + int(value) * items.itemsize > len(buf):
+                raise short()
+            native = items.newbyteorder("=")
+            columns[prop].append(np.frombuffer(buf, dtype=items, count=int(value), offset=at).astype(native))
+            at += int(value) * items.itemsize
+    out: dict[str, NDArray[Any]] = {}
+    for prop, item, counter in props:
+        if counter is None:
+            out[prop] = np.asarray(columns[prop], dtype=item)
+        else:
+            column = np.empty(count, dtype=object)
+            column[:] = columns[prop]
+            out[prop] = column
+    return out, at
+
+
+def _ascii_elements(body: bytes, elements: list[tuple[str, int, list[tuple[str, str, str | None]]]],
+                    label: str) -> list[dict[str, NDArray[Any]]]:
+    words = body.split()
+    at = 0
+    out = []
+    for name, count, props in elements:
+        width = len(props)
+        if all(c is None for _, _, c in props):
+            block = words[at:at + width * count]
+            if len(block) < width * count:
+                raise MeshFormatError(f"cannot parse {label} as PLY: the file ends early in element {name!r} "
+                                      "(truncated?)")
+            try:
+                table = np.array(block, dtype=np.float64).reshape(count, width)
+            except ValueError as exc:
+                raise MeshFormatError(f"cannot parse {label} as PLY: element {name!r} holds a word that is not a "
+                                      "number") from exc
+            out.append({prop: table[:, k].astype(item) for k, (prop, item, _) in enumerate(props)})
+            at += width * count
+            continue
+        columns: dict[str, list[Any]] = {prop: [] for prop, _, _ in props}
+        try:
+            for _ in range(count):
+                for prop, item, counter in props:
+                    if counter is None:
+                        columns[prop].append(float(words[at]))
+                        at += 1
+                    else:
+                        n = int(words[at])
+                        columns[prop].append(np.array(words[at + 1:at + 1 + n], dtype=np.float64).astype(item))
+                        if len(columns[prop][-1]) < n:
+                            raise IndexError
+                        at += n + 1
+        except (IndexError, ValueError) as exc:
+            raise MeshFormatError(f"cannot parse {label} as PLY: element {name!r} ends early or holds a word that "
+                                  "is not a number") from exc
+        element: dict[str, NDArray[Any]] = {}
+        for prop, item, counter in props:
+            if counter is None:
+                element[prop] = np.asarray(columns[prop]).astype(item)
+                continue
+            lengths = {len(x) for x in columns[prop]}
+            if len(lengths) == 1:
+                element[prop] = np.stack(columns[prop]).astype(item) if count else np.zeros((0, 0), dtype=item)
+            else:
+                column = np.empty(count, dtype=object)
+                column[:] = columns[prop]
+                element[prop] = column
+        out.append(element)
+    return out
+
+
+def parse_ply(data: bytes, label: str) -> PlyData:
+    """Every element and property of a PLY file (ASCII or binary), in the file's order and types."""
+    fmt, header, comments, body = _header(data, label)
+    if fmt == "ascii":
+        columns = _ascii_elements(data[body:], header, label)
+    else:
+        order = "<" if fmt == "binary_little_endian" else ">"
+        columns = []
+        at = body
+        for name, count, props in header:
+            element, at = _binary_element(data, at, count, props, order, label, name)
+            columns.append({k: (v.astype(v.dtype.newbyteorder("=")) if v.dtype != object else v)
+                            for k, v in element.items()})
+    elements = [PlyElement(name=name, count=count,
+                           properties={p: (np.dtype(item), None if c is None else np.dtype(c)) for p, item, c in props},
+                           data=column)
+                for (name, count, props), column in zip(header, columns, strict=True)]
+    return PlyData(elements=elements, comments=comments)
 
 
 def read_ply_asset(data: bytes, label: str, folder: Path | None, max_vertices: int | None) -> MeshAsset:
     """A :class:`MeshAsset` from the bytes of a PLY file (its texture read from ``folder``)."""
-    from trimesh.exchange.ply import load_ply
-
     data = screen(data, "ply", label)
     end = data.find(b"end_header")
-    header_lines = data[:end].decode("utf-8", errors="replace").splitlines()
-    comments = [line.strip() for line in header_lines if line.strip().split(" ", 1)[0] in ("comment", "obj_info")]
-    counts = dict(re.findall(r"^\s*element\s+(\S+)\s+(\d+)", "\n".join(header_lines), re.M))
-    if max_vertices is not None and int(counts.get("vertex", 0)) > max_vertices:
-        n = int(counts["vertex"])
+    counts = dict(re.findall(rb"^\s*element\s+(\S+)\s+(\d+)", data[:end], re.M))
+    if max_vertices is not None and int(counts.get(b"vertex", 0)) > max_vertices:
+        n = int(counts[b"vertex"])
         raise MeshTooLargeError(f"{label} has {n:,} vertices; at most {max_vertices:,} vertices are accepted",
                                 n, max_vertices)
-    # The texture is read here, not by the parser (which has no folder to read it from).
-    parsed = re.sub(rb"(?m)^([ \t]*comment[ \t]+)TextureFile", rb"\1Texture-file", data[:end]) + data[end:]
-    try:
-        loaded = load_ply(io.BytesIO(parsed), fix_texture=False, prefer_color=None)
-    except Exception as exc:  # the parser raises anything from ValueError to struct.error
-        raise MeshFormatError(f"cannot parse {label} as PLY: {exc or type(exc).__name__}") from exc
-    raw = loaded.get("metadata", {}).get("_ply_raw")
-    if not raw or "vertex" not in raw:
+    ply = parse_ply(data, label)
+    comments = ply.comments
+    if ply.element("vertex") is None:
         raise MeshFormatError(f"{label} contains no vertices (empty, or not a PLY file)")
-    elements: list[PlyElement] = []
-    for name, element in raw.items():
-        count = int(element["length"])
-        props: dict[str, tuple[np.dtype[Any], np.dtype[Any] | None]] = {}
-        for prop, kind in element["properties"].items():
-            match = _LIST.match(str(kind))
-            props[prop] = (np.dtype(match.group(2)), np.dtype(match.group(1))) if match else (np.dtype(kind), None)
-        columns = {prop: _column(element["data"][prop], count) for prop in props}
-        elements.append(PlyElement(name=name, count=count, properties=props, data=columns))
-    ply = PlyData(elements=elements, comments=comments)
     ply.texture_files = [c.split(None, 2)[2] for c in comments
                          if len(c.split(None, 2)) == 3 and c.split(None, 2)[1].lower() == "texturefile"]
     vertex = ply.element("vertex")
