@@ -455,3 +455,44 @@ def test_gltf_missing_image_warns_and_still_writes(tmp_path: Path) -> None:
     with pytest.warns(UserWarning, match="cannot be read"):  # still missing, still referenced
         again = load_asset_bytes((tmp_path / "again.gltf").read_bytes(), "gltf", folder=tmp_path)
     assert again.data.document["images"] == asset.data.document["images"]
+
+
+def _plane_glb(V: np.ndarray, F: np.ndarray, N: np.ndarray, UV: np.ndarray) -> bytes:
+    blob = bytearray()
+    views, accessors = [], []
+    for array, kind, component in ((V, "VEC3", 5126), (N, "VEC3", 5126), (UV, "VEC2", 5126),
+                                   (F.reshape(-1), "SCALAR", 5125)):
+        data = np.ascontiguousarray(array, dtype="<u4" if component == 5125 else "<f4").tobytes()
+        views.append({"buffer": 0, "byteOffset": len(blob), "byteLength": len(data)})
+        accessors.append({"bufferView": len(views) - 1, "componentType": component, "count": len(array) if
+                          kind != "SCALAR" else F.size, "type": kind})
+        blob += data
+    accessors[0]["min"], accessors[0]["max"] = V.min(axis=0).tolist(), V.max(axis=0).tolist()
+    document = {"asset": {"version": "2.0"}, "scenes": [{"nodes": [0]}], "nodes": [{"mesh": 0}],
+                "meshes": [{"primitives": [{"attributes": {"POSITION": 0, "NORMAL": 1, "TEXCOORD_0": 2},
+                                            "indices": 3}]}],
+                "accessors": accessors, "bufferViews": views, "buffers": [{"byteLength": len(blob)}]}
+    return glb_bytes(document, bytes(blob))
+
+
+def test_gltf_uv_seam_with_one_normal_stays_smooth(tmp_path: Path) -> None:
+    """A strip of two squares whose middle edge is a UV seam (its vertices repeated with the same normal): bent
+    along the seam, both copies get the same normal, from the triangles on both sides."""
+    V = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0], [1, 0, 0], [2, 0, 0], [2, 1, 0], [1, 1, 0]], float)
+    F = np.array([[0, 1, 2], [0, 2, 3], [4, 5, 6], [4, 6, 7]])
+    N = np.tile([0.0, 0.0, 1.0], (8, 1))
+    UV = np.array([[0, 0], [0.5, 0], [0.5, 1], [0, 1], [0.6, 0], [1, 0], [1, 1], [0.6, 1]])
+    (tmp_path / "strip.glb").write_bytes(_plane_glb(V, F, N, UV))
+    asset = load_asset(tmp_path / "strip.glb")
+    solve = asset.solve_mesh()
+    assert len(solve.V) == 6
+    bent = solve.V.copy()
+    bent[[1, 2], 2] = 0.5  # the seam goes up: a roof
+    save_asset(tmp_path / "roof.glb", asset, bent)
+    normals = _normals_in_scene(load_asset(tmp_path / "roof.glb"))
+    np.testing.assert_array_equal(normals[1], normals[4])
+    # The smooth normal of the welded surface: the area-weighted triangle normals on both sides of the seam.
+    a, b, c = (bent[solve.F[:, k]] for k in range(3))
+    around = np.cross(b - a, c - a)[(solve.F == 1).any(axis=1)].sum(axis=0)
+    np.testing.assert_allclose(normals[1], around / np.linalg.norm(around), atol=1e-6)
+    assert normals[0][0] < 0 and normals[5][0] > 0 and normals[1][0] > 0  # the right side has two triangles there

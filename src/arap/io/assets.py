@@ -180,13 +180,13 @@ class MeshAsset:
     textures: dict[str, bytes] = field(default_factory=dict)
     source: Path | None = None
     data: Any = None
-    _solve: SolveMesh | None = field(default=None, repr=False)
+    _solve: SolveMesh | None = field(default=None, init=False, repr=False)
 
     def solve_mesh(self) -> SolveMesh:
-        """The welded mesh for a solver (vertices at bit-identical positions made one), with the maps to and from
-        the file's numbering; computed once."""
+        """The welded mesh for a solver (vertices at bit-identical positions made one, 0.0 and -0.0 alike), with
+        the maps to and from the file's numbering; computed once."""
         if self._solve is None:
-            to_solve, to_file = weld_rows(self.vertices)
+            to_solve, to_file = weld_rows(self.vertices + 0.0)  # -0.0 becomes 0.0: the same position
             self._solve = SolveMesh(V=self.vertices[to_file], F=to_solve[self.faces], to_solve=to_solve,
                                     to_file=to_file)
         return self._solve
