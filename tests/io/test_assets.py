@@ -496,3 +496,36 @@ def test_gltf_uv_seam_with_one_normal_stays_smooth(tmp_path: Path) -> None:
     around = np.cross(b - a, c - a)[(solve.F == 1).any(axis=1)].sum(axis=0)
     np.testing.assert_allclose(normals[1], around / np.linalg.norm(around), atol=1e-6)
     assert normals[0][0] < 0 and normals[5][0] > 0 and normals[1][0] > 0  # the right side has two triangles there
+
+
+def test_interleaved_gltf_attributes_are_written_in_place(tmp_path: Path) -> None:
+    """POSITION and NORMAL in one buffer view with a byte stride: new positions and normals go to their own bytes
+    and the texture coordinates between them stay."""
+    V = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], dtype="<f4")
+    N = np.tile(np.float32([0, 0, 1]), (4, 1))
+    UV = np.array([[0, 0], [1, 0], [1, 1], [0, 1]], dtype="<f4")
+    rows = np.zeros(4, dtype=[("p", "<f4", 3), ("uv", "<f4", 2), ("n", "<f4", 3)])
+    rows["p"], rows["uv"], rows["n"] = V, UV, N
+    indices = np.array([0, 1, 2, 0, 2, 3], dtype="<u2")
+    blob = rows.tobytes() + indices.tobytes()
+    document = {
+        "asset": {"version": "2.0"}, "scenes": [{"nodes": [0]}], "nodes": [{"mesh": 0}],
+        "meshes": [{"primitives": [{"attributes": {"POSITION": 0, "TEXCOORD_0": 1, "NORMAL": 2}, "indices": 3}]}],
+        "accessors": [{"bufferView": 0, "byteOffset": 0, "componentType": 5126, "count": 4, "type": "VEC3",
+                       "min": [0, 0, 0], "max": [1, 1, 0]},
+                      {"bufferView": 0, "byteOffset": 12, "componentType": 5126, "count": 4, "type": "VEC2"},
+                      {"bufferView": 0, "byteOffset": 20, "componentType": 5126, "count": 4, "type": "VEC3"},
+                      {"bufferView": 1, "componentType": 5123, "count": 6, "type": "SCALAR"}],
+        "bufferViews": [{"buffer": 0, "byteOffset": 0, "byteLength": rows.nbytes, "byteStride": 32},
+                        {"buffer": 0, "byteOffset": rows.nbytes, "byteLength": indices.nbytes}],
+        "buffers": [{"byteLength": len(blob)}]}
+    (tmp_path / "quad.glb").write_bytes(glb_bytes(document, blob))
+    asset = load_asset(tmp_path / "quad.glb")
+    R = _rotation(0.3)
+    save_asset(tmp_path / "turned.glb", asset, asset.vertices @ R.T)
+    back = load_asset(tmp_path / "turned.glb")
+    written = np.frombuffer(back.data.buffers[0][:rows.nbytes], dtype=rows.dtype)
+    np.testing.assert_allclose(written["p"], V @ R.T.astype(np.float32), atol=1e-6)
+    np.testing.assert_allclose(written["n"], np.tile(R[:, 2], (4, 1)), atol=1e-6)
+    assert written["uv"].tobytes() == UV.tobytes()
+    assert back.data.buffers[0][rows.nbytes:] == asset.data.buffers[0][rows.nbytes:]

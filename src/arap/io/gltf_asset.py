@@ -220,7 +220,11 @@ def _mesh_transforms(document: dict[str, Any]) -> dict[int, NDArray[np.float64]]
         seen.add(i)
         M = parent @ _node_matrix(nodes[i])
         if "mesh" in nodes[i]:
-            out.setdefault(int(nodes[i]["mesh"]), M)
+            mesh = int(nodes[i]["mesh"])
+            if mesh in out and not np.array_equal(out[mesh], M):
+                logger.info("mesh %d is shown by several nodes; its vertices are placed by the first, and every "
+                            "instance shows the deformed mesh", mesh)
+            out.setdefault(mesh, M)
         stack.extend((int(c), M) for c in reversed(nodes[i].get("children", [])))
     return out
 
