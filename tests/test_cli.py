@@ -756,3 +756,40 @@ def test_deform_warns_when_no_vertex_is_free(tmp_path: Path, capsys: pytest.Capt
     cons.write_text(json.dumps({"fixed": [0, 1, 2], "handles": [40, 41], "targets": (V[[40, 41]] + 0.1).tolist()}))
     assert main(["deform", "bar", "-c", str(cons), "-o", str(tmp_path / "o.obj"), "-q"]) == 0
     assert "free to move" not in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("model", ["obj", "glb"])
+def test_deform_keeps_a_textured_models_attributes(model: str, tmp_path: Path,
+                                                   capsys: pytest.CaptureFixture[str]) -> None:
+    """A textured OBJ or GLB deformed into its own format keeps texture coordinates, materials and groups bit for
+    bit, with the positions of the geometry-only result; into another format it gets the geometry and a note."""
+    from arap.io.assets import load_asset
+    from tests.io.asset_models import cube_glb, cube_obj
+
+    mesh = (cube_obj if model == "obj" else cube_glb)(tmp_path)
+    src = load_asset(mesh)
+    V = src.vertices
+    fixed = np.flatnonzero(V[:, 1] <= V[:, 1].min() + 1e-9)
+    corner = V[np.argmax(V @ [1.0, 1.0, 0.5])]
+    handles = np.flatnonzero(np.abs(V - corner).max(axis=1) <= 1e-9)
+    cons = tmp_path / "c.json"
+    cons.write_text(json.dumps({"fixed": fixed.tolist(), "handles": handles.tolist(),
+                                "targets": (V[handles] + [0.3, 0.2, 0.0]).tolist()}))
+    out = tmp_path / f"out.{model}"
+    assert main(["deform", str(mesh), "-c", str(cons), "-o", str(out), "-q"]) == 0
+    plain = tmp_path / "out.ply"
+    assert main(["deform", str(mesh), "-c", str(cons), "-o", str(plain)]) == 0
+    assert "gets the geometry only" in capsys.readouterr().err
+    got = load_asset(out)
+    np.testing.assert_array_equal(got.faces, src.faces)
+    assert got.materials == src.materials and got.groups == src.groups
+    if src.uvs is not None:
+        assert got.uvs is not None and np.array_equal(got.uvs, src.uvs)
+    assert got.textures == src.textures
+    sm = src.solve_mesh()  # the library's way: weld the seams, solve, split again
+    indices, targets = sm.constraints(np.concatenate([fixed, handles]),
+                                      np.concatenate([V[fixed], V[handles] + [0.3, 0.2, 0.0]]))
+    expected = sm.file_vertices(arap.ArapSolver(sm.V, sm.F, indices).solve(targets).vertices)
+    np.testing.assert_allclose(got.vertices, expected, atol=1e-6)
+    assert np.abs(got.vertices[handles] - (V[handles] + [0.3, 0.2, 0.0])).max() <= 1e-6
+    assert len(load_mesh(plain)[0]) > 0

@@ -212,10 +212,37 @@ def _note_flat_faces(V: np.ndarray, F: np.ndarray, energy: str, weights: str) ->
              "spokes_and_rims (the default) cannot")
 
 
+def _textured_input(mesh: str, output: str, quiet: bool) -> Any:
+    """The input as a :class:`arap.io.assets.MeshAsset` when it carries what a deformation keeps (texture
+    coordinates, colours, materials, groups, a glTF scene) and the output is of its format family, so that the output
+    keeps them; else None (the geometry alone is written, with a note when attributes are left behind)."""
+    from arap.io.assets import asset_format, load_asset
+
+    try:
+        source, target = asset_format(mesh), asset_format(output)
+    except MeshFormatError:
+        return None
+    if not Path(mesh).is_file():
+        return None
+    family = {"obj": "obj", "ply": "ply", "glb": "gltf", "gltf": "gltf"}
+    asset = load_asset(mesh)
+    kept = asset.format in ("glb", "gltf") or asset.uvs is not None or asset.vertex_colors is not None \
+        or bool(asset.materials) or bool(asset.groups)
+    if not kept:
+        return None
+    if family[source] != family[target]:
+        if not quiet:
+            err(f"arap: note: {output} gets the geometry only: texture coordinates, colours and materials are kept "
+                f"when writing {'GLB or glTF' if family[source] == 'gltf' else source.upper()}, as {mesh} is")
+        return None
+    return asset
+
+
 def run_deform(args: argparse.Namespace) -> int:
     """``arap deform``: solve the constraints file's problem on the mesh and write the result; the exit status."""
     from arap.constraints import load_constraints
     from arap.io import format_of, save_mesh
+    from arap.io.assets import save_asset
     from arap.io.paths import write_destination
     from arap.solver import ArapSolver
 
@@ -231,6 +258,7 @@ def run_deform(args: argparse.Namespace) -> int:
         raise MeshFormatError(f"cannot write {args.output}: the folder {folder} is not writable")
     check_iterations_and_tolerance(args.iterations, args.tolerance)
     V, F, repair, label = load_mesh_argument(args.mesh)
+    asset = _textured_input(args.mesh, args.output, args.quiet)
     n_file = len(repair.vertex_map)
     constraints = load_constraints(args.constraints, n_file, len(F))
     renumbered = repair.renumbers
@@ -293,7 +321,10 @@ def run_deform(args: argparse.Namespace) -> int:
         back = repair.in_input_order(result.vertices) if renumbered and format_of(args.mesh) != "stl" else None
         if back is not None:
             U_out, F_out = back
-        save_mesh(args.output, U_out, F_out)
+        if asset is not None and len(U_out) == len(asset.vertices):
+            save_asset(args.output, asset, U_out)
+        else:
+            save_mesh(args.output, U_out, F_out)
     # The solve was cut short only when Ctrl-C stopped it before it converged or ran its last iteration: a Ctrl-C
     # during the last iteration, after it, or while the output was written leaves the complete result written.
     cap = args.iterations if args.iterations is not None else arap.options.MAX_ITERATIONS
