@@ -529,3 +529,26 @@ def test_interleaved_gltf_attributes_are_written_in_place(tmp_path: Path) -> Non
     np.testing.assert_allclose(written["n"], np.tile(R[:, 2], (4, 1)), atol=1e-6)
     assert written["uv"].tobytes() == UV.tobytes()
     assert back.data.buffers[0][rows.nbytes:] == asset.data.buffers[0][rows.nbytes:]
+
+
+@pytest.mark.parametrize("change", [
+    lambda d: d.update(meshes=5),
+    lambda d: d["meshes"][0]["primitives"][0]["attributes"].update(POSITION="zero"),
+    lambda d: d["accessors"][0].update(type="VEC7"),
+    lambda d: d["bufferViews"][0].update(byteOffset=-8),
+    lambda d: d["nodes"][2].update(matrix=[1, 2, 3]),
+    lambda d: d["meshes"][0]["primitives"][0].update(mode="strip"),
+    lambda d: d.update(buffers=[{"byteLength": 10**12}]),
+])
+def test_malformed_documents_are_format_errors(change: Any) -> None:
+    with pytest.raises(MeshFormatError, match="cannot read uploaded mesh as glTF"):
+        load_asset_bytes(_glb_with(change), "glb")
+
+
+@pytest.mark.parametrize("data", [b"ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nend_header\n1 2\n",
+                                  b"ply\nformat ascii 1.0\nelement vertex 1\nproperty blob x\nend_header\n1\n",
+                                  b"ply\nformat binary_little_endian 1.0\nelement vertex 9\nproperty float x\n"
+                                  b"property float y\nproperty float z\nend_header\n\x00\x00"])
+def test_malformed_ply_is_a_format_error(data: bytes) -> None:
+    with pytest.raises(MeshFormatError, match="PLY"):
+        load_asset_bytes(data, "ply")

@@ -252,7 +252,22 @@ def _check_compression(document: dict[str, Any], label: str) -> None:
 
 def read_gltf_asset(data: bytes, label: str, folder: Path | None, max_vertices: int | None) -> MeshAsset:
     """A :class:`MeshAsset` from the bytes of a glTF or GLB file (external buffers and images read from
-    ``folder``)."""
+    ``folder``).
+
+    Raises
+    ------
+    MeshFormatError
+        Anything malformed, said in the file's terms where it is checked and as a malformed document otherwise.
+    """
+    try:
+        return _read_gltf_asset(data, label, folder, max_vertices)
+    except MeshError:
+        raise
+    except (KeyError, TypeError, AttributeError, IndexError, ValueError, OverflowError) as exc:
+        raise _error(label, f"the document is malformed ({type(exc).__name__}: {exc})") from exc
+
+
+def _read_gltf_asset(data: bytes, label: str, folder: Path | None, max_vertices: int | None) -> MeshAsset:
     binary = data[:4] == _GLB_MAGIC
     if binary:
         document, chunk = _split_glb(data, label)
@@ -311,7 +326,9 @@ def read_gltf_asset(data: bytes, label: str, folder: Path | None, max_vertices: 
             pos = int(attributes["POSITION"])
             acc = _get(document, "accessors", pos, label, what)
             if pos not in where:
-                if acc.get("componentType") != _FLOAT or acc.get("type") != "VEC3":
+                if acc.get("type") != "VEC3":
+                    raise _error(label, f"{what}'s POSITION accessor has type {acc.get('type')!r}, not VEC3")
+                if acc.get("componentType") != _FLOAT:
                     raise MeshFormatError(f"{label}: {what} has quantized or non-float positions "
                                           "(KHR_mesh_quantization), which are not supported")
                 count = int(acc.get("count", 0))

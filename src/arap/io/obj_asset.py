@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from arap.errors import MeshFormatError, MeshTooLargeError
+from arap.errors import MeshError, MeshFormatError, MeshTooLargeError
 from arap.io.assets import MeshAsset, fan, group_normals, missing_file_warning, weld_rows, write_beside
 from arap.io.screening import screen
 
@@ -171,6 +171,22 @@ def _resolve(index: NDArray[np.int64], before: NDArray[np.int64], what: str, lab
 
 
 def parse_obj(text: bytes, label: str) -> tuple[NDArray[np.float64], ObjData, list[str], list[str]]:
+    """Positions and attributes of OBJ text (UTF-8); see :func:`_parse_obj`.
+
+    Raises
+    ------
+    MeshFormatError
+        Anything malformed, naming the line where it can.
+    """
+    try:
+        return _parse_obj(text, label)
+    except MeshError:
+        raise
+    except (OverflowError, ValueError, IndexError) as exc:
+        raise MeshFormatError(f"cannot parse {label} as OBJ: {exc}") from exc
+
+
+def _parse_obj(text: bytes, label: str) -> tuple[NDArray[np.float64], ObjData, list[str], list[str]]:
     """Positions and attributes of OBJ text (UTF-8).
 
     Lines are sorted by their keyword in one pass; the numbers of each kind are then parsed together.

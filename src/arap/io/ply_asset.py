@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from arap.errors import MeshFormatError, MeshTooLargeError
+from arap.errors import MeshError, MeshFormatError, MeshTooLargeError
 from arap.io.assets import MeshAsset, fan, group_normals, missing_file_warning, vertex_normal_groups, write_beside
 from arap.io.screening import screen
 
@@ -224,7 +224,22 @@ def parse_ply(data: bytes, label: str) -> PlyData:
 
 
 def read_ply_asset(data: bytes, label: str, folder: Path | None, max_vertices: int | None) -> MeshAsset:
-    """A :class:`MeshAsset` from the bytes of a PLY file (its texture read from ``folder``)."""
+    """A :class:`MeshAsset` from the bytes of a PLY file (its texture read from ``folder``).
+
+    Raises
+    ------
+    MeshFormatError
+        Anything malformed.
+    """
+    try:
+        return _read_ply_asset(data, label, folder, max_vertices)
+    except MeshError:
+        raise
+    except (KeyError, TypeError, IndexError, ValueError, OverflowError) as exc:
+        raise MeshFormatError(f"cannot parse {label} as PLY: {type(exc).__name__}: {exc}") from exc
+
+
+def _read_ply_asset(data: bytes, label: str, folder: Path | None, max_vertices: int | None) -> MeshAsset:
     data = screen(data, "ply", label)
     end = data.find(b"end_header")
     counts = dict(re.findall(rb"^\s*element\s+(\S+)\s+(\d+)", data[:end], re.M))
