@@ -552,3 +552,50 @@ def test_malformed_documents_are_format_errors(change: Any) -> None:
 def test_malformed_ply_is_a_format_error(data: bytes) -> None:
     with pytest.raises(MeshFormatError, match="PLY"):
         load_asset_bytes(data, "ply")
+
+
+def _random_obj(seed: int) -> str:
+    rng = np.random.default_rng(seed)
+    n, t, q = int(rng.integers(4, 9)), int(rng.integers(0, 6)), int(rng.integers(0, 4))
+    lines = [f"v {x!r} {y!r} {z!r}" for x, y, z in rng.normal(size=(n, 3)).tolist()]
+    lines += [f"vt {u!r} {v!r}" for u, v in rng.random((t, 2)).tolist()]
+    lines += [f"vn {x!r} {y!r} {z!r}" for x, y, z in rng.normal(size=(q, 3)).tolist()]
+    for _ in range(int(rng.integers(1, 8))):
+        pick = rng.random()
+        if pick < 0.2:
+            lines.append(f"usemtl m{int(rng.integers(0, 3))}")
+        elif pick < 0.35:
+            lines.append(f"g part {int(rng.integers(0, 3))}")
+        elif pick < 0.45:
+            lines.append(f"o thing{int(rng.integers(0, 2))}")
+        elif pick < 0.55:
+            lines.append(rng.choice(["s 1", "s off", "s 2"]))
+        size = int(rng.integers(3, 6))
+        corners = []
+        for v in rng.choice(n, size=min(size, n), replace=False).tolist():
+            vt = str(int(rng.integers(1, t + 1))) if t and rng.random() < 0.7 else ""
+            vn = str(int(rng.integers(1, q + 1))) if q and rng.random() < 0.7 else ""
+            corners.append(f"{v + 1}/{vt}/{vn}" if vn else f"{v + 1}/{vt}" if vt else str(v + 1))
+        lines.append("f " + " ".join(corners))
+    return "\n".join(lines) + "\n"
+
+
+@pytest.mark.parametrize("seed", range(40))
+def test_random_obj_files_round_trip(tmp_path: Path, seed: int) -> None:
+    (tmp_path / "r.obj").write_text(_random_obj(seed))
+    asset = load_asset(tmp_path / "r.obj")
+    moved = asset.vertices * 1.25 + 0.5
+    for name, V in (("same.obj", None), ("moved.obj", moved)):
+        save_asset(tmp_path / name, asset, V)
+        back = load_asset(tmp_path / name)
+        assert _same(back.vertices, asset.vertices if V is None else moved)
+        for field in ("faces", "face_materials", "face_groups", "uvs"):
+            assert _same(getattr(back, field), getattr(asset, field)), field
+        assert back.materials == asset.materials and back.groups == asset.groups
+        for field in OBJ_FIELDS:
+            assert _same(getattr(back.data, field), getattr(asset.data, field)), field
+        has = asset.data.corner_normals >= 0
+        assert _same(back.data.corner_normals >= 0, has)
+        if V is None:
+            assert _same(back.data.normals[back.data.corner_normals[has]],
+                         asset.data.normals[asset.data.corner_normals[has]])
