@@ -264,3 +264,17 @@ def test_a_folder_is_not_a_mesh_file(tmp_path: Path) -> None:
     (tmp_path / "scans.obj").mkdir()
     with pytest.raises(MeshFormatError, match="is a folder, not a mesh file"):
         load_mesh(tmp_path / "scans.obj")
+
+
+def test_binary_ply_with_polygons_of_several_sizes() -> None:
+    """trimesh's parser refuses a binary PLY whose faces are quads and triangles; it loads."""
+    header = (b"ply\nformat binary_little_endian 1.0\nelement vertex 5\nproperty float x\nproperty float y\n"
+              b"property float z\nelement face 2\nproperty list uchar int vertex_indices\nend_header\n")
+    V = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0], [0.5, 1.5, 0]], dtype="<f4")
+    body = V.tobytes() + bytes([4]) + np.array([0, 1, 2, 3], "<i4").tobytes()
+    body += bytes([3]) + np.array([3, 2, 4], "<i4").tobytes()
+    V2, F2 = load_mesh_bytes(header + body, "ply")
+    np.testing.assert_array_equal(V2, V.astype(np.float64))
+    assert sorted(map(tuple, F2.tolist())) == [(0, 1, 2), (2, 3, 0), (3, 2, 4)]
+    with pytest.raises(MeshFormatError, match="PLY"):
+        load_mesh_bytes(header + body[:-3], "ply")

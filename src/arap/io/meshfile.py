@@ -108,7 +108,12 @@ def _parse(stream: io.BytesIO, file_type: str, label: str) -> tuple[np.ndarray, 
     try:
         loaded = mesh_loaders[file_type](stream, **kwargs)
     except Exception as exc:  # the parsers raise anything from ValueError to struct.error
-        raise _parse_error(exc, file_type, label) from exc
+        error = _parse_error(exc, file_type, label)
+        if file_type == "ply":  # trimesh refuses binary polygons of several sizes: read them with arap's own parser
+            ply = _ply_polygons(stream.getvalue(), label)
+            if ply is not None:
+                return ply
+        raise error from exc
     parts = list(loaded["geometry"].values()) if "geometry" in loaded else [loaded]
     blocks: list[tuple[np.ndarray, np.ndarray]] = []
     for part in parts:
@@ -149,6 +154,18 @@ def _parse_obj(data: bytes, label: str) -> tuple[np.ndarray, np.ndarray]:
         raise MeshFormatError(f"{label} has {len(V):,} vertices but no faces (a point cloud, or a truncated "
                               "file?); a surface is needed")
     return V, fan(obj.face_sizes, obj.corner_vertices)
+
+
+def _ply_polygons(data: bytes, label: str) -> tuple[np.ndarray, np.ndarray] | None:
+    """Vertices and triangles of a PLY file read by :mod:`arap.io.ply_asset`, or None when it cannot read it either
+    (the first parser's error is then the one reported)."""
+    from arap.io.ply_asset import read_ply_asset
+
+    try:
+        asset = read_ply_asset(data, label, None, None)
+    except MeshError:
+        return None
+    return asset.vertices, asset.faces
 
 
 def _faces_array(faces: Any) -> np.ndarray:
