@@ -28,6 +28,13 @@ def symmetric_mesh() -> tuple[np.ndarray, np.ndarray]:
     return W, F
 
 
+def asymmetric_mesh() -> tuple[np.ndarray, np.ndarray]:
+    """A noisy ellipsoid (nearly symmetric by itself) bent and twisted out of every mirror symmetry."""
+    B, F = shapes.scan_blob(0, n=600)
+    x, y, z = B.T
+    return np.column_stack([x + 0.3 * (y + 0.4) ** 2, y, z + 0.25 * (y + 0.2) ** 3 + 0.2 * x * y]), F
+
+
 def mirror_pairs(V: np.ndarray) -> np.ndarray:
     """The vertex at (-x, y, z) of each vertex (every vertex has one)."""
     key = {tuple(v): i for i, v in enumerate(V)}
@@ -121,8 +128,9 @@ def test_plane_and_correspondence_found_or_refused(page: Page, tmp_path: Path) -
     np.testing.assert_array_equal(mirror_of[mirror_of[matched]], np.flatnonzero(matched))
     assert (mirror_of[matched] == expected[matched]).all()
 
-    # an asymmetric blob: no plane, mirror editing goes off until an axis plane is picked
-    B, FB = shapes.scan_blob(0, n=600)
+    # an asymmetric shape (a scanned ellipsoid, bent and twisted): no plane, mirror editing goes off until an axis
+    # plane is picked
+    B, FB = asymmetric_mesh()
     upload(page, tmp_path, "blob", B, FB)
     m = mirror_state(page)
     assert not m["on"] and not m["active"] and not m["visible"] and m["plane"] is None

@@ -1,10 +1,13 @@
 // Mirror editing: with it on, painting, box selection and growing a role act on both sides of the mirror plane,
 // a handle group painted on one side gets a partner group on the other, and dragging a group moves its partner by
 // the mirrored transform. The plane and the vertex correspondence (symmetry.js) are found once per rest pose, when
-// mirror editing is first turned on.
+// mirror editing is first turned on, with the tolerance set in the panel: how far a vertex's reflection may lie from
+// the surface for the vertex to have a partner.
 import * as THREE from 'three';
 import { ignoreTypeAhead } from './keys.js';
-import { detectSymmetry, MIN_MATCHED, reflectionMatrix } from './symmetry.js';
+import {
+  DEFAULT_TOLERANCE, detectSymmetry, MIN_MATCHED, mirrorImage, reflectionMatrix, TOLERANCE_RANGE,
+} from './symmetry.js';
 
 /** Key of the handle-group pairs in a constraints document's "meta" object: [[k, l], ...] of handle_groups. */
 export const PARTNERS_KEY = 'mirror_partners';
@@ -13,12 +16,14 @@ const pct = (x) => `${(100 * x).toFixed(x > 0.995 && x < 1 ? 1 : 0)}%`;
 
 export class MirrorEditing {
   /**
-   * @param {object} opts viewer, selection, tell(text) (a short message), checkbox, axisSelect, statusEl
+   * @param {object} opts viewer, selection, tell(text) (a short message), checkbox, axisSelect, toleranceInput
+   *   (percent of the bounding-box diagonal), statusEl
    */
   constructor({
     viewer, selection, tell,
     checkbox = /** @type {HTMLInputElement} */ (document.getElementById('mirror-on')),
     axisSelect = /** @type {HTMLSelectElement} */ (document.getElementById('mirror-axis')),
+    toleranceInput = /** @type {HTMLInputElement} */ (document.getElementById('mirror-tolerance')),
     statusEl = document.getElementById('mirror-status'),
   }) {
     this.viewer = viewer;
@@ -29,6 +34,8 @@ export class MirrorEditing {
     this.statusEl = statusEl;
     this.on = false;
     this.axis = 'auto';
+    this.tolerance = DEFAULT_TOLERANCE; // a fraction of the bounding-box diagonal
+    this.toleranceInput = toleranceInput;
     this.result = null; // detectSymmetry's answer for the rest pose, null until needed
     this.rest = null; // rest positions (Float32Array) and faces of the current mesh
     this.restId = null; // the server's id of that rest pose (null until a state names it)
@@ -39,6 +46,15 @@ export class MirrorEditing {
     checkbox.addEventListener('change', () => this.setOn(checkbox.checked));
     axisSelect.addEventListener('change', () => this.setAxis(axisSelect.value));
     ignoreTypeAhead(axisSelect);
+    toleranceInput.value = String(100 * this.tolerance);
+    toleranceInput.addEventListener('change', () => {
+      const pctValue = Number(toleranceInput.value);
+      if (toleranceInput.value.trim() === '' || !Number.isFinite(pctValue)) {
+        toleranceInput.value = String(100 * this.tolerance);
+        return;
+      }
+      this.setTolerance(pctValue / 100);
+    });
     this._show();
   }
 
@@ -90,7 +106,7 @@ export class MirrorEditing {
   setOn(on) {
     this.on = on;
     if (on && !this.result && this.rest) {
-      this.result = detectSymmetry(this.rest, this.faces, this.axis);
+      this.result = detectSymmetry(this.rest, this.faces, this.axis, this.tolerance);
       this.matrix.fromArray(this.result.plane ? reflectionMatrix(this.result.plane) : new THREE.Matrix4().elements);
       this.repair();
     }
@@ -109,6 +125,18 @@ export class MirrorEditing {
     this._invalidate();
   }
 
+  /**
+   * How far (a fraction of the bounding-box diagonal, clamped to TOLERANCE_RANGE) a vertex's reflection may lie from
+   * the surface for the vertex to have a partner; the plane and the partners are found again with it.
+   */
+  setTolerance(fraction) {
+    const f = Math.min(TOLERANCE_RANGE.max, Math.max(TOLERANCE_RANGE.min, fraction));
+    this.toleranceInput.value = String(Number((100 * f).toPrecision(3)));
+    if (f === this.tolerance) return;
+    this.tolerance = f;
+    this._invalidate();
+  }
+
   _show() {
     this.checkbox.checked = this.on;
     const r = this.result;
@@ -121,8 +149,9 @@ export class MirrorEditing {
       text = `${kind}: ${pct(r.matched)} of the vertices matched (plane normal ${n})${this.on ? '' : ', off'}`;
     }
     this.statusEl.textContent = text;
-    this.statusEl.title = r ? `found in ${r.ms.toFixed(0)} ms; a partner is at most ${r.tolerance.toPrecision(2)} `
-      + 'away from the reflection' : '';
+    this.statusEl.title = r ? `found in ${r.ms.toFixed(0)} ms; a vertex has a partner when its reflection lies at `
+      + `most ${r.tolerance.toPrecision(2)} from the surface (${Number((100 * this.tolerance).toPrecision(3))}% of `
+      + 'the model\'s size)' : '';
     this._drawPlane();
   }
 
@@ -169,9 +198,10 @@ export class MirrorEditing {
     const mirrorOf = this.mirrorOf;
     if (!mirrorOf) return s.paint(indices, mode, subtract);
     const list = Array.from(indices);
-    if (mode !== 'handle') return s.paint(list.concat(list.map((i) => mirrorOf[i]).filter((j) => j >= 0)), mode, subtract);
+    const image = mirrorImage(mirrorOf, list);
+    if (mode !== 'handle') return s.paint(list.concat(image), mode, subtract);
     const direct = new Set(list);
-    const mirrored = list.map((i) => mirrorOf[i]).filter((j) => j >= 0 && !direct.has(j));
+    const mirrored = image.filter((j) => !direct.has(j));
     let changed = s.paint(list, mode, subtract);
     if (!mirrored.length) return changed;
     const g = s.activeGroup;
@@ -231,8 +261,8 @@ export class MirrorEditing {
   }
 
   /**
-   * Pair the unpaired handle groups that are each other's exact mirror image (after the groups were rebuilt from
-   * the server's constraints, an undo or a file without pairs).
+   * Pair the unpaired handle groups that are each other's mirror image (mirrorImage: after the groups were rebuilt
+   * from the server's constraints, an undo or a file without pairs).
    */
   repair() {
     const mirrorOf = this.result?.mirrorOf;
@@ -241,8 +271,8 @@ export class MirrorEditing {
     const lists = s.groups.map((_, g) => s.groupIndices(g));
     const keys = lists.map((l) => l.join(','));
     lists.forEach((list, g) => {
-      if (!list.length || s.partnerOf(g) >= 0 || list.some((i) => mirrorOf[i] < 0 || mirrorOf[i] === i)) return;
-      const image = list.map((i) => mirrorOf[i]).sort((a, b) => a - b).join(',');
+      if (!list.length || s.partnerOf(g) >= 0) return;
+      const image = mirrorImage(mirrorOf, list).join(',');
       const h = keys.indexOf(image);
       if (h >= 0 && h !== g && s.partnerOf(h) < 0) s.pair(g, h);
     });

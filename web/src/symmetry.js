@@ -1,13 +1,22 @@
-// Mirror symmetry of a vertex set: the plane (found among the bounding-box and principal axes through the
-// centroid, or given as an axis through the bounding-box centre) and the vertex correspondence across it, by
-// nearest neighbours through a uniform grid hash (O(n)). No DOM, no Three.js: usable from Node as well.
+// Mirror symmetry of a mesh: the plane (the best of the coordinate and principal planes, refined by moving it until
+// the mirrored surface lies closest to the surface; or an axis plane through the bounding-box centre) and the vertex
+// correspondence across it: each vertex's partner is the vertex nearest to where its reflection meets the surface,
+// when the reflection lies within a tolerance of the surface. Scans that are only nearly symmetric, with triangles
+// that do not mirror each other, pair as well as exact models. Uniform grid hashes keep it O(n). No DOM, no
+// Three.js: usable from Node as well.
 
 /** Share of the vertices that must have a mirror partner for the shape to count as symmetric. */
-export const MIN_MATCHED = 0.9;
-/** Tolerance of an exact match, a fraction of the bounding-box diagonal. */
-export const EXACT_TOLERANCE = 1e-3;
-/** Vertices scored per candidate plane before the best one is matched in full. */
-const SAMPLE = 3000;
+export const MIN_MATCHED = 0.8;
+/** Default distance (a fraction of the bounding-box diagonal) by which a reflection may miss the surface. */
+export const DEFAULT_TOLERANCE = 0.015;
+/** Range of that distance offered to the user (fractions of the diagonal). */
+export const TOLERANCE_RANGE = { min: 0.001, max: 0.1 };
+/** Vertices scored per candidate plane, and used to refine it, before the best one is matched in full. */
+const SAMPLE = 2000;
+/** Refinement steps of a candidate plane (each re-pairs the sample and fits the plane to the pairs). */
+const REFINE_STEPS = 12;
+/** Vertices the coarse refinement steps pair the sample with. */
+const FAR_TARGETS = 4000;
 export const AXES = ['x', 'y', 'z'];
 
 /** Bounding box, diagonal, centroid and covariance of float positions (3 per vertex). */
@@ -110,10 +119,19 @@ export function reflectionMatrix(pl) {
   ];
 }
 
-/** A uniform grid of cell size `cell`, hashed into buckets: nearest neighbour within `cell` / 2 in O(1). */
-class GridHash {
-  constructor(pos, cell) {
-    const n = pos.length / 3;
+/** Hash of integer cell coordinates into a power-of-two table. */
+function cellHash(ix, iy, iz, mask) {
+  return (Math.imul(ix, 73856093) ^ Math.imul(iy, 19349663) ^ Math.imul(iz, 83492791)) & mask;
+}
+
+/**
+ * The vertices `which` (all when null) in a uniform grid of cell size `cell`, hashed into buckets: the nearest one
+ * within `cell` / 2 of a point lies in the point's cell or in its neighbour on the nearer side along each axis (8
+ * cells). `closest` leaves the vertex's position in `point`.
+ */
+class VertexGrid {
+  constructor(pos, cell, which = null) {
+    const n = which ? which.length : pos.length / 3;
     this.pos = pos;
     this.inv = 1 / cell;
     let size = 1;
@@ -121,24 +139,21 @@ class GridHash {
     this.mask = size - 1;
     this.head = new Int32Array(size).fill(-1);
     this.next = new Int32Array(n);
-    for (let i = 0; i < n; i++) {
-      const h = this._bucket(
-        Math.floor(pos[3 * i] * this.inv), Math.floor(pos[3 * i + 1] * this.inv), Math.floor(pos[3 * i + 2] * this.inv));
-      this.next[i] = this.head[h];
-      this.head[h] = i;
+    this.vertex = new Int32Array(n);
+    for (let k = 0; k < n; k++) {
+      const i = which ? which[k] : k;
+      const h = cellHash(Math.floor(pos[3 * i] * this.inv), Math.floor(pos[3 * i + 1] * this.inv),
+        Math.floor(pos[3 * i + 2] * this.inv), this.mask);
+      this.vertex[k] = i;
+      this.next[k] = this.head[h];
+      this.head[h] = k;
     }
+    this.point = [0, 0, 0];
   }
 
-  _bucket(ix, iy, iz) {
-    return (Math.imul(ix, 73856093) ^ Math.imul(iy, 19349663) ^ Math.imul(iz, 83492791)) & this.mask;
-  }
-
-  /**
-   * The vertex nearest to (x, y, z) within distance `r` (at most half the cell size), or -1: such a vertex lies in
-   * the point's cell or in its neighbour on the nearer side along each axis (8 cells).
-   */
+  /** The vertex nearest to (x, y, z) within distance `r` (at most half the cell size), or -1. */
   nearest(x, y, z, r) {
-    const { pos, head, next } = this;
+    const { pos, head, next, vertex } = this;
     const fx = x * this.inv;
     const fy = y * this.inv;
     const fz = z * this.inv;
@@ -151,8 +166,9 @@ class GridHash {
     let best = -1;
     let bestD = r * r;
     for (let c = 0; c < 8; c++) {
-      const h = this._bucket(cx + (c & 1 ? sx : 0), cy + (c & 2 ? sy : 0), cz + (c & 4 ? sz : 0));
-      for (let j = head[h]; j >= 0; j = next[j]) {
+      const h = cellHash(cx + (c & 1 ? sx : 0), cy + (c & 2 ? sy : 0), cz + (c & 4 ? sz : 0), this.mask);
+      for (let k = head[h]; k >= 0; k = next[k]) {
+        const j = vertex[k];
         const ex = pos[3 * j] - x;
         const ey = pos[3 * j + 1] - y;
         const ez = pos[3 * j + 2] - z;
@@ -165,63 +181,73 @@ class GridHash {
     }
     return best;
   }
-}
 
-/** For each vertex in `which` (all when null), the vertex nearest to its reflection within `tol`, or -1. */
-function reflectedNearest(pos, hash, pl, tol, which = null) {
-  const [a, b, c] = pl.normal;
-  const off = a * pl.point[0] + b * pl.point[1] + c * pl.point[2];
-  const count = which ? which.length : pos.length / 3;
-  const out = new Int32Array(count);
-  for (let k = 0; k < count; k++) {
-    const i = which ? which[k] : k;
-    const x = pos[3 * i];
-    const y = pos[3 * i + 1];
-    const z = pos[3 * i + 2];
-    const s = 2 * (a * x + b * y + c * z - off);
-    out[k] = hash.nearest(x - s * a, y - s * b, z - s * c, tol);
+  /** The vertex nearest to (x, y, z) within `r`, or -1, its position left in `point`. */
+  closest(x, y, z, r) {
+    const j = this.nearest(x, y, z, r);
+    if (j >= 0) for (let t = 0; t < 3; t++) this.point[t] = this.pos[3 * j + t];
+    return j;
   }
-  return out;
 }
 
-/** The plane fitted to vertex pairs (i, pair[k]) (the vertices `which[k]`): a refinement of `pl`. */
-function refit(pos, pl, which, pair) {
-  const sum = [0, 0, 0];
-  const mid = [0, 0, 0];
-  const [nx, ny, nz] = pl.normal;
-  let m = 0;
-  for (let k = 0; k < pair.length; k++) {
-    const j = pair[k];
-    if (j < 0) continue;
-    const i = which ? which[k] : k;
-    const d0 = pos[3 * i] - pos[3 * j];
-    const d1 = pos[3 * i + 1] - pos[3 * j + 1];
-    const d2 = pos[3 * i + 2] - pos[3 * j + 2];
-    const sign = d0 * nx + d1 * ny + d2 * nz < 0 ? -1 : 1;
-    sum[0] += sign * d0;
-    sum[1] += sign * d1;
-    sum[2] += sign * d2;
-    mid[0] += (pos[3 * i] + pos[3 * j]) / 2;
-    mid[1] += (pos[3 * i + 1] + pos[3 * j + 1]) / 2;
-    mid[2] += (pos[3 * i + 2] + pos[3 * j + 2]) / 2;
-    m++;
+/**
+ * The surface of a mesh, for "how far is a point from it": the vertex nearest to the point (within `tol` plus about
+ * an edge) and the closest point of the triangles around that vertex. Without triangles the vertices stand for
+ * the surface.
+ */
+class Surface {
+  constructor(pos, faces, tol) {
+    this.pos = pos;
+    this.faces = faces && faces.length ? faces : null;
+    const n = pos.length / 3;
+    const edge = this.faces ? meanEdge(pos, this.faces) : 0;
+    this.reach = tol + 1.5 * edge;
+    this.grid = new VertexGrid(pos, 2 * this.reach);
+    // most points asked about are within about an edge of a vertex: a finer grid finds it among fewer
+    this.step = Math.min(this.reach, Math.max(1.5 * edge, tol / 4));
+    this.fine = this.step < this.reach / 2 ? new VertexGrid(pos, 2 * this.step) : null;
+    this.point = [0, 0, 0];
+    this.distance = Infinity;
+    if (!this.faces) return;
+    const f = this.faces;
+    const start = new Int32Array(n + 1);
+    for (let k = 0; k < f.length; k++) start[f[k] + 1]++;
+    for (let i = 0; i < n; i++) start[i + 1] += start[i];
+    const fill = start.slice(0, n);
+    const around = new Int32Array(f.length);
+    for (let k = 0; k < f.length; k++) around[fill[f[k]]++] = (k / 3) | 0;
+    this.start = start;
+    this.around = around;
   }
-  if (m === 0 || Math.hypot(...sum) === 0) return pl;
-  return plane(sum, mid.map((v) => v / m));
-}
 
-/** Mutual nearest reflections: mirrorOf[i] = j when each is the other's nearest reflection (an involution). */
-function mutual(nearest) {
-  const out = new Int32Array(nearest.length).fill(-1);
-  let matched = 0;
-  for (let i = 0; i < nearest.length; i++) {
-    const j = nearest[i];
-    if (j >= 0 && nearest[j] === i) {
-      out[i] = j;
-      matched++;
+  /**
+   * The vertex nearest to (x, y, z) when the surface passes within `tol` of the point (its closest point left in
+   * `point`, the distance in `distance`), or -1.
+   */
+  closest(x, y, z, tol) {
+    const { pos, faces } = this;
+    let v = this.fine ? this.fine.nearest(x, y, z, this.step) : -1;
+    if (v < 0) v = this.grid.nearest(x, y, z, this.reach);
+    if (v < 0) return -1;
+    const best = this.point;
+    let bestD = (pos[3 * v] - x) ** 2 + (pos[3 * v + 1] - y) ** 2 + (pos[3 * v + 2] - z) ** 2;
+    for (let t = 0; t < 3; t++) best[t] = pos[3 * v + t];
+    if (faces) {
+      const q = [0, 0, 0];
+      for (let e = this.start[v]; e < this.start[v + 1]; e++) {
+        const t = this.around[e];
+        const d = closestOnTriangle(pos, faces[3 * t], faces[3 * t + 1], faces[3 * t + 2], x, y, z, q);
+        if (d < bestD) {
+          bestD = d;
+          best[0] = q[0];
+          best[1] = q[1];
+          best[2] = q[2];
+        }
+      }
     }
+    this.distance = Math.sqrt(bestD);
+    return this.distance <= tol ? v : -1;
   }
-  return { mirrorOf: out, matched };
 }
 
 /** Mean edge length of (a sample of) the triangles. */
@@ -242,58 +268,221 @@ function meanEdge(pos, faces) {
 }
 
 /**
+ * The point of triangle (i, j, k) closest to (x, y, z), written into `out`; its squared distance (Ericson, Real-Time
+ * Collision Detection, 5.1.5).
+ */
+function closestOnTriangle(pos, i, j, k, x, y, z, out) {
+  const ax = pos[3 * i], ay = pos[3 * i + 1], az = pos[3 * i + 2];
+  const abx = pos[3 * j] - ax, aby = pos[3 * j + 1] - ay, abz = pos[3 * j + 2] - az;
+  const acx = pos[3 * k] - ax, acy = pos[3 * k + 1] - ay, acz = pos[3 * k + 2] - az;
+  const apx = x - ax, apy = y - ay, apz = z - az;
+  const d1 = abx * apx + aby * apy + abz * apz;
+  const d2 = acx * apx + acy * apy + acz * apz;
+  let u = 0; // the point is a + u ab + w ac
+  let w = 0;
+  if (d1 <= 0 && d2 <= 0) {
+    u = 0;
+    w = 0;
+  } else {
+    const bpx = x - pos[3 * j], bpy = y - pos[3 * j + 1], bpz = z - pos[3 * j + 2];
+    const d3 = abx * bpx + aby * bpy + abz * bpz;
+    const d4 = acx * bpx + acy * bpy + acz * bpz;
+    const cpx = x - pos[3 * k], cpy = y - pos[3 * k + 1], cpz = z - pos[3 * k + 2];
+    const d5 = abx * cpx + aby * cpy + abz * cpz;
+    const d6 = acx * cpx + acy * cpy + acz * cpz;
+    const vc = d1 * d4 - d3 * d2;
+    const vb = d5 * d2 - d1 * d6;
+    const va = d3 * d6 - d5 * d4;
+    if (d3 >= 0 && d4 <= d3) {
+      u = 1;
+    } else if (d6 >= 0 && d5 <= d6) {
+      w = 1;
+    } else if (vc <= 0 && d1 >= 0 && d3 <= 0) {
+      u = d1 / (d1 - d3);
+    } else if (vb <= 0 && d2 >= 0 && d6 <= 0) {
+      w = d2 / (d2 - d6);
+    } else if (va <= 0 && d4 - d3 >= 0 && d5 - d6 >= 0) {
+      w = (d4 - d3) / (d4 - d3 + (d5 - d6));
+      u = 1 - w;
+    } else {
+      const den = 1 / (va + vb + vc);
+      u = vb * den;
+      w = vc * den;
+    }
+  }
+  out[0] = ax + u * abx + w * acx;
+  out[1] = ay + u * aby + w * acy;
+  out[2] = az + u * abz + w * acz;
+  return (out[0] - x) ** 2 + (out[1] - y) ** 2 + (out[2] - z) ** 2;
+}
+
+/** About `count` of the vertices 0..n-1, evenly spread over the numbering. */
+function spread(n, count) {
+  const stride = Math.max(1, Math.floor(n / count));
+  const out = [];
+  for (let i = 0; i < n; i += stride) out.push(i);
+  return out;
+}
+
+/** Reflection of (x, y, z) about a plane, into `out`. */
+function reflectPoint(pl, x, y, z, out) {
+  const [a, b, c] = pl.normal;
+  const s = 2 * (a * (x - pl.point[0]) + b * (y - pl.point[1]) + c * (z - pl.point[2]));
+  out[0] = x - s * a;
+  out[1] = y - s * b;
+  out[2] = z - s * c;
+}
+
+/**
+ * Pair the vertices `which` (all when null) across a plane: for each, the vertex nearest to where the surface comes
+ * closest to its reflection, when that is within `tol` (else -1); and the closest points themselves (3 per vertex).
+ */
+function pairAcross(pos, surface, pl, tol, which = null) {
+  const count = which ? which.length : pos.length / 3;
+  const partner = new Int32Array(count);
+  const points = new Float64Array(3 * count);
+  const r = [0, 0, 0];
+  let matched = 0;
+  for (let k = 0; k < count; k++) {
+    const i = which ? which[k] : k;
+    reflectPoint(pl, pos[3 * i], pos[3 * i + 1], pos[3 * i + 2], r);
+    const j = surface.closest(r[0], r[1], r[2], tol);
+    partner[k] = j;
+    if (j >= 0) {
+      matched++;
+      points[3 * k] = surface.point[0];
+      points[3 * k + 1] = surface.point[1];
+      points[3 * k + 2] = surface.point[2];
+    }
+  }
+  return { partner, points, matched };
+}
+
+/**
+ * The plane that best maps the vertices `which[k]` onto the surface points `points[k]` paired with them: its normal
+ * the dominant direction of their differences, through the mean of their midpoints. `pl` when there are none.
+ */
+function fitPlane(pos, pl, which, partner, points) {
+  const cov = [0, 0, 0, 0, 0, 0, 0, 0, 0];
+  const mid = [0, 0, 0];
+  let m = 0;
+  for (let k = 0; k < partner.length; k++) {
+    if (partner[k] < 0) continue;
+    const i = which ? which[k] : k;
+    const d = [0, 1, 2].map((t) => pos[3 * i + t] - points[3 * k + t]);
+    for (let a = 0; a < 3; a++) {
+      mid[a] += (pos[3 * i + a] + points[3 * k + a]) / 2;
+      for (let b = 0; b < 3; b++) cov[3 * a + b] += d[a] * d[b];
+    }
+    m++;
+  }
+  if (m < 3) return pl;
+  let normal = null;
+  let top = 0;
+  for (const v of eigenvectors3(cov)) {
+    const cv = [0, 1, 2].map((a) => cov[3 * a] * v[0] + cov[3 * a + 1] * v[1] + cov[3 * a + 2] * v[2]);
+    const q = v[0] * cv[0] + v[1] * cv[1] + v[2] * cv[2];
+    if (q > top) {
+      top = q;
+      normal = v;
+    }
+  }
+  if (!normal) return pl;
+  const fitted = plane(normal, mid.map((v) => v / m));
+  // a fitted plane whose normal is the old one to rounding keeps it exactly (an axis plane stays one)
+  const cos = Math.abs(fitted.normal[0] * pl.normal[0] + fitted.normal[1] * pl.normal[1] + fitted.normal[2] * pl.normal[2]);
+  return 1 - cos < 1e-14 ? { normal: pl.normal.slice(), point: fitted.point } : fitted;
+}
+
+/**
+ * Move plane `pl` until the sample's reflections lie closest to the surface: pair, fit the plane to the pairs, and
+ * again, with a search radius shrinking from `far` to `tol`.
+ */
+function refine(pos, far, near, pl, sample, tol) {
+  let current = pl;
+  for (let step = 0; step < REFINE_STEPS; step++) {
+    const coarse = step < REFINE_STEPS / 2;
+    const r = coarse ? Math.max(tol, far.radius * 0.7 ** step) : tol;
+    const { partner, points } = pairAcross(pos, coarse ? far.grid : near, current, r, sample);
+    const next = fitPlane(pos, current, sample, partner, points);
+    const moved = Math.abs(1 - Math.abs(next.normal.reduce((s, c, k) => s + c * current.normal[k], 0)))
+      + Math.abs(next.normal.reduce((s, c, k) => s + c * (next.point[k] - current.point[k]), 0)) / far.radius;
+    current = next;
+    if (!coarse && moved < 1e-12) break;
+  }
+  return current;
+}
+
+/**
  * Find the mirror symmetry of a mesh.
  * @param {ArrayLike<number>} pos vertex positions, 3 per vertex
- * @param {ArrayLike<number>|null} faces triangle indices (for the tolerance of approximately symmetric meshes)
- * @param {string} axis 'auto' (the best of the bounding-box and principal axes through the centroid), or 'x', 'y'
- *   or 'z' (that axis's plane through the bounding-box centre, however well it matches)
+ * @param {ArrayLike<number>|null} faces triangle indices (the surface the reflections are measured to; without them
+ *   the vertices)
+ * @param {string} axis 'auto' (the best of the coordinate and principal planes through the centroid, refined), or
+ *   'x', 'y' or 'z' (that axis's plane through the bounding-box centre, however well it matches)
+ * @param {number} tolerance how far (a fraction of the bounding-box diagonal) a vertex's reflection may lie from
+ *   the surface for the vertex to have a partner
  * @returns {{plane: {normal: number[], point: number[]}|null, mirrorOf: Int32Array|null, matched: number,
- *   tolerance: number, ms: number}} `plane` null when no candidate matches MIN_MATCHED of the vertices (auto);
- *   `matched` the share of vertices with a partner, `tolerance` the distance a reflection may miss its partner
+ *   tolerance: number, ms: number}} `plane` null when no plane pairs MIN_MATCHED of the vertices (auto); `mirrorOf`
+ *   each vertex's partner (-1: none; not always mutual where the two sides' triangles differ), `matched` the share
+ *   of vertices with a partner, `tolerance` that distance in model units
  */
-export function detectSymmetry(pos, faces, axis = 'auto') {
+export function detectSymmetry(pos, faces, axis = 'auto', tolerance = DEFAULT_TOLERANCE) {
   const t0 = performance.now();
   const mo = moments(pos);
   const { n, diag } = mo;
   const none = { plane: null, mirrorOf: null, matched: 0, tolerance: 0, ms: 0 };
   if (n === 0 || !(diag > 0)) return { ...none, ms: performance.now() - t0 };
-  const exact = EXACT_TOLERANCE * diag;
-  const loose = faces ? Math.min(1e-2 * diag, 0.5 * meanEdge(pos, faces)) : exact;
-  const tolerances = loose > exact ? [exact, loose] : [exact];
+  const frac = Math.min(TOLERANCE_RANGE.max, Math.max(TOLERANCE_RANGE.min, Number(tolerance) || DEFAULT_TOLERANCE));
+  const tol = frac * diag;
+  const near = new Surface(pos, faces, tol);
   const unit = (k) => [0, 1, 2].map((t) => (t === k ? 1 : 0));
   const fixedAxis = AXES.indexOf(axis);
-  const candidates = fixedAxis >= 0
-    ? [plane(unit(fixedAxis), mo.centre)]
-    : [...[0, 1, 2].map(unit), ...eigenvectors3(mo.cov)].map((nrm) => plane(nrm, mo.mean));
-  const stride = Math.max(1, Math.floor(n / SAMPLE));
-  const sample = [];
-  for (let i = 0; i < n; i += stride) sample.push(i);
-  let best = none;
-  for (const tol of tolerances) {
-    const hash = new GridHash(pos, 2 * tol);
-    let pl = candidates[0];
-    if (fixedAxis < 0) {
-      let bestScore = -1;
-      let bestPairs = null;
-      for (const cand of candidates) {
-        const pairs = reflectedNearest(pos, hash, cand, tol, sample);
-        const score = pairs.reduce((s, j) => s + (j >= 0 ? 1 : 0), 0);
-        if (score > bestScore) {
-          bestScore = score;
-          bestPairs = pairs;
-          pl = cand;
-        }
+  let pl;
+  if (fixedAxis >= 0) pl = plane(unit(fixedAxis), mo.centre);
+  else {
+    const sample = spread(n, SAMPLE);
+    // the coarse steps search further, among fewer vertices (a plane off by a few degrees misses the surface)
+    const radius = Math.max(2 * tol, 0.08 * diag);
+    const far = { grid: new VertexGrid(pos, 2 * radius, spread(n, FAR_TARGETS)), radius };
+    const candidates = [...[0, 1, 2].map(unit), ...eigenvectors3(mo.cov)].map((nrm) => plane(nrm, mo.mean));
+    const score = (cand) => pairAcross(pos, near, cand, tol, sample).matched;
+    // every candidate refined (six short runs on the sample), the one that pairs most of the sample kept
+    let bestScore = -1;
+    for (const cand of candidates) {
+      const start = score(cand);
+      const refined = refine(pos, far, near, cand, sample, tol);
+      const s = score(refined);
+      const [better, sc] = s >= start ? [refined, s] : [cand, start];
+      if (sc > bestScore) {
+        bestScore = sc;
+        pl = better;
       }
-      if (bestScore < 0.5 * MIN_MATCHED * sample.length) continue;
-      pl = refit(pos, pl, sample, bestPairs);
     }
-    const { mirrorOf, matched } = mutual(reflectedNearest(pos, hash, pl, tol));
-    // the plane that fits every pair (a sample's plane may be off by a little more than rounding)
-    if (fixedAxis < 0) pl = refit(pos, pl, null, mirrorOf);
-    const found = { plane: pl, mirrorOf, matched: matched / n, tolerance: tol, ms: 0 };
-    if (found.matched > best.matched) best = found;
-    if (best.matched >= MIN_MATCHED) break;
   }
-  if (fixedAxis < 0 && best.matched < MIN_MATCHED) best = { ...none, matched: best.matched };
-  return { ...best, ms: performance.now() - t0 };
+  const { partner: mirrorOf, matched } = pairAcross(pos, near, pl, tol);
+  const found = { plane: pl, mirrorOf, matched: matched / n, tolerance: tol, ms: 0 };
+  if (fixedAxis < 0 && found.matched < MIN_MATCHED) return { ...none, matched: found.matched, tolerance: tol,
+    ms: performance.now() - t0 };
+  return { ...found, ms: performance.now() - t0 };
+}
+
+/**
+ * The mirror image of a vertex set under a correspondence: the partners of its vertices, and the vertices whose
+ * partner is in it (so that a region pairs with all of its image where the two sides are meshed differently).
+ * @param {Int32Array} mirrorOf detectSymmetry's correspondence
+ * @param {Iterable<number>} indices
+ * @returns {number[]} ascending
+ */
+export function mirrorImage(mirrorOf, indices) {
+  const inSet = new Uint8Array(mirrorOf.length);
+  for (const i of indices) inSet[i] = 1;
+  const out = new Uint8Array(mirrorOf.length);
+  for (let j = 0; j < mirrorOf.length; j++) {
+    if (inSet[j] && mirrorOf[j] >= 0) out[mirrorOf[j]] = 1;
+    if (mirrorOf[j] >= 0 && inSet[mirrorOf[j]]) out[j] = 1;
+  }
+  const list = [];
+  for (let j = 0; j < out.length; j++) if (out[j]) list.push(j);
+  return list;
 }
