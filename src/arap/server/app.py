@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+import asyncio
 import contextlib
 import html
 import logging
 import os
+import time
 import weakref
 from collections.abc import AsyncIterator, Callable, Iterable
 from pathlib import Path
@@ -40,6 +42,9 @@ STATIC_DIR = Path(__file__).resolve().parent.parent / "static"
 DEFAULT_MAX_UPLOAD_BYTES = 50 * 2**20
 DEFAULT_MAX_VERTICES = 2_000_000
 DEFAULT_MAX_SESSIONS = 32
+
+RELEASE_WAIT_SECONDS = 5.0
+"""How long a finished session's memory is waited for (a settling iteration in progress) before trimming."""
 
 SESSION_LIMIT_CLOSE_CODE = 1013
 """WebSocket close code ("try again later") of a connection refused because the server is full."""
@@ -100,6 +105,10 @@ class _Studio:
         """Note a new session and the token its client presented."""
         if self.keep_latest and self.token is not None and token_matches(token, self.token):
             self._latest = session
+
+    def latest_kept(self) -> Session | None:
+        """The session kept for a notebook (see :attr:`keep_latest`), if any."""
+        return self._latest
 
     def latest_session(self, token: str) -> Session | None:
         """The most recently opened session whose client presented ``token``: None before one, or when ``token`` is
@@ -250,8 +259,11 @@ def create_app(
             await connection.run()
         finally:
             studio.sessions -= 1
-        # The session's arrays are garbage now; hand the freed heap back to the system, off the event loop.
+        # The session's arrays are garbage once a settling run's thread has let go of them (it stops at its next
+        # iteration); then hand the freed heap back to the system, off the event loop.
+        session = weakref.ref(connection.session)
         del connection
+        await _until_freed(session, studio, RELEASE_WAIT_SECONDS)
         await anyio.to_thread.run_sync(release_memory)
 
     @contextlib.asynccontextmanager
@@ -269,6 +281,18 @@ def create_app(
     ], middleware=[guard])
     app.state.studio = studio
     return app
+
+
+async def _until_freed(ref: weakref.ref[Session], studio: _Studio, seconds: float) -> None:
+    """Wait until the session ``ref`` refers to is freed (at most ``seconds``; not at all for the session a
+    notebook keeps)."""
+    deadline = time.monotonic() + seconds
+    while time.monotonic() < deadline:
+        session = ref()
+        if session is None or session is studio.latest_kept():
+            return
+        del session
+        await asyncio.sleep(0.05)
 
 
 async def _refuse_full(ws: WebSocket, limit: int) -> None:

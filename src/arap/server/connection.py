@@ -135,6 +135,7 @@ class Connection:
         self._frame_tasks: set[asyncio.Task[None]] = set()
         self._stream = VertexStream(config.subset_frames)
         self._arrived: dict[int, tuple[float, float]] = {}
+        self._closed = False
 
     # ------------------------------------------------------------------ sending
     async def _send_frame(self, frame: str | bytes) -> None:
@@ -242,6 +243,7 @@ class Connection:
             # the worker ends early only when the client is gone (a failed send): then stop reading too
             await asyncio.wait({reader, worker}, return_when=asyncio.FIRST_COMPLETED)
         finally:
+            self._closed = True  # a settling run stops at its next iteration: its thread must not outlive us
             for task in (reader, worker):
                 task.cancel()
             for task in (reader, worker):
@@ -394,7 +396,7 @@ class Connection:
 
         try:
             await self._send_settle_status("settling", 0, None, 0.0)
-            outcome = await self._off_loop(s.settle, lambda: bool(self._queue), on_frame)
+            outcome = await self._off_loop(s.settle, lambda: bool(self._queue) or self._closed, on_frame)
         except RequestError as exc:
             await self._send_error(exc)
             return
