@@ -121,14 +121,49 @@ def test_grow_shrink_and_roi_from_handles(page: Page, tmp_path: Path) -> None:
     wait_idle(page)
     grown = roi(page)
     assert grown == start | {j for i in start for j in nbr[i]}
+    page.get_by_test_id("grow").click()
+    wait_idle(page)
+    assert roi(page) == grown | {j for i in grown for j in nbr[i]}
+    # Shrink takes back exactly the layers Grow added, newest first
     page.get_by_test_id("shrink").click()
     wait_idle(page)
-    shrunk = roi(page)
-    assert shrunk == {i for i in grown if nbr[i] <= grown}
+    assert roi(page) == grown
     page.keyboard.press("-")
     wait_idle(page)
-    assert roi(page) == {i for i in shrunk if nbr[i] <= shrunk}
+    assert roi(page) == start
+    # with no Grow to take back, Shrink takes away the members with a neighbour outside
+    page.keyboard.press("-")
+    wait_idle(page)
+    shrunk = roi(page)
+    assert shrunk == {i for i in start if nbr[i] <= start}
+    # an edit after Grow: Shrink no longer knows that layer, and shrinks what is there
+    page.keyboard.press("+")
+    wait_idle(page)
+    regrown = roi(page)
+    click_at(page, (1.5, 1.5, 0.0))
+    edited = roi(page)
+    page.keyboard.press("-")
+    wait_idle(page)
+    assert roi(page) == {i for i in edited if nbr[i] <= edited}
+    assert regrown <= edited
     clear_roi(page)
+
+    # anchors under a grown handle come back when Shrink takes the layer away
+    page.get_by_test_id("role-fixed").click()
+    click_at(page, (0.5, 0.5, 0.0))
+    page.get_by_test_id("role-handle").click()
+    click_at(page, (0.5, 0.7, 0.0))
+    before = page.evaluate("() => window.__arap.constraints()")
+    assert before["fixed"] and before["handle_groups"][0]
+    page.keyboard.press("+")
+    wait_idle(page)
+    fixed = set(page.evaluate("() => window.__arap.constraints().fixed"))
+    assert fixed < set(before["fixed"]), "the handle grew over anchors"
+    page.keyboard.press("-")
+    wait_idle(page)
+    assert page.evaluate("() => window.__arap.constraints()") == before
+    page.get_by_test_id("clear-all").click()
+    wait_idle(page)
 
     # a handle on the right prong; the region of interest: two rings around it (anchors included)
     page.get_by_test_id("role-handle").click()

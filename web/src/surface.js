@@ -5,6 +5,8 @@ import { FIXED, HANDLE0 } from './selection.js';
 
 /** How a region of interest is grown from the handles: rings of edges, or distance along the surface. */
 export const ROI_GROW_MODES = ['rings', 'distance'];
+/** Grow steps that Shrink can take back exactly (each keeps a copy of the selection). */
+const MAX_GROWN = 32;
 
 export class SurfaceSelection {
   /**
@@ -19,6 +21,8 @@ export class SurfaceSelection {
     this.changed = changed;
     this._graph = null;
     this._graphFor = null;
+    /** The selection as it was before each Grow still undone by Shrink, newest last (see ring). */
+    this._grown = [];
   }
 
   /** The vertex adjacency of the current mesh, built on first use after each new mesh. */
@@ -43,13 +47,41 @@ export class SurfaceSelection {
     return (i) => s.role[i] === value;
   }
 
-  /** Grow (or shrink) the role being painted by one ring of edges; false when nothing changed. */
+  /**
+   * Grow (or shrink) the role being painted by one ring of edges; false when nothing changed. Shrink right after Grow
+   * (nothing else edited in between) takes away exactly the layer Grow added, giving back what it painted over, so
+   * Grow, Grow, Shrink, Shrink ends where it began; otherwise Shrink takes away the members with a neighbour outside.
+   */
   ring(shrink) {
     const member = this._member();
     if (!member || !this.viewer.nVertices) return false;
+    const s = this.selection;
+    const role = this.role();
+    const last = this._grown[this._grown.length - 1];
+    if (last && (last.version !== s.version || last.role !== role || last.n !== s.n)) this._grown = [];
+    if (shrink && this._grown.length) {
+      const before = this._grown.pop().before;
+      s.role.set(before.role);
+      s.roi.set(before.roi);
+      s.stiff.set(before.stiff);
+      s.groups = before.groups;
+      s.activeGroup = before.activeGroup;
+      s.version++;
+      this.changed();
+      if (this._grown.length) this._grown[this._grown.length - 1].version = s.version;
+      return true;
+    }
+    const before = shrink ? null : {
+      role: s.role.slice(), roi: s.roi.slice(), stiff: s.stiff.slice(), activeGroup: s.activeGroup,
+      groups: s.groups.map((g) => ({ ...g, ...(g.point ? { point: { ...g.point } } : {}) })),
+    };
     const ring = ringAround(this.graph(), this.viewer.nVertices, member, shrink);
-    if (!this.paint(ring, this.role(), shrink)) return false;
+    if (!this.paint(ring, role, shrink)) return false;
     this.changed();
+    if (before) {
+      this._grown.push({ before, role, n: s.n, version: s.version });
+      if (this._grown.length > MAX_GROWN) this._grown.shift();
+    }
     return true;
   }
 
