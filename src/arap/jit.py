@@ -15,13 +15,20 @@ from __future__ import annotations
 import logging
 import os
 import sys
+import threading
 import time
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
-__all__ = ["KernelWarmUp", "announce_first_compile", "first_compile_pending", "warm_up_kernels"]
+__all__ = ["KERNELS_READY", "KernelWarmUp", "announce_first_compile", "first_compile_pending", "warm_up_kernels"]
+
+KERNELS_READY = threading.Event()
+"""Set unless a warm-up runs in the background (``arap studio`` serves the page while the kernels compile): the studio
+server greets a new connection once it is set, so that the page says the solver is being prepared instead of
+hanging on its first drag."""
+KERNELS_READY.set()
 
 logger = logging.getLogger("arap")
 

@@ -8,6 +8,11 @@ const RETRY_MAX_MS = 8000;
 export const FULL_RETRY_MS = 15000;
 /** Close code of a server that refuses a session because it serves as many as it allows ("try again later"). */
 const FULL_CLOSE_CODE = 1013;
+/**
+ * A connection open this long without the server's welcome is waiting for the solver: on a fresh install the
+ * server compiles its kernels first (tens of seconds), and the page says so rather than nothing.
+ */
+export const WELCOME_WAIT_MS = 1500;
 
 export class Connection {
   /**
@@ -15,8 +20,9 @@ export class Connection {
    * @param {object} handlers onOpen() (the server greeted a new connection: called before its welcome is handed
    *   on), onClose(event) (an open connection was lost or closed), onRefused({reason, delayMs}) (the server is full:
    *   it refused the connection, tried again after delayMs; onClose and onRetry are not called),
-   *   onRetry({attempt, delayMs}) (a reconnection is scheduled), onMessage(msg); a binary frame arrives as its
-   *   header fields plus `frame` ({header, payload}, see decodeBinary)
+   *   onRetry({attempt, delayMs}) (a reconnection is scheduled), onWaiting() (the connection is open but the server
+   *   has not greeted it after WELCOME_WAIT_MS: it is preparing the solver), onMessage(msg); a binary frame arrives
+   *   as its header fields plus `frame` ({header, payload}, see decodeBinary)
    */
   constructor(url, handlers) {
     this.url = url;
@@ -33,6 +39,8 @@ export class Connection {
     this.stopped = false;
     this.welcomed = false; // the current connection was greeted
     this.refusal = null; // why the server refused the current connection (its busy error, before any welcome)
+    /** @type {ReturnType<typeof setTimeout> | undefined} */
+    this.welcomeTimer = undefined; // fires onWaiting when the welcome is late
   }
 
   /** Connect now (also cancels a scheduled reconnection); a lost connection is retried with backoff. */
@@ -52,9 +60,14 @@ export class Connection {
       this.open = true;
       this.inFlight = null;
       this.pending = null;
+      clearTimeout(this.welcomeTimer);
+      this.welcomeTimer = setTimeout(() => {
+        if (this.ws === ws && this.open && !this.welcomed) this.handlers.onWaiting?.();
+      }, WELCOME_WAIT_MS);
     });
     ws.addEventListener('close', (ev) => {
       if (this.ws !== ws) return;
+      clearTimeout(this.welcomeTimer);
       this.open = false;
       this.inFlight = null;
       this.pending = null;
@@ -175,6 +188,7 @@ export class Connection {
     if (msg.type === SERVER.WELCOME) {
       this.attempt = 0; // a server that accepts and drops at once still backs off
       this.welcomed = true;
+      clearTimeout(this.welcomeTimer);
       this.handlers.onOpen?.();
     } else if (msg.type === SERVER.ERROR && msg.code === ERROR.BUSY && !this.welcomed) {
       this.refusal = msg.message || 'the studio server is full'; // it closes the connection next

@@ -107,6 +107,7 @@ const stats = new UpdateStats({ panel: () => panel, latencyMs: () => conn.lastLa
 
 const conn = new Connection(defaultSocketUrl(), {
   onOpen: () => {
+    panel.clearStatus('preparing');
     panel.setConnection('open');
     panel.setEnabled(true);
     roleControls();
@@ -124,6 +125,7 @@ const conn = new Connection(defaultSocketUrl(), {
     panel.serverFull(reason, delayMs, keeper.keepsWork);
   },
   onRetry: ({ attempt, delayMs }) => panel.setConnection('reconnecting', { attempt, delayMs }),
+  onWaiting: () => panel.preparingSolver(),
   onMessage: (msg) => handleMessage(msg),
 });
 

@@ -264,6 +264,13 @@ export class Panel {
     'connection');
   }
 
+  /** Connected, but the server has not greeted this tab yet: it is preparing the solver (compiling, first run). */
+  preparingSolver() {
+    this.setConnection('preparing');
+    this.showStatus('Connected. The server is preparing the solver: the first run after an install compiles it, '
+      + 'which takes up to a minute. Editing starts as soon as it is ready.', 'info', 0, 'preparing');
+  }
+
   /** The server speaks another protocol version (a page left open across an upgrade): nothing is sent. */
   protocolMismatch(ours, theirs) {
     this.setEnabled(false);
@@ -272,15 +279,16 @@ export class Panel {
   }
 
   /**
-   * state: 'open', 'connecting', 'closed', 'reconnecting' or 'full' (the server refused this tab); retry:
+   * state: 'open', 'connecting', 'preparing' (connected, the server is not ready yet), 'closed', 'reconnecting' or
+   * 'full' (the server refused this tab); retry:
    * {attempt, delayMs} of the next try.
    */
   setConnection(state, retry = null) {
     const dot = $('conn-dot');
-    dot.className = `dot ${state === 'open' ? 'ok' : state === 'connecting' ? '' : 'bad'}`;
+    dot.className = `dot ${state === 'open' ? 'ok' : state === 'connecting' || state === 'preparing' ? '' : 'bad'}`;
     const text = {
       open: 'connected', closed: 'disconnected', connecting: 'connecting…', reconnecting: 'reconnecting…',
-      full: 'server full',
+      full: 'server full', preparing: 'preparing the solver…',
     };
     $('conn-text').textContent = text[state] ?? state;
     const next = retry ? `next try in ${(retry.delayMs / 1000).toFixed(1)} s` : '';

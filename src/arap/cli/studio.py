@@ -7,6 +7,7 @@ without it.
 from __future__ import annotations
 
 import argparse
+import threading
 
 from arap.cli.common import EXIT_USAGE, err, origin_value, out, positive_int, token_value, warm_up_kernels
 
@@ -55,7 +56,7 @@ def run_studio(args: argparse.Namespace) -> int:
         return EXIT_USAGE
     from arap.server.guard import is_loopback_host
 
-    warm_up_kernels(quiet=False)  # compile before serving, not on the first drag
+    _warm_up_behind()  # the page is served at once; the kernels compile (first run) or load meanwhile
 
     def announce(url: str) -> None:
         if is_loopback_host(args.host):
@@ -75,6 +76,30 @@ def run_studio(args: argparse.Namespace) -> int:
     except KeyboardInterrupt:
         err("stopped")
     return 0
+
+
+def _warm_up_behind() -> threading.Thread:
+    """Compile (first run) or load the kernels on a thread of their own while the server starts and serves the page;
+    a session that needs them first waits for the compilation (numba compiles one kernel at a time). Says so when it
+    compiles."""
+    from arap.jit import KERNELS_READY, first_compile_pending
+
+    if first_compile_pending():
+        err("arap: compiling the solver's kernels in the background (first run only, about 10-30 s); the page is "
+            "served meanwhile and can edit once they are ready")
+    KERNELS_READY.clear()  # the server greets connections once the kernels are ready
+
+    def run() -> None:
+        try:
+            warm_up_kernels(quiet=False)
+        except Exception as exc:  # noqa: BLE001 - a failed warm-up only delays the first solve, which compiles itself
+            err(f"arap: the kernels were not compiled ahead ({type(exc).__name__}: {exc}); the first solve will")
+        finally:
+            KERNELS_READY.set()
+
+    thread = threading.Thread(target=run, name="arap-kernel-warm-up", daemon=True)
+    thread.start()
+    return thread
 
 
 def _network_url(url: str, host: str) -> str:

@@ -25,6 +25,7 @@ import numpy as np
 from starlette.websockets import WebSocket, WebSocketDisconnect
 
 import arap
+from arap.jit import KERNELS_READY
 from arap.server.budget import ByteBudget, RequestQueue, request_cost
 from arap.server.decoder import PROCESS_BYTES, FrameDecoder
 from arap.server.heatmap import distortion_frame
@@ -51,6 +52,8 @@ logger = logging.getLogger(__name__)
 T = TypeVar("T")
 
 OFF_LOOP_BYTES = 256 * 1024
+KERNEL_WAIT_SECONDS = 600.0
+"""Longest a new connection waits for a background warm-up of the kernels before it is greeted anyway."""
 """Frames at least this large are decoded and validated on a thread, not on the event loop."""
 
 
@@ -216,6 +219,8 @@ class Connection:
         """Accept the connection and serve it until the client goes away."""
         await self.ws.accept()
         try:
+            if not KERNELS_READY.is_set():  # first run: the page says that the solver is being prepared meanwhile
+                await self._off_loop(KERNELS_READY.wait, KERNEL_WAIT_SECONDS)
             await self._off_loop(self.session.load, self.default_mesh)
             if self.prepare is not None:
                 await self._off_loop(self.prepare, self.session)
