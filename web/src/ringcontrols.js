@@ -1,5 +1,6 @@
 // TransformControls whose rotate rings follow the pointer around the ring's centre, with snapping of rotations
-// (15° steps) and of translations (a grid step) while a modifier is held or snapping is switched on.
+// (15° steps) and of translations (a grid step) while a modifier is held or snapping is switched on. Where rings
+// cross on screen, the ring nearest to the pointer is picked (not the one in front).
 import * as THREE from 'three';
 import { TransformControls } from 'three/addons/controls/TransformControls.js';
 import { ROTATION_SNAP_DEG, snapTo, sweptAngle } from './transform.js';
@@ -7,6 +8,10 @@ import { ROTATION_SNAP_DEG, snapTo, sweptAngle } from './transform.js';
 const UNIT = { X: new THREE.Vector3(1, 0, 0), Y: new THREE.Vector3(0, 1, 0), Z: new THREE.Vector3(0, 0, 1) };
 const _v = new THREE.Vector3();
 const _q = new THREE.Quaternion();
+/** @type {("X"|"Y"|"Z"|"E")[]} */
+const RINGS = ['X', 'Y', 'Z', 'E'];
+/** Points per ring when measuring how near the pointer is to it on screen. */
+const RING_SAMPLES = 96;
 
 /**
  * Rotation by the pointer: on an axis ring (X, Y, Z, in world or local axes) and on the view ring (E) the angle
@@ -56,6 +61,55 @@ export class RingControls extends TransformControls {
   _centrePixels() {
     const v = _v.copy(this.tc.worldPosition).project(this.camera);
     return this._pixels(v);
+  }
+
+  /**
+   * TransformControls picks the first picker the pointer's ray meets: where two rings cross on screen, the one in
+   * front, even with the pointer on the other ring's line. Of the rings, the one whose line passes nearest to the
+   * pointer on screen is picked instead.
+   */
+  pointerHover(pointer) {
+    super.pointerHover(pointer);
+    if (this.mode !== 'rotate' || this.object === undefined || this.dragging || pointer === null) return;
+    const picked = RINGS.find((name) => name === this.axis);
+    if (!picked) return;
+    const at = this._pixels(pointer);
+    let best = picked;
+    let bestD = this._ringDistance(best, at);
+    for (const name of RINGS) {
+      if (name === best) continue;
+      const d = this._ringDistance(name, at);
+      if (d < bestD) {
+        best = name;
+        bestD = d;
+      }
+    }
+    this.axis = best;
+  }
+
+  /** Distance on screen (pixels) from `at` to the line of ring `name` (X, Y, Z: radius 0.5; E: 0.75). */
+  _ringDistance(name, at) {
+    let axis;
+    if (name === 'E') axis = this.tc.eye.clone();
+    else {
+      axis = UNIT[name].clone();
+      if (this.space === 'local') axis.applyQuaternion(this.tc.worldQuaternion);
+    }
+    const radius = (name === 'E' ? 0.75 : 0.5) * this.handleScale();
+    const u = Math.abs(axis.x) < 0.9 ? new THREE.Vector3(1, 0, 0) : new THREE.Vector3(0, 1, 0);
+    u.sub(axis.clone().multiplyScalar(u.dot(axis))).normalize();
+    const w = axis.clone().cross(u);
+    const centre = this.tc.worldPosition;
+    let best = Infinity;
+    let prev = null;
+    for (let k = 0; k <= RING_SAMPLES; k++) {
+      const phi = (2 * Math.PI * k) / RING_SAMPLES;
+      _v.copy(centre).addScaledVector(u, radius * Math.cos(phi)).addScaledVector(w, radius * Math.sin(phi));
+      const p = this._pixels(_v.project(this.camera));
+      if (prev) best = Math.min(best, segmentDistance(at, prev, p));
+      prev = p;
+    }
+    return best;
   }
 
   pointerDown(pointer) {
@@ -174,4 +228,13 @@ export class RingControls extends TransformControls {
     const p = this._pixels(up.add(this.tc.worldPosition).project(this.camera));
     return [p[0] - centre[0], p[1] - centre[1]];
   }
+}
+
+/** Distance from point p to the segment a–b (2D). */
+function segmentDistance(p, a, b) {
+  const dx = b[0] - a[0];
+  const dy = b[1] - a[1];
+  const len2 = dx * dx + dy * dy;
+  const t = len2 > 0 ? Math.max(0, Math.min(1, ((p[0] - a[0]) * dx + (p[1] - a[1]) * dy) / len2)) : 0;
+  return Math.hypot(p[0] - a[0] - t * dx, p[1] - a[1] - t * dy);
 }
