@@ -19,10 +19,12 @@ export class SessionKeeper {
     this.applying = 0; // apply requests whose state has not arrived yet
     this.lost = null; // {snap, live}: the session when the connection was lost, put back after reconnecting
     this.queued = null; // {snap, recordId}: a restore chosen before the session was ready
+    this.rest = null; // the rest pose of the mesh shown (as loaded, or as the last apply made it)
+    this.offer = null; // {banner, record}: the restore offer shown
     let failed = false;
     this.autosave = new Autosave({
       id: this.id,
-      capture: () => captureSession(deps),
+      capture: () => captureSession(deps, this.rest),
       delayMs: () => 500 + deps.viewer.nVertices / 200, // large meshes are written less often
       onError: (err) => {
         if (!failed) deps.panel.showStatus(`Autosave failed: ${err.message || err}`, 'error');
@@ -75,7 +77,7 @@ export class SessionKeeper {
   /** The server greeted a new connection (its mesh follows). */
   welcomed() {
     // the selection may have been edited while disconnected: take it as it is now
-    if (this.lost?.live) this.lost.snap = captureSession(this.deps);
+    if (this.lost?.live) this.lost.snap = captureSession(this.deps, this.rest);
   }
 
   /** A mesh arrived (positions and faces as sent). */
@@ -84,6 +86,8 @@ export class SessionKeeper {
     app.source = this.pendingSource
       ?? (app.builtins.includes(msg.name) ? builtinSource(msg.name) : fileSource(`${msg.name}.ply`, encodePly(positions, faces, app.vertexMap), app.repaired));
     this.pendingSource = null;
+    this.rest = Float32Array.from(positions);
+    if (this.offer?.banner.open) this.offer.banner.setText(describe(this.offer.record, msg.name));
     if (this.restore.meshArrived(msg, positions)) return;
     if (this.lost) {
       const { snap } = this.lost;
@@ -103,6 +107,7 @@ export class SessionKeeper {
     if (this.applying > 0) {
       // the deformed shape is now the rest pose: a restore must upload it
       this.applying--;
+      this.rest = Float32Array.from(viewer.positions);
       const bytes = encodePly(viewer.positions, viewer.geometry.index.array, app.vertexMap);
       if (!app.limits.max_upload_bytes || bytes.byteLength <= app.limits.max_upload_bytes) {
         app.source = fileSource(`${app.meshName}.ply`, bytes, app.repaired);
@@ -147,8 +152,8 @@ export class SessionKeeper {
   async offerSaved() {
     const record = await newestOrphan(this.id);
     if (!record || !record.edits) return;
-    showRestoreOffer(this.deps.offerParent, {
-      text: describe(record),
+    const banner = showRestoreOffer(this.deps.offerParent, {
+      text: describe(record, this.deps.app.meshName),
       onRestore: () => {
         if (!this.confirmReplace(`the saved ${record.meshName}`)) return false;
         this._restoreRecord(record).catch((err) => this.deps.panel.showStatus(`Could not restore: ${err.message || err}`, 'error'));
@@ -156,6 +161,7 @@ export class SessionKeeper {
       },
       onDiscard: () => deleteSession(record.id).catch(() => {}),
     });
+    this.offer = { banner, record };
   }
 
   async _restoreRecord(record) {

@@ -3,7 +3,8 @@ import './offer.css';
 
 /**
  * Show the offer over `parent`. After onRestore() (unless it returns false) or onDiscard() the banner goes away.
- * Returns {close()} to take it away without an answer.
+ * Returns {close()} to take it away without an answer, setText(text) to describe it again and `open` (false once
+ * it went away).
  */
 export function showRestoreOffer(parent, { text, onRestore, onDiscard }) {
   const box = document.createElement('div');
@@ -23,7 +24,17 @@ export function showRestoreOffer(parent, { text, onRestore, onDiscard }) {
   discard.dataset.testid = 'restore-discard';
   box.append(msg, restore, discard);
   parent.appendChild(box);
-  const close = () => box.remove();
+  const offer = {
+    open: true,
+    close: () => {
+      offer.open = false;
+      box.remove();
+    },
+    setText: (t) => {
+      msg.textContent = t;
+    },
+  };
+  const close = () => offer.close();
   restore.addEventListener('click', () => {
     if (onRestore() !== false) close();
   });
@@ -31,5 +42,5 @@ export function showRestoreOffer(parent, { text, onRestore, onDiscard }) {
     close();
     onDiscard();
   });
-  return { close };
+  return offer;
 }

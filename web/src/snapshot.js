@@ -61,9 +61,12 @@ export function hasEdits({ app, selection }) {
  * `groups` (one vertex list per client handle group, empty ones included), `groupPoints` (per group, its point
  * handle or null), `stiffness` (painted, as sent to the server, or null), `activeGroup`, `partners` (each group's
  * mirror partner, -1 for none), `pivots` (per group, its placed pivot as a world point of the current shape, or
- * null), `positions` (Float32Array of the current shape) and `params`.
+ * null), `positions` (Float32Array of the current shape), `deformed` (the shape is not the rest pose `rest`, the
+ * mesh as its source gives it; null when `rest` is not known) and `params`.
+ * @param {{app: any, selection: any, viewer: any, gizmo?: any}} deps
+ * @param {ArrayLike<number>|null} [rest]
  */
-export function captureSession({ app, selection, viewer, gizmo }) {
+export function captureSession({ app, selection, viewer, gizmo }, rest = null) {
   const groups = selection.groups.map(() => []);
   const roi = [];
   const fixed = [];
@@ -88,9 +91,23 @@ export function captureSession({ app, selection, viewer, gizmo }) {
     partners: selection.groups.map((_, g) => selection.partnerOf(g)),
     pivots: gizmo ? gizmo.placedPivots() : [],
     positions: new Float32Array(viewer.positions),
+    deformed: rest && rest.length === viewer.positions.length ? moved(rest, viewer.positions) : null,
     params: { ...app.params },
     edits: hasEdits({ app, selection }),
   };
+}
+
+/** True when some coordinate of `b` differs from `a`'s by more than a millionth of their extent. */
+function moved(a, b) {
+  let lo = Infinity;
+  let hi = -Infinity;
+  for (let i = 0; i < a.length; i++) {
+    if (a[i] < lo) lo = a[i];
+    if (a[i] > hi) hi = a[i];
+  }
+  const eps = 1e-6 * Math.max(hi - lo, 1e-30);
+  for (let i = 0; i < a.length; i++) if (Math.abs(a[i] - b[i]) > eps) return true;
+  return false;
 }
 
 /** Why a snapshot does not fit a loaded mesh, or null. */
@@ -100,16 +117,23 @@ export function mismatch(snap, nVertices, nFaces) {
     `faces, the saved session had ${snap.nVertices.toLocaleString('en-US')} and ${snap.nFaces.toLocaleString('en-US')}`;
 }
 
-/** One line saying what a snapshot holds. */
-export function describe(snap) {
+/**
+ * What a snapshot holds, in a line or two: the mesh and whether its shape is deformed, the selection, and (with
+ * `shown`, the name of the mesh the page shows now, when it is another) that restoring replaces that mesh.
+ * @param {object} snap
+ * @param {string|null} [shown]
+ */
+export function describe(snap, shown = null) {
   const when = new Date(snap.savedAt).toLocaleString([], { dateStyle: 'medium', timeStyle: 'short' });
   const handles = snap.groups.filter((g) => g.length).length;
   const pointCount = (snap.groupPoints || []).filter((p) => p).length;
-  const parts = [`${snap.meshName}`];
+  const shape = snap.deformed === true ? ' (deformed)' : snap.deformed === false ? ' (shape as loaded)' : '';
+  const parts = [`${snap.meshName}${shape}`];
   if (snap.roi.length) parts.push(`ROI of ${snap.roi.length.toLocaleString('en-US')} vertices`);
   parts.push(`${snap.fixed.length.toLocaleString('en-US')} anchors`);
   parts.push(`${handles} handle group${handles === 1 ? '' : 's'}`);
   if (pointCount) parts.push(`${pointCount} point handle${pointCount === 1 ? '' : 's'}`);
   if (snap.stiffness) parts.push('painted stiffness');
-  return `Unsaved work from ${when}: ${parts.join(', ')}.`;
+  const instead = shown && shown !== snap.meshName ? ` Restore loads ${snap.meshName} in place of the ${shown} shown.` : '';
+  return `Unsaved work from ${when}: ${parts.join(', ')}.${instead}`;
 }
