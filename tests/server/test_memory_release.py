@@ -19,8 +19,9 @@ from websockets.sync.client import connect
 
 from arap.server import make_server
 from arap.server.memory import release_memory
+from arap.server.protocol import ClientMessage
 from arap.server.session import Session
-from tests.server.helpers import translation
+from tests.server.helpers import StudioClient, translation
 
 pytestmark = pytest.mark.timeout(120)
 
@@ -131,3 +132,18 @@ def test_sessions_that_leave_while_settling_give_their_memory_back(monkeypatch: 
         while (after := float(psutil.Process().memory_info().rss)) > 1.5 * before and time.monotonic() < deadline:
             time.sleep(0.05)
         assert after <= 1.5 * before, f"{after / 2**20:.0f} MiB after the sessions left, {before / 2**20:.0f} before"
+
+
+def test_a_refused_constraint_set_is_freed_at_once(studio: StudioClient) -> None:
+    """Without reference cycles: a refused message of many indices is not kept until the garbage collector runs."""
+    gc.collect()
+    gc.disable()
+    try:
+        n = len(studio.V)
+        studio.send({"type": "set_constraints", "roi": None, "fixed": [*range(100), n + 5], "handle_groups": []})
+        assert "out of range" in studio.error("bad_constraints")["message"]
+        studio.ping()
+        alive = [o for o in gc.get_objects() if isinstance(o, ClientMessage) and o.type == "set_constraints"]
+        assert not alive, "the refused message is still in memory"
+    finally:
+        gc.enable()

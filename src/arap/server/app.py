@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import gc
 import html
 import logging
 import os
@@ -286,12 +287,16 @@ def create_app(
 async def _until_freed(ref: weakref.ref[Session], studio: _Studio, seconds: float) -> None:
     """Wait until the session ``ref`` refers to is freed (at most ``seconds``; not at all for the session a
     notebook keeps)."""
-    deadline = time.monotonic() + seconds
-    while time.monotonic() < deadline:
+    start = time.monotonic()
+    collected = False
+    while time.monotonic() < start + seconds:
         session = ref()
         if session is None or session is studio.latest_kept():
             return
         del session
+        if not collected and time.monotonic() > start + 0.2:
+            gc.collect()  # the session may be held only by reference cycles (an exception's frames)
+            collected = True
         await asyncio.sleep(0.05)
 
 

@@ -366,6 +366,7 @@ class Connection:
                     await self._check(item)
                     await self._handle(item)
                 except RequestError as exc:
+                    exc.__traceback__ = None  # its frames hold the request and the future holding exc: no cycle
                     exc.request = exc.request or item.type
                     await self._send_error(exc)
                 except WebSocketDisconnect:

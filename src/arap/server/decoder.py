@@ -9,7 +9,8 @@ process boundary as flat buffers and need no per-number work in the server. Smal
 event loop or a thread (see :mod:`arap.server.connection`).
 
 Fairness: frames of :data:`LARGE_BYTES` or more are decoded by a worker of their own (the large lane), the others
-by another (the small lane), so a frame of a few megabytes never waits behind another session's 50 MB ones. Each
+by another (the small lane), so a frame of a few megabytes never waits behind another session's 50 MB ones; the
+large lane's worker runs at a lower CPU priority, so on a busy machine it does not slow the small lane either. Each
 session decodes one frame at a time (its reader waits for it), so a lane's queue holds at most one frame per
 session and serves them in turn.
 
@@ -45,7 +46,9 @@ PROCESS_BYTES = 2 * 2**20
 LARGE_BYTES = 8 * 2**20
 """Text frames at least this large are decoded in the large lane (a worker of their own)."""
 
-LANES = ("small", "large")
+LARGE_LANE_NICENESS = 5
+"""The large lane's worker runs at this lower CPU priority (Unix ``nice``): on a busy machine the event loop and the
+small lane come first."""
 
 TRIM_BYTES = 4 * 2**20
 """A worker hands its freed memory back to the system after decoding a frame at least this large."""
@@ -110,8 +113,19 @@ def decode_text_frame(data: bytes | str) -> ClientMessage:
             release_memory()
 
 
+def _start_worker(parent: int, niceness: int) -> None:
+    """Worker initializer: lower the worker's CPU priority by ``niceness`` (where the system allows), and end it
+    when the server process is gone, however it ended."""
+    if niceness and hasattr(os, "nice"):
+        try:
+            os.nice(niceness)
+        except OSError:
+            pass
+    _exit_with_parent(parent)
+
+
 def _exit_with_parent(parent: int) -> None:
-    """Worker initializer: end the worker when the server process is gone, however it ended."""
+    """End this worker when the server process is gone, however it ended."""
 
     def watch() -> None:
         while os.getppid() == parent:
@@ -142,8 +156,8 @@ class FrameDecoder:
             if pool is None:
                 # "spawn": the server has threads, which a forked child must not inherit half-way through.
                 pool = self._pools[lane] = ProcessPoolExecutor(
-                    max_workers=1, mp_context=multiprocessing.get_context("spawn"), initializer=_exit_with_parent,
-                    initargs=(os.getpid(),))
+                    max_workers=1, mp_context=multiprocessing.get_context("spawn"), initializer=_start_worker,
+                    initargs=(os.getpid(), LARGE_LANE_NICENESS if lane == "large" else 0))
             return pool
 
     @property
