@@ -185,9 +185,12 @@ export class Panel {
     this.setCurrentModel(current);
   }
 
+  /** Show the model loaded: a built-in one selected in the list, any other (a file) by its name at the list's head. */
   setCurrentModel(name) {
-    const sel = $('builtin-select');
+    const sel = /** @type {HTMLSelectElement} */ ($('builtin-select'));
     const known = Array.from(sel.options).some((o) => o.value === name && name);
+    const head = sel.options[0];
+    if (head && head.value === '') head.textContent = !known && name ? `${name} (file)` : 'Built-in model…';
     sel.value = known ? name : '';
   }
 
