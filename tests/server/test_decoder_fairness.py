@@ -3,14 +3,23 @@ never waits behind it."""
 
 from __future__ import annotations
 
+import asyncio
 import json
+import os
 import time
 from typing import Any
 
 import pytest
 from starlette.testclient import TestClient
 
-from arap.server.decoder import LARGE_BYTES, PROCESS_BYTES, decode_text_frame, lane_of
+from arap.server.decoder import (
+    LARGE_BYTES,
+    LARGE_LANE_NICENESS,
+    PROCESS_BYTES,
+    FrameDecoder,
+    decode_text_frame,
+    lane_of,
+)
 from tests.server.helpers import StudioClient
 
 pytestmark = pytest.mark.timeout(120)
@@ -57,3 +66,23 @@ def test_a_small_frame_does_not_wait_behind_another_sessions_large_one(http: Tes
         assert "unknown field 'slow'" in a.error("bad_message")["message"]  # A is answered too, later
         a.ping()
         b.ping()
+
+
+def test_the_large_lane_runs_at_a_lower_cpu_priority() -> None:
+    psutil = pytest.importorskip("psutil")
+    if not hasattr(os, "nice"):
+        pytest.skip("no process priorities here")
+    decoder = FrameDecoder()
+
+    async def decode_both() -> None:
+        for size in (PROCESS_BYTES + 10, LARGE_BYTES + 10):
+            assert (await decoder.decode(_padded({"type": "undo"}, size))).type == "undo"
+
+    try:
+        asyncio.run(decode_both())
+        server = psutil.Process()
+        niceness = sorted(child.nice() - server.nice() for child in server.children()
+                          if "python" in child.name().lower())
+        assert niceness[-2:] == [0, LARGE_LANE_NICENESS], niceness
+    finally:
+        decoder.close()
