@@ -53,6 +53,8 @@ export function describedKeys(handlers) {
 }
 
 const GUIDE_KEY = 'arap.guide.dismissed';
+/** How long the guide stays once its last step is done. */
+const GUIDE_CLOSE_MS = 1500;
 
 export class Help {
   /**
@@ -82,6 +84,26 @@ export class Help {
     });
     guide.querySelector('.guide-close').addEventListener('click', () => this.dismissGuide());
     guide.hidden = remembered();
+    /** The guide's steps done so far (its list items, in order: anchors, handle, drag). */
+    this.done = { anchors: false, handle: false, drag: false };
+    this._closing = 0;
+  }
+
+  /**
+   * Some of the guide's steps were done (`{anchors, handle, drag}`, true for those done now): each is ticked off,
+   * and once all three are the guide closes by itself (after a moment, so that the last tick is seen) for good.
+   */
+  guideProgress(steps) {
+    if (this.guide.hidden || this._closing) return;
+    const items = this.guide.querySelectorAll('li');
+    ['anchors', 'handle', 'drag'].forEach((step, k) => {
+      if (!steps[step] || this.done[step]) return;
+      this.done[step] = true;
+      items[k]?.classList.add('done');
+    });
+    if (this.done.anchors && this.done.handle && this.done.drag) {
+      this._closing = window.setTimeout(() => this.dismissGuide(), GUIDE_CLOSE_MS);
+    }
   }
 
   get shown() {

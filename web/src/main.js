@@ -211,6 +211,7 @@ function updateGroupsUi() {
   keeper.touch();
   const counts = selection.counts();
   panel.setGroups(selection.groups, selection.activeGroup, counts, viewer.nVertices);
+  help.guideProgress({ anchors: counts.fixed > 0, handle: counts.groups.some((c) => c > 0) });
   const anchor = points.anchor(selection.activeGroup);
   if (!gizmo.dragging) gizmo.attach(selection.activeGroup, anchor.indices, anchor.weights);
   points.refresh();
@@ -365,6 +366,7 @@ function shapeApplied(w, ms) {
 }
 
 function onState(msg) {
+  if (app.awaitingState) help.guideProgress({ drag: true }); // the state that answers the end of a drag
   app.awaitingState = false;
   mirror.stateArrived(msg.rest_id);
   app.canUndo = !!msg.can_undo;
