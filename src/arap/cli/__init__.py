@@ -7,12 +7,11 @@ files and values) is reported as one line on stderr with exit status 1, bad usag
 never with a traceback.
 
 Layout: this module builds the parser and runs a command (:func:`main`); each command lives in a module of its own
-(:mod:`~arap.cli.deform`, :mod:`~arap.cli.animate`, :mod:`~arap.cli.batch`, :mod:`~arap.cli.info`,
-:mod:`~arap.cli.bench`, :mod:`~arap.cli.studio`, :mod:`~arap.cli.warmup`) that adds its options (``add_parser``) and
-runs it;
-:mod:`~arap.cli.common` holds what they share (output lines, exit statuses, the mesh argument, the checks of option
-values). Command modules import only :mod:`~arap.cli.common`, never this
-module nor one another.
+that adds its options (``add_parser``) and runs it (:mod:`~arap.cli.deform`, :mod:`~arap.cli.constraints`,
+:mod:`~arap.cli.animate`, :mod:`~arap.cli.batch`, :mod:`~arap.cli.info`, :mod:`~arap.cli.bench`,
+:mod:`~arap.cli.studio`, :mod:`~arap.cli.warmup`); :mod:`~arap.cli.common` holds what they share (output lines, exit
+statuses, the mesh argument, the checks of option values). Command modules import only :mod:`~arap.cli.common`, never
+this module nor one another.
 """
 
 from __future__ import annotations
@@ -23,7 +22,7 @@ import sys
 from collections.abc import Sequence
 
 from arap import __version__
-from arap.cli import animate, batch, bench, deform, info, studio, warmup
+from arap.cli import animate, batch, bench, constraints, deform, info, studio, warmup
 from arap.cli.common import EXIT_BAD_INPUT, EXIT_INTERRUPTED, EXIT_USAGE, err, one_line
 from arap.errors import ArapError
 
@@ -42,7 +41,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--version", action="version", version=f"arap {__version__}")
     parser.add_argument("-v", "--verbose", action="store_true", help="log what the library does")
     commands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
-    for command in (deform, animate, batch, info, bench, studio, warmup):  # the order of ``arap --help``
+    for command in (deform, constraints, animate, batch, info, bench, studio, warmup):  # ``arap --help``'s order
         command.add_parser(commands)
     return parser
 

@@ -9,6 +9,7 @@ from __future__ import annotations
 import argparse
 import sys
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -32,6 +33,7 @@ __all__ = [
     "EXIT_USAGE",
     "add_energy_options",
     "add_iteration_options",
+    "add_selector_options",
     "alpha_value",
     "check_bench_runs",
     "check_iterations_and_tolerance",
@@ -41,6 +43,7 @@ __all__ = [
     "origin_value",
     "out",
     "positive_int",
+    "selector_constraints",
     "token_value",
     "warm_up_kernels",
 ]
@@ -58,6 +61,53 @@ def add_iteration_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("-t", "--tolerance", type=float, default=DEFAULT_TOLERANCE,
                    help="converged when the plain iteration's step (RMS over the free vertices) is at most this "
                         f"many bounding-box diagonals (default: {DEFAULT_TOLERANCE:g}; 0 runs all iterations)")
+
+
+class _HandleAction(argparse.Action):
+    """``--handle SEL`` starts a handle group; ``--move`` and ``--rotate`` set the last one's motion."""
+
+    def __call__(self, parser: argparse.ArgumentParser, namespace: argparse.Namespace, values: object,
+                 option_string: str | None = None) -> None:
+        groups = list(getattr(namespace, "handle_specs", None) or [])
+        if self.dest == "handle_specs":
+            groups.append({"selector": str(values)})
+        else:
+            if not groups:
+                parser.error(f"{option_string} moves the handle group before it: give --handle SELECTOR first")
+            key = "move" if self.dest == "move" else "rotate"
+            if key in groups[-1]:
+                parser.error(f"{option_string} is given twice for the handle group {groups[-1]['selector']!r}")
+            groups[-1] = {**groups[-1], key: str(values)}
+        namespace.handle_specs = groups
+
+
+def add_selector_options(p: argparse.ArgumentParser) -> None:
+    """``--fix``, ``--handle`` (with ``--move`` and ``--rotate``) and ``--roi``: constraints picked by where the
+    vertices lie (:mod:`arap.vertex_selectors`)."""
+    g = p.add_argument_group("constraints by position (x, y, z from 0 to 1 across the mesh's bounding box; X, Y, Z in "
+                             "mesh units)")
+    g.add_argument("--fix", action="append", default=[], metavar="SEL",
+                   help="hold the vertices SEL picks, e.g. 'y<0.1' (repeatable)")
+    g.add_argument("--handle", dest="handle_specs", action=_HandleAction, metavar="SEL",
+                   help="a handle group of the vertices SEL picks, e.g. 'y>0.9' (repeatable; each --move and "
+                        "--rotate applies to the --handle before it)")
+    g.add_argument("--move", action=_HandleAction, metavar="DX,DY,DZ",
+                   help="move the handle group by this vector (mesh units)")
+    g.add_argument("--rotate", action=_HandleAction, metavar="AXIS:DEG",
+                   help="turn the handle group about its centroid, e.g. z:30 or 1,1,0:45 (before --move)")
+    g.add_argument("--roi", default=None, metavar="SEL", help="only the vertices SEL picks move")
+
+
+def selector_constraints(args: argparse.Namespace, V: np.ndarray) -> Any:
+    """The :class:`arap.Constraints` the selector options give, or None when none was given."""
+    from arap.vertex_selectors import HandleSpec, constraints_from_selectors, parse_rotation, parse_vector
+
+    specs = getattr(args, "handle_specs", None) or []
+    if not args.fix and not specs and args.roi is None:
+        return None
+    handles = [HandleSpec(s["selector"], move=parse_vector(s["move"]) if "move" in s else None,
+                          rotation=parse_rotation(s["rotate"]) if "rotate" in s else None) for s in specs]
+    return constraints_from_selectors(V, fixed=args.fix, handles=handles, roi=args.roi)
 
 
 def add_energy_options(p: argparse.ArgumentParser) -> None:

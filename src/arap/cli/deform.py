@@ -19,9 +19,11 @@ from arap.cli.common import (
     EXIT_INTERRUPTED,
     add_energy_options,
     add_iteration_options,
+    add_selector_options,
     check_iterations_and_tolerance,
     err,
     load_mesh_argument,
+    selector_constraints,
     warm_up_kernels,
 )
 from arap.errors import ArapError, ConstraintError, MeshError, MeshFormatError, UnconstrainedRegionError
@@ -42,8 +44,9 @@ def add_parser(commands: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     p = commands.add_parser("deform", help="deform a mesh with a constraints file",
                             description="Deform MESH so the handles reach their targets and the fixed vertices stay.")
     p.add_argument("mesh", metavar="MESH")
-    p.add_argument("-c", "--constraints", required=True, metavar="FILE.json",
-                   help='JSON with "fixed", "handles", "targets" and optionally "roi" (file vertex indices)')
+    p.add_argument("-c", "--constraints", default=None, metavar="FILE.json",
+                   help='JSON with "fixed", "handles", "targets" and optionally "roi" (file vertex indices); or give '
+                        "the constraints by position with --fix, --handle, --move, --rotate and --roi")
     p.add_argument("-o", "--output", required=True, metavar="OUT", help="output mesh file (.obj .off .ply .stl)")
     add_iteration_options(p)
     p.add_argument("--start", default="auto", metavar="{" + ",".join(START_NAMES) + "} or SHAPE",
@@ -56,6 +59,7 @@ def add_parser(commands: argparse._SubParsersAction[argparse.ArgumentParser]) ->
                         "al. 2018) or the plain iteration (default: lbfgs)")
     add_energy_options(p)
     p.add_argument("-q", "--quiet", action="store_true", help="print nothing but errors")
+    add_selector_options(p)
     p.set_defaults(func=run_deform)
 
 
@@ -260,14 +264,19 @@ def run_deform(args: argparse.Namespace) -> int:
     V, F, repair, label = load_mesh_argument(args.mesh)
     asset = _textured_input(args.mesh, args.output, args.quiet)
     n_file = len(repair.vertex_map)
-    constraints = load_constraints(args.constraints, n_file, len(F))
+    picked = selector_constraints(args, V)  # by position, on the loaded mesh: in its numbering already
+    if (picked is None) == (args.constraints is None):
+        raise ConstraintError("give the constraints either as a file (-c FILE.json) or by position (--fix, --handle "
+                              "...), not both" if picked is not None else "give the constraints as a file "
+                              "(-c FILE.json) or by position (--fix 'y<0.1' --handle 'y>0.9' --move 0.2,0,0)")
+    constraints = picked if picked is not None else load_constraints(args.constraints, n_file, len(F))
     renumbered = repair.renumbers
     if repair.report and constraints.points is not None and len(constraints.points):
         raise ConstraintError("point handles refer to the file's triangles, which mesh repair changed; repair the "
                               "mesh file first (arap info shows what repair changes)")
     if repair.report and not args.quiet:
         err(f"arap: repaired {label}: {'; '.join(repair.report)}")
-    if renumbered:
+    if renumbered and picked is None:  # a file names the file's vertices
         constraints = constraints.remapped(repair.vertex_map)
         if not args.quiet:
             err("arap: vertex indices changed by the repair; constraints were renumbered to match")
