@@ -182,3 +182,13 @@ def test_an_index_list_longer_than_the_mesh_is_refused_before_the_session_copies
         check_against_mesh(msg, n_vertices=999, n_groups=0)
     assert info.value.code == "bad_constraints"
     check_against_mesh(msg, n_vertices=1000, n_groups=0)
+
+
+def test_frames_decoded_on_a_thread_take_bounded_memory_too() -> None:
+    text = ('{"type":"set_constraints","roi":null,"fixed":[],"handle_groups":['
+            + ",".join(["[1]"] * 400_000) + "]}")  # 1.6 MB: between OFF_LOOP_BYTES and PROCESS_BYTES
+    error, peak, _ = _peak(lambda: parse_text(text, cooperative=True))
+    assert peak < 3 * len(text), peak  # json.loads: 400,000 lists
+    assert isinstance(error, RequestError) and "has 400000 groups, at most 256" in error.message
+    msg = parse_text(_message(fixed=LONG), cooperative=True)
+    assert isinstance(msg.fields["fixed"], np.ndarray) and msg.fields["fixed"].tolist() == LONG

@@ -411,10 +411,13 @@ def validate(obj: Any, binary: bool, payload: memoryview | None = None) -> Clien
 def parse_text(text: str, *, cooperative: bool = False) -> ClientMessage:
     """Decode and validate a text frame. Raises :class:`RequestError`.
 
-    ``cooperative`` decodes numbers through Python-level hooks, so that a thread parsing a large frame lets other
-    threads run (see :func:`arap.server.frames.loads_json`).
+    ``cooperative`` is for a large frame decoded on a thread: it is decoded as by :func:`parse_large_text`, in
+    memory proportional to its size and without building a Python object per number (which would also hold the
+    interpreter lock from the other threads for as long); its long lists come back as NumPy arrays.
     """
-    return validate(loads_json(text, cooperative=cooperative), binary=False)
+    if cooperative:
+        return parse_large_text(text.encode("utf-8"))
+    return validate(loads_json(text), binary=False)
 
 
 def parse_large_text(data: bytes) -> ClientMessage:
