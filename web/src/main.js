@@ -14,6 +14,7 @@ import { installManipulation } from './manipulate.js';
 import { MirrorEditing } from './mirror.js';
 import { Panel } from './panel.js';
 import { LivePose } from './livepose.js';
+import { installPanelFold } from './panelfold.js';
 import { PaintModes } from './paintmodes.js';
 import { PointHandles } from './pointhandles.js';
 import { CLIENT, ERROR, meshArrays, PROTOCOL_VERSION, SERVER } from './protocol.js';
@@ -626,6 +627,7 @@ installShortcuts({
 });
 installSurfaceControls(surface, tools, (text) => panel.showStatus(text, 'info', 3000));
 installHud(document.getElementById('hud'), document.querySelector('#hud .hud-head'), document.getElementById('hud-toggle'));
+installPanelFold(document.getElementById('panel'), /** @type {HTMLButtonElement} */ (document.getElementById('btn-panel')));
 ignoreTypeAhead(document.getElementById('builtin-select'));
 releaseFocusAfterPointerUse(document.getElementById('panel'));
 
