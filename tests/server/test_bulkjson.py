@@ -102,6 +102,9 @@ INVALID = [
     _message(fixed=LONG).replace("1050", "9" * 5000),
     '{"type":"set_constraints","roi":null,"fixed":[' + ",".join(map(str, LONG)) + '],"handle_groups":[],"x":"\x01"}',
     '{"type":"set_constraints","roi":null,"fixed":"[' + ",".join(map(str, LONG)) + ']","handle_groups":[]}',
+    "\ufeff" + _message(fixed=LONG),
+    _message(fixed=LONG).replace('"fixed": [', '"fixed": Na['),
+    _message(fixed=LONG).replace('"fixed": [', '"fixed": -[').replace('"handle_groups": []', '"handle_groups": Na'),
 ]
 
 

@@ -290,10 +290,14 @@ def loads_bulk(data: bytes, max_parts: int = MAX_PARTS) -> Any:
     found = iter(lists)
 
     def placeholder(name: str) -> Any:
-        return next(found)
+        try:
+            return next(found)
+        except StopIteration:  # a NaN made of letters beside a list: the text is not JSON anyway
+            raise RequestError("bad_message", f"{name} is not a valid JSON number") from None
 
     try:
-        return json.loads(text, parse_constant=placeholder)
+        # decoded as text first: json.loads would take bytes with a byte order mark, text with one it refuses
+        return json.loads(text.decode("utf-8"), parse_constant=placeholder)
     except json.JSONDecodeError as exc:
         raise RequestError("bad_message", f"not valid JSON: {exc.msg}") from exc
     except RecursionError as exc:
