@@ -10,10 +10,13 @@ from typing import Any
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
 
+from arap.server import bulkjson
 from arap.server.bulkjson import INLINE_BYTES, MAX_PARTS, NumberList, loads_bulk
 from arap.server.decoder import arrays_from_lists, decode_text_frame
 from arap.server.protocol import ClientMessage, RequestError, check_against_mesh, parse_large_text, parse_text
+from tests.server.test_fuzz import messages as fuzzed_messages
 
 pytestmark = pytest.mark.timeout(120)
 
@@ -103,6 +106,9 @@ INVALID = [
     '{"type":"set_constraints","roi":null,"fixed":[' + ",".join(map(str, LONG)) + '],"handle_groups":[],"x":"\x01"}',
     '{"type":"set_constraints","roi":null,"fixed":"[' + ",".join(map(str, LONG)) + ']","handle_groups":[]}',
     "\ufeff" + _message(fixed=LONG),
+    _message(roi=[LONG, None]),
+    _message(roi=[{"a": LONG}]),
+    _message(fixed=LONG, handle_groups=[[1], {"a": [LONG]}]),
     _message(fixed=LONG).replace('"fixed": [', '"fixed": Na['),
     _message(fixed=LONG).replace('"fixed": [', '"fixed": -[').replace('"handle_groups": []', '"handle_groups": Na'),
 ]
@@ -195,3 +201,18 @@ def test_frames_decoded_on_a_thread_take_bounded_memory_too() -> None:
     assert isinstance(error, RequestError) and "has 400000 groups, at most 256" in error.message
     msg = parse_text(_message(fixed=LONG), cooperative=True)
     assert isinstance(msg.fields["fixed"], np.ndarray) and msg.fields["fixed"].tolist() == LONG
+
+
+@settings(max_examples=300, deadline=None, database=None)
+@given(text=fuzzed_messages())
+def test_fuzzed_messages_get_the_same_answer_from_both_decoders(text: str) -> None:
+    """Every list of numbers, however short, decoded the bulk way (INLINE_BYTES 0) gives what json.loads gives."""
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(bulkjson, "INLINE_BYTES", 0)
+        small, large = _both(text)
+    if isinstance(small, RequestError):
+        assert isinstance(large, RequestError), (text, small.message, large)
+        assert small.code == large.code, (text, small.message, large.message)
+    else:
+        assert isinstance(large, ClientMessage), (text, large)
+        assert small.type == large.type and _same(small.fields, large.fields), (text, small.fields, large.fields)

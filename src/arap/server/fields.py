@@ -41,6 +41,13 @@ SHORT_LIST_BYTES = 2**20
 Python lists (and then refused or accepted by the usual checks) only up to this length of text."""
 
 
+def _shown_list(value: Any) -> Any:
+    """How a long list of numbers appears in a message (``json.dumps``'s ``default``)."""
+    if isinstance(value, NumberList):
+        return f"<list of {len(value)}>"
+    raise TypeError(f"{type(value).__name__} is not JSON")
+
+
 def _check_index_list(value: Any, where: str) -> Any:
     if isinstance(value, NumberList):
         return value.integers(where)
@@ -48,7 +55,8 @@ def _check_index_list(value: Any, where: str) -> Any:
         raise RequestError("bad_message", f"{where} must be a list of vertex indices")
     if not all(type(x) is int for x in value):
         bad = next(x for x in value if type(x) is not int)
-        raise RequestError("bad_message", f"{where} must hold integers, found {json.dumps(bad)[:40]}")
+        shown = json.dumps(bad, default=_shown_list)[:40]
+        raise RequestError("bad_message", f"{where} must hold integers, found {shown}")
     return value
 
 
