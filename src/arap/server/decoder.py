@@ -1,12 +1,12 @@
 """Decoding of large text frames in separate processes, with bounded memory and fairly between sessions.
 
-JSON decoding builds one Python object per number while holding the interpreter lock: a thread decoding a 50 MB
-constraint set (millions of indices) would take the lock from the event loop, and from every other session, for
-seconds. Text frames of :data:`PROCESS_BYTES` or more are therefore decoded and validated in worker processes
-shared by all sessions, with :func:`arap.server.protocol.parse_large_text`: long lists of numbers are counted
-against their limits before they are decoded and become NumPy arrays (never Python lists), which cross the
-process boundary as flat buffers and need no per-number work in the server. Smaller frames are decoded on the
-event loop or a thread (see :mod:`arap.server.connection`).
+Decoding holds the interpreter lock: a thread decoding a 50 MB constraint set (millions of indices) would take it
+from the event loop, and from every other session, for a second or more (``json.loads``, which builds a Python
+object per number, for several). Text frames of :data:`PROCESS_BYTES` or more are therefore decoded and validated
+in worker processes shared by all sessions, with :func:`arap.server.protocol.parse_large_text`: long lists of
+numbers are counted against their limits before they are decoded and become NumPy arrays (never Python lists),
+which cross the process boundary as flat buffers and need no per-number work in the server. Smaller frames are
+decoded on the event loop or a thread (see :mod:`arap.server.connection`).
 
 Fairness: frames of :data:`LARGE_BYTES` or more are decoded by a worker of their own (the large lane), the others
 by another (the small lane), so a frame of a few megabytes never waits behind another session's 50 MB ones; the
