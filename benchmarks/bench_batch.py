@@ -5,21 +5,26 @@ The jobs are a family of constraint sets on one mesh (default: the armadillo): `
 times (a bend of growing angle). Runs, one after another in this order:
 
 - ``loop``: a plain Python loop as a user would write it, building a solver (one factorisation) for every job;
-- ``serial``: :func:`arap.batch` in this process (one factorisation per constraint set);
+- ``serial``: :func:`arap.batch` in this process (one factorisation per constraint set), its kernels on all cores;
+- ``serial1``: the same in a child process limited to one thread (kernels and BLAS): the one-core baseline;
 - ``process``, ``ray``, ``dask``: :func:`arap.batch` on ``--workers`` workers (local pool or local cluster).
 
-Printed per run: wall time, jobs per second, parallel efficiency against ``serial`` (``serial time / (workers ×
-time)``), factorisations, and the peak resident memory of the run's processes (this process and its children;
-Ray's and Dask's own services included). ``--json OUT`` writes the figures.
+Printed per run: wall time, jobs per second, parallel efficiency against ``serial1`` (``one-core time / (workers ×
+time)``), the speed-up over ``serial`` (whose kernels already use the cores part of the time), factorisations, and
+the peak resident memory of the run's processes (this process and its children; Ray's and Dask's own services
+included). ``--json OUT`` writes the figures.
 
 Run: ``python benchmarks/bench_batch.py [--mesh PATH] [--jobs 200] [--sets 4] [--workers 2]
-[--backends loop serial process ray dask] [--json OUT]``
+[--backends loop serial serial1 process ray dask] [--json OUT]``
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import os
+import subprocess
+import sys
 import tempfile
 import threading
 import time
@@ -30,6 +35,7 @@ import numpy as np
 import psutil
 
 import arap
+from arap.batching.worker import worker_environment
 from arap.io.atomic import write_atomic
 
 DEFAULT_MESH = Path(__file__).resolve().parents[2] / "shared" / "meshes" / "armadillo.obj"
@@ -101,6 +107,18 @@ def plain_loop(jobs: list[dict[str, Any]], folder: Path) -> int:
     return len(jobs)
 
 
+def one_thread(jobs: list[dict[str, Any]], folder: Path) -> tuple[int, int]:
+    """The serial batch in a child process whose kernels and BLAS use one thread: the one-core baseline."""
+    env = {**os.environ, **worker_environment(1)}
+    code = ("import json, sys, arap; jobs = json.loads(sys.stdin.read()); "
+            "r = arap.batch(jobs, backend='serial', base=sys.argv[1], progress=False); "
+            "print(json.dumps([r.counts()['done'], r.factorisations]))")
+    run = subprocess.run([sys.executable, "-c", code, str(folder)], input=json.dumps(jobs), capture_output=True,
+                         text=True, env=env, check=True)
+    done, factorisations = json.loads(run.stdout.strip().splitlines()[-1])
+    return int(done), int(factorisations)
+
+
 def main(argv: list[str] | None = None) -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--mesh", type=Path, default=DEFAULT_MESH)
@@ -108,7 +126,7 @@ def main(argv: list[str] | None = None) -> None:
     p.add_argument("--sets", type=int, default=4)
     p.add_argument("--share", type=float, default=0.1)
     p.add_argument("--workers", type=int, default=2)
-    p.add_argument("--backends", nargs="+", default=["loop", "serial", "process", "ray", "dask"])
+    p.add_argument("--backends", nargs="+", default=["loop", "serial", "serial1", "process", "ray", "dask"])
     p.add_argument("--json", type=Path)
     args = p.parse_args(argv)
     from arap.jit import warm_up_kernels
@@ -129,6 +147,8 @@ def main(argv: list[str] | None = None) -> None:
                 t0 = time.perf_counter()
                 if backend == "loop":
                     done, factorisations = plain_loop(jobs, folder), len(jobs)
+                elif backend == "serial1":
+                    done, factorisations = one_thread(jobs, folder)
                 else:
                     report = arap.batch(jobs, backend=backend, workers=args.workers, base=folder, progress=False)
                     done, factorisations = report.counts()["done"], report.factorisations
@@ -139,11 +159,17 @@ def main(argv: list[str] | None = None) -> None:
             print(f"{backend:>8}: {seconds:7.1f} s  {done / seconds:6.2f} jobs/s  {factorisations:4d} factorisations"
                   f"  peak {memory.peak / 2**20:6.0f} MiB", flush=True)
     serial = figures["runs"].get("serial")
-    if serial:
-        for name, run in figures["runs"].items():
-            if name not in ("loop", "serial"):
-                run["parallel_efficiency"] = serial["seconds"] / (args.workers * run["seconds"])
-                print(f"{name:>8}: parallel efficiency {run['parallel_efficiency']:.2f} on {args.workers} workers")
+    one = figures["runs"].get("serial1")
+    for name, run in figures["runs"].items():
+        if name in ("loop", "serial", "serial1"):
+            continue
+        if one:
+            run["parallel_efficiency"] = one["seconds"] / (args.workers * run["seconds"])
+        if serial:
+            run["speedup_over_serial"] = serial["seconds"] / run["seconds"]
+        print(f"{name:>8}: parallel efficiency {run.get('parallel_efficiency', float('nan')):.2f} on "
+              f"{args.workers} workers (against one core); {run.get('speedup_over_serial', float('nan')):.2f}x "
+              "the in-process batch")
         loop = figures["runs"].get("loop")
         if loop:
             print(f"factorisation reuse: serial batch {loop['seconds'] / serial['seconds']:.2f}x the plain loop's "
