@@ -1,7 +1,7 @@
 """The ``arap`` command line: deform a mesh file, animate one, run batches, inspect a mesh, time the solver, start the
 studio.
 
-Every command takes a mesh file (OBJ, OFF, PLY, STL) or a built-in name (``cactus``, ``bar``, ``cylinder``,
+Every command takes a mesh file (OBJ, OFF, PLY, STL, GLB, glTF) or a built-in name (``cactus``, ``bar``, ``cylinder``,
 ``sphere`` or ``sphere:N`` for a geodesic sphere of about N vertices). Bad input (unreadable, malformed or unusable
 files and values) is reported as one line on stderr with exit status 1, bad usage by argparse with exit status 2;
 never with a traceback.
@@ -36,7 +36,8 @@ def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="arap",
         description="As-Rigid-As-Possible surface deformation (Sorkine & Alexa 2007).",
-        epilog="MESH is a file (.obj .off .ply .stl) or a built-in name: cactus, bar, cylinder, sphere, sphere:N.",
+        epilog="MESH is a file (.obj .off .ply .stl .glb .gltf) or a built-in name: cactus, bar, cylinder, sphere, "
+               "sphere:N.",
     )
     parser.add_argument("--version", action="version", version=f"arap {__version__}")
     parser.add_argument("-v", "--verbose", action="store_true", help="log what the library does")

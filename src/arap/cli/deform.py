@@ -47,7 +47,9 @@ def add_parser(commands: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     p.add_argument("-c", "--constraints", default=None, metavar="FILE.json",
                    help='JSON with "fixed", "handles", "targets" and optionally "roi" (file vertex indices); or give '
                         "the constraints by position with --fix, --handle, --move, --rotate and --roi")
-    p.add_argument("-o", "--output", required=True, metavar="OUT", help="output mesh file (.obj .off .ply .stl)")
+    p.add_argument("-o", "--output", required=True, metavar="OUT",
+                   help="output mesh file (.obj .off .ply .stl .glb .gltf; a textured input keeps its UVs and "
+                        "materials in its own format)")
     add_iteration_options(p)
     p.add_argument("--start", default="auto", metavar="{" + ",".join(START_NAMES) + "} or SHAPE",
                    help="starting pose: the rest pose, its best-fit rigid motion onto the targets, whichever has the "
