@@ -479,10 +479,6 @@ class Session:
         return document_in_file_numbering(self.constraints.document(self.V, self.transforms), mesh)
 
     # ------------------------------------------------------------------ replies
-    def vertices_f32(self) -> bytes:
-        """Deformed positions as little-endian float32 bytes."""
-        return np.ascontiguousarray(self.U, dtype="<f4").tobytes()
-
     def state(self) -> dict[str, Any]:
         """The ``state`` message."""
         n = self.n_vertices
