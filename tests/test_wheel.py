@@ -114,7 +114,7 @@ def test_wheel_carries_the_client_and_right_metadata(dists: tuple[Path, Path]) -
     requires = re.findall(r"^Requires-Dist: (.+)$", metadata, flags=re.MULTILINE)
     core = [r for r in requires if "extra ==" not in r]
     studio = [r for r in requires if 'extra == "studio"' in r]
-    assert {re.split(r"[<>=\[ ;]", r)[0] for r in core} == {"numpy", "scipy", "numba", "trimesh", "cholespy"}
+    assert {re.split(r"[<>=\[ ;]", r)[0] for r in core} == {"numpy", "scipy", "numba", "trimesh", "cholespy", "tqdm"}
     assert {re.split(r"[<>=\[ ;]", r)[0] for r in studio} == {"starlette", "uvicorn", "websockets"}
     assert "License-Expression: MIT" in metadata
 
