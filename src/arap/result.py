@@ -70,7 +70,7 @@ class ArapResult:
             The faces the solve used, or the asset the solve came from (its ``solve_mesh()`` or its file vertices):
             then its texture (first UV set and image) or vertex colours are kept.
         """
-        from arap.io.assets import result_trimesh
+        from arap.io.asset_model import result_trimesh
 
         return result_trimesh(self.vertices, mesh)
 

@@ -22,7 +22,7 @@ from arap.covariance import assemble_rhs, assemble_rhs_and_gradient, local_step
 from arap.errors import ConstraintError
 from arap.inactive import InactiveCells
 from arap.indexing import check_index_array, internal_origin, rows_of, with_rows
-from arap.jit import announce_first_compile
+from arap.kernel_cache import announce_first_compile
 from arap.lbfgs import LbfgsHistory
 from arap.linsolve import NotPositiveDefiniteError, background_ordering, factorize
 from arap.loops import PLAIN_START, Iterate, lbfgs_iterations, plain_iterations

@@ -117,7 +117,7 @@ def test_parse_text_rejects(text: str) -> None:
 def test_error_names_the_request() -> None:
     with pytest.raises(P.RequestError) as info:
         P.parse_text('{"type": "drag", "seq": "x", "transforms": []}')
-    assert info.value.to_message() == {"type": "error", "code": "bad_message", "message": info.value.message,
+    assert P.error_message(info.value) == {"type": "error", "code": "bad_message", "message": info.value.message,
                                        "request": "drag"}
     with pytest.raises(P.RequestError) as info:
         P.parse_text('{"type": "explode"}')

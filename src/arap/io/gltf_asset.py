@@ -27,7 +27,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from arap.errors import MeshError, MeshFormatError, MeshTooLargeError
-from arap.io.assets import MeshAsset, group_normals, missing_file_warning, vertex_normal_groups, write_beside
+from arap.io.asset_model import MeshAsset, group_normals, missing_file_warning, vertex_normal_groups, write_beside
 
 __all__ = ["GltfData", "geometry_glb", "read_gltf_asset", "write_gltf_asset"]
 

@@ -144,7 +144,7 @@ def _parse(stream: io.BytesIO, file_type: str, label: str) -> tuple[np.ndarray, 
 def _parse_obj(data: bytes, label: str) -> tuple[np.ndarray, np.ndarray]:
     """Vertices (``v`` lines in order) and triangles of an OBJ file with any statements: texture coordinates,
     normals, groups and materials leave the vertex numbering as it is."""
-    from arap.io.assets import fan
+    from arap.io.asset_model import fan
     from arap.io.obj_asset import parse_obj
 
     V, obj, _, _ = parse_obj(data, label)

@@ -20,7 +20,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from arap.errors import MeshError, MeshFormatError, MeshTooLargeError
-from arap.io.assets import MeshAsset, fan, group_normals, missing_file_warning, weld_rows, write_beside
+from arap.io.asset_model import MeshAsset, fan, group_normals, missing_file_warning, weld_rows, write_beside
 from arap.io.screening import screen
 
 __all__ = ["ObjData", "mtl_texture_references", "parse_obj", "read_obj_asset", "write_obj_asset"]

@@ -18,7 +18,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from arap.errors import MeshError, MeshFormatError, MeshTooLargeError
-from arap.io.assets import MeshAsset, fan, group_normals, missing_file_warning, vertex_normal_groups, write_beside
+from arap.io.asset_model import MeshAsset, fan, group_normals, missing_file_warning, vertex_normal_groups, write_beside
 from arap.io.screening import screen
 
 __all__ = ["PlyData", "PlyElement", "read_ply_asset", "write_ply_asset"]

@@ -30,6 +30,7 @@ from arap.server.errors import RequestError
 from arap.server.guard import RequestGuard, normalize_origin, presented_token, token_matches
 from arap.server.memory import release_memory
 from arap.server.meshdata import MeshData, load_default
+from arap.server.protocol import error_message
 from arap.server.session import Session
 
 __all__ = ["DEFAULT_MAX_SESSIONS", "DEFAULT_MAX_UPLOAD_BYTES", "DEFAULT_MAX_VERTICES", "STATIC_DIR",
@@ -305,7 +306,7 @@ async def _refuse_full(ws: WebSocket, limit: int) -> None:
     reason = f"the studio already serves {limit} session{'' if limit == 1 else 's'}; close one and reconnect"
     await ws.accept()
     try:
-        await ws.send_json(RequestError("busy", reason).to_message())
+        await ws.send_json(error_message(RequestError("busy", reason)))
         await ws.close(SESSION_LIMIT_CLOSE_CODE, reason)
     except (WebSocketDisconnect, RuntimeError, OSError) as exc:
         logger.debug("refused client left first: %r", exc)

@@ -25,7 +25,7 @@ import numpy as np
 from starlette.websockets import WebSocket, WebSocketDisconnect
 
 import arap
-from arap.jit import KERNELS_READY
+from arap.kernel_cache import KERNELS_READY
 from arap.server.budget import ByteBudget, RequestQueue, request_cost
 from arap.server.decoder import PROCESS_BYTES, FrameDecoder
 from arap.server.heatmap import distortion_frame
@@ -38,6 +38,7 @@ from arap.server.protocol import (
     RequestError,
     check_against_mesh,
     encode_binary,
+    error_message,
     parse_binary,
     parse_text,
     server_message,
@@ -208,7 +209,7 @@ class Connection:
         await self._send_frame(await self._off_loop(lambda: _dumps(self.session.state())))
 
     async def _send_error(self, exc: RequestError) -> None:
-        await self._send_json(exc.to_message())
+        await self._send_json(error_message(exc))
 
     @staticmethod
     async def _off_loop(fn: Callable[..., T], *args: Any) -> T:

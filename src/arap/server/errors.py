@@ -5,8 +5,6 @@ Part of the wire protocol; :mod:`arap.server.protocol` re-exports both names.
 
 from __future__ import annotations
 
-from typing import Any
-
 __all__ = ["ERROR_CODES", "RequestError"]
 
 ERROR_CODES: dict[str, str] = {
@@ -22,7 +20,8 @@ ERROR_CODES: dict[str, str] = {
 
 
 class RequestError(Exception):
-    """A request was rejected; becomes an ``error`` message and leaves the session unchanged.
+    """A request was rejected; becomes an ``error`` message (:func:`arap.server.protocol.error_message`) and leaves the
+    session unchanged.
 
     Parameters
     ----------
@@ -45,9 +44,3 @@ class RequestError(Exception):
     def __reduce__(self) -> tuple[type[RequestError], tuple[str, str, str | None]]:
         # Pickled with its fields (a request decoded in another process raises it there).
         return (RequestError, (self.code, self.message, self.request))
-
-    def to_message(self) -> dict[str, Any]:
-        """The ``error`` message to send."""
-        from arap.server.protocol import server_message  # the protocol module imports this one
-
-        return server_message("error", code=self.code, message=self.message, request=self.request)

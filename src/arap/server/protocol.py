@@ -47,6 +47,7 @@ __all__ = [
     "check_against_mesh",
     "decode_binary",
     "encode_binary",
+    "error_message",
     "main",
     "parse_binary",
     "parse_large_text",
@@ -311,6 +312,11 @@ def server_message(type_: str, **fields: Any) -> dict[str, Any]:
         unknown = sorted(given - spec.field_names)
         raise TypeError(f"server message {type_!r}: missing fields {missing}, unknown fields {unknown}")
     return {"type": type_, **fields}
+
+
+def error_message(exc: RequestError) -> dict[str, Any]:
+    """The ``error`` message that tells the client why ``exc``'s request was rejected."""
+    return server_message("error", code=exc.code, message=exc.message, request=exc.request)
 
 
 # ---------------------------------------------------------------------------------------------- validation
