@@ -56,6 +56,7 @@ def test_drags_go_on_after_a_refused_point_handle_and_after_undo(page: Page) -> 
     assert [e["request"] for e in errors] == ["set_constraints"], errors
 
     page.keyboard.press("Control+z")
+    page.wait_for_function("() => window.__arap.canRedo")
     wait_settled(page)
     _drag_is_answered(page)
     errors = page.evaluate("() => window.__arap.errors")

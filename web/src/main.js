@@ -164,7 +164,10 @@ function stepHistory(type) {
     return false;
   }
   app.lastHistory = type;
-  return send({ type });
+  if (!send({ type })) return false;
+  // busy until the state that answers it: the shape and the gizmo move back, so a drag must wait for them
+  setBusy(undo ? 'Undoing…' : 'Redoing…', SERVER.STATE);
+  return true;
 }
 
 /** Grow or shrink the current role by a ring from the keyboard; says so when there is nothing to grow. */
