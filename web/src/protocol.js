@@ -26,6 +26,7 @@ export const CLIENT = Object.freeze(/** @type {const} */ ({
 export const SERVER = Object.freeze(/** @type {const} */ ({
   "WELCOME": "welcome",
   "MESH": "mesh",
+  "APPEARANCE": "appearance",
   "VERTICES": "vertices",
   "SETTLE": "settle",
   "STATE": "state",
@@ -115,7 +116,8 @@ export const WEIGHTS = Object.freeze([
 /** Formats of `export`. */
 export const EXPORT_FORMATS = Object.freeze([
   "obj",
-  "ply"
+  "ply",
+  "glb"
 ]);
 
 /** File extensions `upload` accepts. */
@@ -123,7 +125,8 @@ export const UPLOAD_EXTENSIONS = Object.freeze([
   ".obj",
   ".off",
   ".ply",
-  ".stl"
+  ".stl",
+  ".glb"
 ]);
 
 /** Fixed protocol limits (size limits of the server are in `welcome.limits`). */
@@ -150,7 +153,7 @@ export const CLIENT_MESSAGES = Object.freeze({
   },
   "upload": {
     "binary": true,
-    "doc": "load an uploaded OBJ/OFF/PLY/STL file (payload: the file's bytes)",
+    "doc": "load an uploaded OBJ/OFF/PLY/STL/GLB file (payload: the file's bytes)",
     "fields": [
       {
         "name": "filename",
@@ -285,7 +288,7 @@ export const CLIENT_MESSAGES = Object.freeze({
   },
   "export": {
     "binary": false,
-    "doc": "ask for the deformed mesh as a file",
+    "doc": "ask for the deformed mesh as a file (GLB keeps a textured or coloured source's UVs, textures and colours)",
     "fields": [
       {
         "name": "format",
@@ -293,7 +296,8 @@ export const CLIENT_MESSAGES = Object.freeze({
         "required": true,
         "choices": [
           "obj",
-          "ply"
+          "ply",
+          "glb"
         ]
       }
     ]
@@ -370,6 +374,42 @@ export const SERVER_MESSAGES = Object.freeze({
       {
         "name": "file_vertices",
         "kind": "int",
+        "required": true
+      }
+    ]
+  },
+  "appearance": {
+    "binary": true,
+    "doc": "how the mesh just sent is drawn, right after its mesh frame when its file has vertex colours or a texture (none for a plain mesh); payload: uint32[render_vertices] (the mesh vertex each render vertex follows), float32[render_vertices*2] (UVs, v down from the image's top row), uint32[render_faces*3] (render triangles), uint8[n_vertices*3] (sRGB vertex colours) when colors, then the texture image's texture_bytes bytes",
+    "fields": [
+      {
+        "name": "colors",
+        "kind": "bool",
+        "required": true
+      },
+      {
+        "name": "render_vertices",
+        "kind": "int",
+        "required": true
+      },
+      {
+        "name": "render_faces",
+        "kind": "int",
+        "required": true
+      },
+      {
+        "name": "texture_bytes",
+        "kind": "int",
+        "required": true
+      },
+      {
+        "name": "texture_mime",
+        "kind": "string",
+        "required": true
+      },
+      {
+        "name": "notes",
+        "kind": "list",
         "required": true
       }
     ]
@@ -576,7 +616,7 @@ export const SERVER_MESSAGES = Object.freeze({
  */
 
 /**
- * load an uploaded OBJ/OFF/PLY/STL file (payload: the file's bytes)
+ * load an uploaded OBJ/OFF/PLY/STL/GLB file (payload: the file's bytes)
  * @typedef {object} UploadClientMessage
  * @property {"upload"} type
  * @property {string} filename original file name; only its extension is used
@@ -643,10 +683,10 @@ export const SERVER_MESSAGES = Object.freeze({
  */
 
 /**
- * ask for the deformed mesh as a file
+ * ask for the deformed mesh as a file (GLB keeps a textured or coloured source's UVs, textures and colours)
  * @typedef {object} ExportClientMessage
  * @property {"export"} type
- * @property {"obj"|"ply"} format file format
+ * @property {"obj"|"ply"|"glb"} format file format
  */
 
 /**
@@ -683,6 +723,18 @@ export const SERVER_MESSAGES = Object.freeze({
  * @property {number} n_faces number of triangles
  * @property {Array<any>} report repairs made while loading, one line each
  * @property {number} file_vertices vertices of the mesh file when repair renumbered them (the payload then ends with the mesh vertex each file vertex became, -1 for one dropped), else 0: constraints documents use the file's numbering
+ */
+
+/**
+ * how the mesh just sent is drawn, right after its mesh frame when its file has vertex colours or a texture (none for a plain mesh); payload: uint32[render_vertices] (the mesh vertex each render vertex follows), float32[render_vertices*2] (UVs, v down from the image's top row), uint32[render_faces*3] (render triangles), uint8[n_vertices*3] (sRGB vertex colours) when colors, then the texture image's texture_bytes bytes
+ * @typedef {object} AppearanceServerMessage
+ * @property {"appearance"} type
+ * @property {boolean} colors the payload holds a colour per mesh vertex
+ * @property {number} render_vertices vertices of the render mesh (0: no texture shown)
+ * @property {number} render_faces triangles of the render mesh
+ * @property {number} texture_bytes size of the base-colour image at the end of the payload (0: none)
+ * @property {string} texture_mime its type: image/png or image/jpeg (empty without one)
+ * @property {Array<any>} notes what is not shown and why (a texture over the size limit), one line each
  */
 
 /**
@@ -754,7 +806,7 @@ export const SERVER_MESSAGES = Object.freeze({
  * @property {string} request type of the rejected message, or null
  */
 
-/** Any message the server sends (of a binary one: its header). @typedef {WelcomeServerMessage|MeshServerMessage|VerticesServerMessage|SettleServerMessage|StateServerMessage|ConstraintsServerMessage|ExportServerMessage|DistortionServerMessage|ErrorServerMessage} ServerMessage */
+/** Any message the server sends (of a binary one: its header). @typedef {WelcomeServerMessage|MeshServerMessage|AppearanceServerMessage|VerticesServerMessage|SettleServerMessage|StateServerMessage|ConstraintsServerMessage|ExportServerMessage|DistortionServerMessage|ErrorServerMessage} ServerMessage */
 
 const textEncoder = new TextEncoder();
 const textDecoder = new TextDecoder();

@@ -31,6 +31,7 @@ from arap.server.guard import RequestGuard, normalize_origin, presented_token, t
 from arap.server.memory import release_memory
 from arap.server.meshdata import MeshData, load_default
 from arap.server.protocol import error_message
+from arap.server.render_mesh import Look, look_from_path
 from arap.server.session import Session
 
 __all__ = ["DEFAULT_MAX_SESSIONS", "DEFAULT_MAX_UPLOAD_BYTES", "DEFAULT_MAX_VERTICES", "STATIC_DIR",
@@ -86,9 +87,11 @@ class _Studio:
     """Shared state of the application: configuration, default mesh, live sessions."""
 
     def __init__(self, config: StudioConfig, default_mesh: MeshData, static_dir: Path, max_sessions: int,
-                 token: str | None = None) -> None:
+                 token: str | None = None, default_look: Look | None = None) -> None:
         self.config = config
         self.default_mesh = default_mesh
+        self.default_look = default_look
+        """The default mesh file's colours and texture (None: drawn plain)."""
         self.static_dir = static_dir
         self.max_sessions = max_sessions
         self.sessions = 0
@@ -232,11 +235,12 @@ def create_app(
                        token=token)
     mesh = load_default(default_mesh)
     logger.info("default mesh %s: %d vertices, %d faces", mesh.name, mesh.n_vertices, mesh.n_faces)
+    look = look_from_path(default_mesh, mesh)
     static = Path(static_dir) if static_dir is not None else STATIC_DIR
     advice = client_missing_advice(static)
     if advice is not None:
         logger.warning("%s The server answers its pages with 503 until then.", advice)
-    studio = _Studio(config, mesh, static, int(max_sessions), token)
+    studio = _Studio(config, mesh, static, int(max_sessions), token, look)
 
     async def index(request: Request) -> Response:
         page = static / "index.html"
@@ -255,7 +259,8 @@ def create_app(
             return
         studio.sessions += 1
         try:
-            connection = Connection(ws, studio.config, studio.default_mesh, studio.decoder, studio.prepare_session)
+            connection = Connection(ws, studio.config, studio.default_mesh, studio.decoder, studio.prepare_session,
+                                    studio.default_look)
             studio.connections.add(connection)
             studio.opened(connection.session, presented_token(ws.scope))
             await connection.run()

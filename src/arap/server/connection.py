@@ -44,6 +44,7 @@ from arap.server.protocol import (
     server_message,
 )
 from arap.server.records import readable_energy
+from arap.server.render_mesh import Look, look_from_upload
 from arap.server.session import DragOutcome, Session
 
 __all__ = ["Connection", "StudioConfig"]
@@ -121,13 +122,17 @@ class Connection:
     prepare : callable or None
         Called with the session once it holds the default mesh, before the page receives it (e.g. to set initial
         constraints); the page then adopts the session's constraints and shape.
+    default_look : Look or None
+        The default mesh file's colours and texture (:mod:`arap.server.render_mesh`), None for a plain mesh.
     """
 
     def __init__(self, ws: WebSocket, config: StudioConfig, default_mesh: MeshData,
-                 decoder: FrameDecoder | None = None, prepare: Callable[[Session], object] | None = None) -> None:
+                 decoder: FrameDecoder | None = None, prepare: Callable[[Session], object] | None = None,
+                 default_look: Look | None = None) -> None:
         self.ws = ws
         self.config = config
         self.default_mesh = default_mesh
+        self.default_look = default_look
         self.decoder = decoder
         self.prepare = prepare
         self.session = Session(config.max_history_steps, config.max_history_bytes)
@@ -164,6 +169,13 @@ class Connection:
     async def _send_mesh(self, mesh: MeshData) -> None:
         self._stream.reset(mesh.V)
         await self._send_frame(await self._off_loop(mesh_frame, mesh))
+        await self._send_appearance()
+
+    async def _send_appearance(self) -> None:
+        """The ``appearance`` of the session's mesh, right after its mesh frame; nothing for a plain mesh."""
+        look = self.session.look
+        if look is not None:
+            await self._send_frame(await self._off_loop(lambda: look.frame))
 
     async def _upload(self, msg: ClientMessage) -> None:
         """Load an upload and send its mesh and state; the times of each step are logged (INFO, one JSON line)."""
@@ -172,14 +184,17 @@ class Connection:
         assert msg.payload is not None
         mesh, cpu = await self._off_loop(_timed, load_upload, msg.payload, msg.fields["filename"],
                                          self.config.max_vertices)
+        look = await self._off_loop(look_from_upload, msg.payload, msg.fields["filename"], mesh,
+                                    self.config.max_vertices)
         parsed = time.time()
-        self.session.load(mesh)
+        self.session.load(mesh, look)
         self._skipped = 0
         self._stream.reset(mesh.V)
         frame = await self._off_loop(mesh_frame, mesh)
         encoded = time.time()
         await self._send_frame(frame)
         del frame
+        await self._send_appearance()
         mesh_sent = time.time()
         await self._send_state()
         if logger.isEnabledFor(logging.INFO):
@@ -222,7 +237,7 @@ class Connection:
         try:
             if not KERNELS_READY.is_set():  # first run: the page says that the solver is being prepared meanwhile
                 await self._off_loop(KERNELS_READY.wait, KERNEL_WAIT_SECONDS)
-            await self._off_loop(self.session.load, self.default_mesh)
+            await self._off_loop(self.session.load, self.default_mesh, self.default_look)
             if self.prepare is not None:
                 await self._off_loop(self.prepare, self.session)
             await self._send_json(server_message(

@@ -70,8 +70,8 @@ MAX_SEQ = 2**53 - 1
 
 ENERGIES = ENERGY_TYPES
 WEIGHTS = WEIGHT_TYPES
-EXPORT_FORMATS = ("obj", "ply")
-UPLOAD_EXTENSIONS = (".obj", ".off", ".ply", ".stl")
+EXPORT_FORMATS = ("obj", "ply", "glb")
+UPLOAD_EXTENSIONS = (".obj", ".off", ".ply", ".stl", ".glb")
 
 PARAMS: dict[str, dict[str, Any]] = {
     "iterations": {"min": 1, "max": 100, "default": 2},
@@ -156,7 +156,7 @@ CLIENT_MESSAGES: dict[str, MessageSpec] = {
     for s in (
         _spec("load_builtin", "replace the session's mesh by a built-in model",
               Field("name", "string", "built-in model name (welcome.builtin_meshes)", max_length=64)),
-        _spec("upload", "load an uploaded OBJ/OFF/PLY/STL file (payload: the file's bytes)",
+        _spec("upload", "load an uploaded OBJ/OFF/PLY/STL/GLB file (payload: the file's bytes)",
               Field("filename", "string", "original file name; only its extension is used", max_length=255),
               binary=True),
         _spec("set_constraints", "new constraint set; transforms of all groups reset to identity",
@@ -191,7 +191,8 @@ CLIENT_MESSAGES: dict[str, MessageSpec] = {
         _spec("redo", "step forward in the edit history"),
         _spec("reset", "back to the rest pose (undoable)"),
         _spec("apply", "the deformed shape becomes the new rest pose (undoable)"),
-        _spec("export", "ask for the deformed mesh as a file",
+        _spec("export", "ask for the deformed mesh as a file (GLB keeps a textured or coloured source's UVs, "
+              "textures and colours)",
               Field("format", "enum", "file format", choices=EXPORT_FORMATS)),
         _spec("get_constraints", "ask for the constraints document (command-line format)"),
         _spec("get_distortion", "ask for the per-vertex distortion of the current shape (the heat map)"),
@@ -220,6 +221,18 @@ SERVER_MESSAGES: dict[str, MessageSpec] = {
               Field("file_vertices", "int", "vertices of the mesh file when repair renumbered them (the payload then "
                     "ends with the mesh vertex each file vertex became, -1 for one dropped), else 0: constraints "
                     "documents use the file's numbering"),
+              binary=True),
+        _spec("appearance", "how the mesh just sent is drawn, right after its mesh frame when its file has vertex "
+              "colours or a texture (none for a plain mesh); payload: uint32[render_vertices] (the mesh vertex each "
+              "render vertex follows), float32[render_vertices*2] (UVs, v down from the image's top row), "
+              "uint32[render_faces*3] (render triangles), uint8[n_vertices*3] (sRGB vertex colours) when colors, "
+              "then the texture image's texture_bytes bytes",
+              Field("colors", "bool", "the payload holds a colour per mesh vertex"),
+              Field("render_vertices", "int", "vertices of the render mesh (0: no texture shown)"),
+              Field("render_faces", "int", "triangles of the render mesh"),
+              Field("texture_bytes", "int", "size of the base-colour image at the end of the payload (0: none)"),
+              Field("texture_mime", "string", "its type: image/png or image/jpeg (empty without one)"),
+              Field("notes", "list", "what is not shown and why (a texture over the size limit), one line each"),
               binary=True),
         _spec("vertices", "current deformed positions (payload: float32[n_vertices*3] then uint32[movable] in a "
               "full frame, float32[subset*3] in a subset frame)",

@@ -25,6 +25,7 @@ from arap.server.meshdata import MeshData, export_mesh
 from arap.server.numbering import document_in_file_numbering, message_in_file_numbering
 from arap.server.protocol import RequestError, server_message
 from arap.server.records import DragOutcome, Params, SettleOutcome
+from arap.server.render_mesh import Look, export_glb
 from arap.server.settling import FrameCallback, settle_solve
 from arap.server.solvers import SolverCache
 from arap.weights import WeightType
@@ -50,6 +51,8 @@ class Session:
 
     def __init__(self, max_history_steps: int = 100, max_history_bytes: int = 512 * 2**20) -> None:
         self.mesh: MeshData | None = None
+        self.look: Look | None = None
+        """The mesh file's colours, texture and render mesh (None for a plain mesh)."""
         self.params = Params()
         self.history = History(max_history_steps, max_history_bytes)
         self._rest_counter = 0
@@ -161,9 +164,11 @@ class Session:
             self._commit()
 
     # ------------------------------------------------------------------ requests
-    def load(self, mesh: MeshData) -> None:
-        """Replace the mesh; constraints, transforms and history start afresh (parameters are kept)."""
+    def load(self, mesh: MeshData, look: Look | None = None) -> None:
+        """Replace the mesh (and its file's colours and texture); constraints, transforms and history start afresh
+        (parameters are kept)."""
         self.mesh = mesh
+        self.look = look
         self._solvers.clear()
         self.solver = None
         self.rest_id = self._new_rest_id()
@@ -465,9 +470,11 @@ class Session:
         self._commit()
 
     def export(self, fmt: str) -> tuple[str, str, bytes]:
-        """The deformed mesh as a file: ``(filename, mime, bytes)``."""
+        """The deformed mesh as a file: ``(filename, mime, bytes)``; GLB keeps the file's UVs, textures and colours."""
         mesh = self._require_mesh()
         try:
+            if fmt == "glb":
+                return export_glb(mesh.name, self.U, mesh.F, self.look)
             return export_mesh(mesh.name, self.U, mesh.F, fmt)
         except ArapError as exc:
             raise RequestError("bad_mesh", f"cannot export: {exc}") from exc

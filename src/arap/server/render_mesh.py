@@ -1,0 +1,300 @@
+"""How the studio draws a textured or coloured mesh file, and how it writes it back as GLB.
+
+The solver works on the studio's mesh (:class:`~arap.server.meshdata.MeshData`, one vertex per position), but a
+texture needs a vertex wherever a UV seam splits one: a *render mesh* of its own. A :class:`Look` holds what the page
+needs beside the mesh, sent in one ``appearance`` message right after the ``mesh`` frame:
+
+* the file's vertex colours, per mesh vertex (sRGB bytes);
+* for a UV texture, the render mesh: per render vertex the mesh vertex it follows (its position is that vertex's in
+  every ``vertices`` frame) and its UV, the render triangles, and the base-colour texture image as stored (PNG or
+  JPEG, at most :data:`MAX_TEXTURE_BYTES`; a larger one is left out and a note says so).
+
+Meshes without colours or texture have no look: nothing beyond the ``mesh`` frame is sent. The look also keeps the
+:class:`~arap.io.MeshAsset`, so that the deformed shape is exported as GLB with its UVs, materials and textures
+(:func:`export_glb`).
+"""
+
+from __future__ import annotations
+
+import functools
+import logging
+import os
+import re
+import tempfile
+import warnings
+from collections import Counter
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from arap.errors import ArapError
+from arap.io import load_asset, load_asset_bytes, save_asset, save_mesh_bytes
+from arap.io.asset_model import MeshAsset, result_trimesh, weld_rows
+from arap.server.meshdata import MeshData
+from arap.server.protocol import encode_binary, server_message
+
+__all__ = ["MAX_TEXTURE_BYTES", "Look", "build_look", "export_glb", "look_from_path", "look_from_upload"]
+
+logger = logging.getLogger(__name__)
+
+MAX_TEXTURE_BYTES = 16 * 2**20
+"""Largest texture image sent to the page; a larger one is left out (the mesh is drawn without it, and a note in
+the ``appearance`` message says why)."""
+
+GLB_MIME = "model/gltf-binary"
+_ASSET_EXTENSIONS = (".obj", ".ply", ".glb", ".gltf")
+_IMAGE_MIME = ((b"\x89PNG\r\n\x1a\n", "image/png"), (b"\xff\xd8\xff", "image/jpeg"))
+_OBJ_COLOUR_LINE = re.compile(rb"^v[ \t]+(?:\S+[ \t]+){5}\S+", re.M)
+_PLY_HINTS = (b"red", b"texture", b" s\n", b" u\n", b" s\r\n", b" u\r\n")
+
+
+def _mib(n: int) -> str:
+    return f"{n / 2**20:.1f} MiB"
+
+
+@dataclass(frozen=True, eq=False)
+class Look:
+    """What the page needs to draw a mesh as its file shows it (see the module notes).
+
+    Attributes
+    ----------
+    asset : MeshAsset
+        The file as read, for the GLB export.
+    file_map : (n_file,) int64 array
+        The mesh vertex of each file vertex (-1: dropped by repair).
+    n_vertices : int
+        Vertices of the mesh it belongs to.
+    colors : (n_vertices, 3) uint8 array or None
+        sRGB vertex colours per mesh vertex.
+    render_map : (r,) uint32 array or None
+        The mesh vertex each render vertex follows (None without a texture shown).
+    render_uv : (r, 2) float32 array or None
+        UV of each render vertex, ``v`` running down from the image's top row (glTF's convention).
+    render_faces : (t, 3) uint32 array or None
+        Render triangles.
+    texture : bytes
+        The base-colour image (PNG or JPEG as stored), empty without one.
+    texture_mime : str
+    notes : list of str
+        What is not shown and why, one line each.
+    """
+
+    asset: MeshAsset
+    file_map: np.ndarray
+    n_vertices: int
+    colors: np.ndarray | None = None
+    render_map: np.ndarray | None = None
+    render_uv: np.ndarray | None = None
+    render_faces: np.ndarray | None = None
+    texture: bytes = b""
+    texture_mime: str = ""
+    notes: list[str] = field(default_factory=list)
+
+    @property
+    def textured(self) -> bool:
+        """A render mesh and its texture are shown."""
+        return self.render_map is not None and bool(self.texture)
+
+    @property
+    def worth_sending(self) -> bool:
+        """Something to draw or to say beyond the plain mesh."""
+        return self.colors is not None or self.textured or bool(self.notes)
+
+    @functools.cached_property
+    def frame(self) -> bytes:
+        """The ``appearance`` message (built once: the default mesh's look is shared by every session)."""
+        r = 0 if self.render_map is None else len(self.render_map)
+        t = 0 if self.render_faces is None else len(self.render_faces)
+        header = server_message("appearance", colors=self.colors is not None, render_vertices=r, render_faces=t,
+                                texture_bytes=len(self.texture), texture_mime=self.texture_mime, notes=self.notes)
+        parts: list[bytes] = []
+        if r:
+            assert self.render_map is not None and self.render_uv is not None and self.render_faces is not None
+            parts += [np.ascontiguousarray(self.render_map, dtype="<u4").tobytes(),
+                      np.ascontiguousarray(self.render_uv, dtype="<f4").tobytes(),
+                      np.ascontiguousarray(self.render_faces, dtype="<u4").tobytes()]
+        if self.colors is not None:
+            parts.append(np.ascontiguousarray(self.colors, dtype=np.uint8).tobytes())
+        parts.append(self.texture)
+        return encode_binary(header, *parts)
+
+    def file_positions(self, U: np.ndarray) -> np.ndarray:
+        """Positions of the mesh (``U``, mesh numbering) for every vertex of the file (a dropped one keeps its own)."""
+        out = np.array(self.asset.vertices, dtype=np.float64)
+        keep = self.file_map >= 0
+        out[keep] = np.asarray(U, dtype=np.float64)[self.file_map[keep]]
+        return out
+
+
+# ---------------------------------------------------------------------------------------------- building
+def _colors_u8(values: np.ndarray) -> np.ndarray:
+    """Vertex colours of a file (any type, 3 or 4 channels) as sRGB bytes, shape (n, 3)."""
+    c = np.asarray(values)[:, :3]
+    if np.issubdtype(c.dtype, np.floating):
+        return np.clip(np.nan_to_num(c) * 255.0 + 0.5, 0, 255).astype(np.uint8)
+    if c.dtype.itemsize >= 2:
+        scale = 257.0 if c.max(initial=0) > 255 else 1.0
+        return np.clip(c / scale + 0.5, 0, 255).astype(np.uint8)
+    return c.astype(np.uint8)
+
+
+def _image_mime(blob: bytes) -> str:
+    return next((mime for magic, mime in _IMAGE_MIME if blob.startswith(magic)), "")
+
+
+def _base_color_name(asset: MeshAsset) -> str | None:
+    """For glTF, the name under which :attr:`MeshAsset.textures` holds the base-colour image of the material that
+    the most triangles use (None when there is none)."""
+    if asset.format not in ("glb", "gltf") or asset.data is None or not len(asset.face_materials):
+        return None
+    used = Counter(int(m) for m in np.asarray(asset.face_materials) if m >= 0).most_common(1)
+    document = getattr(asset.data, "document", {})
+    try:
+        material = document["materials"][used[0][0]]
+        texture = document["textures"][material["pbrMetallicRoughness"]["baseColorTexture"]["index"]]
+        i = int(texture["source"])
+        image = document["images"][i]
+    except (IndexError, KeyError, TypeError, ValueError):
+        return None
+    import urllib.parse
+
+    uri = str(image.get("uri", ""))
+    return str(image.get("name") or (urllib.parse.unquote(uri) if uri and not uri.startswith("data:") else f"image{i}"))
+
+
+def _pick_texture(asset: MeshAsset, max_bytes: int, notes: list[str]) -> tuple[bytes, str]:
+    """The base-colour image to show and its type, or ``(b"", "")`` (with a note when one exists but cannot be)."""
+    names = [n for n, blob in asset.textures.items() if _image_mime(blob)]
+    if not names:
+        if asset.textures:
+            notes.append("the texture is not a PNG or JPEG image; the model is shown without it")
+        return b"", ""
+    wanted = _base_color_name(asset)
+    name = wanted if wanted in names else names[0]
+    blob = asset.textures[name]
+    if len(blob) > max_bytes:
+        notes.append(f"the texture {name!r} is {_mib(len(blob))}, more than the {_mib(max_bytes)} the studio shows; "
+                     "the model is shown without it (a GLB export still keeps it)")
+        return b"", ""
+    if len(names) > 1:
+        notes.append(f"the model has {len(names)} textures; only {name!r} is shown")
+    return blob, _image_mime(blob)
+
+
+def build_look(asset: MeshAsset, mesh: MeshData, max_texture_bytes: int = MAX_TEXTURE_BYTES) -> Look | None:
+    """The look of ``mesh`` read from ``asset`` (the same file), or None when it has neither colours nor a texture.
+
+    The file's vertices are numbered as :attr:`MeshData.vertex_map` numbers them (both read the file's vertices in
+    order); a file whose vertex count does not match is shown plain.
+    """
+    n_file = len(asset.vertices)
+    if mesh.vertex_map is not None:
+        file_map = np.asarray(mesh.vertex_map, dtype=np.int64)
+    else:
+        file_map = np.arange(mesh.n_vertices, dtype=np.int64)
+    if len(file_map) != n_file:
+        logger.warning("%s: the textured reading has %d vertices, the mesh %d; shown without its texture",
+                       mesh.name, n_file, len(file_map))
+        return None
+    notes: list[str] = []
+    colors = None
+    if asset.vertex_colors is not None and asset.vertex_colors.ndim == 2 and asset.vertex_colors.shape[1] >= 3:
+        colors = np.full((mesh.n_vertices, 3), 200, dtype=np.uint8)
+        keep = np.flatnonzero(file_map >= 0)[::-1]  # reversed: the first copy of a welded vertex is written last
+        colors[file_map[keep]] = _colors_u8(asset.vertex_colors)[keep]
+    render_map = render_uv = render_faces = None
+    texture, mime = b"", ""
+    if asset.uvs is not None and len(asset.faces):
+        texture, mime = _pick_texture(asset, max_texture_bytes, notes)
+        if texture:
+            corners = file_map[asset.faces]  # (m, 3) mesh vertices
+            keep_faces = (corners >= 0).all(axis=1)
+            corners = corners[keep_faces].reshape(-1)
+            uv = np.asarray(asset.uvs, dtype=np.float64)[keep_faces].reshape(-1, 2)
+            inverse, first = weld_rows(np.concatenate([corners[:, None].astype(np.float64), uv], axis=1))
+            render_map = corners[first].astype(np.uint32)
+            render_uv = uv[first].astype(np.float32)
+            if asset.format not in ("glb", "gltf"):  # OBJ and PLY count v up from the image's bottom row
+                render_uv[:, 1] = 1.0 - render_uv[:, 1]
+            render_faces = inverse.reshape(-1, 3).astype(np.uint32)
+    elif asset.textures:
+        notes.append("the model has a texture but no texture coordinates; it is shown without it")
+    look = Look(asset, file_map, mesh.n_vertices, colors, render_map, render_uv, render_faces, texture, mime, notes)
+    return look if look.worth_sending else None
+
+
+def _quietly(fn: Any, *args: Any, **kwargs: Any) -> Any:
+    """``fn(...)`` with the readers' missing-file warnings silenced (they are logged)."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)
+        return fn(*args, **kwargs)
+
+
+def look_from_path(spec: str | os.PathLike[str] | MeshData | None, mesh: MeshData,
+                   max_texture_bytes: int = MAX_TEXTURE_BYTES) -> Look | None:
+    """The look of the default mesh when it is an OBJ, PLY, glTF or GLB file with colours or a texture."""
+    if spec is None or isinstance(spec, MeshData):
+        return None
+    path = Path(spec)
+    if path.suffix.lower() not in _ASSET_EXTENSIONS or not path.is_file():
+        return None
+    try:
+        asset = _quietly(load_asset, path)
+    except (ArapError, OSError, ValueError) as exc:
+        logger.warning("%s: shown without its texture or colours: %s", path, exc)
+        return None
+    return build_look(asset, mesh, max_texture_bytes)
+
+
+def _may_have_look(data: bytes, ext: str) -> bool:
+    """Cheap test for attributes worth a second, attribute-keeping read of an upload."""
+    if ext in (".glb", ".gltf"):
+        return True
+    if ext == ".ply":
+        end = data.find(b"end_header")
+        return any(h in data[: end if end > 0 else 4096] for h in _PLY_HINTS)
+    if ext == ".obj":  # an upload has no MTL file or texture beside it: only vertex colours can show
+        return _OBJ_COLOUR_LINE.search(data) is not None
+    return False
+
+
+def look_from_upload(data: bytes | memoryview, filename: str, mesh: MeshData, max_vertices: int | None = None,
+                     max_texture_bytes: int = MAX_TEXTURE_BYTES) -> Look | None:
+    """The look of an uploaded file already loaded as ``mesh`` (None for a plain one)."""
+    ext = ("." + filename.rsplit(".", 1)[-1].lower()) if "." in filename else ""
+    if ext not in _ASSET_EXTENSIONS:
+        return None
+    blob = bytes(data)
+    if not _may_have_look(blob, ext):
+        return None
+    try:
+        asset = _quietly(load_asset_bytes, blob, ext[1:], name=f"{mesh.name}{ext}", max_vertices=max_vertices)
+    except (ArapError, OSError, ValueError) as exc:
+        logger.info("%s%s: shown without its texture or colours: %s", mesh.name, ext, exc)
+        return None
+    return build_look(asset, mesh, max_texture_bytes)
+
+
+# ---------------------------------------------------------------------------------------------- export
+def export_glb(name: str, U: np.ndarray, F: np.ndarray, look: Look | None) -> tuple[str, str, bytes]:
+    """The deformed mesh as GLB: a glTF or GLB source written back with everything it holds
+    (:func:`arap.io.save_asset`), an OBJ or PLY source with its first texture and UVs or its vertex colours
+    (:func:`arap.io.asset_model.result_trimesh`), a plain mesh as geometry.
+
+    Returns
+    -------
+    filename, mime, data
+    """
+    filename = f"{name}-deformed.glb"
+    if look is None:
+        return filename, GLB_MIME, save_mesh_bytes(U, F, "glb")
+    positions = look.file_positions(U)
+    if look.asset.format in ("glb", "gltf"):
+        with tempfile.TemporaryDirectory(prefix="arap-export-") as folder:
+            path = Path(folder) / "export.glb"
+            _quietly(save_asset, path, look.asset, positions)
+            return filename, GLB_MIME, path.read_bytes()
+    data = result_trimesh(positions, look.asset).export(file_type="glb")
+    return filename, GLB_MIME, bytes(data)
