@@ -69,6 +69,8 @@ _LAZY: dict[str, str] = {
     "load_keyframes": "arap.animation",
     "Animation": "arap.animation",
     "batch": "arap.batching",
+    "show": "arap.render",
+    "Picture": "arap.render",
 }
 
 __all__ = [
@@ -87,6 +89,7 @@ __all__ = [
     "MeshLike",
     "MeshTooLargeError",
     "OptionError",
+    "Picture",
     "RepairResult",
     "Studio",
     "UnconstrainedRegionError",
@@ -113,6 +116,7 @@ __all__ = [
     "save_constraints",
     "save_mesh",
     "save_mesh_bytes",
+    "show",
     "sphere",
     "studio",
 ]
@@ -136,6 +140,7 @@ if TYPE_CHECKING:
     )
     from arap.mesh import MeshLike, check_mesh, mesh_arrays
     from arap.notebook import Studio, studio
+    from arap.render import Picture, show
     from arap.repair import RepairResult, repair_mesh
     from arap.rotations import fit_rotations
     from arap.shapes import BUILTIN_MESHES, builtin_mesh, sphere

@@ -1,4 +1,5 @@
-"""``arap info``: describe a mesh, its defects and what repair would change, as text or as JSON."""
+"""``arap info``: describe a mesh, its defects and what repair would change, as text or as JSON; with ``--png``, draw
+it into a PNG picture too (``-c`` marks a constraints file's anchors and handles in it)."""
 
 from __future__ import annotations
 
@@ -9,8 +10,8 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from arap.cli.common import load_mesh_argument, out
-from arap.errors import MeshError
+from arap.cli.common import err, load_mesh_argument, out, positive_int
+from arap.errors import ArapError, MeshError
 
 if TYPE_CHECKING:
     from arap.diagnose import MeshInfo
@@ -25,6 +26,18 @@ def add_parser(commands: argparse._SubParsersAction[argparse.ArgumentParser]) ->
                                         "repair would change.")
     p.add_argument("mesh", metavar="MESH")
     p.add_argument("--json", action="store_true", help="print one JSON object instead of text")
+    g = p.add_argument_group("picture")
+    g.add_argument("--png", default=None, metavar="OUT.png",
+                   help="also draw the mesh, shaded, into this PNG file (as arap.show does)")
+    g.add_argument("-c", "--constraints", default=None, metavar="FILE.json",
+                   help="with --png: mark this constraints file's anchors (red), handle groups and region of interest "
+                        "in the picture, in the studio's colours")
+    g.add_argument("--width", type=positive_int, default=640, help="picture width in pixels (default: 640)")
+    g.add_argument("--height", type=positive_int, default=480, help="picture height in pixels (default: 480)")
+    g.add_argument("--azimuth", type=float, default=None, metavar="DEG",
+                   help="view from this many degrees right of the front (+z) (default: 30)")
+    g.add_argument("--elevation", type=float, default=None, metavar="DEG",
+                   help="view from this many degrees above (default: 20)")
     p.set_defaults(func=run_info)
 
 
@@ -57,10 +70,46 @@ def info_report(V: np.ndarray, F: np.ndarray, label: str) -> tuple[MeshInfo, dic
     return info, report
 
 
+def _check_destination(path: str) -> None:
+    """Refuse a PNG destination that cannot be written (a folder, a FIFO, a missing folder) before any work."""
+    import os
+
+    from arap.io.paths import write_destination
+
+    try:
+        folder = write_destination(path).parent
+    except OSError as exc:
+        raise ArapError(f"cannot write {path}: {exc.strerror or exc}") from None
+    if not os.access(folder, os.W_OK):
+        raise ArapError(f"cannot write {path}: the folder {folder} is not writable")
+
+
+def _picture(args: argparse.Namespace, V: np.ndarray, F: np.ndarray) -> Any:
+    """The picture of ``arap info --png``, with the constraints file's marks."""
+    from arap.render.camera import DEFAULT_AZIMUTH, DEFAULT_ELEVATION
+    from arap.render.show import show
+
+    azimuth = DEFAULT_AZIMUTH if args.azimuth is None else args.azimuth
+    elevation = DEFAULT_ELEVATION if args.elevation is None else args.elevation
+    return show(V, F, constraints=args.constraints, width=args.width, height=args.height, azimuth=azimuth,
+                elevation=elevation)
+
+
 def run_info(args: argparse.Namespace) -> int:
     """``arap info``: print the description of the mesh (text or JSON); the exit status."""
+    if args.png is None and args.constraints is not None:
+        raise ArapError("-c/--constraints marks the constraints in the picture: give --png OUT.png too")
+    if args.png is not None:
+        _check_destination(args.png)
     V, F, _, label = load_mesh_argument(args.mesh, repair=False)
+    picture = None if args.png is None else _picture(args, V, F)  # before any output: bad constraints stop here
     info, report = info_report(V, F, label)
+    if picture is not None:
+        try:
+            picture.save(args.png)
+        except OSError as exc:
+            raise ArapError(f"cannot write {args.png}: {exc.strerror or exc}") from None
+        err(f"arap: wrote {args.png} ({picture.width}x{picture.height})")
     if args.json:
         out(json.dumps(report, indent=2))
         return 0
