@@ -11,7 +11,6 @@ Run: ``python benchmarks/bench_armadillo.py [--mesh PATH] [--iterations 10] [--r
 from __future__ import annotations
 
 import argparse
-import json
 import statistics
 import sys
 import time
@@ -22,9 +21,9 @@ import numpy as np
 
 import arap
 from arap.io import load_mesh
-from arap.io.atomic import write_atomic
 from arap.scenarios import bend
 from arap.solver import ArapSolver
+from benchjson import add_json_option, figure, write_results
 
 # The cell-by-cell reference kernels live with the tests (tests/core/reference_kernels.py).
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
@@ -147,9 +146,9 @@ def kernel_comparison(V: np.ndarray, F: np.ndarray, b: np.ndarray, bc: np.ndarra
 
     solver = ArapSolver(V, F, b)
     solver.solve(bc, max_iterations=10)
-    U, cells, gather, active = solver._last, solver._cells, solver._gather, solver._active
-    const = solver._L_fn @ solver._fixed_positions(bc)
-    R_prev = solver._R.copy()
+    U, cells, gather, active = solver._state.last, solver.prepared.cells, solver.prepared.gather, solver.prepared.active
+    const = solver.prepared.L_fn @ solver.prepared.fixed_positions(bc)
+    R_prev = solver._state.local.R.copy()
     R, E, out = R_prev.copy(), np.zeros(len(U)), np.empty_like(const)
     threads = numba.config.NUMBA_NUM_THREADS
     local_args = (active, cells.ptr, cells.a, cells.b, cells.w, cells.we, cells.rest_sq, U, R, E)
@@ -263,7 +262,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--mesh", type=Path, default=DEFAULT_MESH, help=f"mesh file (default: {DEFAULT_MESH})")
     parser.add_argument("--iterations", type=int, default=10, help="iterations per run (default: 10)")
     parser.add_argument("--repeats", type=int, default=5, help="runs; medians are reported (default: 5)")
-    parser.add_argument("--json", type=Path, help="also write the figures to this JSON file")
+    add_json_option(parser, "bench_armadillo")
     parser.add_argument("--plot", type=Path, help="bar chart of the times (PNG; needs matplotlib)")
     args = parser.parse_args(argv)
     if not args.mesh.exists():
@@ -324,8 +323,17 @@ def main(argv: list[str] | None = None) -> int:
     print()
     print("\n".join(backend_choices(V, F, b, ours["U"], args.repeats)))
     if args.json:
-        write_atomic(args.json, json.dumps(figures, indent=2) + "\n")
-        print(f"wrote {args.json}")
+        peer = "libigl" if igl_res else None
+        write_results(args.json, "bench_armadillo", [
+            figure(f"precompute, {args.mesh.name}", ours["precompute_ms"], "ms", peer,
+                   igl_res["precompute_ms"] if igl_res else None),
+            figure(f"time per iteration, {args.mesh.name}", ours["ms_per_iteration"], "ms", peer,
+                   igl_res["ms_per_iteration"] if igl_res else None),
+            figure("time per iteration, L-BFGS (default)", ours["ms_per_lbfgs_iteration"], "ms",
+                   "plain iteration", ours["ms_per_iteration"]),
+            figure("time per iteration, Anderson", ours["ms_per_accelerated_iteration"], "ms",
+                   "plain iteration", ours["ms_per_iteration"]),
+        ], figures)
     if args.plot:
         plot(figures, args.plot)
     return 0

@@ -5,28 +5,18 @@ from __future__ import annotations
 import time
 
 import numpy as np
+import scipy.sparse as sp
 from numpy.typing import ArrayLike, NDArray
 
-from arap._csr import SparseRowsProduct, leading_blocks
+from arap import steps
+from arap.addons import LocalState
 from arap.anderson import AndersonAccelerator
-from arap.cells import (
-    build_cells,
-    build_rhs_gather,
-    check_stiffness,
-    scale_cells,
-    singular_system_error,
-    system_matrix,
-)
-from arap.colouring import colour_order
-from arap.covariance import assemble_rhs, assemble_rhs_and_gradient, local_step
-from arap.errors import ConstraintError
-from arap.inactive import InactiveCells
-from arap.indexing import check_index_array, internal_origin, rows_of, with_rows
+from arap.iteration import SolveState, lbfgs_applies, make_iterate
 from arap.kernel_cache import announce_first_compile
 from arap.lbfgs import LbfgsHistory
-from arap.linsolve import NotPositiveDefiniteError, background_ordering, factorize
-from arap.loops import PLAIN_START, Iterate, lbfgs_iterations, plain_iterations
-from arap.mesh import MeshLike, bounding_box, check_mesh, is_mesh_like, mesh_arrays
+from arap.linsolve import Factor
+from arap.loops import PLAIN_START, lbfgs_iterations, plain_iterations
+from arap.mesh import MeshLike
 from arap.options import (
     DEFAULT_ALPHA,
     DEFAULT_ENERGY,
@@ -38,23 +28,15 @@ from arap.options import (
     EnergyType,
     StartName,
     WeightType,
-    check_alpha,
-    check_energy_and_weights,
     check_solve_options,
 )
-from arap.partition import check_point_targets, check_positions, check_reach, check_targets, partition_vertices
-from arap.points import PointConstraints, PointSystem, check_points
+from arap.points import PointConstraints
+from arap.prepared import Points, Prepared, prepare
 from arap.result import ArapResult, IterationCallback, rounding_floor
-from arap.rigid import RIGID_TOLERANCE, RigidRegions, rigid_regions
-from arap.rotations import identity_rotations
-from arap.smooth import STEPS, SWEEPS, SmoothRotations
-from arap.solve_start import SolveStart
-from arap.start import vertex_areas
-from arap.steps import SingleSteps
-from arap.topology import locality_order, vertex_adjacency
+from arap.solve_start import start_positions
 
 
-class ArapSolver(SolveStart, SingleSteps):
+class ArapSolver:
     """As-Rigid-As-Possible surface deformation (Sorkine & Alexa 2007).
 
     Construction validates the mesh and the constraint set, builds the cells and factorises the reduced global-step
@@ -132,156 +114,93 @@ class ArapSolver(SolveStart, SingleSteps):
         backend: str | None = None,
         stiffness: ArrayLike | None = None,
         alpha: float = DEFAULT_ALPHA,
-        points: PointConstraints | tuple[ArrayLike, ArrayLike] | tuple[ArrayLike, ArrayLike, ArrayLike] | None = None,
+        points: Points | None = None,
     ) -> None:
         t0 = time.perf_counter()
         announce_first_compile()
-        check_energy_and_weights(energy, weights)
-        alpha = check_alpha(alpha)
-        if constrained is None and is_mesh_like(V) and F is not None:
-            F, constrained = None, F  # ArapSolver(mesh, constrained)
-        if constrained is None:
-            raise ConstraintError("constrained (the anchor and handle vertices) is missing")
-        V, F = check_mesh(*mesh_arrays(V, F))
-        n = len(V)
-        self.V = V
-        self.F = F
-        self.energy_type = energy
-        self.weight_type = weights
-        self.constrained = check_index_array(constrained, n, "constrained")
-        self.roi = None if roi is None else check_index_array(roi, n, "roi", allow_empty=False)
-        rigid: NDArray[np.bool_] | None = None
-        self.stiffness: NDArray[np.float64] | None = None
-        if stiffness is not None:
-            self.stiffness, rigid = check_stiffness(stiffness, n)
-
-        adjacency = vertex_adjacency(F, n)
-        self.points: PointConstraints | None = None
-        if points is not None:
-            p = (points.faces, points.barycentric, points.weights) if isinstance(points, PointConstraints) \
-                else tuple(points)
-            self.points = check_points(p[0], p[1], p[2] if len(p) > 2 else None, len(F))
-        self.free, self.held, self.nonfree = partition_vertices(
-            F, n, self.constrained, self.roi, None if self.points is None else self.points.faces, adjacency)
-
-        # Internally vertices are renumbered for memory locality (reverse Cuthill-McKee): neighbours get nearby
-        # indices, so the gathers of the local step and the right-hand side stay in cache.
-        # Free vertices come first, so that the free and the non-free rows are two contiguous blocks.
-        order = locality_order(F, n, adjacency)
-        colour = None
-        if energy == "smooth_rotations":  # each colour's cells consecutive, window by window, for the sweep
-            order, colour = colour_order(order, adjacency)
-        is_free = np.zeros(n, dtype=bool)
-        is_free[self.free] = True
-        self._perm = np.concatenate([order[is_free[order]], order[~is_free[order]]])
-        self._inv = np.empty_like(self._perm)
-        self._inv[self._perm] = np.arange(n)
-        # The reduced system's fill-reducing ordering needs only its pattern: it runs beside the set-up below.
-        ordering = background_ordering(adjacency, self._perm, len(self.free), backend)
-        self._bounds = bounding_box(V)
-        self._diagonal = float(np.linalg.norm(self._bounds[1] - self._bounds[0])) or 1.0
-        self._origin = internal_origin(V, self._diagonal)
-        self._V = np.ascontiguousarray(V[self._perm] - self._origin)
-        self._areas = vertex_areas(self._V, self._inv[F])
-        self._constrained = self._inv[self.constrained]
-        self._nf = len(self.free)
-        self._free = np.arange(self._nf)
-        self._nonfree = np.arange(self._nf, n)
-        self._constrained_slot = np.searchsorted(self._nonfree, self._constrained)
-        self._cells = build_cells(self._V, self._inv[F], energy, weights)
-        pair_weights = np.maximum(self._cells.w, 0.0)  # the rotation term of smooth_rotations: not scaled by stiffness
-        # every cell's energy a sum of non-negative terms (per triangle for spokes and rims)
-        self._non_negative = energy == "spokes_and_rims" or not bool((self._cells.w < 0).any())
-        if self.stiffness is not None:
-            self._cells = scale_cells(self._cells, self.stiffness[self._perm])
-        L = system_matrix(self._cells, n)
-        L_ff, self._L_fn = leading_blocks(L, self._nf)  # free rows first: L[free][:, free], L[free][:, nonfree]
-        self._coupling = SparseRowsProduct(self._L_fn)  # L_fn @ fixed, the right-hand side's constant
-        self._points: PointSystem | None = None
-        if self.points is not None and len(self.points) and len(self.free):
-            mu = float(L_ff.diagonal().mean())
-            self._points = PointSystem(self.points, self._inv[F[self.points.faces]], self._nf, n, mu)
-            L_ff = (L_ff + self._points.matrix()).tocsr()
-        self._A = L_ff.tocsr()  # the factored matrix: the energy's Hessian in x for fixed rotations (L-BFGS)
-        self._point_state: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None
-        self._gather = build_rhs_gather(self._cells, self._free, n)
-        self._active = np.flatnonzero(np.bincount(self._gather.cell, minlength=n))
-        self.alpha = float(alpha)
-        self._smooth: SmoothRotations | None = None
-        if energy == "smooth_rotations":
-            # every rotation is coupled to its neighbours': all cells take part in the local step
-            self._smooth = SmoothRotations(self._cells, float(self._areas.sum()), self.alpha, pair_weights,
-                                           None if colour is None else colour[self._perm])
-            self._active = np.arange(n)
-            self._term = np.zeros(n)
-        self._rigid: RigidRegions | None = None
-        self._rigid_all: RigidRegions | None = None
-        if rigid is not None and rigid.any():
-            region = rigid_regions(self._inv[F], rigid[self._perm])
-            self._rigid = RigidRegions(self._cells, region, self._active)
-            self._rigid_all = RigidRegions(self._cells, region, np.arange(n))
-        self._inactive = InactiveCells(self._cells, self._active, self._constrained, self._V)
-        self.factor = None
-        if len(self.free):
-            try:
-                self.factor = factorize(L_ff, backend, permutation=ordering)
-                if self._points is not None:
-                    self._points.prepare(self.factor.solve)
-            except NotPositiveDefiniteError as exc:
-                raise singular_system_error(self._cells, energy, self.stiffness, str(exc)) from exc
-        self.backend = None if self.factor is None else self.factor.backend
-        self._R = identity_rotations(n)
-        self._E = np.zeros(n)
-        self._last: NDArray[np.float64] | None = None
-        self._live: NDArray[np.float64] | None = None
-        self._accelerator: AndersonAccelerator | None = None
-        self._history: LbfgsHistory | None = None
-        self._rotations_fresh = False
+        #: The set-up record (:class:`arap.prepared.Prepared`): everything a solve reads, built once.
+        self.prepared: Prepared = prepare(V, F, constrained, energy, weights, roi, backend, stiffness, alpha, points)
+        self._state = SolveState(LocalState.empty(self.prepared.n))
         self.factor_seconds = time.perf_counter() - t0
 
-    # ------------------------------------------------------------------ set-up helpers
-    def _fixed_positions(self, targets: np.ndarray) -> np.ndarray:
-        """Positions of the non-free vertices (constrained at targets, held at rest), in ``nonfree`` order."""
-        return with_rows(self._V[self._nf:], self._constrained_slot, targets)
+    # ------------------------------------------------------------------ the set-up, as given and checked
+    @property
+    def V(self) -> NDArray[np.float64]:
+        """Rest positions (n, 3), as checked."""
+        return self.prepared.V
 
-    def _to_internal(self, X: np.ndarray) -> np.ndarray:
-        """Rows of a per-vertex array in the solver's internal vertex order."""
-        return np.ascontiguousarray(X[self._perm])
+    @property
+    def F(self) -> NDArray[np.int64]:
+        """Triangles (m, 3), as checked."""
+        return self.prepared.F
 
-    def _relative(self, X: NDArray[np.float64]) -> NDArray[np.float64]:
-        """Positions relative to the solver's origin (``X`` itself when the origin is 0, as for most meshes)."""
-        return X - self._origin if self._origin.any() else X
+    @property
+    def energy_type(self) -> EnergyType:
+        return self.prepared.energy_type
 
-    def _check_positions(self, U: object, name: str) -> NDArray[np.float64]:
-        """Checked positions (n, 3), relative to the solver's origin."""
-        return self._relative(check_positions(U, self.n_vertices, name))
+    @property
+    def weight_type(self) -> WeightType:
+        return self.prepared.weight_type
 
-    def _check_targets(self, targets: object) -> NDArray[np.float64]:
-        """Checked targets, relative to the solver's origin."""
-        T = check_targets(targets, len(self._constrained))
-        check_reach(self._bounds, T)
-        return self._relative(T)
+    @property
+    def alpha(self) -> float:
+        return self.prepared.alpha
 
-    def _check_point_targets(self, point_targets: object) -> NDArray[np.float64] | None:
-        """Checked point-handle targets (or None), relative to the solver's origin."""
-        P = check_point_targets(point_targets, 0 if self.points is None else len(self.points))
-        if P is not None:
-            check_reach(self._bounds, P, "point targets")
-        return None if P is None else self._relative(P)
+    @property
+    def constrained(self) -> NDArray[np.int64]:
+        """Constrained vertices, in the order :meth:`solve` takes their targets."""
+        return self.prepared.constrained
 
-    def _to_caller(self, U: NDArray[np.float64]) -> NDArray[np.float64]:
-        """Internal positions (internal order, relative to the origin) as the caller's: a new array."""
-        return rows_of(U, self._inv, self._origin)
+    @property
+    def roi(self) -> NDArray[np.int64] | None:
+        return self.prepared.roi
 
-    # ------------------------------------------------------------------ solving
+    @property
+    def stiffness(self) -> NDArray[np.float64] | None:
+        return self.prepared.stiffness
+
+    @property
+    def points(self) -> PointConstraints | None:
+        return self.prepared.points
+
+    @property
+    def free(self) -> NDArray[np.int64]:
+        """Vertices the solve moves (caller's numbering)."""
+        return self.prepared.free
+
+    @property
+    def held(self) -> NDArray[np.int64]:
+        """Vertices outside the region of interest, held at rest."""
+        return self.prepared.held
+
+    @property
+    def nonfree(self) -> NDArray[np.int64]:
+        return self.prepared.nonfree
+
+    @property
+    def factor(self) -> Factor | None:
+        """The Cholesky factor of the reduced system (None when no vertex is free)."""
+        return self.prepared.factor
+
+    @property
+    def backend(self) -> str | None:
+        """The sparse Cholesky backend in use."""
+        return None if self.prepared.factor is None else self.prepared.factor.backend
+
     @property
     def n_vertices(self) -> int:
-        return len(self._V)
+        return self.prepared.n
 
     @property
     def n_free(self) -> int:
-        return len(self._free)
+        return self.prepared.nf
 
+    @property
+    def system_size(self) -> int:
+        """Number of unknown vertices in the linear system (free ROI vertices)."""
+        return self.prepared.nf
+
+    # ------------------------------------------------------------------ solving
     def solve(
         self,
         targets: NDArray[np.float64] | list,
@@ -340,100 +259,47 @@ class ArapSolver(SolveStart, SingleSteps):
             Its ``energies`` never rise from one iteration to the next.
         """
         t_start = time.perf_counter()
-        T = self._check_targets(targets)
+        p, state = self.prepared, self._state
+        T = p.check_targets(targets)
         cap = check_solve_options(max_iterations, tolerance, acceleration, window)
-        if self._rigid is not None and tolerance > 0:
-            tolerance = max(float(tolerance), RIGID_TOLERANCE)
-        fixed = self._fixed_positions(T)
-        P = self._check_point_targets(point_targets)
         if tolerance > 0:
-            tolerance = max(float(tolerance), rounding_floor(self._diagonal, T, P))
-        self._point_state = None if P is None else (P, fixed)
+            for addon in p.addons:
+                tolerance = max(float(tolerance), addon.min_tolerance)
+        fixed = p.fixed_positions(T)
+        P = p.check_point_targets(point_targets)
+        if tolerance > 0:
+            tolerance = max(float(tolerance), rounding_floor(p.diagonal, T, P))
+        state.local.points = None if P is None else (P, fixed)
         timings = {"local": 0.0, "rhs": 0.0, "solve": 0.0, "acceleration": 0.0}
-        U, E_cur, start = self._start(T, fixed, initial, timings)
-        const_E = self._inactive.energy(U, T)
+        if initial is not None and not isinstance(initial, str):
+            initial = p.to_internal(p.check_positions(initial, "initial"))
+        U, E_cur, start = start_positions(p, state, T, fixed, initial, timings)
+        const_E = p.inactive.energy(U, T)
         if E_cur is not None:
             E_cur += const_E
-        self._live = U
-        nf = self._nf
-        rhs_const = self._coupling(fixed)
-        if self._points is not None and P is not None:
-            rhs_const = rhs_const - self._points.rhs(P, fixed)  # assemble_rhs subtracts its constant
-        it = self._iterate(U, fixed, P, rhs_const, const_E, int(cap), tolerance, callback, timings)
-        if acceleration == "lbfgs" and self._lbfgs_applies(P):
+        state.live = U
+        it = make_iterate(p, state.local, U, fixed, P, const_E, int(cap), tolerance, callback, timings)
+        if acceleration == "lbfgs" and lbfgs_applies(p, P):
             size = DEFAULT_LBFGS_MEMORY if window is None else int(window)
-            if self._history is None or self._history.window != size:
-                self._history = LbfgsHistory(size)
-            outcome = lbfgs_iterations(it, E_cur, self._history, 0 if start == "warm" else PLAIN_START)
+            if state.history is None or state.history.window != size:
+                state.history = LbfgsHistory(size)
+            outcome = lbfgs_iterations(it, E_cur, state.history, 0 if start == "warm" else PLAIN_START)
         else:
             accel = None
-            if acceleration != "none" and nf:
+            if acceleration != "none" and p.nf:
                 size = DEFAULT_WINDOW if window is None else int(window)
-                if self._accelerator is None or self._accelerator.window != size:
-                    self._accelerator = AndersonAccelerator(size, 3 * nf)
-                accel = self._accelerator
+                if state.accelerator is None or state.accelerator.window != size:
+                    state.accelerator = AndersonAccelerator(size, 3 * p.nf)
+                accel = state.accelerator
             outcome = plain_iterations(it, E_cur, accel)
-        self._last = U
-        self._live = None
+        state.last = U
+        state.live = None
         # The rotations fit the stored solution only if an iteration ended with a local step on it.
-        self._rotations_fresh = bool(outcome.energies) or start != "warm"
+        state.rotations_fresh = bool(outcome.energies) or start != "warm"
         timings["total"] = time.perf_counter() - t_start
-        return ArapResult(vertices=self._to_caller(U), energies=outcome.energies,
+        return ArapResult(vertices=p.to_caller(U), energies=outcome.energies,
                           iterations=len(outcome.energies), converged=outcome.converged, timings=timings,
                           residual=outcome.residual, start=start, rejected=outcome.rejected)
-
-    def _iterate(self, U: NDArray[np.float64], fixed: NDArray[np.float64], P: NDArray[np.float64] | None,
-                 rhs_const: NDArray[np.float64], const_E: float, cap: int, tolerance: float,
-                 callback: IterationCallback | None, timings: dict[str, float]) -> Iterate:
-        """The steps of one :meth:`solve` call for :mod:`arap.loops`."""
-        nf = self._nf
-        A, factor, points = self._A, self.factor, self._points
-
-        def rhs(out: NDArray[np.float64]) -> None:
-            assemble_rhs(self._gather, self._R, rhs_const, out)
-
-        def rhs_gradient(x: NDArray[np.float64], out: NDArray[np.float64], grad: NDArray[np.float64]) -> None:
-            assemble_rhs_and_gradient(self._gather, self._R, rhs_const, A, x, out, grad)
-
-        def solve(B: NDArray[np.float64]) -> NDArray[np.float64]:
-            return B.copy() if factor is None else factor.solve(B)
-
-        correct = None
-        if points is not None and P is not None and points.hard.any():
-            def correct(g: NDArray[np.float64]) -> NDArray[np.float64]:
-                return points.correct(g, P, fixed)
-
-        scale = self._diagonal * np.sqrt(max(nf, 1))
-        return Iterate(U=U, nf=nf, rotations=self._R, local=lambda X: self._local(X, const_E, timings), rhs=rhs,
-                       rhs_gradient=rhs_gradient, solve=solve, correct=correct, coupled=self._smooth is not None,
-                       step_limit=tolerance * scale, scale=scale, cap=cap, callback=callback, timings=timings,
-                       scale_initial=self._non_negative)
-
-    def _lbfgs_applies(self, point_targets: NDArray[np.float64] | None) -> bool:
-        """True when the energy's gradient in x is ``2 (A x − b(R))`` with the factored ``A``, evaluated to full
-        precision: rotations fitted exactly (not ``smooth_rotations``), no hard point handles (their projection is
-        not ``A⁻¹``) and no rigid regions (their huge cell weights cancel in ``A x − b``)."""
-        hard = self._points is not None and point_targets is not None and bool(self._points.hard.any())
-        return (self.factor is not None and self._smooth is None and self._rigid is None and not hard
-                and self._nf > 0)
-
-    def _local(self, U: NDArray[np.float64], const_E: float, timings: dict[str, float]) -> float:
-        """Local step on the active cells at ``U``; returns the total energy."""
-        t = time.perf_counter()
-        e_term = 0.0
-        if self._smooth is not None:
-            e = self._smooth.relax(U, self._R, self._E, self._term, SWEEPS, steps=STEPS)
-            e_term = float(self._term.sum())
-        else:
-            e = local_step(self._cells, self._active, U, self._R, self._E)
-        if self._rigid is not None:
-            e += self._rigid.share(U, self._R, self._E)
-            if self._smooth is not None:  # the shared rotations change the rotation term
-                e += self._smooth.rotation_term(self._R, self._term) - e_term
-        if self._points is not None and self._point_state is not None:
-            e += self._points.penalty(U[:self._nf], *self._point_state)
-        timings["local"] += time.perf_counter() - t
-        return e + const_E
 
     def current_vertices(self) -> NDArray[np.float64]:
         """Positions of the current iterate during :meth:`solve` (from its callback), else of the last solution.
@@ -443,17 +309,36 @@ class ArapSolver(SolveStart, SingleSteps):
         (n, 3) float64 array
             A copy, in the caller's vertex order; the rest pose before any solve.
         """
-        U = self._live if self._live is not None else self._last
+        U = self._state.live if self._state.live is not None else self._state.last
         if U is None:
             return self.V.copy()
-        return self._to_caller(U)
+        return self.prepared.to_caller(U)
 
     def reset(self) -> None:
         """Forget the previous solution: the next :meth:`solve` without ``initial`` starts from the rest pose."""
-        self._last = None
-        self._rotations_fresh = False
+        self._state.last = None
+        self._state.rotations_fresh = False
 
-    @property
-    def system_size(self) -> int:
-        """Number of unknown vertices in the linear system (free ROI vertices)."""
-        return len(self._free)
+    # ------------------------------------------------------------------ single steps (:mod:`arap.steps`)
+    def fit_rotations(self, U: np.ndarray, start: np.ndarray | None = None) -> np.ndarray:
+        """Local step alone: the optimal rotation of every cell for positions ``U``, shape (n, 3, 3).
+
+        For ``smooth_rotations`` the rotations are coupled: this is one block-coordinate sweep from ``start``
+        (n, 3, 3) (None: the solver's current rotations), which never raises the energy.
+        """
+        R = self._state.local.R if start is None else self.prepared.to_internal(np.asarray(start, dtype=np.float64))
+        return steps.fit_rotations(self.prepared, U, R)
+
+    def energy(self, U: np.ndarray, R: np.ndarray | None = None) -> float:
+        """Energy of positions ``U`` with rotations ``R`` (None: the optimal ones; for ``smooth_rotations``, those
+        of :meth:`fit_rotations`), summed over all cells."""
+        return steps.energy_of(self.prepared, U, R, self._state.local.R)
+
+    def global_step(self, R: np.ndarray, targets: np.ndarray | list,
+                    point_targets: np.ndarray | list | None = None) -> np.ndarray:
+        """Global step alone: positions minimising the energy for fixed rotations ``R`` (n, 3, 3), shape (n, 3)."""
+        return steps.global_step(self.prepared, R, targets, point_targets)
+
+    def reduced_matrix(self) -> sp.csr_matrix:
+        """The reduced global-step matrix ``L_ff`` (for inspection; rows in the solver's internal vertex order)."""
+        return steps.reduced_matrix(self.prepared)

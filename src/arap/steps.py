@@ -1,131 +1,84 @@
-"""Single steps of a solver, for analysis and tests: the local step alone, the energy of given positions (and
-rotations), the global step alone and the reduced matrix.
-
-:class:`SingleSteps` is a base of :class:`arap.ArapSolver`; its methods read the solver's set-up (cells, factor,
-vertex numbering) and leave the state of :meth:`~arap.ArapSolver.solve` untouched.
-"""
+"""Single steps of a prepared solver (:mod:`arap.prepared`), for analysis and tests: the local step alone, the
+energy of given positions (and rotations), the global step alone and the reduced matrix, in the caller's vertex
+order. None changes the state of a solve."""
 
 from __future__ import annotations
-
-from typing import Protocol
 
 import numpy as np
 import scipy.sparse as sp
 from numpy.typing import NDArray
 
-from arap.cells import Cells, RhsGather, system_matrix
-from arap.covariance import assemble_rhs, covariances, local_step
-from arap.linsolve import Factor
-from arap.points import PointSystem
-from arap.rigid import RigidRegions
+from arap.cells import system_matrix
+from arap.covariance import assemble_rhs, covariances
+from arap.prepared import Prepared
 from arap.rotations import identity_rotations
-from arap.smooth import SmoothRotations
 
-__all__ = ["SingleSteps"]
-
-
-class _Solver(Protocol):
-    """What the single steps read of a solver (see :class:`arap.ArapSolver`)."""
-
-    @property
-    def n_vertices(self) -> int: ...
-    @property
-    def factor(self) -> Factor | None: ...
-    @property
-    def _V(self) -> NDArray[np.float64]: ...
-    @property
-    def _inv(self) -> NDArray[np.int64]: ...
-    @property
-    def _nf(self) -> int: ...
-    @property
-    def _free(self) -> NDArray[np.int64]: ...
-    @property
-    def _cells(self) -> Cells: ...
-    @property
-    def _gather(self) -> RhsGather: ...
-    @property
-    def _L_fn(self) -> sp.csr_matrix: ...
-    @property
-    def _R(self) -> NDArray[np.float64]: ...
-    @property
-    def _smooth(self) -> SmoothRotations | None: ...
-    @property
-    def _rigid_all(self) -> RigidRegions | None: ...
-    @property
-    def _points(self) -> PointSystem | None: ...
-    def _to_internal(self, X: np.ndarray) -> np.ndarray: ...
-    def _check_positions(self, U: object, name: str) -> NDArray[np.float64]: ...
-    def _check_targets(self, targets: object) -> NDArray[np.float64]: ...
-    def _check_point_targets(self, point_targets: object) -> NDArray[np.float64] | None: ...
-    def _fixed_positions(self, targets: np.ndarray) -> np.ndarray: ...
-    def _to_caller(self, U: np.ndarray) -> np.ndarray: ...
-    def fit_rotations(self, U: np.ndarray, start: np.ndarray | None = None) -> np.ndarray: ...
+__all__ = ["energy_of", "fit_rotations", "global_step", "reduced_matrix"]
 
 
-class SingleSteps:
-    """The local step, the energy and the global step one at a time, in the caller's vertex order."""
+def fit_rotations(p: Prepared, U: object, start: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Local step alone: the optimal rotation of every cell for positions ``U`` (caller's order), shape (n, 3, 3).
 
-    def fit_rotations(self: _Solver, U: np.ndarray, start: np.ndarray | None = None) -> np.ndarray:
-        """Local step alone: the optimal rotation of every cell for positions ``U``, shape (n, 3, 3).
+    Coupled rotations (``smooth_rotations``) are one block-coordinate sweep from ``start`` (internal order), which
+    never raises the energy; the other fits ignore it.
+    """
+    X = p.to_internal(p.check_positions(U, "U"))
+    R = identity_rotations(p.n)
+    if p.rotation_fit.coupled:
+        R[:] = start
+    E = np.empty(p.n)
+    p.rotation_fit.fit_all(X, R, E)
+    for addon in p.addons:
+        addon.after_fit_all(X, R, E)
+    return R[p.numbering.inv]
 
-        For ``smooth_rotations`` the rotations are coupled: this is one block-coordinate sweep from ``start``
-        (n, 3, 3) (None: the solver's current rotations), which never raises the energy.
-        """
-        U = self._to_internal(self._check_positions(U, "U"))
-        R = identity_rotations(self.n_vertices)
-        E = np.empty(self.n_vertices)
-        if self._smooth is not None:
-            R[:] = self._R if start is None else self._to_internal(np.asarray(start, dtype=np.float64))
-            self._smooth.local_step(U, R, E, np.empty(self.n_vertices))
-        else:
-            local_step(self._cells, np.arange(self.n_vertices), U, R, E)
-        if self._rigid_all is not None:
-            self._rigid_all.share(U, R, E)
-        return R[self._inv]
 
-    def energy(self: _Solver, U: np.ndarray, R: np.ndarray | None = None) -> float:
-        """Energy of positions ``U`` with rotations ``R`` (None: the optimal ones; for ``smooth_rotations``, those
-        of :meth:`fit_rotations`), summed over all cells."""
-        if R is None and self._smooth is not None:
-            R = self.fit_rotations(U)
-        U = self._to_internal(self._check_positions(U, "U"))
-        if R is None:
-            E = np.empty(self.n_vertices)
-            R_opt = identity_rotations(self.n_vertices)
-            local_step(self._cells, np.arange(self.n_vertices), U, R_opt, E)
-            if self._rigid_all is not None:
-                self._rigid_all.share(U, R_opt, E)
-            return float(E.sum())
-        d = U[self._cells.a] - U[self._cells.b]
-        cur = float(np.dot(self._cells.w, np.einsum("ij,ij->i", d, d)))
-        S = covariances(self._cells, U)
-        R = self._to_internal(np.asarray(R, dtype=np.float64))
-        value = cur + float(self._cells.rest_sq.sum()) - 2.0 * float(np.einsum("cij,cji->", R, S))
-        if self._smooth is not None:
-            value += self._smooth.rotation_term(np.ascontiguousarray(R), np.empty(self.n_vertices))
-        return value
+def energy_of(p: Prepared, U: object, R: object | None, current: NDArray[np.float64]) -> float:
+    """Energy of positions ``U`` with rotations ``R`` (None: the optimal ones; for coupled rotations those of
+    :func:`fit_rotations` from ``current``), summed over all cells."""
+    if R is None and p.rotation_fit.coupled:
+        R = fit_rotations(p, U, current)
+    X = p.to_internal(p.check_positions(U, "U"))
+    if R is None:
+        E = np.empty(p.n)
+        R_opt = identity_rotations(p.n)
+        p.rotation_fit.fit_all(X, R_opt, E)
+        for addon in p.addons:
+            addon.after_fit_all(X, R_opt, E)
+        return float(E.sum())
+    cells = p.cells
+    d = X[cells.a] - X[cells.b]
+    cur = float(np.dot(cells.w, np.einsum("ij,ij->i", d, d)))
+    S = covariances(cells, X)
+    R_int = p.to_internal(np.asarray(R, dtype=np.float64))
+    value = cur + float(cells.rest_sq.sum()) - 2.0 * float(np.einsum("cij,cji->", R_int, S))
+    return value + p.rotation_fit.rotation_energy(R_int)
 
-    def global_step(self: _Solver, R: np.ndarray, targets: np.ndarray | list,
-                    point_targets: np.ndarray | list | None = None) -> np.ndarray:
-        """Global step alone: positions minimising the energy for fixed rotations ``R`` (n, 3, 3), shape (n, 3)."""
-        T = self._check_targets(targets)
-        fixed = self._fixed_positions(T)
-        P = self._check_point_targets(point_targets)
-        U = self._V.copy()
-        U[self._nf:] = fixed
-        if self.factor is not None:
-            rhs = np.empty((len(self._free), 3))
-            const = self._L_fn @ fixed
-            if self._points is not None and P is not None:
-                const = const - self._points.rhs(P, fixed)  # assemble_rhs subtracts its constant
-            assemble_rhs(self._gather, self._to_internal(np.asarray(R, dtype=np.float64)), const, rhs)
-            g = self.factor.solve(rhs)
-            if self._points is not None and P is not None:
-                g = self._points.correct(g, P, fixed)
-            U[self._free] = g
-        return self._to_caller(U)
 
-    def reduced_matrix(self: _Solver) -> sp.csr_matrix:
-        """The reduced global-step matrix ``L_ff`` (for inspection; rows in the solver's internal vertex order)."""
-        L = system_matrix(self._cells, self.n_vertices)
-        return L[self._free][:, self._free].tocsr()
+def global_step(p: Prepared, R: object, targets: object, point_targets: object = None) -> NDArray[np.float64]:
+    """Global step alone: positions minimising the energy for fixed rotations ``R`` (n, 3, 3), shape (n, 3)."""
+    T = p.check_targets(targets)
+    fixed = p.fixed_positions(T)
+    P = p.check_point_targets(point_targets)
+    U = p.rest.copy()
+    U[p.nf:] = fixed
+    if p.factor is not None:
+        rhs = np.empty((p.nf, 3))
+        const = p.L_fn @ fixed
+        for addon in p.addons:
+            const = addon.rhs_constant(const, P, fixed)
+        assemble_rhs(p.gather, p.to_internal(np.asarray(R, dtype=np.float64)), const, rhs)
+        g = p.factor.solve(rhs)
+        for addon in p.addons:
+            correct = addon.corrector(P, fixed)
+            if correct is not None:
+                g = correct(g)
+        U[:p.nf] = g
+    return p.to_caller(U)
+
+
+def reduced_matrix(p: Prepared) -> sp.csr_matrix:
+    """The reduced global-step matrix ``L_ff`` (for inspection; rows in the solver's internal vertex order)."""
+    L = system_matrix(p.cells, p.n)
+    free = p.numbering.free
+    return L[free][:, free].tocsr()

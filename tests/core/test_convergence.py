@@ -81,8 +81,8 @@ def test_lbfgs_scales_its_initial_inverse_hessian_only_without_negative_terms(
         solver = ArapSolver(V, F, constrained, **options)
         result = solver.solve(targets, tolerance=1e-10)
         assert result.converged
-        assert solver._history is not None
-        assert (solver._history.scale > 1.0) is scaled, options
+        assert solver._state.history is not None
+        assert (solver._state.history.scale > 1.0) is scaled, options
         if scaled:
             plain = solver.solve(targets, initial="rest", acceleration="none", tolerance=1e-10,
                                  max_iterations=20_000)

@@ -15,17 +15,17 @@ from tests.core.scenarios import random_rigid
 def direct(solver: ArapSolver, targets: np.ndarray) -> float:
     """Energy of the solver's inactive cells with the constrained vertices at ``targets``, computed from scratch."""
     n = solver.n_vertices
-    U = solver._V.copy()
-    U[solver._nf:] = solver._fixed_positions(targets)
-    inactive = np.setdiff1d(np.arange(n), solver._active)
+    U = solver.prepared.rest.copy()
+    U[solver.prepared.nf:] = solver.prepared.fixed_positions(targets)
+    inactive = np.setdiff1d(np.arange(n), solver.prepared.active)
     E = np.zeros(n)
-    local_step(solver._cells, inactive, U, np.empty((n, 3, 3)), E)
+    local_step(solver.prepared.cells, inactive, U, np.empty((n, 3, 3)), E)
     return float(E[inactive].sum())
 
 
 def at_targets(solver: ArapSolver, targets: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    U = solver._V.copy()
-    U[solver._nf:] = solver._fixed_positions(targets)
+    U = solver.prepared.rest.copy()
+    U[solver.prepared.nf:] = solver.prepared.fixed_positions(targets)
     return U, targets
 
 
@@ -41,7 +41,7 @@ def sphere_solver(icosphere: tuple[np.ndarray, np.ndarray]) -> tuple[ArapSolver,
 
 def test_energy_follows_any_change_of_targets(sphere_solver: tuple) -> None:
     solver, fixed, _ = sphere_solver
-    cells: InactiveCells = solver._inactive
+    cells: InactiveCells = solver.prepared.inactive
     rest = solver.V[solver.constrained].copy()
     rng = np.random.default_rng(3)
     T = rest.copy()
@@ -58,7 +58,7 @@ def test_energy_follows_any_change_of_targets(sphere_solver: tuple) -> None:
 
 def test_a_rigid_move_of_the_handle_recomputes_no_cell(sphere_solver: tuple) -> None:
     solver, fixed, _ = sphere_solver
-    cells: InactiveCells = solver._inactive
+    cells: InactiveCells = solver.prepared.inactive
     T = solver.V[solver.constrained].copy()
     h = np.arange(len(fixed), len(T))
     T[h] += 0.1 * np.random.default_rng(0).normal(size=(len(h), 3))  # deformed first: its energy is not the rest's

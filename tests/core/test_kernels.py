@@ -34,10 +34,11 @@ def _state(V: np.ndarray, F: np.ndarray, energy: str) -> State:
     _, _, constrained, targets = bend_constraints(V)
     solver = ArapSolver(V, F, constrained, energy=energy)
     solver.solve(targets, max_iterations=3)
-    assert solver._last is not None
+    assert solver._state.last is not None
     # Rotations of the previous iteration (the lower bounds a real iteration starts from), positions moved on.
-    return State(cells=solver._cells, gather=solver._gather, active=solver._active, U=solver._last.copy(),
-                 R=solver._R.copy(), const=solver._L_fn @ solver._fixed_positions(targets))
+    p = solver.prepared
+    return State(cells=p.cells, gather=p.gather, active=p.active, U=solver._state.last.copy(),
+                 R=solver._state.local.R.copy(), const=p.L_fn @ p.fixed_positions(targets))
 
 
 @pytest.fixture(scope="module", params=["knight", "camelhead", "armadillo"])
@@ -74,13 +75,14 @@ def test_rhs_and_gradient_in_one_pass(armadillo: tuple[np.ndarray, np.ndarray], 
     _, _, constrained, targets = bend_constraints(armadillo[0])
     solver = ArapSolver(*armadillo, constrained, energy=energy)
     solver.solve(targets, max_iterations=3)
-    assert solver._last is not None
+    assert solver._state.last is not None
     s = _state(*armadillo, energy)
-    A, x = solver._A, np.ascontiguousarray(solver._last[:solver.n_free])
+    A, x = solver.prepared.matrix, np.ascontiguousarray(solver._state.last[:solver.n_free])
     rhs = np.empty_like(s.const)
-    covariance.assemble_rhs(solver._gather, solver._R, s.const, rhs)
+    covariance.assemble_rhs(solver.prepared.gather, solver._state.local.R, s.const, rhs)
     expected = A @ x - rhs
-    args = (solver._gather.ptr, solver._gather.cell, solver._gather.g, solver._R, s.const, A.indptr, A.indices,
+    gather = solver.prepared.gather
+    args = (gather.ptr, gather.cell, gather.g, solver._state.local.R, s.const, A.indptr, A.indices,
             A.data, x)
     runs = []
     saved = numba.get_num_threads()

@@ -45,7 +45,7 @@ def _graph(A: sp.csr_matrix) -> tuple[np.ndarray, np.ndarray]:
 
 def test_leading_subgraph_is_the_pattern_of_the_reduced_matrix(solver: ArapSolver) -> None:
     adjacency = vertex_adjacency(solver.F, solver.n_vertices)
-    indptr, indices = leading_subgraph(adjacency, solver._perm, solver.n_free)
+    indptr, indices = leading_subgraph(adjacency, solver.prepared.numbering.perm, solver.n_free)
     A = solver.reduced_matrix()
     ref_ptr, ref_idx = _graph(A)
     np.testing.assert_array_equal(indptr, ref_ptr)
@@ -298,7 +298,7 @@ def test_the_solver_over_halves_agrees_with_scipy(monkeypatch: pytest.MonkeyPatc
     constrained = _caps(V, 0.1)
     targets = V[constrained] + np.where(V[constrained, 1:2] > 0, 0.2, 0.0)
     fast = ArapSolver(V, F, constrained, backend="sksparse")
-    graph = leading_subgraph(vertex_adjacency(F, len(V)), fast._perm, fast.n_free)
+    graph = leading_subgraph(vertex_adjacency(F, len(V)), fast.prepared.numbering.perm, fast.n_free)
     assert not np.array_equal(fast.factor.permutation, nested_dissection(*graph, halves=False))
     reference = ArapSolver(V, F, constrained, backend="scipy")
     a = fast.solve(targets, max_iterations=5).vertices

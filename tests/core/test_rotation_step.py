@@ -23,19 +23,19 @@ def _state(mesh: tuple[np.ndarray, np.ndarray], iterations: int = 3
     V, F = mesh
     s = pull(V, distance=0.2)
     solver = arap.ArapSolver(V, F, s.constrained, energy="smooth_rotations")
-    U = solver._to_internal(solver.solve(s.targets, max_iterations=iterations, acceleration="none").vertices)
-    sm = solver._smooth
+    U = solver.prepared.to_internal(solver.solve(s.targets, max_iterations=iterations, acceleration="none").vertices)
+    sm = solver.prepared.rotation_fit.smooth
     assert sm is not None and sm._step is not None
     n = len(V)
-    sm.relax(U, solver._R.copy(), np.empty(n), np.empty(n), 1)  # stores the covariances of U
+    sm.relax(U, solver._state.local.R.copy(), np.empty(n), np.empty(n), 1)  # stores the covariances of U
     return solver, sm, sm._step, U
 
 
 def test_gradient_matches_finite_differences(knight: tuple[np.ndarray, np.ndarray]) -> None:
     """``G[c]`` is the derivative of the energy in ``ω`` for ``R_c ← exp([ω]×) R_c``."""
     solver, sm, step, _ = _state(knight)
-    n = len(solver._R)
-    R = solver._R.copy()
+    n = len(solver._state.local.R)
+    R = solver._state.local.R.copy()
     E, term = np.empty(n), np.empty(n)
     step.energy(sm._S, sm._d, R, E, term, gradient=True)
     G = step._G.copy()
@@ -57,14 +57,15 @@ def test_energy_is_the_data_energy_plus_the_rotation_term(knight: tuple[np.ndarr
     the thread count."""
     solver, sm, step, U = _state(knight)
     n = len(U)
-    R = solver._R.copy()
+    R = solver._state.local.R.copy()
     E, term = np.empty(n), np.empty(n)
     total = step.energy(sm._S, sm._d, R, E, term)
     assert total == pytest.approx(E.sum() + term.sum(), rel=1e-13)
     own = np.empty(n)
     assert term.sum() == pytest.approx(sm.rotation_term(R, own), rel=1e-12)
     np.testing.assert_allclose(term, own, rtol=1e-12, atol=1e-18)
-    assert total == pytest.approx(solver.energy(U[solver._inv], R[solver._inv]), rel=1e-10)
+    inv = solver.prepared.numbering.inv
+    assert total == pytest.approx(solver.energy(U[inv], R[inv]), rel=1e-10)
     saved = numba.get_num_threads()
     args = (step._order, step._nptr, step._nidx, step._nq, sm._S, sm._d, step.coef, R)
     try:
@@ -81,7 +82,7 @@ def test_preconditioner_is_a_laplacian_plus_a_positive_diagonal(knight: tuple[np
     """``K = 8αA L⁺ + D``: symmetric, off-diagonal entries ``−8αA w⁺_ij``, positive definite."""
     V, F = knight
     solver = arap.ArapSolver(V, F, [0], energy="smooth_rotations")
-    sm = solver._smooth
+    sm = solver.prepared.rotation_fit.smooth
     assert sm is not None
     K = preconditioner(sm.cells, sm.q, sm.coef)
     assert abs(K - K.T).max() == 0.0
@@ -114,8 +115,8 @@ def test_steps_settle_the_rotations_that_sweeps_barely_move(camelhead: tuple[np.
     solver, sm, step, U = _state(camelhead)
     n = len(U)
     E, term = np.empty(n), np.empty(n)
-    R_steps, R_sweeps = solver._R.copy(), solver._R.copy()
-    start = step.energy(sm._S, sm._d, solver._R.copy(), E, term)
+    R_steps, R_sweeps = solver._state.local.R.copy(), solver._state.local.R.copy()
+    start = step.energy(sm._S, sm._d, solver._state.local.R.copy(), E, term)
     by_steps = [sm.relax(U, R_steps, E, term, 0, steps=1) for _ in range(12)]
     by_sweeps = [sm.relax(U, R_sweeps, E, term, 1) for _ in range(12)]
     assert np.all(np.diff([start, *by_steps]) <= 0)
@@ -144,7 +145,7 @@ def test_energy_and_rotation_term_do_not_depend_on_the_thread_count(camelhead: t
     """The serial kernels sum chunk by chunk as the parallel ones do: energies, gradients and totals agree bit for
     bit (a single running sum differed in the last digits)."""
     solver, sm, step, _ = _state(camelhead)
-    n = len(solver._R)
+    n = len(solver._state.local.R)
     assert n > 2 * rotation_step.CHUNK * rotation_step.BLOCK  # several chunks
     runs = []
     saved = numba.get_num_threads()
@@ -154,9 +155,10 @@ def test_energy_and_rotation_term_do_not_depend_on_the_thread_count(camelhead: t
                                            min(2, numba.config.NUMBA_NUM_THREADS))):
             numba.set_num_threads(threads)
             E, term, G, cell_term = np.zeros(n), np.zeros(n), np.zeros((n, 3)), np.zeros(n)
-            total = energy(step._order, step._nptr, step._nidx, step._nq, sm._S, sm._d, step.coef, solver._R, E,
+            R = solver._state.local.R
+            total = energy(step._order, step._nptr, step._nidx, step._nq, sm._S, sm._d, step.coef, R, E,
                            term, G, True)
-            rotation_total = term_sum(sm.cells.ptr, sm._b, sm.q, sm.coef, solver._R, cell_term)
+            rotation_total = term_sum(sm.cells.ptr, sm._b, sm.q, sm.coef, solver._state.local.R, cell_term)
             runs.append((E, term, G, cell_term, total, rotation_total))
     finally:
         numba.set_num_threads(saved)

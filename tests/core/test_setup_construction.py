@@ -249,12 +249,12 @@ def test_solver_set_up_equals_the_reference_constructions(armadillo: Mesh) -> No
     y = V[:, 1]
     constrained = np.flatnonzero((y < np.quantile(y, 0.1)) | (y > np.quantile(y, 0.9)))
     solver = ArapSolver(V, F, constrained, backend="scipy")
-    Fi = solver._inv[F]
-    ptr, a, b, w, _, _ = _reference_rim_cells(solver._V, Fi, "cotangent")
-    np.testing.assert_array_equal(solver._cells.a, a)
-    np.testing.assert_array_equal(solver._cells.ptr, ptr)
-    np.testing.assert_array_equal(solver._cells.b, b)
-    np.testing.assert_array_equal(solver._cells.w, w)
-    L = _reference_matrix(solver._cells, len(V))
-    reduced = L[solver._free][:, solver._free]
+    Fi = solver.prepared.numbering.inv[F]
+    ptr, a, b, w, _, _ = _reference_rim_cells(solver.prepared.rest, Fi, "cotangent")
+    np.testing.assert_array_equal(solver.prepared.cells.a, a)
+    np.testing.assert_array_equal(solver.prepared.cells.ptr, ptr)
+    np.testing.assert_array_equal(solver.prepared.cells.b, b)
+    np.testing.assert_array_equal(solver.prepared.cells.w, w)
+    L = _reference_matrix(solver.prepared.cells, len(V))
+    reduced = L[solver.prepared.numbering.free][:, solver.prepared.numbering.free]
     assert (solver.reduced_matrix() != reduced).nnz == 0

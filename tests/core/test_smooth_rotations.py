@@ -134,8 +134,8 @@ def test_sweep_does_not_depend_on_the_thread_count(camelhead: tuple[np.ndarray, 
     V, F = camelhead
     s = pull(V, distance=0.2)
     solver = arap.ArapSolver(V, F, s.constrained, energy="smooth_rotations")
-    U = solver._to_internal(solver.solve(s.targets, max_iterations=3, acceleration="none").vertices)
-    sm, c = solver._smooth, solver._cells
+    U = solver.prepared.to_internal(solver.solve(s.targets, max_iterations=3, acceleration="none").vertices)
+    sm, c = solver.prepared.rotation_fit.smooth, solver.prepared.cells
     assert sm is not None and len(sm._group_ptr) > 2  # several windows, in more than one group
     runs = []
     saved = numba.get_num_threads()
@@ -147,7 +147,7 @@ def test_sweep_does_not_depend_on_the_thread_count(camelhead: tuple[np.ndarray, 
             numba.set_num_threads(threads)
             S, d = np.full((len(V), 9), np.nan), np.full(len(V), np.nan)
             covariances(sm._order, c.ptr, c.a, c.b, c.w, c.we, c.rest_sq, U, S, d)
-            R, E, term = solver._R.copy(), np.zeros(len(V)), np.zeros(len(V))
+            R, E, term = solver._state.local.R.copy(), np.zeros(len(V)), np.zeros(len(V))
             # a sweep without the rotation term, then one that evaluates it
             totals = [sweep(sm._group_ptr, sm._win_ptr, sm._run_ptr, sm._order, sm._nptr, sm._nmid, sm._nidx,
                             sm._nq, S, d, 2.0 * sm.coef, R, E, term, final) for final in (False, True)]
@@ -183,11 +183,11 @@ def test_sweeps_reuse_the_covariances_exactly(camelhead: tuple[np.ndarray, np.nd
     V, F = camelhead
     s = pull(V, distance=0.2)
     solver = arap.ArapSolver(V, F, s.constrained, energy="smooth_rotations")
-    U = solver._to_internal(solver.solve(s.targets, max_iterations=3, acceleration="none").vertices)
-    sm = solver._smooth
+    U = solver.prepared.to_internal(solver.solve(s.targets, max_iterations=3, acceleration="none").vertices)
+    sm = solver.prepared.rotation_fit.smooth
     assert sm is not None
     n = len(V)
-    R_once, R_each = solver._R.copy(), solver._R.copy()
+    R_once, R_each = solver._state.local.R.copy(), solver._state.local.R.copy()
     E, term = np.empty(n), np.empty(n)
     energies = [sm.local_step(U, R_each, E, term) for _ in range(4)]
     E_each, term_each = E.copy(), term.copy()
