@@ -72,6 +72,7 @@ export class HeatMap {
     this.checkbox.checked = on;
     this.legend.hidden = !on;
     this.values = null;
+    this.viewer.setHeatShown?.(on); // drawn on the plain surface: texture view steps aside meanwhile
     if (on) this.request();
     else this.restore();
   }

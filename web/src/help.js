@@ -36,6 +36,13 @@ export const SHORTCUTS = [
   { key: null, label: 'Ctrl+click', does: 'Remove the point handle under the pointer (point handle mode)' },
   { key: null, label: 'Right drag', does: 'Pan' },
   { key: null, label: 'Wheel', does: 'Zoom' },
+  {
+    key: null,
+    label: 'Surface',
+    does: 'Display → Surface (textured or coloured models): draw the model with its texture, its vertex colours or '
+      + 'plain. Painting keeps the view: anchors, handles and stiffness are mixed over the texture or colours at 70% '
+      + '(outside the region of interest greyed at 55%); choose Plain for the full role colours',
+  },
 ];
 
 /**

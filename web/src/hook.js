@@ -64,6 +64,17 @@ export function installTestHook({ app, viewer, livePose, selection, gizmo, conn,
     get nVertices() {
       return viewer.nVertices;
     },
+    /** The surface view: 'texture', 'colours' or 'plain'; `surfaces` lists those the mesh offers. */
+    get surface() {
+      return viewer.surface;
+    },
+    get surfaces() {
+      return viewer.surfaces;
+    },
+    /** The texture image is decoded and drawn (true without one). */
+    get textureReady() {
+      return viewer.textureReady;
+    },
     get nFaces() {
       return app.nFaces;
     },

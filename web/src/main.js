@@ -22,6 +22,7 @@ import { constraintsKey, constraintsMessage, Selection } from './selection.js';
 import { builtinSource, fileSource } from './snapshot.js';
 import { UpdateStats } from './stats.js';
 import { installSurfaceControls, SurfaceSelection } from './surface.js';
+import { appearanceArrays } from './texture.js';
 import { SelectionTools } from './tools.js';
 import { Viewer } from './viewer.js';
 
@@ -262,6 +263,8 @@ function handleMessage(msg) {
       return onWelcome(msg);
     case SERVER.MESH:
       return onMesh(msg);
+    case SERVER.APPEARANCE:
+      return onAppearance(msg);
     case SERVER.VERTICES:
       return onVertices(msg);
     case SERVER.STATE:
@@ -315,6 +318,7 @@ function onMesh(msg) {
   app.uploadAt.received = performance.timeOrigin + t0;
   const { positions, faces, vertexMap } = meshArrays(msg.frame);
   viewer.setMesh(positions, faces);
+  panel.setSurfaces(viewer.surfaces, viewer.surface); // plain until an appearance says otherwise
   livePose.reset();
   selection.reset(msg.n_vertices);
   gizmo.syncGroups(1);
@@ -346,6 +350,24 @@ function onMesh(msg) {
   requestAnimationFrame(() => { // after the viewer's own frame callback: the mesh has been drawn once
     app.uploadAt.drawn = performance.timeOrigin + performance.now();
   });
+}
+
+/**
+ * The mesh file's look, right after its mesh: its texture on a render mesh or its vertex colours, and the panel's
+ * surface choice; notes say what is not shown.
+ */
+function onAppearance(msg) {
+  viewer.setLook(appearanceArrays(msg.frame, viewer.nVertices));
+  panel.setSurfaces(viewer.surfaces, viewer.surface);
+  refreshSelection(false);
+  if (msg.notes?.length) panel.showStatus(`${app.meshName}: ${msg.notes.join('; ')}.`, 'info', 10000);
+}
+
+/** Draw the surface with its texture, its vertex colours or plain (the panel's Surface control). */
+function setSurface(mode) {
+  viewer.setSurface(mode);
+  panel.setSurfaces(viewer.surfaces, viewer.surface);
+  refreshSelection(false);
 }
 
 /** A vertices frame: kept until the next animation frame, when the newest one received is drawn. */
@@ -590,6 +612,7 @@ const panel = new Panel({
   setParams: (p) => send({ type: CLIENT.SET_PARAMS, ...p }),
   setFlatShading: (on) => viewer.setFlatShading(on),
   setWireframe: (on) => viewer.setWireframe(on),
+  setSurface,
   fit: () => viewer.fit(),
   reconnect: () => {
     panel.setConnection('connecting');

@@ -81,6 +81,7 @@ export class Panel {
     this._segment('tool-seg', 'tool', (v) => actions.setTool(v));
     this._segment('role-seg', 'role', (v) => actions.setRole(v));
     this._segment('gizmo-seg', 'gizmo', (v) => actions.setGizmoMode(v));
+    this._segment('surface-seg', 'surface', (v) => actions.setSurface(v));
 
     const radius = $('brush-radius');
     radius.addEventListener('input', () => actions.setBrushRadius(Number(radius.value)));
@@ -208,6 +209,18 @@ export class Panel {
     const report = Array.isArray(msg.report) ? msg.report : msg.report ? [String(msg.report)] : [];
     if (report.length) this.showStatus(`Loaded ${msg.name}. Repairs: ${report.join('; ')}`, 'info', 8000);
     else this.hideStatus();
+  }
+
+  /**
+   * The Surface control: one button per view the mesh offers (texture, colours, plain), the current one active;
+   * hidden for a plain mesh.
+   * @param {string[]} available
+   * @param {string} current
+   */
+  setSurfaces(available, current) {
+    $('surface-row').hidden = available.length < 2;
+    for (const b of $('surface-seg').querySelectorAll('button')) b.hidden = !available.includes(b.dataset.surface);
+    this.setSegment('surface-seg', 'surface', current);
   }
 
   setParams(p) {

@@ -3,6 +3,7 @@ import * as THREE from 'three';
 import { OrbitControls } from 'three/addons/controls/OrbitControls.js';
 import { SubsetNormals, VertexFaces, computeBounds, computeNormals } from './normals.js';
 import { stiffnessTint } from './stiffness.js';
+import { OUTSIDE_BLEND, RenderMesh, ROLE_BLEND } from './texture.js';
 
 // Role colours in sRGB (as shown in the panel); the vertex colour attribute holds their linear values.
 export const BASE_COLOR = [0.78, 0.79, 0.81];
@@ -77,6 +78,14 @@ export class Viewer {
     this.wireMaterial = new THREE.MeshBasicMaterial({ color: 0x111418, wireframe: true, transparent: true, opacity: 0.28 });
     this.geometry = null;
     this.mesh = null;
+    /** @type {import('./texture.js').Look|null} the mesh file's colours and texture */
+    this.look = null;
+    /** @type {RenderMesh|null} the textured render mesh, drawn instead of the solved mesh in texture view */
+    this.textured = null;
+    /** @type {'texture'|'colours'|'plain'} */
+    this.surface = 'plain';
+    this._heat = false; // the distortion heat map is shown (on the solved mesh, so the texture steps aside)
+    this._tint = null; // RGBA role tint per solved vertex, gathered onto the render mesh
     this.wire = null;
     this.grid = null;
     this.radius = 1;
@@ -108,6 +117,7 @@ export class Viewer {
 
   /** Replace the mesh. positions: Float32Array (copied), indices: Uint32Array (copied). */
   setMesh(positions, indices) {
+    this._dropLook();
     if (this.mesh) {
       this.scene.remove(this.mesh);
       this.scene.remove(this.wire);
@@ -135,6 +145,73 @@ export class Viewer {
     this.scene.add(this.wire);
     this._placeGrid();
     this.fit();
+  }
+
+  /**
+   * Show the mesh file's look (after setMesh): its texture on a render mesh, or its vertex colours; the view starts
+   * in texture view, else in colours view.
+   * @param {import('./texture.js').Look} look
+   */
+  setLook(look) {
+    this._dropLook();
+    if (!this.geometry) return;
+    this.look = look;
+    if (look.map && look.texture) {
+      this.textured = new RenderMesh(look, () => this.requestRender());
+      this.textured.material.flatShading = this.material.flatShading;
+      this._tint = new Float32Array(4 * this.nVertices);
+      const g = this.geometry;
+      this.textured.follow(g.attributes.position.array, g.attributes.normal.array, g.boundingBox, g.boundingSphere);
+      this.scene.add(this.textured.mesh);
+    }
+    this.surface = this.textured ? 'texture' : look.colorsLinear ? 'colours' : 'plain';
+    this._applySurface();
+  }
+
+  _dropLook() {
+    if (this.textured) {
+      this.scene.remove(this.textured.mesh);
+      this.textured.dispose();
+    }
+    this.textured = null;
+    this.look = null;
+    this._tint = null;
+    this.surface = 'plain';
+    if (this.mesh) this.mesh.visible = true;
+  }
+
+  /** The surface views this mesh offers, in the panel's order ('plain' always). */
+  get surfaces() {
+    const out = [];
+    if (this.textured) out.push('texture');
+    if (this.look?.colorsLinear) out.push('colours');
+    out.push('plain');
+    return out;
+  }
+
+  /** The texture image is decoded and drawn (true without a texture to wait for). */
+  get textureReady() {
+    return !this.textured || this.textured.ready || this.textured.failed;
+  }
+
+  /** Draw the surface with its texture, its file's vertex colours or plain; the caller then repaints the colours. */
+  setSurface(mode) {
+    if (!this.surfaces.includes(mode)) return;
+    this.surface = mode;
+    this._applySurface();
+  }
+
+  /** The heat map is shown or not: it is drawn on the solved mesh, so texture view steps aside meanwhile. */
+  setHeatShown(on) {
+    this._heat = on;
+    this._applySurface();
+  }
+
+  _applySurface() {
+    const textured = this.surface === 'texture' && !!this.textured && !this._heat;
+    if (this.mesh) this.mesh.visible = !textured;
+    if (this.textured) this.textured.mesh.visible = textured;
+    this.requestRender();
   }
 
   get nVertices() {
@@ -188,7 +265,9 @@ export class Viewer {
 
   _positionsChanged(attr) {
     attr.needsUpdate = true;
-    computeBounds(attr.array, this.geometry.boundingBox, this.geometry.boundingSphere);
+    const g = this.geometry;
+    computeBounds(attr.array, g.boundingBox, g.boundingSphere);
+    if (this.textured) this.textured.follow(attr.array, g.attributes.normal.array, g.boundingBox, g.boundingSphere);
     this.requestRender();
   }
 
@@ -202,25 +281,59 @@ export class Viewer {
     const attr = this.geometry.attributes.color;
     const c = attr.array;
     const hasRoi = roi !== null;
+    // colours and texture views: painted roles are mixed over the file's colours or the texture
+    const file = this.surface === 'colours' ? this.look?.colorsLinear ?? null : null;
+    const tint = this.surface === 'texture' && this.textured ? this._tint : null;
     for (let i = 0, n = role.length; i < n; i++) {
       const r = role[i];
       let rgb;
+      let blend = ROLE_BLEND;
       if (r === 1) rgb = FIXED_LIN;
       else if (r >= 2) rgb = GROUP_LIN[(r - 2) % GROUP_LIN.length];
-      else if (hasRoi) rgb = roi[i] ? ROI_LIN : OUTSIDE_LIN;
-      else rgb = BASE_LIN;
+      else if (hasRoi && !roi[i]) {
+        rgb = OUTSIDE_LIN;
+        blend = OUTSIDE_BLEND;
+      } else {
+        rgb = hasRoi ? ROI_LIN : BASE_LIN;
+        blend = 0;
+      }
       const t = stiff && stiff[i] !== 1 ? stiffStrength * stiffnessTint(stiff[i]) : 0;
-      c[3 * i] = rgb[0] + t * (STIFF_LIN[0] - rgb[0]);
-      c[3 * i + 1] = rgb[1] + t * (STIFF_LIN[1] - rgb[1]);
-      c[3 * i + 2] = rgb[2] + t * (STIFF_LIN[2] - rgb[2]);
+      let x = rgb[0] + t * (STIFF_LIN[0] - rgb[0]);
+      let y = rgb[1] + t * (STIFF_LIN[1] - rgb[1]);
+      let z = rgb[2] + t * (STIFF_LIN[2] - rgb[2]);
+      if (blend === 0 && t > 0 && (tint || file)) { // unpainted but stiff: the stiffness colour over the surface
+        x = STIFF_LIN[0];
+        y = STIFF_LIN[1];
+        z = STIFF_LIN[2];
+        blend = t;
+      }
+      if (tint) {
+        tint[4 * i] = x;
+        tint[4 * i + 1] = y;
+        tint[4 * i + 2] = z;
+        tint[4 * i + 3] = blend;
+      }
+      if (file) {
+        x = file[3 * i] + blend * (x - file[3 * i]);
+        y = file[3 * i + 1] + blend * (y - file[3 * i + 1]);
+        z = file[3 * i + 2] + blend * (z - file[3 * i + 2]);
+      }
+      c[3 * i] = x;
+      c[3 * i + 1] = y;
+      c[3 * i + 2] = z;
     }
     attr.needsUpdate = true;
+    if (tint) this.textured.tint(tint);
     this.requestRender();
   }
 
   setFlatShading(flat) {
     this.material.flatShading = flat;
     this.material.needsUpdate = true;
+    if (this.textured) {
+      this.textured.material.flatShading = flat;
+      this.textured.material.needsUpdate = true;
+    }
     this.requestRender();
   }
 
