@@ -69,8 +69,8 @@ _LAZY: dict[str, str] = {
     "load_keyframes": "arap.animation",
     "Animation": "arap.animation",
     "batch": "arap.batching",
-    "show": "arap.render",
-    "Picture": "arap.render",
+    "show": "arap.render.show",
+    "Picture": "arap.render.picture",
 }
 
 __all__ = [
@@ -140,7 +140,8 @@ if TYPE_CHECKING:
     )
     from arap.mesh import MeshLike, check_mesh, mesh_arrays
     from arap.notebook import Studio, studio
-    from arap.render import Picture, show
+    from arap.render.picture import Picture
+    from arap.render.show import show
     from arap.repair import RepairResult, repair_mesh
     from arap.rotations import fit_rotations
     from arap.shapes import BUILTIN_MESHES, builtin_mesh, sphere

@@ -1,17 +1,10 @@
-"""Pictures of meshes without a browser: a software rasteriser in NumPy (:mod:`~arap.render.camera`,
-:mod:`~arap.render.raster`), a PNG encoder (:mod:`~arap.render.png`), the :class:`~arap.render.picture.Picture` it
-makes, and :func:`~arap.render.show.show`, exported as ``arap.show``.
+"""Pictures of meshes without a browser: a software rasteriser in NumPy (:mod:`arap.render.camera`,
+:mod:`arap.render.raster`), a PNG encoder (:mod:`arap.render.png`), the :class:`~arap.render.picture.Picture` it makes,
+and :func:`arap.render.show.show`, exported as ``arap.show``.
 
 Example
 -------
->>> from arap.render import show
->>> show("sphere:100", width=32, height=24).pixels.shape
+>>> import arap
+>>> arap.show("sphere:100", width=32, height=24).pixels.shape
 (24, 32, 3)
 """
-
-from __future__ import annotations
-
-from arap.render.picture import Picture
-from arap.render.show import show
-
-__all__ = ["Picture", "show"]
