@@ -8,7 +8,6 @@ import resource
 import signal
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
@@ -19,6 +18,7 @@ from arap.errors import ConstraintError, MeshFormatError
 from arap.io import load_mesh, save_mesh
 from arap.io.atomic import atomic_output, write_atomic
 from arap.shapes import builtin_mesh
+from tests.waiting import wait_until
 
 EARLIER = b"# an earlier good output\n"
 TIMEOUT = 120.0
@@ -75,7 +75,7 @@ from pathlib import Path
 marker = Path(sys.argv[1])
 def stall(fd):
     marker.write_text("written")
-    time.sleep(600)
+    time.sleep(600)  # the scenario: stalled before the rename until the test kills it
 os.fsync = stall
 from arap.cli import main
 sys.exit(main(sys.argv[2:]))
@@ -98,11 +98,11 @@ def test_killed_arap_deform_leaves_the_earlier_output(tmp_path: Path, fmt: str) 
                               "-c", str(cfile), "-o", str(out), "-n", "2", "-q"],
                              stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
     try:
-        deadline = time.monotonic() + TIMEOUT
-        while not marker.exists():
+        def flushing() -> bool:
             assert child.poll() is None, child.stderr.read() if child.stderr else ""
-            assert time.monotonic() < deadline, "the writer never reached its flush"
-            time.sleep(0.02)
+            return marker.exists()
+
+        wait_until(flushing, TIMEOUT, "the writer to reach its flush")
         assert out.read_bytes() == earlier  # not touched while the new content is being written
     finally:
         child.kill()

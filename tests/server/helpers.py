@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import json
 import threading
-import time
 from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, field
@@ -14,6 +13,7 @@ import numpy as np
 
 from arap.server import make_server
 from arap.server.protocol import decode_binary, encode_binary
+from tests.waiting import wait_until
 
 
 @dataclass
@@ -178,15 +178,19 @@ class StudioClient:
 @contextmanager
 def running_server(**options: Any) -> Iterator[str]:
     """The studio served on a free loopback port in a thread (``make_server`` options); yields its URL."""
+    with serving(**options) as (_, url):
+        yield url
+
+
+@contextmanager
+def serving(**options: Any) -> Iterator[tuple[Any, str]]:
+    """:func:`running_server` that yields the uvicorn server too, and its URL."""
     server, sock, url = make_server("bar", port=0, **options)
     thread = threading.Thread(target=server.run, kwargs={"sockets": [sock]}, daemon=True)
     thread.start()
-    deadline = time.monotonic() + 30
-    while not server.started:
-        assert time.monotonic() < deadline, "server did not start"
-        time.sleep(0.02)
+    wait_until(lambda: server.started, 30, "the server to start")
     try:
-        yield url
+        yield server, url
     finally:
         server.should_exit = True
         thread.join(timeout=30)

@@ -8,6 +8,7 @@ import json
 import os
 import threading
 import time
+from pathlib import Path
 from typing import Any
 
 import pytest
@@ -22,6 +23,7 @@ from arap.server.decoder import (
     lane_of,
 )
 from tests.server.helpers import StudioClient
+from tests.waiting import wait_until
 
 pytestmark = pytest.mark.timeout(120)
 
@@ -34,9 +36,12 @@ def _padded(message: dict[str, Any], size: int) -> str:
 
 
 def _slow_when_asked(data: bytes | str) -> Any:
-    """Runs in the decoder process: a frame with a ``slow`` field takes SLOW_SECONDS to decode."""
-    if ('"slow"' if isinstance(data, str) else b'"slow"') in data:
-        time.sleep(SLOW_SECONDS)
+    """Runs in the decoder process: a frame with a ``slow`` field takes SLOW_SECONDS to decode; it first creates the
+    file the field names (decoding has started)."""
+    text = data if isinstance(data, str) else data.decode()
+    if '"slow"' in text:
+        Path(json.loads(text)["slow"]).touch()
+        time.sleep(SLOW_SECONDS)  # the scenario: a large frame that takes long to decode
     return decode_text_frame(data)
 
 
@@ -45,7 +50,7 @@ def test_lanes() -> None:
     assert lane_of(LARGE_BYTES) == lane_of(64 * 2**20) == "large"
 
 
-def test_a_small_frame_does_not_wait_behind_another_sessions_large_one(http: TestClient,
+def test_a_small_frame_does_not_wait_behind_another_sessions_large_one(http: TestClient, tmp_path: Path,
                                                                        monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setattr("arap.server.decoder.decode_text_frame", _slow_when_asked)
     small = _padded({"type": "undo"}, PROCESS_BYTES + 1000)
@@ -57,8 +62,9 @@ def test_a_small_frame_does_not_wait_behind_another_sessions_large_one(http: Tes
         for text in (large, small):  # both decoder processes started
             b.send(text)
             b.expect("state")
-        a.send(_padded({"type": "undo", "slow": 1}, LARGE_BYTES + 1000))
-        time.sleep(0.5)  # A's frame is being decoded
+        decoding = tmp_path / "decoding"
+        a.send(_padded({"type": "undo", "slow": str(decoding)}, LARGE_BYTES + 1000))
+        wait_until(decoding.exists, SLOW_SECONDS / 3, "A's frame to be decoded")
         t0 = time.monotonic()
         b.send(small)
         b.expect("state")

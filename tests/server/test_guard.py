@@ -5,7 +5,6 @@ from __future__ import annotations
 import contextlib
 import json
 import logging
-import time
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -19,7 +18,8 @@ from websockets.sync.client import connect
 from arap.cli import build_parser
 from arap.server import create_app
 from arap.server.guard import RequestGuard, normalize_origin, split_host
-from tests.server.helpers import StudioClient, running_server
+from tests.server.helpers import StudioClient, serving
+from tests.waiting import wait_until
 
 pytestmark = pytest.mark.timeout(120)
 
@@ -153,10 +153,7 @@ def test_session_cap_refuses_politely(static_dir: Path) -> None:
                 assert closed["type"] == "websocket.close" and closed["code"] == 1013
                 assert "2 sessions" in closed["reason"]
             assert http.get("/healthz").json()["sessions"] == 2
-        deadline = time.monotonic() + 10
-        while http.get("/healthz").json()["sessions"] > 0:
-            assert time.monotonic() < deadline, "sessions were not released"
-            time.sleep(0.02)
+        wait_until(lambda: http.get("/healthz").json()["sessions"] == 0, 10, "the sessions to be released")
         with http.websocket_connect("/ws") as again:
             StudioClient(again).greet()
 
@@ -174,9 +171,15 @@ def test_cli_options() -> None:
 
 # ---------------------------------------------------------------------------------------------- real server
 @pytest.fixture
-def live_url() -> Iterator[str]:
-    with running_server(max_sessions=3) as url:
-        yield url
+def live() -> Iterator[tuple[Any, str]]:
+    """The uvicorn server and its URL."""
+    with serving(max_sessions=3) as (server, url):
+        yield server, url
+
+
+@pytest.fixture
+def live_url(live: tuple[Any, str]) -> str:
+    return live[1]
 
 
 def test_live_server_refuses_cross_site_and_rebound_requests(live_url: str) -> None:
@@ -209,7 +212,8 @@ def test_live_server_caps_sessions(live_url: str) -> None:
             assert rcvd is not None and rcvd.code == 1013 and "3 sessions" in rcvd.reason
 
 
-def test_a_refused_websocket_is_logged_once_with_its_reason(live_url: str, caplog: pytest.LogCaptureFixture) -> None:
+def test_a_refused_websocket_is_logged_once_with_its_reason(live: tuple[Any, str],
+                                                            caplog: pytest.LogCaptureFixture) -> None:
     """uvicorn logged every refused handshake as an ERROR without context; the studio logs the reason instead."""
     errors: list[logging.LogRecord] = []
 
@@ -222,10 +226,13 @@ def test_a_refused_websocket_is_logged_once_with_its_reason(live_url: str, caplo
     uvicorn_log.addHandler(keep)
     caplog.set_level(logging.INFO, logger="arap.server.guard")
     try:
+        server, live_url = live
         ws_url = live_url.replace("http://", "ws://") + "ws"
         with pytest.raises(InvalidStatus):
             connect(ws_url, origin="http://evil.example", open_timeout=10)  # type: ignore[arg-type]
-        time.sleep(0.5)  # the server's task ends after the client has its answer
+        # the server's task ends (and logs what it logs) after the client has its answer
+        wait_until(lambda: not server.server_state.connections and not server.server_state.tasks, 10,
+                   "the server to finish the refused connection")
     finally:
         uvicorn_log.removeHandler(keep)
     assert not [r for r in errors if "handshake" in r.getMessage()]

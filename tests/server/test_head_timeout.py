@@ -20,6 +20,7 @@ from websockets.sync.client import connect
 
 from arap.server import bind_socket, create_app, make_server
 from arap.server.headtimeout import DEFAULT_HEAD_TIMEOUT, head_timeout_protocol
+from tests.waiting import wait_until
 
 pytestmark = pytest.mark.timeout(120)
 
@@ -35,10 +36,7 @@ def _serve(base: type[asyncio.Protocol]) -> Iterator[int]:
     sock = bind_socket("127.0.0.1", 0)
     thread = threading.Thread(target=server.run, kwargs={"sockets": [sock]}, daemon=True)
     thread.start()
-    deadline = time.monotonic() + 30
-    while not server.started:
-        assert time.monotonic() < deadline, "server did not start"
-        time.sleep(0.02)
+    wait_until(lambda: server.started, 30, "the server to start")
     try:
         yield int(sock.getsockname()[1])
     finally:
@@ -119,7 +117,9 @@ def _get(sock: socket.socket, port: int) -> dict[str, object]:
 def test_complete_requests_are_answered_and_a_next_half_sent_one_is_closed(port: int) -> None:
     with socket.create_connection(("127.0.0.1", port), timeout=10) as s:
         assert _get(s, port)["status"] == "ok"
-        time.sleep(TIMEOUT * 1.5)  # idle between requests: uvicorn's keep-alive timeout (5 s) applies, not ours
+        # the scenario: idle between requests for longer than the head timeout; uvicorn's keep-alive timeout (5 s)
+        # applies, not ours
+        time.sleep(TIMEOUT * 1.5)
         assert _get(s, port)["status"] == "ok"
         s.sendall(b"GET /healthz HTTP/1.1\r\nHo")
         closed = _wait_closed([s], TIMEOUT + 6)
@@ -129,7 +129,7 @@ def test_complete_requests_are_answered_and_a_next_half_sent_one_is_closed(port:
 def test_a_websocket_outlives_the_head_timeout(port: int) -> None:
     with connect(f"ws://127.0.0.1:{port}/ws", max_size=None) as ws:
         assert json.loads(ws.recv(timeout=30))["type"] == "welcome"
-        time.sleep(TIMEOUT * 2.5)
+        time.sleep(TIMEOUT * 2.5)  # the scenario: a WebSocket idle for longer than the head timeout is not cut
         ws.send(json.dumps({"type": "get_constraints"}))
         deadline = time.monotonic() + 30
         while time.monotonic() < deadline:

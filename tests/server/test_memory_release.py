@@ -22,6 +22,7 @@ from arap.server.memory import release_memory
 from arap.server.protocol import ClientMessage
 from arap.server.session import Session
 from tests.server.helpers import StudioClient, translation
+from tests.waiting import poll_until, wait_until
 
 pytestmark = pytest.mark.timeout(120)
 
@@ -35,10 +36,7 @@ def _server() -> Iterator[str]:
     server, sock, url = make_server("bar", port=0)
     thread = threading.Thread(target=server.run, kwargs={"sockets": [sock]}, daemon=True)
     thread.start()
-    deadline = time.monotonic() + 30
-    while not server.started:
-        assert time.monotonic() < deadline, "server did not start"
-        time.sleep(0.02)
+    wait_until(lambda: server.started, 30, "the server to start")
     try:
         yield url
     finally:
@@ -105,9 +103,7 @@ def test_sessions_that_leave_while_settling_give_their_memory_back(monkeypatch: 
             released.discard(id(self))
             ballast = np.ones(BALLAST)
             settling.release()
-            deadline = time.monotonic() + SLOW_SECONDS
-            while not interrupted() and time.monotonic() < deadline:
-                time.sleep(0.01)
+            poll_until(interrupted, SLOW_SECONDS)  # held until the session is interrupted (or SLOW_SECONDS)
             del ballast
         return settle(self, interrupted, on_frame)
 
@@ -115,22 +111,19 @@ def test_sessions_that_leave_while_settling_give_their_memory_back(monkeypatch: 
     monkeypatch.setattr(Session, "settle", settle_slowly)
     with _server() as url:
         _edit_and_leave(url)  # warm: imports, compiled kernels, thread pools
-        deadline = time.monotonic() + 10
-        while _sessions(url):
-            assert time.monotonic() < deadline
-            time.sleep(0.05)
+        wait_until(lambda: _sessions(url) == 0, 10, "the warm-up session to end")
         gc.collect()
         before = _rss()
         slow.set()
         for _ in range(SESSIONS):
             _edit_and_leave(url, settling)
         deadline = time.monotonic() + 5
-        while _sessions(url) and time.monotonic() < deadline:
-            time.sleep(0.05)
+        poll_until(lambda: _sessions(url) == 0, 5, interval=0.05)
         assert _sessions(url) == 0, "sessions went on after their clients left"
         # the server hands the memory back itself once each session is freed
-        while (after := float(psutil.Process().memory_info().rss)) > 1.5 * before and time.monotonic() < deadline:
-            time.sleep(0.05)
+        poll_until(lambda: float(psutil.Process().memory_info().rss) <= 1.5 * before,
+                   max(0.0, deadline - time.monotonic()), interval=0.05)
+        after = float(psutil.Process().memory_info().rss)
         assert after <= 1.5 * before, f"{after / 2**20:.0f} MiB after the sessions left, {before / 2**20:.0f} before"
 
 

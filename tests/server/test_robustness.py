@@ -6,7 +6,6 @@ from __future__ import annotations
 import gc
 import json
 import threading
-import time
 import weakref
 from collections.abc import Iterator
 from pathlib import Path
@@ -20,6 +19,7 @@ from arap.server import create_app
 from arap.server.budget import request_cost
 from arap.server.connection import OFF_LOOP_BYTES, Connection
 from tests.server.helpers import StudioClient, translation
+from tests.waiting import wait_until
 
 pytestmark = pytest.mark.timeout(120)
 
@@ -162,9 +162,6 @@ def test_closed_session_is_released(budgeted: TestClient) -> None:
         session_ref = weakref.ref(connection.session)
         connection_ref = weakref.ref(connection)
         del connection
-    deadline = time.monotonic() + 10
-    while budgeted.get("/healthz").json()["sessions"] > 0:
-        assert time.monotonic() < deadline, "the session did not end"
-        time.sleep(0.02)
+    wait_until(lambda: budgeted.get("/healthz").json()["sessions"] == 0, 10, "the session to end")
     gc.collect()
     assert connection_ref() is None and session_ref() is None

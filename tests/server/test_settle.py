@@ -119,7 +119,7 @@ def test_frames_are_throttled() -> None:
         times.append(time.perf_counter())
         iterations.append(iteration)
         assert (U is None or U.shape == session.V.shape) and np.isfinite(energy)
-        time.sleep(0.002)
+        time.sleep(0.002)  # the scenario: a consumer that takes a while with each frame
 
     start = time.perf_counter()
     outcome = session.settle(lambda: False, on_frame)

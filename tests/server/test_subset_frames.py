@@ -152,12 +152,14 @@ def test_frames_of_an_interrupted_settle_arrive_before_the_next_answer(static_di
     settle = Session.settle
 
     async def slow_socket(self: Connection, *args: object) -> None:
-        await asyncio.sleep(0.3)
+        await asyncio.sleep(0.3)  # the scenario: a slow socket holds every settle frame back
         await send_frame(self, *args)  # type: ignore[arg-type]
 
     def slow_settle(self: Session, interrupted: Any, on_frame: Any = None) -> Any:
         def polled() -> bool:
-            time.sleep(0.01)  # iterations of a large mesh: the settle is still running when the request comes
+            # the scenario: iterations as slow as a large mesh's, so the settle is still running when the request
+            # comes
+            time.sleep(0.01)
             return bool(interrupted())
         return settle(self, polled, on_frame)
 

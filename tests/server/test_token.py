@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import json
 import threading
-import time
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -22,6 +21,7 @@ from arap.cli import build_parser, main
 from arap.server import create_app, make_server, studio_url
 from arap.server.guard import is_loopback_host, presented_token, token_matches
 from tests.server.helpers import StudioClient
+from tests.waiting import wait_until
 
 pytestmark = pytest.mark.timeout(120)
 
@@ -101,10 +101,7 @@ def _serve(host: str, **options: Any) -> tuple[Any, Any, str, threading.Thread]:
     server, sock, url = make_server("bar", host, 0, **options)
     thread = threading.Thread(target=server.run, kwargs={"sockets": [sock]}, daemon=True)
     thread.start()
-    deadline = time.monotonic() + 30
-    while not server.started:
-        assert time.monotonic() < deadline, "server did not start"
-        time.sleep(0.02)
+    wait_until(lambda: server.started, 30, "the server to start")
     return server, sock, url, thread
 
 
