@@ -8,7 +8,6 @@ import os
 import signal
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
@@ -18,6 +17,7 @@ import arap
 from arap.batching import batch, read_manifest
 from arap.batching.jobs import chunks_for
 from arap.cli import main
+from tests.waiting import poll_until
 
 pytestmark = pytest.mark.timeout(300)
 
@@ -101,10 +101,11 @@ def test_interrupted_batch_leaves_no_partial_output(tmp_path: Path) -> None:
     proc = subprocess.Popen([sys.executable, "-m", "arap.cli", "batch", str(manifest), "--workers", "2", "-q"],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=env, start_new_session=True)
     try:
-        deadline = time.monotonic() + 120
-        while not any((tmp_path / "out").glob("pose_*.ply")) and time.monotonic() < deadline:
+        def first_written() -> bool:
             assert proc.poll() is None, proc.communicate()
-            time.sleep(0.05)
+            return any((tmp_path / "out").glob("pose_*.ply"))
+
+        poll_until(first_written, 120, interval=0.05)
         os.killpg(proc.pid, signal.SIGINT)  # Ctrl-C reaches the whole process group, workers included
         proc.wait(timeout=60)
     finally:
