@@ -297,4 +297,5 @@ def export_glb(name: str, U: np.ndarray, F: np.ndarray, look: Look | None) -> tu
             _quietly(save_asset, path, look.asset, positions)
             return filename, GLB_MIME, path.read_bytes()
     data = result_trimesh(positions, look.asset).export(file_type="glb")
-    return filename, GLB_MIME, bytes(data)
+    assert isinstance(data, bytes)
+    return filename, GLB_MIME, data
