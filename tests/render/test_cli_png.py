@@ -54,7 +54,7 @@ def test_info_png_marks_a_constraints_file(tmp_path: Path, capsys: pytest.Captur
     (["-c", "{tmp}/c.json"], "-c/--constraints marks the constraints in the picture: give --png OUT.png too"),
     (["--png", "{tmp}/a.png", "-c", "{tmp}/c.json"],
      "fixed has 1 indices out of range [0, 4314) (first: item 0 = 4314)"),
-    (["--png", "{tmp}/a.png", "--width", "9000"], "width must be from 1 to 8192 pixels, got 9000"),
+    (["--png", "{tmp}/a.png", "--width", "5000"], "width must be from 1 to 4096 pixels, got 5000"),
     (["--png", "{tmp}/a.png", "--azimuth", "nan"], "azimuth must be a finite number of degrees, got nan"),
 ])
 def test_info_png_refuses_bad_paths_and_values_in_one_line(argv: list[str], message: str, tmp_path: Path,

@@ -121,7 +121,7 @@ def test_per_vertex_and_single_colours() -> None:
     (lambda: arap.show(V[:, :2], F), MeshError, "vertices must be an (n, 3) array"),
     (lambda: arap.show(np.where(np.arange(len(V))[:, None] == 7, np.nan, V), F), MeshError, "NaN"),
     (lambda: arap.show("no-such-mesh"), MeshError, "neither a built-in mesh"),
-    (lambda: arap.show(V, F, width=0), OptionError, "width must be from 1 to 8192 pixels, got 0"),
+    (lambda: arap.show(V, F, width=0), OptionError, "width must be from 1 to 4096 pixels, got 0"),
     (lambda: arap.show(V, F, height=2.5), OptionError, "height must be a whole number of pixels"),
     (lambda: arap.show(V, F, azimuth=float("nan")), OptionError, "azimuth must be a finite number"),
     (lambda: arap.show(V, F, colors=[2.0, 0, 0]), OptionError, "from 0 to 1"),

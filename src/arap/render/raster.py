@@ -30,8 +30,9 @@ __all__ = [
 #: Shares of the light that every face gets (ambient) and that faces turned to the viewer add (diffuse).
 AMBIENT, DIFFUSE = 0.16, 0.84
 
-#: Pixel tests per chunk of triangles: bounds the memory of a rasterisation to a few hundred MB.
-CHUNK = 1 << 22
+#: Pixel tests per chunk of triangles (larger triangles are cut into bands of rows): bounds the memory a
+#: rasterisation takes besides its picture to about 300 MB.
+CHUNK = 1 << 21
 
 
 def srgb_to_linear(c: NDArray[np.floating]) -> NDArray[np.float64]:
@@ -103,32 +104,46 @@ def lit_colors(normals: NDArray[np.float64], toward_viewer: NDArray[np.float64],
     return light[:, None] * srgb_to_linear(np.broadcast_to(colors, normals.shape))
 
 
-def _coverage(S: NDArray[np.float64], F: NDArray[np.int64], width: int, height: int, zbuf: NDArray[np.float64]
+def _boxes(S: NDArray[np.float64], F: NDArray[np.int64], width: int, height: int
+           ) -> tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.int64], NDArray[np.int64], NDArray[np.int64]]:
+    """The triangles that cover some pixel centre, and the first column, width, first row and height of the block
+    of pixels whose centres their bounding boxes hold (pixel j's centre is j + 0.5)."""
+    xs, ys = S[F, 0], S[F, 1]
+    with np.errstate(invalid="ignore"):
+        x0 = np.maximum(np.ceil(xs.min(axis=1) - 0.5), 0)
+        x1 = np.minimum(np.floor(xs.max(axis=1) - 0.5), width - 1)
+        y0 = np.maximum(np.ceil(ys.min(axis=1) - 0.5), 0)
+        y1 = np.minimum(np.floor(ys.max(axis=1) - 0.5), height - 1)
+        keep = np.flatnonzero((x1 >= x0) & (y1 >= y0))  # false for NaN too
+    x0, y0 = x0[keep].astype(np.int64), y0[keep].astype(np.int64)
+    return keep, x0, x1[keep].astype(np.int64) - x0 + 1, y0, y1[keep].astype(np.int64) - y0 + 1
+
+
+def _pieces(bw: NDArray[np.int64], bh: NDArray[np.int64]) -> tuple[NDArray[np.int64], NDArray[np.int64],
+                                                                     NDArray[np.int64]]:
+    """Bands of the boxes' rows of at most :data:`CHUNK` pixels each: the box, the first row (from the box's top) and
+    the rows of each band. Only triangles larger than the chunk are cut."""
+    per = np.maximum(CHUNK // bw, 1)
+    n = -(-bh // per)
+    box = np.repeat(np.arange(len(bw)), n)
+    k = np.arange(len(box)) - np.repeat(np.cumsum(n) - n, n)
+    first = k * per[box]
+    return box, first, np.minimum(per[box], bh[box] - first)
+
+
+def _coverage(S: NDArray[np.float64], F: NDArray[np.int64], x0: NDArray[np.int64], bw: NDArray[np.int64],
+              y0: NDArray[np.int64], bh: NDArray[np.int64], width: int, zbuf: NDArray[np.float64]
               ) -> tuple[NDArray[np.int64], NDArray[np.float64], NDArray[np.int64], NDArray[np.float64]]:
-    """The pixel samples the triangles ``F`` (indices into the screen points ``S``) cover: pixel index, depth,
-    triangle and the barycentric weights (k, 3) of each; ``zbuf`` (h * w,) is lowered to the nearest depths."""
+    """The pixel samples the triangles ``F`` (indices into the screen points ``S``) cover within their blocks of
+    pixels (first column, width, first row, height): pixel index, depth, triangle (index into ``F``) and the
+    barycentric weights (k, 3) of each; ``zbuf`` (h * w,) is lowered to the nearest depths."""
     A, B, C = S[F[:, 0]], S[F[:, 1]], S[F[:, 2]]
     area = (B[:, 0] - A[:, 0]) * (C[:, 1] - A[:, 1]) - (B[:, 1] - A[:, 1]) * (C[:, 0] - A[:, 0])
-    xs = np.stack([A[:, 0], B[:, 0], C[:, 0]], axis=1)
-    ys = np.stack([A[:, 1], B[:, 1], C[:, 1]], axis=1)
-    # pixel j's centre is j + 0.5: the first and last pixels whose centres the bounding box holds
-    x0 = np.maximum(np.ceil(xs.min(axis=1) - 0.5), 0)
-    x1 = np.minimum(np.floor(xs.max(axis=1) - 0.5), width - 1)
-    y0 = np.maximum(np.ceil(ys.min(axis=1) - 0.5), 0)
-    y1 = np.minimum(np.floor(ys.max(axis=1) - 0.5), height - 1)
-    with np.errstate(invalid="ignore"):
-        keep = np.flatnonzero((x1 >= x0) & (y1 >= y0) & (area != 0) & np.isfinite(area))
-    empty = (np.zeros(0, np.int64), np.zeros(0), np.zeros(0, np.int64), np.zeros((0, 3)))
-    if not len(keep):
-        return empty
-    A, B, C, area = A[keep], B[keep], C[keep], area[keep]
-    x0, y0 = x0[keep], y0[keep]
-    bw = (x1[keep] - x0 + 1).astype(np.int64)
-    bh = (y1[keep] - y0 + 1).astype(np.int64)
-    # Barycentric weights and depth as affine functions of the sample's offset (dx, dy) from the box's first centre:
-    # value = at + per_x * dx + per_y * dy.
+    with np.errstate(divide="ignore", invalid="ignore"):
+        inv = np.where(area != 0, 1.0 / area, np.nan)  # a triangle seen edge-on covers nothing (NaN fails the tests)
+    # Barycentric weights and depth as affine functions of the sample's offset (dx, dy) from the block's first
+    # centre: value = at + per_x * dx + per_y * dy.
     cx, cy = x0 + 0.5, y0 + 0.5
-    inv = 1.0 / area
     wa_x, wa_y = (B[:, 1] - C[:, 1]) * inv, (C[:, 0] - B[:, 0]) * inv
     wb_x, wb_y = (C[:, 1] - A[:, 1]) * inv, (A[:, 0] - C[:, 0]) * inv
     wa = ((B[:, 0] - cx) * (C[:, 1] - cy) - (B[:, 1] - cy) * (C[:, 0] - cx)) * inv
@@ -139,7 +154,7 @@ def _coverage(S: NDArray[np.float64], F: NDArray[np.int64], width: int, height: 
     z_y = wa_y * (za - zc) + wb_y * (zb - zc)
 
     counts = bw * bh
-    t = np.repeat(np.arange(len(keep)), counts)
+    t = np.repeat(np.arange(len(F)), counts)
     local = np.arange(len(t)) - np.repeat(np.cumsum(counts) - counts, counts)
     w_t = bw[t]
     dy = local // w_t
@@ -152,10 +167,10 @@ def _coverage(S: NDArray[np.float64], F: NDArray[np.int64], width: int, height: 
     t, dx, dy = t[inside], dx[inside], dy[inside]
     la, lb, lc = la[inside], lb[inside], lc[inside]
     z = z0[t] + z_x[t] * dx + z_y[t] * dy
-    pixel = (y0[t].astype(np.int64) + dy) * width + x0[t].astype(np.int64) + dx
+    pixel = (y0[t] + dy) * width + x0[t] + dx
     np.minimum.at(zbuf, pixel, z)
     near = np.flatnonzero(z <= zbuf[pixel])  # the nearest so far: the rest can never win
-    return pixel[near], z[near], keep[t[near]], np.stack([la[near], lb[near], lc[near]], axis=1)
+    return pixel[near], z[near], t[near], np.stack([la[near], lb[near], lc[near]], axis=1)
 
 
 def rasterize(S: NDArray[np.float64], F: NDArray[np.int64], colors: NDArray[np.float64], width: int, height: int,
@@ -177,7 +192,7 @@ def rasterize(S: NDArray[np.float64], F: NDArray[np.int64], colors: NDArray[np.f
 
     Returns
     -------
-    (height, width, 3) float64 array
+    (height, width, 3) float32 array
 
     Example
     -------
@@ -190,29 +205,25 @@ def rasterize(S: NDArray[np.float64], F: NDArray[np.int64], colors: NDArray[np.f
            [1, 0, 0, 0]])
     """
     zbuf = np.full(width * height, np.inf)
-    found = []
-    counts = np.zeros(len(F), dtype=np.int64)
-    if len(F):  # how many pixel centres each triangle's box holds, to cut the triangles into chunks
-        xs, ys = S[F, 0], S[F, 1]
-        with np.errstate(invalid="ignore"):
-            spans = [np.clip(np.floor(v.max(axis=1) - 0.5) - np.ceil(v.min(axis=1) - 0.5) + 1, 0, side)
-                     for v, side in ((xs, width), (ys, height))]
-        counts = np.nan_to_num(spans[0] * spans[1]).astype(np.int64)
-    ends = np.cumsum(counts)
-    start = 0
-    while start < len(F):
-        stop = max(int(np.searchsorted(ends, (ends[start - 1] if start else 0) + CHUNK, side="right")), start + 1)
-        pixel, z, tri, bary = _coverage(S, F[start:stop], width, height, zbuf)
-        found.append((pixel, z, tri + start, bary))
-        start = stop
-    image = np.empty((width * height, 3))
+    image = np.empty((width * height, 3), dtype=np.float32)
     image[:] = background
-    for pixel, z, tri, bary in found:
-        win = np.flatnonzero(z <= zbuf[pixel])
-        corners = F[tri[win]]
-        b = bary[win]
-        image[pixel[win]] = (b[:, 0, None] * colors[corners[:, 0]] + b[:, 1, None] * colors[corners[:, 1]]
-                             + b[:, 2, None] * colors[corners[:, 2]])
+    if not len(F):
+        return image.reshape(height, width, 3)
+    keep, x0, bw, y0, bh = _boxes(S, F, width, height)
+    box, first, rows = _pieces(bw, bh)
+    ends = np.cumsum(bw[box] * rows)
+    start = 0
+    while start < len(box):  # chunks of whole pieces, each of at most CHUNK pixel tests unless one piece is larger
+        stop = max(int(np.searchsorted(ends, (ends[start - 1] if start else 0) + CHUNK, side="right")), start + 1)
+        b = box[start:stop]
+        pixel, _, t, w = _coverage(S, F[keep[b]], x0[b], bw[b], y0[b] + first[start:stop], rows[start:stop], width,
+                                   zbuf)
+        # The nearest samples so far: a later chunk's sample that covers the same pixel is painted over them only if
+        # it is as near or nearer (the z-buffer only decreases), so the last paint of each pixel is its nearest.
+        corners = F[keep[b[t]]]
+        image[pixel] = (w[:, 0, None] * colors[corners[:, 0]] + w[:, 1, None] * colors[corners[:, 1]]
+                        + w[:, 2, None] * colors[corners[:, 2]])
+        start = stop
     return image.reshape(height, width, 3)
 
 

@@ -242,7 +242,7 @@ def show(obj: Any, F: Any = None, *, constraints: Any = None, handles: Any = Non
         The mesh's colour, or one per vertex (interpolated across the faces): ``"#rrggbb"``, floats from 0 to 1 or
         integers from 0 to 255. Default: the studio's grey. Marks are painted over it.
     width, height : int
-        Picture size in pixels (1 to 8192).
+        Picture size in pixels (1 to 4096).
     azimuth, elevation : float
         Viewing direction in degrees: 0, 0 looks along -z with +y up (the studio's axes); the default is a
         three-quarter view from the front right and above.
