@@ -174,7 +174,7 @@ def _coverage(S: NDArray[np.float64], F: NDArray[np.int64], x0: NDArray[np.int64
 
 
 def rasterize(S: NDArray[np.float64], F: NDArray[np.int64], colors: NDArray[np.float64], width: int, height: int,
-              background: NDArray[np.float64]) -> NDArray[np.float64]:
+              background: NDArray[np.float64]) -> NDArray[np.float32]:
     """Paint triangles given in screen coordinates, the nearest one at each pixel.
 
     Parameters
