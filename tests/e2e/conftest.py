@@ -8,7 +8,6 @@ import os
 import shutil
 import subprocess
 import threading
-import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
@@ -20,6 +19,7 @@ from playwright.sync_api import Browser, ConsoleMessage, Page, Playwright, sync_
 
 from arap.server import bind_socket, create_app, studio_url
 from arap.server.app import STATIC_DIR, frame_limit
+from tests.waiting import wait_until
 
 REPO = Path(__file__).resolve().parents[2]
 WEB = REPO / "web"
@@ -77,11 +77,12 @@ class _ServerThread(threading.Thread):
         self.server.run(sockets=[self.sock])
 
     def wait_started(self, timeout: float = 30.0) -> None:
-        deadline = time.monotonic() + timeout
-        while not self.server.started:
-            if not self.is_alive() or time.monotonic() > deadline:
+        def started() -> bool:
+            if not self.is_alive():
                 raise RuntimeError("the studio server did not start")
-            time.sleep(0.05)
+            return bool(self.server.started)
+
+        wait_until(started, timeout, "the studio server to start")
 
     def stop(self) -> None:
         self.server.should_exit = True

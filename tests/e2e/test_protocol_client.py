@@ -58,7 +58,8 @@ def test_a_server_of_another_protocol_version_is_refused(browser: Browser, serve
     page.goto(server_url)
     expect(page.get_by_test_id("status-text")).to_contain_text("reload the page", timeout=30_000)
     expect(page.get_by_test_id("status-text")).to_contain_text("version 999")
-    page.wait_for_timeout(500)  # the mesh and state that follow the welcome are ignored
+    # the mesh and state that follow the welcome arrive, and are ignored
+    page.wait_for_function("() => window.__arap.messages >= 3", timeout=30_000)
     assert not page.evaluate("() => window.__arap.ready")
     assert page.evaluate("() => window.__arap.nVertices") == 0
     context.close()

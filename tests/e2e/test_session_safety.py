@@ -20,6 +20,7 @@ from tests.e2e.conftest import (
     wait_settled,
 )
 from tests.e2e.test_studio import box_select, drag_gizmo_x, select_anchor_and_handle, sphere_obj
+from tests.waiting import page_wait_until
 
 pytestmark = pytest.mark.e2e
 
@@ -44,6 +45,8 @@ class Dialogs:
 
 def settle(page: Page) -> None:
     """Let queued key and change handlers (and any answer they caused) run."""
+    # The tests that call this check that a key or change does nothing (no new mesh, no lost selection): there is no
+    # event to wait for, so the handlers get a fixed time in which a wrong action would start.
     page.wait_for_timeout(300)
     wait_idle(page)
 
@@ -215,10 +218,7 @@ def test_leaving_an_edited_session_warns(page: Page) -> None:
     counts = page.evaluate(COUNTS)
     dialogs = Dialogs(page, accept=False)
     page.close(run_before_unload=True)
-    for _ in range(100):
-        if dialogs.seen or page.is_closed():
-            break
-        page.wait_for_timeout(100)
+    page_wait_until(page, lambda: dialogs.seen or page.is_closed(), 10, "the warning or the page closing")
     assert [t for t, _ in dialogs.seen] == ["beforeunload"]
     assert not page.is_closed()
     assert page.evaluate(COUNTS) == counts
@@ -280,6 +280,8 @@ def test_autosave_restores_the_session_after_a_reload(page: Page) -> None:
     assert page.evaluate(COUNTS)["fixed"] == 0
     page.reload()
     wait_ready(page)
+    # the offer must not come back: the page looks for a saved session without a sign when it is done, so a wrong
+    # offer gets a fixed time to appear
     page.wait_for_timeout(500)
     expect(offer).to_be_hidden()
 
@@ -326,7 +328,8 @@ def test_autosave_restores_an_uploaded_mesh_with_its_applied_rest_pose(page: Pag
     # the rest pose is the applied shape, not the uploaded one
     page.get_by_test_id("reset").click()
     page.wait_for_function("() => !window.__arap.busy")
-    page.wait_for_timeout(300)
+    page_wait_until(page, lambda: np.allclose(positions(page), applied, rtol=0, atol=1e-6), 10,
+                    "the shape to be back at the applied rest pose")
     wait_idle(page)
     np.testing.assert_allclose(positions(page), applied, rtol=0, atol=1e-6)
     assert not page.evaluate("() => window.__arap.errors")
@@ -339,6 +342,8 @@ def test_a_closed_tab_is_offered_but_an_open_one_is_not(page: Page) -> None:
     other = page.context.new_page()
     other.goto(page.url)
     wait_ready(other)
+    # the offer must not appear: the page looks for a saved session without a sign when it is done, so a wrong offer
+    # gets a fixed time to appear
     other.wait_for_timeout(1000)
     expect(other.get_by_test_id("restore-offer")).to_be_hidden()  # the first tab is still open
     page.close()  # gone without a warning, as in a crash
@@ -362,6 +367,8 @@ def test_reconnects_and_restores_after_a_server_restart(browser: Browser, own_se
     page_errors: list[str] = []
     page.on("pageerror", lambda exc: page_errors.append(str(exc)))
     try:
+        attempts: list[object] = []
+        page.on("websocket", lambda ws: attempts.append(ws))
         page.goto(own_server[-1].url)
         wait_ready(page)
         rest = positions(page)
@@ -369,7 +376,9 @@ def test_reconnects_and_restores_after_a_server_restart(browser: Browser, own_se
         own_server[-1].stop()
         expect(page.get_by_test_id("conn-text")).to_have_text("reconnecting…", timeout=10_000)
         expect(page.get_by_test_id("status-text")).to_contain_text("reconnecting")
-        page.wait_for_timeout(1500)  # a few failed attempts while the server is away
+        opened = len(attempts)
+        page_wait_until(page, lambda: len(attempts) >= opened + 2, 30,
+                        "a few failed attempts while the server is away")
         assert not page.evaluate("() => window.__arap.connected")
         # more anchors while disconnected: they come back too
         pts = screen_points(page)
@@ -469,7 +478,7 @@ def test_a_tab_the_full_server_refuses_says_why_and_retries_slowly(browser: Brow
         expect(second.get_by_test_id("conn-text")).to_have_text("server full")
         expect(second.get_by_test_id("reconnect")).to_be_visible()
         assert [e["code"] for e in second.evaluate("() => window.__arap.errors")] == ["busy"]
-        second.wait_for_timeout(3000)
+        second.wait_for_timeout(3000)  # the scenario: no new attempt for a while, however long the test waits
         assert len(sockets) == 1, f"{len(sockets)} connection attempts in 3 s: it should wait for a tab to close"
         expect(status).to_contain_text("The studio server is full")
         assert not second.evaluate("() => window.__arap.ready")

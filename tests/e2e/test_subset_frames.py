@@ -13,6 +13,7 @@ from playwright.sync_api import Browser, WebSocketRoute
 from arap.server.protocol import decode_binary
 from tests.e2e.conftest import VIEWPORT, positions, wait_ready
 from tests.server.helpers import translation
+from tests.waiting import page_wait_until
 
 pytestmark = pytest.mark.e2e
 
@@ -66,12 +67,7 @@ def test_the_page_holds_the_full_frame_positions_after_subset_frames(browser: Br
     normals = np.asarray(page.evaluate("() => window.__arap.normals()")).reshape(-1, 3)
     faces = np.asarray(page.evaluate("() => window.__arap.faces()")).reshape(-1, 3)
     server.send(json.dumps({"type": "export", "format": "ply"}))
-    page.wait_for_timeout(50)
-    deadline = 300
-    while not exported and deadline:
-        page.wait_for_timeout(100)
-        deadline -= 1
-    assert exported, "no export answer"
+    page_wait_until(page, lambda: exported, 30, "the export answer")
     assert any(h["subset"] >= 0 and h["seq"] >= 0 for h in seen), "the drags should be answered by subset frames"
     full = _ply_vertices(exported[0]).astype("<f4")  # what a full frame of this shape carries
     assert not np.array_equal(full, V.astype("<f4")), "the shape did not move"
