@@ -12,7 +12,6 @@ Run: ``python benchmarks/bench_animation.py [--mesh PATH] [--fps 30] [--seconds 
 from __future__ import annotations
 
 import argparse
-import json
 import time
 from pathlib import Path
 from typing import Any
@@ -21,7 +20,7 @@ import numpy as np
 
 import arap
 from arap.animation import frame_times, iter_frames, load_keyframes
-from arap.io.atomic import write_atomic
+from benchjson import add_json_option, figure, write_results
 
 DEFAULT_MESH = Path(__file__).resolve().parents[2] / "shared" / "meshes" / "armadillo.obj"
 
@@ -47,7 +46,7 @@ def main(argv: list[str] | None = None) -> None:
     p.add_argument("--mesh", type=Path, default=DEFAULT_MESH)
     p.add_argument("--fps", type=float, default=30.0)
     p.add_argument("--seconds", type=float, default=2.0)
-    p.add_argument("--json", type=Path)
+    add_json_option(p, "bench_animation")
     args = p.parse_args(argv)
     from arap.jit import warm_up_kernels
 
@@ -88,8 +87,12 @@ def main(argv: list[str] | None = None) -> None:
     print(f"  each frame from a cold start:  {cold_total:.2f} s, {len(times) / cold_total:.1f} frames/s; "
           f"{1e3 * k[:, 0].mean():.0f} ms ({k[:, 1].mean():.0f} iterations) on average")
     if args.json:
-        write_atomic(args.json, json.dumps(figures, indent=2) + "\n")
-        print(f"wrote {args.json}")
+        write_results(args.json, "bench_animation", [
+            figure(f"frames per second, {args.mesh.name}, each frame from the previous", len(times) / warm_total,
+                   "frames/s", "each frame from a cold start", len(times) / cold_total, better="higher"),
+            figure(f"ms per frame, {args.mesh.name}, each frame from the previous", 1e3 * w[1:, 0].mean(), "ms",
+                   "each frame from a cold start", 1e3 * k[:, 0].mean()),
+        ], figures)
 
 
 if __name__ == "__main__":

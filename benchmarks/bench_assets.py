@@ -30,6 +30,7 @@ import trimesh
 from PIL import Image
 
 from arap.io import load_asset, save_asset
+from benchjson import add_json_option, figure, write_results
 
 
 def textured_surface(vertices: int) -> trimesh.Trimesh:
@@ -63,11 +64,12 @@ def best(fn: Callable[[], Any], repeats: int) -> tuple[float, Any]:
     return min(times), out
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--vertices", type=int, default=1_000_000)
     parser.add_argument("--repeats", type=int, default=3)
-    args = parser.parse_args()
+    add_json_option(parser, "bench_assets")
+    args = parser.parse_args(argv)
     with tempfile.TemporaryDirectory() as tmp:
         folder = Path(tmp)
         path = folder / "model.glb"
@@ -100,6 +102,13 @@ def main() -> None:
     print(f"\nload + save: arap {ours:.3f} s, trimesh {theirs:.3f} s (defaults): ratio {ours / theirs:.2f}x; "
           f"against trimesh with process=False: {ours / (t_tm_raw + t_tm_export):.2f}x")
     print(f"with the weld a solve needs: {(ours + t_weld) / theirs:.2f}x")
+    if args.json:
+        write_results(args.json, "bench_assets", [
+            figure(f"GLB load + save, {len(asset.vertices):,} vertices", ours, "s", "trimesh (defaults)", theirs),
+            figure("GLB load + save", ours, "s", "trimesh (process=False)", t_tm_raw + t_tm_export),
+            figure("GLB load + weld + save", ours + t_weld, "s", "trimesh (defaults)", theirs),
+        ], {"vertices": len(asset.vertices), "welded_vertices": len(solve.V), "triangles": len(asset.faces),
+            "glb_bytes": size, "seconds": dict(rows)})
 
 
 if __name__ == "__main__":

@@ -36,7 +36,7 @@ import psutil
 
 import arap
 from arap.batching.worker import worker_environment
-from arap.io.atomic import write_atomic
+from benchjson import add_json_option, figure, write_results
 
 DEFAULT_MESH = Path(__file__).resolve().parents[2] / "shared" / "meshes" / "armadillo.obj"
 
@@ -127,7 +127,7 @@ def main(argv: list[str] | None = None) -> None:
     p.add_argument("--share", type=float, default=0.1)
     p.add_argument("--workers", type=int, default=2)
     p.add_argument("--backends", nargs="+", default=["loop", "serial", "serial1", "process", "ray", "dask"])
-    p.add_argument("--json", type=Path)
+    add_json_option(p, "bench_batch")
     args = p.parse_args(argv)
     from arap.jit import warm_up_kernels
 
@@ -175,8 +175,17 @@ def main(argv: list[str] | None = None) -> None:
             print(f"factorisation reuse: serial batch {loop['seconds'] / serial['seconds']:.2f}x the plain loop's "
                   "throughput")
     if args.json:
-        write_atomic(args.json, json.dumps(figures, indent=2) + "\n")
-        print(f"wrote {args.json}")
+        runs = figures["runs"]
+        rows = []
+        for name, run in runs.items():
+            if name == "loop":
+                continue
+            peer = "loop" if name == "serial" else "serial"
+            rows.append(figure(f"jobs per second, {name} ({args.workers} workers)" if name not in
+                               ("serial", "serial1") else f"jobs per second, {name}", run["jobs_per_second"],
+                               "jobs/s", peer if peer in runs and name != "serial1" else None,
+                               runs[peer]["jobs_per_second"] if peer in runs else None, better="higher"))
+        write_results(args.json, "bench_batch", rows, figures)
 
 
 if __name__ == "__main__":

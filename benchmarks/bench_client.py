@@ -36,6 +36,7 @@ from playwright.sync_api import Browser, Page, WebSocketRoute, sync_playwright
 from arap.server.connection import _mesh_frame
 from arap.server.meshdata import load_upload
 from bench_studio import DEFAULT_MESH, ROOT, server_upload_steps, sphere_obj, start_server
+from benchjson import add_json_option, figure, write_results
 
 CHROMIUM = "/usr/bin/chromium"
 CHROMIUM_ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--no-first-run", "--disable-background-networking"]
@@ -204,7 +205,7 @@ def run(mesh: Path, updates: int, out: Path) -> dict[str, Any]:
     return results
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--mesh", type=Path, default=DEFAULT_MESH, help="mesh file to upload")
     parser.add_argument("--sphere", type=int, default=0, metavar="N",
@@ -212,14 +213,26 @@ def main() -> None:
     parser.add_argument("--updates", type=int, default=30, help="drags per constraint set")
     parser.add_argument("--out", type=Path, default=ROOT / "artifacts" / "bench_client",
                         help="folder for the screenshots")
-    args = parser.parse_args()
+    add_json_option(parser, "bench_client")
+    args = parser.parse_args(argv)
     if args.sphere:
         with tempfile.TemporaryDirectory() as tmp:
-            run(sphere_obj(args.sphere, Path(tmp)), args.updates, args.out)
-        return
-    if not args.mesh.is_file():
-        parser.error(f"mesh not found: {args.mesh}")
-    run(args.mesh, args.updates, args.out)
+            mesh = sphere_obj(args.sphere, Path(tmp))
+            results = run(mesh, args.updates, args.out)
+    else:
+        if not args.mesh.is_file():
+            parser.error(f"mesh not found: {args.mesh}")
+        mesh = args.mesh
+        results = run(mesh, args.updates, args.out)
+    if args.json:
+        whole, region = results.get("whole mesh (full frames)"), results.get("20% region (subset frames)")
+        figures = []
+        if whole and region:
+            figures = [figure(f"frame to screen, 20% region moving, median, {mesh.name}", region["median_ms"], "ms",
+                              "whole mesh moving", whole["median_ms"]),
+                       figure(f"frame to screen, 20% region moving, p95, {mesh.name}", region["p95_ms"], "ms",
+                              "whole mesh moving", whole["p95_ms"])]
+        write_results(args.json, "bench_client", figures, {"mesh": mesh.name, "results": results})
 
 
 if __name__ == "__main__":

@@ -17,7 +17,6 @@ Run: ``python benchmarks/bench_convergence.py [--igl-iterations 1000] [--quick] 
 from __future__ import annotations
 
 import argparse
-import json
 import time
 from pathlib import Path
 from typing import Any
@@ -26,11 +25,11 @@ import numpy as np
 
 from arap import ArapSolver, arap_energy
 from arap.io import load_mesh
-from arap.io.atomic import write_atomic
 from arap.options import ACCELERATIONS, Acceleration
 from arap.scenarios import make_scenario
 from arap.shapes import builtin_mesh
 from arap.start import best_rigid_transform
+from benchjson import add_json_option, figure, write_results
 
 MESHES = Path(__file__).resolve().parents[1].parent / "shared" / "meshes"
 SCENARIOS = [("armadillo.obj", "bend"), ("armadillo.obj", "twist"), ("camelhead.off", "bend"),
@@ -124,7 +123,7 @@ def main(argv: list[str] | None = None) -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--igl-iterations", type=int, default=1000)
     p.add_argument("--quick", action="store_true", help="small meshes only and 200 libigl iterations")
-    p.add_argument("--json", type=Path, default=None)
+    add_json_option(p, "bench_convergence")
     p.add_argument("--accelerations", nargs="+", choices=ACCELERATIONS, default=["lbfgs", "anderson"],
                    help="our solvers to time against the same libigl run (default: lbfgs anderson)")
     args = p.parse_args(argv)
@@ -157,7 +156,11 @@ def main(argv: list[str] | None = None) -> None:
         print(f"{r['scenario']:<26}{r['igl_off']:>12.2e}{r['igl_s']:>10.2f}{r['ours_off']:>12.2e}"
               f"{r['ours_iterations']:>9}{r['ours_s']:>9.3f}")
     if args.json is not None:
-        write_atomic(args.json, json.dumps({"scenarios": rows, "rigid": rigid_rows}, indent=2))
+        figures = [figure(f"time to libigl's energy, {r['scenario']}, {r['acceleration']}", r["reach_s"], "s",
+                          f"libigl, {iterations} iterations", r["igl_s"]) for r in rows if r["reach_s"] is not None]
+        figures += [figure(f"distance from the rigid motion, {r['scenario']}", r["ours_off"], "diagonals",
+                           f"libigl, {iterations} iterations", r["igl_off"]) for r in rigid_rows]
+        write_results(args.json, "bench_convergence", figures, {"scenarios": rows, "rigid": rigid_rows})
 
 
 if __name__ == "__main__":

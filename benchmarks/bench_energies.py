@@ -24,6 +24,7 @@ import tempfile
 import threading
 import time
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -32,6 +33,7 @@ from arap.io import load_mesh, save_mesh
 from arap.scenarios import bend, pull
 from arap.smooth import STEPS, SWEEPS
 from arap.solver import ArapSolver
+from benchjson import add_json_option, figure, write_results
 
 SHARED = Path(__file__).resolve().parents[1].parent / "shared" / "meshes"
 MESHES = ("decimated-knight.off", "camelhead.off", "armadillo.obj")
@@ -132,6 +134,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--repeats", type=int, default=5, help="timing runs; the median is printed (default: 5)")
     p.add_argument("--max-iterations", type=int, default=2000, help="cap of the pull solves (default: 2000)")
     p.add_argument("--screenshots", type=Path, default=None, metavar="DIR", help="save side-by-side renders here")
+    add_json_option(p, "bench_energies")
     args = p.parse_args(argv)
     missing = [m for m in args.meshes if not m.exists()]
     if missing:
@@ -151,14 +154,22 @@ def main(argv: list[str] | None = None) -> int:
     print("| mesh | energy | folded pairs added (rest) | max dihedral change | iterations | converged | seconds "
           "| ms per iteration | final energy |")
     print("|---|---|---|---|---|---|---|---|---|")
+    pulls: dict[str, list[dict[str, Any]]] = {}
     for path in args.meshes:
         _, F, rows, shapes = pulled(path, args.max_iterations)
+        pulls[path.stem] = rows
         for r in rows:
             print(f"| {path.stem} | {r['energy']} | {r['folds']:+d} ({r['rest_folds']}) | {r['dihedral']:.0f}° | "
                   f"{r['iterations']} | {'yes' if r['converged'] else 'no'} | {r['seconds']:.1f} | "
                   f"{1000 * r['seconds'] / max(r['iterations'], 1):.2f} | {r['energy_value']:.6g} |")
         if args.screenshots is not None:
             print(f"  rendered: {screenshots(args.screenshots, path.stem, F, shapes)}")
+    if args.json:
+        write_results(args.json, "bench_energies", [
+            figure(f"time per iteration, {e} energy, {timing_mesh.name}", ms[e], "ms", "spokes energy", ms["spokes"])
+            for e in ENERGIES if e != "spokes"] + [figure(f"time per iteration, spokes energy, {timing_mesh.name}",
+                                                          ms["spokes"], "ms")],
+            {"ms_per_iteration": ms, "pulled": pulls})
     return 0
 
 

@@ -28,6 +28,7 @@ import psutil
 from websockets.asyncio.client import ClientConnection, connect
 
 from bench_studio import Studio, start_server
+from benchjson import add_json_option, figure, write_results
 
 TIMEOUT = 120.0
 TARGET_P95_S = 0.5
@@ -147,11 +148,21 @@ async def run(args: argparse.Namespace) -> float:
     print(f"{args.heavy} sessions sending {args.heavy_mib:g} MiB messages back to back for {args.seconds:g} s: "
           f"{sum(done)} answered")
     p95 = stats(f"small requests ({args.small_mib:g} MiB set_constraints)", small)
-    stats("tiny requests (get_constraints)", tiny)
+    tiny_p95 = stats("tiny requests (get_constraints)", tiny)
     print(f"server RSS with its decoder processes: {rss_start:.0f} MiB at start, peak "
           f"{max(samples, default=rss_start):.0f} MiB, {rss_after:.0f} MiB after everyone left (the server alone "
           f"{server_after:.0f} MiB)")
     print(f"target: small-request p95 <= {TARGET_P95_S} s: {'met' if p95 <= TARGET_P95_S else 'MISSED'}")
+    if args.json:
+        write_results(args.json, "bench_fairness", [
+            figure(f"small request ({args.small_mib:g} MiB) answer time, p95, beside {args.heavy} heavy sessions", p95,
+                   "s", "target", TARGET_P95_S),
+            figure("tiny request answer time, p95", tiny_p95, "s"),
+            figure("server memory at its peak", max(samples, default=rss_start), "MiB"),
+        ], {"heavy_sessions": args.heavy, "heavy_mib": args.heavy_mib, "small_mib": args.small_mib,
+            "seconds": args.seconds, "heavy_answered": sum(done), "small_s": small, "tiny_s": tiny,
+            "rss_mib": {"start": rss_start, "peak": max(samples, default=rss_start), "after": rss_after,
+                        "server_after": server_after}})
     return p95
 
 
@@ -162,6 +173,7 @@ def main(argv: list[str] | None = None) -> None:
     p.add_argument("--small-mib", type=float, default=2.6)
     p.add_argument("--interval", type=float, default=0.2, help="seconds between two small requests")
     p.add_argument("--seconds", type=float, default=20.0)
+    add_json_option(p, "bench_fairness")
     args = p.parse_args(argv)
     p95 = asyncio.run(run(args))
     sys.exit(0 if p95 <= TARGET_P95_S else 1)

@@ -14,7 +14,6 @@ Run: ``python benchmarks/bench_folds.py [--quick] [--max-iterations 500] [--json
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 import time
 from pathlib import Path
@@ -30,6 +29,7 @@ from arap.scenarios import make_scenario
 from arap.shapes import obtuse_cylinder, scan_blob
 from arap.solver import ArapSolver
 from arap.weights import edge_weight_matrix
+from benchjson import add_json_option, figure, write_results
 
 SHARED = Path(__file__).resolve().parents[1].parent / "shared" / "meshes"
 SCANS = ("decimated-knight.off", "camelhead.off", "armadillo.obj")
@@ -106,7 +106,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--meshes", nargs="+", metavar="NAME", help="only meshes whose name contains one of these")
     parser.add_argument("--igl-max-vertices", type=int, default=15000,
                         help="run libigl only on meshes up to this size (default 15,000; 0: never)")
-    parser.add_argument("--json", type=Path, help="write the rows as JSON")
+    add_json_option(parser, "bench_folds")
     args = parser.parse_args(argv)
     cap = args.max_iterations if args.max_iterations is not None else (60 if args.quick else 500)
 
@@ -155,7 +155,16 @@ def main(argv: list[str] | None = None) -> int:
     print("it: iterations run ('+': stopped by the cap, not converged); E own: the variant's energy; "
           "E spokes/cot: the paper's energy of the result; s: seconds including precompute (machine under load)")
     if args.json:
-        args.json.write_text(json.dumps(rows, indent=1))
+        igl_rows = {(r["mesh"], r["scenario"]): r for r in rows if r["variant"].startswith("libigl")}
+        figures = []
+        for r in rows:
+            if r["variant"].startswith("libigl"):
+                continue
+            peer = igl_rows.get((r["mesh"], r["scenario"]))
+            figures.append(figure(f"folded pairs added, {r['mesh']}, {r['scenario']}, {r['variant']}",
+                                  r["extra_folds"], "pairs", "libigl" if peer else None,
+                                  peer["extra_folds"] if peer else None))
+        write_results(args.json, "bench_folds", figures, rows)
     return 0
 
 

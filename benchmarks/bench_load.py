@@ -29,6 +29,7 @@ from websockets.asyncio.client import connect
 
 from arap.io import load_mesh, save_mesh
 from bench_studio import DEFAULT_MESH, Studio, start_server
+from benchjson import add_json_option, figure, write_results
 
 TIMEOUT = 120.0
 
@@ -120,6 +121,16 @@ async def run(args: argparse.Namespace, meshes: list[Path]) -> None:
         print(f"large message ({args.large:g} MB) answered in {results[-1]:.2f} s; other sessions' p95 latency "
               f"meanwhile {np.percentile(window, 95) if window else float('nan'):.0f} ms ({len(window)} updates), "
               f"otherwise {np.percentile(rest, 95) if rest else float('nan'):.0f} ms")
+    if args.json:
+        write_results(args.json, "bench_load", [
+            figure(f"updates per second per session, median of {len(meshes)} sessions", statistics.median(rates),
+                   "updates/s", better="higher"),
+            figure(f"drag answer latency, p95, {len(meshes)} sessions", float(np.percentile(latencies, 95)), "ms"),
+            figure("answers sent to the wrong session", sum(int(r["crosstalk"]) for r in sessions), "answers"),
+            figure("server memory at its peak", max(samples, default=rss_start), "MB"),
+        ], {"sessions": len(meshes), "seconds": args.seconds, "updates_per_s": rates,
+            "rss_mb": {"start": rss_start, "peak": max(samples, default=rss_start), "after": rss_after},
+            "large_message_seconds": results[-1] if big else None})
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -128,6 +139,7 @@ def main(argv: list[str] | None = None) -> None:
     p.add_argument("--seconds", type=float, default=60.0)
     p.add_argument("--mesh", type=Path, default=DEFAULT_MESH)
     p.add_argument("--large", type=float, default=0.0, help="also send one message of this many MB (0: none)")
+    add_json_option(p, "bench_load")
     args = p.parse_args(argv)
     V, F = load_mesh(args.mesh)
     diag = float(np.linalg.norm(np.ptp(V, axis=0)))

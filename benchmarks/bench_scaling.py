@@ -21,12 +21,11 @@ import statistics
 import subprocess
 import sys
 import time
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from arap.io.atomic import write_atomic
+from benchjson import add_json_option, figure, write_results
 
 SIZES = (10_000, 40_000, 160_000, 400_000, 650_000, 1_000_000)
 
@@ -161,7 +160,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--iterations", type=int, default=5, help="iterations per run (default: 5)")
     parser.add_argument("--repeats", type=int, default=3, help="runs per size; medians reported (default: 3)")
     parser.add_argument("--timeout", type=float, default=1200.0, help="seconds allowed per size (default: 1200)")
-    parser.add_argument("--json", type=Path, help="also write the figures to this JSON file")
+    add_json_option(parser, "bench_scaling")
     parser.add_argument("--child", type=int, help=argparse.SUPPRESS)
     parser.add_argument("--backend", help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
@@ -213,8 +212,13 @@ def main(argv: list[str] | None = None) -> int:
             print(f"{r['vertices']:>10,}  {r['backend']:>8}  {cells}")
         print("\n'solver MiB' is the peak RSS growth while building and running the solver")
     if args.json:
-        write_atomic(args.json, json.dumps(rows, indent=2) + "\n")
-        print(f"wrote {args.json}")
+        figures = []
+        for r in rows:
+            figures.append(figure(f"precompute, {r['vertices']:,} vertices, {r['backend']}", r["precompute_s"], "s"))
+            figures.append(figure(f"time per iteration, {r['vertices']:,} vertices, {r['backend']}",
+                                  r["ms_per_iteration"], "ms"))
+            figures.append(figure(f"peak memory, {r['vertices']:,} vertices, {r['backend']}", r["peak_rss_mb"], "MiB"))
+        write_results(args.json, "bench_scaling", figures, rows)
     return 0
 
 

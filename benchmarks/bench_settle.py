@@ -20,6 +20,7 @@ from pathlib import Path
 from websockets.asyncio.client import connect
 
 from bench_studio import DEFAULT_MESH, Studio, start_server
+from benchjson import add_json_option, figure, write_results
 
 TIMEOUT = 120.0
 
@@ -60,6 +61,7 @@ def main(argv: list[str] | None = None) -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--mesh", type=Path, default=DEFAULT_MESH)
     p.add_argument("--drags", type=int, default=5)
+    add_json_option(p, "bench_settle")
     args = p.parse_args(argv)
     results = asyncio.run(run(args.mesh, args.drags))
     seconds = [r[0] for r in results]
@@ -68,6 +70,11 @@ def main(argv: list[str] | None = None) -> None:
     for i, (s, it, fr) in enumerate(results):
         print(f"{i + 1:>5}{s:>10.3f}{it:>12}{fr:>8}")
     print(f"median {statistics.median(seconds):.3f} s, worst {max(seconds):.3f} s (target ≤ 0.5 s)")
+    if args.json:
+        write_results(args.json, "bench_settle", [
+            figure(f"release to settled, median, {args.mesh.name}", statistics.median(seconds), "s", "target", 0.5),
+            figure(f"release to settled, worst, {args.mesh.name}", max(seconds), "s", "target", 0.5),
+        ], {"mesh": args.mesh.name, "drags": [{"seconds": s, "iterations": it, "frames": fr} for s, it, fr in results]})
 
 
 if __name__ == "__main__":

@@ -47,6 +47,7 @@ from websockets.asyncio.client import ClientConnection, connect
 from arap.io import save_mesh_bytes
 from arap.server.protocol import decode_binary, encode_binary
 from arap.shapes import sphere, sphere_frequency_for
+from benchjson import add_json_option, figure, write_results
 
 ROOT = Path(__file__).resolve().parents[1]
 DEFAULT_MESH = ROOT.parent / "shared" / "meshes" / "armadillo.obj"
@@ -439,7 +440,26 @@ async def main_async(args: argparse.Namespace) -> dict[str, Any]:
     return results
 
 
-def main() -> None:
+def studio_figures(results: dict[str, Any]) -> list[dict[str, Any]]:
+    """The headline figures of ``results`` (either mode) for ``--json``."""
+    figures = []
+    for p in results.get("payload", []):
+        where = f"{p['mesh']} ({p['n_vertices']:,} vertices)"
+        figures.append(figure(f"upload to first drag answered, {where}", p["upload_to_first_answer_ms"], "ms"))
+        figures.append(figure(f"bytes per update, 20% region moving, {where}", p["roi20"]["bytes_per_update"] / 1024,
+                              "KiB", "whole mesh moving", p["whole"]["bytes_per_update"] / 1024))
+    for r in results.get("single", []):
+        figures.append(figure(f"updates per second, {r['label']}", r["updates_per_s"], "updates/s", "target",
+                              TARGET_UPDATES if r["label"] == "interactive, 1 it" else None, better="higher"))
+        figures.append(figure(f"drag latency p95, {r['label']}", r["latency_p95_ms"], "ms", "target",
+                              TARGET_P95_MS if r["label"] == "interactive, 1 it" else None))
+    for c in results.get("concurrent", []):
+        figures.append(figure(f"sessions holding 10 updates/s, of {c['sessions']} dragging at once",
+                              c["holding_10"], "sessions", "all", c["sessions"], better="higher"))
+    return figures
+
+
+def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--mesh", type=Path, default=DEFAULT_MESH, help="mesh file to upload")
     parser.add_argument("--seconds", type=float, default=5.0, help="duration of each run")
@@ -447,19 +467,19 @@ def main() -> None:
     parser.add_argument("--sessions", type=int, nargs="+", default=[1, 2, 4, 8], help="concurrent sessions")
     parser.add_argument("--concurrent-iterations", type=int, default=1, help="iterations per update when "
                         "several sessions drag at once")
-    parser.add_argument("--json", type=Path, help="also write the figures to this file")
+    add_json_option(parser, "bench_studio")
     parser.add_argument("--payload", action="store_true", help="report upload-to-ready and bytes per update "
                         "(full frames vs a 20%% region) instead of throughput")
     parser.add_argument("--subdivide", action="store_true", help="with --payload, also the mesh subdivided once")
     parser.add_argument("--sphere", type=int, default=0, metavar="N", help="with --payload, also a geodesic "
                         "sphere of about N vertices (OBJ)")
     parser.add_argument("--updates", type=int, default=30, help="drags per constraint set with --payload")
-    args = parser.parse_args()
+    args = parser.parse_args(argv)
     if not args.mesh.is_file():
         parser.error(f"mesh not found: {args.mesh}")
     results = asyncio.run(main_async(args))
     if args.json:
-        args.json.write_text(json.dumps(results, indent=2))
+        write_results(args.json, "bench_studio", studio_figures(results), results)
 
 
 if __name__ == "__main__":
