@@ -39,8 +39,9 @@ __all__ = ["ThreadPolicy", "ensure_writable_cache", "kernel_lock", "policy"]
 
 PARALLEL_MIN_WORK = 50_000
 """Edge terms below which kernels run on one thread (about 4k vertices with spoke cells, local step and right-hand
-side together). Measured on the 2-core machine: below about 20k terms one thread is faster even on idle cores; at
-50k two threads save about a third on idle cores, while a busy core can make a parallel launch 20-100× slower."""
+side together). On a 2-core machine, below about 20k terms one thread is faster even on idle cores; at 50k two
+threads save a useful part of the time on idle cores, while a busy core can make a parallel launch many times slower
+(``benchmarks/bench_armadillo.py`` times the kernels serially, on all threads and as the policy chooses)."""
 WORK_PER_THREAD = 25_000
 """Edge terms per thread above :data:`PARALLEL_MIN_WORK`."""
 PROBE_EVERY = 16

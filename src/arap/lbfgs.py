@@ -29,8 +29,9 @@ MAX_SCALE = 4.0
 
 @nb.njit(cache=True, nogil=True, fastmath={"reassoc", "contract"})
 def _dot(a: NDArray[np.float64], b: NDArray[np.float64]) -> float:  # pragma: no cover - compiled
-    # The sum may be reordered into SIMD lanes (a fixed order for a given build): about 4× faster than one running
-    # sum, which waits on the latency of every addition.
+    # The sum may be reordered into SIMD lanes (a fixed order for a given build): several times faster than one
+    # running sum, which waits on the latency of every addition (benchmarks/bench_armadillo.py times an L-BFGS
+    # iteration against a plain one).
     total = 0.0
     for i in range(a.size):
         total += a[i] * b[i]
@@ -248,10 +249,11 @@ class LbfgsHistory:
         the energy does. The initial inverse Hessian is then scaled for the next directions by
         ``γ = sᵀH₀⁻¹s / sᵀy`` (the Barzilai-Borwein step length in the metric of ``H₀⁻¹``), clipped to
         ``[1, MAX_SCALE]``: where the energy is flatter than the system matrix (the nearly free turns of a limb
-        about its joint) the unscaled steps fall short, and the line search accepted twice the step in 90% of the
-        iterations of a settle on the armadillo. With spokes-and-rims cells, scaled steps took 24–38% fewer
+        about its joint) the unscaled steps fall short, and the line search accepted twice the step in most
+        iterations of a settle on the armadillo. With spokes-and-rims cells, scaled steps took markedly fewer
         iterations to the same minima on four meshes and three scenarios (at most 4: larger factors made the line
-        search backtrack more; see ``benchmarks/README.md``).
+        search backtrack more; ``benchmarks/bench_convergence.py`` measures the iterations to convergence, and
+        ``benchmarks/README.md`` describes the runs).
         """
         S, Y = self._slots(x.size)
         free = [k for k in range(self.window) if k not in self._order]

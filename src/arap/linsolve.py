@@ -15,10 +15,11 @@ Backends:
 * ``scipy``: SciPy's SuperLU in symmetric mode, always available.
 
 The default (:func:`default_backend`) trades factorisation time against solve time, which every iteration pays.
-``sksparse`` factorises a 1M-vertex sphere's matrix in ~8 s instead of cholespy's ~24 s, but its converted factor
-keeps the zeros of CHOLMOD's relaxed supernodes and solves 15–40% slower (measured on spheres of 40k–1M vertices
-and the shared scans). So cholespy is the default below :data:`LARGE_SYSTEM` unknowns, where it also factorises
-as fast, and scikit-sparse above, where factorisation dominates.
+``sksparse`` factorises a large matrix (a 1M-vertex sphere's) several times faster than cholespy, but its converted
+factor keeps the zeros of CHOLMOD's relaxed supernodes and solves noticeably slower, at every size (both are measured
+side by side by ``benchmarks/bench_scaling.py --backends sksparse cholespy``). So cholespy is the default below
+:data:`LARGE_SYSTEM` unknowns, where it also factorises as fast, and scikit-sparse above, where factorisation
+dominates.
 """
 
 from __future__ import annotations
@@ -299,7 +300,7 @@ def factorize(A: sp.csr_matrix | sp.csc_matrix | sp.coo_matrix, backend: str | N
         None: :func:`default_backend` for the matrix's size.
     ordering : {"metis", "nesdis", "amd"}
         Fill-reducing ordering for ``sksparse``: METIS' nested dissection (the default: on a 1M-vertex sphere about
-        1.6× less fill than AMD and a quarter faster to compute than ``nesdis``), CHOLMOD's own nested dissection
+        1.6× less fill than AMD, and quicker to compute than ``nesdis``), CHOLMOD's own nested dissection
         (METIS bisections, constrained minimum degree inside; what cholespy uses), or approximate minimum degree
         (fastest to compute, most fill). The other backends choose their own.
     permutation : (k,) int array, BackgroundOrdering or None

@@ -94,14 +94,14 @@ START_NAMES: tuple[str, ...] = ("auto", "rest", "rigid")
 #: to the bounding-box diagonal. The step underestimates the distance to the minimum along the energy's soft modes
 #: by a factor of about 1,000 at the worst vertex: on the armadillo, five drags settled as the studio settles them and
 #: the same constraints solved from a cold start (as ``arap deform`` does) ended up to 3.7e-6 diagonals apart at
-#: 1e-9, and at most 4.1e-7 at 1e-10 (13-27% more iterations), within the 1e-6 the two must agree to.
+#: 1e-9, and at most 4.1e-7 at 1e-10 (for somewhat more iterations), within the 1e-6 the two must agree to.
 DEFAULT_TOLERANCE = 1e-10
 #: Hard cap on iterations when ``max_iterations`` is None.
 MAX_ITERATIONS = 10_000
 #: Default Anderson window (iterates used).
 DEFAULT_WINDOW = 5
 #: Default L-BFGS memory (curvature pairs kept): with 8 pairs it needed as few iterations as Anderson on the meshes
-#: where Anderson converges steadily (with 5, up to 1.8× more).
+#: where Anderson converges steadily (with 5, markedly more; ``benchmarks/bench_convergence.py`` compares the two).
 DEFAULT_LBFGS_MEMORY = 8
 
 

@@ -1,7 +1,8 @@
 """Fill-reducing orderings computed outside CHOLMOD, so that they can run beside the rest of the set-up.
 
 CHOLMOD's nested dissection (``analyze(..., ordering_method="metis")``) holds Python's global interpreter lock for
-its whole run, about 4-5 s for a 1M-vertex sphere, and needs the assembled matrix. Its ordering depends only on the
+its whole run, seconds for a 1M-vertex sphere (``benchmarks/bench_scaling.py`` times it in the set-up's split), and
+needs the assembled matrix. Its ordering depends only on the
 matrix's pattern, which is the mesh graph restricted to the free vertices, known before any weight is computed. So
 the solver asks METIS for the same ordering directly, on a worker thread, while the main thread builds the cells,
 the matrices and the right-hand side's gather (:class:`BackgroundOrdering`), and factorises with the result as a
@@ -21,8 +22,9 @@ process (they would interleave their draws and depend on timing): :data:`_metis_
 two parts: METIS' vertex separator splits it, and the two halves are ordered by nested dissection at the same time,
 each by its own copy of METIS, the separator last. The second copy is loaded into a new link namespace
 (``dlmopen``, GNU C library 2.32 or later), with its own C library and so its own random generator, so that both
-orderings are reproducible. On the 1M-vertex sphere's reduced graph (899k vertices) this orders in 2.3–2.5 s instead
-of 4.0 s, and the factor has 1% fewer non-zeros (7% fewer flops). Where the second copy cannot be loaded, the whole
+orderings are reproducible. On the 1M-vertex sphere's reduced graph (899k vertices) this orders markedly faster than
+one call (``benchmarks/bench_scaling.py`` times the ordering), and the factor has 1% fewer non-zeros (7% fewer
+flops). Where the second copy cannot be loaded, the whole
 graph is ordered by one call, as CHOLMOD orders it.
 """
 
@@ -157,9 +159,9 @@ def nested_dissection(indptr: NDArray[np.integer], indices: NDArray[np.integer],
         diagonal).
     refinement_passes : int or None
         METIS' refinement passes per uncoarsening level (``METIS_OPTION_NITER``); None: METIS' default (10), which
-        is what CHOLMOD uses. Measured on a 1M-vertex sphere's reduced matrix: 1 pass orders in ~0.45 s less (3.7 s
-        instead of 4.3 s) for 0.3% more fill in the factor (1.6% more flops), which every solve pays, so the solver
-        keeps the default.
+        is what CHOLMOD uses. On a 1M-vertex sphere's reduced matrix 1 pass saves only a small part of the ordering's
+        time (``benchmarks/bench_scaling.py`` times the ordering) for 0.3% more fill in the factor (1.6% more flops),
+        which every solve pays, so the solver keeps the default.
     halves : bool or None
         Order the graph's two halves (either side of METIS' vertex separator) at the same time, on two threads with
         two copies of METIS (see the module's docstring). None: where the graph has at least

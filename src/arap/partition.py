@@ -152,9 +152,9 @@ def check_reach(bounds: NDArray[np.float64], X: NDArray[np.float64], what: str =
     """
     if not len(X):
         return
-    # The usual case (a drag), with reductions over whole arrays (those along an axis of an (n, 3) array take
-    # 0.25 ms each on the armadillo's handles): the span over all axes bounds each axis's, and the mesh's own size
-    # is at most the size with the targets.
+    # The usual case (a drag), with reductions over whole arrays (those along an axis of an (n, 3) array are much
+    # slower, see arap.mesh.bounding_box, and this runs on every drag): the span over all axes bounds each axis's,
+    # and the mesh's own size is at most the size with the targets.
     lo, hi = min(float(X.min()), float(bounds.min())), max(float(X.max()), float(bounds.max()))
     reach = max(-lo, hi)
     if hi - lo <= SIZE_RANGE[1] and float((bounds[1] - bounds[0]).max()) >= MIN_RELATIVE_SIZE * reach:

@@ -94,7 +94,7 @@ def loads_json(text: str, *, cooperative: bool = False) -> Any:
     text : str
     cooperative : bool
         Decode numbers through Python-level hooks, so that a thread decoding a large message lets other
-        threads run (about 30% slower).
+        threads run (slower: the price of not holding the interpreter for the whole message).
 
     Raises
     ------

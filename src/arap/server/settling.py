@@ -17,8 +17,9 @@ SETTLE_FRAME_SECONDS = 1.0 / 30.0
 SETTLE_FRAME_MOTION = 1e-4
 """An intermediate frame carries the shape only when some vertex moved farther than this times the rest pose's
 bounding-box diagonal since the last shape sent: a tenth of a pixel with the whole model 1,000 pixels across.
-Settling creeps for its last half: on the armadillo the shape moves less than this per 1/30 s in about half of the
-frames, each 0.5 MB to send and for the client to upload and draw, on the cores the solve uses."""
+Settling creeps for its last half: on a scan such as the armadillo the shape moves less than this per frame interval
+in many of the frames (``benchmarks/bench_settle.py`` counts the frames of each settle), each a whole shape (0.5 MB for
+the armadillo) to send and for the client to upload and draw, on the cores the solve uses."""
 SETTLE_ITERATIONS = 3000
 """Most iterations of one settling run: past them the shape is left as reached (reported not converged)."""
 
