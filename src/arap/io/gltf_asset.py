@@ -17,9 +17,7 @@ import base64
 import copy
 import json
 import logging
-import struct
 import urllib.parse
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -28,226 +26,28 @@ from numpy.typing import NDArray
 
 from arap.errors import MeshError, MeshFormatError, MeshTooLargeError
 from arap.io.asset_model import MeshAsset, group_normals, missing_file_warning, vertex_normal_groups, write_beside
+from arap.io.gltf_container import (
+    COMPRESSION,
+    FLOAT,
+    GLB_MAGIC,
+    MODES,
+    UINT,
+    GltfData,
+    accessor_array,
+    check_compression,
+    format_error,
+    glb_bytes,
+    item,
+    mesh_transforms,
+    parse_json,
+    read_uri,
+    split_glb,
+    triangles,
+)
 
-__all__ = ["GltfData", "geometry_glb", "read_gltf_asset", "write_gltf_asset"]
+__all__ = ["GltfData", "accessor_array", "geometry_glb", "read_gltf_asset", "write_gltf_asset"]
 
 logger = logging.getLogger(__name__)
-
-_GLB_MAGIC = b"glTF"
-_JSON_CHUNK, _BIN_CHUNK = 0x4E4F534A, 0x004E4942
-_FLOAT, _UINT = 5126, 5125
-_COMPONENTS: dict[int, str] = {5120: "<i1", 5121: "<u1", 5122: "<i2", 5123: "<u2", 5125: "<u4", 5126: "<f4"}
-_WIDTHS = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4, "MAT2": 4, "MAT3": 9, "MAT4": 16}
-_COMPRESSION = ("KHR_draco_mesh_compression", "EXT_meshopt_compression", "KHR_meshopt_compression")
-_MODES = {0: "points", 1: "lines", 2: "line loops", 3: "line strips", 4: "triangles", 5: "triangle strips",
-          6: "triangle fans"}
-
-
-@dataclass(eq=False)
-class GltfData:
-    """The glTF document and buffers, and where the asset's vertices come from.
-
-    Attributes
-    ----------
-    document : dict
-        The JSON document as read.
-    buffers : list of bytes
-        Every buffer's content (a GLB's binary chunk is buffer 0).
-    binary : bool
-        Read from a GLB.
-    positions : list of int
-        The POSITION accessors of the triangle primitives, in vertex order (each once).
-    offsets : list of int
-        The first vertex of each.
-    transforms : list of (4, 4) float64 arrays
-        The scene transform applied to each (the first node showing its mesh).
-    normals : list of (position accessor, normal accessor) pairs
-        The NORMAL accessors of triangle primitives, with the POSITION accessor beside them.
-    images : dict of int to bytes
-        The content of images stored in files beside the document, by image index.
-    """
-
-    document: dict[str, Any]
-    buffers: list[bytes]
-    binary: bool
-    positions: list[int] = field(default_factory=list)
-    offsets: list[int] = field(default_factory=list)
-    transforms: list[NDArray[np.float64]] = field(default_factory=list)
-    normals: list[tuple[int, int]] = field(default_factory=list)
-    images: dict[int, bytes] = field(default_factory=dict)
-
-
-def _error(label: str, message: str) -> MeshFormatError:
-    return MeshFormatError(f"cannot read {label} as glTF: {message}")
-
-
-def _split_glb(data: bytes, label: str) -> tuple[dict[str, Any], bytes | None]:
-    if len(data) < 20:
-        raise _error(label, f"the file is {len(data)} bytes long, too short for a GLB header")
-    magic, version, length = struct.unpack_from("<4sII", data, 0)
-    if magic != _GLB_MAGIC:
-        raise _error(label, "it does not start with 'glTF'")
-    if version != 2:
-        raise _error(label, f"GLB version {version} (only glTF 2.0 is supported)")
-    if length > len(data):
-        raise _error(label, f"its header announces {length:,} bytes but the file has {len(data):,} (truncated?)")
-    chunks: list[tuple[int, bytes]] = []
-    at = 12
-    while at + 8 <= length:
-        size, kind = struct.unpack_from("<II", data, at)
-        if at + 8 + size > length:
-            raise _error(label, f"a chunk of {size:,} bytes runs past the end of the file (truncated?)")
-        chunks.append((kind, data[at + 8:at + 8 + size]))
-        at += 8 + size
-    if not chunks or chunks[0][0] != _JSON_CHUNK:
-        raise _error(label, "the first chunk is not the JSON document")
-    document = _parse_json(chunks[0][1], label)
-    binary = next((c for k, c in chunks[1:] if k == _BIN_CHUNK), None)
-    return document, binary
-
-
-def _parse_json(text: bytes, label: str) -> dict[str, Any]:
-    try:
-        document = json.loads(text.decode("utf-8").rstrip(" \0"))
-    except (UnicodeDecodeError, ValueError) as exc:
-        raise _error(label, f"the JSON document is malformed ({exc})") from exc
-    if not isinstance(document, dict):
-        raise _error(label, "the JSON document is not an object")
-    version = str(document.get("asset", {}).get("version", "2.0")) if isinstance(document.get("asset"), dict) \
-        else "2.0"
-    if not version.startswith("2"):
-        raise _error(label, f"glTF version {version} (only 2.0 is supported)")
-    return document
-
-
-def _data_uri(uri: str) -> bytes | None:
-    if not uri.startswith("data:"):
-        return None
-    head, _, payload = uri.partition(",")
-    if head.endswith(";base64"):
-        return base64.b64decode(payload)
-    return urllib.parse.unquote_to_bytes(payload)
-
-
-def _read_uri(uri: str, folder: Path | None) -> bytes | None:
-    from arap.io.paths import read_regular_file
-
-    data = _data_uri(uri)
-    if data is not None:
-        return data
-    if folder is None:
-        return None
-    try:
-        return read_regular_file(folder / urllib.parse.unquote(uri))
-    except OSError:
-        return None
-
-
-def _get(document: dict[str, Any], key: str, index: Any, label: str, what: str) -> dict[str, Any]:
-    items = document.get(key)
-    if not isinstance(index, int) or not isinstance(items, list) or not 0 <= index < len(items) \
-            or not isinstance(items[index], dict):
-        raise _error(label, f"{what} refers to {key[:-1]} {index!r}, which the file does not have")
-    return items[index]
-
-
-def accessor_array(document: dict[str, Any], buffers: list[Any], index: int, label: str) -> NDArray[Any]:
-    """The (count, width) array of an accessor, a view into its buffer (writable where the buffer is)."""
-    acc = _get(document, "accessors", index, label, "a primitive")
-    if "sparse" in acc:
-        raise _error(label, f"accessor {index} is sparse (sparse accessors are not supported here)")
-    try:
-        dtype = np.dtype(_COMPONENTS[acc["componentType"]])
-        width = _WIDTHS[acc["type"]]
-        count = int(acc["count"])
-    except (KeyError, TypeError, ValueError) as exc:
-        raise _error(label, f"accessor {index} has no valid componentType, type or count") from exc
-    if count < 0:
-        raise _error(label, f"accessor {index} has a negative count")
-    if "bufferView" not in acc:
-        return np.zeros((count, width), dtype=dtype)
-    view = _get(document, "bufferViews", acc["bufferView"], label, f"accessor {index}")
-    buffer_index = view.get("buffer")
-    if not isinstance(buffer_index, int) or not 0 <= buffer_index < len(buffers):
-        raise _error(label, f"buffer view {acc['bufferView']} refers to buffer {buffer_index!r}, which the file "
-                            "does not have")
-    buf = buffers[buffer_index]
-    view_offset = int(view.get("byteOffset", 0))
-    view_length = int(view.get("byteLength", 0))
-    element = dtype.itemsize * width
-    stride = int(view.get("byteStride") or element)
-    offset = int(acc.get("byteOffset", 0))
-    need = offset + stride * (count - 1) + element if count else 0
-    if view_offset + view_length > len(buf) or need > view_length or stride < element:
-        raise _error(label, f"accessor {index} reads past the end of its buffer (bytes {view_offset + offset:,} to "
-                            f"{view_offset + need:,} of a buffer of {len(buf):,}; malformed or truncated)")
-    if count == 0:
-        return np.zeros((0, width), dtype=dtype)
-    return np.ndarray((count, width), dtype=dtype, buffer=buf, offset=view_offset + offset,
-                      strides=(stride, dtype.itemsize))
-
-
-def _node_matrix(node: dict[str, Any]) -> NDArray[np.float64]:
-    if "matrix" in node:
-        return np.asarray(node["matrix"], dtype=np.float64).reshape(4, 4).T  # stored column by column
-    M = np.eye(4)
-    x, y, z, w = (float(c) for c in node.get("rotation", (0.0, 0.0, 0.0, 1.0)))
-    R = np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-                  [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-                  [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
-    M[:3, :3] = R * np.asarray(node.get("scale", (1.0, 1.0, 1.0)), dtype=np.float64)
-    M[:3, 3] = np.asarray(node.get("translation", (0.0, 0.0, 0.0)), dtype=np.float64)
-    return M
-
-
-def _mesh_transforms(document: dict[str, Any]) -> dict[int, NDArray[np.float64]]:
-    """The transform of the first node (depth first through the scene) showing each mesh."""
-    nodes = document.get("nodes", [])
-    scenes = document.get("scenes", [])
-    if scenes:
-        roots = scenes[document.get("scene", 0) if isinstance(document.get("scene", 0), int)
-                       and 0 <= document.get("scene", 0) < len(scenes) else 0].get("nodes", [])
-    else:
-        children = {c for node in nodes for c in node.get("children", [])}
-        roots = [i for i in range(len(nodes)) if i not in children]
-    out: dict[int, NDArray[np.float64]] = {}
-    stack = [(int(i), np.eye(4)) for i in reversed(roots)]
-    seen: set[int] = set()
-    while stack:
-        i, parent = stack.pop()
-        if i in seen or not 0 <= i < len(nodes):
-            continue
-        seen.add(i)
-        M = parent @ _node_matrix(nodes[i])
-        if "mesh" in nodes[i]:
-            mesh = int(nodes[i]["mesh"])
-            if mesh in out and not np.array_equal(out[mesh], M):
-                logger.info("mesh %d is shown by several nodes; its vertices are placed by the first, and every "
-                            "instance shows the deformed mesh", mesh)
-            out.setdefault(mesh, M)
-        stack.extend((int(c), M) for c in reversed(nodes[i].get("children", [])))
-    return out
-
-
-def _triangles(indices: NDArray[np.int64], mode: int) -> NDArray[np.int64]:
-    if mode == 4:
-        return indices[: len(indices) // 3 * 3].reshape(-1, 3)
-    if len(indices) < 3:
-        return np.zeros((0, 3), dtype=np.int64)
-    k = np.arange(len(indices) - 2)
-    if mode == 5:  # strip: every other triangle flipped to keep the orientation
-        odd = k % 2 == 1
-        a, b = np.where(odd, k + 1, k), np.where(odd, k, k + 1)
-        return np.stack([indices[a], indices[b], indices[k + 2]], axis=1)
-    return np.stack([np.full_like(k, indices[0]), indices[k + 1], indices[k + 2]], axis=1)
-
-
-def _check_compression(document: dict[str, Any], label: str) -> None:
-    used = set(document.get("extensionsRequired", [])) | set(document.get("extensionsUsed", []))
-    for name in _COMPRESSION:
-        if name in used:
-            raise MeshFormatError(f"{label}: compressed glTF ({name}) is not supported; export it without "
-                                  "compression")
 
 
 def read_gltf_asset(data: bytes, label: str, folder: Path | None, max_vertices: int | None) -> MeshAsset:
@@ -264,42 +64,42 @@ def read_gltf_asset(data: bytes, label: str, folder: Path | None, max_vertices: 
     except MeshError:
         raise
     except (KeyError, TypeError, AttributeError, IndexError, ValueError, OverflowError) as exc:
-        raise _error(label, f"the document is malformed ({type(exc).__name__}: {exc})") from exc
+        raise format_error(label, f"the document is malformed ({type(exc).__name__}: {exc})") from exc
 
 
 def _read_gltf_asset(data: bytes, label: str, folder: Path | None, max_vertices: int | None) -> MeshAsset:
-    binary = data[:4] == _GLB_MAGIC
+    binary = data[:4] == GLB_MAGIC
     if binary:
-        document, chunk = _split_glb(data, label)
+        document, chunk = split_glb(data, label)
     else:
         if not data.strip():
             raise MeshFormatError(f"{label} contains no vertices (the file is empty)")
-        document, chunk = _parse_json(data, label), None
-    _check_compression(document, label)
+        document, chunk = parse_json(data, label), None
+    check_compression(document, label)
     buffers: list[bytes] = []
     for i, buffer in enumerate(document.get("buffers", [])):
         if not isinstance(buffer, dict):
-            raise _error(label, f"buffer {i} is not an object")
+            raise format_error(label, f"buffer {i} is not an object")
         uri = buffer.get("uri")
         if uri is None:
             if not binary or i != 0 or chunk is None:
-                raise _error(label, f"buffer {i} has no URI and there is no binary chunk for it")
+                raise format_error(label, f"buffer {i} has no URI and there is no binary chunk for it")
             content = chunk
         else:
             try:
-                read = _read_uri(str(uri), folder)
+                read = read_uri(str(uri), folder)
             except ValueError as exc:
-                raise _error(label, f"buffer {i} has a malformed data URI ({exc})") from exc
+                raise format_error(label, f"buffer {i} has a malformed data URI ({exc})") from exc
             if read is None:
-                raise _error(label, f"buffer {i} ({str(uri)[:60]!r}) cannot be read")
+                raise format_error(label, f"buffer {i} ({str(uri)[:60]!r}) cannot be read")
             content = read
         length = int(buffer.get("byteLength", len(content)))
         if len(content) < length:
-            raise _error(label, f"buffer {i} holds {len(content):,} bytes, fewer than its byteLength {length:,} "
-                                "(truncated?)")
+            raise format_error(label, f"buffer {i} holds {len(content):,} bytes, fewer than its byteLength {length:,} "
+                               "(truncated?)")
         buffers.append(content)
     gltf = GltfData(document=document, buffers=buffers, binary=binary)
-    transforms = _mesh_transforms(document)
+    transforms = mesh_transforms(document)
     blocks: list[NDArray[np.float64]] = []
     faces: list[NDArray[np.int64]] = []
     face_materials: list[NDArray[np.int64]] = []
@@ -312,23 +112,23 @@ def _read_gltf_asset(data: bytes, label: str, folder: Path | None, max_vertices:
     for m, mesh in enumerate(meshes):
         for p, prim in enumerate(mesh.get("primitives", []) if isinstance(mesh, dict) else []):
             what = f"mesh {m} primitive {p}"
-            if any(name in prim.get("extensions", {}) for name in _COMPRESSION):
+            if any(name in prim.get("extensions", {}) for name in COMPRESSION):
                 raise MeshFormatError(f"{label}: compressed glTF ({next(iter(prim['extensions']))}) is not supported")
             mode = int(prim.get("mode", 4))
-            if mode not in _MODES:
-                raise _error(label, f"{what} has an unknown mode {mode}")
+            if mode not in MODES:
+                raise format_error(label, f"{what} has an unknown mode {mode}")
             if mode < 4:
-                skipped[_MODES[mode]] = skipped.get(_MODES[mode], 0) + 1
+                skipped[MODES[mode]] = skipped.get(MODES[mode], 0) + 1
                 continue
             attributes = prim.get("attributes", {})
             if "POSITION" not in attributes:
-                raise _error(label, f"{what} has no POSITION attribute")
+                raise format_error(label, f"{what} has no POSITION attribute")
             pos = int(attributes["POSITION"])
-            acc = _get(document, "accessors", pos, label, what)
+            acc = item(document, "accessors", pos, label, what)
             if pos not in where:
                 if acc.get("type") != "VEC3":
-                    raise _error(label, f"{what}'s POSITION accessor has type {acc.get('type')!r}, not VEC3")
-                if acc.get("componentType") != _FLOAT:
+                    raise format_error(label, f"{what}'s POSITION accessor has type {acc.get('type')!r}, not VEC3")
+                if acc.get("componentType") != FLOAT:
                     raise MeshFormatError(f"{label}: {what} has quantized or non-float positions "
                                           "(KHR_mesh_quantization), which are not supported")
                 count = int(acc.get("count", 0))
@@ -352,17 +152,17 @@ def _read_gltf_asset(data: bytes, label: str, folder: Path | None, max_vertices:
                 gltf.normals.append((pos, int(attributes["NORMAL"])))
             n = int(acc.get("count", 0))
             if "indices" in prim:
-                idx_acc = _get(document, "accessors", prim["indices"], label, what)
+                idx_acc = item(document, "accessors", prim["indices"], label, what)
                 if idx_acc.get("type") != "SCALAR" or idx_acc.get("componentType") not in (5121, 5123, 5125):
-                    raise _error(label, f"{what} has indices that are not unsigned integer scalars")
+                    raise format_error(label, f"{what} has indices that are not unsigned integer scalars")
                 indices = accessor_array(document, buffers, int(prim["indices"]), label).reshape(-1)
                 indices = indices.astype(np.int64)
             else:
                 indices = np.arange(n, dtype=np.int64)
             if len(indices) and indices.max() >= n:
-                raise _error(label, f"{what} refers to vertex {int(indices.max())}, but its POSITION accessor has "
-                                    f"{n:,} vertices")
-            T = _triangles(indices, mode) + where[pos]
+                raise format_error(label, f"{what} refers to vertex {int(indices.max())}, but its POSITION accessor "
+                                   f"has {n:,} vertices")
+            T = triangles(indices, mode) + where[pos]
             faces.append(T)
             material = prim.get("material", -1)
             face_materials.append(np.full(len(T), material if isinstance(material, int) else -1, dtype=np.int64))
@@ -400,15 +200,15 @@ def _read_gltf_asset(data: bytes, label: str, folder: Path | None, max_vertices:
         if name in textures:
             name = f"image{i}"
         if "bufferView" in image:
-            view = _get(document, "bufferViews", image["bufferView"], label, f"image {i}")
+            view = item(document, "bufferViews", image["bufferView"], label, f"image {i}")
             start = int(view.get("byteOffset", 0))
             try:
                 content = buffers[int(view["buffer"])][start:start + int(view["byteLength"])]
             except (IndexError, KeyError, ValueError) as exc:
-                raise _error(label, f"image {i} refers to a buffer view that cannot be read") from exc
+                raise format_error(label, f"image {i} refers to a buffer view that cannot be read") from exc
             textures[name] = bytes(content)
         elif "uri" in image:
-            blob = _read_uri(str(image["uri"]), folder)
+            blob = read_uri(str(image["uri"]), folder)
             if blob is None:
                 missing_file_warning(f"{label}: the texture {image['uri']!r} cannot be read; its reference is kept")
                 continue
@@ -490,20 +290,6 @@ def _updated(asset: MeshAsset, V: NDArray[np.float64] | None) -> tuple[dict[str,
     _new_normals(asset, gltf, V, buffers)
     return document, [bytes(b) for b in buffers]
 
-
-def _pad(data: bytes, fill: bytes) -> bytes:
-    return data + fill * (-len(data) % 4)
-
-
-def _glb(document: dict[str, Any], binary: bytes | None) -> bytes:
-    text = _pad(json.dumps(document, separators=(",", ":"), ensure_ascii=False).encode("utf-8"), b" ")
-    chunks = struct.pack("<II", len(text), _JSON_CHUNK) + text
-    if binary is not None:
-        body = _pad(binary, b"\0")
-        chunks += struct.pack("<II", len(body), _BIN_CHUNK) + body
-    return struct.pack("<4sII", _GLB_MAGIC, 2, 12 + len(chunks)) + chunks
-
-
 def write_gltf_asset(path: Path, asset: MeshAsset, V: NDArray[np.float64] | None, *, binary: bool) -> list[Path]:
     """Write a glTF asset as GLB (buffers merged into the binary chunk) or glTF (external buffers beside it as
     ``NAME.bin``, ``NAME_1.bin``, ...; data URIs kept); image files it names are written beside it."""
@@ -537,7 +323,7 @@ def write_gltf_asset(path: Path, asset: MeshAsset, V: NDArray[np.float64] | None
                     view["byteOffset"] = int(view.get("byteOffset", 0)) + base[old]
                 view["buffer"] = renumber[old]
             document["buffers"] = [{"byteLength": len(merged)}] + [specs[i] for i in kept]
-        data = _glb(document, bytes(merged) if moved else None)
+        data = glb_bytes(document, bytes(merged) if moved else None)
     else:
         external = [i for i, s in enumerate(specs) if s.get("uri") is None or not str(s["uri"]).startswith("data:")]
         for i, spec in enumerate(specs):
@@ -570,10 +356,10 @@ def geometry_glb(V: NDArray[np.float64], F: NDArray[np.int64], *, binary: bool =
         "scene": 0, "scenes": [{"nodes": [0]}], "nodes": [{"mesh": 0}],
         "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "indices": 1, "mode": 4}]}],
         "accessors": [
-            {"bufferView": 0, "componentType": _FLOAT, "count": len(positions), "type": "VEC3",
+            {"bufferView": 0, "componentType": FLOAT, "count": len(positions), "type": "VEC3",
              "min": [float(x) for x in positions.min(axis=0)] if len(positions) else [0.0] * 3,
              "max": [float(x) for x in positions.max(axis=0)] if len(positions) else [0.0] * 3},
-            {"bufferView": 1, "componentType": _UINT, "count": indices.size, "type": "SCALAR"},
+            {"bufferView": 1, "componentType": UINT, "count": indices.size, "type": "SCALAR"},
         ],
         "bufferViews": [
             {"buffer": 0, "byteOffset": 0, "byteLength": positions.nbytes, "target": 34962},
@@ -582,6 +368,6 @@ def geometry_glb(V: NDArray[np.float64], F: NDArray[np.int64], *, binary: bool =
         "buffers": [{"byteLength": len(blob)}],
     }
     if binary:
-        return _glb(document, blob)
+        return glb_bytes(document, blob)
     document["buffers"][0]["uri"] = "data:application/octet-stream;base64," + base64.b64encode(blob).decode("ascii")
     return json.dumps(document, indent=1).encode("utf-8")
