@@ -45,6 +45,8 @@ def fixtures(tmp_path: Path) -> dict[str, Path]:
         {"name": "time per iteration, bar", "value": 2.0, "unit": "ms", "peer": "libigl", "peer_value": 5.0,
          "better": "lower"},
         {"name": "precompute", "value": 1234.5, "unit": "ms", "better": "lower"},
+        {"name": "distance", "value": 1e-15, "unit": "diagonals", "peer": "libigl", "peer_value": 0.1,
+         "better": "lower"},
     ])
     _results(results, "bench_rate", [
         {"name": "updates per second", "value": 40.0, "unit": "updates/s", "peer": "target", "peer_value": 30.0,
@@ -67,6 +69,7 @@ def test_one_row_per_figure_with_peer_and_ratio(fixtures: dict[str, Path]) -> No
     assert rows == [
         "| `bench_fast` | time per iteration, bar | 2 ms | libigl | 5 ms | 2.50× |",
         "| `bench_fast` | precompute | 1,234 ms | — | — | — |",
+        "| `bench_fast` | distance | 1e-15 diagonals | libigl | 0.1 diagonals | ≥ 1,000× |",
         "| `bench_rate` | updates per second | 40 updates/s | target | 30 updates/s | 1.33× |",
     ]
     assert "| benchmark | figure | arap | peer | peer's | ratio |" in page
