@@ -41,7 +41,8 @@ from typing import Any
 from arap.errors import MeshFormatError
 from arap.io.asset_model import ASSET_FORMATS, MeshAsset, SolveMesh, asset_format, result_trimesh
 from arap.io.gltf_asset import read_gltf_asset, write_gltf_asset
-from arap.io.obj_asset import read_obj_asset, write_obj_asset
+from arap.io.obj_asset import read_obj_asset
+from arap.io.obj_write import write_obj_asset
 from arap.io.paths import read_regular_file
 from arap.io.ply_asset import read_ply_asset, write_ply_asset
 
