@@ -56,6 +56,12 @@ class RepairResult:
     input_V: np.ndarray | None = None
     input_F: np.ndarray | None = None
 
+    @classmethod
+    def identity(cls, V: np.ndarray, F: np.ndarray | None = None) -> RepairResult:
+        """The result of no repair: ``V`` and ``F`` as they are (``F`` None: no triangles), every vertex kept."""
+        faces = np.zeros((0, 3), dtype=np.int64) if F is None else F
+        return cls(V=V, F=faces, vertex_map=np.arange(len(V), dtype=np.int64))
+
     @property
     def renumbers(self) -> bool:
         """True if the repaired vertices are not the input's in the same order (welded or dropped vertices)."""

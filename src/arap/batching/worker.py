@@ -51,8 +51,7 @@ def _load(mesh: str) -> tuple[np.ndarray, np.ndarray, Any]:
     if os.path.isabs(mesh):
         return load_mesh_with_report(mesh)
     V, F = builtin_mesh(mesh)
-    return V, F, RepairResult(V=np.zeros((0, 3)), F=np.zeros((0, 3), dtype=np.int64),
-                              vertex_map=np.arange(len(V), dtype=np.int64))
+    return V, F, RepairResult.identity(V, F)
 
 
 def _structure(c: Any) -> tuple[bytes, ...]:

@@ -151,9 +151,6 @@ def warm_up_kernels(quiet: bool) -> dict[str, object]:
 
 
 # ---------------------------------------------------------------------------------------------- meshes
-def _identity_report(n: int) -> RepairResult:
-    return RepairResult(V=np.zeros((0, 3)), F=np.zeros((0, 3), dtype=np.int64),
-                        vertex_map=np.arange(n, dtype=np.int64))
 
 
 def load_mesh_argument(spec: str, *, repair: bool = True) -> tuple[np.ndarray, np.ndarray, RepairResult, str]:
@@ -178,13 +175,13 @@ def load_mesh_argument(spec: str, *, repair: bool = True) -> tuple[np.ndarray, n
         return V, F, report, str(path)
     if spec in BUILTIN_MESHES:
         V, F = builtin_mesh(spec)
-        return V, F, _identity_report(len(V)), f"built-in {spec}"
+        return V, F, RepairResult.identity(V, F), f"built-in {spec}"
     if spec == "sphere" or spec.startswith("sphere:"):
         try:
             V, F = builtin_mesh(spec)
         except OptionError as exc:
             raise MeshFormatError(str(exc)) from None
-        return V, F, _identity_report(len(V)), "geodesic sphere"
+        return V, F, RepairResult.identity(V, F), "geodesic sphere"
     problem = folder_problem(path.parent)  # a missing folder, or a file where the path needs a folder
     if problem is not None:
         raise MeshFormatError(f"{spec}: no such file ({problem})")

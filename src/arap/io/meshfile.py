@@ -186,9 +186,7 @@ def _finish(
         if result.report:
             logger.info("%s: %s", label, "; ".join(result.report))
         return result.V, result.F, result
-    identity = RepairResult(V=V, F=F, vertex_map=np.arange(len(V), dtype=np.int64), report=[],
-                            counts={})
-    return V, F, identity
+    return V, F, RepairResult.identity(V, F)
 
 
 def load_mesh_bytes_with_report(
