@@ -7,7 +7,7 @@ import numba as nb
 import numpy as np
 
 import arap._numba_cache  # noqa: F401  (a writable cache folder before the kernels below are defined)
-from arap._csr import permuted_rows
+from arap._csr_permute import permuted_rows
 
 
 @nb.njit(cache=True, nogil=True)

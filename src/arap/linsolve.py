@@ -34,7 +34,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 from numpy.typing import NDArray
 
-from arap._csr import permuted_pattern, permuted_symmetric, with_diagonal
+from arap._csr_permute import permuted_pattern, permuted_symmetric, with_diagonal
 from arap._cstdout import c_stdout_to_log
 from arap.errors import OptionError
 from arap.ordering import BackgroundOrdering, metis_available, permute_rows, unpermute_rows
@@ -86,7 +86,7 @@ class _SymbolicPlan:
 
     ``pattern_indptr``/``pattern_indices``: the unpermuted matrix's pattern (the graph with its diagonal);
     ``indptr``/``indices``/``source``: the permuted pattern and where each of its values comes from
-    (:func:`arap._csr.permuted_pattern`); ``factor``: the analysis of the permuted pattern.
+    (:func:`arap._csr_permute.permuted_pattern`); ``factor``: the analysis of the permuted pattern.
     """
 
     pattern_indptr: NDArray[np.integer]

@@ -11,7 +11,7 @@ import pytest
 import scipy.sparse as sp
 
 import arap.ordering as ordering
-from arap._csr import permuted_pattern, permuted_symmetric, with_diagonal
+from arap._csr_permute import permuted_pattern, permuted_symmetric, with_diagonal
 from arap.linsolve import background_ordering, factorize
 from arap.ordering import BackgroundOrdering, metis_available, nested_dissection, permute_rows, unpermute_rows
 from arap.shapes import sphere, sphere_frequency_for
