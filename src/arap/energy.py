@@ -7,7 +7,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from arap.cells import Cells, build_cells, check_stiffness, scale_cells
+from arap.cells import Cells, build_cells
 from arap.covariance import local_step
 from arap.errors import ArapError
 from arap.mesh import MeshLike, check_mesh, is_mesh_like, mesh_arrays
@@ -24,6 +24,7 @@ from arap.rigid import RigidRegions, rigid_regions
 from arap.rotations import identity_rotations
 from arap.smooth import SmoothRotations
 from arap.start import vertex_areas
+from arap.stiffness import check_stiffness, scale_cells
 
 __all__ = ["arap_energy", "cell_distortion", "cell_energies", "distortion_from_cells"]
 

@@ -17,16 +17,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from arap._csr import SparseRowsProduct, leading_blocks
 from arap.addons import AddOn, PlainFit, PointHandles, RigidAddOn, RotationFit, SmoothAddOn, SmoothFit
-from arap.cells import (
-    Cells,
-    RhsGather,
-    build_cells,
-    build_rhs_gather,
-    check_stiffness,
-    scale_cells,
-    singular_system_error,
-    system_matrix,
-)
+from arap.cells import Cells, RhsGather, build_cells, build_rhs_gather, system_matrix
 from arap.colouring import colour_order
 from arap.errors import ConstraintError
 from arap.inactive import InactiveCells
@@ -47,6 +38,7 @@ from arap.points import PointConstraints, PointSystem, check_points
 from arap.rigid import RigidRegions, rigid_regions
 from arap.smooth import SmoothRotations
 from arap.start import vertex_areas
+from arap.stiffness import check_stiffness, scale_cells, singular_system_error
 from arap.topology import locality_order, vertex_adjacency
 
 __all__ = ["Numbering", "Prepared", "prepare"]

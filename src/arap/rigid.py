@@ -4,7 +4,7 @@ A vertex painted with an infinite stiffness belongs to a rigid region (a connect
 Large cell weights alone do not make a region rigid in practice: each cell's rotation is fitted on its own, and the
 alternating local/global iteration needs many steps to turn a stiff region as one piece. Here the cells of a region
 share one rotation, the best fit to the sum of their covariances (the local step's optimum under that constraint),
-and their weights are :data:`arap.cells.RIGID_STIFFNESS`, so the global step keeps the region's edges at that
+and their weights are :data:`arap.stiffness.RIGID_STIFFNESS`, so the global step keeps the region's edges at that
 rotation of their rest vectors: the region moves as a rigid body, and the energy still never rises.
 """
 
@@ -23,7 +23,7 @@ __all__ = ["RIGID_TOLERANCE", "RigidRegions", "rigid_regions"]
 
 RIGID_TOLERANCE = 1e-9
 """Tightest convergence tolerance of a solve with rigid regions (a smaller ``tolerance`` is raised to it). Their cell
-weights (:data:`arap.cells.RIGID_STIFFNESS`) leave the plain step a rounding floor of a few 1e-10 of the diagonal: a
+weights (:data:`arap.stiffness.RIGID_STIFFNESS`) leave the plain step a rounding floor of a few 1e-10 of the diagonal: a
 rigid band of the cactus bent by 1 rad reached 1e-9 in 207 iterations but never 3e-10 (3,000 iterations, the step
 back at 2.6e-9)."""
 

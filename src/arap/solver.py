@@ -79,7 +79,7 @@ class ArapSolver:
         Per-vertex cell weights ``w_i`` of the paper's energy ``Σ_i w_i Σ_j w_ij ‖…‖²`` (Sorkine & Alexa 2007):
         1 is the plain energy (None: all 1), larger values make a vertex's cell stiffer, so a region painted stiff
         moves almost rigidly while softer parts bend; ``np.inf`` keeps a region rigid (to about 1e-8 of its size;
-        see :data:`arap.cells.RIGID_STIFFNESS`). The energies reported include the weights. With the spoke energies
+        see :data:`arap.stiffness.RIGID_STIFFNESS`). The energies reported include the weights. With the spoke energies
         (``spokes``, ``smooth_rotations``) on a mesh with obtuse triangles (negative cotangent weights), unequal
         weights can leave the energy without a minimum: that raises OptionError (``spokes_and_rims`` or
         ``weights="clamped"`` work).
