@@ -478,7 +478,7 @@ def test_a_tab_the_full_server_refuses_says_why_and_retries_slowly(browser: Brow
         expect(second.get_by_test_id("conn-text")).to_have_text("server full")
         expect(second.get_by_test_id("reconnect")).to_be_visible()
         assert [e["code"] for e in second.evaluate("() => window.__arap.errors")] == ["busy"]
-        second.wait_for_timeout(3000)  # the scenario: no new attempt for a while, however long the test waits
+        second.wait_for_timeout(3000)  # the scenario: a refused tab waits for another one to close, not a time
         assert len(sockets) == 1, f"{len(sockets)} connection attempts in 3 s: it should wait for a tab to close"
         expect(status).to_contain_text("The studio server is full")
         assert not second.evaluate("() => window.__arap.ready")
