@@ -14,8 +14,9 @@ The JSON format::
       "points": [{"face": 12, "barycentric": [0.2, 0.3, 0.5],        # optional (version 2): handles inside
                   "target": [0.0, 5.0, 0.1], "weight": 10.0}],       # triangles; no "weight": a hard one
       "version": 2,                             # optional: 1 (the default) or 2 (for "stiffness", "points")
-      "meta": {...}                             # optional, free-form, ignored
-    }
+      "meta": {...},                            # optional, free-form, ignored
+      "keyframes": [...]                        # optional: poses over time for arap animate (arap.keyframes);
+    }                                           #   ignored here, with "keyframe_base"
 
 ``stiffness`` may also be a list of one number (or ``"rigid"``) per vertex. Files without ``version`` are version 1
 and load as before.
@@ -53,7 +54,10 @@ from arap.selection import check_selection, check_targets
 __all__ = ["FORMAT_VERSION", "Constraints", "check_selection", "check_targets", "load_constraints",
            "points_from_json", "read_json", "save_constraints", "stiffness_from_json", "stiffness_to_json"]
 
-_KEYS = ("fixed", "handles", "targets", "roi", "handle_groups", "stiffness", "points", "version", "meta")
+_KEYS = ("fixed", "handles", "targets", "roi", "handle_groups", "stiffness", "points", "version", "meta", "keyframes",
+         "keyframe_base")
+"""Keys a constraints document may hold; ``keyframes`` and ``keyframe_base`` (:mod:`arap.keyframes`) are read by
+``arap animate`` and ignored here, so a document with keyframes also deforms to its ``targets``."""
 
 FORMAT_VERSION = 2
 """Newest constraints file format (2 added ``stiffness``); files of every version up to it load."""

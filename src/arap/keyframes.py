@@ -11,6 +11,10 @@ A keyframes file is a constraints file (:mod:`arap.constraints`) with one more k
       ]
     }
 
+Transforms apply to the handles' rest positions, or, when the document has ``"keyframe_base"`` (one ``[x, y, z]`` per
+handle, in the order of ``"handles"``), to those positions: the studio writes it when its handles' poses are not
+their rest positions (a selection made on a deformed shape). Pivots are then the centroids of those positions.
+
 ``targets`` may be left out of the constraints part: the handles then rest where they are until the keyframes say
 otherwise. Transforms are given per group of ``handle_groups``, in order; handles in no group form one more group
 after them (all handles are one group when there are no ``handle_groups``).
@@ -45,6 +49,7 @@ __all__ = ["MAX_KEYFRAMES", "Keyframe", "Keyframes", "load_keyframes"]
 MAX_KEYFRAMES = 10_000
 """Most keyframes a file may hold."""
 _KEYFRAME_KEYS = ("time", "targets", "transforms")
+_BASE_KEY = "keyframe_base"
 
 
 @dataclass(frozen=True)
@@ -70,7 +75,7 @@ class Keyframes:
     groups : list of (k,) int64 arrays
         Positions in ``constraints.handles`` of each group that ``transforms`` move.
     rest : (h, 3) float64 array
-        Rest positions of the handles (what transforms apply to).
+        Rest positions of the handles (what transforms apply to), or the document's ``keyframe_base``.
     """
 
     constraints: Constraints
@@ -173,7 +178,7 @@ def _parse(data: Mapping[str, Any], V: NDArray[np.float64], n_faces: int | None)
                               '{"time": seconds, "transforms": [...]} objects')
     if len(raw_keys) > MAX_KEYFRAMES:
         raise ConstraintError(f"at most {MAX_KEYFRAMES:,} keyframes, got {len(raw_keys):,}")
-    rest_of = {k: v for k, v in data.items() if k != "keyframes"}
+    rest_of = {k: v for k, v in data.items() if k not in ("keyframes", _BASE_KEY)}
     handles_given = len(rest_of.get("handles") or []) > 0
     if handles_given and "targets" not in rest_of:
         raw_handles = rest_of["handles"]
@@ -218,6 +223,12 @@ def _parse(data: Mapping[str, Any], V: NDArray[np.float64], n_faces: int | None)
             key = Keyframe(time=t, transforms=M)
             keys.append(key)
     rest = V[constraints.handles].copy()
+    if data.get(_BASE_KEY) is not None:
+        try:
+            rest = check_targets(data[_BASE_KEY], h)
+        except ConstraintError as exc:
+            raise ConstraintError(f"{_BASE_KEY}: {exc}") from None
+        check_reach(box, rest, _BASE_KEY)
     frames = Keyframes(constraints=constraints, keys=keys, groups=groups, rest=rest)
     for key in keys:
         if key.transforms is not None:

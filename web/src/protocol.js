@@ -19,6 +19,7 @@ export const CLIENT = Object.freeze(/** @type {const} */ ({
   "APPLY": "apply",
   "EXPORT": "export",
   "GET_CONSTRAINTS": "get_constraints",
+  "EXPORT_ANIMATION": "export_animation",
   "GET_DISTORTION": "get_distortion"
 }));
 
@@ -32,6 +33,8 @@ export const SERVER = Object.freeze(/** @type {const} */ ({
   "STATE": "state",
   "CONSTRAINTS": "constraints",
   "EXPORT": "export",
+  "ANIMATION_PROGRESS": "animation_progress",
+  "ANIMATION": "animation",
   "DISTORTION": "distortion",
   "ERROR": "error"
 }));
@@ -304,8 +307,46 @@ export const CLIENT_MESSAGES = Object.freeze({
   },
   "get_constraints": {
     "binary": false,
-    "doc": "ask for the constraints document (command-line format)",
-    "fields": []
+    "doc": "ask for the constraints document (command-line format), with the timeline's keyframes when given (as arap animate reads them)",
+    "fields": [
+      {
+        "name": "times_ms",
+        "kind": "indices",
+        "required": false,
+        "maxLength": 1000
+      },
+      {
+        "name": "transforms",
+        "kind": "matrices",
+        "required": false,
+        "maxLength": 65536
+      }
+    ]
+  },
+  "export_animation": {
+    "binary": false,
+    "doc": "solve the keyframed animation at fps, every frame to convergence from the previous one with the session's solver and parameters (point handles hold still), and answer with an animated GLB (morph targets); animation_progress messages report the frames solved, and any new request cancels it",
+    "fields": [
+      {
+        "name": "times_ms",
+        "kind": "indices",
+        "required": true,
+        "maxLength": 1000
+      },
+      {
+        "name": "transforms",
+        "kind": "matrices",
+        "required": true,
+        "maxLength": 65536
+      },
+      {
+        "name": "fps",
+        "kind": "number",
+        "required": true,
+        "min": 1,
+        "max": 120
+      }
+    ]
   },
   "get_distortion": {
     "binary": false,
@@ -560,6 +601,62 @@ export const SERVER_MESSAGES = Object.freeze({
       }
     ]
   },
+  "animation_progress": {
+    "binary": false,
+    "doc": "progress of export_animation: sent before the first frame, then at most 10 times per second while frames are solved, and once more when a new request cancelled it",
+    "fields": [
+      {
+        "name": "status",
+        "kind": "enum",
+        "required": true,
+        "choices": [
+          "solving",
+          "cancelled"
+        ]
+      },
+      {
+        "name": "frame",
+        "kind": "int",
+        "required": true
+      },
+      {
+        "name": "frames",
+        "kind": "int",
+        "required": true
+      },
+      {
+        "name": "seconds",
+        "kind": "number",
+        "required": true
+      }
+    ]
+  },
+  "animation": {
+    "binary": true,
+    "doc": "answer to export_animation (payload: the GLB file's bytes: the first frame as the mesh, every frame a morph target, and an animation of the morph weights)",
+    "fields": [
+      {
+        "name": "filename",
+        "kind": "string",
+        "required": true
+      },
+      {
+        "name": "mime",
+        "kind": "string",
+        "required": true
+      },
+      {
+        "name": "frames",
+        "kind": "int",
+        "required": true
+      },
+      {
+        "name": "seconds",
+        "kind": "number",
+        "required": true
+      }
+    ]
+  },
   "distortion": {
     "binary": true,
     "doc": "answer to get_distortion: how far each cell is from rigid, its energy over its weighted rest size (payload: float32[n_vertices])",
@@ -690,9 +787,20 @@ export const SERVER_MESSAGES = Object.freeze({
  */
 
 /**
- * ask for the constraints document (command-line format)
+ * ask for the constraints document (command-line format), with the timeline's keyframes when given (as arap animate reads them)
  * @typedef {object} GetConstraintsClientMessage
  * @property {"get_constraints"} type
+ * @property {number[]} [times_ms] keyframe times in milliseconds, increasing (absent or empty: no keyframes)
+ * @property {number[][]} [transforms] per keyframe, one column-major 4x4 matrix per handle group (point handles excluded), keyframe after keyframe
+ */
+
+/**
+ * solve the keyframed animation at fps, every frame to convergence from the previous one with the session's solver and parameters (point handles hold still), and answer with an animated GLB (morph targets); animation_progress messages report the frames solved, and any new request cancels it
+ * @typedef {object} ExportAnimationClientMessage
+ * @property {"export_animation"} type
+ * @property {number[]} times_ms keyframe times in milliseconds, increasing
+ * @property {number[][]} transforms per keyframe, one column-major 4x4 matrix per handle group (point handles excluded), keyframe after keyframe
+ * @property {number} fps frames per second
  */
 
 /**
@@ -701,7 +809,7 @@ export const SERVER_MESSAGES = Object.freeze({
  * @property {"get_distortion"} type
  */
 
-/** Any message a client sends. @typedef {LoadBuiltinClientMessage|UploadClientMessage|SetConstraintsClientMessage|DragClientMessage|EndDragClientMessage|SetParamsClientMessage|UndoClientMessage|RedoClientMessage|ResetClientMessage|ApplyClientMessage|ExportClientMessage|GetConstraintsClientMessage|GetDistortionClientMessage} ClientMessage */
+/** Any message a client sends. @typedef {LoadBuiltinClientMessage|UploadClientMessage|SetConstraintsClientMessage|DragClientMessage|EndDragClientMessage|SetParamsClientMessage|UndoClientMessage|RedoClientMessage|ResetClientMessage|ApplyClientMessage|ExportClientMessage|GetConstraintsClientMessage|ExportAnimationClientMessage|GetDistortionClientMessage} ClientMessage */
 
 /**
  * sent once on connect, followed by a mesh frame
@@ -790,6 +898,26 @@ export const SERVER_MESSAGES = Object.freeze({
  */
 
 /**
+ * progress of export_animation: sent before the first frame, then at most 10 times per second while frames are solved, and once more when a new request cancelled it
+ * @typedef {object} AnimationProgressServerMessage
+ * @property {"animation_progress"} type
+ * @property {"solving"|"cancelled"} status solving, or cancelled (a request arrived; nothing is exported)
+ * @property {number} frame frames solved so far
+ * @property {number} frames frames of the animation
+ * @property {number} seconds time since the export started
+ */
+
+/**
+ * answer to export_animation (payload: the GLB file's bytes: the first frame as the mesh, every frame a morph target, and an animation of the morph weights)
+ * @typedef {object} AnimationServerMessage
+ * @property {"animation"} type
+ * @property {string} filename suggested file name
+ * @property {string} mime media type
+ * @property {number} frames frames in the file
+ * @property {number} seconds time spent solving and encoding
+ */
+
+/**
  * answer to get_distortion: how far each cell is from rigid, its energy over its weighted rest size (payload: float32[n_vertices])
  * @typedef {object} DistortionServerMessage
  * @property {"distortion"} type
@@ -806,7 +934,7 @@ export const SERVER_MESSAGES = Object.freeze({
  * @property {string} request type of the rejected message, or null
  */
 
-/** Any message the server sends (of a binary one: its header). @typedef {WelcomeServerMessage|MeshServerMessage|AppearanceServerMessage|VerticesServerMessage|SettleServerMessage|StateServerMessage|ConstraintsServerMessage|ExportServerMessage|DistortionServerMessage|ErrorServerMessage} ServerMessage */
+/** Any message the server sends (of a binary one: its header). @typedef {WelcomeServerMessage|MeshServerMessage|AppearanceServerMessage|VerticesServerMessage|SettleServerMessage|StateServerMessage|ConstraintsServerMessage|ExportServerMessage|AnimationProgressServerMessage|AnimationServerMessage|DistortionServerMessage|ErrorServerMessage} ServerMessage */
 
 const textEncoder = new TextEncoder();
 const textDecoder = new TextDecoder();

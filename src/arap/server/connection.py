@@ -26,6 +26,7 @@ from starlette.websockets import WebSocket, WebSocketDisconnect
 
 import arap
 from arap.kernel_cache import KERNELS_READY
+from arap.server.animation_export import AnimationCancelled
 from arap.server.budget import ByteBudget, RequestQueue, request_cost
 from arap.server.decoder import PROCESS_BYTES, FrameDecoder
 from arap.server.heatmap import distortion_frame
@@ -457,6 +458,46 @@ class Connection:
                                              energy=readable_energy(energy, self.session.diagonal),
                                              seconds=None if seconds is None else round(seconds, 4)))
 
+    async def _export_animation(self, f: dict[str, Any]) -> None:
+        """Solve and send the animated GLB of export_animation off the event loop, with ``animation_progress`` at
+        most 10 times per second; a queued request cancels it (``cancelled`` is sent, then that request runs)."""
+        loop = asyncio.get_running_loop()
+        last = [0.0]
+        t0 = time.perf_counter()
+
+        def progress(done: int, frames: int) -> None:
+            now = time.perf_counter()
+            if done and done < frames and now - last[0] < 0.1:
+                return
+            last[0] = now
+            message = server_message("animation_progress", status="solving", frame=done, frames=frames,
+                                     seconds=round(now - t0, 3))
+            with contextlib.suppress(RuntimeError):  # the loop has closed: the connection is gone
+                loop.call_soon_threadsafe(self._spawn_json, message)
+
+        try:
+            filename, mime, data, frames, seconds = await self._off_loop(
+                self.session.export_animation, f["times_ms"], f["transforms"], f["fps"],
+                lambda: bool(self._queue) or self._closed, progress)
+        except AnimationCancelled:
+            await self._send_json(server_message("animation_progress", status="cancelled", frame=0, frames=0,
+                                                 seconds=round(time.perf_counter() - t0, 3)))
+            return
+        finally:
+            if self._frame_tasks:
+                await asyncio.gather(*self._frame_tasks, return_exceptions=True)
+        await self._send_binary(server_message("animation", filename=filename, mime=mime, frames=frames,
+                                               seconds=round(seconds, 3)), data)
+
+    def _spawn_json(self, message: dict[str, Any]) -> None:
+        task = asyncio.ensure_future(self._send_json_quietly(message))
+        self._frame_tasks.add(task)
+        task.add_done_callback(self._frame_tasks.discard)
+
+    async def _send_json_quietly(self, message: dict[str, Any]) -> None:
+        with contextlib.suppress(WebSocketDisconnect, RuntimeError, OSError):
+            await self._send_json(message)
+
     # ------------------------------------------------------------------ requests
     async def _handle(self, msg: ClientMessage) -> None:
         s = self.session
@@ -505,6 +546,9 @@ class Connection:
             header, data = await self._off_loop(distortion_frame, s)
             await self._send_binary(header, data)
         elif t == "get_constraints":
-            await self._send_json(server_message("constraints", document=s.constraints_document()))
+            document = await self._off_loop(s.constraints_document, f.get("times_ms"), f.get("transforms"))
+            await self._send_json(server_message("constraints", document=document))
+        elif t == "export_animation":
+            await self._export_animation(f)
         else:
             raise RequestError("bad_message", f"unhandled message type {t!r}")

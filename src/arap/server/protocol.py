@@ -65,6 +65,18 @@ MAX_HANDLE_GROUPS = 256
 MAX_STIFFNESS_GROUPS = 256
 """Most stiffness groups (distinct painted values) in one set_constraints."""
 
+MAX_KEYFRAMES = 1000
+"""Most keyframes of a get_constraints or export_animation."""
+
+MAX_KEYFRAME_MATRICES = 65536
+"""Most transforms (keyframes times handle groups) of a get_constraints or export_animation."""
+
+MAX_FPS = 120
+"""Highest frame rate of export_animation."""
+
+ANIMATION_STATUSES: tuple[str, ...] = ("solving", "cancelled")
+"""Values of the ``status`` field of ``animation_progress`` messages."""
+
 MAX_SEQ = 2**53 - 1
 """Largest ``seq`` of a drag (the largest integer a JavaScript number holds exactly)."""
 
@@ -194,7 +206,20 @@ CLIENT_MESSAGES: dict[str, MessageSpec] = {
         _spec("export", "ask for the deformed mesh as a file (GLB keeps a textured or coloured source's UVs, "
               "textures and colours)",
               Field("format", "enum", "file format", choices=EXPORT_FORMATS)),
-        _spec("get_constraints", "ask for the constraints document (command-line format)"),
+        _spec("get_constraints", "ask for the constraints document (command-line format), with the timeline's "
+              "keyframes when given (as arap animate reads them)",
+              Field("times_ms", "indices", "keyframe times in milliseconds, increasing (absent or empty: no "
+                    "keyframes)", required=False, max_length=MAX_KEYFRAMES),
+              Field("transforms", "matrices", "per keyframe, one column-major 4x4 matrix per handle group (point "
+                    "handles excluded), keyframe after keyframe", required=False, max_length=MAX_KEYFRAME_MATRICES)),
+        _spec("export_animation", "solve the keyframed animation at fps, every frame to convergence from the "
+              "previous one with the session's solver and parameters (point handles hold still), and answer with an "
+              "animated GLB (morph targets); animation_progress messages report the frames solved, and any new "
+              "request cancels it",
+              Field("times_ms", "indices", "keyframe times in milliseconds, increasing", max_length=MAX_KEYFRAMES),
+              Field("transforms", "matrices", "per keyframe, one column-major 4x4 matrix per handle group (point "
+                    "handles excluded), keyframe after keyframe", max_length=MAX_KEYFRAME_MATRICES),
+              Field("fps", "number", "frames per second", minimum=1, maximum=MAX_FPS)),
         _spec("get_distortion", "ask for the per-vertex distortion of the current shape (the heat map)"),
     )
 }
@@ -273,6 +298,20 @@ SERVER_MESSAGES: dict[str, MessageSpec] = {
         _spec("export", "answer to export (payload: the file's bytes)",
               Field("filename", "string", "suggested file name"),
               Field("mime", "string", "media type"),
+              binary=True),
+        _spec("animation_progress", "progress of export_animation: sent before the first frame, then at most 10 "
+              "times per second while frames are solved, and once more when a new request cancelled it",
+              Field("status", "enum", "solving, or cancelled (a request arrived; nothing is exported)",
+                    choices=ANIMATION_STATUSES),
+              Field("frame", "int", "frames solved so far"),
+              Field("frames", "int", "frames of the animation"),
+              Field("seconds", "number", "time since the export started")),
+        _spec("animation", "answer to export_animation (payload: the GLB file's bytes: the first frame as the mesh, "
+              "every frame a morph target, and an animation of the morph weights)",
+              Field("filename", "string", "suggested file name"),
+              Field("mime", "string", "media type"),
+              Field("frames", "int", "frames in the file"),
+              Field("seconds", "number", "time spent solving and encoding"),
               binary=True),
         _spec("distortion", "answer to get_distortion: how far each cell is from rigid, its energy over its "
               "weighted rest size (payload: float32[n_vertices])",

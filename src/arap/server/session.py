@@ -19,6 +19,7 @@ import arap
 from arap.cells import EnergyType
 from arap.errors import ArapError
 from arap.mesh import bounding_box
+from arap.server.animation_export import ProgressCallback, export_animation, keyframes_document
 from arap.server.constraints import ConstraintSet, identity_transforms, matrices_from_json, matrices_to_json
 from arap.server.history import History, Snapshot
 from arap.server.meshdata import MeshData, export_mesh
@@ -479,11 +480,23 @@ class Session:
         except ArapError as exc:
             raise RequestError("bad_mesh", f"cannot export: {exc}") from exc
 
-    def constraints_document(self) -> dict[str, Any]:
+    def constraints_document(self, times_ms: Any = None, transforms: Any = None) -> dict[str, Any]:
         """The current constraints in the command-line format, in the mesh file's vertex numbering (as ``arap
-        deform`` reads them; :func:`arap.server.numbering.document_in_file_numbering`)."""
+        deform`` reads them; :func:`arap.server.numbering.document_in_file_numbering`); with the timeline's keyframes
+        (``times_ms``, ``transforms``: :mod:`arap.server.animation_export`) as ``arap animate`` reads them."""
         mesh = self._require_mesh()
+        if times_ms is not None and len(times_ms):
+            return keyframes_document(self, times_ms, transforms or [])
         return document_in_file_numbering(self.constraints.document(self.V, self.transforms), mesh)
+
+    def export_animation(self, times_ms: Any, transforms: Any, fps: float, interrupted: Callable[[], bool],
+                         progress: ProgressCallback | None = None) -> tuple[str, str, bytes, int, float]:
+        """The keyframed animation solved at ``fps`` as an animated GLB (:func:`arap.server.animation_export.
+        export_animation`); the shape and history are kept, and the next solve starts from the shape shown."""
+        try:
+            return export_animation(self, times_ms, transforms, fps, interrupted, progress)
+        finally:
+            self._warm = False  # the solver's last solution is an animation frame, not the shape shown
 
     # ------------------------------------------------------------------ replies
     def state(self) -> dict[str, Any]:
