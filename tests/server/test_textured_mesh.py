@@ -253,3 +253,42 @@ def test_glb_export_of_plain_and_coloured_meshes(connect: Any, tmp_path: Path) -
     out.write_bytes(reply.payload)
     back = load_asset(out)
     assert back.vertex_colors is not None and len(back.vertices) == len(studio.V)
+
+
+def test_ply_and_obj_exports_of_their_own_sources_keep_the_attributes(connect: Any, tmp_path: Path) -> None:
+    studio, _ = connect(coloured_ply(tmp_path / "ball.ply"))
+    studio.send({"type": "export", "format": "ply"})
+    reply = studio.expect("export")
+    assert reply.payload is not None
+    (tmp_path / "out.ply").write_bytes(reply.payload)
+    back = load_asset(tmp_path / "out.ply")
+    source = load_asset(tmp_path / "ball.ply")
+    assert back.vertex_colors is not None
+    np.testing.assert_array_equal(back.vertex_colors, source.vertex_colors)
+
+    obj = tmp_path / "grid.obj"
+    textured_grid().export(obj)  # OBJ + MTL + texture beside it
+    studio, _ = connect(obj)
+    lo, hi = studio.bottom_top(0.2)
+    studio.set_constraints(lo, [hi])
+    studio.drag(1, [translation(0.0, 0.0, 0.4)])
+    studio.send({"type": "end_drag"})
+    studio.expect("state")
+    studio.send({"type": "export", "format": "obj"})
+    while (reply := studio.recv()).type != "export":  # the shape settles first
+        pass
+    assert reply.payload is not None
+    text = reply.payload.decode()
+    assert "mtllib" in text and "usemtl" in text and "vt " in text, "texture references and UVs kept"
+    (tmp_path / "grid-deformed.obj").write_bytes(reply.payload)  # beside the original MTL and texture
+    back = load_asset(tmp_path / "grid-deformed.obj")
+    source = load_asset(obj)
+    assert back.uvs is not None and source.uvs is not None
+    np.testing.assert_array_equal(back.uvs, source.uvs)
+    assert back.textures, "the MTL beside it still names the texture"
+    assert np.abs(back.vertices - source.vertices).max() > 0.1, "the export has the deformed shape"
+
+    studio, _ = connect("bar")  # a plain mesh: geometry, as before
+    studio.send({"type": "export", "format": "obj"})
+    reply = studio.expect("export")
+    assert reply.payload is not None and b"mtllib" not in reply.payload

@@ -32,10 +32,12 @@ import numpy as np
 from arap.errors import ArapError
 from arap.io import load_asset, load_asset_bytes, save_asset, save_mesh_bytes
 from arap.io.asset_model import MeshAsset, result_trimesh, weld_rows
-from arap.server.meshdata import MeshData
+from arap.io.obj_write import obj_text
+from arap.server.meshdata import EXPORT_MIME, MeshData, export_mesh
 from arap.server.protocol import encode_binary, server_message
 
-__all__ = ["MAX_TEXTURE_BYTES", "Look", "build_look", "export_glb", "look_from_path", "look_from_upload"]
+__all__ = ["MAX_TEXTURE_BYTES", "Look", "build_look", "export_asset", "export_glb", "look_from_path",
+           "look_from_upload"]
 
 logger = logging.getLogger(__name__)
 
@@ -299,3 +301,29 @@ def export_glb(name: str, U: np.ndarray, F: np.ndarray, look: Look | None) -> tu
     data = result_trimesh(positions, look.asset).export(file_type="glb")
     assert isinstance(data, bytes)
     return filename, GLB_MIME, data
+
+
+def export_asset(name: str, U: np.ndarray, F: np.ndarray, look: Look | None, fmt: str) -> tuple[str, str, bytes]:
+    """The deformed mesh as a file of format ``fmt``: GLB as :func:`export_glb`; a PLY source as PLY keeps its
+    colours and UVs, an OBJ source as OBJ its texture coordinates, normals (recomputed), groups, materials and its
+    ``mtllib`` references as they were (the MTL file and textures beside the original file serve the download too);
+    anything else is the geometry (:func:`arap.server.meshdata.export_mesh`).
+
+    Returns
+    -------
+    filename, mime, data
+    """
+    if fmt == "glb":
+        return export_glb(name, U, F, look)
+    if look is None or look.asset.format != fmt:
+        return export_mesh(name, U, F, fmt)
+    positions = look.file_positions(U)
+    if fmt == "obj":
+        data = obj_text(look.asset, positions, list(look.asset.data.mtllibs)).encode("utf-8")
+    else:
+        with tempfile.TemporaryDirectory(prefix="arap-export-") as folder:
+            path = Path(folder) / f"export.{fmt}"
+            _quietly(save_asset, path, look.asset, positions)
+            data = path.read_bytes()
+    return f"{name}-deformed.{fmt}", EXPORT_MIME[fmt], data
+

@@ -22,11 +22,11 @@ from arap.mesh import bounding_box
 from arap.server.animation_export import ProgressCallback, export_animation, keyframes_document
 from arap.server.constraints import ConstraintSet, identity_transforms, matrices_from_json, matrices_to_json
 from arap.server.history import History, Snapshot
-from arap.server.meshdata import MeshData, export_mesh
+from arap.server.meshdata import MeshData
 from arap.server.numbering import document_in_file_numbering, message_in_file_numbering
 from arap.server.protocol import RequestError, server_message
 from arap.server.records import DragOutcome, Params, SettleOutcome
-from arap.server.render_mesh import Look, export_glb
+from arap.server.render_mesh import Look, export_asset
 from arap.server.settling import FrameCallback, settle_solve
 from arap.server.solvers import SolverCache
 from arap.weights import WeightType
@@ -471,12 +471,11 @@ class Session:
         self._commit()
 
     def export(self, fmt: str) -> tuple[str, str, bytes]:
-        """The deformed mesh as a file: ``(filename, mime, bytes)``; GLB keeps the file's UVs, textures and colours."""
+        """The deformed mesh as a file: ``(filename, mime, bytes)``; GLB, and the source's own format, keep the file's
+        UVs, textures and colours (:func:`arap.server.render_mesh.export_asset`)."""
         mesh = self._require_mesh()
         try:
-            if fmt == "glb":
-                return export_glb(mesh.name, self.U, mesh.F, self.look)
-            return export_mesh(mesh.name, self.U, mesh.F, fmt)
+            return export_asset(mesh.name, self.U, mesh.F, self.look, fmt)
         except ArapError as exc:
             raise RequestError("bad_mesh", f"cannot export: {exc}") from exc
 
