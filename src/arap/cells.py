@@ -26,7 +26,6 @@ import scipy.sparse as sp
 
 from arap._csr import csr_from_terms
 from arap.options import DEFAULT_ENERGY, DEFAULT_WEIGHTS, check_energy_and_weights
-from arap.options import EnergyType as EnergyType  # the name the server modules import from here
 from arap.weights import corner_weights, edge_weight_matrix
 
 

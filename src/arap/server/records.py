@@ -5,7 +5,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from arap.cells import EnergyType
+from arap.options import EnergyType
 from arap.server.protocol import PARAMS
 from arap.weights import WeightType
 

@@ -16,9 +16,9 @@ from typing import Any
 import numpy as np
 
 import arap
-from arap.cells import EnergyType
 from arap.errors import ArapError
 from arap.mesh import bounding_box
+from arap.options import EnergyType
 from arap.server.animation_export import ProgressCallback, export_animation, keyframes_document
 from arap.server.constraints import ConstraintSet, identity_transforms, matrices_from_json, matrices_to_json
 from arap.server.history import History, Snapshot
