@@ -65,6 +65,8 @@ _LAZY: dict[str, str] = {
     "load_constraints": "arap.constraints",
     "studio": "arap.notebook",
     "Studio": "arap.notebook",
+    "widget": "arap.jupyter_widget",
+    "StudioWidget": "arap.jupyter_widget",
     "animate": "arap.animation",
     "load_keyframes": "arap.animation",
     "Animation": "arap.animation",
@@ -92,6 +94,7 @@ __all__ = [
     "Picture",
     "RepairResult",
     "Studio",
+    "StudioWidget",
     "UnconstrainedRegionError",
     "__version__",
     "animate",
@@ -119,6 +122,7 @@ __all__ = [
     "show",
     "sphere",
     "studio",
+    "widget",
 ]
 
 if TYPE_CHECKING:
@@ -138,6 +142,7 @@ if TYPE_CHECKING:
         save_mesh,
         save_mesh_bytes,
     )
+    from arap.jupyter_widget import StudioWidget, widget
     from arap.mesh import MeshLike, check_mesh, mesh_arrays
     from arap.notebook import Studio, studio
     from arap.render.picture import Picture

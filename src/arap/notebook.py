@@ -36,9 +36,15 @@ if TYPE_CHECKING:
 
     import uvicorn
 
+    from arap.jupyter_widget import StudioWidget
     from arap.server.session import Session
 
-__all__ = ["Selection", "Studio", "studio"]
+__all__ = ["TRANSPORTS", "Selection", "Studio", "session_selection", "studio"]
+
+TRANSPORTS = ("server", "auto", "widget")
+"""How :func:`studio` connects the page and the session: ``server`` through a WebSocket of a server on 127.0.0.1
+(the default), ``widget`` through the Jupyter kernel's comm (no port), ``auto`` the widget where it works (a Jupyter
+kernel, anywidget installed), else the server."""
 
 START_TIMEOUT = 30.0
 """Seconds :func:`studio` waits for the server to listen."""
@@ -68,6 +74,21 @@ class Selection:
     handle_groups: list[NDArray[np.int64]]
     targets: NDArray[np.float64]
     document: dict[str, Any]
+
+
+def session_selection(session: Session | None) -> Selection:
+    """The selection of a studio session (empty for None or a session without a mesh)."""
+    if session is None or session.mesh is None:
+        empty = np.zeros(0, dtype=np.int64)
+        return Selection(None, empty, [], np.zeros((0, 3)), {"fixed": [], "handles": [], "targets": []})
+    cs, transforms = session.constraints, session.transforms
+    return Selection(
+        roi=None if cs.roi is None else cs.roi.copy(),
+        fixed=cs.fixed.copy(),
+        handle_groups=[g.copy() for g in cs.groups],
+        targets=np.array(cs.handle_targets(transforms), dtype=np.float64).reshape(-1, 3),
+        document=session.constraints_document(),
+    )
 
 
 class Studio:
@@ -142,18 +163,7 @@ class Studio:
     def constraints(self) -> Selection:
         """The selection of the most recent browser session opened with this handle's URL (empty before any page
         has connected)."""
-        session = self._session
-        if session is None or session.mesh is None:
-            empty = np.zeros(0, dtype=np.int64)
-            return Selection(None, empty, [], np.zeros((0, 3)), {"fixed": [], "handles": [], "targets": []})
-        cs, transforms = session.constraints, session.transforms
-        return Selection(
-            roi=None if cs.roi is None else cs.roi.copy(),
-            fixed=cs.fixed.copy(),
-            handle_groups=[g.copy() for g in cs.groups],
-            targets=np.array(cs.handle_targets(transforms), dtype=np.float64).reshape(-1, 3),
-            document=session.constraints_document(),
-        )
+        return session_selection(self._session)
 
     def stop(self, timeout: float = 10.0) -> None:
         """Stop the server and wait for its thread (open pages lose their connection); idempotent."""
@@ -191,8 +201,15 @@ def studio(
     show: bool = True,
     height: int = 640,
     constraints: Constraints | Mapping[str, Any] | str | os.PathLike[str] | None = None,
-) -> Studio:
+    transport: str = "server",
+) -> Studio | StudioWidget:
     """Serve a mesh in the studio in the background and show it inline in Jupyter.
+
+    By default (``transport="server"``) a server on 127.0.0.1 serves the page, shown in an iframe (which only
+    works where the browser runs on the kernel's machine) and at :attr:`Studio.url`. With ``transport="auto"`` in
+    a Jupyter kernel with anywidget installed (``pip install "arap[notebook]"``), or ``transport="widget"``, the
+    studio is a widget (:func:`arap.widget`) that talks to the kernel through its comm: it needs no port, works on
+    remote kernels, Colab and VS Code, and the notebook keeps a picture of the shape when saved.
 
     Parameters
     ----------
@@ -211,11 +228,16 @@ def studio(
         Initial constraints of every page opened (the ``arap deform`` format, see :func:`arap.load_constraints`):
         the page shows the anchors, region and handle groups (one group per ``handle_groups`` entry, else one),
         and the shape solved with the handles at their targets.
+    transport : {"server", "auto", "widget"}
+        ``server``: a server on 127.0.0.1 and an iframe; ``widget``: a Jupyter widget through the kernel's comm
+        (needs anywidget; shown where the notebook shows widgets); ``auto``: the widget when ``show`` is true, no
+        ``port`` is given, the code runs in a Jupyter kernel and anywidget is installed, else the server.
 
     Returns
     -------
-    Studio
-        Handle with ``url``, ``vertices``, ``faces``, ``constraints`` and ``stop()`` (also a context manager).
+    Studio or StudioWidget
+        Handle with ``url`` (None for the widget), ``vertices``, ``faces``, ``constraints`` and ``stop()`` (also a
+        context manager).
 
     Raises
     ------
@@ -234,6 +256,15 @@ def studio(
     >>> with arap.studio(*arap.builtin_mesh("bar"), show=False) as s:   # doctest: +SKIP
     ...     print(s.url)
     """
+    if transport not in TRANSPORTS:
+        raise ValueError(f"transport must be one of {', '.join(TRANSPORTS)}, got {transport!r}")
+    if transport == "widget" or (transport == "auto" and show and port == 0 and _widget_works()):
+        from arap.jupyter_widget import widget
+
+        w = widget(V, F, name=name, height=height, constraints=constraints)
+        if show:
+            _display(w)
+        return w
     V, F = check_mesh(*mesh_arrays(V, F))
     prepare = None if constraints is None else _initial_constraints(constraints, len(V))
     try:
@@ -276,7 +307,22 @@ def _initial_constraints(source: Constraints | Mapping[str, Any] | str | os.Path
     return prepare
 
 
-def _display(handle: Studio) -> None:
+def _widget_works() -> bool:
+    """Whether :func:`arap.widget` can be shown here: a Jupyter kernel with comms, anywidget and the built module."""
+    from arap.jupyter_widget import has_comm_kernel
+
+    if not has_comm_kernel():
+        return False
+    try:
+        import anywidget  # noqa: F401
+    except ImportError:
+        return False
+    from arap.server.app import STATIC_DIR
+
+    return (STATIC_DIR / "widget.js").is_file()
+
+
+def _display(handle: Studio | StudioWidget) -> None:
     try:
         from IPython import get_ipython
         from IPython.display import display

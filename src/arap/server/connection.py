@@ -16,37 +16,30 @@ import contextlib
 import json
 import logging
 import time
-from collections.abc import Callable
-from dataclasses import asdict, dataclass
+from collections.abc import Callable, Iterator
 from typing import Any, TypeVar
 
 import anyio.to_thread
 import numpy as np
 from starlette.websockets import WebSocket, WebSocketDisconnect
 
-import arap
 from arap.kernel_cache import KERNELS_READY
 from arap.server.animation_export import AnimationCancelled
 from arap.server.budget import ByteBudget, RequestQueue, request_cost
 from arap.server.decoder import PROCESS_BYTES, FrameDecoder
-from arap.server.heatmap import distortion_frame
-from arap.server.liveframes import VertexPayload, VertexStream, still_frame_header
-from arap.server.meshdata import MeshData, builtin_names, load_builtin, load_upload, mesh_frame
+from arap.server.dispatch import SETTLE, Dispatcher, Reply, StudioConfig
+from arap.server.meshdata import MeshData
 from arap.server.protocol import (
-    MAX_HANDLE_GROUPS,
-    PROTOCOL_VERSION,
     ClientMessage,
     RequestError,
-    check_against_mesh,
     encode_binary,
-    error_message,
     parse_binary,
     parse_text,
     server_message,
 )
-from arap.server.records import readable_energy
-from arap.server.render_mesh import Look, look_from_upload
-from arap.server.session import DragOutcome, Session
+from arap.server.records import DragOutcome
+from arap.server.render_mesh import Look
+from arap.server.session import Session
 
 __all__ = ["Connection", "StudioConfig"]
 
@@ -60,52 +53,8 @@ KERNEL_WAIT_SECONDS = 600.0
 """Frames at least this large are decoded and validated on a thread, not on the event loop."""
 
 
-@dataclass(frozen=True)
-class StudioConfig:
-    """Limits and settings shared by all sessions of a server.
-
-    Attributes
-    ----------
-    max_upload_bytes : int
-        Largest accepted upload payload.
-    max_vertices : int
-        Largest accepted uploaded mesh.
-    max_frame_bytes : int
-        Largest accepted WebSocket frame of any kind (also given to the WebSocket server).
-    max_pending : int
-        Most requests waiting in one session's queue; more are answered ``busy``.
-    max_history_steps, max_history_bytes : int
-        Undo history limits per session.
-    max_queued_bytes : int
-        Estimated memory of the requests waiting in one session's queue past which its frames are no longer
-        read (see :func:`arap.server.budget.request_cost`).
-    max_unsent_bytes : int
-        Bytes of one session's answers waiting to be handed to the socket past which its frames are no longer
-        read.
-    subset_frames : bool
-        Send only the movable vertices' positions while a constraint set with a region of interest is dragged
-        (see :mod:`arap.server.liveframes`); False sends every ``vertices`` frame in full.
-    """
-
-    max_upload_bytes: int = 50 * 2**20
-    max_vertices: int = 2_000_000
-    max_frame_bytes: int = 65 * 2**20
-    max_pending: int = 256
-    max_history_steps: int = 100
-    max_history_bytes: int = 512 * 2**20
-    max_queued_bytes: int = 64 * 2**20
-    max_unsent_bytes: int = 64 * 2**20
-    subset_frames: bool = True
-
-
 def _dumps(message: dict[str, Any]) -> str:
     return json.dumps(message, separators=(",", ":"), allow_nan=False)
-
-
-def _timed(fn: Callable[..., T], *args: Any) -> tuple[T, float]:
-    """``fn(*args)`` and the CPU time this thread spent in it (seconds)."""
-    t0 = time.thread_time()
-    return fn(*args), time.thread_time() - t0
 
 
 class Connection:
@@ -137,14 +86,12 @@ class Connection:
         self.decoder = decoder
         self.prepare = prepare
         self.session = Session(config.max_history_steps, config.max_history_bytes)
+        self.dispatch = Dispatcher(self.session, config)
         self.budget = ByteBudget(config.max_queued_bytes, config.max_unsent_bytes)
         self._queue: RequestQueue[ClientMessage | RequestError] = RequestQueue(self.budget)
         self._wakeup = asyncio.Event()
         self._send_lock = asyncio.Lock()
-        self._skipped = 0
         self._frame_tasks: set[asyncio.Task[None]] = set()
-        self._stream = VertexStream(config.subset_frames)
-        self._arrived: dict[int, tuple[float, float]] = {}
         self._closed = False
 
     # ------------------------------------------------------------------ sending
@@ -167,65 +114,32 @@ class Connection:
     async def _send_binary(self, header: dict[str, Any], *payload: bytes) -> None:
         await self._send_frame(encode_binary(header, *payload))
 
-    async def _send_mesh(self, mesh: MeshData) -> None:
-        self._stream.reset(mesh.V)
-        await self._send_frame(await self._off_loop(mesh_frame, mesh))
-        await self._send_appearance()
-
-    async def _send_appearance(self) -> None:
-        """The ``appearance`` of the session's mesh, right after its mesh frame; nothing for a plain mesh."""
-        look = self.session.look
-        if look is not None:
-            await self._send_frame(await self._off_loop(lambda: look.frame))
-
-    async def _upload(self, msg: ClientMessage) -> None:
-        """Load an upload and send its mesh and state; the times of each step are logged (INFO, one JSON line)."""
-        arrived, decoded = self._arrived.pop(id(msg), (float("nan"), float("nan")))
-        started = time.time()
-        assert msg.payload is not None
-        mesh, cpu = await self._off_loop(_timed, load_upload, msg.payload, msg.fields["filename"],
-                                         self.config.max_vertices)
-        look = await self._off_loop(look_from_upload, msg.payload, msg.fields["filename"], mesh,
-                                    self.config.max_vertices)
-        parsed = time.time()
-        self.session.load(mesh, look)
-        self._skipped = 0
-        self._stream.reset(mesh.V)
-        frame = await self._off_loop(mesh_frame, mesh)
-        encoded = time.time()
-        await self._send_frame(frame)
-        del frame
-        await self._send_appearance()
-        mesh_sent = time.time()
-        await self._send_state()
-        if logger.isEnabledFor(logging.INFO):
-            ms = {"decode_ms": decoded - arrived, "queued_ms": started - decoded, "parse_repair_ms": parsed - started,
-                  "encode_ms": encoded - parsed, "send_mesh_ms": mesh_sent - encoded,
-                  "send_state_ms": time.time() - mesh_sent}
-            logger.info("upload timings %s", json.dumps({"name": mesh.name, "n_vertices": mesh.n_vertices,
-                                                         "arrived": arrived, "mesh_sent": mesh_sent,
-                                                         "parse_repair_cpu_ms": round(1000 * cpu, 2),
-                                                         **{k: round(1000 * v, 2) for k, v in ms.items()}}))
+    async def _send_reply(self, reply: Reply) -> None:
+        if isinstance(reply, dict):
+            await self._send_json(reply)
+        elif isinstance(reply, bytes):
+            await self._send_frame(reply)
+        else:
+            await self._send_binary(reply[0], *reply[1])
 
     async def _send_vertices(self, seq: int, outcome: DragOutcome | None) -> None:
-        subset, movable, parts = self._stream.encode(self.session.U, self.session.constraints)
-        if outcome is None:
-            header = still_frame_header(seq, subset, movable)
-        else:
-            header = server_message("vertices", seq=seq, skipped=self._skipped, iterations=outcome.iterations,
-                                    energies=[readable_energy(e, self.session.diagonal) for e in outcome.energies],
-                                    solve_ms=round(outcome.solve_ms, 3),
-                                    ms_per_iteration=round(outcome.ms_per_iteration, 3),
-                                    subset=subset, movable=movable)
-            self._skipped = 0
-        await self._send_binary(header, *parts)
-
-    async def _send_state(self) -> None:
-        # the state echoes the constraints, which can hold millions of indices: encoded off the event loop
-        await self._send_frame(await self._off_loop(lambda: _dumps(self.session.state())))
+        await self._send_reply(self.dispatch.vertices(seq, outcome))
 
     async def _send_error(self, exc: RequestError) -> None:
-        await self._send_json(error_message(exc))
+        await self._send_json(self.dispatch.error(exc))  # type: ignore[arg-type]
+
+    async def _answer(self, replies: Iterator[Reply | object]) -> None:
+        """Send what a dispatcher's generator yields; each of its steps runs on a thread (solves, file parsing,
+        encoding), the sending on the event loop; :data:`~arap.server.dispatch.SETTLE` settles the shape."""
+        done = object()
+        while True:
+            reply = await self._off_loop(next, replies, done)
+            if reply is done:
+                return
+            if reply is SETTLE:
+                await self._settle()
+            else:
+                await self._send_reply(reply)
 
     @staticmethod
     async def _off_loop(fn: Callable[..., T], *args: Any) -> T:
@@ -238,24 +152,7 @@ class Connection:
         try:
             if not KERNELS_READY.is_set():  # first run: the page says that the solver is being prepared meanwhile
                 await self._off_loop(KERNELS_READY.wait, KERNEL_WAIT_SECONDS)
-            await self._off_loop(self.session.load, self.default_mesh, self.default_look)
-            if self.prepare is not None:
-                await self._off_loop(self.prepare, self.session)
-            await self._send_json(server_message(
-                "welcome",
-                version=arap.__version__,
-                protocol=PROTOCOL_VERSION,
-                builtin_meshes=builtin_names(),
-                limits={"max_upload_bytes": self.config.max_upload_bytes,
-                        "max_vertices": self.config.max_vertices,
-                        "max_frame_bytes": self.config.max_frame_bytes,
-                        "max_handle_groups": MAX_HANDLE_GROUPS},
-                params=asdict(self.session.params),
-            ))
-            await self._send_mesh(self.default_mesh)
-            await self._send_state()
-            if self.prepare is not None:
-                await self._send_vertices(-1, None)
+            await self._answer(self.dispatch.greeting(self.default_mesh, self.default_look, self.prepare))
         except (WebSocketDisconnect, RuntimeError, OSError) as exc:
             logger.debug("connection closed during the greeting: %r", exc)
             return
@@ -298,7 +195,7 @@ class Connection:
                 item = self._decode(text, data, False)
             del message, text, data
             if isinstance(item, ClientMessage) and item.type == "upload":
-                self._arrived[id(item)] = (arrived, time.time())
+                self.dispatch.arrived[id(item)] = (arrived, time.time())
             cost = request_cost(size, item.payload is None) if isinstance(item, ClientMessage) else 0
             await self._enqueue(item, cost)
 
@@ -345,24 +242,16 @@ class Connection:
             if isinstance(last, ClientMessage) and last.type == "drag":
                 # the replaced drag is never answered; the answer to this one reports it in ``skipped``
                 self._queue.replace_last(item, cost)
-                self._skipped += 1
+                self.dispatch.skipped += 1
                 return
         if len(self._queue) >= self.config.max_pending:
-            self._arrived.pop(id(item), None)
+            self.dispatch.arrived.pop(id(item), None)
             request = item.type if isinstance(item, ClientMessage) else item.request
             await self._send_error(RequestError("busy", f"{len(self._queue)} requests are already waiting",
                                                 request))
             return
         self._queue.append(item, cost)
         self._wakeup.set()
-
-    async def _check(self, msg: ClientMessage) -> None:
-        """:func:`check_against_mesh`; off the event loop for constraint sets (they can list millions of indices)."""
-        args = (msg, self.session.n_vertices, self.session.n_groups)
-        if msg.type == "set_constraints":
-            await self._off_loop(check_against_mesh, *args)
-        else:
-            check_against_mesh(*args)
 
     async def _worker(self) -> None:
         try:
@@ -380,7 +269,6 @@ class Connection:
                     await self._send_error(item)
                     continue
                 try:
-                    await self._check(item)
                     await self._handle(item)
                 except RequestError as exc:
                     exc.__traceback__ = None  # its frames hold the request and the future holding exc: no cycle
@@ -410,15 +298,13 @@ class Connection:
 
         def on_frame(U: np.ndarray | None, iteration: int, energy: float) -> None:
             nonlocal streamed
-            frame = None
-            if U is not None:
-                streamed += 1
-                frame = self._stream.encode(U, s.constraints)
+            streamed += U is not None
+            replies = self.dispatch.settle_frame(U, iteration, energy)  # encoded here, on the settling thread
             with contextlib.suppress(RuntimeError):  # the loop has closed: the connection is gone
-                loop.call_soon_threadsafe(self._spawn_settle_frame, frame, iteration, energy)
+                loop.call_soon_threadsafe(self._spawn_settle_frame, replies)
 
         try:
-            await self._send_settle_status("settling", 0, None, 0.0)
+            await self._send_reply(self.dispatch.settle_status("settling", 0, None, 0.0))
             outcome = await self._off_loop(s.settle, lambda: bool(self._queue) or self._closed, on_frame)
         except RequestError as exc:
             await self._send_error(exc)
@@ -430,33 +316,18 @@ class Connection:
                 await asyncio.gather(*self._frame_tasks, return_exceptions=True)
         if outcome is None:
             return
-        if streamed or outcome.moved > 0:  # the client has not seen this shape yet
-            await self._send_vertices(-1, None)
-        await self._send_settle_status(outcome.status, outcome.iterations, outcome.energy, outcome.seconds)
+        for reply in await self._off_loop(self.dispatch.settle_done, outcome, streamed):
+            await self._send_reply(reply)
 
-    def _spawn_settle_frame(self, frame: VertexPayload | None, iteration: int, energy: float) -> None:
-        task = asyncio.ensure_future(self._send_settle_frame(frame, iteration, energy))
+    def _spawn_settle_frame(self, replies: list[Reply]) -> None:
+        task = asyncio.ensure_future(self._send_settle_frame(replies))
         self._frame_tasks.add(task)
         task.add_done_callback(self._frame_tasks.discard)
 
-    async def _send_settle_frame(self, frame: VertexPayload | None, iteration: int, energy: float) -> None:
+    async def _send_settle_frame(self, replies: list[Reply]) -> None:
         with contextlib.suppress(WebSocketDisconnect, RuntimeError, OSError):
-            if frame is not None:
-                subset, movable, parts = frame
-                await self._send_binary(still_frame_header(-1, subset, movable), *parts)
-            await self._send_settle_status("settling", iteration, energy, None)
-
-    async def _send_shape_status(self) -> None:
-        """``settle`` for a shape that needs no settling (after undo, redo, apply or loading), so that the client's
-        status and energy describe the shape it now shows; a shape that needs it is settled next."""
-        if not self.session.needs_settle:
-            await self._send_settle_status("settled", 0, self.session.energy, 0.0)
-
-    async def _send_settle_status(self, status: str, iterations: int, energy: float | None,
-                                  seconds: float | None) -> None:
-        await self._send_json(server_message("settle", status=status, iterations=iterations,
-                                             energy=readable_energy(energy, self.session.diagonal),
-                                             seconds=None if seconds is None else round(seconds, 4)))
+            for reply in replies:
+                await self._send_reply(reply)
 
     async def _export_animation(self, f: dict[str, Any]) -> None:
         """Solve and send the animated GLB of export_animation off the event loop, with ``animation_progress`` at
@@ -500,55 +371,7 @@ class Connection:
 
     # ------------------------------------------------------------------ requests
     async def _handle(self, msg: ClientMessage) -> None:
-        s = self.session
-        f = msg.fields
-        t = msg.type
-        if t == "drag":
-            outcome = await self._off_loop(s.drag, f["transforms"])
-            await self._send_vertices(f["seq"], outcome)
-        elif t == "end_drag":
-            s.end_drag()
-            await self._send_state()
-        elif t == "load_builtin":
-            mesh = await self._off_loop(load_builtin, f["name"])
-            await self._off_loop(s.load, mesh)
-            self._skipped = 0
-            await self._send_mesh(mesh)
-            await self._send_state()
-            await self._send_shape_status()
-        elif t == "upload":
-            await self._upload(msg)
-            await self._send_shape_status()
-        elif t == "set_constraints":
-            solved = await self._off_loop(s.set_constraints, f["roi"], f["fixed"], f["handle_groups"],
-                                          f.get("targets"), f.get("stiffness"), f.get("points"))
-            if solved is not None:
-                await self._send_vertices(-1, solved)
-            await self._send_state()
-        elif t == "set_params":
-            await self._off_loop(lambda: s.set_params(**f))
-            await self._send_state()
-        elif t in ("undo", "redo", "reset", "apply"):
-            before = s.U
-            await self._off_loop(getattr(s, t))
-            self._stream.reset(None)  # everything may have changed: the next frame is full
-            if s.U is not before and not np.array_equal(s.U, before):
-                await self._send_vertices(-1, None)
-            await self._send_state()
-            await self._send_shape_status()
-        elif t == "export":
-            # The exported shape must not depend on timing: an unsettled shape settles first (a new request
-            # stops it, and the shape reached is exported).
-            await self._settle()
-            filename, mime, data = await self._off_loop(s.export, f["format"])
-            await self._send_binary(server_message("export", filename=filename, mime=mime), data)
-        elif t == "get_distortion":
-            header, data = await self._off_loop(distortion_frame, s)
-            await self._send_binary(header, data)
-        elif t == "get_constraints":
-            document = await self._off_loop(s.constraints_document, f.get("times_ms"), f.get("transforms"))
-            await self._send_json(server_message("constraints", document=document))
-        elif t == "export_animation":
-            await self._export_animation(f)
+        if msg.type == "export_animation":
+            await self._export_animation(msg.fields)
         else:
-            raise RequestError("bad_message", f"unhandled message type {t!r}")
+            await self._answer(self.dispatch.handle(msg))

@@ -1,0 +1,338 @@
+"""The studio as a Jupyter widget: the page in the notebook, its session in the kernel, talking through the kernel's
+comm (anywidget). No server and no port, so it works wherever the notebook's widgets do: JupyterLab, Notebook 7,
+VS Code, Colab, and kernels on another machine.
+
+>>> import arap
+>>> V, F = arap.builtin_mesh("cactus")
+>>> w = arap.widget(V, F)          # doctest: +SKIP
+>>> w                              # doctest: +SKIP
+>>> # ... anchor, handle and drag in the widget ...
+>>> w.vertices, w.constraints      # doctest: +SKIP
+
+The comm carries the studio protocol's messages unchanged (``docs/protocol.md``): a text message as the custom
+message's content, a binary one as its header (the content) and its payload (one buffer). The one message of its
+own is ``{"widget": "open"}``, which a view sends when it opens; the kernel answers with the greeting (``welcome``,
+``mesh``, ``state`` and the current shape). Requests are answered in order on a thread of the widget's, as by the
+studio's server (:mod:`arap.server.dispatch`): drags coalesce, and the shape settles while no request waits.
+
+A saved notebook keeps no live widget, so a picture of the shape with its constraints (:func:`arap.show`) is shown
+under it and replaced whenever an edit is finished (after a drag has settled, an undo, a new constraint set):
+that picture is what the saved notebook shows, e.g. on GitHub or in nbviewer.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import threading
+import uuid
+from collections.abc import Mapping
+from functools import cache
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from arap.constraints import Constraints
+from arap.errors import ArapError
+from arap.mesh import MeshLike, check_mesh, mesh_arrays
+from arap.notebook import Selection, _initial_constraints, session_selection
+
+if TYPE_CHECKING:
+    from arap.render.picture import Picture
+    from arap.server.dispatch import ChannelWorker, Dispatcher, Reply
+    from arap.server.session import Session
+
+__all__ = ["OPEN_MESSAGE", "StudioWidget", "has_comm_kernel", "widget", "widget_module"]
+
+logger = logging.getLogger(__name__)
+
+OPEN_MESSAGE = {"widget": "open"}
+"""What a view of the widget sends when it opens (outside the studio protocol); the kernel answers with the
+greeting."""
+
+PICTURE_SIZE = (480, 320)
+"""Width and height of the picture kept in the notebook."""
+
+
+def widget_module() -> str:
+    """The widget's ES module (``static/widget.js``, built with the studio's page by ``./dev setup``).
+
+    Raises
+    ------
+    ArapError
+        It is not built.
+    """
+    from arap.server.app import STATIC_DIR, client_missing_advice
+
+    path = STATIC_DIR / "widget.js"
+    if not path.is_file():
+        advice = client_missing_advice()
+        if advice is None:
+            advice = f"The notebook widget's module {path} is missing: build it with ./dev setup."
+        raise ArapError(advice)
+    return path.read_text(encoding="utf-8")
+
+
+def has_comm_kernel() -> bool:
+    """Whether the code runs in a Jupyter kernel that has a comm channel (where widgets work)."""
+    try:
+        from IPython import get_ipython
+    except ImportError:
+        return False
+    shell = get_ipython()
+    return shell is not None and getattr(shell, "kernel", None) is not None
+
+
+@cache
+def _widget_class() -> type:
+    try:
+        import anywidget
+        import traitlets
+    except ImportError as exc:
+        raise ArapError(f'the studio widget needs anywidget: pip install "arap[notebook]" ({exc.name} is missing)'
+                        ) from exc
+
+    class _StudioWidget(anywidget.AnyWidget, StudioWidget):
+        _esm = traitlets.Unicode().tag(sync=True)
+        height = traitlets.Int(640).tag(sync=True)
+
+        def __init__(self, **kwargs: Any) -> None:
+            anywidget.AnyWidget.__init__(self, _esm=widget_module(), height=kwargs.pop("height"))
+            self._setup(**kwargs)
+            self.on_msg(lambda _w, content, buffers: self._receive(content, buffers))
+
+        def _send_message(self, content: dict[str, Any], buffers: list[Any] | None) -> None:
+            self.send(content, buffers)
+
+        def _widget_bundle(self) -> dict[str, Any]:
+            bundle = anywidget.AnyWidget._repr_mimebundle_(self)
+            return dict(bundle[0] if isinstance(bundle, tuple) else bundle or {})
+
+        def __repr__(self) -> str:
+            return StudioWidget.__repr__(self)
+
+    _StudioWidget.__name__ = _StudioWidget.__qualname__ = "StudioWidget"
+    return _StudioWidget
+
+
+class StudioWidget:
+    """The studio in a notebook, served by this kernel; see :func:`widget`.
+
+    Attributes
+    ----------
+    url : None
+        There is no page to open elsewhere (the studio's server has one: ``arap.studio(..., transport="server")``).
+    """
+
+    url: str | None = None
+
+    def _setup(self, *, V: NDArray[np.float64], F: NDArray[np.int64], name: str, prepare: Any = None,
+               picture: bool = True) -> None:
+        from arap.kernel_cache import KERNELS_READY
+        from arap.server.dispatch import ChannelWorker, Dispatcher, StudioConfig
+        from arap.server.meshdata import MeshData
+        from arap.server.session import Session
+
+        self._V = V
+        self._F = F
+        config = StudioConfig()
+        self.session: Session = Session(config.max_history_steps, config.max_history_bytes)
+        self._dispatcher: Dispatcher = Dispatcher(self.session, config)
+        self._worker: ChannelWorker = ChannelWorker(self._dispatcher, self._send_reply, self._idle)
+        self._config = config
+        self._picture = picture
+        self._picture_id = uuid.uuid4().hex
+        self._picture_key: Any = None
+        self._picture_lock = threading.Lock()
+        self._picture_wanted = threading.Event()
+        self._picture_thread: threading.Thread | None = None
+        self._stopped = False
+        mesh = MeshData.make(name, V, F)
+
+        def load() -> Any:
+            KERNELS_READY.wait(600.0)
+            self.session.load(mesh, None)
+            if prepare is not None:
+                prepare(self.session)
+            return iter(())
+
+        self._worker.start()
+        self._worker.call(load)
+
+    # ------------------------------------------------------------------ messages
+    def _send_message(self, content: dict[str, Any], buffers: list[Any] | None) -> None:
+        raise NotImplementedError  # the widget class sends through its comm
+
+    def _send_reply(self, reply: Reply) -> None:
+        """Send one server message: a text message as the content, a binary one as its header and one buffer."""
+        from arap.server.protocol import decode_binary
+
+        if isinstance(reply, dict):
+            self._send_message(reply, None)
+        elif isinstance(reply, bytes):
+            header, payload = decode_binary(reply)
+            self._send_message(header, [payload])
+        else:
+            header, parts = reply
+            self._send_message(header, [parts[0] if len(parts) == 1 else b"".join(parts)])
+
+    def _receive(self, content: Any, buffers: list[Any] | None) -> None:
+        """A custom message from a view: the open message, or a studio request (answered on the worker thread)."""
+        from arap.server.dispatch import decode_message
+
+        if self._stopped:
+            return
+        if content == OPEN_MESSAGE:
+            self._worker.call(self._dispatcher.rejoin)
+            return
+        self._worker.put(decode_message(self._config, content, buffers))
+
+    def wait(self, timeout: float = 30.0) -> bool:
+        """Wait until every request has been answered and the shape has settled; False on timeout."""
+        return self._worker.idle(timeout)
+
+    # ------------------------------------------------------------------ results
+    @property
+    def running(self) -> bool:
+        """Whether the widget answers its views (until :meth:`stop`)."""
+        return not self._stopped
+
+    @property
+    def vertices(self) -> NDArray[np.float64]:
+        """(n, 3) float64 array: the current deformed shape (the given mesh before any edit)."""
+        if self.session.mesh is None:
+            return self._V.copy()
+        return np.array(self.session.U, dtype=np.float64)
+
+    @property
+    def faces(self) -> NDArray[np.int64]:
+        """(m, 3) int64 array: the triangles of the session's mesh (the given mesh until another is loaded in it)."""
+        if self.session.mesh is None:
+            return self._F.copy()
+        return np.array(self.session.mesh.F, dtype=np.int64)
+
+    @property
+    def constraints(self) -> Selection:
+        """The selection made in the widget (empty before any)."""
+        return session_selection(self.session if self.session.mesh is not None else None)
+
+    def stop(self, timeout: float = 10.0) -> None:
+        """Stop answering the views (a settling run stops at its next iteration); idempotent. The results stay
+        readable."""
+        self._stopped = True
+        self._worker.close(timeout)
+
+    def __enter__(self) -> StudioWidget:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.stop()
+
+    def __repr__(self) -> str:
+        state = "running" if self.running else "stopped"
+        n = len(self.session.U) if self.session.mesh is not None else len(self._V)
+        return f"<arap.StudioWidget {state}, {n} vertices>"
+
+    # ------------------------------------------------------------------ the picture kept in the notebook
+    def picture(self) -> Picture:
+        """A picture of the current shape with its constraints (:func:`arap.show`), as kept in the notebook."""
+        import arap
+
+        U, F = self.vertices, self.faces
+        width, height = PICTURE_SIZE
+        try:
+            return arap.show(U, F, constraints=self.session.constraints_document(), width=width, height=height)
+        except (ArapError, ValueError, KeyError, IndexError):  # constraints in another numbering (a repaired file)
+            return arap.show(U, F, width=width, height=height)
+
+    def _picture_bundle(self) -> dict[str, Any]:
+        return {"image/png": self.picture().png(),
+                "text/plain": "Picture of the studio's shape (kept when the notebook is saved)"}
+
+    def _widget_bundle(self) -> dict[str, Any]:
+        return {"text/plain": repr(self)}
+
+    def _ipython_display_(self) -> None:
+        from IPython.display import display
+
+        display(self._widget_bundle(), raw=True)
+        if self._picture:
+            display(self._picture_bundle(), raw=True, display_id=self._picture_id)
+            self._picture_key = self._shape_key()
+
+    def _shape_key(self) -> Any:
+        s = self.session
+        return (id(s.mesh), id(s.U), id(s.constraints))
+
+    def _idle(self) -> None:
+        """The worker has nothing left to do: replace the picture if the shape or the constraints changed."""
+        if not self._picture or self._picture_key is None or self._shape_key() == self._picture_key:
+            return
+        self._picture_wanted.set()
+        with self._picture_lock:
+            if self._picture_thread is None or not self._picture_thread.is_alive():
+                self._picture_thread = threading.Thread(target=self._draw_pictures, name="arap-widget-picture",
+                                                        daemon=True)
+                self._picture_thread.start()
+
+    def _draw_pictures(self) -> None:
+        from IPython.display import update_display
+
+        while self._picture_wanted.is_set() and not self._stopped:
+            self._picture_wanted.clear()
+            key = self._shape_key()
+            try:
+                update_display(self._picture_bundle(), raw=True, display_id=self._picture_id)
+                self._picture_key = key
+            except Exception:
+                logger.exception("could not update the studio's picture")
+
+
+def widget(
+    V: NDArray[np.floating] | MeshLike,
+    F: NDArray[np.integer] | None = None,
+    *,
+    name: str = "mesh",
+    height: int = 640,
+    constraints: Constraints | Mapping[str, Any] | str | os.PathLike[str] | None = None,
+    picture: bool = True,
+) -> StudioWidget:
+    """The studio as a Jupyter widget served by this kernel (no server, no port); display it (the last expression
+    of a cell) to edit the mesh in the notebook.
+
+    Parameters
+    ----------
+    V : (n, 3) float array or MeshLike
+        Rest positions, or a mesh object with ``vertices`` and ``faces`` (then leave out ``F``).
+    F : (m, 3) int array or None
+    name : str
+        Name shown in the page and used for exports.
+    height : int
+        Height of the widget in pixels.
+    constraints : Constraints, mapping, path or None
+        Initial constraints (the ``arap deform`` format, see :func:`arap.load_constraints`), as for
+        :func:`arap.studio`.
+    picture : bool
+        Show a picture of the shape under the widget, replaced after each finished edit: the notebook keeps it
+        when saved (a saved notebook has no live widget).
+
+    Returns
+    -------
+    StudioWidget
+        An anywidget with ``vertices``, ``faces``, ``constraints``, ``picture()`` and ``stop()``.
+
+    Raises
+    ------
+    MeshError
+        The mesh is unusable (as :func:`arap.check_mesh`).
+    ConstraintError
+        ``constraints`` is invalid for this mesh, or holds stiffness.
+    ArapError
+        anywidget is not installed (``pip install "arap[notebook]"``) or the widget's module is not built.
+    """
+    V, F = check_mesh(*mesh_arrays(V, F))
+    prepare = None if constraints is None else _initial_constraints(constraints, len(V))
+    cls = _widget_class()
+    w: StudioWidget = cls(V=V, F=F, name=name, prepare=prepare, picture=picture, height=int(height))
+    return w

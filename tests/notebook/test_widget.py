@@ -1,0 +1,310 @@
+"""``arap.widget``: the studio's session driven through the widget's comm messages (as a view would send them), its
+answers captured as the comm would carry them, the results read back as arrays, and the picture a saved notebook
+keeps."""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections.abc import Callable, Iterator
+from typing import Any
+
+import numpy as np
+import pytest
+
+pytest.importorskip("anywidget")
+
+import arap
+from arap.jupyter_widget import OPEN_MESSAGE, StudioWidget
+from arap.server.session import Session
+
+pytestmark = pytest.mark.timeout(120)
+
+PNG = b"\x89PNG\r\n\x1a\n"
+
+
+class Comm:
+    """What the widget sends, as (content, buffers), with waiting for a message."""
+
+    def __init__(self, w: StudioWidget) -> None:
+        self.w = w
+        self.sent: list[tuple[dict[str, Any], list[bytes]]] = []
+        self._cond = threading.Condition()
+        w.send = self._send  # type: ignore[attr-defined]
+
+    def _send(self, content: dict[str, Any], buffers: list[Any] | None = None) -> None:
+        with self._cond:
+            self.sent.append((content, [bytes(b) for b in buffers or []]))
+            self._cond.notify_all()
+
+    def request(self, content: Any, buffers: list[bytes] | None = None) -> None:
+        self.w._receive(content, buffers)
+
+    def wait_for(self, match: Callable[[dict[str, Any]], bool], start: int = 0,
+                 timeout: float = 60.0) -> tuple[int, dict[str, Any], list[bytes]]:
+        deadline = time.monotonic() + timeout
+        with self._cond:
+            while True:
+                for i in range(start, len(self.sent)):
+                    content, buffers = self.sent[i]
+                    if match(content):
+                        return i, content, buffers
+                left = deadline - time.monotonic()
+                assert left > 0, f"no such message in {[c['type'] for c, _ in self.sent[start:]]}"
+                self._cond.wait(left)
+
+    def types(self, start: int = 0, stop: int | None = None) -> list[str]:
+        return [c["type"] for c, _ in self.sent[start:stop]]
+
+
+@pytest.fixture
+def cactus() -> tuple[np.ndarray, np.ndarray]:
+    return arap.builtin_mesh("cactus")
+
+
+@pytest.fixture
+def opened(cactus: tuple[np.ndarray, np.ndarray]) -> Iterator[tuple[StudioWidget, Comm]]:
+    w = arap.widget(*cactus, name="cactus")
+    comm = Comm(w)
+    comm.request(OPEN_MESSAGE, [])
+    comm.wait_for(lambda m: m["type"] == "state")
+    try:
+        yield w, comm
+    finally:
+        w.stop()
+
+
+def _bottom_top(V: np.ndarray) -> tuple[list[int], list[int]]:
+    y = V[:, 1]
+    return np.flatnonzero(y <= np.quantile(y, 0.1)).tolist(), np.flatnonzero(y >= np.quantile(y, 0.9)).tolist()
+
+
+def _translation(x: float, y: float = 0.0) -> list[float]:
+    T = np.eye(4)
+    T[:3, 3] = (x, y, 0.0)
+    return T.T.ravel().tolist()  # column-major
+
+
+def test_a_view_opening_gets_the_mesh(cactus: tuple[np.ndarray, np.ndarray]) -> None:
+    V, F = cactus
+    w = arap.widget(V, F, name="cactus")
+    try:
+        assert isinstance(w, StudioWidget) and w.url is None and w.running
+        comm = Comm(w)
+        comm.request(OPEN_MESSAGE, [])
+        _, mesh, buffers = comm.wait_for(lambda m: m["type"] == "mesh")
+        assert mesh["name"] == "cactus" and mesh["n_vertices"] == len(V) and mesh["n_faces"] == len(F)
+        assert len(buffers) == 1
+        positions = np.frombuffer(buffers[0][: 12 * len(V)], dtype="<f4").reshape(-1, 3)
+        np.testing.assert_allclose(positions, V, rtol=1e-6, atol=1e-6)
+        faces = np.frombuffer(buffers[0][12 * len(V): 12 * len(V) + 12 * len(F)], dtype="<u4").reshape(-1, 3)
+        np.testing.assert_array_equal(faces, F)
+        comm.wait_for(lambda m: m["type"] == "state")
+        assert comm.types()[:3] == ["welcome", "mesh", "state"]
+        assert comm.sent[0][1] == []  # a text message: no buffers
+        np.testing.assert_array_equal(w.vertices, V)
+        np.testing.assert_array_equal(w.faces, F)
+        assert w.constraints.fixed.size == 0
+    finally:
+        w.stop()
+
+
+def test_a_drag_is_answered_with_the_solved_positions(opened: tuple[StudioWidget, Comm],
+                                                      cactus: tuple[np.ndarray, np.ndarray]) -> None:
+    w, comm = opened
+    V, _ = cactus
+    fixed, top = _bottom_top(V)
+    start = len(comm.sent)
+    comm.request({"type": "set_constraints", "roi": None, "fixed": fixed, "handle_groups": [top]})
+    comm.wait_for(lambda m: m["type"] == "state", start)
+    comm.request({"type": "drag", "seq": 7, "transforms": [_translation(0.5)]})
+    _, header, buffers = comm.wait_for(lambda m: m["type"] == "vertices" and m["seq"] == 7, start)
+    assert header["iterations"] >= 1 and header["subset"] == -1
+    positions = np.frombuffer(buffers[0][: 12 * len(V)], dtype="<f4").reshape(-1, 3)
+    np.testing.assert_allclose(positions[top], V[top] + [0.5, 0, 0], atol=1e-4)  # the handle is where it was dragged
+    np.testing.assert_allclose(positions[fixed], V[fixed], atol=1e-5)
+    comm.request({"type": "end_drag"})
+    assert w.wait(60)
+    _, done, _ = comm.wait_for(lambda m: m["type"] == "settle" and m["status"] != "settling", start)
+    assert done["status"] == "settled"
+    # the handle reads the settled shape and the selection
+    U = w.vertices
+    np.testing.assert_allclose(U[top], V[top] + [0.5, 0, 0], atol=1e-6)
+    assert np.abs(U - V).max() > 0.1
+    last = [b for c, b in comm.sent if c["type"] == "vertices"][-1]
+    np.testing.assert_allclose(np.frombuffer(last[0][: 12 * len(V)], dtype="<f4").reshape(-1, 3), U, atol=1e-5)
+    sel = w.constraints
+    assert sorted(sel.fixed.tolist()) == sorted(fixed)
+    assert [sorted(g.tolist()) for g in sel.handle_groups] == [sorted(top)]
+    np.testing.assert_allclose(sel.targets, U[sel.handle_groups[0]], atol=1e-6)
+
+
+def test_settling_stops_when_a_message_arrives(opened: tuple[StudioWidget, Comm],
+                                               cactus: tuple[np.ndarray, np.ndarray],
+                                               monkeypatch: pytest.MonkeyPatch) -> None:
+    _, comm = opened
+    V, _ = cactus
+    settle = Session.settle
+
+    def slow_settle(self: Session, interrupted: Any, on_frame: Any = None) -> Any:
+        def polled() -> bool:
+            time.sleep(0.01)  # iterations as slow as a large mesh's: the settle still runs when the request comes
+            return bool(interrupted())
+        return settle(self, polled, on_frame)
+
+    monkeypatch.setattr(Session, "settle", slow_settle)
+    fixed, top = _bottom_top(V)
+    start = len(comm.sent)
+    comm.request({"type": "set_constraints", "roi": None, "fixed": fixed, "handle_groups": [top]})
+    comm.request({"type": "drag", "seq": 1, "transforms": [_translation(1.0, 0.5)]})
+    comm.request({"type": "end_drag"})
+    i, _, _ = comm.wait_for(lambda m: m["type"] == "settle" and m["iterations"] > 0, start)
+    comm.request({"type": "get_constraints"})
+    j, answer, _ = comm.wait_for(lambda m: m["type"] == "constraints", i)
+    assert sorted(answer["document"]["fixed"]) == sorted(fixed)
+    # the run ended as stopped right before the answer: nothing of it came after
+    k, stopped, _ = comm.wait_for(lambda m: m["type"] == "settle" and m["status"] != "settling", i)
+    assert stopped["status"] == "stopped" and k < j
+    assert "settle" not in comm.types(k + 1, j)
+    # and it settles again afterwards, from where it stopped
+    comm.wait_for(lambda m: m["type"] == "settle" and m["status"] == "settling", j)
+
+
+def test_drags_waiting_in_the_queue_coalesce(opened: tuple[StudioWidget, Comm],
+                                            cactus: tuple[np.ndarray, np.ndarray],
+                                            monkeypatch: pytest.MonkeyPatch) -> None:
+    w, comm = opened
+    V, _ = cactus
+    fixed, top = _bottom_top(V)
+    comm.request({"type": "set_constraints", "roi": None, "fixed": fixed, "handle_groups": [top]})
+    assert w.wait(60)
+    drag = Session.drag
+    gate, solving = threading.Event(), threading.Event()
+
+    def held_drag(self: Session, transforms: Any) -> Any:
+        solving.set()
+        gate.wait(10)
+        return drag(self, transforms)
+
+    monkeypatch.setattr(Session, "drag", held_drag)
+    start = len(comm.sent)
+    comm.request({"type": "drag", "seq": 1, "transforms": [_translation(0.1)]})
+    assert solving.wait(10)
+    for seq in range(2, 6):  # they arrive while the first is being solved
+        comm.request({"type": "drag", "seq": seq, "transforms": [_translation(0.1 * seq)]})
+    gate.set()
+    comm.wait_for(lambda m: m["type"] == "vertices" and m["seq"] == 5, start)
+    seqs = [c["seq"] for c, _ in comm.sent[start:] if c["type"] == "vertices" and c["seq"] > 0]
+    assert seqs == [1, 5]  # the drags queued behind the first were replaced by the newest
+
+
+@pytest.mark.parametrize("content,buffers,code", [
+    ({"type": "launch_rockets"}, None, "bad_message"),
+    ("not an object", None, "bad_message"),
+    ({"type": "drag", "seq": "one", "transforms": []}, None, "bad_message"),
+    ({"type": "drag", "seq": 1, "transforms": []}, None, "bad_constraints"),  # nothing constrained yet
+    ({"type": "set_constraints", "roi": None, "fixed": [10**9], "handle_groups": []}, None, "bad_constraints"),
+    ({"type": "upload", "filename": "a.obj"}, [b"this is no mesh"], "bad_mesh"),
+    ({"type": "undo"}, [b"\x00\x01"], "bad_message"),  # a text message sent with a payload
+])
+def test_bad_messages_get_an_error_message(opened: tuple[StudioWidget, Comm], content: Any,
+                                           buffers: list[bytes] | None, code: str) -> None:
+    w, comm = opened
+    start = len(comm.sent)
+    comm.request(content, buffers)  # never raises
+    _, error, _ = comm.wait_for(lambda m: m["type"] == "error", start)
+    assert error["code"] == code, error
+    comm.request({"type": "get_constraints"})  # and the session goes on
+    comm.wait_for(lambda m: m["type"] == "constraints", start)
+    assert w.running
+
+
+def test_a_second_view_gets_the_current_shape(opened: tuple[StudioWidget, Comm],
+                                              cactus: tuple[np.ndarray, np.ndarray]) -> None:
+    w, comm = opened
+    V, _ = cactus
+    fixed, top = _bottom_top(V)
+    comm.request({"type": "set_constraints", "roi": None, "fixed": fixed, "handle_groups": [top]})
+    comm.request({"type": "drag", "seq": 1, "transforms": [_translation(0.4)]})
+    comm.request({"type": "end_drag"})
+    assert w.wait(60)
+    start = len(comm.sent)
+    comm.request(OPEN_MESSAGE, [])
+    comm.wait_for(lambda m: m["type"] == "state", start)
+    _, _, buffers = comm.wait_for(lambda m: m["type"] == "vertices", start)
+    shown = np.frombuffer(buffers[0][: 12 * len(V)], dtype="<f4").reshape(-1, 3)
+    np.testing.assert_allclose(shown, w.vertices, atol=1e-5)
+    assert comm.types(start)[:2] == ["welcome", "mesh"]
+
+
+def test_initial_constraints_and_the_stopped_widget(cactus: tuple[np.ndarray, np.ndarray]) -> None:
+    V, F = cactus
+    fixed, top = _bottom_top(V)
+    targets = (V[top] + [0.3, 0.0, 0.0]).tolist()
+    w = arap.widget(V, F, constraints={"fixed": fixed, "handles": top, "targets": targets})
+    comm = Comm(w)
+    comm.request(OPEN_MESSAGE, [])
+    assert w.wait(60)
+    np.testing.assert_allclose(w.vertices[top], targets, atol=1e-6)
+    assert sorted(w.constraints.fixed.tolist()) == sorted(fixed)
+    w.stop()
+    w.stop()  # idempotent
+    assert not w.running
+    n = len(comm.sent)
+    comm.request({"type": "get_constraints"})
+    time.sleep(0.2)
+    assert len(comm.sent) == n  # no longer answered
+    np.testing.assert_allclose(w.vertices[top], targets, atol=1e-6)  # still readable
+
+
+def test_the_saved_notebook_keeps_a_picture_updated_after_edits(opened: tuple[StudioWidget, Comm],
+                                                                cactus: tuple[np.ndarray, np.ndarray],
+                                                                monkeypatch: pytest.MonkeyPatch) -> None:
+    import IPython.display
+
+    w, comm = opened
+    V, _ = cactus
+    shown: list[tuple[dict[str, Any], str | None]] = []
+    updated: list[tuple[dict[str, Any], str | None]] = []
+    monkeypatch.setattr(IPython.display, "display",
+                        lambda obj, raw=False, display_id=None: shown.append((obj, display_id)))
+    monkeypatch.setattr(IPython.display, "update_display",
+                        lambda obj, raw=False, display_id=None: updated.append((obj, display_id)))
+    w._ipython_display_()
+    assert len(shown) == 2
+    widget_bundle, picture = shown[0][0], shown[1]
+    assert "application/vnd.jupyter.widget-view+json" in widget_bundle
+    assert widget_bundle["application/vnd.jupyter.widget-view+json"]["model_id"] == w.model_id  # type: ignore[attr-defined]
+    before = picture[0]["image/png"]
+    assert before.startswith(PNG) and picture[1] is not None
+    assert w.picture().png().startswith(PNG)
+
+    fixed, top = _bottom_top(V)
+    comm.request({"type": "set_constraints", "roi": None, "fixed": fixed, "handle_groups": [top]})
+    comm.request({"type": "drag", "seq": 1, "transforms": [_translation(1.0)]})
+    comm.request({"type": "end_drag"})
+    assert w.wait(60)
+    deadline = time.monotonic() + 30
+    while time.monotonic() < deadline and not (updated and w._picture_key == w._shape_key()):
+        time.sleep(0.05)
+    assert updated, "the picture was not replaced after the edit"
+    bundle, display_id = updated[-1]
+    assert display_id == picture[1]
+    assert bundle["image/png"].startswith(PNG) and bundle["image/png"] != before
+
+
+def test_studio_picks_the_transport() -> None:
+    V, F = arap.builtin_mesh("bar")
+    w = arap.studio(V, F, show=False, transport="widget")
+    try:
+        assert isinstance(w, StudioWidget)
+    finally:
+        w.stop()
+    for transport in ("server", "auto"):  # auto: not in a Jupyter kernel, so the server
+        s = arap.studio(V, F, show=False, transport=transport)
+        try:
+            assert isinstance(s, arap.Studio) and s.url is not None and s.url.startswith("http://127.0.0.1:")
+        finally:
+            s.stop()
+    with pytest.raises(ValueError, match="transport"):
+        arap.studio(V, F, show=False, transport="pigeon")
