@@ -2,6 +2,29 @@
 // while the session is being replaced or restored, and a warning before the page is left with edits.
 import { deleteSession, putSession } from './sessiondb.js';
 
+/** @type {Map<string, () => any>} */
+const parts = new Map();
+
+/**
+ * Keep `capture()` under `name` in every snapshot saved from now on (nothing when it gives null or undefined); a
+ * part makes the snapshot worth keeping (`edits`).
+ */
+export function addSnapshotPart(name, capture) {
+  parts.set(name, capture);
+}
+
+function withParts(snap) {
+  if (!snap || !parts.size) return snap;
+  const out = { ...snap };
+  for (const [name, capture] of parts) {
+    const value = capture();
+    if (value === null || value === undefined) continue;
+    out[name] = value;
+    out.edits = true;
+  }
+  return out;
+}
+
 export class Autosave {
   /**
    * @param {object} opts id (this page's record), capture() → snapshot (see snapshot.js), delayMs (a number or a
@@ -9,7 +32,7 @@ export class Autosave {
    */
   constructor({ id, capture, delayMs = 500, onError = null }) {
     this.id = id;
-    this.capture = capture;
+    this.capture = () => withParts(capture());
     this.delayMs = delayMs;
     this.onError = onError;
     this.timer = null;

@@ -26,6 +26,7 @@ export const SHORTCUTS = [
   { key: '-', label: '−', does: 'Shrink the current role by one ring' },
   { key: 'h', label: 'H', does: 'Show or hide the distortion heat map' },
   { key: 'm', label: 'M', does: 'Mirror editing on or off (selections and drags act on both sides)' },
+  { key: 'k', label: 'K', does: 'Add a keyframe: the handle groups\' current transforms at the timeline\'s playhead' },
   { key: '?', label: '?', does: 'Show or hide this help' },
   { key: 'escape', label: 'Esc', does: 'Close the help or the message' },
   { key: null, label: 'Ctrl+Z', does: 'Undo' },
@@ -36,6 +37,12 @@ export const SHORTCUTS = [
   { key: null, label: 'Ctrl+click', does: 'Remove the point handle under the pointer (point handle mode)' },
   { key: null, label: 'Right drag', does: 'Pan' },
   { key: null, label: 'Wheel', does: 'Zoom' },
+  {
+    key: null,
+    label: 'Timeline',
+    does: 'Animation: drag along the time bar to scrub (the shape follows), click a keyframe\'s marker to go to it; '
+      + 'Play loops at the frame rate, Export animation solves every frame and downloads an animated GLB',
+  },
   {
     key: null,
     label: 'Surface',

@@ -1,5 +1,6 @@
 // Read-only view of the studio state on `window.__arap`, for automated browser tests and debugging.
 import { computeNormals } from './normals.js';
+import { interpolate } from './timeline.js';
 
 /** Screen position of the gizmo, of points on its axes and on its rotate rings (CSS pixels relative to the canvas). */
 function gizmoInfo(viewer, gizmo, transformUi) {
@@ -46,7 +47,9 @@ function gizmoInfo(viewer, gizmo, transformUi) {
   };
 }
 
-export function installTestHook({ app, viewer, livePose, selection, gizmo, conn, keeper, points, mirror, transformUi }) {
+export function installTestHook({
+  app, viewer, livePose, selection, gizmo, conn, keeper, points, mirror, transformUi, timeline,
+}) {
   const toPage = ([x, y]) => {
     const r = viewer.canvas.getBoundingClientRect();
     return [x + r.left, y + r.top];
@@ -214,6 +217,31 @@ export function installTestHook({ app, viewer, livePose, selection, gizmo, conn,
     },
     /** Every client group's transform (column-major 4×4), as the next drag would send it. */
     transforms: () => gizmo.matrices.map((m) => Array.from(m.elements)),
+    /**
+     * The keyframe timeline: its keyframes (time in ms, one column-major 4×4 per handle group), the playhead,
+     * playback and export state; `interpolate(keys, pivots, seconds)` is the page's interpolation rule.
+     */
+    get timeline() {
+      return {
+        keys: timeline.keys.map((k) => ({ ms: k.ms, transforms: k.transforms.map((m) => m.slice()) })),
+        pivots: timeline.pivots?.map((p) => p.slice()) ?? null,
+        timeMs: timeline.timeMs,
+        durationMs: timeline.durationMs,
+        fps: timeline.fps,
+        playing: timeline.playing,
+        dragsSent: timeline.dragsSent,
+        framesShown: timeline.framesShown,
+        exporting: timeline.exporting,
+        exportNote: timeline.exportNote,
+        lastExport: timeline.lastExport ? { ...timeline.lastExport } : null,
+      };
+    },
+    interpolate: (keys, pivots, seconds) => interpolate(keys, pivots, seconds),
+    /** Move the playhead to `ms` as a scrub does (a drag there; `end`: then end the drag). */
+    seek: (ms, end = true) => {
+      timeline.seek(ms);
+      if (end) timeline.goTo(ms);
+    },
     /** What the typed-transform line shows, or null when no transform is being typed. */
     get typing() {
       return transformUi.entry.active ? transformUi.entry.line.textContent : null;

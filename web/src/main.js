@@ -21,6 +21,9 @@ import { CLIENT, ERROR, meshArrays, PROTOCOL_VERSION, SERVER } from './protocol.
 import { constraintsKey, constraintsMessage, Selection } from './selection.js';
 import { builtinSource, fileSource } from './snapshot.js';
 import { UpdateStats } from './stats.js';
+import { onSessionRestored } from './restore.js';
+import { addSnapshotPart } from './autosave.js';
+import { Timeline } from './timeline.js';
 import { installSurfaceControls, SurfaceSelection } from './surface.js';
 import { appearanceArrays } from './texture.js';
 import { SelectionTools } from './tools.js';
@@ -62,6 +65,7 @@ const app = {
   refusal: null, // why the server refused the last constraint set, until one is accepted
   errorVersion: -1, // selection.version when a request's error was shown (cleared by a later accepted set)
   brush: { screen: 24, world: 4 },
+  serverGroups: [], // the handle groups of the server's constraint set (last state), point handles excluded
   source: null, // where the current mesh came from (snapshot.js)
 };
 
@@ -105,6 +109,39 @@ const heat = new HeatMap({ viewer, send, role: () => selection.role, restore: ()
 const help = new Help();
 viewer.attachControls(); // after the gizmo and the tools, so they see pointer events first
 
+const timeline = new Timeline({
+  blocked: timelineBlocked,
+  handleGroups: () => app.serverGroups,
+  transforms: () => gizmo.transformsFor(app.groupMap),
+  matrixOf: (g) => gizmo.transformsFor(app.groupMap)[g],
+  positions: () => viewer.positions,
+  drag: (transforms) => {
+    gizmo.setTransforms(transforms, app.groupMap);
+    conn.drag(transforms);
+  },
+  endDrag: () => {
+    conn.endDrag();
+    app.awaitingState = true;
+  },
+  send,
+  download: downloadExport,
+  changed: () => keeper.touch(),
+  say: (text, kind) => panel.showStatus(text, kind, kind === 'error' ? 8000 : 4000),
+});
+addSnapshotPart('timeline', () => timeline.snapshot());
+let lostTimeline = null; // the keyframes when the connection went away, put back with the session
+onSessionRestored((snap) => timeline.restore(snap.timeline ?? lostTimeline));
+
+/** Why the timeline cannot pose the handles now (null: it can). */
+function timelineBlocked() {
+  if (!app.ready || !conn.open) return 'not connected to the studio server';
+  if (gizmo.dragging) return 'a drag is under way';
+  if (app.sentKey !== null) return 'the new selection is still being set up';
+  if (app.refusal) return 'the server refused the current selection';
+  if (!app.serverGroups.length) return 'paint a handle group first (keyframes pose handle groups)';
+  return null;
+}
+
 const stats = new UpdateStats({ panel: () => panel, latencyMs: () => conn.lastLatencyMs });
 
 const conn = new Connection(defaultSocketUrl(), {
@@ -116,6 +153,8 @@ const conn = new Connection(defaultSocketUrl(), {
     panel.setHistory(app.canUndo, app.canRedo);
   },
   onClose: () => {
+    lostTimeline = timeline.snapshot();
+    timeline.pause();
     app.ready = false;
     app.awaitingState = false;
     keeper.connectionLost();
@@ -242,6 +281,8 @@ function commitConstraints(targets = null, force = false, pointTargets = null) {
     if (regrouped && !gizmo.dragging) gizmo.setTransforms(app.serverTransforms, app.groupMap);
     return;
   }
+  // the new set's pose is the current shape: keyframes are made relative to it
+  timeline.rebase(gizmo.transformsFor(app.groupMap), c.handle_groups.length);
   app.groupMap = c.groupMap;
   app.sentKey = key;
   app.sentVersion = selection.version;
@@ -278,6 +319,9 @@ function handleMessage(msg) {
         app.meshName), 'info', 2500);
     case SERVER.EXPORT:
       return panel.showStatus(downloadExport(msg), 'info', 3000);
+    case SERVER.ANIMATION_PROGRESS:
+    case SERVER.ANIMATION:
+      return timeline.received(msg);
     case SERVER.DISTORTION:
       return heat.received(msg);
     case SERVER.ERROR:
@@ -331,6 +375,8 @@ function onMesh(msg) {
   app.lastSeq = -1;
   app.groupMap = [];
   app.serverTransforms = [];
+  app.serverGroups = [];
+  timeline.clear();
   app.sentKey = null;
   app.syncedVersion = selection.version;
   app.refusal = null;
@@ -422,6 +468,7 @@ function onState(msg) {
     refreshSelection(true);
   }
   app.serverTransforms = msg.transforms || [];
+  app.serverGroups = c.handle_groups || [];
   if (!gizmo.dragging) gizmo.setTransforms(msg.transforms, app.groupMap);
   if (app.busyFor === SERVER.STATE) setBusy(null);
   updateGroupsUi();
@@ -454,6 +501,7 @@ function onError(msg) {
   if (app.busyFor) setBusy(null);
   if (msg.request === CLIENT.END_DRAG) app.awaitingState = false;
   if (msg.request === CLIENT.GET_DISTORTION) heat.failed();
+  if (msg.request === CLIENT.EXPORT_ANIMATION) timeline.failed(msg.message || msg.code);
   keeper.errorArrived(msg);
   if (!msg.request && msg.code === ERROR.BUSY && !conn.welcomed) return; // the server is full: onRefused tells
   if (msg.request === CLIENT.SET_CONSTRAINTS && dropStuckPoints()) return;
@@ -610,6 +658,7 @@ const panel = new Panel({
   undo: () => stepHistory(CLIENT.UNDO),
   redo: () => stepHistory(CLIENT.REDO),
   setParams: (p) => send({ type: CLIENT.SET_PARAMS, ...p }),
+  saveConstraints: () => send({ type: CLIENT.GET_CONSTRAINTS, ...(timeline.messageFields() ?? {}) }),
   setFlatShading: (on) => viewer.setFlatShading(on),
   setWireframe: (on) => viewer.setWireframe(on),
   setSurface,
@@ -645,6 +694,7 @@ installShortcuts({
     '-': () => ringKey(true),
     h: () => heat.setOn(!heat.on),
     m: () => mirror.setOn(!mirror.on),
+    k: () => timeline.addKeyframe(),
     '?': () => help.toggle(),
     escape: () => (help.shown ? help.hide() : panel.hideStatus()),
     ...transformUi.keys,
@@ -659,7 +709,7 @@ releaseFocusAfterPointerUse(document.getElementById('panel'));
 
 installDropTarget(document.getElementById('viewport'), document.getElementById('drop-overlay'), uploadFile);
 
-installTestHook({ app, viewer, livePose, selection, gizmo, conn, keeper, points, mirror, transformUi });
+installTestHook({ app, viewer, livePose, selection, gizmo, conn, keeper, points, mirror, transformUi, timeline });
 
 // ------------------------------------------------------------------ start
 

@@ -125,7 +125,7 @@ export class Panel {
       b.addEventListener('click', () => actions.send({ type: 'export', format }));
       $('export-buttons').appendChild(b);
     }
-    $('btn-save-constraints').addEventListener('click', () => actions.send({ type: 'get_constraints' }));
+    $('btn-save-constraints').addEventListener('click', () => actions.saveConstraints());
     $('btn-load-constraints').addEventListener('click', () => $('constraints-input').click());
     $('constraints-input').addEventListener('change', (e) => {
       const f = source(e).files?.[0];

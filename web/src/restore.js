@@ -7,6 +7,14 @@ import { CLIENT, PARAMS } from './protocol.js';
 import { constraintsKey } from './selection.js';
 import { mismatch } from './snapshot.js';
 
+/** @type {((snap: any) => void)[]} */
+const restored = [];
+
+/** Call `fn(snap)` whenever a saved session has been restored (its shape and selection are back on the server). */
+export function onSessionRestored(fn) {
+  restored.push(fn);
+}
+
 export class SessionRestore {
   /**
    * @param {object} deps send(msg) → bool, requestMesh(source) → bool (load or upload it), applySelection(snap)
@@ -85,6 +93,7 @@ export class SessionRestore {
     const a = this.active;
     this.active = null;
     a?.onDone(error);
+    if (a && !error) for (const fn of restored) fn(a.snap);
   }
 }
 

@@ -1,0 +1,195 @@
+"""The studio's keyframe timeline: keyframes of the handle groups' transforms, scrubbing, playback, autosave, the
+animated GLB export and the saved document that ``arap animate`` renders; the page interpolates as arap.keyframes."""
+
+from __future__ import annotations
+
+import json
+import struct
+from pathlib import Path
+
+import numpy as np
+import pytest
+from playwright.sync_api import Page, expect
+from scipy.spatial.transform import Rotation
+
+from arap.animation import animate
+from arap.io import load_mesh
+from arap.keyframes import Keyframes
+from arap.server.meshdata import load_builtin
+from tests.e2e.conftest import positions, wait_idle, wait_ready, wait_settled
+from tests.e2e.test_session_safety import Dialogs, wait_autosaved
+from tests.e2e.test_studio import drag_gizmo_x, select_anchor_and_handle
+
+pytestmark = pytest.mark.e2e
+
+
+def glb_frames(data: bytes) -> tuple[np.ndarray, np.ndarray]:
+    """Times and positions ``(N, n, 3)`` of an animated GLB (first frame as the mesh, a morph target per frame)."""
+    assert data[:4] == b"glTF"
+    json_len = struct.unpack_from("<I", data, 12)[0]
+    doc = json.loads(data[20:20 + json_len])
+    binary = data[20 + json_len + 8:]
+
+    def accessor(k: int, width: int) -> np.ndarray:
+        a = doc["accessors"][k]
+        view = doc["bufferViews"][a["bufferView"]]
+        raw = np.frombuffer(binary, dtype="<f4", count=a["count"] * width, offset=view["byteOffset"])
+        return raw.reshape(a["count"], width) if width > 1 else raw
+
+    prim = doc["meshes"][0]["primitives"][0]
+    base = accessor(prim["attributes"]["POSITION"], 3).astype(np.float64)
+    frames = np.stack([base + accessor(t["POSITION"], 3) for t in prim["targets"]])
+    times = accessor(doc["animations"][0]["samplers"][0]["input"], 1).astype(np.float64)
+    return times, frames
+
+
+def timeline(page: Page) -> dict:
+    return page.evaluate("() => window.__arap.timeline")
+
+
+def seek(page: Page, ms: float) -> None:
+    """Scrub to ``ms`` and let the shape settle there."""
+    page.evaluate(f"() => window.__arap.seek({ms})")
+    wait_idle(page)
+    wait_settled(page)
+
+
+def test_keyframes_scrub_play_restore_export(page: Page, tmp_path: Path) -> None:
+    name = page.evaluate("() => window.__arap.meshName")
+    rest = positions(page)
+    diag = float(np.linalg.norm(rest.max(axis=0) - rest.min(axis=0)))
+    fixed, handle = select_anchor_and_handle(page)
+    wait_settled(page)
+
+    # a keyframe at 0 s with the handles at rest; the playhead to 1 s, a drag, a keyframe there
+    page.get_by_test_id("tl-add").click()
+    expect(page.get_by_test_id("tl-count")).to_have_text("1 keyframe")
+    seek(page, 1000)
+    assert np.abs(positions(page) - rest).max() < 1e-6  # one keyframe: the handles hold its pose
+    drag_gizmo_x(page, 90)
+    wait_settled(page)
+    page.locator("#view").focus()
+    page.keyboard.press("k")
+    expect(page.get_by_test_id("tl-count")).to_have_text("2 keyframes")
+    tl = timeline(page)
+    assert [k["ms"] for k in tl["keys"]] == [0, 1000]
+    moved_to = positions(page)
+    shift = moved_to[handle] - rest[handle]
+    assert np.linalg.norm(shift, axis=1).min() > 0.02 * diag
+    expect(page.get_by_test_id("tl-marker")).to_have_count(2)
+
+    # scrubbing to 0.5 s puts the handles halfway (a translation) and the shape between the two
+    seek(page, 500)
+    half = positions(page)
+    np.testing.assert_allclose(half[handle], rest[handle] + 0.5 * shift, atol=1e-4 * diag)
+    np.testing.assert_allclose(half[fixed], rest[fixed], atol=1e-6 * diag)
+    free = np.setdiff1d(np.arange(len(rest)), np.concatenate([fixed, handle]))
+    to_rest = np.linalg.norm(half[free] - rest[free], axis=1).max()
+    to_end = np.linalg.norm(half[free] - moved_to[free], axis=1).max()
+    full = np.linalg.norm(moved_to[free] - rest[free], axis=1).max()
+    assert 0.2 * full < to_rest < 0.8 * full and 0.2 * full < to_end < 0.8 * full
+
+    # a click on a marker goes to its keyframe; a mouse scrub on the bar moves the playhead and sends drags
+    page.get_by_test_id("tl-marker").nth(1).click()
+    wait_idle(page)
+    assert timeline(page)["timeMs"] == 1000
+    bar = page.get_by_test_id("tl-bar").bounding_box()
+    assert bar is not None
+    sent = timeline(page)["dragsSent"]
+    y = bar["y"] + 3
+    page.mouse.move(bar["x"] + 0.1 * bar["width"], y)
+    page.mouse.down()
+    for k in range(1, 9):
+        page.mouse.move(bar["x"] + (0.1 + 0.1 * k / 8) * bar["width"], y)
+    page.mouse.up()
+    wait_idle(page)
+    tl = timeline(page)
+    assert tl["dragsSent"] > sent + 3 and abs(tl["timeMs"] - 0.2 * tl["durationMs"]) < 0.02 * tl["durationMs"]
+
+    # play advances frames, loops and pauses
+    seq = page.evaluate("() => window.__arap.lastSeq")
+    page.get_by_test_id("tl-play").click()
+    page.wait_for_function("() => window.__arap.timeline.framesShown >= 6", timeout=20_000)
+    page.wait_for_function(f"() => window.__arap.lastSeq > {seq} + 3", timeout=20_000)
+    page.get_by_test_id("tl-play").click()
+    assert not timeline(page)["playing"]
+    wait_idle(page)
+    wait_settled(page)
+
+    # a reload restores the keyframes with the session (autosave)
+    seek(page, 500)
+    saved = timeline(page)
+    wait_autosaved(page)
+    Dialogs(page, accept=True)
+    page.reload()
+    wait_ready(page)
+    assert timeline(page)["keys"] == []
+    page.get_by_test_id("restore-accept").click()
+    page.wait_for_function("() => !window.__arap.restoring && window.__arap.timeline.keys.length === 2",
+                           timeout=30_000)
+    wait_idle(page)
+    wait_settled(page)
+    tl = timeline(page)
+    assert [k["ms"] for k in tl["keys"]] == [0, 1000] and tl["timeMs"] == saved["timeMs"]
+    np.testing.assert_allclose(positions(page), half, atol=1e-4 * diag)
+    # the keyframes still pose the handles as they did before the reload
+    seek(page, 1000)
+    np.testing.assert_allclose(positions(page)[handle], moved_to[handle], atol=1e-4 * diag)
+    seek(page, 0)
+    np.testing.assert_allclose(positions(page)[handle], rest[handle], atol=1e-4 * diag)
+
+    # export: an animated GLB of every frame from 0 s to 1 s at the frame rate
+    fps = tl["fps"]
+    with page.expect_download(timeout=120_000) as info:
+        page.get_by_test_id("tl-export").click()
+    glb = tmp_path / info.value.suggested_filename
+    info.value.save_as(glb)
+    assert glb.suffix == ".glb"
+    V, F = load_mesh(glb)
+    assert V.shape == rest.shape
+    times, frames = glb_frames(glb.read_bytes())
+    assert len(frames) == fps + 1
+    np.testing.assert_allclose(times, np.arange(fps + 1) / fps, atol=1e-6)
+    np.testing.assert_allclose(frames[0][handle], rest[handle], atol=1e-4 * diag)
+    np.testing.assert_allclose(frames[-1][handle], moved_to[handle], atol=1e-4 * diag)
+    expect(page.get_by_test_id("tl-progress")).to_contain_text(f"{fps + 1} frames")
+
+    # the saved constraints document renders the same animation with arap animate
+    with page.expect_download() as info:
+        page.get_by_test_id("save-constraints").click()
+    path = tmp_path / "keys.json"
+    info.value.save_as(path)
+    document = json.loads(path.read_text())
+    assert [k["time"] for k in document["keyframes"]] == [0.0, 1.0]
+    mesh = load_builtin(name)
+    offline = animate(mesh.V, mesh.F, document, fps=fps)
+    assert offline.vertices.shape == frames.shape
+    np.testing.assert_allclose(offline.vertices, frames, atol=1e-4 * diag)
+    assert not page.evaluate("() => window.__arap.errors"), "the server reported errors"
+
+
+def test_the_page_interpolates_as_arap_keyframes(page: Page) -> None:
+    V, _ = load_builtin("bar").V, None
+    rng = np.random.default_rng(7)
+    groups = [[0, 5, 9, 40], [100, 120, 140]]
+    handles = [v for g in groups for v in g]
+
+    def transform() -> np.ndarray:
+        M = np.eye(4)
+        M[:3, :3] = Rotation.random(random_state=rng).as_matrix() @ np.diag(rng.uniform(0.7, 1.4, 3))
+        M[:3, 3] = rng.normal(size=3)
+        return M
+
+    times_ms = [0, 400, 1000]
+    mats = [[transform() for _ in groups] for _ in times_ms]
+    document = {"fixed": [2000], "handles": handles, "handle_groups": groups, "keyframes": [
+        {"time": ms / 1000, "transforms": [M.tolist() for M in Ms]} for ms, Ms in zip(times_ms, mats, strict=True)]}
+    keys = Keyframes.from_json(document, V)
+    pivots = [V[g].mean(axis=0).tolist() for g in groups]
+    js_keys = [{"ms": ms, "transforms": [M.T.reshape(16).tolist() for M in Ms]}
+               for ms, Ms in zip(times_ms, mats, strict=True)]
+    for t in (-0.1, 0.0, 0.13, 0.4, 0.55, 0.77, 1.0, 1.2):
+        out = page.evaluate("([k, p, t]) => window.__arap.interpolate(k, p, t)", [js_keys, pivots, t])
+        got = np.concatenate([V[g] @ np.asarray(m).reshape(4, 4).T[:3, :3].T + np.asarray(m).reshape(4, 4).T[:3, 3]
+                              for g, m in zip(groups, out, strict=True)])
+        np.testing.assert_allclose(got, keys.handle_targets(t), atol=1e-12, err_msg=f"at {t} s")

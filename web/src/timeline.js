@@ -1,0 +1,495 @@
+// Keyframe timeline: the handle groups' transforms stored at a few times, a time bar with a marker per keyframe, a
+// playhead to scrub, playback at the animation's frame rate, and the export of the solved animation as a GLB.
+//
+// A keyframe holds one column-major 4×4 per handle group of the server's constraint set (point handles are not
+// animated: they keep their current transform). Between keyframes the groups move as arap.keyframes says (the
+// command line's `arap animate` renders the same animation from the saved constraints document): each group turns
+// about its pivot (the centroid of its vertices in the constraint set's pose) by the spherical linear
+// interpolation of the two rotations of the polar decompositions, while the stretch parts blend linearly and the
+// pivot's image moves on a straight line. Scrubbing and playback send the interpolated transforms as drags, so the
+// shape follows live; the connection keeps at most one drag unanswered, so a slow server drops frames instead of
+// queueing them.
+import * as THREE from 'three';
+import { CLIENT, SERVER } from './protocol.js';
+
+/** Most frames an export may have (the server refuses more). */
+export const MAX_EXPORT_FRAMES = 600;
+
+/**
+ * @typedef {{ms: number, transforms: number[][]}} Keyframe
+ *   time in milliseconds and one column-major 4×4 (16 numbers) per handle group
+ */
+
+// ------------------------------------------------------------------ 3×3 algebra (row-major arrays of 9)
+
+function mul3(a, b) {
+  const out = new Array(9);
+  for (let r = 0; r < 3; r++) {
+    for (let c = 0; c < 3; c++) out[3 * r + c] = a[3 * r] * b[c] + a[3 * r + 1] * b[3 + c] + a[3 * r + 2] * b[6 + c];
+  }
+  return out;
+}
+
+function transpose3(a) {
+  return [a[0], a[3], a[6], a[1], a[4], a[7], a[2], a[5], a[8]];
+}
+
+function inverse3(a) {
+  const [m00, m01, m02, m10, m11, m12, m20, m21, m22] = a;
+  const c00 = m11 * m22 - m12 * m21;
+  const c01 = m12 * m20 - m10 * m22;
+  const c02 = m10 * m21 - m11 * m20;
+  const det = m00 * c00 + m01 * c01 + m02 * c02;
+  return [
+    c00 / det, (m02 * m21 - m01 * m22) / det, (m01 * m12 - m02 * m11) / det,
+    c01 / det, (m00 * m22 - m02 * m20) / det, (m02 * m10 - m00 * m12) / det,
+    c02 / det, (m01 * m20 - m00 * m21) / det, (m00 * m11 - m01 * m10) / det,
+  ];
+}
+
+/**
+ * Polar decomposition A = R S (R a rotation, S symmetric positive definite) of a 3×3 with a positive determinant,
+ * by Newton's iteration R ← (R + R⁻ᵀ) / 2 (the factor scipy.linalg.polar gives).
+ * @param {number[]} A row-major
+ * @returns {{R: number[], S: number[]}}
+ */
+export function polar(A) {
+  let R = A.slice();
+  for (let k = 0; k < 100; k++) {
+    const inv = transpose3(inverse3(R));
+    const next = R.map((x, i) => 0.5 * (x + inv[i]));
+    let change = 0;
+    for (let i = 0; i < 9; i++) change = Math.max(change, Math.abs(next[i] - R[i]));
+    R = next;
+    if (change <= 1e-15) break;
+  }
+  const S = mul3(transpose3(R), A);
+  return { R, S: S.map((x, i) => 0.5 * (x + S[3 * (i % 3) + Math.floor(i / 3)])) };
+}
+
+/** Row-major 3×3 part and translation of a column-major 4×4. */
+function split(e) {
+  return { A: [e[0], e[4], e[8], e[1], e[5], e[9], e[2], e[6], e[10]], t: [e[12], e[13], e[14]] };
+}
+
+function apply3(A, p) {
+  return [0, 1, 2].map((r) => A[3 * r] * p[0] + A[3 * r + 1] * p[1] + A[3 * r + 2] * p[2]);
+}
+
+const _m4 = new THREE.Matrix4();
+function quaternionOf(R) {
+  _m4.set(R[0], R[1], R[2], 0, R[3], R[4], R[5], 0, R[6], R[7], R[8], 0, 0, 0, 0, 1);
+  return new THREE.Quaternion().setFromRotationMatrix(_m4);
+}
+
+function rotationOf(q) {
+  const e = _m4.makeRotationFromQuaternion(q).elements;
+  return [e[0], e[4], e[8], e[1], e[5], e[9], e[2], e[6], e[10]];
+}
+
+/**
+ * The transform between two keyframe transforms `a` and `b` (column-major 4×4) at `s` in [0, 1] for a group turning
+ * about `pivot`: as arap.keyframes.Keyframes.handle_targets (rotation by slerp, stretch and pivot linearly).
+ * @param {number[]} a @param {number[]} b @param {number} s @param {number[]} pivot
+ * @returns {number[]} column-major 4×4
+ */
+export function turn(a, b, s, pivot) {
+  const A = split(a);
+  const B = split(b);
+  const pa = polar(A.A);
+  const pb = polar(B.A);
+  const q = quaternionOf(pa.R).slerp(quaternionOf(pb.R), s);
+  const M = mul3(rotationOf(q), pa.S.map((x, i) => (1 - s) * x + s * pb.S[i]));
+  const ca = apply3(A.A, pivot).map((x, i) => x + A.t[i]);
+  const cb = apply3(B.A, pivot).map((x, i) => x + B.t[i]);
+  const centre = ca.map((x, i) => (1 - s) * x + s * cb[i]);
+  const mp = apply3(M, pivot);
+  const t = centre.map((x, i) => x - mp[i]);
+  return [M[0], M[3], M[6], 0, M[1], M[4], M[7], 0, M[2], M[5], M[8], 0, t[0], t[1], t[2], 1];
+}
+
+/**
+ * The handle groups' transforms at `seconds`: the first keyframe's before it, the last's after it, in between the
+ * turn of each group about its pivot (see `turn`).
+ * @param {Keyframe[]} keys in increasing time
+ * @param {number[][]} pivots per group
+ * @param {number} seconds
+ * @returns {number[][]}
+ */
+export function interpolate(keys, pivots, seconds) {
+  if (!keys.length) return [];
+  if (seconds <= keys[0].ms / 1000) return keys[0].transforms.map((m) => m.slice());
+  const last = keys[keys.length - 1];
+  if (seconds >= last.ms / 1000) return last.transforms.map((m) => m.slice());
+  let b = 1;
+  while (keys[b].ms / 1000 <= seconds) b++;
+  const ka = keys[b - 1];
+  const kb = keys[b];
+  const ta = ka.ms / 1000;
+  const s = (seconds - ta) / (kb.ms / 1000 - ta);
+  return ka.transforms.map((m, g) => turn(m, kb.transforms[g], s, pivots[g]));
+}
+
+/** `m` · `c`⁻¹ (column-major 4×4s). */
+function rebased(m, c) {
+  return Array.from(new THREE.Matrix4().fromArray(m).multiply(new THREE.Matrix4().fromArray(c).invert()).elements);
+}
+
+/** Frames an export of `keys` at `fps` solves: as arap.animation.frame_times. */
+export function frameCount(keys, fps) {
+  if (!keys.length) return 0;
+  const span = (keys[keys.length - 1].ms - keys[0].ms) / 1000;
+  const count = Math.floor(span * fps + 1e-9) + 1;
+  return (count - 1) / fps < span - 1e-9 / fps ? count + 1 : count;
+}
+
+const byId = (id) => /** @type {HTMLElement} */ (document.getElementById(id));
+
+export class Timeline {
+  /**
+   * @param {object} deps
+   *   blocked() → null when keyframes can be made and played, else why not;
+   *   handleGroups() → the server's handle groups (vertex lists, point handles excluded), in drag order;
+   *   transforms() → the current transform of every server group (handle groups, then point handles);
+   *   matrixOf(g) → the current transform of server group g; positions() → the shown positions;
+   *   drag(transforms) (every server group), endDrag(), send(msg) → bool, download(msg) → text,
+   *   changed() (something to autosave), say(text, kind)
+   */
+  constructor(deps) {
+    this.deps = deps;
+    /** @type {Keyframe[]} */
+    this.keys = [];
+    /** @type {number[][]|null} */
+    this.pivots = null; // per handle group, in the pose of the constraint set the keyframes refer to
+    this.timeMs = 0;
+    this.durationMs = 2000;
+    this.fps = 24;
+    this.playing = false;
+    this.scrubbing = false;
+    this.dragsSent = 0; // drags the timeline sent (scrub and playback)
+    this.framesShown = 0; // playback frames that reached the server
+    this.exporting = false;
+    this.exportNote = '';
+    this._frame = -1;
+    this._raf = 0;
+    this._moved = false; // drags sent since the last end_drag
+
+    this.bar = byId('tl-bar');
+    this.markers = byId('tl-markers');
+    this.playhead = byId('tl-playhead');
+    this.bar.addEventListener('pointerdown', (e) => this._pointerDown(e));
+    this.bar.addEventListener('pointermove', (e) => this._pointerMove(e));
+    this.bar.addEventListener('pointerup', (e) => this._pointerUp(e));
+    this.bar.addEventListener('pointercancel', (e) => this._pointerUp(e));
+    byId('btn-tl-add').addEventListener('click', () => this.addKeyframe());
+    byId('btn-tl-delete').addEventListener('click', () => this.deleteKeyframe());
+    byId('btn-tl-play').addEventListener('click', () => (this.playing ? this.pause() : this.play()));
+    byId('btn-tl-export').addEventListener('click', () => this.exportAnimation());
+    const duration = /** @type {HTMLInputElement} */ (byId('tl-duration'));
+    const fps = /** @type {HTMLInputElement} */ (byId('tl-fps'));
+    duration.addEventListener('change', () => this.setDuration(Number(duration.value)));
+    fps.addEventListener('change', () => this.setFps(Number(fps.value)));
+    this.render();
+  }
+
+  // ------------------------------------------------------------------ keyframes
+
+  /** Store the handle groups' current transforms at the playhead (replacing a keyframe at that time). */
+  addKeyframe() {
+    const why = this.deps.blocked();
+    if (why) return this.deps.say(`Cannot add a keyframe: ${why}.`, 'error');
+    this.pause();
+    const groups = this.deps.handleGroups();
+    if (this.keys.length && this.keys[0].transforms.length !== groups.length) {
+      this.keys = []; // made for other handle groups
+      this.pivots = null;
+    }
+    if (!this.pivots) this.pivots = groups.map((idx, g) => this._pivot(idx, g));
+    const all = this.deps.transforms();
+    const key = { ms: this.timeMs, transforms: all.slice(0, groups.length).map((m) => m.slice()) };
+    const at = this.keys.findIndex((k) => k.ms >= key.ms);
+    if (at >= 0 && this.keys[at].ms === key.ms) this.keys[at] = key;
+    else if (at >= 0) this.keys.splice(at, 0, key);
+    else this.keys.push(key);
+    this._changed();
+    return undefined;
+  }
+
+  /** Delete the keyframe at the playhead. */
+  deleteKeyframe() {
+    const at = this.keys.findIndex((k) => k.ms === this.timeMs);
+    if (at < 0) return this.deps.say('No keyframe at the playhead: click a marker to go to one.', 'info');
+    this.keys.splice(at, 1);
+    if (!this.keys.length) this.pivots = null;
+    this._changed();
+    return undefined;
+  }
+
+  /** Centroid of a handle group's vertices in the pose its transform applies to. */
+  _pivot(indices, g) {
+    const P = this.deps.positions();
+    const c = [0, 0, 0];
+    for (const i of indices) for (let d = 0; d < 3; d++) c[d] += P[3 * i + d];
+    const v = new THREE.Vector3(c[0], c[1], c[2]).divideScalar(Math.max(indices.length, 1));
+    return v.applyMatrix4(new THREE.Matrix4().fromArray(this.deps.matrixOf(g)).invert()).toArray();
+  }
+
+  /**
+   * The constraint set is replaced by one whose pose is the current shape (its transforms back to identity):
+   * keyframes follow, each transform composed with the inverse of the current one (`current`: one per server group).
+   */
+  rebase(current, nHandleGroups) {
+    if (!this.keys.length) return;
+    if (this.keys[0].transforms.length !== nHandleGroups) {
+      this.clear();
+      this.deps.say('The keyframes were cleared: the handle groups changed.', 'info');
+      return;
+    }
+    this.keys = this.keys.map((k) => ({ ms: k.ms, transforms: k.transforms.map((m, g) => rebased(m, current[g])) }));
+    this.pivots = this.pivots?.map((p, g) => new THREE.Vector3(...p).applyMatrix4(new THREE.Matrix4()
+      .fromArray(current[g])).toArray()) ?? null;
+    this._changed();
+  }
+
+  clear() {
+    this.pause();
+    if (!this.keys.length) return;
+    this.keys = [];
+    this.pivots = null;
+    this._changed();
+  }
+
+  /** What autosave keeps: the keyframes and the transforms they were made against (`base`, per handle group). */
+  snapshot() {
+    if (!this.keys.length) return null;
+    const n = this.keys[0].transforms.length;
+    return {
+      keys: this.keys.map((k) => ({ ms: k.ms, transforms: k.transforms.map((m) => m.slice()) })),
+      pivots: this.pivots?.map((p) => p.slice()) ?? null,
+      base: this.deps.transforms().slice(0, n).map((m) => m.slice()),
+      timeMs: this.timeMs,
+      durationMs: this.durationMs,
+      fps: this.fps,
+    };
+  }
+
+  /** Put back a snapshot once the session it belongs to is restored (its shape is the pose of the new set). */
+  restore(saved) {
+    this.pause();
+    if (!saved || !Array.isArray(saved.keys)) return;
+    this.durationMs = saved.durationMs ?? this.durationMs;
+    this.fps = saved.fps ?? this.fps;
+    this.timeMs = Math.min(saved.timeMs ?? 0, this.durationMs);
+    this.keys = saved.keys;
+    this.pivots = saved.pivots;
+    if (saved.base) this.rebase(saved.base, saved.base.length);
+    this._changed();
+  }
+
+  // ------------------------------------------------------------------ time
+
+  setDuration(seconds) {
+    if (!Number.isFinite(seconds) || seconds <= 0) return this.render();
+    const last = this.keys.length ? this.keys[this.keys.length - 1].ms : 0;
+    this.durationMs = Math.max(Math.round(seconds * 1000), last, 1);
+    this.timeMs = Math.min(this.timeMs, this.durationMs);
+    this._changed();
+    return undefined;
+  }
+
+  setFps(fps) {
+    if (Number.isFinite(fps) && fps >= 1 && fps <= 120) this.fps = fps;
+    this._changed();
+  }
+
+  /** The interpolated transforms of every server group at `ms` (point handles keep theirs), or null. */
+  transformsAt(ms) {
+    if (!this.keys.length || this.deps.blocked()) return null;
+    const n = this.keys[0].transforms.length;
+    const all = this.deps.transforms();
+    if (all.length < n || this.deps.handleGroups().length !== n) return null;
+    return [...interpolate(this.keys, this.pivots || [], ms / 1000), ...all.slice(n)];
+  }
+
+  /** Move the playhead to `ms`; with keyframes, the handles go to their pose there (a drag). */
+  seek(ms) {
+    this.timeMs = Math.max(0, Math.min(Math.round(ms), this.durationMs));
+    const t = this.transformsAt(this.timeMs);
+    if (t) {
+      this.deps.drag(t);
+      this.dragsSent++;
+      this._moved = true;
+    }
+    this.render();
+    return !!t;
+  }
+
+  /** The drags since the last one end as an undo step (the server then settles the shape). */
+  _endMove() {
+    if (!this._moved) return;
+    this._moved = false;
+    this.deps.endDrag();
+  }
+
+  play() {
+    if (this.playing) return;
+    if (this.keys.length < 2) return this.deps.say('Add two keyframes at different times to play.', 'info');
+    const why = this.deps.blocked();
+    if (why) return this.deps.say(`Cannot play: ${why}.`, 'error');
+    this.playing = true;
+    this._frame = -1;
+    const loop = Math.floor((this.durationMs / 1000) * this.fps + 1e-9) + 1; // frames of one pass
+    const startFrame = Math.round((this.timeMs / 1000) * this.fps) % loop;
+    const start = performance.now() - (startFrame / this.fps) * 1000;
+    const tick = (now) => {
+      if (!this.playing) return;
+      if (this.deps.blocked()) {
+        this.pause(); // a drag of the gizmo, a new selection, the connection lost
+        return;
+      }
+      const frame = Math.floor(((now - start) / 1000) * this.fps) % loop;
+      if (frame !== this._frame) {
+        this._frame = frame;
+        if (this.seek((frame / this.fps) * 1000)) this.framesShown++;
+      }
+      this._raf = requestAnimationFrame(tick);
+    };
+    this._raf = requestAnimationFrame(tick);
+    this.render();
+    return undefined;
+  }
+
+  pause() {
+    if (!this.playing) return;
+    this.playing = false;
+    cancelAnimationFrame(this._raf);
+    this._endMove();
+    this.render();
+  }
+
+  // ------------------------------------------------------------------ pointer on the bar
+
+  _msAt(e) {
+    const r = this.bar.getBoundingClientRect();
+    const x = Math.max(0, Math.min(e.clientX - r.left, r.width));
+    return (x / Math.max(r.width, 1)) * this.durationMs;
+  }
+
+  _pointerDown(e) {
+    if (e.button !== 0 || /** @type {any} */ (this.bar).disabled) return;
+    this.pause();
+    const marker = /** @type {HTMLElement} */ (e.target).closest?.('.tl-marker');
+    if (marker) {
+      this.goTo(Number(/** @type {HTMLElement} */ (marker).dataset.ms));
+      return;
+    }
+    this.scrubbing = true;
+    this.bar.setPointerCapture(e.pointerId);
+    this.seek(this._msAt(e));
+  }
+
+  _pointerMove(e) {
+    if (this.scrubbing) this.seek(this._msAt(e));
+  }
+
+  _pointerUp(e) {
+    if (!this.scrubbing) return;
+    this.scrubbing = false;
+    if (this.bar.hasPointerCapture(e.pointerId)) this.bar.releasePointerCapture(e.pointerId);
+    this._endMove();
+  }
+
+  /** Go to a time (a keyframe's): one drag there, ending at once. */
+  goTo(ms) {
+    this.pause();
+    this.seek(ms);
+    this._endMove();
+  }
+
+  // ------------------------------------------------------------------ documents and export
+
+  /** Fields of get_constraints / export_animation for the keyframes, or null without any (or when stale). */
+  messageFields() {
+    if (!this.keys.length || this.keys[0].transforms.length !== this.deps.handleGroups().length) return null;
+    return { times_ms: this.keys.map((k) => k.ms), transforms: this.keys.flatMap((k) => k.transforms) };
+  }
+
+  exportAnimation() {
+    if (this.keys.length < 2) return this.deps.say('Add two keyframes at different times to export an animation.', 'info');
+    const why = this.deps.blocked();
+    if (why) return this.deps.say(`Cannot export the animation: ${why}.`, 'error');
+    const frames = frameCount(this.keys, this.fps);
+    if (frames > MAX_EXPORT_FRAMES) {
+      return this.deps.say(`${frames} frames at ${this.fps} fps: an export holds at most ${MAX_EXPORT_FRAMES}; lower `
+        + 'the frame rate or bring the keyframes closer.', 'error');
+    }
+    this.pause();
+    const fields = this.messageFields();
+    if (!fields || !this.deps.send({ type: CLIENT.EXPORT_ANIMATION, fps: this.fps, ...fields })) return undefined;
+    this.exporting = true;
+    this.exportNote = `Solving ${frames} frames…`;
+    this.render();
+    return undefined;
+  }
+
+  /** A server message: export progress and result; true when it was one of those. */
+  received(msg) {
+    if (msg.type === SERVER.ANIMATION_PROGRESS) {
+      if (msg.status === 'cancelled') {
+        this.exporting = false;
+        this.exportNote = 'Export cancelled.';
+      } else {
+        this.exportNote = `Solving frame ${msg.frame} of ${msg.frames}…`;
+      }
+      this.render();
+      return true;
+    }
+    if (msg.type === SERVER.ANIMATION) {
+      this.exporting = false;
+      this.exportNote = `${msg.frames} frames in ${msg.seconds.toFixed(1)} s.`;
+      this.lastExport = { frames: msg.frames, seconds: msg.seconds, bytes: msg.frame.payload.byteLength };
+      this.deps.say(this.deps.download(msg), 'info');
+      this.render();
+      return true;
+    }
+    return false;
+  }
+
+  /** An error answered the export. */
+  failed(message) {
+    this.exporting = false;
+    this.exportNote = `Export failed: ${message}`;
+    this.render();
+  }
+
+  // ------------------------------------------------------------------ view
+
+  _changed() {
+    this.render();
+    this.deps.changed();
+  }
+
+  render() {
+    const pct = (ms) => `${(100 * ms) / Math.max(this.durationMs, 1)}%`;
+    this.playhead.style.left = pct(this.timeMs);
+    this.markers.replaceChildren(...this.keys.map((k, i) => {
+      const m = document.createElement('div');
+      m.className = `tl-marker${k.ms === this.timeMs ? ' current' : ''}`;
+      m.dataset.ms = String(k.ms);
+      m.dataset.testid = 'tl-marker';
+      m.title = `Keyframe ${i + 1} at ${(k.ms / 1000).toFixed(3)} s: click to go to it`;
+      m.style.left = pct(k.ms);
+      return m;
+    }));
+    byId('tl-time').textContent = `${(this.timeMs / 1000).toFixed(3)} s`;
+    const n = this.keys.length;
+    byId('tl-count').textContent = n ? `${n} keyframe${n > 1 ? 's' : ''}` : 'no keyframes';
+    byId('btn-tl-play').textContent = this.playing ? 'Pause' : 'Play';
+    byId('btn-tl-play').classList.toggle('active', this.playing);
+    byId('tl-progress').textContent = this.exportNote;
+    const duration = /** @type {HTMLInputElement} */ (byId('tl-duration'));
+    const fps = /** @type {HTMLInputElement} */ (byId('tl-fps'));
+    if (document.activeElement !== duration) duration.value = String(this.durationMs / 1000);
+    if (document.activeElement !== fps) fps.value = String(this.fps);
+  }
+}
