@@ -185,6 +185,11 @@ export class Connection {
       this.handlers.onMessage?.({ type: 'error', code: 'bad_message', message: `unreadable frame: ${err}`, request: null });
       return;
     }
+    this._dispatch(msg);
+  }
+
+  /** Hand on a decoded server message (a binary one with its `frame`). */
+  _dispatch(msg) {
     if (msg.type === SERVER.WELCOME) {
       this.attempt = 0; // a server that accepts and drops at once still backs off
       this.welcomed = true;
@@ -211,4 +216,113 @@ export function defaultSocketUrl(loc = location) {
   const token = new URLSearchParams(loc.search).get('token');
   const query = token === null ? '' : `?token=${encodeURIComponent(token)}`;
   return `${proto}//${loc.host}${base}ws${query}`;
+}
+
+/**
+ * What a studio session needs of a Jupyter widget model (anywidget's `model`): custom messages both ways, a binary
+ * message as its header (the content) and its payload (the first buffer).
+ * @typedef {{
+ *   send: (content: object, callbacks?: unknown, buffers?: (ArrayBuffer|ArrayBufferView)[]) => void,
+ *   on: (name: 'msg:custom', cb: (content: any, buffers?: (ArrayBuffer|ArrayBufferView)[]) => void) => void,
+ *   off: (name: 'msg:custom', cb: (content: any, buffers?: (ArrayBuffer|ArrayBufferView)[]) => void) => void,
+ * }} WidgetModel
+ */
+
+/** The message a widget view sends when it opens: the kernel answers with the greeting (welcome, mesh, state). */
+export const WIDGET_OPEN = { widget: 'open' };
+
+/**
+ * The studio session of a notebook widget: the same interface as Connection, carried by the kernel's comm (the
+ * widget model's custom messages) instead of a WebSocket. There is no reconnection: the comm lives as long as the
+ * kernel keeps the widget.
+ */
+export class ModelConnection extends Connection {
+  /**
+   * @param {WidgetModel} model
+   * @param {object} handlers as Connection's
+   */
+  constructor(model, handlers) {
+    super('', handlers);
+    this.model = model;
+    this._listener = (content, buffers) => this._custom(content, buffers);
+  }
+
+  connect() {
+    if (this.open) return;
+    this.stopped = false;
+    this.open = true;
+    this.welcomed = false;
+    this.inFlight = null;
+    this.pending = null;
+    this.model.on('msg:custom', this._listener);
+    clearTimeout(this.welcomeTimer);
+    this.welcomeTimer = setTimeout(() => {
+      if (this.open && !this.welcomed) this.handlers.onWaiting?.();
+    }, WELCOME_WAIT_MS);
+    this.model.send(WIDGET_OPEN);
+  }
+
+  close() {
+    this.stopped = true;
+    clearTimeout(this.welcomeTimer);
+    if (!this.open) return;
+    this.open = false;
+    this.model.off('msg:custom', this._listener);
+  }
+
+  get retrying() {
+    return false;
+  }
+
+  send(msg) {
+    if (!this.open) return false;
+    this.model.send(msg);
+    return true;
+  }
+
+  sendBinary(header, bytes) {
+    if (!this.open) return false;
+    this.model.send(header, undefined, [bytes]);
+    return true;
+  }
+
+  _custom(content, buffers) {
+    if (!content || typeof content !== 'object' || typeof content.type !== 'string') return;
+    if (!buffers || buffers.length === 0) {
+      this._dispatch(content);
+      return;
+    }
+    const b = buffers[0];
+    const payload = b instanceof ArrayBuffer ? new Uint8Array(b) : new Uint8Array(b.buffer, b.byteOffset, b.byteLength);
+    this._dispatch({ ...content, frame: { header: content, payload } });
+  }
+}
+
+/**
+ * A WidgetModel for a studio page inside a frame of the notebook's page: custom messages go to and come from the
+ * parent window, which forwards them to and from the widget model (see widget.js).
+ * @returns {WidgetModel}
+ */
+export function parentModel(target = window.parent) {
+  const listeners = new Set();
+  window.addEventListener('message', (ev) => {
+    if (ev.source !== target || !ev.data || ev.data.arap !== 'msg') return;
+    for (const cb of listeners) cb(ev.data.content, ev.data.buffers);
+  });
+  return {
+    send: (content, _callbacks, buffers) => target.postMessage({ arap: 'send', content, buffers: buffers ?? [] }, '*'),
+    on: (_name, cb) => listeners.add(cb),
+    off: (_name, cb) => listeners.delete(cb),
+  };
+}
+
+/**
+ * The studio session of this page: through the notebook's widget when the page is a widget's frame (the widget
+ * sets `window.__ARAP_HOST__` to 'parent'), else the WebSocket of the server that served it.
+ * @param {object} handlers as Connection's
+ * @returns {Connection}
+ */
+export function createConnection(handlers) {
+  if (/** @type {any} */ (window).__ARAP_HOST__ === 'parent') return new ModelConnection(parentModel(), handlers);
+  return new Connection(defaultSocketUrl(), handlers);
 }

@@ -1,6 +1,6 @@
 // ARAP Studio: wires the connection, the 3D view, the selection tools, the gizmo and the side panel.
 import './style.css';
-import { Connection, defaultSocketUrl } from './connection.js';
+import { createConnection } from './connection.js';
 import {
   checkMeshFile, downloadConstraints, downloadExport, installDropTarget, readConstraintsFile,
 } from './files.js';
@@ -144,7 +144,7 @@ function timelineBlocked() {
 
 const stats = new UpdateStats({ panel: () => panel, latencyMs: () => conn.lastLatencyMs });
 
-const conn = new Connection(defaultSocketUrl(), {
+const conn = createConnection({
   onOpen: () => {
     panel.clearStatus('preparing');
     panel.setConnection('open');
