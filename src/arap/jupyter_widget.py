@@ -13,7 +13,7 @@ The comm carries the studio protocol's messages unchanged (``docs/protocol.md``)
 message's content, a binary one as its header (the content) and its payload (one buffer). The one message of its
 own is ``{"widget": "open"}``, which a view sends when it opens; the kernel answers with the greeting (``welcome``,
 ``mesh``, ``state`` and the current shape). Requests are answered in order on a thread of the widget's, as by the
-studio's server (:mod:`arap.server.dispatch`): drags coalesce, and the shape settles while no request waits.
+studio's server (:mod:`arap.server.channel`): drags coalesce, and the shape settles while no request waits.
 
 A saved notebook keeps no live widget, so a picture of the shape with its constraints (:func:`arap.show`) is shown
 under it and replaced whenever an edit is finished (after a drag has settled, an undo, a new constraint set):
@@ -40,7 +40,8 @@ from arap.notebook import Selection, _initial_constraints, session_selection
 
 if TYPE_CHECKING:
     from arap.render.picture import Picture
-    from arap.server.dispatch import ChannelWorker, Dispatcher, Reply
+    from arap.server.channel import ChannelWorker
+    from arap.server.dispatch import Dispatcher, Reply
     from arap.server.session import Session
 
 __all__ = ["OPEN_MESSAGE", "StudioWidget", "has_comm_kernel", "widget", "widget_module"]
@@ -130,7 +131,8 @@ class StudioWidget:
     def _setup(self, *, V: NDArray[np.float64], F: NDArray[np.int64], name: str, prepare: Any = None,
                picture: bool = True) -> None:
         from arap.kernel_cache import KERNELS_READY
-        from arap.server.dispatch import ChannelWorker, Dispatcher, StudioConfig
+        from arap.server.channel import ChannelWorker
+        from arap.server.dispatch import Dispatcher, StudioConfig
         from arap.server.meshdata import MeshData
         from arap.server.session import Session
 

@@ -2,17 +2,15 @@
 
 A :class:`Dispatcher` turns validated client messages into the server messages that answer them, as
 :class:`Reply` values; the transport only sends them, in order. :mod:`arap.server.connection` runs it on an event
-loop (each step on a thread), :class:`ChannelWorker` on a thread of its own for synchronous channels such as a
-notebook widget's comm (:mod:`arap.widget`). Both coalesce drags the same way, settle the shape when no request
-waits and stop settling as soon as one arrives.
+loop (each step on a thread), :class:`arap.server.channel.ChannelWorker` on a thread of its own for synchronous
+channels such as a notebook widget's comm (:mod:`arap.jupyter_widget`). Both coalesce drags the same way, settle
+the shape when no request waits and stop settling as soon as one arrives.
 """
 
 from __future__ import annotations
 
-import collections
 import json
 import logging
-import threading
 import time
 from collections.abc import Callable, Iterator
 from dataclasses import asdict, dataclass
@@ -38,7 +36,7 @@ from arap.server.records import readable_energy
 from arap.server.render_mesh import Look, look_from_upload
 from arap.server.session import DragOutcome, Session, SettleOutcome
 
-__all__ = ["SETTLE", "ChannelWorker", "Dispatcher", "Reply", "StudioConfig", "decode_message"]
+__all__ = ["SETTLE", "Dispatcher", "Reply", "StudioConfig", "decode_message"]
 
 logger = logging.getLogger("arap.server.connection")
 
@@ -340,139 +338,3 @@ class Dispatcher:
                                                          "arrived": arrived, "mesh_sent": mesh_sent,
                                                          "parse_repair_cpu_ms": round(1000 * cpu, 2),
                                                          **{k: round(1000 * v, 2) for k, v in ms.items()}}))
-
-
-@dataclass(frozen=True)
-class _Task:
-    fn: Callable[[], Iterator[Reply]]
-
-
-class ChannelWorker:
-    """Serves one session over a synchronous channel: requests are put in a queue and answered in order by a
-    thread of its own, which settles the shape while none waits and stops settling when one arrives.
-
-    Parameters
-    ----------
-    dispatcher : Dispatcher
-    send : callable
-        ``send(reply)``, called on the worker's thread; its exceptions are logged, not raised.
-    """
-
-    def __init__(self, dispatcher: Dispatcher, send: Callable[[Reply], object],
-                 on_idle: Callable[[], object] | None = None) -> None:
-        self.dispatcher = dispatcher
-        self._send = send
-        self._on_idle = on_idle
-        self._queue: collections.deque[ClientMessage | RequestError | _Task] = collections.deque()
-        self._cond = threading.Condition()
-        self._closed = False
-        self._busy = False
-        self._thread = threading.Thread(target=self._run, name="arap-widget-worker", daemon=True)
-
-    def start(self) -> None:
-        """Start the thread."""
-        self._thread.start()
-
-    def call(self, task: Callable[[], Iterator[Reply]]) -> None:
-        """Queue ``task``: run on the worker's thread in turn with the requests, it yields the replies to send
-        (e.g. :meth:`Dispatcher.rejoin`)."""
-        with self._cond:
-            if not self._closed:
-                self._queue.append(_Task(task))
-                self._cond.notify()
-
-    def put(self, item: ClientMessage | RequestError) -> None:
-        """Queue a request (a drag replaces a drag waiting at the end of the queue) or an error to answer."""
-        with self._cond:
-            if self._closed:
-                return
-            if isinstance(item, ClientMessage) and item.type == "drag" and self._queue:
-                last = self._queue[-1]
-                if isinstance(last, ClientMessage) and last.type == "drag":
-                    self._queue[-1] = item
-                    self.dispatcher.skipped += 1
-                    return
-            if len(self._queue) >= self.dispatcher.config.max_pending:
-                request = item.type if isinstance(item, ClientMessage) else item.request
-                self._emit(self.dispatcher.error(RequestError(
-                    "busy", f"{len(self._queue)} requests are already waiting", request)))
-                return
-            self._queue.append(item)
-            self._cond.notify()
-
-    def idle(self, timeout: float = 10.0) -> bool:
-        """Wait until the queue is empty and nothing is being answered or settled; False on timeout."""
-        deadline = time.monotonic() + timeout
-        with self._cond:
-            while self._queue or self._busy:
-                left = deadline - time.monotonic()
-                if left <= 0:
-                    return False
-                self._cond.wait(left)
-        return True
-
-    def close(self, timeout: float = 10.0) -> None:
-        """Stop the thread (a settling run stops at its next iteration); idempotent."""
-        with self._cond:
-            self._closed = True
-            self._queue.clear()
-            self._cond.notify_all()
-        if self._thread.is_alive() and threading.current_thread() is not self._thread:
-            self._thread.join(timeout)
-
-    def _emit(self, reply: Reply) -> None:
-        try:
-            self._send(reply)
-        except Exception:
-            logger.exception("could not send a reply")
-
-    def _interrupted(self) -> bool:
-        return bool(self._queue) or self._closed
-
-    def _run(self) -> None:
-        while True:
-            with self._cond:
-                self._busy = False
-                self._cond.notify_all()
-                while not self._queue and not self._closed:
-                    self._cond.wait()
-                if self._closed:
-                    return
-                item = self._queue.popleft()
-                self._busy = True
-            if isinstance(item, RequestError):
-                self._emit(self.dispatcher.error(item))
-            elif isinstance(item, _Task):
-                self._answer(None, item)
-            else:
-                self._answer(item, self.dispatcher.handle(item))
-            if not self._queue:
-                self._settle()
-            if not self._queue and self._on_idle is not None:
-                try:
-                    self._on_idle()
-                except Exception:
-                    logger.exception("unexpected error after answering")
-
-    def _settle(self) -> None:
-        try:
-            self.dispatcher.settle(self._interrupted, self._emit)
-        except Exception:
-            logger.exception("unexpected error while settling")
-
-    def _answer(self, item: ClientMessage | None, replies: Iterator[Reply | _Settle] | _Task) -> None:
-        name = item.type if item is not None else None
-        try:
-            for reply in replies.fn() if isinstance(replies, _Task) else replies:
-                if isinstance(reply, _Settle):
-                    self._settle()
-                else:
-                    self._emit(reply)
-        except RequestError as exc:
-            exc.__traceback__ = None
-            exc.request = exc.request or name
-            self._emit(self.dispatcher.error(exc))
-        except Exception:
-            logger.exception("unexpected error while handling %s", name)
-            self._emit(self.dispatcher.error(RequestError(
-                "internal", f"unexpected server error in {name}; see the server log", name)))

@@ -1,0 +1,156 @@
+"""A studio session served over a synchronous channel (a notebook widget's comm, :mod:`arap.jupyter_widget`): requests
+queue and are answered in order by a thread of the session's own, as :mod:`arap.server.connection` answers a
+WebSocket's (with :class:`arap.server.dispatch.Dispatcher`): drags coalesce, and the shape settles while no request
+waits, stopping as soon as one arrives."""
+
+from __future__ import annotations
+
+import collections
+import logging
+import threading
+import time
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
+
+from arap.server.dispatch import Dispatcher, Reply, _Settle
+from arap.server.protocol import ClientMessage, RequestError
+
+__all__ = ["ChannelWorker"]
+
+logger = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class _Task:
+    fn: Callable[[], Iterator[Reply]]
+
+
+class ChannelWorker:
+    """Serves one session over a synchronous channel: requests are put in a queue and answered in order by a
+    thread of its own, which settles the shape while none waits and stops settling when one arrives.
+
+    Parameters
+    ----------
+    dispatcher : Dispatcher
+    send : callable
+        ``send(reply)``, called on the worker's thread; its exceptions are logged, not raised.
+    """
+
+    def __init__(self, dispatcher: Dispatcher, send: Callable[[Reply], object],
+                 on_idle: Callable[[], object] | None = None) -> None:
+        self.dispatcher = dispatcher
+        self._send = send
+        self._on_idle = on_idle
+        self._queue: collections.deque[ClientMessage | RequestError | _Task] = collections.deque()
+        self._cond = threading.Condition()
+        self._closed = False
+        self._busy = False
+        self._thread = threading.Thread(target=self._run, name="arap-widget-worker", daemon=True)
+
+    def start(self) -> None:
+        """Start the thread."""
+        self._thread.start()
+
+    def call(self, task: Callable[[], Iterator[Reply]]) -> None:
+        """Queue ``task``: run on the worker's thread in turn with the requests, it yields the replies to send
+        (e.g. :meth:`Dispatcher.rejoin`)."""
+        with self._cond:
+            if not self._closed:
+                self._queue.append(_Task(task))
+                self._cond.notify()
+
+    def put(self, item: ClientMessage | RequestError) -> None:
+        """Queue a request (a drag replaces a drag waiting at the end of the queue) or an error to answer."""
+        with self._cond:
+            if self._closed:
+                return
+            if isinstance(item, ClientMessage) and item.type == "drag" and self._queue:
+                last = self._queue[-1]
+                if isinstance(last, ClientMessage) and last.type == "drag":
+                    self._queue[-1] = item
+                    self.dispatcher.skipped += 1
+                    return
+            if len(self._queue) >= self.dispatcher.config.max_pending:
+                request = item.type if isinstance(item, ClientMessage) else item.request
+                self._emit(self.dispatcher.error(RequestError(
+                    "busy", f"{len(self._queue)} requests are already waiting", request)))
+                return
+            self._queue.append(item)
+            self._cond.notify()
+
+    def idle(self, timeout: float = 10.0) -> bool:
+        """Wait until the queue is empty and nothing is being answered or settled; False on timeout."""
+        deadline = time.monotonic() + timeout
+        with self._cond:
+            while self._queue or self._busy:
+                left = deadline - time.monotonic()
+                if left <= 0:
+                    return False
+                self._cond.wait(left)
+        return True
+
+    def close(self, timeout: float = 10.0) -> None:
+        """Stop the thread (a settling run stops at its next iteration); idempotent."""
+        with self._cond:
+            self._closed = True
+            self._queue.clear()
+            self._cond.notify_all()
+        if self._thread.is_alive() and threading.current_thread() is not self._thread:
+            self._thread.join(timeout)
+
+    def _emit(self, reply: Reply) -> None:
+        try:
+            self._send(reply)
+        except Exception:
+            logger.exception("could not send a reply")
+
+    def _interrupted(self) -> bool:
+        return bool(self._queue) or self._closed
+
+    def _run(self) -> None:
+        while True:
+            with self._cond:
+                self._busy = False
+                self._cond.notify_all()
+                while not self._queue and not self._closed:
+                    self._cond.wait()
+                if self._closed:
+                    return
+                item = self._queue.popleft()
+                self._busy = True
+            if isinstance(item, RequestError):
+                self._emit(self.dispatcher.error(item))
+            elif isinstance(item, _Task):
+                self._answer(None, item)
+            else:
+                self._answer(item, self.dispatcher.handle(item))
+            if not self._queue:
+                self._settle()
+            if not self._queue and self._on_idle is not None:
+                try:
+                    self._on_idle()
+                except Exception:
+                    logger.exception("unexpected error after answering")
+
+    def _settle(self) -> None:
+        try:
+            self.dispatcher.settle(self._interrupted, self._emit)
+        except Exception:
+            logger.exception("unexpected error while settling")
+
+    def _answer(self, item: ClientMessage | None, replies: Iterator[Reply | _Settle] | _Task) -> None:
+        name = item.type if item is not None else None
+        try:
+            for reply in replies.fn() if isinstance(replies, _Task) else replies:
+                if isinstance(reply, _Settle):
+                    self._settle()
+                else:
+                    self._emit(reply)
+        except RequestError as exc:
+            exc.__traceback__ = None
+            exc.request = exc.request or name
+            self._emit(self.dispatcher.error(exc))
+        except Exception:
+            logger.exception("unexpected error while handling %s", name)
+            self._emit(self.dispatcher.error(RequestError(
+                "internal", f"unexpected server error in {name}; see the server log", name)))
