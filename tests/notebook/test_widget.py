@@ -308,3 +308,76 @@ def test_studio_picks_the_transport() -> None:
             s.stop()
     with pytest.raises(ValueError, match="transport"):
         arap.studio(V, F, show=False, transport="pigeon")
+
+
+def test_a_real_kernel_round_trip() -> None:
+    """The widget in an IPython kernel, driven through the kernel's comm as a notebook's widget manager would: the
+    greeting, a drag answered with its positions, the result read back, and the picture replaced after the edit."""
+    jupyter_client = pytest.importorskip("jupyter_client")
+    km, kc = jupyter_client.manager.start_new_kernel(kernel_name="python3")
+    try:
+        t0 = time.perf_counter()
+        setup = ("import numpy as np, arap\n"
+                 "V, F = arap.builtin_mesh('bar')\n"
+                 "w = arap.widget(V, F, name='bar')\n"
+                 "display(w)\n")
+        outputs: list[dict[str, Any]] = []
+        reply = kc.execute_interactive(setup, timeout=60, output_hook=outputs.append)
+        assert reply["content"]["status"] == "ok", reply["content"]
+        opens = [m for m in outputs if m["msg_type"] == "comm_open"
+                 and m["content"]["data"]["state"].get("_model_name") == "AnyModel"]
+        assert len(opens) == 1
+        comm_id = opens[0]["content"]["comm_id"]
+        displays = [m["content"] for m in outputs if m["msg_type"] == "display_data"]
+        assert "application/vnd.jupyter.widget-view+json" in displays[0]["data"]
+        assert displays[1]["data"]["image/png"]  # the picture, base64 in the message
+        picture_id = displays[1]["transient"]["display_id"]
+
+        def request(content: dict[str, Any], buffers: list[bytes] | None = None) -> None:
+            msg = kc.session.msg("comm_msg", {"comm_id": comm_id, "data": {"method": "custom", "content": content}})
+            kc.session.send(kc.shell_channel.socket, msg, buffers=buffers or [])
+
+        def answers(until: Callable[[dict[str, Any]], bool]) -> list[tuple[dict[str, Any], list[bytes]]]:
+            got: list[tuple[dict[str, Any], list[bytes]]] = []
+            deadline = time.monotonic() + 30
+            while time.monotonic() < deadline:
+                m = kc.get_iopub_msg(timeout=30)
+                if m["msg_type"] == "comm_msg" and m["content"]["comm_id"] == comm_id:
+                    content = m["content"]["data"]["content"]
+                    got.append((content, [bytes(b) for b in m.get("buffers", [])]))
+                    if until(content):
+                        return got
+                elif m["msg_type"] == "update_display_data":
+                    got.append(({"type": "picture", "display_id": m["content"]["transient"]["display_id"]}, []))
+                    if until(got[-1][0]):
+                        return got
+            raise AssertionError(f"timed out after {[c['type'] for c, _ in got]}")
+
+        request(OPEN_MESSAGE)
+        greeting = answers(lambda c: c["type"] == "state")
+        assert [c["type"] for c, _ in greeting] == ["welcome", "mesh", "state"]
+        V, _ = arap.builtin_mesh("bar")
+        mesh_buffer = greeting[1][1][0]
+        np.testing.assert_allclose(np.frombuffer(mesh_buffer[: 12 * len(V)], "<f4").reshape(-1, 3), V, atol=1e-6)
+
+        fixed, top = _bottom_top(V)
+        sent = time.perf_counter()
+        request({"type": "set_constraints", "roi": None, "fixed": fixed, "handle_groups": [top]})
+        request({"type": "drag", "seq": 1, "transforms": [_translation(0.5)]})
+        got = answers(lambda c: c["type"] == "vertices" and c["seq"] == 1)
+        round_trip = time.perf_counter() - sent
+        shown = np.frombuffer(got[-1][1][0][: 12 * len(V)], "<f4").reshape(-1, 3)
+        np.testing.assert_allclose(shown[top], V[top] + [0.5, 0, 0], atol=1e-4)
+        request({"type": "end_drag"})
+        got = answers(lambda c: c["type"] == "picture")
+        assert got[-1][0]["display_id"] == picture_id  # the kept picture was replaced after the edit
+        reply = kc.execute_interactive("", user_expressions={
+            "moved": f"float(np.abs(w.vertices[{top}] - V[{top}]).max())",
+            "fixed": "len(w.constraints.fixed)"}, timeout=30)
+        expressions = reply["content"]["user_expressions"]
+        assert float(expressions["moved"]["data"]["text/plain"]) == pytest.approx(0.5, abs=1e-6)
+        assert int(expressions["fixed"]["data"]["text/plain"]) == len(fixed)
+        print(f"kernel: set-up {sent - t0:.2f} s, set_constraints + drag answered in {1000 * round_trip:.1f} ms")
+    finally:
+        kc.stop_channels()
+        km.shutdown_kernel(now=True)
