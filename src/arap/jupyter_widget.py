@@ -268,8 +268,11 @@ class StudioWidget:
         return (id(s.mesh), id(s.U), id(s.constraints))
 
     def _idle(self) -> None:
-        """The worker has nothing left to do: replace the picture if the shape or the constraints changed."""
-        if not self._picture or self._picture_key is None or self._shape_key() == self._picture_key:
+        """The worker has nothing left to do: replace the picture if the shape or the constraints changed, unless a
+        drag is under way (it is replaced once the drag has ended and the shape has settled)."""
+        if not self._picture or self._picture_key is None or not self.session.settled:
+            return
+        if self._shape_key() == self._picture_key:
             return
         self._picture_wanted.set()
         with self._picture_lock:

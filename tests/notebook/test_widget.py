@@ -279,15 +279,27 @@ def test_the_saved_notebook_keeps_a_picture_updated_after_edits(opened: tuple[St
     assert before.startswith(PNG) and picture[1] is not None
     assert w.picture().png().startswith(PNG)
 
+    def drawn() -> int:
+        deadline = time.monotonic() + 30
+        while time.monotonic() < deadline and not (w._picture_key == w._shape_key() or not w.session.settled):
+            time.sleep(0.05)
+        thread = w._picture_thread
+        if thread is not None:
+            thread.join(30)
+        return len(updated)
+
     fixed, top = _bottom_top(V)
     comm.request({"type": "set_constraints", "roi": None, "fixed": fixed, "handle_groups": [top]})
-    comm.request({"type": "drag", "seq": 1, "transforms": [_translation(1.0)]})
+    assert w.wait(60)
+    painted = drawn()
+    assert painted >= 1, "the picture was not replaced after the new selection"
+    for seq in range(1, 4):  # a drag under way: its frames do not replace the picture
+        comm.request({"type": "drag", "seq": seq, "transforms": [_translation(0.3 * seq)]})
+        assert w.wait(60)
+    assert drawn() == painted
     comm.request({"type": "end_drag"})
     assert w.wait(60)
-    deadline = time.monotonic() + 30
-    while time.monotonic() < deadline and not (updated and w._picture_key == w._shape_key()):
-        time.sleep(0.05)
-    assert updated, "the picture was not replaced after the edit"
+    assert drawn() == painted + 1, "the picture was not replaced once the drag had ended and settled"
     bundle, display_id = updated[-1]
     assert display_id == picture[1]
     assert bundle["image/png"].startswith(PNG) and bundle["image/png"] != before
