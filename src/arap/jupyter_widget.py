@@ -106,6 +106,11 @@ def _widget_class() -> type:
         def _send_message(self, content: dict[str, Any], buffers: list[Any] | None) -> None:
             self.send(content, buffers)
 
+        def close(self) -> None:
+            """Close the widget (its views go) and stop its session's thread; the results stay readable."""
+            self.stop()
+            anywidget.AnyWidget.close(self)
+
         def _widget_bundle(self) -> dict[str, Any]:
             bundle = anywidget.AnyWidget._repr_mimebundle_(self)
             return dict(bundle[0] if isinstance(bundle, tuple) else bundle or {})

@@ -255,6 +255,10 @@ def test_initial_constraints_and_the_stopped_widget(cactus: tuple[np.ndarray, np
     time.sleep(0.2)
     assert len(comm.sent) == n  # no longer answered
     np.testing.assert_allclose(w.vertices[top], targets, atol=1e-6)  # still readable
+    other = arap.widget(V, F)
+    thread = other._worker._thread
+    other.close()  # ipywidgets' close stops the session's thread too
+    assert not other.running and not thread.is_alive()
 
 
 def test_the_saved_notebook_keeps_a_picture_updated_after_edits(opened: tuple[StudioWidget, Comm],
