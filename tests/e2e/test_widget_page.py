@@ -200,3 +200,23 @@ def test_the_widget_draws_the_mesh_and_a_drag_moves_it(widget_page: tuple[Page, 
     np.testing.assert_allclose(positions(frame), U, atol=1e-4)  # type: ignore[arg-type]  # the page shows it
     assert "vertices" in kernel.sent_types and kernel.sent_types.count("state") >= 3
     print(f"drag and settle through the stand-in comm: {elapsed:.2f} s")
+
+
+def test_a_mesh_file_uploaded_in_the_widget_reaches_the_kernel(
+        widget_page: tuple[Page, Frame, StudioWidget, Kernel], tmp_path: Any) -> None:
+    """A binary message (the upload: header and file bytes as the comm's buffer) goes through the model."""
+    import trimesh
+
+    _, frame, w, _ = widget_page
+    mesh = trimesh.creation.icosphere(subdivisions=2)
+    lines = [f"v {x:.6f} {y:.6f} {z:.6f}" for x, y, z in mesh.vertices]
+    lines += [f"f {a + 1} {b + 1} {c + 1}" for a, b, c in mesh.faces]
+    path = tmp_path / "small_sphere.obj"
+    path.write_text("\n".join(lines) + "\n")
+    frame.get_by_test_id("file-input").set_input_files(str(path))
+    frame.wait_for_function("() => window.__arap.meshName === 'small_sphere'", timeout=60_000)
+    wait_idle(frame)  # type: ignore[arg-type]
+    assert frame.evaluate("() => window.__arap.nVertices") == len(mesh.vertices)
+    assert w.wait(30)
+    assert w.vertices.shape == mesh.vertices.shape and w.faces.shape == mesh.faces.shape
+    np.testing.assert_allclose(w.vertices, mesh.vertices, atol=1e-5)
