@@ -43,8 +43,8 @@ __all__ = ["TRANSPORTS", "Selection", "Studio", "session_selection", "studio"]
 
 TRANSPORTS = ("server", "auto", "widget")
 """How :func:`studio` connects the page and the session: ``server`` through a WebSocket of a server on 127.0.0.1
-(the default), ``widget`` through the Jupyter kernel's comm (no port), ``auto`` the widget where it works (a Jupyter
-kernel, anywidget installed), else the server."""
+, ``widget`` through the Jupyter kernel's comm (no port), ``auto`` (the default) the widget where it works (a
+Jupyter kernel, anywidget installed), else the server."""
 
 START_TIMEOUT = 30.0
 """Seconds :func:`studio` waits for the server to listen."""
@@ -201,15 +201,15 @@ def studio(
     show: bool = True,
     height: int = 640,
     constraints: Constraints | Mapping[str, Any] | str | os.PathLike[str] | None = None,
-    transport: str = "server",
+    transport: str = "auto",
 ) -> Studio | StudioWidget:
     """Serve a mesh in the studio in the background and show it inline in Jupyter.
 
-    By default (``transport="server"``) a server on 127.0.0.1 serves the page, shown in an iframe (which only
-    works where the browser runs on the kernel's machine) and at :attr:`Studio.url`. With ``transport="auto"`` in
-    a Jupyter kernel with anywidget installed (``pip install "arap[notebook]"``), or ``transport="widget"``, the
-    studio is a widget (:func:`arap.widget`) that talks to the kernel through its comm: it needs no port, works on
-    remote kernels, Colab and VS Code, and the notebook keeps a picture of the shape when saved.
+    In a Jupyter kernel with anywidget installed (``pip install "arap[notebook]"``) the studio is by default a
+    widget (:func:`arap.widget`) that talks to the kernel through its comm: it needs no port, works on remote
+    kernels, Colab and VS Code, and the notebook keeps a picture of the shape when saved. Elsewhere, or with
+    ``transport="server"``, a server on 127.0.0.1 serves the page, shown in an iframe (which only works where the
+    browser runs on the kernel's machine) and at :attr:`Studio.url`.
 
     Parameters
     ----------
