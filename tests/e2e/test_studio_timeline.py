@@ -165,6 +165,23 @@ def test_keyframes_scrub_play_restore_export(page: Page, tmp_path: Path) -> None
     offline = animate(mesh.V, mesh.F, document, fps=fps)
     assert offline.vertices.shape == frames.shape
     np.testing.assert_allclose(offline.vertices, frames, atol=1e-4 * diag)
+    assert "keyframe_base" in document  # the restored selection was made on the deformed shape
+
+    # loading the document puts the keyframes back on the timeline, posing the handles as before
+    for ms in (0, 1000):
+        page.evaluate(f"() => window.__arap.seek({ms})")
+        page.get_by_test_id("tl-delete").click()
+    expect(page.get_by_test_id("tl-count")).to_have_text("no keyframes")
+    wait_idle(page)
+    page.get_by_test_id("constraints-input").set_input_files(str(path))
+    page.wait_for_function("() => window.__arap.timeline.keys.length === 2")
+    wait_idle(page)
+    wait_settled(page)
+    assert [k["ms"] for k in timeline(page)["keys"]] == [0, 1000]
+    seek(page, 1000)
+    np.testing.assert_allclose(positions(page)[handle], moved_to[handle], atol=1e-4 * diag)
+    seek(page, 0)
+    np.testing.assert_allclose(positions(page)[handle], rest[handle], atol=1e-4 * diag)
     assert not page.evaluate("() => window.__arap.errors"), "the server reported errors"
 
 

@@ -570,13 +570,53 @@ function applySavedSelection(snap) {
   gizmo.restorePivots(snap.pivots); // after the new constraint set made the restored shape every group's frame
 }
 
+/**
+ * A constraints document with keyframes: the document whose handles start at the positions the keyframes' transforms
+ * apply to (`keyframe_base`, else their rest positions), and the keyframes in the timeline's form; null without
+ * keyframes. Throws when its keyframes cannot be shown on the timeline.
+ */
+function keyframedDocument(text) {
+  let doc;
+  try {
+    doc = JSON.parse(text);
+  } catch {
+    return null; // readConstraintsFile says what is wrong
+  }
+  if (!doc || !Array.isArray(doc.keyframes) || !doc.keyframes.length || !Array.isArray(doc.handles)) return null;
+  if (!doc.keyframes.every((k) => Array.isArray(k?.transforms) && Number.isFinite(k.time) && k.time >= 0)) {
+    throw new Error('the timeline shows keyframes of transforms at times from 0 s on; this document has others');
+  }
+  const rest = keeper.rest;
+  const base = Array.isArray(doc.keyframe_base) ? doc.keyframe_base : doc.handles.map((i) => {
+    const v = app.vertexMap ? app.vertexMap[i] : i;
+    return [rest[3 * v], rest[3 * v + 1], rest[3 * v + 2]];
+  });
+  const keys = doc.keyframes.map((k) => ({
+    ms: Math.round(1000 * k.time),
+    transforms: k.transforms.map((m) => [0, 1, 2, 3].flatMap((c) => [0, 1, 2, 3].map((r) => Number(m[r][c])))),
+  }));
+  return { text: JSON.stringify({ ...doc, targets: base }), keys };
+}
+
 function loadConstraintsFile(file) {
-  readConstraintsFile(file, viewer.nVertices, app.nFaces, app.vertexMap, app.repaired).then((c) => {
-    selection.fromConstraints(c);
-    mirror.setPairs(c.partners);
-    refreshSelection(true);
-    commitConstraints(c.targets, false, c.points.map((p) => p.target ?? null));
-  }, (err) => {
+  file.text().then((text) => {
+    const keyed = keyframedDocument(text);
+    const read = keyed ? new File([keyed.text], file.name, { type: 'application/json' }) : file;
+    return readConstraintsFile(read, viewer.nVertices, app.nFaces, app.vertexMap, app.repaired).then((c) => {
+      selection.fromConstraints(c);
+      mirror.setPairs(c.partners);
+      refreshSelection(true);
+      commitConstraints(c.targets, false, c.points.map((p) => p.target ?? null));
+      if (keyed) {
+        const pivots = c.handle_groups.map((g) => {
+          const sum = [0, 0, 0];
+          for (const i of g) c.targets.get(i).forEach((x, d) => (sum[d] += x));
+          return sum.map((x) => x / Math.max(g.length, 1));
+        });
+        timeline.load(keyed.keys, pivots);
+      }
+    });
+  }).catch((err) => {
     app.errors.push({ code: 'client_check', message: err.message, request: CLIENT.SET_CONSTRAINTS });
     panel.showStatus(err.message, 'error');
   });

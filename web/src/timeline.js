@@ -251,6 +251,27 @@ export class Timeline {
     this._changed();
   }
 
+  /**
+   * Keyframes read from a constraints document whose handle groups were just sent with the positions their
+   * transforms apply to (`pivots`: per group, the centroid of those positions).
+   */
+  load(keys, pivots) {
+    this.pause();
+    const n = pivots.length;
+    if (keys.some((k) => k.transforms.length !== n)) {
+      this.deps.say(`The document's keyframes hold transforms for another number of handle groups than its ${n}; `
+        + 'they are not loaded.', 'error');
+      return;
+    }
+    this.keys = keys;
+    this.pivots = pivots;
+    this.durationMs = Math.max(this.durationMs, keys[keys.length - 1].ms);
+    this.timeMs = keys[0].ms;
+    this.deps.say(`Loaded ${keys.length} keyframe${keys.length > 1 ? 's' : ''}; the handles start where the `
+      + 'keyframes\' transforms apply.', 'info');
+    this._changed();
+  }
+
   clear() {
     this.pause();
     if (!this.keys.length) return;
