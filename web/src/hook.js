@@ -238,10 +238,7 @@ export function installTestHook({
     },
     interpolate: (keys, pivots, seconds) => interpolate(keys, pivots, seconds),
     /** Move the playhead to `ms` as a scrub does (a drag there; `end`: then end the drag). */
-    seek: (ms, end = true) => {
-      timeline.seek(ms);
-      if (end) timeline.goTo(ms);
-    },
+    seek: (ms, end = true) => (end ? timeline.goTo(ms) : timeline.seek(ms)),
     /** What the typed-transform line shows, or null when no transform is being typed. */
     get typing() {
       return transformUi.entry.active ? transformUi.entry.line.textContent : null;

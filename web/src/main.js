@@ -177,10 +177,13 @@ function setBusy(text, forType) {
 
 /** @param {import('./protocol.js').ClientMessage} msg @returns {boolean} */
 function send(msg) {
+  // apply makes the shape the new rest pose and the pose of the constraints: keyframes are carried over to it
+  const current = msg.type === CLIENT.APPLY ? gizmo.transformsFor(app.groupMap) : null;
   if (!conn.send(msg)) {
     notConnected();
     return false;
   }
+  if (current) timeline.rebase(current, app.serverGroups.length);
   keeper.sent(msg);
   return true;
 }
