@@ -68,7 +68,7 @@ class ChannelWorker:
                 last = self._queue[-1]
                 if isinstance(last, ClientMessage) and last.type == "drag":
                     self._queue[-1] = item
-                    self.dispatcher.skipped += 1
+                    self.dispatcher.count_skipped()
                     return
             if len(self._queue) >= self.dispatcher.config.max_pending:
                 request = item.type if isinstance(item, ClientMessage) else item.request

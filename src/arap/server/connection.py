@@ -242,7 +242,7 @@ class Connection:
             if isinstance(last, ClientMessage) and last.type == "drag":
                 # the replaced drag is never answered; the answer to this one reports it in ``skipped``
                 self._queue.replace_last(item, cost)
-                self.dispatch.skipped += 1
+                self.dispatch.count_skipped()
                 return
         if len(self._queue) >= self.config.max_pending:
             self.dispatch.arrived.pop(id(item), None)

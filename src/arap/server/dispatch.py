@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import json
 import logging
+import threading
 import time
 from collections.abc import Callable, Iterator
 from dataclasses import asdict, dataclass
@@ -133,8 +134,8 @@ class Dispatcher:
         self.session = session
         self.config = config
         self.stream = VertexStream(config.subset_frames)
-        self.skipped = 0
-        """Drags replaced by a newer one since the last answered drag (the transport counts them)."""
+        self._skipped = 0  # drags replaced by a newer one since the last answered drag
+        self._skipped_lock = threading.Lock()  # counted by the transport's thread, read by the answering one
         self.arrived: dict[int, tuple[float, float]] = {}
         """Arrival and decoding times of uploads waiting, by ``id`` of their message (for the timing log)."""
 
@@ -184,6 +185,17 @@ class Dispatcher:
         if look is not None:
             yield look.frame
 
+    def count_skipped(self) -> None:
+        """A queued drag was replaced by a newer one: the answer to the newer one reports it (``skipped``)."""
+        with self._skipped_lock:
+            self._skipped += 1
+
+    def take_skipped(self) -> int:
+        """The drags replaced since the last call (the transport's thread counts while another answers)."""
+        with self._skipped_lock:
+            n, self._skipped = self._skipped, 0
+        return n
+
     def state(self) -> Reply:
         return self.session.state()
 
@@ -194,12 +206,11 @@ class Dispatcher:
                                                                                        self.session.constraints)
         if outcome is None:
             return still_frame_header(seq, subset, movable), parts
-        header = server_message("vertices", seq=seq, skipped=self.skipped, iterations=outcome.iterations,
+        header = server_message("vertices", seq=seq, skipped=self.take_skipped(), iterations=outcome.iterations,
                                 energies=[readable_energy(e, self.session.diagonal) for e in outcome.energies],
                                 solve_ms=round(outcome.solve_ms, 3),
                                 ms_per_iteration=round(outcome.ms_per_iteration, 3),
                                 subset=subset, movable=movable)
-        self.skipped = 0
         return header, parts
 
     def settle_status(self, status: str, iterations: int, energy: float | None, seconds: float | None) -> Reply:
@@ -274,7 +285,7 @@ class Dispatcher:
         elif t == "load_builtin":
             mesh = load_builtin(f["name"])
             s.load(mesh)
-            self.skipped = 0
+            self.take_skipped()
             yield from self.mesh(mesh)
             yield self.state()
             yield from self.shape_status()
@@ -323,7 +334,7 @@ class Dispatcher:
         look = look_from_upload(msg.payload, msg.fields["filename"], mesh, self.config.max_vertices)
         parsed = time.time()
         self.session.load(mesh, look)
-        self.skipped = 0
+        self.take_skipped()
         frames = list(self.mesh(mesh))
         encoded = time.time()
         yield from frames
