@@ -170,6 +170,22 @@ def test_settling_stops_when_a_message_arrives(opened: tuple[StudioWidget, Comm]
     comm.wait_for(lambda m: m["type"] == "settle" and m["status"] == "settling", j)
 
 
+def test_the_animation_export_is_answered_through_the_comm(opened: tuple[StudioWidget, Comm],
+                                                           cactus: tuple[np.ndarray, np.ndarray]) -> None:
+    _, comm = opened
+    V, _ = cactus
+    fixed, top = _bottom_top(V)
+    start = len(comm.sent)
+    comm.request({"type": "set_constraints", "roi": None, "fixed": fixed, "handle_groups": [top]})
+    comm.wait_for(lambda m: m["type"] == "state", start)
+    comm.request({"type": "export_animation", "times_ms": [0, 400], "fps": 10,
+                  "transforms": [_translation(0.0), _translation(0.5)]})  # one group, keyframe after keyframe
+    _, header, buffers = comm.wait_for(lambda m: m["type"] in ("animation", "error"), start)
+    assert header["type"] == "animation" and header["frames"] == 5, header
+    assert buffers[0][:4] == b"glTF"
+    assert "animation_progress" in comm.types(start)
+
+
 def test_drags_waiting_in_the_queue_coalesce(opened: tuple[StudioWidget, Comm],
                                             cactus: tuple[np.ndarray, np.ndarray],
                                             monkeypatch: pytest.MonkeyPatch) -> None:

@@ -122,6 +122,8 @@ class ChannelWorker:
                 self._emit(self.dispatcher.error(item))
             elif isinstance(item, _Task):
                 self._answer(None, item)
+            elif item.type == "export_animation":
+                self._answer(item, self._export_animation(item))
             else:
                 self._answer(item, self.dispatcher.handle(item))
             if not self._queue:
@@ -131,6 +133,9 @@ class ChannelWorker:
                     self._on_idle()
                 except Exception:
                     logger.exception("unexpected error after answering")
+
+    def _export_animation(self, item: ClientMessage) -> Iterator[Reply]:
+        yield self.dispatcher.export_animation(item.fields, self._interrupted, self._emit)
 
     def _settle(self) -> None:
         try:

@@ -24,7 +24,6 @@ import numpy as np
 from starlette.websockets import WebSocket, WebSocketDisconnect
 
 from arap.kernel_cache import KERNELS_READY
-from arap.server.animation_export import AnimationCancelled
 from arap.server.budget import ByteBudget, RequestQueue, request_cost
 from arap.server.decoder import PROCESS_BYTES, FrameDecoder
 from arap.server.dispatch import SETTLE, Dispatcher, Reply, StudioConfig
@@ -35,7 +34,6 @@ from arap.server.protocol import (
     encode_binary,
     parse_binary,
     parse_text,
-    server_message,
 )
 from arap.server.records import DragOutcome
 from arap.server.render_mesh import Look
@@ -330,35 +328,23 @@ class Connection:
                 await self._send_reply(reply)
 
     async def _export_animation(self, f: dict[str, Any]) -> None:
-        """Solve and send the animated GLB of export_animation off the event loop, with ``animation_progress`` at
-        most 10 times per second; a queued request cancels it (``cancelled`` is sent, then that request runs)."""
+        """Solve and send the animated GLB of export_animation off the event loop
+        (:meth:`~arap.server.dispatch.Dispatcher.export_animation`); a queued request cancels it (``cancelled`` is
+        sent, then that request runs)."""
         loop = asyncio.get_running_loop()
-        last = [0.0]
-        t0 = time.perf_counter()
 
-        def progress(done: int, frames: int) -> None:
-            now = time.perf_counter()
-            if done and done < frames and now - last[0] < 0.1:
-                return
-            last[0] = now
-            message = server_message("animation_progress", status="solving", frame=done, frames=frames,
-                                     seconds=round(now - t0, 3))
+        def send(message: Reply) -> None:
+            assert isinstance(message, dict)  # progress messages are JSON
             with contextlib.suppress(RuntimeError):  # the loop has closed: the connection is gone
                 loop.call_soon_threadsafe(self._spawn_json, message)
 
         try:
-            filename, mime, data, frames, seconds = await self._off_loop(
-                self.session.export_animation, f["times_ms"], f["transforms"], f["fps"],
-                lambda: bool(self._queue) or self._closed, progress)
-        except AnimationCancelled:
-            await self._send_json(server_message("animation_progress", status="cancelled", frame=0, frames=0,
-                                                 seconds=round(time.perf_counter() - t0, 3)))
-            return
+            reply = await self._off_loop(self.dispatch.export_animation, f,
+                                         lambda: bool(self._queue) or self._closed, send)
         finally:
             if self._frame_tasks:
                 await asyncio.gather(*self._frame_tasks, return_exceptions=True)
-        await self._send_binary(server_message("animation", filename=filename, mime=mime, frames=frames,
-                                               seconds=round(seconds, 3)), data)
+        await self._send_reply(reply)
 
     def _spawn_json(self, message: dict[str, Any]) -> None:
         task = asyncio.ensure_future(self._send_json_quietly(message))

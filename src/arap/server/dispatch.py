@@ -20,6 +20,7 @@ from typing import Any, Final
 import numpy as np
 
 import arap
+from arap.server.animation_export import AnimationCancelled
 from arap.server.heatmap import distortion_frame
 from arap.server.liveframes import VertexPayload, VertexStream, still_frame_header
 from arap.server.meshdata import MeshData, builtin_names, load_builtin, load_upload, mesh_frame
@@ -189,6 +190,31 @@ class Dispatcher:
         """A queued drag was replaced by a newer one: the answer to the newer one reports it (``skipped``)."""
         with self._skipped_lock:
             self._skipped += 1
+
+    def export_animation(self, fields: dict[str, Any], interrupted: Callable[[], bool],
+                         send: Callable[[Reply], object]) -> Reply:
+        """Solve ``export_animation``'s keyframes into an animated GLB (:mod:`arap.server.animation_export`),
+        sending ``animation_progress`` through ``send`` at most 10 times per second; the ``animation`` reply, or a
+        ``cancelled`` progress message when ``interrupted()`` turned true (a new request waits)."""
+        t0 = time.perf_counter()
+        last = [0.0]
+
+        def progress(done: int, frames: int) -> None:
+            now = time.perf_counter()
+            if done and done < frames and now - last[0] < 0.1:
+                return
+            last[0] = now
+            send(server_message("animation_progress", status="solving", frame=done, frames=frames,
+                                seconds=round(now - t0, 3)))
+
+        try:
+            filename, mime, data, frames, seconds = self.session.export_animation(
+                fields["times_ms"], fields["transforms"], fields["fps"], interrupted, progress)
+        except AnimationCancelled:
+            return server_message("animation_progress", status="cancelled", frame=0, frames=0,
+                                  seconds=round(time.perf_counter() - t0, 3))
+        return server_message("animation", filename=filename, mime=mime, frames=frames,
+                              seconds=round(seconds, 3)), [data]
 
     def take_skipped(self) -> int:
         """The drags replaced since the last call (the transport's thread counts while another answers)."""
