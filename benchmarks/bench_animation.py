@@ -48,7 +48,7 @@ def main(argv: list[str] | None = None) -> None:
     p.add_argument("--seconds", type=float, default=2.0)
     add_json_option(p, "bench_animation")
     args = p.parse_args(argv)
-    from arap.jit import warm_up_kernels
+    from arap.method.jit import warm_up_kernels
 
     warm_up_kernels()
     V, F = arap.load_mesh(args.mesh)

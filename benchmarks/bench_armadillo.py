@@ -20,9 +20,9 @@ from typing import Any
 import numpy as np
 
 import arap
+from arap.constraints.scenarios import bend
 from arap.io import load_mesh
-from arap.scenarios import bend
-from arap.solver import ArapSolver
+from arap.solve.solver import ArapSolver
 from benchjson import add_json_option, figure, write_results
 
 # The cell-by-cell reference kernels live with the tests (tests/core/reference_kernels.py).
@@ -95,10 +95,10 @@ def backend_choices(V: np.ndarray, F: np.ndarray, b: np.ndarray, U: np.ndarray, 
     """Measure what the solver's design chooses between: sparse Cholesky backends and rotation kernels."""
     from tests.core.reference_kernels import fit_rotations_scalar
 
-    from arap.cells import build_cells
-    from arap.covariance import covariances
-    from arap.linsolve import available_backends, factorize
-    from arap.rotations import fit_rotations, fit_rotations_svd
+    from arap.method.cells import build_cells
+    from arap.method.covariance import covariances
+    from arap.method.rotations import fit_rotations, fit_rotations_svd
+    from arap.sparse.linsolve import available_backends, factorize
 
     A = ArapSolver(V, F, b).reduced_matrix()
     B = np.random.default_rng(0).normal(size=(A.shape[0], 3))
@@ -141,8 +141,15 @@ def kernel_comparison(V: np.ndarray, F: np.ndarray, b: np.ndarray, bc: np.ndarra
     import numba
     from tests.core.reference_kernels import assemble_rhs_reference, local_step_reference
 
-    from arap._parallel import policy
-    from arap.covariance import _local_parallel, _local_serial, _rhs_parallel, _rhs_serial, assemble_rhs, local_step
+    from arap.method._parallel import policy
+    from arap.method.covariance import (
+        _local_parallel,
+        _local_serial,
+        _rhs_parallel,
+        _rhs_serial,
+        assemble_rhs,
+        local_step,
+    )
 
     solver = ArapSolver(V, F, b)
     solver.solve(bc, max_iterations=10)

@@ -2,12 +2,12 @@
 
 1. Cost per iteration on the armadillo (bend scenario, the plain local/global iteration, all energies in the same
    run, median of ``--repeats``): SR-ARAP (with the solver's rotation steps and sweeps per local step,
-   :data:`arap.smooth.STEPS` and :data:`arap.smooth.SWEEPS`) against spokes.
+   :data:`arap.method.smooth.STEPS` and :data:`arap.method.smooth.SWEEPS`) against spokes.
 2. A single vertex pulled by 20% of the bounding-box diagonal along the longest axis, the lowest 10% anchored
-   (:func:`arap.scenarios.pull`), solved from the rest pose with the default acceleration until converged (at most
-   ``--max-iterations``): folded adjacent-face pairs added to the rest shape's (normals' dot < −0.5), the largest
-   change of a dihedral angle, the iterations, whether the solve converged, its seconds (set-up and solve: the time to
-   converge, or to reach the cap) and milliseconds per iteration, and the final energy.
+   (:func:`arap.constraints.scenarios.pull`), solved from the rest pose with the default acceleration until converged
+   (at most ``--max-iterations``): folded adjacent-face pairs added to the rest shape's (normals' dot < −0.5), the
+   largest change of a dihedral angle, the iterations, whether the solve converged, its seconds (set-up and solve: the
+   time to converge, or to reach the cap) and milliseconds per iteration, and the final energy.
 3. With ``--screenshots DIR``: the three results of each mesh rendered by the studio in headless Chromium and put
    side by side (``DIR/MESH.jpg``, spokes | spokes and rims | smooth rotations).
 
@@ -28,11 +28,11 @@ from typing import Any
 
 import numpy as np
 
-from arap.folds import folded_pairs, max_dihedral_change
+from arap.constraints.scenarios import bend, pull
 from arap.io import load_mesh, save_mesh
-from arap.scenarios import bend, pull
-from arap.smooth import STEPS, SWEEPS
-from arap.solver import ArapSolver
+from arap.method.folds import folded_pairs, max_dihedral_change
+from arap.method.smooth import STEPS, SWEEPS
+from arap.solve.solver import ArapSolver
 from benchjson import add_json_option, figure, write_results
 
 SHARED = Path(__file__).resolve().parents[1].parent / "shared" / "meshes"

@@ -55,7 +55,7 @@ def caps_scenario(V: np.ndarray, share: float = 0.05) -> tuple[np.ndarray, np.nd
 
 
 class _Timed:
-    """Wraps a function of ``arap.solver`` to add its run time to ``sink[key]``."""
+    """Wraps a function of ``arap.solve.solver`` to add its run time to ``sink[key]``."""
 
     def __init__(self, fn: Any, key: str, sink: dict[str, float]) -> None:
         self.fn, self.key, self.sink = fn, key, sink
@@ -105,9 +105,9 @@ def precompute_split(solver: Any, parts: dict[str, float], precompute: float) ->
 
 def child(target_vertices: int, iterations: int, repeats: int, backend: str | None = None) -> dict[str, Any]:
     """Measure one size in this process (called in a subprocess)."""
-    import arap.prepared as setup_module  # the solver's set-up calls these three through this module
-    from arap.shapes import sphere, sphere_frequency_for
-    from arap.solver import ArapSolver
+    import arap.solve.prepared as setup_module  # the solver's set-up calls these three through this module
+    from arap.meshes.shapes import sphere, sphere_frequency_for
+    from arap.solve.solver import ArapSolver
 
     V, F = sphere(frequency=sphere_frequency_for(target_vertices))
     b, bc = caps_scenario(V)

@@ -36,11 +36,11 @@ import scipy.sparse.linalg as sla
 from scipy.spatial import cKDTree
 
 from arap import ArapSolver
-from arap.covariance import assemble_rhs
+from arap.constraints.scenarios import make_scenario
 from arap.io import load_mesh
-from arap.iteration import local_energy, rhs_constant
-from arap.scenarios import make_scenario
-from arap.shapes import builtin_mesh
+from arap.meshes.shapes import builtin_mesh
+from arap.method.covariance import assemble_rhs
+from arap.solve.iteration import local_energy, rhs_constant
 from benchjson import add_json_option, figure, write_results
 
 MESHES = Path(__file__).resolve().parents[1].parent / "shared" / "meshes"

@@ -17,7 +17,7 @@ from arap.cli import deform as cli_deform
 from arap.cli import main
 from arap.cli.bench import bench_constraints
 from arap.io import load_mesh, save_mesh
-from arap.shapes import builtin_mesh
+from arap.meshes.shapes import builtin_mesh
 
 
 def bar_constraints(path: Path, shift: float = 1.0) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -31,8 +31,8 @@ def bar_constraints(path: Path, shift: float = 1.0) -> tuple[np.ndarray, np.ndar
 
 
 def bend_constraints_file(path: Path, V: np.ndarray) -> Path:
-    """Writes the bend scenario of ``V`` (:func:`arap.scenarios.bend`) as a constraints file at ``path``."""
-    from arap.scenarios import bend
+    """Writes the bend scenario of ``V`` (:func:`arap.constraints.scenarios.bend`) as a constraints file at ``path``."""
+    from arap.constraints.scenarios import bend
 
     s = bend(V)
     path.write_text(json.dumps({"fixed": s.fixed.tolist(), "handles": s.handles.tolist(),
@@ -598,7 +598,7 @@ def test_studio_calls_the_server(monkeypatch: pytest.MonkeyPatch, capsys: pytest
 
 
 def test_deform_explains_a_negative_energy(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    from arap.shapes import scan_blob
+    from arap.meshes.shapes import scan_blob
 
     V, F = scan_blob(n=400)
     mesh = tmp_path / "blob.off"

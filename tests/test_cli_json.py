@@ -11,7 +11,7 @@ import pytest
 
 from arap.cli import main
 from arap.io import save_mesh
-from arap.shapes import builtin_mesh
+from arap.meshes.shapes import builtin_mesh
 
 SERVER_STACK = ("starlette", "uvicorn", "websockets")
 

@@ -11,9 +11,9 @@ import numpy as np
 import pytest
 
 from arap.cli.bench import bench_constraints
-from arap.jit import _counts, warm_up_kernels
-from arap.shapes import builtin_mesh
-from arap.solver import ArapSolver
+from arap.meshes.shapes import builtin_mesh
+from arap.method.jit import _counts, warm_up_kernels
+from arap.solve.solver import ArapSolver
 
 
 def test_warm_up_covers_every_solve() -> None:
@@ -39,7 +39,7 @@ def test_cache_falls_back_to_a_temporary_folder(tmp_path: Path, preset: bool) ->
     code = (
         "from pathlib import Path\n"
         "import numba\n"
-        "from arap._parallel import ensure_writable_cache\n"
+        "from arap.method._parallel import ensure_writable_cache\n"
         f"print(ensure_writable_cache((Path({str(blocker)!r}) / 'cache',)), numba.config.CACHE_DIR)\n"
     )
     env = {k: v for k, v in os.environ.items() if k != "NUMBA_CACHE_DIR"}

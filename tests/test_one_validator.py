@@ -14,11 +14,13 @@ import numpy as np
 import pytest
 
 import arap.options
-from arap.cells import build_cells
 from arap.cli import main
 from arap.constraints import load_constraints
 from arap.errors import ConstraintError, OptionError
 from arap.io import load_mesh
+from arap.meshes.shapes import builtin_mesh
+from arap.method.cells import build_cells
+from arap.method.weights import corner_weights, edge_weight_matrix
 from arap.options import (
     DEFAULT_ENERGY,
     DEFAULT_WEIGHTS,
@@ -31,9 +33,7 @@ from arap.server.constraints import ConstraintSet
 from arap.server.meshdata import MeshData
 from arap.server.protocol import RequestError
 from arap.server.session import Session
-from arap.shapes import builtin_mesh
-from arap.solver import ArapSolver
-from arap.weights import corner_weights, edge_weight_matrix
+from arap.solve.solver import ArapSolver
 
 V, F = builtin_mesh("bar")
 N = len(V)

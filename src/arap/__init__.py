@@ -34,18 +34,18 @@ from arap.errors import (
 __version__ = "0.1.0"
 
 _LAZY: dict[str, str] = {
-    "ArapSolver": "arap.solver",
-    "ArapResult": "arap.solver",
-    "arap_energy": "arap.energy",
-    "cell_energies": "arap.energy",
-    "cell_distortion": "arap.energy",
-    "fit_rotations": "arap.rotations",
-    "cotangent_laplacian": "arap.weights",
-    "check_mesh": "arap.mesh",
-    "mesh_arrays": "arap.mesh",
-    "MeshLike": "arap.mesh",
-    "repair_mesh": "arap.repair",
-    "inspect_mesh": "arap.diagnose",
+    "ArapSolver": "arap.solve.solver",
+    "ArapResult": "arap.solve.solver",
+    "arap_energy": "arap.method.energy",
+    "cell_energies": "arap.method.energy",
+    "cell_distortion": "arap.method.energy",
+    "fit_rotations": "arap.method.rotations",
+    "cotangent_laplacian": "arap.method.weights",
+    "check_mesh": "arap.meshes.mesh",
+    "mesh_arrays": "arap.meshes.mesh",
+    "MeshLike": "arap.meshes.mesh",
+    "repair_mesh": "arap.meshes.repair",
+    "inspect_mesh": "arap.meshes.diagnose",
     "load_mesh": "arap.io",
     "load_mesh_with_report": "arap.io",
     "load_mesh_bytes": "arap.io",
@@ -55,13 +55,13 @@ _LAZY: dict[str, str] = {
     "MeshAsset": "arap.io",
     "load_asset": "arap.io",
     "save_asset": "arap.io",
-    "sphere": "arap.shapes",
+    "sphere": "arap.meshes.shapes",
     "Constraints": "arap.constraints",
     "save_constraints": "arap.constraints",
-    "RepairResult": "arap.repair",
-    "MeshInfo": "arap.diagnose",
-    "builtin_mesh": "arap.shapes",
-    "BUILTIN_MESHES": "arap.shapes",
+    "RepairResult": "arap.meshes.repair",
+    "MeshInfo": "arap.meshes.diagnose",
+    "builtin_mesh": "arap.meshes.shapes",
+    "BUILTIN_MESHES": "arap.meshes.shapes",
     "load_constraints": "arap.constraints",
     "studio": "arap.notebook",
     "Studio": "arap.notebook",
@@ -129,8 +129,6 @@ if TYPE_CHECKING:
     from arap.animation import Animation, animate, load_keyframes
     from arap.batching import batch
     from arap.constraints import Constraints, load_constraints, save_constraints
-    from arap.diagnose import MeshInfo, inspect_mesh
-    from arap.energy import arap_energy, cell_energies
     from arap.io import (
         MESH_FORMATS,
         MeshAsset,
@@ -143,15 +141,17 @@ if TYPE_CHECKING:
         save_mesh_bytes,
     )
     from arap.jupyter_widget import StudioWidget, widget
-    from arap.mesh import MeshLike, check_mesh, mesh_arrays
+    from arap.meshes.diagnose import MeshInfo, inspect_mesh
+    from arap.meshes.mesh import MeshLike, check_mesh, mesh_arrays
+    from arap.meshes.repair import RepairResult, repair_mesh
+    from arap.meshes.shapes import BUILTIN_MESHES, builtin_mesh, sphere
+    from arap.method.energy import arap_energy, cell_energies
+    from arap.method.rotations import fit_rotations
+    from arap.method.weights import cotangent_laplacian
     from arap.notebook import Studio, studio
     from arap.render.picture import Picture
     from arap.render.show import show
-    from arap.repair import RepairResult, repair_mesh
-    from arap.rotations import fit_rotations
-    from arap.shapes import BUILTIN_MESHES, builtin_mesh, sphere
-    from arap.solver import ArapResult, ArapSolver
-    from arap.weights import cotangent_laplacian
+    from arap.solve.solver import ArapResult, ArapSolver
 
 
 def __getattr__(name: str) -> Any:

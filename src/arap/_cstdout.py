@@ -21,7 +21,7 @@ from typing import Any
 
 __all__ = ["c_stdout_to_log"]
 
-logger = logging.getLogger("arap.linsolve")
+logger = logging.getLogger("arap.sparse.linsolve")
 _lock = threading.Lock()
 
 
@@ -39,8 +39,8 @@ def _libc() -> Any:
 @contextmanager
 def c_stdout_to_log(prefix: bytes = b"CHOLMOD") -> Iterator[None]:
     """During the block, file descriptor 1 writes to a temporary file; afterwards the lines starting with ``prefix``
-    go to the ``arap.linsolve`` logger (DEBUG) and everything else written meanwhile (another thread's output, the
-    text Python had buffered) is written to standard output.
+    go to the ``arap.sparse.linsolve`` logger (DEBUG) and everything else written meanwhile (another thread's output,
+    the text Python had buffered) is written to standard output.
 
     Blocks run one at a time. Where there is no standard output (file descriptor 1 closed) the block runs as it is.
 

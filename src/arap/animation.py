@@ -2,8 +2,8 @@
 previous frame, and written as numbered meshes or one animated GLB.
 
 The keyframes (a constraints file with ``"keyframes"``, and how poses are interpolated between them) are described
-in :mod:`arap.keyframes`. Since each frame starts from the previous one, the frames at the keyframe times are the
-shapes :func:`arap.ArapSolver.solve` gives for those targets.
+in :mod:`arap.constraints.keyframes`. Since each frame starts from the previous one, the frames at the keyframe times
+are the shapes :func:`arap.ArapSolver.solve` gives for those targets.
 
 Example
 -------
@@ -31,10 +31,10 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from arap.constraints.keyframes import MAX_KEYFRAMES, Keyframe, Keyframes, load_keyframes
 from arap.errors import OptionError
-from arap.keyframes import MAX_KEYFRAMES, Keyframe, Keyframes, load_keyframes
 from arap.options import DEFAULT_TOLERANCE
-from arap.result import ArapResult
+from arap.solve.result import ArapResult
 
 __all__ = ["DEFAULT_FPS", "MAX_FRAMES", "MAX_KEYFRAMES", "Animation", "Keyframe", "Keyframes", "animate",
            "frame_paths", "frame_times", "iter_frames", "load_keyframes", "save_animation"]
@@ -141,7 +141,7 @@ def animate(V: NDArray[np.float64], F: NDArray[np.integer], keyframes: Keyframes
     -------
     Animation
     """
-    from arap.solver import ArapSolver
+    from arap.solve.solver import ArapSolver
 
     V = np.asarray(V, dtype=np.float64)
     keys = keyframes if isinstance(keyframes, Keyframes) else load_keyframes(keyframes, V, len(F))

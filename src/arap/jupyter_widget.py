@@ -35,7 +35,7 @@ from numpy.typing import NDArray
 
 from arap.constraints import Constraints
 from arap.errors import ArapError
-from arap.mesh import MeshLike, check_mesh, mesh_arrays
+from arap.meshes.mesh import MeshLike, check_mesh, mesh_arrays
 from arap.notebook import Selection, _initial_constraints, session_selection
 
 if TYPE_CHECKING:
@@ -135,7 +135,7 @@ class StudioWidget:
 
     def _setup(self, *, V: NDArray[np.float64], F: NDArray[np.int64], name: str, prepare: Any = None,
                picture: bool = True) -> None:
-        from arap.kernel_cache import KERNELS_READY
+        from arap.method.kernel_cache import KERNELS_READY
         from arap.server.channel import ChannelWorker
         from arap.server.dispatch import Dispatcher, StudioConfig
         from arap.server.meshdata import MeshData

@@ -29,7 +29,7 @@ from numpy.typing import NDArray
 
 from arap.constraints import Constraints, load_constraints
 from arap.errors import ArapError, ConstraintError
-from arap.mesh import MeshLike, check_mesh, mesh_arrays
+from arap.meshes.mesh import MeshLike, check_mesh, mesh_arrays
 
 if TYPE_CHECKING:
     import socket

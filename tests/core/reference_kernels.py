@@ -2,9 +2,9 @@
 kernels of the package (tests only; ``benchmarks/bench_armadillo.py`` times one against the other).
 
 These are the straightforward per-cell loops (one covariance, one scalar rotation fit
-(:func:`arap.horn.rotation_from_covariance`), one energy per cell; one gathered row per vertex), parallel over
-cells with numba's current thread count. :mod:`arap.covariance` computes the same quantities in blocks of cells with
-SIMD rotations; tests check that both agree, and benchmarks time one against the other.
+(:func:`arap.method.horn.rotation_from_covariance`), one energy per cell; one gathered row per vertex), parallel over
+cells with numba's current thread count. :mod:`arap.method.covariance` computes the same quantities in blocks of cells
+with SIMD rotations; tests check that both agree, and benchmarks time one against the other.
 """
 
 from __future__ import annotations
@@ -12,9 +12,9 @@ from __future__ import annotations
 import numba as nb
 import numpy as np
 
-from arap._parallel import kernel_lock
-from arap.cells import Cells, RhsGather
-from arap.horn import best_rotation, rotation_from_covariance
+from arap.method._parallel import kernel_lock
+from arap.method.cells import Cells, RhsGather
+from arap.method.horn import best_rotation, rotation_from_covariance
 
 
 @nb.njit(cache=True, parallel=True, nogil=True)
@@ -71,19 +71,20 @@ def _rhs_kernel(ptr, cell, g, R, const, out):  # pragma: no cover - compiled
 
 
 def local_step_reference(cells: Cells, cell_ids: np.ndarray, U: np.ndarray, R: np.ndarray, E: np.ndarray) -> None:
-    """Cell-by-cell version of :func:`arap.covariance.local_step` (same arguments, nothing returned)."""
+    """Cell-by-cell version of :func:`arap.method.covariance.local_step` (same arguments, nothing returned)."""
     with kernel_lock:
         _local_kernel(cell_ids, cells.ptr, cells.a, cells.b, cells.w, cells.we, cells.rest_sq, U, R, E)
 
 
 def assemble_rhs_reference(gather: RhsGather, R: np.ndarray, const: np.ndarray, out: np.ndarray) -> None:
-    """Row-by-row version of :func:`arap.covariance.assemble_rhs` (same arguments)."""
+    """Row-by-row version of :func:`arap.method.covariance.assemble_rhs` (same arguments)."""
     with kernel_lock:
         _rhs_kernel(gather.ptr, gather.cell, gather.g, R, const, out)
 
 
 @nb.njit(cache=True, nogil=True)
 def fit_rotations_scalar(S: np.ndarray, R: np.ndarray) -> None:  # pragma: no cover - compiled
-    """Cell-by-cell :func:`arap.horn.best_rotation` of a (k, 3, 3) stack into ``R`` (the reference of the blocks)."""
+    """Cell-by-cell :func:`arap.method.horn.best_rotation` of a (k, 3, 3) stack into ``R`` (the reference of the
+    blocks)."""
     for i in range(S.shape[0]):
         best_rotation(S[i], R[i])

@@ -4,12 +4,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from arap.scenarios import bend
+from arap.constraints.scenarios import bend
 
 
 def bend_constraints(V: np.ndarray, axis: int | None = None, share: float = 0.1, angle: float = 0.6,
                      shift: float = 0.15) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """The ``bend`` scenario of :mod:`arap.scenarios` as ``fixed, handle, constrained, targets``."""
+    """The ``bend`` scenario of :mod:`arap.constraints.scenarios` as ``fixed, handle, constrained, targets``."""
     s = bend(V, axis=axis, share=share, angle=angle, shift=shift)
     return s.fixed, s.handles, s.constrained, s.targets
 

@@ -11,7 +11,7 @@ import pytest
 
 from arap.constraints import Constraints, load_constraints, save_constraints
 from arap.errors import ArapError, ConstraintError
-from arap.indexing import check_index_array
+from arap.solve.indexing import check_index_array
 
 N = 10
 

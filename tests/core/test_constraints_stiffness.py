@@ -12,7 +12,7 @@ from arap.cli import main
 from arap.constraints import FORMAT_VERSION, load_constraints, save_constraints
 from arap.errors import ConstraintError
 from arap.io import load_mesh
-from arap.shapes import builtin_mesh
+from arap.meshes.shapes import builtin_mesh
 from tests.core.test_stiffness import _rigid_misfit
 
 

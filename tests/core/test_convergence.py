@@ -7,9 +7,9 @@ import numpy as np
 import pytest
 
 from arap import ArapSolver, arap_energy
+from arap.constraints.scenarios import bend, pull, rotation
 from arap.errors import ArapError
-from arap.scenarios import bend, pull, rotation
-from arap.start import best_rigid_transform
+from arap.solve.start import best_rigid_transform
 
 from .scenarios import bend_constraints, random_rigid
 
@@ -245,8 +245,8 @@ def test_lbfgs_starts_with_plain_steps_and_keeps_the_lower_minimum(armadillo: tu
     armadillo bend (spokes, negative cotangent weights, several minima) L-BFGS then settles below the minimum the
     plain iteration reaches (−0.0228249 after 2,554 iterations), where L-BFGS from the first step settled at
     −0.0227986. A warm start keeps L-BFGS from its first step."""
-    from arap.loops import PLAIN_START
-    from arap.scenarios import make_scenario
+    from arap.constraints.scenarios import make_scenario
+    from arap.solve.loops import PLAIN_START
 
     V, F = armadillo
     s = make_scenario("bend", V)

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from arap.errors import ArapError, ConstraintError, UnconstrainedRegionError
-from arap.solver import ArapSolver
+from arap.solve.solver import ArapSolver
 
 
 def test_out_of_range_constraint(icosphere: tuple[np.ndarray, np.ndarray]) -> None:

@@ -1,14 +1,14 @@
-"""The energy of the cells no free vertex touches, kept up to date as targets change (arap.inactive)."""
+"""The energy of the cells no free vertex touches, kept up to date as targets change (arap.method.inactive)."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from arap.cells import build_cells
-from arap.covariance import local_step
-from arap.inactive import InactiveCells
-from arap.solver import ArapSolver
+from arap.method.cells import build_cells
+from arap.method.covariance import local_step
+from arap.method.inactive import InactiveCells
+from arap.solve.solver import ArapSolver
 from tests.core.scenarios import random_rigid
 
 

@@ -8,11 +8,11 @@ import numba
 import numpy as np
 import pytest
 
-from arap import _parallel, covariance
-from arap._parallel import ThreadPolicy
-from arap.cells import Cells, RhsGather
-from arap.energy import arap_energy
-from arap.solver import ArapSolver
+from arap.method import _parallel, covariance
+from arap.method._parallel import ThreadPolicy
+from arap.method.cells import Cells, RhsGather
+from arap.method.energy import arap_energy
+from arap.solve.solver import ArapSolver
 
 from .reference_kernels import assemble_rhs_reference, local_step_reference
 from .scenarios import bend_constraints

@@ -1,4 +1,4 @@
-"""L-BFGS directions (arap.lbfgs): the two-loop recursion equals the BFGS inverse-Hessian update written out,
+"""L-BFGS directions (arap.solve.lbfgs): the two-loop recursion equals the BFGS inverse-Hessian update written out,
 pairs of non-positive curvature are refused, and the window keeps the newest pairs."""
 
 from __future__ import annotations
@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from arap.errors import ArapError
-from arap.lbfgs import MAX_SCALE, LbfgsHistory, step_dot, subtract_norm
+from arap.solve.lbfgs import MAX_SCALE, LbfgsHistory, step_dot, subtract_norm
 
 
 def _bfgs_inverse(H0: np.ndarray, pairs: list[tuple[np.ndarray, np.ndarray]]) -> np.ndarray:

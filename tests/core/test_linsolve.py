@@ -12,7 +12,9 @@ import pytest
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from arap.linsolve import (
+from arap.meshes.shapes import sphere, sphere_frequency_for
+from arap.solve.solver import ArapSolver
+from arap.sparse.linsolve import (
     BACKENDS,
     LARGE_SYSTEM,
     ORDERINGS,
@@ -21,8 +23,6 @@ from arap.linsolve import (
     default_backend,
     factorize,
 )
-from arap.shapes import sphere, sphere_frequency_for
-from arap.solver import ArapSolver
 
 HAVE_SKSPARSE = importlib.util.find_spec("sksparse") is not None
 
@@ -147,7 +147,7 @@ def test_an_indefinite_matrix_is_refused_without_a_word_on_stdout(
     """CHOLMOD inside cholespy prints its warning with the C library's printf: it must reach the log, not the
     standard output that a command's JSON goes to."""
     A = sp.csr_matrix(sp.diags([2.0, -1.0, 3.0, 1.0]))
-    with caplog.at_level(logging.DEBUG, logger="arap.linsolve"), pytest.raises(NotPositiveDefiniteError):
+    with caplog.at_level(logging.DEBUG, logger="arap.sparse.linsolve"), pytest.raises(NotPositiveDefiniteError):
         factorize(A, backend)
     out, _ = capfd.readouterr()
     assert out == ""

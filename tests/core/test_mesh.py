@@ -5,15 +5,15 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from arap.diagnose import inspect_mesh
 from arap.errors import MeshError
-from arap.mesh import (
+from arap.meshes.diagnose import inspect_mesh
+from arap.meshes.mesh import (
     check_mesh,
     degenerate_faces,
     triangulate_polygons,
 )
-from arap.repair import repair_mesh
-from arap.shapes import sphere
+from arap.meshes.repair import repair_mesh
+from arap.meshes.shapes import sphere
 
 # A closed tetrahedron, outward-oriented.
 TET_V = np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]])
@@ -232,7 +232,7 @@ def test_inspect_negative_weight_share() -> None:
 
 
 def test_inspect_reports_nearly_flat_faces() -> None:
-    from arap.shapes import sphere
+    from arap.meshes.shapes import sphere
 
     V, F = sphere(2)
     info = inspect_mesh(V, F)
@@ -250,7 +250,7 @@ def test_inspect_reports_nearly_flat_faces() -> None:
 
 @pytest.mark.parametrize("seed", range(6))
 def test_welding_along_a_direction_finds_the_groups_a_kd_tree_finds(seed: int) -> None:
-    from arap._weld import _unique_face_mask, _weld_groups, _weld_groups_tree
+    from arap.meshes._weld import _unique_face_mask, _weld_groups, _weld_groups_tree
 
     rng = np.random.default_rng(seed)
     V = rng.normal(size=(400, 3)).round(seed % 3)  # rounded: many points share coordinates

@@ -6,12 +6,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from arap.diagnose import inspect_mesh
 from arap.errors import MeshError
-from arap.mesh import SIZE_RANGE, check_mesh
-from arap.repair import repair_mesh
-from arap.shapes import builtin_mesh, sphere
-from arap.solver import ArapSolver
+from arap.meshes.diagnose import inspect_mesh
+from arap.meshes.mesh import SIZE_RANGE, check_mesh
+from arap.meshes.repair import repair_mesh
+from arap.meshes.shapes import builtin_mesh, sphere
+from arap.solve.solver import ArapSolver
 
 
 @pytest.mark.parametrize("check", [check_mesh, repair_mesh])

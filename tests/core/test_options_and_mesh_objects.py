@@ -11,8 +11,8 @@ import trimesh
 import arap
 from arap.errors import ArapError, ConstraintError, MeshError, OptionError
 from arap.io import load_mesh, save_mesh
-from arap.linsolve import factorize
-from arap.shapes import sphere
+from arap.meshes.shapes import sphere
+from arap.sparse.linsolve import factorize
 
 
 @pytest.fixture

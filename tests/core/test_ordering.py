@@ -10,13 +10,13 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
-import arap.ordering as ordering
-from arap._csr_permute import permuted_pattern, permuted_symmetric, with_diagonal
-from arap.linsolve import background_ordering, factorize
-from arap.ordering import BackgroundOrdering, metis_available, nested_dissection, permute_rows, unpermute_rows
-from arap.shapes import sphere, sphere_frequency_for
-from arap.solver import ArapSolver
-from arap.topology import leading_subgraph, vertex_adjacency
+import arap.sparse.ordering as ordering
+from arap.meshes.shapes import sphere, sphere_frequency_for
+from arap.meshes.topology import leading_subgraph, vertex_adjacency
+from arap.solve.solver import ArapSolver
+from arap.sparse._csr_permute import permuted_pattern, permuted_symmetric, with_diagonal
+from arap.sparse.linsolve import background_ordering, factorize
+from arap.sparse.ordering import BackgroundOrdering, metis_available, nested_dissection, permute_rows, unpermute_rows
 
 HAVE_SKSPARSE = importlib.util.find_spec("sksparse") is not None
 needs_cholmod = pytest.mark.skipif(not (HAVE_SKSPARSE and metis_available()),
@@ -97,7 +97,7 @@ def test_nested_dissection_is_cholmods_own_ordering(solver: ArapSolver) -> None:
 @needs_cholmod
 @pytest.mark.parametrize("given", ["array", "background"])
 def test_a_given_ordering_solves_as_cholmods_own(solver: ArapSolver, given: str) -> None:
-    from arap.linsolve import _plan_symbolic
+    from arap.sparse.linsolve import _plan_symbolic
 
     A = solver.reduced_matrix()
     B = np.random.default_rng(1).normal(size=(A.shape[0], 3))
@@ -121,7 +121,7 @@ def test_a_given_ordering_solves_as_cholmods_own(solver: ArapSolver, given: str)
 
 @needs_cholmod
 def test_a_matrix_off_the_analysed_pattern_is_analysed_again(solver: ArapSolver) -> None:
-    from arap.linsolve import _plan_symbolic
+    from arap.sparse.linsolve import _plan_symbolic
 
     A = solver.reduced_matrix()
     ordering_thread = BackgroundOrdering(*_graph(A), _plan_symbolic)

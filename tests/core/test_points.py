@@ -7,10 +7,10 @@ import numpy as np
 import pytest
 
 import arap
+from arap.constraints.scenarios import bend
 from arap.errors import ConstraintError
-from arap.points import check_points
-from arap.scenarios import bend
-from arap.shapes import obtuse_cylinder
+from arap.meshes.shapes import obtuse_cylinder
+from arap.method.points import check_points
 
 
 def _diag(V: np.ndarray) -> float:

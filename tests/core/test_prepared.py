@@ -9,9 +9,9 @@ import pytest
 
 import arap
 from arap import ArapSolver
-from arap.addons import PlainFit, PointHandles, RigidAddOn, SmoothAddOn, SmoothFit
-from arap.iteration import lbfgs_applies
-from arap.prepared import Prepared, prepare
+from arap.solve.addons import PlainFit, PointHandles, RigidAddOn, SmoothAddOn, SmoothFit
+from arap.solve.iteration import lbfgs_applies
+from arap.solve.prepared import Prepared, prepare
 
 
 @pytest.fixture(scope="module")

@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from arap.energy import arap_energy
-from arap.solver import ArapSolver
+from arap.method.energy import arap_energy
+from arap.solve.solver import ArapSolver
 
 from .scenarios import bend_constraints
 

@@ -10,10 +10,10 @@ import scipy.sparse as sp
 from scipy.spatial.transform import Rotation
 
 import arap
-from arap import rotation_step, smooth
-from arap.rotation_step import RotationStep, preconditioner
-from arap.scenarios import pull
-from arap.smooth import SmoothRotations
+from arap.constraints.scenarios import pull
+from arap.method import rotation_step, smooth
+from arap.method.rotation_step import RotationStep, preconditioner
+from arap.method.smooth import SmoothRotations
 
 
 def _state(mesh: tuple[np.ndarray, np.ndarray], iterations: int = 3

@@ -7,7 +7,7 @@ from collections.abc import Callable
 import numpy as np
 import pytest
 
-from arap.rotations import BLOCK, fit_rotations, fit_rotations_svd
+from arap.method.rotations import BLOCK, fit_rotations, fit_rotations_svd
 
 from .reference_kernels import fit_rotations_scalar
 

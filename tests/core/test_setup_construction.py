@@ -9,12 +9,12 @@ import pytest
 import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
-from arap._csr import SparseRowsProduct, csr_from_triplets, leading_blocks
-from arap._geometry import barycentric_areas, double_areas
-from arap.cells import Cells, build_cells, build_rhs_gather, system_matrix
-from arap.shapes import sphere
-from arap.topology import free_components, vertex_adjacency
-from arap.weights import corner_weights
+from arap.meshes._geometry import barycentric_areas, double_areas
+from arap.meshes.shapes import sphere
+from arap.meshes.topology import free_components, vertex_adjacency
+from arap.method.cells import Cells, build_cells, build_rhs_gather, system_matrix
+from arap.method.weights import corner_weights
+from arap.sparse._csr import SparseRowsProduct, csr_from_triplets, leading_blocks
 
 Mesh = tuple[np.ndarray, np.ndarray]
 
@@ -243,7 +243,7 @@ def test_free_components_match_scipy_and_find_the_pinned_ones() -> None:
 
 def test_solver_set_up_equals_the_reference_constructions(armadillo: Mesh) -> None:
     """The solver's cells and factored matrix, as built before the compiled set-up (trimesh's armadillo)."""
-    from arap.solver import ArapSolver
+    from arap.solve.solver import ArapSolver
 
     V, F = armadillo
     y = V[:, 1]

@@ -7,10 +7,10 @@ from collections.abc import Callable
 import numpy as np
 import pytest
 
-from arap.diagnose import inspect_mesh
 from arap.errors import OptionError
-from arap.mesh import check_mesh
-from arap.shapes import BUILTIN_MESHES, builtin_mesh, obtuse_cylinder, scan_blob, sphere, sphere_frequency_for
+from arap.meshes.diagnose import inspect_mesh
+from arap.meshes.mesh import check_mesh
+from arap.meshes.shapes import BUILTIN_MESHES, builtin_mesh, obtuse_cylinder, scan_blob, sphere, sphere_frequency_for
 
 
 def signed_volume(V: np.ndarray, F: np.ndarray) -> float:
@@ -136,7 +136,7 @@ def test_obtuse_mesh_options_are_checked() -> None:
 
 def test_the_sphere_names_of_the_command_line_are_built_in_meshes_too() -> None:
     """``arap --help`` lists ``sphere`` and ``sphere:N`` among the built-in meshes: the library takes them as well."""
-    from arap.shapes import DEFAULT_SPHERE_SUBDIVISIONS
+    from arap.meshes.shapes import DEFAULT_SPHERE_SUBDIVISIONS
 
     V, F = builtin_mesh("sphere")
     V0, F0 = sphere(DEFAULT_SPHERE_SUBDIVISIONS)

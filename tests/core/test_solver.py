@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from arap.energy import arap_energy
+from arap.method.energy import arap_energy
 from arap.options import ENERGY_TYPES, WEIGHT_TYPES
-from arap.solver import ArapSolver
+from arap.solve.solver import ArapSolver
 
 from .scenarios import bend_constraints, random_rigid
 

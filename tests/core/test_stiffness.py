@@ -7,11 +7,11 @@ import numpy as np
 import pytest
 
 import arap
+from arap.constraints.scenarios import bend
 from arap.errors import OptionError
-from arap.rigid import rigid_regions
-from arap.scenarios import bend
-from arap.shapes import obtuse_cylinder
-from arap.stiffness import RIGID_STIFFNESS, check_stiffness
+from arap.meshes.shapes import obtuse_cylinder
+from arap.method.rigid import rigid_regions
+from arap.method.stiffness import RIGID_STIFFNESS, check_stiffness
 
 
 def _band(V: np.ndarray, lo: float, hi: float) -> np.ndarray:

@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from arap.diagnose import inspect_mesh
-from arap.shapes import sphere
-from arap.topology import (
+from arap.meshes.diagnose import inspect_mesh
+from arap.meshes.shapes import sphere
+from arap.meshes.topology import (
     boundary_edges,
     connected_components,
     edge_face_counts,

@@ -11,8 +11,14 @@ import pytest
 
 import arap
 from arap.cli import main
+from arap.constraints.vertex_selectors import (
+    HandleSpec,
+    constraints_from_selectors,
+    parse_rotation,
+    parse_vector,
+    select,
+)
 from arap.errors import ConstraintError, OptionError
-from arap.vertex_selectors import HandleSpec, constraints_from_selectors, parse_rotation, parse_vector, select
 
 
 def _cactus() -> tuple[np.ndarray, np.ndarray]:

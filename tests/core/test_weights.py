@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from arap.cells import build_cells, system_matrix
-from arap.weights import cotangent_laplacian, edge_weight_matrix
+from arap.method.cells import build_cells, system_matrix
+from arap.method.weights import cotangent_laplacian, edge_weight_matrix
 
 
 def test_laplacian_symmetric_zero_row_sums_psd(camelhead: tuple[np.ndarray, np.ndarray]) -> None:

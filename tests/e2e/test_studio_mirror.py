@@ -13,7 +13,7 @@ import pytest
 from playwright.sync_api import Page, expect
 from scipy.spatial.transform import Rotation
 
-from arap import shapes
+from arap.meshes import shapes
 from tests.e2e.conftest import positions, wait_idle, wait_ready, wait_settled
 from tests.e2e.test_session_safety import Dialogs, wait_autosaved
 from tests.e2e.test_studio import box_select, drag_gizmo_x

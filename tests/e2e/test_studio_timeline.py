@@ -1,5 +1,6 @@
 """The studio's keyframe timeline: keyframes of the handle groups' transforms, scrubbing, playback, autosave, the
-animated GLB export and the saved document that ``arap animate`` renders; the page interpolates as arap.keyframes."""
+animated GLB export and the saved document that ``arap animate`` renders; the page interpolates as
+arap.constraints.keyframes."""
 
 from __future__ import annotations
 
@@ -13,8 +14,8 @@ from playwright.sync_api import Page, expect
 from scipy.spatial.transform import Rotation
 
 from arap.animation import animate
+from arap.constraints.keyframes import Keyframes
 from arap.io import load_mesh
-from arap.keyframes import Keyframes
 from arap.server.meshdata import load_builtin
 from tests.e2e.conftest import positions, wait_idle, wait_ready, wait_settled
 from tests.e2e.test_session_safety import Dialogs, wait_autosaved

@@ -108,7 +108,7 @@ def test_textured_obj_loads_in_file_numbering_and_constraints_hit_file_vertices(
     """Per-corner UVs, normals, groups and materials do not renumber the ``v`` lines (they used to be split by UV
     corner and welded again); constraint indices name the file's vertices."""
     from arap import ArapSolver
-    from arap.shapes import sphere
+    from arap.meshes.shapes import sphere
 
     V, F = sphere(2)
     rng = np.random.default_rng(3)

@@ -17,7 +17,7 @@ from arap.constraints import Constraints, load_constraints, save_constraints
 from arap.errors import ConstraintError, MeshFormatError
 from arap.io import load_mesh, save_mesh
 from arap.io.atomic import atomic_output, write_atomic
-from arap.shapes import builtin_mesh
+from arap.meshes.shapes import builtin_mesh
 from tests.waiting import wait_until
 
 EARLIER = b"# an earlier good output\n"
@@ -39,7 +39,7 @@ import signal, sys
 if sys.argv[2] == "kill":
     signal.signal(signal.SIGXFSZ, signal.SIG_DFL)
 from arap.io import save_mesh
-from arap.shapes import sphere
+from arap.meshes.shapes import sphere
 V, F = sphere(6)
 save_mesh(sys.argv[1], V, F)
 """

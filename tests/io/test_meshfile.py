@@ -19,7 +19,7 @@ from arap.io import (
     save_mesh,
     save_mesh_bytes,
 )
-from arap.shapes import builtin_mesh, sphere
+from arap.meshes.shapes import builtin_mesh, sphere
 
 
 @pytest.fixture(scope="module")

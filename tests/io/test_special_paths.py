@@ -26,7 +26,7 @@ from arap.errors import ConstraintError, MeshFormatError
 from arap.io import load_mesh, load_mesh_with_report, save_mesh
 from arap.io.atomic import write_atomic
 from arap.io.paths import SpecialFileError, read_regular_file, write_destination
-from arap.shapes import builtin_mesh
+from arap.meshes.shapes import builtin_mesh
 
 pytestmark = pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="needs FIFOs and symbolic links (POSIX)")
 

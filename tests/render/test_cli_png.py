@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 
 from arap.cli import main
+from arap.meshes.shapes import builtin_mesh
 from arap.render.png import SIGNATURE, decode_png
-from arap.shapes import builtin_mesh
 from tests.render.test_show import _share
 
 V, F = builtin_mesh("bar")

@@ -11,8 +11,8 @@ import pytest
 import trimesh
 from starlette.testclient import TestClient
 
-from arap.energy import cell_distortion
 from arap.io import load_mesh_bytes
+from arap.method.energy import cell_distortion
 from arap.server import create_app
 from arap.server.protocol import PARAMS, PROTOCOL_VERSION
 from tests.server.helpers import StudioClient, column_major, rotation_z, translation

@@ -11,10 +11,10 @@ import pytest
 
 from arap import ArapSolver
 from arap.constraints import load_constraints
+from arap.meshes.shapes import builtin_mesh
 from arap.server.meshdata import load_builtin
 from arap.server.session import Session
 from arap.server.settling import SETTLE_FRAME_MOTION, SETTLE_FRAME_SECONDS
-from arap.shapes import builtin_mesh
 from tests.server.helpers import StudioClient, translation
 
 pytestmark = pytest.mark.timeout(180)

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from arap.constraints import load_constraints
-from arap.rigid import rigid_regions
+from arap.method.rigid import rigid_regions
 from arap.server.meshdata import load_upload
 from arap.server.protocol import RequestError, parse_text
 from arap.server.session import Session

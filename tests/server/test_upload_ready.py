@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 
 from arap.io import save_mesh_bytes
+from arap.meshes.shapes import sphere
 from arap.server.meshdata import load_upload
 from arap.server.session import Session
-from arap.shapes import sphere
 from tests.server.helpers import StudioClient, translation
 
 

@@ -2,7 +2,7 @@
 // playhead to scrub, playback at the animation's frame rate, and the export of the solved animation as a GLB.
 //
 // A keyframe holds one column-major 4×4 per handle group of the server's constraint set (point handles are not
-// animated: they keep their current transform). Between keyframes the groups move as arap.keyframes says (the
+// animated: they keep their current transform). Between keyframes the groups move as arap.constraints.keyframes says (the
 // command line's `arap animate` renders the same animation from the saved constraints document): each group turns
 // about its pivot (the centroid of its vertices in the constraint set's pose) by the spherical linear
 // interpolation of the two rotations of the polar decompositions, while the stretch parts blend linearly and the
@@ -89,7 +89,7 @@ function rotationOf(q) {
 
 /**
  * The transform between two keyframe transforms `a` and `b` (column-major 4×4) at `s` in [0, 1] for a group turning
- * about `pivot`: as arap.keyframes.Keyframes.handle_targets (rotation by slerp, stretch and pivot linearly).
+ * about `pivot`: as arap.constraints.keyframes.Keyframes.handle_targets (rotation by slerp, stretch and pivot linearly).
  * @param {number[]} a @param {number[]} b @param {number} s @param {number[]} pivot
  * @returns {number[]} column-major 4×4
  */

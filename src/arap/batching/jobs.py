@@ -23,6 +23,7 @@ from pathlib import Path
 from typing import Any, Literal
 
 from arap.errors import ArapError
+from arap.meshes.shapes import BUILTIN_MESHES
 from arap.options import (
     DEFAULT_ALPHA,
     DEFAULT_ENERGY,
@@ -32,7 +33,6 @@ from arap.options import (
     check_energy_and_weights,
     check_solve_options,
 )
-from arap.shapes import BUILTIN_MESHES
 
 __all__ = ["JOB_KEYS", "MAX_MANIFEST_LINE", "Job", "JobOutcome", "chunks_for", "job_from_json", "read_manifest"]
 

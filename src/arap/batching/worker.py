@@ -45,8 +45,8 @@ def environment(values: dict[str, str]) -> Iterator[None]:
 
 def _load(mesh: str) -> tuple[np.ndarray, np.ndarray, Any]:
     from arap.io import load_mesh_with_report
-    from arap.repair import RepairResult
-    from arap.shapes import builtin_mesh
+    from arap.meshes.repair import RepairResult
+    from arap.meshes.shapes import builtin_mesh
 
     if os.path.isabs(mesh):
         return load_mesh_with_report(mesh)
@@ -74,7 +74,7 @@ def run_chunk(jobs: list[Job]) -> list[JobOutcome]:
     from arap.constraints import load_constraints
     from arap.errors import ArapError
     from arap.io import format_of, save_mesh
-    from arap.solver import ArapSolver
+    from arap.solve.solver import ArapSolver
 
     outcomes: list[JobOutcome] = []
     loaded: tuple[np.ndarray, np.ndarray, Any] | None = None

@@ -63,7 +63,7 @@ def _check_output(output: str) -> None:
 def run_animate(args: argparse.Namespace) -> int:
     """``arap animate``: the exit status."""
     from arap.animation import Animation, frame_times, iter_frames, load_keyframes, save_animation
-    from arap.solver import ArapSolver
+    from arap.solve.solver import ArapSolver
 
     _check_output(args.output)
     check_iterations_and_tolerance(args.iterations, args.tolerance)

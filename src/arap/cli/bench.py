@@ -1,5 +1,5 @@
 """``arap bench``: precompute and time per iteration of the solver on a mesh, with the bend scenario of
-:mod:`arap.scenarios`, as a table or as JSON."""
+:mod:`arap.constraints.scenarios`, as a table or as JSON."""
 
 from __future__ import annotations
 
@@ -33,7 +33,8 @@ def add_parser(commands: argparse._SubParsersAction[argparse.ArgumentParser]) ->
 
 
 def bench_constraints(V: np.ndarray, share: float = 0.1) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The bend scenario of :mod:`arap.scenarios`: fix the lowest ``share`` along the longest axis, move the top.
+    """The bend scenario of :mod:`arap.constraints.scenarios`: fix the lowest ``share`` along the longest axis, move the
+    top.
 
     Returns
     -------
@@ -43,7 +44,7 @@ def bench_constraints(V: np.ndarray, share: float = 0.1) -> tuple[np.ndarray, np
         Handles rotated 30° about their centroid (in the plane of the longest axis and the next one), then
         shifted along that next axis by 10% of the bounding-box diagonal.
     """
-    from arap.scenarios import bend
+    from arap.constraints.scenarios import bend
 
     scenario = bend(V, share=share, angle=np.pi / 6, shift=0.1)
     return scenario.fixed, scenario.handles, scenario.targets[len(scenario.fixed):]
@@ -60,7 +61,7 @@ def constrained_components(F: np.ndarray, n: int, indices: np.ndarray) -> np.nda
     >>> constrained_components(F, 6, np.array([1])).tolist()
     [0, 1, 2]
     """
-    from arap.topology import connected_components
+    from arap.meshes.topology import connected_components
 
     _, labels = connected_components(F, n)
     inside = np.isin(labels, labels[indices])
@@ -69,7 +70,7 @@ def constrained_components(F: np.ndarray, n: int, indices: np.ndarray) -> np.nda
 
 def run_bench(args: argparse.Namespace) -> int:
     """``arap bench``: time precompute and iterations on a mesh (the bend scenario); prints a table or JSON."""
-    from arap.solver import ArapSolver
+    from arap.solve.solver import ArapSolver
 
     check_bench_runs(args.iterations, args.repeats)
     V, F, _, label = load_mesh_argument(args.mesh)

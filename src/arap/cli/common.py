@@ -14,6 +14,7 @@ from typing import Any
 import numpy as np
 
 from arap.errors import ArapError, MeshFormatError, OptionError
+from arap.meshes.repair import RepairResult
 from arap.options import (
     DEFAULT_ALPHA,
     DEFAULT_ENERGY,
@@ -24,7 +25,6 @@ from arap.options import (
     WEIGHT_TYPES,
     check_alpha,
 )
-from arap.repair import RepairResult
 
 __all__ = [
     "EXIT_BAD_INPUT",
@@ -83,7 +83,7 @@ class _HandleAction(argparse.Action):
 
 def add_selector_options(p: argparse.ArgumentParser) -> None:
     """``--fix``, ``--handle`` (with ``--move`` and ``--rotate``) and ``--roi``: constraints picked by where the
-    vertices lie (:mod:`arap.vertex_selectors`)."""
+    vertices lie (:mod:`arap.constraints.vertex_selectors`)."""
     g = p.add_argument_group("constraints by position (x, y, z from 0 to 1 across the mesh's bounding box; X, Y, Z in "
                              "mesh units)")
     g.add_argument("--fix", action="append", default=[], metavar="SEL",
@@ -100,7 +100,7 @@ def add_selector_options(p: argparse.ArgumentParser) -> None:
 
 def selector_constraints(args: argparse.Namespace, V: np.ndarray) -> Any:
     """The :class:`arap.Constraints` the selector options give, or None when none was given."""
-    from arap.vertex_selectors import HandleSpec, constraints_from_selectors, parse_rotation, parse_vector
+    from arap.constraints.vertex_selectors import HandleSpec, constraints_from_selectors, parse_rotation, parse_vector
 
     specs = getattr(args, "handle_specs", None) or []
     if not args.fix and not specs and args.roi is None:
@@ -142,7 +142,7 @@ def one_line(exc: BaseException) -> str:
 
 def warm_up_kernels(quiet: bool) -> dict[str, object]:
     """Compile (first run) or load the kernels before anything is timed; says so when it compiled."""
-    from arap.jit import warm_up_kernels as compile_or_load
+    from arap.method.jit import warm_up_kernels as compile_or_load
 
     warm = compile_or_load()
     if warm.compiled and not quiet:
@@ -167,7 +167,7 @@ def load_mesh_argument(spec: str, *, repair: bool = True) -> tuple[np.ndarray, n
     """
     from arap.io import load_mesh_with_report
     from arap.io.paths import folder_problem
-    from arap.shapes import BUILTIN_MESHES, builtin_mesh
+    from arap.meshes.shapes import BUILTIN_MESHES, builtin_mesh
 
     path = Path(spec)
     if path.exists():

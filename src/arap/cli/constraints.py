@@ -1,5 +1,5 @@
-"""``arap constraints``: write a constraints file from vertices picked by position (:mod:`arap.vertex_selectors`),
-for ``arap deform``, ``arap batch`` or the studio."""
+"""``arap constraints``: write a constraints file from vertices picked by position
+(:mod:`arap.constraints.vertex_selectors`), for ``arap deform``, ``arap batch`` or the studio."""
 
 from __future__ import annotations
 

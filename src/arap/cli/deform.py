@@ -27,14 +27,14 @@ from arap.cli.common import (
     warm_up_kernels,
 )
 from arap.errors import ArapError, ConstraintError, MeshError, MeshFormatError, UnconstrainedRegionError
+from arap.meshes.repair import RepairResult
 from arap.options import (
     ACCELERATIONS,
     START_NAMES,
 )
-from arap.repair import RepairResult
 
 if TYPE_CHECKING:
-    from arap.result import ArapResult
+    from arap.solve.result import ArapResult
 
 __all__ = ["add_parser", "run_deform"]
 
@@ -209,7 +209,7 @@ def _note_flat_faces(V: np.ndarray, F: np.ndarray, energy: str, weights: str) ->
     large and negative); spokes and rims, and clamped or uniform weights, have no negative terms."""
     if energy == "spokes_and_rims" or weights != "cotangent":
         return
-    from arap.diagnose import FLAT_ANGLE_DEGREES, flat_faces
+    from arap.meshes.diagnose import FLAT_ANGLE_DEGREES, flat_faces
 
     count = flat_faces(V, F)
     if count:
@@ -250,7 +250,7 @@ def run_deform(args: argparse.Namespace) -> int:
     from arap.io import format_of, save_mesh
     from arap.io.assets import save_asset
     from arap.io.paths import write_destination
-    from arap.solver import ArapSolver
+    from arap.solve.solver import ArapSolver
 
     # Fail before any work on an unsupported output type, a missing folder (or a file where a folder should be), or
     # an output that is not a regular file (a folder, a FIFO, a device, or a symbolic link to one).

@@ -82,7 +82,7 @@ def _warm_up_behind() -> threading.Thread:
     """Compile (first run) or load the kernels on a thread of their own while the server starts and serves the page;
     a session that needs them first waits for the compilation (numba compiles one kernel at a time). Says so when it
     compiles."""
-    from arap.kernel_cache import KERNELS_READY, first_compile_pending
+    from arap.method.kernel_cache import KERNELS_READY, first_compile_pending
 
     if first_compile_pending():
         err("arap: compiling the solver's kernels in the background (first run only, about 10-30 s); the page is "

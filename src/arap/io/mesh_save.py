@@ -14,7 +14,7 @@ from numpy.typing import NDArray
 from arap.errors import MeshError, MeshFormatError
 from arap.io.atomic import write_atomic
 from arap.io.meshfile import format_of
-from arap.mesh import MeshLike, mesh_arrays
+from arap.meshes.mesh import MeshLike, mesh_arrays
 
 __all__ = ["save_mesh", "save_mesh_bytes"]
 

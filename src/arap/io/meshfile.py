@@ -7,7 +7,7 @@ coordinates, normals, groups and materials do not change the ``v`` numbering), g
 OFF, PLY and STL through trimesh's parsers. Polygons are fan-triangulated. Attributes other than positions are
 read and written by :mod:`arap.io.assets` (:func:`~arap.io.assets.load_asset`, :func:`~arap.io.assets.save_asset`,
 or :func:`~arap.io.mesh_save.save_mesh` given a :class:`~arap.io.assets.MeshAsset`). By default the loaded mesh goes
-through :func:`arap.repair.repair_mesh`, which welds STL triangle soups and drops degenerate faces; a clean mesh
+through :func:`arap.meshes.repair.repair_mesh`, which welds STL triangle soups and drops degenerate faces; a clean mesh
 comes back unchanged.
 
 Before parsing, :mod:`arap.io.screening` decodes text robustly, refuses binary junk and OBJ faces naming vertex
@@ -34,8 +34,8 @@ from arap.io.screening import (
     check_size,
     screen,
 )
-from arap.mesh import triangulate_polygons
-from arap.repair import RepairResult, repair_mesh
+from arap.meshes.mesh import triangulate_polygons
+from arap.meshes.repair import RepairResult, repair_mesh
 
 __all__ = [
     "MESH_FORMATS",
@@ -202,7 +202,7 @@ def load_mesh_bytes_with_report(
     file_type : str
         ``"obj"``, ``"off"``, ``"ply"``, ``"stl"``, ``"glb"`` or ``"gltf"`` (a file name or ``".obj"`` also works).
     repair : bool
-        Run :func:`arap.repair.repair_mesh` (weld duplicates, drop degenerate faces). If False the arrays are
+        Run :func:`arap.meshes.repair.repair_mesh` (weld duplicates, drop degenerate faces). If False the arrays are
         returned as stored, unvalidated, and the result has an identity ``vertex_map``.
     name : str
         Label for messages.
@@ -300,7 +300,7 @@ def load_mesh(path: str | os.PathLike[str], *, repair: bool = True) -> tuple[np.
     path : path-like
     repair : bool
         Weld duplicate vertices (STL soups), drop degenerate, duplicate and unused elements
-        (:func:`arap.repair.repair_mesh`); a clean mesh is returned unchanged.
+        (:func:`arap.meshes.repair.repair_mesh`); a clean mesh is returned unchanged.
 
     Returns
     -------

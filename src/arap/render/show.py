@@ -91,11 +91,11 @@ def _rgb_array(value: Any, name: str, *, one: bool, n: int = 0) -> NDArray[np.fl
 def _mesh_of(obj: Any, F: Any) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
     """The vertices and faces ``show`` pictures, checked for what rendering needs (not for what a solve needs:
     a mesh with defects can be pictured)."""
-    from arap.mesh import mesh_arrays
-    from arap.result import ArapResult
+    from arap.meshes.mesh import mesh_arrays
+    from arap.solve.result import ArapResult
 
     if isinstance(obj, str) and F is None:
-        from arap.shapes import BUILTIN_MESHES, builtin_mesh
+        from arap.meshes.shapes import BUILTIN_MESHES, builtin_mesh
 
         if obj in BUILTIN_MESHES or obj == "sphere" or obj.startswith("sphere:"):
             return builtin_mesh(obj)
@@ -141,7 +141,7 @@ def _mesh_of(obj: Any, F: Any) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
 # ---------------------------------------------------------------------------------------------- marks
 def _handle_groups(handles: Any, n: int) -> list[NDArray[np.int64]]:
     """``handles=``: one list of vertex indices (one group) or a list of such lists (one group each)."""
-    from arap.indexing import check_index_array
+    from arap.solve.indexing import check_index_array
 
     if handles is None:
         return []
@@ -155,7 +155,7 @@ def _constraint_marks(constraints: Any, n: int, m: int
                       ) -> tuple[NDArray[np.int64], list[NDArray[np.int64]], NDArray[np.int64] | None]:
     """Fixed vertices, handle groups and region of interest of a constraint set, a document or a file."""
     from arap.constraints import Constraints, load_constraints
-    from arap.indexing import check_index_array
+    from arap.solve.indexing import check_index_array
 
     if isinstance(constraints, Constraints):
         fixed = check_index_array(constraints.fixed, n, "fixed")
@@ -292,7 +292,7 @@ def show(obj: Any, F: Any = None, *, constraints: Any = None, handles: Any = Non
     if constraints is not None:
         anchors, groups, roi = _constraint_marks(constraints, n, len(F))
     else:
-        from arap.indexing import check_index_array
+        from arap.solve.indexing import check_index_array
 
         anchors = None if fixed is None else check_index_array(fixed, n, "fixed")
         groups, roi = _handle_groups(handles, n), None

@@ -5,12 +5,12 @@ sends for the groups; point handles are not animated and hold where they are). T
 keyframes' times, in milliseconds, increasing) and ``transforms`` (column-major 4×4 matrices, keyframe after
 keyframe, one per handle group each).
 
-In the document they become the ``"keyframes"`` of :mod:`arap.keyframes`, one transform per handle group, plus an
-identity for the group of handles in no group when the document has such handles (fixed vertices the pose moved,
-vertices outside the region of interest that it holds away from rest); ``"keyframe_base"`` gives the handles'
-pose positions when those are not their rest positions (the transforms of the studio apply to the pose). The
-interpolation between keyframes is that of :meth:`arap.keyframes.Keyframes.handle_targets` (the page's timeline
-implements the same rule), and the export solves the frames of :func:`arap.animation.frame_times` as
+In the document they become the ``"keyframes"`` of :mod:`arap.constraints.keyframes`, one transform per handle group,
+plus an identity for the group of handles in no group when the document has such handles (fixed vertices the pose moved,
+vertices outside the region of interest that it holds away from rest); ``"keyframe_base"`` gives the handles' pose
+positions when those are not their rest positions (the transforms of the studio apply to the pose). The interpolation
+between keyframes is that of :meth:`arap.constraints.keyframes.Keyframes.handle_targets` (the page's timeline implements
+the same rule), and the export solves the frames of :func:`arap.animation.frame_times` as
 :func:`arap.animation.iter_frames` does, each from the previous one, with the session's solver and parameters.
 """
 
@@ -22,9 +22,9 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from arap.constraints.keyframes import Keyframes
 from arap.errors import ArapError
 from arap.io.animated_gltf import animation_glb
-from arap.keyframes import Keyframes
 from arap.options import DEFAULT_TOLERANCE
 from arap.server.constraints import identity_transforms, matrices_from_json
 from arap.server.numbering import document_in_file_numbering

@@ -23,7 +23,7 @@ import anyio.to_thread
 import numpy as np
 from starlette.websockets import WebSocket, WebSocketDisconnect
 
-from arap.kernel_cache import KERNELS_READY
+from arap.method.kernel_cache import KERNELS_READY
 from arap.server.budget import ByteBudget, RequestQueue, request_cost
 from arap.server.decoder import PROCESS_BYTES, FrameDecoder
 from arap.server.dispatch import SETTLE, Dispatcher, Reply, StudioConfig

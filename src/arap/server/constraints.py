@@ -18,7 +18,7 @@ import numpy as np
 
 from arap.constraints import check_selection, points_from_json, stiffness_from_json, stiffness_to_json
 from arap.errors import ConstraintError
-from arap.points import PointConstraints
+from arap.method.points import PointConstraints
 from arap.server.protocol import RequestError
 
 __all__ = ["ConstraintSet", "identity_transforms", "matrices_from_json", "matrices_to_json"]
@@ -82,8 +82,8 @@ class ConstraintSet:
     stiffness : (n,) float64 array or None
         Painted stiffness (the cell weights of :class:`arap.ArapSolver`; ``inf``: rigid), or None for all 1.
     points : PointConstraints or None
-        Point handles (a triangle and barycentric coordinates each; :mod:`arap.points`), or None for none. Each is
-        a handle group of its own: its transform follows those of :attr:`groups`.
+        Point handles (a triangle and barycentric coordinates each; :mod:`arap.method.points`), or None for none. Each
+        is a handle group of its own: its transform follows those of :attr:`groups`.
     point_pose : (p, 3) float64 array
         Positions the point handles' transforms apply to: where the pose puts them on the surface, or the targets
         they were given.

@@ -7,8 +7,8 @@ from weakref import WeakKeyDictionary
 
 import numpy as np
 
-from arap.cells import Cells, build_cells
-from arap.energy import distortion_from_cells
+from arap.method.cells import Cells, build_cells
+from arap.method.energy import distortion_from_cells
 from arap.server.protocol import RequestError, server_message
 from arap.server.session import Session
 

@@ -40,7 +40,7 @@ class MeshData:
         Repairs made while loading, one line each.
     vertex_map : (n_file,) int64 array or None
         When repair renumbered the file's vertices (welded or dropped some): the index in :attr:`V` of each vertex
-        of the file, -1 for one dropped (:attr:`arap.repair.RepairResult.vertex_map`). None when the numbering is
+        of the file, -1 for one dropped (:attr:`arap.meshes.repair.RepairResult.vertex_map`). None when the numbering is
         the file's (clean files, built-in models, arrays). Constraints documents use the file's numbering
         (:mod:`arap.server.numbering`).
     """

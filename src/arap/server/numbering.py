@@ -1,11 +1,11 @@
 """The mesh file's vertex numbering in the constraints documents the studio gives out.
 
-Mesh repair may renumber a file's vertices when it is loaded (:func:`arap.repair.repair_mesh`: copies of one vertex
-are welded, vertices used by no face dropped); the studio works on the repaired mesh. Its constraints documents are
-read by ``arap deform`` on the same file, which takes indices as the file's and renumbers them itself
-(:meth:`arap.constraints.Constraints.remapped`), so a document the studio gives out lists every vertex as all its
-file copies: the fixed vertices, the handles (each copy with the vertex's target), the handle groups, the region of
-interest and the painted stiffness. ``arap deform`` then merges the copies back, as they agree.
+Mesh repair may renumber a file's vertices when it is loaded (:func:`arap.meshes.repair.repair_mesh`: copies of one
+vertex are welded, vertices used by no face dropped); the studio works on the repaired mesh. Its constraints documents
+are read by ``arap deform`` on the same file, which takes indices as the file's and renumbers them itself
+(:meth:`arap.constraints.Constraints.remapped`), so a document the studio gives out lists every vertex as all its file
+copies: the fixed vertices, the handles (each copy with the vertex's target), the handle groups, the region of interest
+and the painted stiffness. ``arap deform`` then merges the copies back, as they agree.
 
 The other direction (a document read into the studio) happens in the client (``web/src/numbering.js``), which gets
 the map with the mesh (the ``mesh`` frame's ``file_vertices``).

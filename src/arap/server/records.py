@@ -5,9 +5,9 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from arap.method.weights import WeightType
 from arap.options import EnergyType
 from arap.server.protocol import PARAMS
-from arap.weights import WeightType
 
 __all__ = ["ENERGY_ZERO", "DragOutcome", "Params", "SettleOutcome", "readable_energy"]
 

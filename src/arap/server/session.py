@@ -17,7 +17,8 @@ import numpy as np
 
 import arap
 from arap.errors import ArapError
-from arap.mesh import bounding_box
+from arap.meshes.mesh import bounding_box
+from arap.method.weights import WeightType
 from arap.options import EnergyType
 from arap.server.animation_export import ProgressCallback, export_animation, keyframes_document
 from arap.server.constraints import ConstraintSet, identity_transforms, matrices_from_json, matrices_to_json
@@ -29,7 +30,6 @@ from arap.server.records import DragOutcome, Params, SettleOutcome
 from arap.server.render_mesh import Look, export_asset
 from arap.server.settling import FrameCallback, settle_solve
 from arap.server.solvers import SolverCache
-from arap.weights import WeightType
 
 __all__ = ["DragOutcome", "Params", "Session", "SettleOutcome"]
 

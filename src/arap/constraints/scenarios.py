@@ -1,0 +1,132 @@
+"""Named constraint scenarios (bend, twist, pull, rigid) used by the tests, the benchmarks and the command line.
+
+Each scenario picks constrained vertices of a mesh from its shape alone (quantiles along its longest axis) and
+gives their targets, so the same scenario applies to any mesh.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Literal
+
+import numpy as np
+from numpy.typing import NDArray
+
+from arap.errors import ArapError
+from arap.meshes.mesh import bounding_box
+
+__all__ = ["SCENARIO_NAMES", "Scenario", "bend", "make_scenario", "pull", "rigid", "rotation", "twist"]
+
+ScenarioName = Literal["bend", "twist", "pull", "rigid"]
+SCENARIO_NAMES: tuple[str, ...] = ("bend", "twist", "pull", "rigid")
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """Constraints of a scenario.
+
+    Attributes
+    ----------
+    name : str
+    fixed : (f,) int64 array
+        Vertices held at their rest positions.
+    handles : (h,) int64 array
+        Vertices moved to ``targets[len(fixed):]``.
+    constrained : (f + h,) int64 array
+        ``fixed`` then ``handles``: the order of ``targets``.
+    targets : (f + h, 3) float64 array
+    """
+
+    name: str
+    fixed: NDArray[np.int64]
+    handles: NDArray[np.int64]
+    constrained: NDArray[np.int64]
+    targets: NDArray[np.float64]
+
+
+def _diagonal(V: NDArray[np.float64]) -> float:
+    box = bounding_box(V)
+    return float(np.linalg.norm(box[1] - box[0]))
+
+
+def _ends(V: NDArray[np.float64], axis: int | None, share: float) -> tuple[int, NDArray[np.int64], NDArray[np.int64]]:
+    """Longest axis (unless given) and the vertices in its lowest and highest ``share``."""
+    if axis is None:
+        box = bounding_box(V)
+        axis = int(np.argmax(box[1] - box[0]))
+    x = V[:, axis]
+    lo, hi = np.quantile(x, [share, 1.0 - share])
+    return axis, np.flatnonzero(x <= lo), np.flatnonzero(x >= hi)
+
+
+def rotation(axis: NDArray[np.float64] | list[float], angle: float) -> NDArray[np.float64]:
+    """Rotation by ``angle`` radians about ``axis`` (Rodrigues), shape (3, 3)."""
+    k = np.asarray(axis, dtype=np.float64)
+    k = k / np.linalg.norm(k)
+    K = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
+    return np.eye(3) + np.sin(angle) * K + (1.0 - np.cos(angle)) * (K @ K)
+
+
+def _build(name: str, V: NDArray[np.float64], fixed: NDArray[np.int64], handles: NDArray[np.int64],
+           moved: NDArray[np.float64]) -> Scenario:
+    return Scenario(name=name, fixed=fixed, handles=handles, constrained=np.concatenate([fixed, handles]),
+                    targets=np.concatenate([V[fixed], moved]))
+
+
+def bend(V: NDArray[np.float64], axis: int | None = None, share: float = 0.1, angle: float = 0.6,
+         shift: float = 0.15) -> Scenario:
+    """Fix the lowest ``share`` of the vertices along ``axis`` (default: the longest), rotate the highest ``share``
+    by ``angle`` radians about their centroid in the plane of ``axis`` and the next axis, and shift them along that
+    next axis by ``shift`` bounding-box diagonals.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> V = np.random.default_rng(0).random((100, 3)) * [1, 4, 1]
+    >>> s = bend(V)
+    >>> s.targets.shape == (len(s.constrained), 3), bool(np.all(s.targets[:len(s.fixed)] == V[s.fixed]))
+    (True, True)
+    """
+    axis, fixed, handles = _ends(V, axis, share)
+    other = (axis + 1) % 3
+    R = rotation(np.eye(3)[3 - axis - other], angle)
+    centre = V[handles].mean(axis=0)
+    offset = np.zeros(3)
+    offset[other] = shift * _diagonal(V)
+    return _build("bend", V, fixed, handles, (V[handles] - centre) @ R.T + centre + offset)
+
+
+def twist(V: NDArray[np.float64], axis: int | None = None, share: float = 0.1, angle: float = np.pi / 2) -> Scenario:
+    """Fix the lowest ``share`` along ``axis`` and turn the highest ``share`` by ``angle`` about that axis
+    through their centroid."""
+    axis, fixed, handles = _ends(V, axis, share)
+    centre = V[handles].mean(axis=0)
+    R = rotation(np.eye(3)[axis], angle)
+    return _build("twist", V, fixed, handles, (V[handles] - centre) @ R.T + centre)
+
+
+def pull(V: NDArray[np.float64], axis: int | None = None, share: float = 0.1, distance: float = 0.2) -> Scenario:
+    """Fix the lowest ``share`` along ``axis`` and pull the single vertex farthest along it by ``distance``
+    bounding-box diagonals along the axis."""
+    axis, fixed, _ = _ends(V, axis, share)
+    tip = np.array([int(np.argmax(V[:, axis]))], dtype=np.int64)
+    offset = np.zeros(3)
+    offset[axis] = distance * _diagonal(V)
+    return _build("pull", V, fixed, tip, V[tip] + offset)
+
+
+def rigid(V: NDArray[np.float64], angle: float = np.radians(170.0), count: int = 40, seed: int = 0) -> Scenario:
+    """Move ``count`` scattered vertices (no fixed ones) by one rigid motion rotating ``angle`` radians."""
+    rng = np.random.default_rng(seed)
+    handles = np.sort(rng.choice(len(V), size=min(count, len(V)), replace=False)).astype(np.int64)
+    R = rotation([0.3, -1.0, 0.5], angle)
+    t = np.array([0.5, -0.25, 0.1]) * _diagonal(V)
+    return _build("rigid", V, np.zeros(0, dtype=np.int64), handles, V[handles] @ R.T + t)
+
+
+def make_scenario(name: ScenarioName | str, V: NDArray[np.float64]) -> Scenario:
+    """The scenario ``name`` (one of :data:`SCENARIO_NAMES`) with its default parameters."""
+    makers = {"bend": bend, "twist": twist, "pull": pull, "rigid": rigid}
+    if name not in makers:
+        raise ArapError(f"unknown scenario {name!r}; expected one of {SCENARIO_NAMES}")
+    return makers[name](V)

@@ -1,0 +1,286 @@
+"""The ARAP energy of a deformed surface against its rest pose."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from arap.errors import ArapError
+from arap.meshes.mesh import MeshLike, check_mesh, is_mesh_like, mesh_arrays
+from arap.method.cells import Cells, build_cells
+from arap.method.covariance import local_step
+from arap.method.rigid import RigidRegions, rigid_regions
+from arap.method.rotations import identity_rotations
+from arap.method.smooth import SmoothRotations
+from arap.method.stiffness import check_stiffness, scale_cells
+from arap.options import (
+    DEFAULT_ALPHA,
+    DEFAULT_ENERGY,
+    DEFAULT_WEIGHTS,
+    EnergyType,
+    WeightType,
+    check_alpha,
+    check_energy_and_weights,
+)
+from arap.solve.start import vertex_areas
+
+__all__ = ["arap_energy", "cell_distortion", "cell_energies", "distortion_from_cells"]
+
+
+def _inputs(V: Any, F: Any, U: Any) -> tuple[NDArray[np.float64], NDArray[np.int64], NDArray[np.float64]]:
+    """Rest mesh and deformed positions from arrays or mesh objects (``f(mesh, U)`` leaves out ``F``)."""
+    if U is None and is_mesh_like(V) and F is not None:
+        F, U = None, F
+    if U is None:
+        raise ArapError("U (the deformed positions) is missing")
+    V, F = check_mesh(*mesh_arrays(V, F))
+    U = np.ascontiguousarray(U.vertices if is_mesh_like(U) else U, dtype=np.float64)
+    if U.shape != V.shape:
+        raise ArapError(f"U must have the shape of V {V.shape}, got {U.shape}")
+    if not np.isfinite(U).all():
+        raise ArapError("U has non-finite coordinates")
+    return V, F, U
+
+
+ROUNDS = 1000
+"""Most rounds (a preconditioned rotation step and a block-coordinate sweep) :func:`cell_energies` runs for the
+rotations of ``smooth_rotations``; they stop once the energy no longer falls, in a few dozen rounds on the shared
+scans."""
+
+
+def _settle_rotations(cells: Cells, V: NDArray[np.float64], F: NDArray[np.int64], U: NDArray[np.float64],
+                      R: NDArray[np.float64], E: NDArray[np.float64], alpha: float,
+                      pair_weights: NDArray[np.float64]) -> None:
+    """Relax the SR-ARAP rotations (preconditioned steps and sweeps) until the energy stops falling, from the
+    per-cell rotations in ``R`` and from the one rotation that best maps ``V`` onto ``U`` (the solver's cold start),
+    and keep the lower; ``R`` and ``E`` (each cell's data energy plus its rotation term) get the result.
+
+    With negative cotangent weights a cell's own best rotation can be far from its neighbours' even at rest (on the
+    camel head the per-cell start settled at 20.8 where the identity gives 0): the coupled rotations then stay in a
+    much higher state than the solver's."""
+    areas = vertex_areas(V, F)
+    smooth = SmoothRotations(cells, float(areas.sum()), check_alpha(alpha), pair_weights)
+    best = np.inf
+    found = (R.copy(), E.copy())
+    for start in ("cells", "rigid"):
+        Rs, Es, term = R.copy(), E.copy(), np.zeros(len(V))
+        if start == "rigid":
+            smooth.start(V, U, areas, Rs)
+        previous = value = np.inf
+        for _ in range(ROUNDS):
+            value = smooth.relax(U, Rs, Es, term, 1, steps=1)
+            if previous - value <= 1e-14 * abs(value):
+                break
+            previous = value
+        if value < best:
+            best = value
+            smooth.rotation_term(Rs, term)  # each cell's own sum
+            found = (Rs, Es + term)
+    R[:], E[:] = found
+
+
+def cell_energies(
+    V: NDArray[np.floating] | MeshLike,
+    F: NDArray[np.integer] | None = None,
+    U: NDArray[np.floating] | MeshLike | None = None,
+    energy: EnergyType = DEFAULT_ENERGY,
+    weights: WeightType = DEFAULT_WEIGHTS,
+    stiffness: ArrayLike | None = None,
+    alpha: float = DEFAULT_ALPHA,
+) -> NDArray[np.float64]:
+    """Energy of every cell with its optimal rotation.
+
+    Parameters
+    ----------
+    V : (n, 3) float array or MeshLike
+        Rest positions, or the rest mesh as an object with ``vertices`` and ``faces`` (then leave out ``F``:
+        ``cell_energies(mesh, U)``).
+    F : (m, 3) int array
+    U : (n, 3) float array or MeshLike
+        Deformed positions (or a mesh object holding them).
+    energy : {"spokes_and_rims", "spokes"}
+        Cell definition: spokes and rims (Chao et al. 2010, the default) or the paper's one-ring spokes (Sorkine &
+        Alexa 2007).
+    weights : {"cotangent", "clamped", "uniform"}
+    stiffness : (n,) array of float or None
+        Cell weights ``w_i`` (see :class:`arap.ArapSolver`): each cell's energy is multiplied by its weight, and
+        the cells of a rigid region (``inf``) share one rotation.
+    alpha : float
+        Weight of the rotation term of ``smooth_rotations`` (see :mod:`arap.method.smooth`); each cell then also carries
+        ``αA Σ_j w⁺_ij ‖R_i − R_j‖²``, with rotations found by block-coordinate sweeps until the energy settles.
+
+    Returns
+    -------
+    (n,) float64 array
+        ``E_i = w_i min_R Σ w ‖(p'_a − p'_b) − R (p_a − p_b)‖²`` over the cell's terms.
+
+    Raises
+    ------
+    MeshError
+        The rest mesh is unusable.
+    ArapError
+        ``U`` is missing, of another shape than ``V`` or not finite.
+    OptionError
+        Unknown energy or weights.
+
+    Example
+    -------
+    >>> import arap
+    >>> V, F = arap.builtin_mesh("bar")
+    >>> bool(abs(cell_energies(V, F, V)).max() < 1e-9)
+    True
+    """
+    return _cells_and_energies(V, F, U, energy, weights, stiffness, alpha)[1]
+
+
+def _cells_and_energies(V: Any, F: Any, U: Any, energy: EnergyType, weights: WeightType, stiffness: ArrayLike | None,
+                        alpha: float) -> tuple[Cells, NDArray[np.float64]]:
+    """The (unscaled) cells of the rest mesh and :func:`cell_energies` of ``U``."""
+    check_energy_and_weights(energy, weights)
+    Vc, Fc, Uc = _inputs(V, F, U)
+    scale, rigid = (None, None) if stiffness is None else check_stiffness(stiffness, len(Vc))
+    rest = build_cells(Vc, Fc, energy, weights)
+    pair_weights = np.maximum(rest.w, 0.0)  # the rotation term of smooth_rotations: not scaled by stiffness
+    cells = rest if scale is None else scale_cells(rest, scale)
+    n = len(Vc)
+    E = np.empty(n)
+    R = identity_rotations(n)
+    local_step(cells, np.arange(n), Uc, R, E)
+    if energy == "smooth_rotations":
+        _settle_rotations(cells, Vc, Fc, Uc, R, E, alpha, pair_weights)
+    if rigid is not None and rigid.any():
+        RigidRegions(cells, rigid_regions(Fc, rigid), np.arange(n)).share(Uc, R, E)
+    return rest, E
+
+
+def cell_distortion(
+    V: NDArray[np.floating] | MeshLike,
+    F: NDArray[np.integer] | None = None,
+    U: NDArray[np.floating] | MeshLike | None = None,
+    energy: EnergyType = DEFAULT_ENERGY,
+    weights: WeightType = DEFAULT_WEIGHTS,
+    stiffness: ArrayLike | None = None,
+    alpha: float = DEFAULT_ALPHA,
+) -> NDArray[np.float64]:
+    """How far every cell is from rigid: its energy over its weighted rest size.
+
+    ``D_i = E_i / Σ w ‖p_a − p_b‖²`` over the terms of cell ``i``, with ``E_i`` from :func:`cell_energies`. The
+    ratio does not depend on the mesh's scale or resolution: 0 for a rigid motion of the cell, about ``s²`` for a
+    cell whose edges all stretched or shrank by a relative ``s``. Cells whose rest sum is not positive (possible
+    with ``energy="spokes"`` on obtuse triangles) get 0.
+
+    Parameters
+    ----------
+    V : (n, 3) float array or MeshLike
+        Rest positions, or the rest mesh object (then leave out ``F``: ``cell_distortion(mesh, U)``).
+    F : (m, 3) int array
+    U : (n, 3) float array or MeshLike
+        Deformed positions.
+    energy : {"spokes_and_rims", "spokes", "smooth_rotations"}
+    weights : {"cotangent", "clamped", "uniform"}
+    stiffness : (n,) array of float or None
+        Cell weights (see :func:`cell_energies`); they scale the energy, not the rest size.
+    alpha : float
+        Weight of the rotation term of ``smooth_rotations`` (see :func:`cell_energies`).
+
+    Returns
+    -------
+    (n,) float64 array
+
+    Raises
+    ------
+    MeshError, ArapError, OptionError
+        As :func:`cell_energies`.
+
+    Example
+    -------
+    >>> import arap
+    >>> V, F = arap.builtin_mesh("bar")
+    >>> bool(cell_distortion(V, F, 2.0 * V).max() > 0.5)
+    True
+    """
+    rest, E = _cells_and_energies(V, F, U, energy, weights, stiffness, alpha)
+    out = np.zeros_like(E)
+    ok = rest.rest_sq > 0
+    out[ok] = E[ok] / rest.rest_sq[ok]
+    return out
+
+
+def distortion_from_cells(cells: Cells, V: NDArray[np.float64], F: NDArray[np.int64], U: NDArray[np.float64],
+                          energy: EnergyType = DEFAULT_ENERGY, alpha: float = DEFAULT_ALPHA) -> NDArray[np.float64]:
+    """:func:`cell_distortion` (without stiffness) from cells built beforehand, for repeated evaluation on one rest
+    mesh (building the cells costs far more than the rotations).
+
+    Parameters
+    ----------
+    cells : Cells
+        ``build_cells(V, F, energy, weights)`` of the checked rest mesh.
+    V : (n, 3) float64 array
+        Rest positions, as checked by :func:`arap.check_mesh`.
+    F : (m, 3) int64 array
+    U : (n, 3) float64 array
+        Deformed positions (finite, of the shape of ``V``).
+    energy : {"spokes_and_rims", "spokes", "smooth_rotations"}
+        The energy ``cells`` were built for.
+    alpha : float
+        Weight of the rotation term of ``smooth_rotations``.
+
+    Returns
+    -------
+    (n,) float64 array
+    """
+    n = len(V)
+    E = np.empty(n)
+    R = identity_rotations(n)
+    local_step(cells, np.arange(n), U, R, E)
+    if energy == "smooth_rotations":
+        _settle_rotations(cells, V, F, U, R, E, alpha, np.maximum(cells.w, 0.0))
+    out = np.zeros_like(E)
+    ok = cells.rest_sq > 0
+    out[ok] = E[ok] / cells.rest_sq[ok]
+    return out
+
+
+def arap_energy(
+    V: NDArray[np.floating] | MeshLike,
+    F: NDArray[np.integer] | None = None,
+    U: NDArray[np.floating] | MeshLike | None = None,
+    energy: EnergyType = DEFAULT_ENERGY,
+    weights: WeightType = DEFAULT_WEIGHTS,
+    stiffness: ArrayLike | None = None,
+    alpha: float = DEFAULT_ALPHA,
+) -> float:
+    """The ARAP energy of ``U`` against the rest pose ``V``, with optimal rotations.
+
+    ``E = Σ_i Σ_{(a,b)∈cell i} w_ab ‖(p'_a − p'_b) − R_i (p_a − p_b)‖²``. The default cells, spokes and rims (Chao et
+    al. 2010), hold every edge of the triangles around a vertex, weighted by ``½ cot`` of the opposite angle in that
+    triangle; the energy is then a sum of per-triangle Dirichlet energies, never negative, and zero at rest.
+    ``energy="spokes"`` is the paper's (Sorkine & Alexa 2007): the one-ring edges with ``w_ij = ½(cot α + cot β)``.
+    With obtuse triangles some of those weights are negative and that energy can be below zero, even at rest.
+
+    Parameters
+    ----------
+    V : (n, 3) float array or MeshLike
+        Rest positions, or the rest mesh object (then leave out ``F``: ``arap_energy(mesh, U)``).
+    F : (m, 3) int array
+    U : (n, 3) float array or MeshLike
+        Deformed positions.
+    energy : {"spokes_and_rims", "spokes"}
+    weights : {"cotangent", "clamped", "uniform"}
+    stiffness : (n,) array of float or None
+        Cell weights (see :func:`cell_energies`).
+    alpha : float
+        Weight of the rotation term of ``smooth_rotations`` (see :func:`cell_energies`).
+
+    Returns
+    -------
+    float
+
+    Raises
+    ------
+    MeshError, ArapError, OptionError
+        As :func:`cell_energies`.
+    """
+    return float(cell_energies(V, F, U, energy, weights, stiffness, alpha).sum())
