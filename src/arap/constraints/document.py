@@ -44,7 +44,7 @@ from typing import Any
 
 import numpy as np
 
-from arap.constraints.selection import check_selection, check_targets
+from arap.constraints.selection import check_listed_targets, check_selection
 from arap.errors import ConstraintError
 from arap.io.atomic import write_atomic
 from arap.io.paths import read_regular_file
@@ -53,8 +53,18 @@ from arap.method.points import PointConstraints, check_points
 from arap.solve.indexing import check_index_array
 from arap.solve.partition import check_reach
 
-__all__ = ["FORMAT_VERSION", "Constraints", "check_selection", "check_targets", "load_constraints",
-           "points_from_json", "read_json", "save_constraints", "stiffness_from_json", "stiffness_to_json"]
+__all__ = [
+    "FORMAT_VERSION",
+    "Constraints",
+    "check_listed_targets",
+    "check_selection",
+    "load_constraints",
+    "points_from_json",
+    "read_json",
+    "save_constraints",
+    "stiffness_from_json",
+    "stiffness_to_json",
+]
 
 _KEYS = ("fixed", "handles", "targets", "roi", "handle_groups", "stiffness", "points", "version", "meta", "keyframes",
          "keyframe_base")
@@ -281,7 +291,7 @@ def load_constraints(source: str | os.PathLike[str] | Mapping[str, Any], n_verti
     ------
     ConstraintError
         Unreadable or invalid JSON (nested too deeply, integers of hundreds of digits included), unknown keys, and
-        what :func:`check_selection` and :func:`check_targets` refuse, or no constraint at all.
+        what :func:`check_selection` and :func:`check_listed_targets` refuse, or no constraint at all.
     """
     data = source if isinstance(source, Mapping) else read_json(Path(source))
     if not isinstance(data, Mapping):
@@ -297,7 +307,7 @@ def load_constraints(source: str | os.PathLike[str] | Mapping[str, Any], n_verti
                                     group_names=["handles"] if len(handles) else [])
     if len(handles) and "targets" not in data:
         raise ConstraintError('"handles" are given without "targets"')
-    targets = check_targets(data.get("targets", []), len(handles))
+    targets = check_listed_targets(data.get("targets", []), len(handles))
     if not len(fixed) and not len(handles) and not data.get("points"):
         raise ConstraintError("no vertex is constrained: give at least one fixed or handle vertex")
 
@@ -380,7 +390,8 @@ def points_from_json(raw: Any, n_faces: int, *, require_target: bool = True
     Raises
     ------
     ConstraintError
-        Not a list of such objects, and what :func:`arap.method.points.check_points` and :func:`check_targets` refuse.
+        Not a list of such objects, and what :func:`arap.method.points.check_points` and
+        :func:`check_listed_targets` refuse.
     """
     if not isinstance(raw, list):
         raise ConstraintError("points must be a list")
@@ -411,7 +422,7 @@ def points_from_json(raw: Any, n_faces: int, *, require_target: bool = True
                                   '"weight" out for a hard handle')
         weights.append(float(w))
     points = check_points(np.asarray(faces, dtype=np.int64), bary, weights, n_faces)
-    return points, check_targets(targets, len(faces)), np.asarray(given, dtype=bool)
+    return points, check_listed_targets(targets, len(faces)), np.asarray(given, dtype=bool)
 
 
 def _stiffness_value(value: Any, where: str) -> float:

@@ -39,7 +39,7 @@ from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation, Slerp
 
 from arap.constraints import Constraints, load_constraints, read_json
-from arap.constraints.selection import check_targets
+from arap.constraints.selection import check_listed_targets
 from arap.errors import ConstraintError
 from arap.meshes.mesh import bounding_box
 from arap.solve.partition import check_reach
@@ -213,7 +213,7 @@ def _parse(data: Mapping[str, Any], V: NDArray[np.float64], n_faces: int | None)
                                   "handle group), not both or neither")
         if "targets" in raw:
             try:
-                T = check_targets(raw["targets"], h)
+                T = check_listed_targets(raw["targets"], h)
             except ConstraintError as exc:
                 raise ConstraintError(f"{where}: {exc}") from None
             check_reach(box, T, f"{where}.targets")
@@ -225,7 +225,7 @@ def _parse(data: Mapping[str, Any], V: NDArray[np.float64], n_faces: int | None)
     rest = V[constraints.handles].copy()
     if data.get(_BASE_KEY) is not None:
         try:
-            rest = check_targets(data[_BASE_KEY], h)
+            rest = check_listed_targets(data[_BASE_KEY], h)
         except ConstraintError as exc:
             raise ConstraintError(f"{_BASE_KEY}: {exc}") from None
         check_reach(box, rest, _BASE_KEY)

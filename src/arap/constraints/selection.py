@@ -11,7 +11,7 @@ import numpy as np
 from arap.errors import ConstraintError
 from arap.solve.indexing import check_index_array
 
-__all__ = ["check_selection", "check_targets"]
+__all__ = ["check_listed_targets", "check_selection"]
 
 
 def check_selection(
@@ -67,8 +67,9 @@ def check_selection(
     return fixed_arr, groups, roi_arr
 
 
-def check_targets(value: Any, k: int) -> np.ndarray:
-    """Validate the target positions of ``k`` handles.
+def check_listed_targets(value: Any, k: int) -> np.ndarray:
+    """Validate the target positions of ``k`` handles as a document lists them (the solver's arrays are checked by
+    :func:`arap.solve.partition.check_targets`, with the solver's wording).
 
     Parameters
     ----------
