@@ -1,4 +1,4 @@
-"""Checks of the values of client message fields, by field kind (see :class:`arap.server.protocol.Field`).
+"""Checks of the values of client message fields, by field kind (see :class:`arap.server.messages.Field`).
 
 Every check raises :class:`~arap.server.errors.RequestError` (``bad_message``) with a message naming the field.
 """
@@ -14,7 +14,7 @@ from arap.server.bulkjson import NumberList
 from arap.server.errors import RequestError
 
 if TYPE_CHECKING:
-    from arap.server.protocol import Field
+    from arap.server.messages import Field
 
 __all__ = ["AFFINE_TOLERANCE", "check_field"]
 
