@@ -12,6 +12,7 @@ import pytest
 
 from arap.cli import main as arap_main
 from arap.io import load_mesh
+from arap.server.dispatch import state_message
 from arap.server.protocol import RequestError
 from arap.server.session import Session
 from tests.server.helpers import StudioClient, column_major, rotation_z, translation
@@ -44,7 +45,7 @@ def test_a_dragged_point_meets_its_target_after_settling(bar_session: Session) -
     fixed, face = _bottom_and_top_face(V, F)
     bar_session.set_constraints(None, fixed, [], points=[{"face": face, "barycentric": BARY}])
     assert bar_session.n_groups == 1
-    assert bar_session.state()["constraints"]["points"] == [{"face": face, "barycentric": BARY}]
+    assert state_message(bar_session)["constraints"]["points"] == [{"face": face, "barycentric": BARY}]
     M = rotation_z(0.5, V[F[face]].mean(axis=0), shift=(0.6, 0.0, 0.0))
     bar_session.drag([column_major(M)])
     bar_session.end_drag()
@@ -59,7 +60,7 @@ def test_groups_and_points_each_have_a_transform(bar_session: Session) -> None:
     fixed, face = _bottom_and_top_face(V, F)
     middle = np.flatnonzero(np.abs(V[:, 1] - np.median(V[:, 1])) < 0.05 * np.ptp(V[:, 1]))[:4].tolist()
     bar_session.set_constraints(None, fixed, [middle], points=[{"face": face, "barycentric": BARY, "weight": 50.0}])
-    assert bar_session.n_groups == 2 and bar_session.state()["constraints"]["points"][0]["weight"] == 50.0
+    assert bar_session.n_groups == 2 and state_message(bar_session)["constraints"]["points"][0]["weight"] == 50.0
     with pytest.raises(RequestError) as err:
         bar_session.drag([translation(0.1)])
     assert err.value.code == "bad_message"
@@ -74,20 +75,22 @@ def test_undo_redo_reset_and_apply_keep_the_points(bar_session: Session) -> None
     bar_session.set_constraints(None, fixed, [])
     points = [{"face": face, "barycentric": BARY}]
     bar_session.set_constraints(None, fixed, [], points=points)
-    assert bar_session.undo() and bar_session.state()["constraints"]["points"] == [] and bar_session.n_groups == 0
-    assert bar_session.redo() and bar_session.state()["constraints"]["points"] == points and bar_session.n_groups == 1
+    assert bar_session.undo()
+    assert state_message(bar_session)["constraints"]["points"] == [] and bar_session.n_groups == 0
+    assert bar_session.redo()
+    assert state_message(bar_session)["constraints"]["points"] == points and bar_session.n_groups == 1
     M = rotation_z(0.4, V[F[face]].mean(axis=0))
     bar_session.drag([column_major(M)])
     bar_session.end_drag()
     bar_session.settle(lambda: False)
     bent = bar_session.U.copy()
     bar_session.reset()
-    assert bar_session.state()["constraints"]["points"] == points
+    assert state_message(bar_session)["constraints"]["points"] == points
     np.testing.assert_array_equal(bar_session.U, V)
     assert bar_session.undo()
     np.testing.assert_array_equal(bar_session.U, bent)
     bar_session.apply()
-    assert bar_session.state()["constraints"]["points"] == points
+    assert state_message(bar_session)["constraints"]["points"] == points
     np.testing.assert_array_equal(bar_session.V, bent)
     np.testing.assert_allclose(bar_session.constraints.point_pose[0], _on_surface(bent, F, face, BARY), atol=1e-12)
 

@@ -7,6 +7,7 @@ import pytest
 
 from arap.io import load_mesh_bytes
 from arap.server.constraints import matrices_from_json, matrices_to_json
+from arap.server.dispatch import state_message
 from arap.server.history import History, Snapshot
 from arap.server.meshdata import MeshData, load_builtin
 from arap.server.protocol import ENERGIES, WEIGHTS, RequestError
@@ -58,7 +59,7 @@ def test_drag_moves_handles_rigidly_and_keeps_fixed(session: Session) -> None:
 def test_constraint_errors_leave_the_session_unchanged(session: Session) -> None:
     fixed, top = _bottom_top(session.V)
     session.set_constraints(None, fixed, [top])
-    before = session.state()
+    before = state_message(session)
     bad = [
         (None, fixed, [top, [top[0]]]),           # vertex in two groups
         (None, [*fixed, top[0]], [top]),          # fixed and handle
@@ -71,7 +72,7 @@ def test_constraint_errors_leave_the_session_unchanged(session: Session) -> None
         with pytest.raises(RequestError) as info:
             session.set_constraints(roi, f, g)
         assert info.value.code == "bad_constraints", (roi, f, g)
-        assert session.state() == before
+        assert state_message(session) == before
     session.set_constraints(None, [], [top[:1], top[1:2]])   # handles alone are a valid set
     assert session.n_groups == 2
 
@@ -109,7 +110,7 @@ def test_undo_redo_walks_the_history(session: Session) -> None:
     assert not session.end_drag()
     assert session.undo() and np.array_equal(session.U, U1)
     assert session.undo() and np.array_equal(session.U, V)
-    assert session.state()["constraints"]["fixed"] == fixed
+    assert state_message(session)["constraints"]["fixed"] == fixed
     assert session.undo() and session.constraints.is_empty
     assert not session.undo()
     assert session.redo() and session.redo() and np.array_equal(session.U, U1)
@@ -120,7 +121,7 @@ def test_undo_redo_walks_the_history(session: Session) -> None:
     session.undo()
     session.drag([translation(0.1)])
     session.end_drag()
-    assert not session.state()["can_redo"]
+    assert not state_message(session)["can_redo"]
 
 
 def test_undo_commits_an_unfinished_drag(session: Session) -> None:
@@ -128,7 +129,7 @@ def test_undo_commits_an_unfinished_drag(session: Session) -> None:
     session.set_constraints(None, fixed, [top])
     session.drag([translation(0.5)])
     dragged = session.U
-    assert session.state()["can_undo"]
+    assert state_message(session)["can_undo"]
     assert session.undo() and np.array_equal(session.U, session.V)
     assert session.redo() and np.array_equal(session.U, dragged)
 
@@ -187,7 +188,7 @@ def test_region_of_interest_holds_the_outside(session: Session) -> None:
     session.drag([translation(0.3)])
     outside = np.setdiff1d(np.arange(len(V)), roi)
     np.testing.assert_array_equal(session.U[outside], V[outside])
-    assert session.state()["stats"]["roi_size"] == len(roi)
+    assert state_message(session)["stats"]["roi_size"] == len(roi)
     moved = session.U.copy()
     # a smaller roi keeps what the larger one had moved
     session.set_constraints(top, [], [top[:5]])
@@ -207,7 +208,7 @@ def test_params_change_refactors_and_validates(session: Session) -> None:
     assert out.iterations == 7
     session.set_params(energy="spokes_and_rims", weights="uniform")
     assert session.solver is not first and session.solver.energy_type == "spokes_and_rims"
-    assert session.state()["params"] == {"iterations": 7, "energy": "spokes_and_rims", "weights": "uniform",
+    assert state_message(session)["params"] == {"iterations": 7, "energy": "spokes_and_rims", "weights": "uniform",
                                          "alpha": 0.02}
 
 

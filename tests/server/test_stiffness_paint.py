@@ -12,6 +12,7 @@ import pytest
 
 from arap.constraints import load_constraints
 from arap.method.rigid import rigid_regions
+from arap.server.dispatch import state_message
 from arap.server.meshdata import load_upload
 from arap.server.protocol import RequestError, parse_text
 from arap.server.session import Session
@@ -52,22 +53,22 @@ def test_stiffness_in_state_document_and_history(bar_session: Session) -> None:
     bar_session.set_constraints(None, fixed, [top])
     paint = [{"vertices": middle[:5].tolist(), "value": 20.0}, {"vertices": middle[5:].tolist(), "value": "rigid"}]
     bar_session.set_constraints(None, fixed, [top], stiffness=paint)
-    assert bar_session.state()["constraints"]["stiffness"] == paint
+    assert state_message(bar_session)["constraints"]["stiffness"] == paint
     doc = bar_session.constraints_document()
     assert doc["version"] == 2 and doc["stiffness"] == paint
     loaded = load_constraints(json.loads(json.dumps(doc)), len(V))
     np.testing.assert_array_equal(loaded.stiffness, bar_session.constraints.stiffness)
     assert bar_session.undo() and bar_session.constraints.stiffness is None
-    assert bar_session.state()["constraints"]["stiffness"] is None
+    assert state_message(bar_session)["constraints"]["stiffness"] is None
     assert "stiffness" not in bar_session.constraints_document()
-    assert bar_session.redo() and bar_session.state()["constraints"]["stiffness"] == paint
+    assert bar_session.redo() and state_message(bar_session)["constraints"]["stiffness"] == paint
     _bend(bar_session, top)
     bar_session.end_drag()
     bar_session.reset()
-    assert bar_session.state()["constraints"]["stiffness"] == paint
+    assert state_message(bar_session)["constraints"]["stiffness"] == paint
     _bend(bar_session, top)
     bar_session.apply()
-    assert bar_session.state()["constraints"]["stiffness"] == paint
+    assert state_message(bar_session)["constraints"]["stiffness"] == paint
 
 
 def test_unpainted_stiffness_is_no_stiffness(bar_session: Session) -> None:

@@ -21,6 +21,7 @@ import numpy as np
 
 import arap
 from arap.server.animation_export import AnimationCancelled
+from arap.server.constraints import matrices_to_json
 from arap.server.heatmap import distortion_frame
 from arap.server.liveframes import VertexPayload, VertexStream, still_frame_header
 from arap.server.meshdata import MeshData, builtin_names, load_builtin, load_upload, mesh_frame
@@ -223,7 +224,7 @@ class Dispatcher:
         return n
 
     def state(self) -> Reply:
-        return self.session.state()
+        return state_message(self.session)
 
     def vertices(self, seq: int, outcome: DragOutcome | None, frame: VertexPayload | None = None) -> Reply:
         """A ``vertices`` frame of the session's shape (or of ``frame``, already encoded); ``outcome`` is the
@@ -375,3 +376,26 @@ class Dispatcher:
                                                          "arrived": arrived, "mesh_sent": mesh_sent,
                                                          "parse_repair_cpu_ms": round(1000 * cpu, 2),
                                                          **{k: round(1000 * v, 2) for k, v in ms.items()}}))
+
+
+def state_message(session: Session) -> dict[str, Any]:
+    """The ``state`` message of ``session``: history, parameters, constraints, transforms and statistics."""
+    n = session.n_vertices
+    cs = session.constraints
+    solver = session.solver
+    return server_message(
+        "state",
+        can_undo=session.can_undo,
+        can_redo=session.can_redo,
+        params=asdict(session.params),
+        constraints=cs.to_json(),
+        transforms=matrices_to_json(session.transforms),
+        rest_id=session.rest_id,
+        stats={
+            "n_vertices": n,
+            "n_faces": 0 if session.mesh is None else session.mesh.n_faces,
+            "roi_size": n if cs.roi is None else len(cs.roi),
+            "n_free": 0 if solver is None else int(solver.n_free),
+            "factor_ms": 0.0 if solver is None else 1000.0 * float(solver.factor_seconds),
+        },
+    )

@@ -21,11 +21,11 @@ from arap.meshes.mesh import bounding_box
 from arap.method.weights import WeightType
 from arap.options import EnergyType
 from arap.server.animation_export import ProgressCallback, export_animation, keyframes_document
-from arap.server.constraints import ConstraintSet, identity_transforms, matrices_from_json, matrices_to_json
+from arap.server.constraints import ConstraintSet, identity_transforms, matrices_from_json
 from arap.server.history import History, Snapshot
 from arap.server.meshdata import MeshData
 from arap.server.numbering import document_in_file_numbering, message_in_file_numbering
-from arap.server.protocol import RequestError, server_message
+from arap.server.protocol import RequestError
 from arap.server.records import DragOutcome, Params, SettleOutcome
 from arap.server.render_mesh import Look, export_asset
 from arap.server.settling import FrameCallback, settle_solve
@@ -498,23 +498,11 @@ class Session:
             self._warm = False  # the solver's last solution is an animation frame, not the shape shown
 
     # ------------------------------------------------------------------ replies
-    def state(self) -> dict[str, Any]:
-        """The ``state`` message."""
-        n = self.n_vertices
-        cs = self.constraints
-        return server_message(
-            "state",
-            can_undo=self.history.can_undo or self._dirty,
-            can_redo=self.history.can_redo and not self._dirty,
-            params=asdict(self.params),
-            constraints=cs.to_json(),
-            transforms=matrices_to_json(self.transforms),
-            rest_id=self.rest_id,
-            stats={
-                "n_vertices": n,
-                "n_faces": 0 if self.mesh is None else self.mesh.n_faces,
-                "roi_size": n if cs.roi is None else len(cs.roi),
-                "n_free": 0 if self.solver is None else int(self.solver.n_free),
-                "factor_ms": 0.0 if self.solver is None else 1000.0 * float(self.solver.factor_seconds),
-            },
-        )
+    @property
+    def can_undo(self) -> bool:
+        """Whether undo has a step to go back to (an unfinished drag counts as one)."""
+        return self.history.can_undo or self._dirty
+
+    @property
+    def can_redo(self) -> bool:
+        return self.history.can_redo and not self._dirty
