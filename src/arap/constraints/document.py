@@ -36,7 +36,6 @@ from __future__ import annotations
 import json
 import math
 import os
-import sys
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -236,8 +235,6 @@ class Constraints:
             out["stiffness"] = stiffness_to_json(self.stiffness)
         return out
 
-
-_FLOAT_MAX = sys.float_info.max
 
 #: Longest integer literal read from a constraints file (Python refuses to convert more than 4,300 digits).
 _MAX_INT_DIGITS = 400
