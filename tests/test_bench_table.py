@@ -2,28 +2,16 @@
 
 from __future__ import annotations
 
-import importlib.util
 import json
 import sys
 from pathlib import Path
-from types import ModuleType
 from typing import Any
 
 import pytest
 
-ROOT = Path(__file__).resolve().parents[1]
+from tests.tool_modules import ROOT, load_tool
 
-
-def _load(name: str, path: Path) -> ModuleType:
-    spec = importlib.util.spec_from_file_location(name, path)
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[name] = module
-    spec.loader.exec_module(module)
-    return module
-
-
-bench_table = _load("bench_table", ROOT / "tools" / "bench_table.py")
+bench_table = load_tool("bench_table")
 
 MACHINE = {"cpu_count": 8, "python": "3.11.7", "platform": "Linux", "date": "2026-11-27T02:30:00+00:00"}
 
@@ -129,7 +117,7 @@ def test_benchmarks_write_what_the_generator_reads(tmp_path: Path) -> None:
     """The writer the benchmarks share and the generator agree on the format."""
     sys.path.insert(0, str(ROOT / "benchmarks"))
     try:
-        benchjson = _load("benchjson", ROOT / "benchmarks" / "benchjson.py")
+        benchjson = load_tool("benchjson", "benchmarks")
     finally:
         sys.path.remove(str(ROOT / "benchmarks"))
     results = tmp_path / "results"

@@ -3,32 +3,18 @@ own code, and docs/notebook-example.md is what tools/notebook_page.py makes from
 
 from __future__ import annotations
 
-import importlib.util
 import json
 import re
-import sys
 from pathlib import Path
-from types import ModuleType
 
 import numpy as np
 import pytest
 
 from arap.render.png import decode_png
+from tests.tool_modules import ROOT, load_tool
 
-ROOT = Path(__file__).resolve().parents[1]
-
-
-def _load(name: str, path: Path) -> ModuleType:
-    spec = importlib.util.spec_from_file_location(name, path)
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[name] = module
-    spec.loader.exec_module(module)
-    return module
-
-
-gallery = _load("gallery", ROOT / "tools" / "gallery.py")
-notebook_page = _load("notebook_page", ROOT / "tools" / "notebook_page.py")
+gallery = load_tool("gallery")
+notebook_page = load_tool("notebook_page")
 
 
 def _changed_share(a: np.ndarray, b: np.ndarray) -> float:

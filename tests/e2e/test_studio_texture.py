@@ -16,6 +16,7 @@ from playwright.sync_api import Page, expect
 from arap.io import load_asset
 from tests.e2e.conftest import canvas_pixels, positions, wait_idle, wait_settled
 from tests.e2e.test_studio import drag_gizmo_x, select_anchor_and_handle
+from tests.server.test_textured_mesh import coloured_ply as server_coloured_ply
 
 pytestmark = pytest.mark.e2e
 
@@ -45,11 +46,7 @@ def textured_grid_glb(path: Path, n: int = 14) -> Path:
 
 def coloured_ply(path: Path) -> Path:
     """A sphere, red on its +x half and blue on its -x half (both face the camera)."""
-    mesh = trimesh.creation.icosphere(subdivisions=2)
-    colors = np.where((mesh.vertices[:, 0] > 0)[:, None], [255, 0, 0, 255], [0, 0, 255, 255]).astype(np.uint8)
-    mesh.visual = trimesh.visual.ColorVisuals(mesh, vertex_colors=colors)
-    path.write_bytes(mesh.export(file_type="ply"))
-    return path
+    return server_coloured_ply(path, axis=0, subdivisions=2)
 
 
 def colour_counts(page: Page) -> tuple[int, int]:

@@ -5,7 +5,6 @@ arap.constraints.keyframes."""
 from __future__ import annotations
 
 import json
-import struct
 from pathlib import Path
 
 import numpy as np
@@ -17,6 +16,7 @@ from arap.animation import animate
 from arap.constraints.keyframes import Keyframes
 from arap.io import load_mesh
 from arap.server.meshdata import load_builtin
+from tests.animated_glb import glb_frames
 from tests.e2e.conftest import positions, wait_idle, wait_ready, wait_settled
 from tests.e2e.test_session_safety import Dialogs, wait_autosaved
 from tests.e2e.test_studio import drag_gizmo_x, select_anchor_and_handle
@@ -24,24 +24,6 @@ from tests.e2e.test_studio import drag_gizmo_x, select_anchor_and_handle
 pytestmark = pytest.mark.e2e
 
 
-def glb_frames(data: bytes) -> tuple[np.ndarray, np.ndarray]:
-    """Times and positions ``(N, n, 3)`` of an animated GLB (first frame as the mesh, a morph target per frame)."""
-    assert data[:4] == b"glTF"
-    json_len = struct.unpack_from("<I", data, 12)[0]
-    doc = json.loads(data[20:20 + json_len])
-    binary = data[20 + json_len + 8:]
-
-    def accessor(k: int, width: int) -> np.ndarray:
-        a = doc["accessors"][k]
-        view = doc["bufferViews"][a["bufferView"]]
-        raw = np.frombuffer(binary, dtype="<f4", count=a["count"] * width, offset=view["byteOffset"])
-        return raw.reshape(a["count"], width) if width > 1 else raw
-
-    prim = doc["meshes"][0]["primitives"][0]
-    base = accessor(prim["attributes"]["POSITION"], 3).astype(np.float64)
-    frames = np.stack([base + accessor(t["POSITION"], 3) for t in prim["targets"]])
-    times = accessor(doc["animations"][0]["samplers"][0]["input"], 1).astype(np.float64)
-    return times, frames
 
 
 def timeline(page: Page) -> dict:

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-import struct
 from pathlib import Path
 
 import numpy as np
@@ -15,27 +14,8 @@ from arap.server.animation_export import MAX_EXPORT_FRAMES, AnimationCancelled
 from arap.server.meshdata import MeshData
 from arap.server.protocol import RequestError
 from arap.server.session import Session
+from tests.animated_glb import glb_frames
 from tests.server.helpers import StudioClient, column_major, rotation_z, translation
-
-
-def _glb_frames(data: bytes) -> tuple[np.ndarray, np.ndarray]:
-    """Times and positions ``(N, n, 3)`` of an animated GLB written by :mod:`arap.io.animated_gltf`."""
-    assert data[:4] == b"glTF"
-    json_len = struct.unpack_from("<I", data, 12)[0]
-    doc = json.loads(data[20:20 + json_len])
-    binary = data[20 + json_len + 8:]
-
-    def accessor(k: int, width: int) -> np.ndarray:
-        a = doc["accessors"][k]
-        view = doc["bufferViews"][a["bufferView"]]
-        raw = np.frombuffer(binary, dtype="<f4", count=a["count"] * width, offset=view["byteOffset"])
-        return raw.reshape(a["count"], width) if width > 1 else raw
-
-    prim = doc["meshes"][0]["primitives"][0]
-    base = accessor(prim["attributes"]["POSITION"], 3).astype(np.float64)
-    frames = np.stack([base + accessor(t["POSITION"], 3) for t in prim["targets"]])
-    times = accessor(doc["animations"][0]["samplers"][0]["input"], 1).astype(np.float64)
-    return times, frames
 
 
 def _posed(session: Session) -> tuple[list[int], list[int], list[list[float]]]:
@@ -59,7 +39,7 @@ def test_the_export_matches_arap_animate_on_the_saved_document(bar_session: Sess
                                                     lambda done, total: seen.append((done, total)))
     assert name.endswith(".glb") and mime == "model/gltf-binary"
     assert count == 6 and seen[0] == (0, 6) and seen[-1] == (6, 6)
-    times, frames = _glb_frames(data)
+    times, frames = glb_frames(data)
     np.testing.assert_allclose(times, np.arange(6) / 10.0, atol=1e-6)
 
     document = s.constraints_document([0, 500], transforms)
@@ -98,7 +78,7 @@ def test_keyframes_of_a_selection_made_on_a_deformed_shape(bar_session: Session,
     document = s.constraints_document([0, 500], transforms)
     assert "keyframe_base" in document
     _, _, data, _, _ = s.export_animation([0, 500], transforms, 10.0, lambda: False)
-    _, frames = _glb_frames(data)
+    _, frames = glb_frames(data)
     reference = animate(bar.V, bar.F, document, fps=10.0)
     np.testing.assert_allclose(frames, reference.vertices, atol=1e-5)
     np.testing.assert_allclose(frames[0][top], s.constraints.pose[top], atol=1e-6)

@@ -81,10 +81,10 @@ def grid_glb(tmp_path: Path) -> Path:
     return path
 
 
-def coloured_ply(path: Path) -> Path:
-    """An icosphere with red vertices above z = 0 and blue ones below."""
-    mesh = trimesh.creation.icosphere(subdivisions=1)
-    colors = np.where((mesh.vertices[:, 2] > 0)[:, None], [255, 0, 0, 255], [0, 0, 255, 255]).astype(np.uint8)
+def coloured_ply(path: Path, axis: int = 2, subdivisions: int = 1) -> Path:
+    """An icosphere with red vertices on the positive side of ``axis`` and blue ones on the other."""
+    mesh = trimesh.creation.icosphere(subdivisions=subdivisions)
+    colors = np.where((mesh.vertices[:, axis] > 0)[:, None], [255, 0, 0, 255], [0, 0, 255, 255]).astype(np.uint8)
     mesh.visual = trimesh.visual.ColorVisuals(mesh, vertex_colors=colors)
     path.write_bytes(mesh.export(file_type="ply"))
     return path

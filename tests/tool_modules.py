@@ -1,0 +1,21 @@
+"""The scripts of ``tools/`` and ``benchmarks/`` imported as modules, for their tests (they are programs, not part
+of the package)."""
+
+from __future__ import annotations
+
+import importlib.util
+import sys
+from pathlib import Path
+from types import ModuleType
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def load_tool(name: str, folder: str = "tools") -> ModuleType:
+    """``<folder>/<name>.py`` (``tools/`` by default) as the module ``name``."""
+    spec = importlib.util.spec_from_file_location(name, ROOT / folder / f"{name}.py")
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[name] = module
+    spec.loader.exec_module(module)
+    return module
