@@ -36,7 +36,7 @@ from numpy.typing import NDArray
 from arap.constraints import Constraints
 from arap.errors import ArapError
 from arap.meshes.mesh import MeshLike, check_mesh, mesh_arrays
-from arap.notebook import Selection, _initial_constraints, session_selection
+from arap.studio_handle import Selection, initial_constraints, session_selection
 
 if TYPE_CHECKING:
     from arap.render.picture import Picture
@@ -342,7 +342,7 @@ def widget(
         anywidget is not installed (``pip install "arap[notebook]"``) or the widget's module is not built.
     """
     V, F = check_mesh(*mesh_arrays(V, F))
-    prepare = None if constraints is None else _initial_constraints(constraints, len(V))
+    prepare = None if constraints is None else initial_constraints(constraints, len(V))
     cls = _widget_class()
     w: StudioWidget = cls(V=V, F=F, name=name, prepare=prepare, picture=picture, height=int(height))
     return w

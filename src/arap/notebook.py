@@ -20,16 +20,16 @@ import html
 import os
 import threading
 import time
-from collections.abc import Callable, Mapping
-from dataclasses import dataclass
+from collections.abc import Mapping
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
 
-from arap.constraints import Constraints, load_constraints
-from arap.errors import ArapError, ConstraintError
+from arap.constraints import Constraints
+from arap.errors import ArapError
 from arap.meshes.mesh import MeshLike, check_mesh, mesh_arrays
+from arap.studio_handle import Selection, initial_constraints, session_selection
 
 if TYPE_CHECKING:
     import socket
@@ -39,7 +39,7 @@ if TYPE_CHECKING:
     from arap.jupyter_widget import StudioWidget
     from arap.server.session import Session
 
-__all__ = ["TRANSPORTS", "Selection", "Studio", "session_selection", "studio"]
+__all__ = ["TRANSPORTS", "Studio", "studio"]
 
 TRANSPORTS = ("server", "auto", "widget")
 """How :func:`studio` connects the page and the session: ``server`` through a WebSocket of a server on 127.0.0.1
@@ -48,47 +48,6 @@ Jupyter kernel, anywidget installed), else the server."""
 
 START_TIMEOUT = 30.0
 """Seconds :func:`studio` waits for the server to listen."""
-
-
-@dataclass(frozen=True)
-class Selection:
-    """What the user selected in the studio.
-
-    Attributes
-    ----------
-    roi : (r,) int64 array or None
-        Region of interest; None is the whole mesh.
-    fixed : (f,) int64 array
-        Anchors.
-    handle_groups : list of (h_g,) int64 arrays
-        Handle groups.
-    targets : (h, 3) float64 array
-        Current positions of the handle vertices, groups concatenated in order.
-    document : dict
-        The same constraints in the command-line format (``arap deform MESH CONSTRAINTS``; see
-        :func:`arap.save_constraints`).
-    """
-
-    roi: NDArray[np.int64] | None
-    fixed: NDArray[np.int64]
-    handle_groups: list[NDArray[np.int64]]
-    targets: NDArray[np.float64]
-    document: dict[str, Any]
-
-
-def session_selection(session: Session | None) -> Selection:
-    """The selection of a studio session (empty for None or a session without a mesh)."""
-    if session is None or session.mesh is None:
-        empty = np.zeros(0, dtype=np.int64)
-        return Selection(None, empty, [], np.zeros((0, 3)), {"fixed": [], "handles": [], "targets": []})
-    cs, transforms = session.constraints, session.transforms
-    return Selection(
-        roi=None if cs.roi is None else cs.roi.copy(),
-        fixed=cs.fixed.copy(),
-        handle_groups=[g.copy() for g in cs.groups],
-        targets=np.array(cs.handle_targets(transforms), dtype=np.float64).reshape(-1, 3),
-        document=session.constraints_document(),
-    )
 
 
 class Studio:
@@ -266,7 +225,7 @@ def studio(
             _display(w)
         return w
     V, F = check_mesh(*mesh_arrays(V, F))
-    prepare = None if constraints is None else _initial_constraints(constraints, len(V))
+    prepare = None if constraints is None else initial_constraints(constraints, len(V))
     try:
         from arap.server.meshdata import MeshData
         from arap.server.runner import make_server, new_token
@@ -283,28 +242,6 @@ def studio(
     if show:
         _display(handle)
     return handle
-
-
-def _initial_constraints(source: Constraints | Mapping[str, Any] | str | os.PathLike[str],
-                         n_vertices: int) -> Callable[[Session], object]:
-    """Validate initial constraints; return what sets them on a new session."""
-    c = load_constraints(source.to_dict() if isinstance(source, Constraints) else source, n_vertices)
-    if c.stiffness is not None:
-        raise ConstraintError("the studio does not edit stiffness; give constraints without it")
-    handles = c.handles.tolist()
-    groups = [list(map(int, g)) for g in c.handle_groups] if c.handle_groups else ([handles] if handles else [])
-    grouped = [i for g in groups for i in g]
-    if sorted(grouped) != sorted(handles):
-        raise ConstraintError("handle_groups must hold exactly the handles, each once")
-    row = {int(v): k for k, v in enumerate(handles)}
-    targets = c.targets[[row[i] for i in grouped]].tolist() if grouped else None
-    roi = None if c.roi is None else c.roi.tolist()
-    fixed = c.fixed.tolist()
-
-    def prepare(session: Session) -> object:
-        return session.set_constraints(roi, fixed, groups, targets)
-
-    return prepare
 
 
 def _widget_works() -> bool:

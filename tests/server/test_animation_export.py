@@ -10,7 +10,7 @@ import pytest
 
 from arap.animation import animate
 from arap.io import load_mesh_bytes
-from arap.server.animation_export import MAX_EXPORT_FRAMES, AnimationCancelled
+from arap.server.animation_export import MAX_EXPORT_FRAMES, AnimationCancelled, export_animation, keyframes_document
 from arap.server.meshdata import MeshData
 from arap.server.protocol import RequestError
 from arap.server.session import Session
@@ -35,14 +35,14 @@ def test_the_export_matches_arap_animate_on_the_saved_document(bar_session: Sess
     _, _, transforms = _posed(s)
     s.drag([transforms[1]])  # the shape shown is not where the animation starts
     seen: list[tuple[int, int]] = []
-    name, mime, data, count, _ = s.export_animation([0, 500], transforms, 10.0, lambda: False,
+    name, mime, data, count, _ = export_animation(s, [0, 500], transforms, 10.0, lambda: False,
                                                     lambda done, total: seen.append((done, total)))
     assert name.endswith(".glb") and mime == "model/gltf-binary"
     assert count == 6 and seen[0] == (0, 6) and seen[-1] == (6, 6)
     times, frames = glb_frames(data)
     np.testing.assert_allclose(times, np.arange(6) / 10.0, atol=1e-6)
 
-    document = s.constraints_document([0, 500], transforms)
+    document = keyframes_document(s, [0, 500], transforms)
     assert [k["time"] for k in document["keyframes"]] == [0.0, 0.5]
     assert "keyframe_base" not in document  # the handles' pose is their rest pose
     path = tmp_path / "keys.json"
@@ -75,9 +75,9 @@ def test_keyframes_of_a_selection_made_on_a_deformed_shape(bar_session: Session,
     s.drag([translation(0.5)])
     s.end_drag()
     s.set_constraints(None, fixed, [top])  # the pose of the new set is the deformed shape
-    document = s.constraints_document([0, 500], transforms)
+    document = keyframes_document(s, [0, 500], transforms)
     assert "keyframe_base" in document
-    _, _, data, _, _ = s.export_animation([0, 500], transforms, 10.0, lambda: False)
+    _, _, data, _, _ = export_animation(s, [0, 500], transforms, 10.0, lambda: False)
     _, frames = glb_frames(data)
     reference = animate(bar.V, bar.F, document, fps=10.0)
     np.testing.assert_allclose(frames, reference.vertices, atol=1e-5)
@@ -96,7 +96,7 @@ def test_a_new_request_cancels_the_export(bar_session: Session) -> None:
 
     U = s.U.copy()
     with pytest.raises(AnimationCancelled):
-        s.export_animation([0, 2000], transforms, 24.0, interrupted)
+        export_animation(s, [0, 2000], transforms, 24.0, interrupted)
     assert polls <= 7
     np.testing.assert_array_equal(s.U, U)
 
@@ -106,11 +106,11 @@ def test_too_many_frames_are_refused(bar_session: Session) -> None:
     _, _, transforms = _posed(s)
     seconds = (MAX_EXPORT_FRAMES + 1) / 30.0
     with pytest.raises(RequestError, match="at most 600"):
-        s.export_animation([0, round(1000 * seconds)], transforms, 30.0, lambda: False)
+        export_animation(s, [0, round(1000 * seconds)], transforms, 30.0, lambda: False)
     with pytest.raises(RequestError, match="transforms"):
-        s.export_animation([0, 500], transforms[:1], 30.0, lambda: False)
+        export_animation(s, [0, 500], transforms[:1], 30.0, lambda: False)
     with pytest.raises(RequestError, match="increase"):
-        s.export_animation([500, 500], transforms, 30.0, lambda: False)
+        export_animation(s, [500, 500], transforms, 30.0, lambda: False)
 
 
 def test_export_over_the_socket_with_progress_and_cancel(studio: StudioClient) -> None:

@@ -110,14 +110,14 @@ def keyframes_document(session: Session, times_ms: Sequence[int] | np.ndarray,
     return _document(session, times, T)[1]
 
 
-def export_animation(session: Session, times_ms: Sequence[int] | np.ndarray, transforms: Sequence[Sequence[float]],
+def _export(session: Session, times_ms: Sequence[int] | np.ndarray, transforms: Sequence[Sequence[float]],
                      fps: float, interrupted: Callable[[], bool],
                      progress: ProgressCallback | None = None) -> tuple[str, str, bytes, int, float]:
     """Solve the keyframed animation at ``fps`` with the session's solver and return it as an animated GLB.
 
     Every frame is solved to convergence (the solver's default tolerance), the first from the ``"auto"`` start and
     each other from the previous frame, as :func:`arap.animation.animate` does; point handles hold at their
-    current targets. The session's shape and history are untouched.
+    current targets. The session's shape and history are untouched; its next solve starts from the shape shown.
 
     Parameters
     ----------
@@ -199,3 +199,14 @@ def export_animation(session: Session, times_ms: Sequence[int] | np.ndarray, tra
             progress(k + 1, len(frame_t))
     data = animation_glb(mesh.F, frame_t, frames, name=f"{mesh.name} animation")
     return f"{mesh.name}_animation.glb", EXPORT_MIME, data, len(frame_t), time.perf_counter() - t0
+
+
+def export_animation(session: Session, times_ms: Sequence[int] | np.ndarray, transforms: Sequence[Sequence[float]],
+                     fps: float, interrupted: Callable[[], bool],
+                     progress: ProgressCallback | None = None) -> tuple[str, str, bytes, int, float]:
+    """:func:`_export`, after which the session's next solve starts from the shape shown (its solver's last
+    solution is an animation frame)."""
+    try:
+        return _export(session, times_ms, transforms, fps, interrupted, progress)
+    finally:
+        session.solver_moved_on()

@@ -20,7 +20,7 @@ from typing import Any, Final
 import numpy as np
 
 import arap
-from arap.server.animation_export import AnimationCancelled
+from arap.server.animation_export import AnimationCancelled, export_animation, keyframes_document
 from arap.server.constraints import matrices_to_json
 from arap.server.heatmap import distortion_frame
 from arap.server.liveframes import VertexPayload, VertexStream, still_frame_header
@@ -209,8 +209,8 @@ class Dispatcher:
                                 seconds=round(now - t0, 3)))
 
         try:
-            filename, mime, data, frames, seconds = self.session.export_animation(
-                fields["times_ms"], fields["transforms"], fields["fps"], interrupted, progress)
+            filename, mime, data, frames, seconds = export_animation(
+                self.session, fields["times_ms"], fields["transforms"], fields["fps"], interrupted, progress)
         except AnimationCancelled:
             return server_message("animation_progress", status="cancelled", frame=0, frames=0,
                                   seconds=round(time.perf_counter() - t0, 3))
@@ -347,8 +347,9 @@ class Dispatcher:
             yield header, [data]
         elif t == "get_constraints":
             # with the timeline's keyframes when the message carries them
-            keyframes = [f[k] for k in ("times_ms", "transforms") if k in f]
-            yield server_message("constraints", document=s.constraints_document(*keyframes))
+            times = f.get("times_ms")
+            document = keyframes_document(s, times, f.get("transforms") or []) if times else s.constraints_document()
+            yield server_message("constraints", document=document)
         else:
             raise RequestError("bad_message", f"unhandled message type {t!r}")
 

@@ -1,12 +1,28 @@
-"""Generation of the client's protocol module (``web/src/protocol.js``) from :mod:`arap.server.protocol`."""
+"""Generation of the client's protocol module (``web/src/protocol.js``) from the message specifications
+(:mod:`arap.server.messages`)."""
 
 from __future__ import annotations
 
 import json
 from typing import Any
 
-from arap.server import protocol as P
+from arap.server.errors import ERROR_CODES
 from arap.server.fields import AFFINE_TOLERANCE
+from arap.server.frames import MAX_HEADER_BYTES
+from arap.server.messages import (
+    CLIENT_MESSAGES,
+    ENERGIES,
+    EXPORT_FORMATS,
+    MAX_HANDLE_GROUPS,
+    MAX_SEQ,
+    PARAMS,
+    PROTOCOL_VERSION,
+    SERVER_MESSAGES,
+    UPLOAD_EXTENSIONS,
+    WEIGHTS,
+    Field,
+    MessageSpec,
+)
 
 __all__ = ["generate_js"]
 
@@ -149,13 +165,13 @@ def _type_name(message_type: str, side: str) -> str:
     return "".join(w.capitalize() for w in message_type.split("_")) + side + "Message"
 
 
-def _field_type(f: P.Field) -> str:
+def _field_type(f: Field) -> str:
     if f.kind == "enum":
         return "|".join(json.dumps(c) for c in f.choices)
     return _TS_TYPES[f.kind]
 
 
-def _typedefs(specs: dict[str, P.MessageSpec], side: str, union: str, doc: str) -> str:
+def _typedefs(specs: dict[str, MessageSpec], side: str, union: str, doc: str) -> str:
     out = []
     for t, s in specs.items():
         lines = ["/**", f" * {s.doc}", f" * @typedef {{object}} {_type_name(t, side)}",
@@ -170,7 +186,7 @@ def _typedefs(specs: dict[str, P.MessageSpec], side: str, union: str, doc: str) 
     return "\n\n".join(out) + "\n"
 
 
-def _messages(specs: dict[str, P.MessageSpec]) -> dict[str, Any]:
+def _messages(specs: dict[str, MessageSpec]) -> dict[str, Any]:
     return {
         t: {"binary": s.binary, "doc": s.doc, "fields": [f.to_json() for f in s.fields]}
         for t, s in specs.items()
@@ -190,25 +206,25 @@ def generate_js() -> str:
     parts = [
         _HEADER,
         "/** Bumped on every incompatible protocol change. */\n"
-        f"export const PROTOCOL_VERSION = {P.PROTOCOL_VERSION};\n",
-        _const("CLIENT", {t.upper(): t for t in P.CLIENT_MESSAGES}, "Types of the messages a client sends.",
+        f"export const PROTOCOL_VERSION = {PROTOCOL_VERSION};\n",
+        _const("CLIENT", {t.upper(): t for t in CLIENT_MESSAGES}, "Types of the messages a client sends.",
                literal=True),
-        _const("SERVER", {t.upper(): t for t in P.SERVER_MESSAGES}, "Types of the messages the server sends.",
+        _const("SERVER", {t.upper(): t for t in SERVER_MESSAGES}, "Types of the messages the server sends.",
                literal=True),
-        _const("ERROR", {c.upper(): c for c in P.ERROR_CODES}, "Error codes of `error` messages.", literal=True),
-        _const("ERROR_DESCRIPTIONS", P.ERROR_CODES, "What each error code means."),
-        _const("PARAMS", P.PARAMS, "Solver parameters (`set_params`), with ranges and defaults."),
-        _const("ENERGIES", list(P.ENERGIES), "Values of the `energy` parameter."),
-        _const("WEIGHTS", list(P.WEIGHTS), "Values of the `weights` parameter."),
-        _const("EXPORT_FORMATS", list(P.EXPORT_FORMATS), "Formats of `export`."),
-        _const("UPLOAD_EXTENSIONS", list(P.UPLOAD_EXTENSIONS), "File extensions `upload` accepts."),
-        _const("LIMITS", {"maxHandleGroups": P.MAX_HANDLE_GROUPS, "maxSeq": P.MAX_SEQ,
-                          "maxHeaderBytes": P.MAX_HEADER_BYTES, "affineTolerance": AFFINE_TOLERANCE},
+        _const("ERROR", {c.upper(): c for c in ERROR_CODES}, "Error codes of `error` messages.", literal=True),
+        _const("ERROR_DESCRIPTIONS", ERROR_CODES, "What each error code means."),
+        _const("PARAMS", PARAMS, "Solver parameters (`set_params`), with ranges and defaults."),
+        _const("ENERGIES", list(ENERGIES), "Values of the `energy` parameter."),
+        _const("WEIGHTS", list(WEIGHTS), "Values of the `weights` parameter."),
+        _const("EXPORT_FORMATS", list(EXPORT_FORMATS), "Formats of `export`."),
+        _const("UPLOAD_EXTENSIONS", list(UPLOAD_EXTENSIONS), "File extensions `upload` accepts."),
+        _const("LIMITS", {"maxHandleGroups": MAX_HANDLE_GROUPS, "maxSeq": MAX_SEQ,
+                          "maxHeaderBytes": MAX_HEADER_BYTES, "affineTolerance": AFFINE_TOLERANCE},
                "Fixed protocol limits (size limits of the server are in `welcome.limits`)."),
-        _const("CLIENT_MESSAGES", _messages(P.CLIENT_MESSAGES), "Fields of each client message."),
-        _const("SERVER_MESSAGES", _messages(P.SERVER_MESSAGES), "Fields of each server message."),
-        _typedefs(P.CLIENT_MESSAGES, "Client", "ClientMessage", "Any message a client sends."),
-        _typedefs(P.SERVER_MESSAGES, "Server", "ServerMessage",
+        _const("CLIENT_MESSAGES", _messages(CLIENT_MESSAGES), "Fields of each client message."),
+        _const("SERVER_MESSAGES", _messages(SERVER_MESSAGES), "Fields of each server message."),
+        _typedefs(CLIENT_MESSAGES, "Client", "ClientMessage", "Any message a client sends."),
+        _typedefs(SERVER_MESSAGES, "Server", "ServerMessage",
                   "Any message the server sends (of a binary one: its header)."),
         _HELPERS,
     ]

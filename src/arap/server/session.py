@@ -20,7 +20,6 @@ from arap.errors import ArapError
 from arap.meshes.mesh import bounding_box
 from arap.method.weights import WeightType
 from arap.options import EnergyType
-from arap.server.animation_export import ProgressCallback, export_animation, keyframes_document
 from arap.server.constraints import ConstraintSet, identity_transforms, matrices_from_json
 from arap.server.history import History, Snapshot
 from arap.server.meshdata import MeshData
@@ -479,23 +478,17 @@ class Session:
         except ArapError as exc:
             raise RequestError("bad_mesh", f"cannot export: {exc}") from exc
 
-    def constraints_document(self, times_ms: Any = None, transforms: Any = None) -> dict[str, Any]:
+    def constraints_document(self) -> dict[str, Any]:
         """The current constraints in the command-line format, in the mesh file's vertex numbering (as ``arap
-        deform`` reads them; :func:`arap.server.numbering.document_in_file_numbering`); with the timeline's keyframes
-        (``times_ms``, ``transforms``: :mod:`arap.server.animation_export`) as ``arap animate`` reads them."""
+        deform`` reads them; :func:`arap.server.numbering.document_in_file_numbering`); with the timeline's keyframes,
+        :func:`arap.server.animation_export.keyframes_document`."""
         mesh = self._require_mesh()
-        if times_ms is not None and len(times_ms):
-            return keyframes_document(self, times_ms, transforms or [])
         return document_in_file_numbering(self.constraints.document(self.V, self.transforms), mesh)
 
-    def export_animation(self, times_ms: Any, transforms: Any, fps: float, interrupted: Callable[[], bool],
-                         progress: ProgressCallback | None = None) -> tuple[str, str, bytes, int, float]:
-        """The keyframed animation solved at ``fps`` as an animated GLB (:func:`arap.server.animation_export.
-        export_animation`); the shape and history are kept, and the next solve starts from the shape shown."""
-        try:
-            return export_animation(self, times_ms, transforms, fps, interrupted, progress)
-        finally:
-            self._warm = False  # the solver's last solution is an animation frame, not the shape shown
+    def solver_moved_on(self) -> None:
+        """The solver was used for other shapes (an animation export): the next solve starts from the shape shown,
+        not from the solver's last solution."""
+        self._warm = False
 
     # ------------------------------------------------------------------ replies
     @property
