@@ -11,6 +11,7 @@ from numpy.typing import NDArray
 from arap.method.cells import system_matrix
 from arap.method.covariance import assemble_rhs, covariances
 from arap.method.rotations import identity_rotations
+from arap.solve.iteration import rhs_constant
 from arap.solve.prepared import Prepared
 
 __all__ = ["energy_of", "fit_rotations", "global_step", "reduced_matrix"]
@@ -64,10 +65,7 @@ def global_step(p: Prepared, R: object, targets: object, point_targets: object =
     U[p.nf:] = fixed
     if p.factor is not None:
         rhs = np.empty((p.nf, 3))
-        const = p.L_fn @ fixed
-        for addon in p.addons:
-            const = addon.rhs_constant(const, P, fixed)
-        assemble_rhs(p.gather, p.to_internal(np.asarray(R, dtype=np.float64)), const, rhs)
+        assemble_rhs(p.gather, p.to_internal(np.asarray(R, dtype=np.float64)), rhs_constant(p, fixed, P), rhs)
         g = p.factor.solve(rhs)
         for addon in p.addons:
             correct = addon.corrector(P, fixed)
