@@ -93,11 +93,11 @@ def run_igl(V: np.ndarray, F: np.ndarray, b: np.ndarray, bc: np.ndarray, iterati
 
 def backend_choices(V: np.ndarray, F: np.ndarray, b: np.ndarray, U: np.ndarray, repeats: int) -> list[str]:
     """Measure what the solver's design chooses between: sparse Cholesky backends and rotation kernels."""
-    from tests.core.reference_kernels import fit_rotations_scalar
+    from tests.core.reference_kernels import fit_rotations_scalar, fit_rotations_svd
 
     from arap.method.cells import build_cells
     from arap.method.covariance import covariances
-    from arap.method.rotations import fit_rotations, fit_rotations_svd
+    from arap.method.rotations import fit_rotations
     from arap.sparse.linsolve import available_backends, factorize
 
     A = ArapSolver(V, F, b).reduced_matrix()

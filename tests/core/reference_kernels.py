@@ -88,3 +88,27 @@ def fit_rotations_scalar(S: np.ndarray, R: np.ndarray) -> None:  # pragma: no co
     blocks)."""
     for i in range(S.shape[0]):
         best_rotation(S[i], R[i])
+
+
+def fit_rotations_svd(S: np.ndarray) -> np.ndarray:
+    """Best-fit rotations by ``numpy.linalg.svd``: the reference for :func:`arap.method.rotations.fit_rotations`.
+
+    ``S = U Σ Vᵀ``, ``R = V Uᵀ``; where ``det R < 0`` the column of ``U`` of the smallest singular value is negated.
+
+    Parameters
+    ----------
+    S : (k, 3, 3) float array
+
+    Returns
+    -------
+    (k, 3, 3) float64 array
+    """
+    S = np.asarray(S, dtype=np.float64)
+    U, _, Vt = np.linalg.svd(S)
+    R = np.swapaxes(Vt, 1, 2) @ np.swapaxes(U, 1, 2)
+    flip = np.linalg.det(R) < 0
+    if np.any(flip):
+        U = U.copy()
+        U[flip, :, 2] *= -1.0
+        R[flip] = np.swapaxes(Vt[flip], 1, 2) @ np.swapaxes(U[flip], 1, 2)
+    return R

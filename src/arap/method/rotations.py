@@ -324,27 +324,3 @@ def fit_rotations(S: np.ndarray) -> np.ndarray:
     # About 20 operations per matrix entry: weigh a matrix like two edge terms of a cell.
     policy.run("fit_rotations", 2 * len(S), lambda: _fit_serial(S, R), lambda: _fit_parallel(S, R))
     return R
-
-
-def fit_rotations_svd(S: np.ndarray) -> np.ndarray:
-    """Reference implementation with ``numpy.linalg.svd`` (slower; used to check :func:`fit_rotations`).
-
-    ``S = U Σ Vᵀ``, ``R = V Uᵀ``; where ``det R < 0`` the column of ``U`` of the smallest singular value is negated.
-
-    Parameters
-    ----------
-    S : (k, 3, 3) float array
-
-    Returns
-    -------
-    (k, 3, 3) float64 array
-    """
-    S = np.asarray(S, dtype=np.float64)
-    U, _, Vt = np.linalg.svd(S)
-    R = np.swapaxes(Vt, 1, 2) @ np.swapaxes(U, 1, 2)
-    flip = np.linalg.det(R) < 0
-    if np.any(flip):
-        U = U.copy()
-        U[flip, :, 2] *= -1.0
-        R[flip] = np.swapaxes(Vt[flip], 1, 2) @ np.swapaxes(U[flip], 1, 2)
-    return R

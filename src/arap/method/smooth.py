@@ -65,11 +65,9 @@ STEPS = 1
 """Preconditioned rotation steps (:class:`arap.method.rotation_step.RotationStep`) in one local step of the solver. A
 step moves all rotations at once towards the minimum of the coupled rotation energy, where a sweep moves each towards
 its neighbours' only; at the default ``alpha`` the rotation term outweighs the spokes term by far on dense meshes, so
-the coupled rotations were the slow part of a solve with sweeps. One vertex pulled by 20% of the diagonal, Anderson,
-to the default tolerance: with 8 sweeps per local step the knight took 951 iterations, the camel head and the
-armadillo did not converge (21.6 s on the camel head; 24,000 sweeps on the armadillo); with one step and no sweep,
-73, 30 and 56 iterations (0.01, 0.12 and 0.8 s). Two steps per local step halve the iterations but not the time. See
-``benchmarks/README.md``."""
+with sweeps alone the coupled rotations were the slow part of a solve (it did not converge on the denser scans). One
+step per local step converges everywhere; a second halves the iterations but not the time
+(``benchmarks/bench_energies.py`` measures the three energies to convergence)."""
 
 SWEEPS = 0
 """Block-coordinate sweeps in one local step of the solver, after its :data:`STEPS` (measured: one more sweep made an
