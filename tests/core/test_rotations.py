@@ -8,9 +8,8 @@ import numpy as np
 import pytest
 
 from arap.method.rotations import BLOCK, fit_rotations
-from tests.core.reference_kernels import fit_rotations_svd
 
-from .reference_kernels import fit_rotations_scalar
+from .reference_kernels import fit_rotations_scalar, fit_rotations_svd
 
 
 def _scalar(S: np.ndarray) -> np.ndarray:
