@@ -8,22 +8,69 @@
 import { CLIENT } from './protocol.js';
 import { stiffnessFromJson, stiffnessKey, stiffnessToJson } from './stiffness.js';
 
+/** @typedef {import('./protocol.js').SetConstraintsClientMessage} SetConstraintsClientMessage */
+/** @typedef {{vertices: number[], value: number|"rigid"}[]} StiffnessJson */
+/** A point handle: a point of a face given by barycentric coordinates; weight null: a hard handle.
+ * @typedef {{face: number, barycentric: number[], weight: number|null}} PointHandle */
+/** A point handle as the protocol sends it (no weight: hard).
+ * @typedef {{face: number, barycentric: number[], weight?: number}} PointSpec */
+/** @typedef {{id: number, partner?: number, point?: PointHandle}} HandleGroup */
+/**
+ * A constraint set as Selection.toConstraints gives it: `groupMap[k]` is the client group of server group k.
+ * @typedef {object} Constraints
+ * @property {number[]|null} roi
+ * @property {number[]} fixed
+ * @property {number[][]} handle_groups
+ * @property {StiffnessJson|null} stiffness
+ * @property {PointSpec[]} points
+ * @property {number[]} groupMap
+ */
+/**
+ * A constraint set as read from the server, a file or a snapshot (any field may be missing).
+ * @typedef {object} ConstraintsLike
+ * @property {number[]|null} [roi]
+ * @property {number[]} [fixed]
+ * @property {number[][]} [handle_groups]
+ * @property {StiffnessJson|null} [stiffness]
+ * @property {{face: number, barycentric: number[], weight?: number|null}[]|null} [points] (weight null: hard)
+ */
+
 export const NONE = 0;
 export const FIXED = 1;
 export const HANDLE0 = 2;
 
 export class Selection {
+  // All set by reset(), which the constructor calls.
+  /** @type {number} vertices */
+  n;
+  /** @type {Uint8Array} */
+  roi;
+  /** @type {Int16Array} */
+  role;
+  /** @type {Float64Array} */
+  stiff;
+  /** @type {number} */
+  stiffnessValue;
+  /** @type {HandleGroup[]} */
+  groups;
+  /** @type {number} */
+  nextGroupId;
+  /** @type {number} */
+  activeGroup;
+  /** @type {number} */
+  version;
+
   constructor() {
     this.reset(0);
   }
 
+  /** @param {number} n */
   reset(n) {
     this.n = n;
     this.roi = new Uint8Array(n);
     this.role = new Int16Array(n);
     this.stiff = new Float64Array(n).fill(1);
     this.stiffnessValue = 10; // what the stiffness brush paints
-    /** @type {{id: number, partner?: number, point?: {face: number, barycentric: number[], weight: number|null}}[]} */
     this.groups = [{ id: 1 }];
     this.nextGroupId = 2;
     this.activeGroup = 0;
@@ -50,7 +97,11 @@ export class Selection {
     return { roi, fixed, groups };
   }
 
-  /** The value painted into `role` by a mode, or null for modes that only touch the ROI. */
+  /**
+   * The value painted into `role` by a mode, or null for modes that only touch the ROI.
+   * @param {string} mode
+   * @returns {number|null}
+   */
   roleValue(mode) {
     if (mode === 'fixed') return FIXED;
     if (mode === 'handle') return HANDLE0 + this.activeGroup;
@@ -63,7 +114,12 @@ export class Selection {
     return !!this.groups[this.activeGroup]?.point;
   }
 
-  /** Paint `indices` (iterable of vertex ids) with a mode; subtract removes that mode instead. */
+  /**
+   * Paint `indices` (iterable of vertex ids) with a mode; subtract removes that mode instead.
+   * @param {Iterable<number>} indices
+   * @param {string} mode
+   * @param {boolean} [subtract]
+   */
   paint(indices, mode, subtract = false) {
     let changed = false;
     if (mode === 'handle' && this.activeIsPoint) this.addGroup(); // a point handle has no vertices
@@ -94,7 +150,7 @@ export class Selection {
           changed = true;
         }
       } else if (this.role[i] !== value) {
-        this.role[i] = value;
+        this.role[i] = value ?? NONE;
         changed = true;
       }
     }
@@ -102,6 +158,7 @@ export class Selection {
     return changed;
   }
 
+  /** @param {string} mode */
   clear(mode) {
     if (mode === 'roi') this.roi.fill(0);
     else if (mode === 'stiffness') this.stiff.fill(1);
@@ -121,12 +178,18 @@ export class Selection {
     this.version++;
   }
 
-  /** True when `invert(mode)` can do something for this mode. */
+  /**
+   * True when `invert(mode)` can do something for this mode.
+   * @param {string} mode
+   */
   invertible(mode) {
     return mode !== 'erase' && mode !== 'stiffness' && mode !== 'point';
   }
 
-  /** Invert a role: ROI becomes its complement; anchors/handles swap with unassigned vertices. */
+  /**
+   * Invert a role: ROI becomes its complement; anchors/handles swap with unassigned vertices.
+   * @param {string} mode
+   */
   invert(mode) {
     if (!this.invertible(mode)) return false;
     if (mode === 'roi') {
@@ -135,7 +198,7 @@ export class Selection {
       const value = this.roleValue(mode);
       for (let i = 0; i < this.n; i++) {
         if (this.role[i] === value) this.role[i] = NONE;
-        else if (this.role[i] === NONE) this.role[i] = value;
+        else if (this.role[i] === NONE) this.role[i] = value ?? NONE;
       }
     }
     this.version++;
@@ -155,6 +218,7 @@ export class Selection {
     return this.activeGroup;
   }
 
+  /** @param {number} g */
   removeGroup(g) {
     for (let i = 0; i < this.n; i++) {
       const r = this.role[i];
@@ -167,7 +231,10 @@ export class Selection {
     this.version++;
   }
 
-  /** Add a point handle ({face, barycentric, weight}) as a new group and make it the active one. */
+  /**
+   * Add a point handle ({face, barycentric, weight}) as a new group and make it the active one.
+   * @param {PointHandle} point
+   */
   addPoint(point) {
     const last = this.groups.length - 1;
     const counts = this.counts().groups;
@@ -178,7 +245,10 @@ export class Selection {
     return this.activeGroup;
   }
 
-  /** The mirror partner of handle group g (see mirror.js), or -1. */
+  /**
+   * The mirror partner of handle group g (see mirror.js), or -1.
+   * @param {number} g
+   */
   partnerOf(g) {
     const id = this.groups[g]?.partner;
     return id === undefined ? -1 : this.groups.findIndex((x) => x.id === id);
@@ -187,6 +257,8 @@ export class Selection {
   /**
    * Make handle groups g and h each other's mirror partner (leaving their former partners unpaired). Point handles
    * are never paired: false (and nothing changes) when g or h is one.
+   * @param {number} g
+   * @param {number} h
    */
   pair(g, h) {
     if (this.groups[g]?.point || this.groups[h]?.point) return false;
@@ -199,7 +271,10 @@ export class Selection {
     return true;
   }
 
-  /** Vertex indices of handle group g. */
+  /**
+   * Vertex indices of handle group g.
+   * @param {number} g
+   */
   groupIndices(g) {
     const out = [];
     const v = HANDLE0 + g;
@@ -210,11 +285,15 @@ export class Selection {
   /**
    * The constraint set for the server. Empty groups are left out; `groupMap[k]` is the client group of
    * server group k.
+   * @returns {Constraints}
    */
   toConstraints() {
     const stiffness = stiffnessToJson(this.stiff);
+    /** @type {number[]} */
     const fixed = [];
+    /** @type {number[]} */
     const roi = [];
+    /** @type {number[][]} */
     const lists = this.groups.map(() => []);
     for (let i = 0; i < this.n; i++) {
       if (this.roi[i]) roi.push(i);
@@ -222,7 +301,9 @@ export class Selection {
       if (r === FIXED) fixed.push(i);
       else if (r >= HANDLE0) lists[r - HANDLE0].push(i);
     }
+    /** @type {number[]} */
     const groupMap = [];
+    /** @type {number[][]} */
     const handleGroups = [];
     lists.forEach((list, g) => {
       if (list.length && !this.groups[g].point) {
@@ -230,6 +311,7 @@ export class Selection {
         handleGroups.push(list);
       }
     });
+    /** @type {PointSpec[]} */
     const points = [];
     this.groups.forEach((group, g) => {
       if (!group.point) return;
@@ -244,13 +326,15 @@ export class Selection {
    * Replace the selection by a constraint set ({roi, fixed, handle_groups, stiffness?, points?}); bad indices are
    * skipped. Point handles become groups after the vertex groups; `groupPoints` (one entry per group of
    * `handle_groups`, null for a vertex group) puts saved point handles back in their places instead.
+   * @param {ConstraintsLike} c
+   * @param {(PointHandle|null|undefined)[]|null} [groupPoints]
    */
   fromConstraints(c, groupPoints = null) {
     const n = this.n;
     this.roi.fill(0);
     this.role.fill(NONE);
     this.stiff = stiffnessFromJson(c.stiffness, n);
-    const ok = (i) => Number.isInteger(i) && i >= 0 && i < n;
+    const ok = (/** @type {number} */ i) => Number.isInteger(i) && i >= 0 && i < n;
     for (const i of c.roi || []) if (ok(i)) this.roi[i] = 1;
     for (const i of c.fixed || []) if (ok(i)) this.role[i] = FIXED;
     const groups = c.handle_groups || [];
@@ -275,16 +359,30 @@ export class Selection {
 /**
  * The set_constraints message of a constraint set (Selection.toConstraints): `targets` (a Map from handle vertex to
  * [x, y, z]) moves the handles there, `pointTargets` (one [x, y, z] or null per point handle) the point handles.
+ * `targets` holds every handle vertex (readConstraintsFile checks it).
+ * @param {Constraints} c
+ * @param {Map<number, number[]>|null} [targets]
+ * @param {(number[]|null|undefined)[]|null} [pointTargets]
+ * @returns {SetConstraintsClientMessage}
  */
 export function constraintsMessage(c, targets = null, pointTargets = null) {
+  /** @type {SetConstraintsClientMessage} */
   const msg = { type: CLIENT.SET_CONSTRAINTS, roi: c.roi, fixed: c.fixed, handle_groups: c.handle_groups };
-  if (targets) msg.targets = c.handle_groups.flat().map((i) => targets.get(i));
+  if (targets) msg.targets = c.handle_groups.flat().map((i) => /** @type {number[]} */ (targets.get(i)));
   if (c.stiffness) msg.stiffness = c.stiffness;
-  if (c.points.length) msg.points = c.points.map((p, k) => (pointTargets?.[k] ? { ...p, target: pointTargets[k] } : p));
+  if (c.points.length) {
+    msg.points = c.points.map((p, k) => {
+      const target = pointTargets?.[k];
+      return target ? { ...p, target } : p;
+    });
+  }
   return msg;
 }
 
-/** A canonical string of a constraint set, to compare what the server holds with the local selection. */
+/**
+ * A canonical string of a constraint set, to compare what the server holds with the local selection.
+ * @param {ConstraintsLike|null|undefined} c
+ */
 export function constraintsKey(c) {
   if (!c) return '';
   const roi = c.roi ? c.roi.join(',') : '*';

@@ -21,8 +21,8 @@ export function stiffnessToJson(stiff) {
     list.push(i);
   }
   if (!byValue.size) return null;
-  return [...byValue.keys()].sort((a, b) => a - b).map((v) => ({
-    vertices: byValue.get(v),
+  return [...byValue].sort((a, b) => a[0] - b[0]).map(([v, vertices]) => ({
+    vertices,
     value: v === Infinity ? 'rigid' : v,
   }));
 }
