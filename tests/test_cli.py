@@ -8,6 +8,7 @@ import signal
 import subprocess
 import sys
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -795,3 +796,31 @@ def test_deform_keeps_a_textured_models_attributes(model: str, tmp_path: Path,
     np.testing.assert_allclose(got.vertices, expected, atol=1e-6)
     assert np.abs(got.vertices[handles] - (V[handles] + [0.3, 0.2, 0.0])).max() <= 1e-6
     assert len(load_mesh(plain)[0]) > 0
+
+
+def test_deform_reads_a_glb_once(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """``arap deform`` parses a textured GLB input once: the mesh it solves and the asset it writes come from the
+    same reading."""
+    import arap.io.assets
+    import arap.io.gltf_asset
+    from arap.io.assets import load_asset
+    from tests.io.asset_models import cube_glb
+
+    mesh = cube_glb(tmp_path)
+    V = load_asset(mesh).vertices
+    fixed = np.flatnonzero(V[:, 1] <= V[:, 1].min() + 1e-9)
+    handles = np.flatnonzero(V[:, 1] >= V[:, 1].max() - 1e-9)
+    cons = tmp_path / "c.json"
+    cons.write_text(json.dumps({"fixed": fixed.tolist(), "handles": handles.tolist(),
+                                "targets": (V[handles] + [0.2, 0.0, 0.0]).tolist()}))
+    reads: list[str] = []
+    real = arap.io.gltf_asset.read_gltf_asset
+
+    def counting(data: bytes, name: str, *args: Any, **kwargs: Any) -> Any:
+        reads.append(name)
+        return real(data, name, *args, **kwargs)
+
+    monkeypatch.setattr(arap.io.gltf_asset, "read_gltf_asset", counting)
+    monkeypatch.setattr(arap.io.assets, "read_gltf_asset", counting)
+    assert main(["deform", str(mesh), "-c", str(cons), "-o", str(tmp_path / "out.glb"), "-q"]) == 0
+    assert reads == [str(mesh)]

@@ -218,20 +218,38 @@ def _note_flat_faces(V: np.ndarray, F: np.ndarray, energy: str, weights: str) ->
              "spokes_and_rims (the default) cannot")
 
 
-def _textured_input(mesh: str, output: str, quiet: bool) -> Any:
+def _read_input(spec: str) -> tuple[np.ndarray, np.ndarray, RepairResult, str, Any]:
+    """The mesh argument as :func:`~arap.cli.common.load_mesh_argument` reads it, with the
+    :class:`arap.io.assets.MeshAsset` of a glTF or GLB file read on the way (the mesh reader reads the file as an asset
+    anyway, so it is read once); None for the other inputs."""
+    from arap.io.assets import load_asset
+    from arap.io.meshfile import mesh_of_asset
+
+    path = Path(spec)
+    if path.suffix.lower() in (".glb", ".gltf") and path.is_file():
+        asset = load_asset(path)
+        V, F, repair = mesh_of_asset(asset, name=str(path))
+        return V, F, repair, str(path), asset
+    V, F, repair, label = load_mesh_argument(spec)
+    return V, F, repair, label, None
+
+
+def _textured_input(mesh: str, output: str, quiet: bool, asset: Any = None) -> Any:
     """The input as a :class:`arap.io.assets.MeshAsset` when it carries what a deformation keeps (texture
     coordinates, colours, materials, groups, a glTF scene) and the output is of its format family, so that the output
-    keeps them; else None (the geometry alone is written, with a note when attributes are left behind)."""
+    keeps them; else None (the geometry alone is written, with a note when attributes are left behind). ``asset``:
+    the input's asset when it was read already."""
     from arap.io.assets import asset_format, load_asset
 
     try:
         source, target = asset_format(mesh), asset_format(output)
     except MeshFormatError:
         return None
-    if not Path(mesh).is_file():
-        return None
+    if asset is None:
+        if not Path(mesh).is_file():
+            return None
+        asset = load_asset(mesh)
     family = {"obj": "obj", "ply": "ply", "glb": "gltf", "gltf": "gltf"}
-    asset = load_asset(mesh)
     kept = asset.format in ("glb", "gltf") or asset.uvs is not None or asset.vertex_colors is not None \
         or bool(asset.materials) or bool(asset.groups)
     if not kept:
@@ -263,8 +281,8 @@ def run_deform(args: argparse.Namespace) -> int:
     if not os.access(folder, os.W_OK):
         raise MeshFormatError(f"cannot write {args.output}: the folder {folder} is not writable")
     check_iterations_and_tolerance(args.iterations, args.tolerance)
-    V, F, repair, label = load_mesh_argument(args.mesh)
-    asset = _textured_input(args.mesh, args.output, args.quiet)
+    V, F, repair, label, read_asset = _read_input(args.mesh)
+    asset = _textured_input(args.mesh, args.output, args.quiet, read_asset)
     n_file = len(repair.vertex_map)
     picked = selector_constraints(args, V)  # by position, on the loaded mesh: in its numbering already
     if (picked is None) == (args.constraints is None):

@@ -22,7 +22,7 @@ import logging
 import os
 import re
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -37,6 +37,9 @@ from arap.io.screening import (
 from arap.meshes.mesh import triangulate_polygons
 from arap.meshes.repair import RepairResult, repair_mesh
 
+if TYPE_CHECKING:
+    from arap.io.asset_model import MeshAsset
+
 __all__ = [
     "MESH_FORMATS",
     "format_of",
@@ -44,6 +47,7 @@ __all__ = [
     "load_mesh_bytes",
     "load_mesh_bytes_with_report",
     "load_mesh_with_report",
+    "mesh_of_asset",
 ]
 
 logger = logging.getLogger(__name__)
@@ -187,6 +191,27 @@ def _finish(
             logger.info("%s: %s", label, "; ".join(result.report))
         return result.V, result.F, result
     return V, F, RepairResult.identity(V, F)
+
+
+def mesh_of_asset(asset: MeshAsset, *, repair: bool = True, name: str = "mesh") -> tuple[
+        np.ndarray, np.ndarray, RepairResult]:
+    """The mesh to solve of an asset read from a glTF or GLB file, as :func:`load_mesh_with_report` gives it for
+    that file (so a caller that needs the asset too reads the file once).
+
+    Parameters
+    ----------
+    asset : arap.io.assets.MeshAsset
+    repair : bool
+    name : str
+        The file's name, for messages.
+
+    Returns
+    -------
+    V : (n, 3) float64 array
+    F : (m, 3) int64 array
+    repair : RepairResult
+    """
+    return _finish(asset.vertices, asset.faces, repair, name)
 
 
 def load_mesh_bytes_with_report(
