@@ -1,6 +1,6 @@
 // Side panel: controls bound to studio actions, and the read-outs (groups, counts, statistics, status).
 import { EXPORT_FORMATS, PARAMS } from './protocol.js';
-import { cssColor, FIXED_COLOR, groupColor } from './viewer.js';
+import { cssColor, FIXED_COLOR, groupColor } from './rolecolors.js';
 
 /**
  * A panel element by id (form controls of several kinds: typed loosely).

@@ -2,7 +2,7 @@
 // drawn as small spheres that follow the deformed surface, removed by a click with the subtract modifier.
 import * as THREE from 'three';
 import { NONE } from './selection.js';
-import { groupColor } from './viewer.js';
+import { groupColor } from './rolecolors.js';
 
 /** Marker radius, as a share of the mesh's bounding-box diagonal. */
 const MARKER_SIZE = 0.012;

@@ -1,0 +1,42 @@
+// The fixed furniture of the viewer's scene: the lights, which ride with the camera so that the side facing the
+// viewer is always lit, and the floor grid under the mesh, which gives a sense of scale and of up. Neither depends
+// on the mesh's roles or shape beyond its bounds, so they live apart from the viewer that draws and updates the mesh.
+import * as THREE from 'three';
+
+/**
+ * Light the scene: a hemisphere light, and three directional lights added to the camera so that they follow it.
+ * @param {THREE.Scene} scene
+ * @param {THREE.Camera} camera
+ */
+export function addLights(scene, camera) {
+  scene.add(new THREE.HemisphereLight(0xeef2ff, 0x2a2622, 0.55));
+  /** @type {Array<[number, number, number[]]>} */
+  const lights = [
+    [0xffffff, 1.9, [0.6, 0.9, 1]],
+    [0xc8d8ff, 0.55, [-1, -0.2, 0.4]],
+    [0xfff0e0, 0.35, [0.2, -1, 0.3]],
+  ];
+  for (const [color, intensity, p] of lights) {
+    const light = new THREE.DirectionalLight(color, intensity);
+    light.position.set(p[0], p[1], p[2]);
+    light.target.position.set(0, 0, 0);
+    camera.add(light, light.target);
+  }
+}
+
+/**
+ * A faint grid on the floor under a mesh of bounds `box`, a little wider than the mesh; rays pass through it.
+ * @param {THREE.Box3} box
+ */
+export function floorGrid(box) {
+  const size = box.getSize(new THREE.Vector3());
+  const center = box.getCenter(new THREE.Vector3());
+  const extent = Math.max(size.x, size.z, size.y) * 2.2;
+  const grid = new THREE.GridHelper(extent, 16, 0x4f5661, 0x3a4049);
+  grid.material.transparent = true;
+  grid.material.opacity = 0.45;
+  grid.material.depthWrite = false;
+  grid.position.set(center.x, box.min.y - 0.002 * extent, center.z);
+  grid.raycast = () => {};
+  return grid;
+}
