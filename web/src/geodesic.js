@@ -44,8 +44,11 @@ class MinHeap {
     this.keys = new Float64Array(capacity);
     this.vals = new Int32Array(capacity);
     this.size = 0;
+    this.topKey = 0; // the key and vertex of the entry last popped
+    this.topVal = 0;
   }
 
+  /** @param {number} key @param {number} val */
   push(key, val) {
     if (this.size === this.keys.length) {
       const keys = new Float64Array(2 * this.size);
@@ -101,8 +104,8 @@ class MinHeap {
 export function geodesicDistances(graph, positions, seeds, radius) {
   const { ptr, adj } = graph;
   const n = ptr.length - 1;
-  if (!graph.dist || graph.dist.length !== n) graph.dist = new Float64Array(n).fill(Infinity);
-  const dist = graph.dist; // Infinity everywhere between calls
+  let dist = graph.dist; // Infinity everywhere between calls
+  if (!dist || dist.length !== n) dist = graph.dist = new Float64Array(n).fill(Infinity);
   const vertices = [];
   const distances = [];
   const heap = new MinHeap();

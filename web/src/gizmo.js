@@ -37,7 +37,8 @@ export class HandleGizmo {
     this.group = -1;
     this.indices = [];
     this.previewing = false;
-    this._saved = null; // the group's positions before a preview: {indices, xyz}
+    /** @type {{indices: number[], xyz: Float32Array}|null} the group's positions before a preview */
+    this._saved = null;
     this.weights = null;
     this._base = new THREE.Matrix4();
     this._baseInv = new THREE.Matrix4();
@@ -256,13 +257,15 @@ export class HandleGizmo {
   /** Show the group's vertices moved rigidly by `delta` (their positions before the preview are kept). */
   _moveHandle(delta) {
     const pos = this.viewer.positions;
-    if (!this._saved) {
+    let saved = this._saved;
+    if (!saved) {
       const xyz = Float32Array.from(this.indices.flatMap((i) => [pos[3 * i], pos[3 * i + 1], pos[3 * i + 2]]));
-      this._saved = { indices: this.indices, xyz };
+      saved = this._saved = { indices: this.indices, xyz };
     }
+    const { xyz } = saved;
     const v = new THREE.Vector3();
-    this._saved.indices.forEach((i, k) => {
-      v.fromArray(this._saved.xyz, 3 * k).applyMatrix4(delta);
+    saved.indices.forEach((i, k) => {
+      v.fromArray(xyz, 3 * k).applyMatrix4(delta);
       pos[3 * i] = v.x;
       pos[3 * i + 1] = v.y;
       pos[3 * i + 2] = v.z;
@@ -272,9 +275,10 @@ export class HandleGizmo {
 
   /** Drop the preview: the group's vertices and the gizmo go back to the group's transform. */
   cancelPreview() {
-    if (this._saved) {
+    const saved = this._saved;
+    if (saved) {
       const pos = this.viewer.positions;
-      this._saved.indices.forEach((i, k) => pos.set(this._saved.xyz.subarray(3 * k, 3 * k + 3), 3 * i));
+      saved.indices.forEach((i, k) => pos.set(saved.xyz.subarray(3 * k, 3 * k + 3), 3 * i));
       this.viewer.updatePositions(pos);
     }
     this._saved = null;

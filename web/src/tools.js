@@ -1,5 +1,6 @@
 // Pointer tools on the 3D view: brush painting (raycast + radius) and box selection.
 import * as THREE from 'three';
+import { byId } from './dom.js';
 import { connectedPatch, geodesicDistances, triangleSeeds } from './geodesic.js';
 
 /** How the brush measures its radius: straight distance, distance along the surface, or the connected patch. */
@@ -21,15 +22,18 @@ export class SelectionTools {
     this.worldRadiusFrac = 0.04;
     this.frontOnly = true;
     this.metric = 'straight';
+    /** @type {THREE.Face|null} the face under the brush at its last raycast (null: unknown) */
     this._hitFace = null;
     this.erasing = false;
     this.painting = false;
+    /** @type {{x0: number, y0: number, x1: number, y1: number, subtract: boolean}|null} the box being dragged */
     this.box = null;
     this.picked = false;
     this.raycaster = new THREE.Raycaster();
-    this.cursorEl = document.getElementById('brush-cursor');
-    this.rectEl = document.getElementById('box-rect');
+    this.cursorEl = byId('brush-cursor');
+    this.rectEl = byId('box-rect');
     this._lastHit = null;
+    /** @type {number[]|null} the pointer position waiting for the next animation frame's raycast */
     this._queued = null;
     const c = viewer.canvas;
     c.addEventListener('pointerdown', (e) => this._down(e));
@@ -62,7 +66,7 @@ export class SelectionTools {
 
   _hit(x, y) {
     const hit = this._intersect(x, y);
-    this._hitFace = hit ? hit.face : null;
+    this._hitFace = hit?.face ?? null;
     return hit ? hit.point : null;
   }
 
@@ -70,12 +74,13 @@ export class SelectionTools {
     return this.tool !== 'orbit' && !!this.opts.picking?.();
   }
 
-  /** World-space brush radius at a point. */
+  /**
+   * World-space brush radius at a point.
+   * @param {THREE.Vector3} point
+   */
   worldRadius(point) {
-    if (this.units === 'world') {
-      const box = this.viewer.geometry.boundingBox;
-      return this.worldRadiusFrac * box.min.distanceTo(box.max);
-    }
+    const box = this.viewer.box;
+    if (this.units === 'world' && box) return this.worldRadiusFrac * box.min.distanceTo(box.max);
     return this.radiusPx * this.viewer.worldPerPixel(point);
   }
 
@@ -96,7 +101,7 @@ export class SelectionTools {
     if (e.shiftKey || this.tool === 'box') {
       this.box = { x0: x, y0: y, x1: x, y1: y, subtract };
       this._takePointer(e);
-      this._drawRect();
+      this._drawRect(this.box);
       return;
     }
     if (this.tool !== 'brush') return;
@@ -112,8 +117,8 @@ export class SelectionTools {
 
   /** The brush's radius in canvas pixels (at the model's centre for a radius in model units). */
   _radiusPx() {
-    if (this.units !== 'world' || !this.viewer.geometry) return this.radiusPx;
-    const box = this.viewer.geometry.boundingBox;
+    const box = this.viewer.box;
+    if (this.units !== 'world' || !box) return this.radiusPx;
     const centre = box.getCenter(new THREE.Vector3());
     return this.worldRadius(centre) / this.viewer.worldPerPixel(centre);
   }
@@ -156,7 +161,7 @@ export class SelectionTools {
 
   _takePointer(e) {
     e.stopImmediatePropagation();
-    this.viewer.controls.enabled = false;
+    if (this.viewer.controls) this.viewer.controls.enabled = false;
     this.viewer.canvas.setPointerCapture(e.pointerId);
   }
 
@@ -165,7 +170,7 @@ export class SelectionTools {
     if (this.box) {
       this.box.x1 = x;
       this.box.y1 = y;
-      this._drawRect();
+      this._drawRect(this.box);
       return;
     }
     if (this.tool === 'brush' && !this.opts.isGizmoActive() && !this._picking) this._showCursor(x, y, e.ctrlKey || e.metaKey || e.altKey);
@@ -211,7 +216,7 @@ export class SelectionTools {
   }
 
   _release(e) {
-    this.viewer.controls.enabled = true;
+    if (this.viewer.controls) this.viewer.controls.enabled = true;
     if (this.viewer.canvas.hasPointerCapture(e.pointerId)) this.viewer.canvas.releasePointerCapture(e.pointerId);
   }
 
@@ -251,6 +256,7 @@ export class SelectionTools {
     const m = new THREE.Matrix4().multiplyMatrices(v.camera.projectionMatrix, v.camera.matrixWorldInverse).elements;
     const cam = v.camera.position;
     const pos = v.positions;
+    if (!v.geometry) return [];
     const nrm = v.geometry.attributes.normal.array;
     const out = [];
     for (let i = 0, n = pos.length / 3; i < n; i++) {
@@ -271,8 +277,8 @@ export class SelectionTools {
     return out;
   }
 
-  _drawRect() {
-    const b = this.box;
+  /** @param {{x0: number, y0: number, x1: number, y1: number}} b */
+  _drawRect(b) {
     const s = this.rectEl.style;
     s.left = `${Math.min(b.x0, b.x1)}px`;
     s.top = `${Math.min(b.y0, b.y1)}px`;

@@ -222,6 +222,11 @@ export class Viewer {
     return this.geometry ? this.geometry.attributes.position.count : 0;
   }
 
+  /** The mesh's bounding box (kept up to date by every position change), or null without a mesh. */
+  get box() {
+    return this.geometry ? partsOf(this.geometry).box : null;
+  }
+
   get positions() {
     return this.geometry ? partsOf(this.geometry).positions : new Float32Array(0);
   }
