@@ -19,14 +19,27 @@ const RING_SAMPLES = 96;
  * counter-clockwise as seen from the camera); the free ball (XYZE) rolls like a trackball, one radian per ring
  * radius of pointer travel. Translation is TransformControls' own.
  */
+/**
+ * The state of a rotation under way: the axis (null: the free ball), the object's rotation when it began, the
+ * pivot's and the pointer's last pixels, the angle swept so far and the free ball's accumulated roll.
+ * @typedef {{worldAxis: THREE.Vector3|null, quaternion: THREE.Quaternion, centre: number[], last: number[],
+ *   swept: number, roll: THREE.Quaternion}} RingDrag
+ */
+
 export class RingControls extends TransformControls {
+  /**
+   * @param {THREE.Camera} camera
+   * @param {HTMLElement} canvas
+   */
   constructor(camera, canvas) {
     super(camera, canvas);
+    this.canvas = canvas; // the element the pointer moves over (domElement, which Controls types as nullable)
     this.snapAlways = false; // snapping switched on in the panel
     this.snapKey = false; // the modifier (Ctrl or ⌘) held during the drag
     this.gridStep = 0; // translation snap step (model units)
     this._muted = false;
-    this._ring = null; // state of the rotation under way
+    /** @type {RingDrag|null} state of the rotation under way */
+    this._ring = null;
     this._lastPointer = null; // the latest pointer of the drag (re-applied when the modifier changes)
     const track = (e) => {
       const held = e.ctrlKey || e.metaKey;
@@ -54,7 +67,7 @@ export class RingControls extends TransformControls {
 
   /** Pixel coordinates (relative to the canvas) of a pointer in normalised device coordinates. */
   _pixels(pointer) {
-    const r = this.domElement.getBoundingClientRect();
+    const r = this.canvas.getBoundingClientRect();
     return [((pointer.x + 1) / 2) * r.width, ((1 - pointer.y) / 2) * r.height];
   }
 
@@ -138,7 +151,7 @@ export class RingControls extends TransformControls {
   pointerMove(pointer) {
     if (pointer !== null) this._lastPointer = pointer;
     if (this.mode === 'rotate' && this._ring && this.dragging && pointer !== null) {
-      this._rotate(pointer);
+      this._rotate(pointer, this._ring);
       return;
     }
     if (this.mode !== 'translate' || !this.snapping || !(this.gridStep > 0)) {
@@ -167,8 +180,8 @@ export class RingControls extends TransformControls {
     this.object.position.copy(this.tc._positionStart).add(offset);
   }
 
-  _rotate(pointer) {
-    const ring = this._ring;
+  /** @param {RingDrag} ring the rotation under way */
+  _rotate(pointer, ring) {
     const at = this._pixels(pointer);
     if (pointer.button !== -1 && pointer.button !== undefined) return;
     if (ring.worldAxis) {
@@ -210,8 +223,9 @@ export class RingControls extends TransformControls {
     }
     const d = this.object.position.clone().sub(this.tc._positionStart);
     if (this.space === 'local' && this.axis !== 'XYZ') d.applyQuaternion(this.tc._quaternionStart.clone().invert());
-    const parts = ['x', 'y', 'z'].filter((c) => this.axis.includes(c.toUpperCase()));
-    return `Move ${this.axis}: ${parts.map((c) => Number(d[c].toPrecision(4))).join(', ')}`;
+    const shown = this.axis;
+    const parts = ['x', 'y', 'z'].filter((c) => shown.includes(c.toUpperCase()));
+    return `Move ${shown}: ${parts.map((c) => Number(d[c].toPrecision(4))).join(', ')}`;
   }
 
   /** World size of the gizmo's unit (its handles keep a constant screen size; TransformControls' own factor). */
