@@ -5,6 +5,13 @@ import { rotationAbout, translationBy } from './transform.js';
 
 const VERB = { translate: 'Move', rotate: 'Rotate' };
 
+/**
+ * A typed transform under way: what it does, along which axis (null: not typed yet), the amount typed so far, the
+ * group it was started on, and the key last refused (or null).
+ * @typedef {{mode: 'translate'|'rotate', axis: 'x'|'y'|'z'|null, text: string, group: number,
+ *   refused: string|null}} Entry
+ */
+
 /** The number typed so far ('' and lone signs or points count as 0; an unfinished exponent as none). */
 export function typedValue(text) {
   const v = Number.parseFloat(text);
@@ -50,15 +57,17 @@ export function typedTransform(gizmo, camera, mode, axis, amount) {
 
 export class NumericEntry {
   /**
-   * @param {object} opts gizmo, viewer, line (the element showing what is typed), canStart(): true when a
-   *   handle group is active and the studio is ready
+   * @param {{gizmo: import('./gizmo.js').HandleGizmo, viewer: import('./viewer.js').Viewer, line: HTMLElement,
+   *   canStart: () => boolean}} opts line: the element showing what is typed; canStart(): true when a handle group
+   *   is active and the studio is ready
    */
   constructor({ gizmo, viewer, line, canStart }) {
     this.gizmo = gizmo;
     this.viewer = viewer;
     this.line = line;
     this.canStart = canStart;
-    this.entry = null; // {mode, axis, text, group}
+    /** @type {Entry|null} */
+    this.entry = null;
     this.pointerOver = false;
     const c = viewer.canvas;
     c.addEventListener('pointerenter', () => (this.pointerOver = true));
@@ -73,16 +82,19 @@ export class NumericEntry {
     return this.entry !== null;
   }
 
-  /** Start a typed move ('translate') or rotation ('rotate') of the active group; false when none can start. */
+  /**
+   * Start a typed move ('translate') or rotation ('rotate') of the active group; false when none can start.
+   * @param {'translate'|'rotate'} mode
+   */
   start(mode) {
     if (this.entry) {
       this.entry.mode = mode;
-      this._update();
+      this._update(this.entry);
       return true;
     }
     if (!this.pointerOver || !this.canStart() || this.gizmo.dragging || !this.gizmo.indices.length) return false;
     this.entry = { mode, axis: null, text: '', group: this.gizmo.group, refused: null };
-    this._update();
+    this._update(this.entry);
     return true;
   }
 
@@ -97,32 +109,32 @@ export class NumericEntry {
   confirm() {
     const e = this.entry;
     if (!e) return;
-    const m = e.text === '' ? null : this._matrix();
+    const m = e.text === '' ? null : this._matrix(e);
     this.entry = null;
     this.line.hidden = true;
     if (m) this.gizmo.apply(m);
     else this.gizmo.cancelPreview();
   }
 
-  _axis() {
-    const e = this.entry;
+  /** @param {Entry} e */
+  _axis(e) {
     return e.axis ?? (e.mode === 'rotate' ? 'view' : 'x');
   }
 
-  _matrix() {
-    const e = this.entry;
-    return typedTransform(this.gizmo, this.viewer.camera, e.mode, this._axis(), typedValue(e.text));
+  /** @param {Entry} e */
+  _matrix(e) {
+    return typedTransform(this.gizmo, this.viewer.camera, e.mode, this._axis(e), typedValue(e.text));
   }
 
-  _update() {
-    const e = this.entry;
+  /** @param {Entry} e the entry under way */
+  _update(e) {
     if (e.group !== this.gizmo.group || !this.gizmo.indices.length) {
       this.cancel();
       return;
     }
-    const m = this._matrix();
+    const m = this._matrix(e);
     if (m) this.gizmo.preview(m);
-    const axis = this._axis();
+    const axis = this._axis(e);
     const unit = e.mode === 'rotate' ? '°' : '';
     const refused = e.refused === null ? '' : `  (“${e.refused}” cannot go there)`;
     this.line.textContent = `${VERB[e.mode]} ${axis === 'view' ? 'view axis' : axis.toUpperCase()}: `
@@ -155,7 +167,7 @@ export class NumericEntry {
       if (text === null) e.refused = k;
       else e.text = text;
     }
-    if (this.entry) this._update();
+    if (this.entry) this._update(this.entry);
   }
 
   _pointer(ev) {

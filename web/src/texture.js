@@ -59,6 +59,16 @@ export function appearanceArrays(frame, nVertices) {
 }
 
 /**
+ * What a textured render mesh is made of, or null when the look has no texture to show.
+ * @param {Look} look
+ * @returns {{map: Uint32Array, uv: Float32Array, faces: Uint32Array, texture: Blob}|null}
+ */
+export function textureParts(look) {
+  const { map, uv, faces, texture } = look;
+  return map && uv && faces && texture ? { map, uv, faces, texture } : null;
+}
+
+/**
  * A standard material drawing `map` with the per-vertex RGBA colour attribute mixed over it (alpha: how much of the
  * colour covers the texture), so painted roles stay readable on a textured surface.
  * @param {THREE.Texture} map
@@ -85,7 +95,7 @@ export function blendedMaterial(map) {
 /** The textured render mesh: its geometry gathers positions and normals of the solved mesh through `map`. */
 export class RenderMesh {
   /**
-   * @param {Look} look with map, uv, faces and texture
+   * @param {{map: Uint32Array, uv: Float32Array, faces: Uint32Array, texture: Blob}} look (textureParts)
    * @param {() => void} redraw called once the texture image is decoded
    */
   constructor(look, redraw) {
@@ -98,8 +108,10 @@ export class RenderMesh {
     const tint = new Float32Array(4 * r); // alpha 0: the texture as it is
     g.setAttribute('color', new THREE.BufferAttribute(tint, 4));
     g.setIndex(new THREE.BufferAttribute(look.faces, 1));
-    g.boundingBox = new THREE.Box3();
-    g.boundingSphere = new THREE.Sphere();
+    this.box = new THREE.Box3();
+    this.sphere = new THREE.Sphere();
+    g.boundingBox = this.box;
+    g.boundingSphere = this.sphere;
     this.geometry = g;
     this.texture = new THREE.Texture();
     this.texture.flipY = false; // UVs count v down from the image's top row (glTF)
@@ -149,8 +161,8 @@ export class RenderMesh {
     }
     pa.needsUpdate = true;
     na.needsUpdate = true;
-    g.boundingBox.copy(box);
-    g.boundingSphere.copy(sphere);
+    this.box.copy(box);
+    this.sphere.copy(sphere);
   }
 
   /**

@@ -1,4 +1,5 @@
 // The Manipulate section's pivot, axes, snapping and exact-transform controls, and their shortcuts (G, R, P, C, L).
+import { byId } from './dom.js';
 import { SHORTCUTS } from './help.js';
 import { ignoreTypeAhead } from './keys.js';
 import { NumericEntry, typedTransform } from './numeric.js';
@@ -14,7 +15,6 @@ SHORTCUTS.push(
   { key: null, label: 'Ctrl+drag gizmo', does: 'Snap: rotations to 15°, moves to the grid' },
 );
 
-const byId = (id) => /** @type {HTMLElement} */ (document.getElementById(id));
 
 /**
  * Wire the controls to the gizmo. Call it before the selection tools and the orbit controls are created (the

@@ -7,7 +7,7 @@ import { OrbitControls } from 'three/addons/controls/OrbitControls.js';
 import { SubsetNormals, VertexFaces, computeBounds, computeNormals } from './normals.js';
 import { BASE_LIN, fillRoleColors } from './rolecolors.js';
 import { addLights, floorGrid } from './stage.js';
-import { RenderMesh } from './texture.js';
+import { RenderMesh, textureParts } from './texture.js';
 
 /**
  * The positions, index and bounds of a geometry of the viewer: setMesh gives every geometry it makes Float32Array
@@ -151,8 +151,9 @@ export class Viewer {
     this._dropLook();
     if (!this.geometry) return;
     this.look = look;
-    if (look.map && look.texture) {
-      const textured = new RenderMesh(look, () => this.requestRender());
+    const parts = textureParts(look);
+    if (parts) {
+      const textured = new RenderMesh(parts, () => this.requestRender());
       this.textured = textured;
       textured.material.flatShading = this.material.flatShading;
       this._tint = new Float32Array(4 * this.nVertices);
