@@ -46,7 +46,7 @@ export class Connection {
   /** Connect now (also cancels a scheduled reconnection); a lost connection is retried with backoff. */
   connect() {
     this.stopped = false;
-    clearTimeout(this.retryTimer);
+    clearTimeout(this.retryTimer ?? undefined);
     this.retryTimer = null;
     if (this.ws && (this.ws.readyState === WebSocket.OPEN || this.ws.readyState === WebSocket.CONNECTING)) return;
     const ws = new WebSocket(this.url);
@@ -84,7 +84,7 @@ export class Connection {
   /** Close for good (no reconnection). */
   close() {
     this.stopped = true;
-    clearTimeout(this.retryTimer);
+    clearTimeout(this.retryTimer ?? undefined);
     this.retryTimer = null;
     this.ws?.close();
   }
@@ -115,7 +115,7 @@ export class Connection {
    */
   send(msg) {
     if (!this.open) return false;
-    this.ws.send(JSON.stringify(msg));
+    /** @type {WebSocket} */ (this.ws).send(JSON.stringify(msg)); // open: there is one
     return true;
   }
 
@@ -127,7 +127,7 @@ export class Connection {
    */
   sendBinary(header, bytes) {
     if (!this.open) return false;
-    this.ws.send(encodeBinary(header, bytes));
+    /** @type {WebSocket} */ (this.ws).send(encodeBinary(header, bytes));
     return true;
   }
 

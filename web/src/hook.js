@@ -47,8 +47,13 @@ function gizmoInfo(viewer, gizmo, transformUi) {
   };
 }
 
+/**
+ * Install `window.__arap`.
+ * @param {object} deps the stores (mesh, history, params, diagnostics, tools: the ToolStore), sync (ConstraintSync),
+ *   viewer, livePose, selection, gizmo, conn, keeper, points, mirror, transformUi, timeline
+ */
 export function installTestHook({
-  app, viewer, livePose, selection, gizmo, conn, keeper, points, mirror, transformUi, timeline,
+  mesh, history, params, diagnostics, tools, sync, viewer, livePose, selection, gizmo, conn, keeper, points, mirror, transformUi, timeline,
 }) {
   const toPage = ([x, y]) => {
     const r = viewer.canvas.getBoundingClientRect();
@@ -56,13 +61,13 @@ export function installTestHook({
   };
   /** @type {any} */ (window).__arap = Object.freeze({
     get ready() {
-      return app.ready;
+      return mesh.ready;
     },
     get connected() {
       return conn.open;
     },
     get meshName() {
-      return app.meshName;
+      return mesh.name;
     },
     get nVertices() {
       return viewer.nVertices;
@@ -79,17 +84,17 @@ export function installTestHook({
       return viewer.textureReady;
     },
     get nFaces() {
-      return app.nFaces;
+      return mesh.nFaces;
     },
     get repaired() {
-      return app.repaired;
+      return mesh.repaired;
     },
     get lastSeq() {
-      return app.lastSeq;
+      return mesh.lastSeq;
     },
     /** True while a request that changes the view is unanswered, or a shape received is not drawn yet. */
     get busy() {
-      return app.busyFor !== null || app.sentKey !== null || app.awaitingState || conn.dragBusy || keeper.restore.busy
+      return history.busyFor !== null || sync.pending || history.awaitingState || conn.dragBusy || keeper.restore.busy
         || livePose.pending;
     },
     /** Vertices frames received and applied (the others were replaced by newer ones before being drawn). */
@@ -97,36 +102,36 @@ export function installTestHook({
       return { received: livePose.received, applied: livePose.applied };
     },
     get canUndo() {
-      return app.canUndo;
+      return history.canUndo;
     },
     get canRedo() {
-      return app.canRedo;
+      return history.canRedo;
     },
     get builtins() {
-      return app.builtins.slice();
+      return mesh.builtins.slice();
     },
     get params() {
-      return { ...app.params };
+      return { ...params.values };
     },
     get limits() {
-      return { ...app.limits };
+      return { ...mesh.limits };
     },
     get errors() {
-      return app.errors.map((e) => ({ ...e }));
+      return diagnostics.errors.map((e) => ({ ...e }));
     },
     /** Milliseconds of JavaScript per vertices frame applied (the newest 256; drawing excluded). */
     get frameMs() {
-      return app.frameMs.slice();
+      return diagnostics.frameMs.slice();
     },
     get meshMs() {
-      return app.meshMs;
+      return diagnostics.meshMs;
     },
     /**
      * Wall-clock times (ms since the epoch) of the last upload: chosen, read, sent; then received, shown and drawn,
      * set by every mesh message (read them right after an upload).
      */
     get uploadAt() {
-      return { ...app.uploadAt };
+      return { ...diagnostics.uploadAt };
     },
     /**
      * Make the page slow at showing shapes: applying each vertices frame takes `ms` more milliseconds of
@@ -146,7 +151,7 @@ export function installTestHook({
       }
     },
     get messages() {
-      return app.messages;
+      return diagnostics.messages;
     },
     /** Autosave: idle (nothing waits to be written), saves (writes done), held (paused). */
     get autosave() {
@@ -187,7 +192,7 @@ export function installTestHook({
       return selection.activeGroup;
     },
     get role() {
-      return app.role;
+      return tools.role;
     },
     /** Mirror editing: on, active (on with a plane), axis, plane, matched share, tolerance, ms, mirrorOf. */
     mirror: () => {

@@ -9,8 +9,9 @@ import { builtinSource, captureSession, describe, encodePly, fileSource, hasEdit
 
 export class SessionKeeper {
   /**
-   * @param {object} deps app, selection, viewer, panel, gizmo, send(msg) → bool, requestMesh(source) → bool,
-   *   applySelection(snap) (put a saved selection back and send it), offerParent (element for the offer banner)
+   * @param {object} deps mesh (MeshStore), history (HistoryStore), params (ParamStore), selection, viewer, panel,
+   *   gizmo, send(msg) → bool, requestMesh(source) → bool, applySelection(snap) (put a saved selection back and send
+   *   it), offerParent (element for the offer banner)
    */
   constructor(deps) {
     this.deps = deps;
@@ -24,7 +25,7 @@ export class SessionKeeper {
     let failed = false;
     this.autosave = new Autosave({
       id: this.id,
-      capture: () => captureSession(deps, this.rest),
+      capture: () => captureSession(this._session(), this.rest),
       delayMs: () => 500 + deps.viewer.nVertices / 200, // large meshes are written less often
       onError: (err) => {
         if (!failed) deps.panel.showStatus(`Autosave failed: ${err.message || err}`, 'error');
@@ -36,7 +37,21 @@ export class SessionKeeper {
   }
 
   hasEdits() {
-    return hasEdits(this.deps);
+    return hasEdits(this._session());
+  }
+
+  /** The session as snapshot.js reads it: the stores' fields under the names of a saved session. */
+  _session() {
+    const { mesh, history, params, selection, viewer } = this.deps;
+    const app = {
+      canUndo: history.canUndo,
+      canRedo: history.canRedo,
+      source: mesh.source,
+      meshName: mesh.name,
+      nFaces: mesh.nFaces,
+      params: params.values,
+    };
+    return { app, selection, viewer, gizmo: this.deps.gizmo };
   }
 
   /** Work of this page waits for the server: a session to put back after reconnecting, or a chosen restore. */
@@ -47,7 +62,7 @@ export class SessionKeeper {
   /** True when the current session may be replaced: it has no edits, or the user agrees to lose them. */
   confirmReplace(what) {
     if (!this.hasEdits()) return true;
-    return window.confirm(`Replace ${this.deps.app.meshName || 'the current mesh'} with ${what}? Its selection, ` +
+    return window.confirm(`Replace ${this.deps.mesh.name || 'the current mesh'} with ${what}? Its selection, ` +
       'handle groups, deformation and undo history will be lost.');
   }
 
@@ -77,14 +92,14 @@ export class SessionKeeper {
   /** The server greeted a new connection (its mesh follows). */
   welcomed() {
     // the selection may have been edited while disconnected: take it as it is now
-    if (this.lost?.live) this.lost.snap = captureSession(this.deps, this.rest);
+    if (this.lost?.live) this.lost.snap = captureSession(this._session(), this.rest);
   }
 
   /** A mesh arrived (positions and faces as sent). */
   meshArrived(msg, positions, faces) {
-    const { app } = this.deps;
-    app.source = this.pendingSource
-      ?? (app.builtins.includes(msg.name) ? builtinSource(msg.name) : fileSource(`${msg.name}.ply`, encodePly(positions, faces, app.vertexMap), app.repaired));
+    const { mesh } = this.deps;
+    mesh.source = this.pendingSource
+      ?? (mesh.builtins.includes(msg.name) ? builtinSource(msg.name) : fileSource(`${msg.name}.ply`, encodePly(positions, faces, mesh.vertexMap), mesh.repaired));
     this.pendingSource = null;
     this.rest = Float32Array.from(positions);
     if (this.offer?.banner.open) this.offer.banner.setText(describe(this.offer.record, msg.name));
@@ -103,14 +118,14 @@ export class SessionKeeper {
 
   /** A state arrived; `synced`: the server holds the local selection. */
   stateArrived(synced) {
-    const { app, viewer } = this.deps;
+    const { mesh, viewer } = this.deps;
     if (this.applying > 0) {
       // the deformed shape is now the rest pose: a restore must upload it
       this.applying--;
       this.rest = Float32Array.from(viewer.positions);
-      const bytes = encodePly(viewer.positions, viewer.geometry.index.array, app.vertexMap);
-      if (!app.limits.max_upload_bytes || bytes.byteLength <= app.limits.max_upload_bytes) {
-        app.source = fileSource(`${app.meshName}.ply`, bytes, app.repaired);
+      const bytes = encodePly(viewer.positions, viewer.geometry.index.array, mesh.vertexMap);
+      if (!mesh.limits.max_upload_bytes || bytes.byteLength <= mesh.limits.max_upload_bytes) {
+        mesh.source = fileSource(`${mesh.name}.ply`, bytes, mesh.repaired);
       }
     }
     this.restore.stateArrived(synced);
@@ -124,8 +139,8 @@ export class SessionKeeper {
 
   /** Put a saved session back (`recordId`: its saved record, deleted once restored). */
   startRestore(snap, recordId) {
-    const { app, panel } = this.deps;
-    if (!app.ready) {
+    const { mesh, panel } = this.deps;
+    if (!mesh.ready) {
       this.queued = { snap, recordId };
       panel.showStatus('The saved session is restored as soon as the studio server answers.', 'info');
       return;
@@ -153,7 +168,7 @@ export class SessionKeeper {
     const record = await newestOrphan(this.id);
     if (!record || !record.edits) return;
     const banner = showRestoreOffer(this.deps.offerParent, {
-      text: describe(record, this.deps.app.meshName),
+      text: describe(record, this.deps.mesh.name),
       onRestore: () => {
         if (!this.confirmReplace(`the saved ${record.meshName}`)) return false;
         this._restoreRecord(record).catch((err) => this.deps.panel.showStatus(`Could not restore: ${err.message || err}`, 'error'));

@@ -2,6 +2,9 @@
 // updates per second, which decay to zero once dragging stops.
 import { LinePlot } from './plot.js';
 
+/** The note that energies below 0 were reported. */
+const energyNote = () => /** @type {HTMLElement} */ (document.getElementById('energy-note'));
+
 export class UpdateStats {
   /**
    * @param {object} opts panel (its setStats), latencyMs() (the connection's last round trip, or null)
@@ -29,12 +32,12 @@ export class UpdateStats {
     this.updateTimes = [];
     this.iterPlot.clear();
     this.timePlot.clear();
-    document.getElementById('energy-note').hidden = true;
+    energyNote().hidden = true;
   }
 
   /** Show the note on energies below 0 while the energies last reported include one. */
   noteEnergies(energies) {
-    document.getElementById('energy-note').hidden = !energies.some((e) => e < 0);
+    energyNote().hidden = !energies.some((e) => e < 0);
   }
 
   /** A vertices frame of a solve (iterations > 0) arrived: counted, and its last energy noted (drawn later). */

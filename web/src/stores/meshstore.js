@@ -1,0 +1,73 @@
+// The mesh the page shows and what the server said of it: its name and counts, the file's vertex numbering when
+// repair renumbered it, whether repair changed it, where it came from (what a restore loads again), the server's
+// limits and built-in models, and whether the session is ready (greeted, in our protocol version, a mesh shown).
+
+/** @typedef {import('../protocol.js').WelcomeServerMessage} WelcomeServerMessage */
+/** @typedef {import('../protocol.js').MeshServerMessage} MeshServerMessage */
+
+/**
+ * The server's limits (welcome.limits): upload bytes and vertices at least, 0 while unknown.
+ * @typedef {{max_upload_bytes: number, max_vertices: number, [name: string]: any}} Limits
+ */
+
+/**
+ * Where the session's rest mesh comes from (snapshot.js builtinSource, fileSource): a built-in model by name, or a
+ * mesh file's bytes; `repaired`: the bytes are a mesh that repair changed when its file was loaded.
+ * @typedef {{kind: string, key: number, name?: string, filename?: string, bytes?: any, repaired?: boolean}} MeshSource
+ */
+
+export class MeshStore {
+  /** The session can be edited: the server greeted this page in its protocol version and a mesh is shown. */
+  ready = false;
+  /** The server speaks another protocol version: its messages are not read. */
+  incompatible = false;
+  /** @type {string|null} the model's name (null before the first mesh) */
+  name = null;
+  nFaces = 0;
+  /** @type {Int32Array|null} mesh vertex of each vertex of the mesh file, when repair renumbered them */
+  vertexMap = null;
+  /** Repair changed the mesh: its triangles are not the file's. */
+  repaired = false;
+  /** @type {MeshSource|null} where the current mesh came from */
+  source = null;
+  /** @type {Limits} */
+  limits = { max_upload_bytes: 0, max_vertices: 0 };
+  /** @type {string[]} names of the built-in models */
+  builtins = [];
+  /** The newest drag request the shape shown answers (-1: none since the mesh arrived). */
+  lastSeq = -1;
+
+  /**
+   * The server greeted the page: false when it speaks another protocol version (`ours`), which makes it not ready.
+   * @param {WelcomeServerMessage} msg
+   * @param {number} ours
+   */
+  welcomed(msg, ours) {
+    this.incompatible = msg.protocol !== ours;
+    if (this.incompatible) {
+      this.ready = false;
+      return false;
+    }
+    this.builtins = msg.builtin_meshes || [];
+    this.limits = { ...this.limits, ...(msg.limits || {}) };
+    return true;
+  }
+
+  /**
+   * A mesh arrived and is shown; `vertexMap`: its file's numbering (protocol.js meshArrays).
+   * @param {MeshServerMessage} msg
+   * @param {Int32Array|null} vertexMap
+   */
+  shown(msg, vertexMap) {
+    this.name = msg.name;
+    this.nFaces = msg.n_faces;
+    this.vertexMap = vertexMap; // constraints documents name the file's vertices (numbering.js)
+    this.repaired = (msg.report || []).length > 0;
+    this.lastSeq = -1;
+  }
+
+  /** The source is a PLY written from a repaired mesh: still not the file's triangles. */
+  sourceArrived() {
+    if (this.source?.repaired) this.repaired = true;
+  }
+}
