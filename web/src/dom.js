@@ -27,3 +27,15 @@ export function byIdAs(id, kind) {
   if (!(el instanceof kind)) throw new Error(`the page's element #${id} is not a ${kind.name}`);
   return el;
 }
+
+/**
+ * The first element under `root` that matches a CSS selector; throws when there is none.
+ * @param {ParentNode} root
+ * @param {string} selector
+ * @returns {HTMLElement}
+ */
+export function inside(root, selector) {
+  const el = root.querySelector(selector);
+  if (!(el instanceof HTMLElement)) throw new Error(`the page has no element ${selector} where expected`);
+  return el;
+}

@@ -87,6 +87,11 @@ export function installDropTarget(target, overlay, onFile) {
   window.addEventListener('drop', (e) => e.preventDefault());
 }
 
+/**
+ * @param {unknown} v
+ * @param {string} what
+ * @returns {number[]}
+ */
 function indexList(v, what) {
   if (v === undefined || v === null) return [];
   if (!Array.isArray(v) || !v.every((i) => Number.isInteger(i) && i >= 0)) {
@@ -181,6 +186,8 @@ function stiffnessList(doc, nVertices) {
  * handle vertex to its [x, y, z]; handles outside `handle_groups` (vertices a saved studio session held in place)
  * become one more group. `partners` lists the pairs [k, l] of mirror partner groups saved in "meta". With
  * `nVertices` (the mesh's), painted stiffness is checked against the mesh.
+ * @param {string} text
+ * @param {number} [nVertices]
  */
 export function parseConstraints(text, nVertices = undefined) {
   let doc;
@@ -193,6 +200,7 @@ export function parseConstraints(text, nVertices = undefined) {
   const roi = doc.roi === null || doc.roi === undefined ? null : indexList(doc.roi, 'roi');
   const fixed = indexList(doc.fixed, 'fixed');
   const targets = targetMap(doc);
+  /** @type {number[][]} */
   let groups;
   if (Array.isArray(doc.handle_groups)) {
     groups = doc.handle_groups.map((g, k) => indexList(g, `handle_groups[${k}]`));

@@ -1,5 +1,6 @@
 // Help: the table of every shortcut (the one place they are described), the "?" overlay built from it, and the
 // first-run guide (anchor → handle → drag), dismissed once and remembered.
+import { byId, inside } from './dom.js';
 
 /**
  * Every shortcut of the studio. `key` is the lower-case `KeyboardEvent.key` a plain key press triggers (see
@@ -76,12 +77,11 @@ export class Help {
    * @param {HTMLElement} guide the first-run guide
    * @param {HTMLElement} button opens and closes the overlay
    */
-  constructor(overlay = document.getElementById('help'), guide = document.getElementById('guide'),
-    button = document.getElementById('btn-help')) {
+  constructor(overlay = byId('help'), guide = byId('guide'), button = byId('btn-help')) {
     button.addEventListener('click', () => this.toggle());
     this.overlay = overlay;
     this.guide = guide;
-    const table = overlay.querySelector('tbody');
+    const table = inside(overlay, 'tbody');
     for (const s of SHORTCUTS) {
       const tr = document.createElement('tr');
       const th = document.createElement('th');
@@ -96,7 +96,7 @@ export class Help {
     overlay.addEventListener('click', (e) => {
       if (e.target === overlay || (e.target instanceof Element && e.target.closest('.help-close'))) this.hide();
     });
-    guide.querySelector('.guide-close').addEventListener('click', () => this.dismissGuide());
+    inside(guide, '.guide-close').addEventListener('click', () => this.dismissGuide());
     guide.hidden = remembered();
     /** The guide's steps done so far (its list items, in order: anchors, handle, drag). */
     this.done = { anchors: false, handle: false, drag: false };

@@ -19,7 +19,9 @@ export class SurfaceSelection {
     this.paint = paint ?? ((indices, mode, subtract) => selection.paint(indices, mode, subtract));
     this.role = role;
     this.changed = changed;
+    /** @type {{ptr: Int32Array, adj: Int32Array}|null} */
     this._graph = null;
+    /** @type {Uint32Array|null} the triangles `_graph` was built from */
     this._graphFor = null;
     /** The selection as it was before each Grow still undone by Shrink, newest last (see ring). */
     this._grown = [];
@@ -27,14 +29,16 @@ export class SurfaceSelection {
 
   /** The vertex adjacency of the current mesh, built on first use after each new mesh. */
   graph() {
-    const faces = this.viewer.geometry.index.array;
-    if (this._graphFor !== faces) {
+    const faces = this.viewer.faces;
+    if (!faces) throw new Error('no mesh: no vertex adjacency');
+    let graph = this._graph;
+    if (!graph || this._graphFor !== faces) {
       const t0 = performance.now();
-      this._graph = buildAdjacency(faces, this.viewer.nVertices);
+      graph = this._graph = buildAdjacency(faces, this.viewer.nVertices);
       this.buildMs = performance.now() - t0;
       this._graphFor = faces;
     }
-    return this._graph;
+    return graph;
   }
 
   /** Membership test of the role being painted, or null for erase. */
@@ -94,15 +98,15 @@ export class SurfaceSelection {
     const s = this.selection;
     const handles = [];
     for (let i = 0; i < s.n; i++) if (s.role[i] >= HANDLE0) handles.push(i);
-    const faces = this.viewer.geometry?.index.array;
+    const faces = this.viewer.faces;
     for (const g of s.groups) {
       if (g.point && faces) for (let k = 0; k < 3; k++) handles.push(faces[3 * g.point.face + k]);
     }
-    if (!handles.length) return false;
+    const box = this.viewer.box;
+    if (!handles.length || !box) return false;
     let region;
     if (mode === 'rings') region = kRing(this.graph(), handles, Math.max(0, Math.round(amount)));
     else {
-      const box = this.viewer.geometry.boundingBox;
       const radius = (amount / 100) * box.min.distanceTo(box.max);
       region = geodesicDistances(this.graph(), this.viewer.positions, handles.map((v) => [v, 0]), radius).vertices;
     }

@@ -223,6 +223,11 @@ export class Viewer {
     return this.geometry ? this.geometry.attributes.position.count : 0;
   }
 
+  /** The mesh's triangles (3 vertex indices each), or null without a mesh. */
+  get faces() {
+    return this.geometry ? partsOf(this.geometry).faces : null;
+  }
+
   /** The mesh's bounding box (kept up to date by every position change), or null without a mesh. */
   get box() {
     return this.geometry ? partsOf(this.geometry).box : null;
