@@ -4,6 +4,7 @@
 // mirror editing is first turned on, with the tolerance set in the panel: how far a vertex's reflection may lie from
 // the surface for the vertex to have a partner.
 import * as THREE from 'three';
+import { byId, byIdAs } from './dom.js';
 import { ignoreTypeAhead } from './keys.js';
 import {
   DEFAULT_TOLERANCE, detectSymmetry, MIN_MATCHED, mirrorImage, reflectionMatrix, TOLERANCE_RANGE,
@@ -21,10 +22,10 @@ export class MirrorEditing {
    */
   constructor({
     viewer, selection, tell,
-    checkbox = /** @type {HTMLInputElement} */ (document.getElementById('mirror-on')),
-    axisSelect = /** @type {HTMLSelectElement} */ (document.getElementById('mirror-axis')),
-    toleranceInput = /** @type {HTMLInputElement} */ (document.getElementById('mirror-tolerance')),
-    statusEl = document.getElementById('mirror-status'),
+    checkbox = byIdAs('mirror-on', HTMLInputElement),
+    axisSelect = byIdAs('mirror-axis', HTMLSelectElement),
+    toleranceInput = byIdAs('mirror-tolerance', HTMLInputElement),
+    statusEl = byId('mirror-status'),
   }) {
     this.viewer = viewer;
     this.selection = selection;
@@ -37,7 +38,8 @@ export class MirrorEditing {
     this.tolerance = DEFAULT_TOLERANCE; // a fraction of the bounding-box diagonal
     this.toleranceInput = toleranceInput;
     this.result = null; // detectSymmetry's answer for the rest pose, null until needed
-    this.rest = null; // rest positions (Float32Array) and faces of the current mesh
+    /** @type {Float32Array|null} rest positions of the current mesh (its faces: `faces`) */
+    this.rest = null;
     this.restId = null; // the server's id of that rest pose (null until a state names it)
     this.rests = new Map(); // rest positions by id: undo and redo of an apply come back to an earlier one
     this.faces = null;
@@ -65,7 +67,8 @@ export class MirrorEditing {
 
   /** The vertex correspondence (-1: no partner), or null while inactive. */
   get mirrorOf() {
-    return this.active ? this.result.mirrorOf : null;
+    const r = this.result;
+    return this.on && r?.plane ? r.mirrorOf : null;
   }
 
   /** A new mesh: its positions are the rest pose. */
@@ -157,8 +160,9 @@ export class MirrorEditing {
 
   _drawPlane() {
     const v = this.viewer;
-    const shown = this.active && v.geometry;
-    if (!shown) {
+    const plane = this.on ? this.result?.plane : null; // non-null just when active
+    const rest = this.rest;
+    if (!plane || !rest || !v.geometry) {
       if (this.planeMesh) this.planeMesh.visible = false;
       v.requestRender();
       return;
@@ -176,9 +180,9 @@ export class MirrorEditing {
       this.planeMesh.renderOrder = 1;
       v.scene.add(this.planeMesh);
     }
-    const { normal, point } = this.result.plane;
+    const { normal, point } = plane;
     const nrm = new THREE.Vector3(...normal);
-    const box = new THREE.Box3().setFromArray(this.rest);
+    const box = new THREE.Box3().setFromArray(rest);
     const centre = box.getCenter(new THREE.Vector3());
     centre.addScaledVector(nrm, nrm.dot(new THREE.Vector3(...point).sub(centre)));
     const size = 1.15 * box.getSize(new THREE.Vector3()).length();
