@@ -1,6 +1,12 @@
-// Side panel: controls bound to studio actions, and the read-outs (groups, counts, statistics, status).
+// The side panel's controls: model choice, tools, roles and handle groups, solver parameters, export, view
+// options, each bound to a studio action (main.js supplies them), and the panel's answers to what happens to the
+// connection. What the panel only displays (status bar, connection, statistics, settling) is in readouts.js,
+// whose class this one extends, so that the studio still talks to one panel object.
 import { EXPORT_FORMATS, PARAMS } from './protocol.js';
+import { fmtInt, PanelReadouts } from './readouts.js';
 import { cssColor, FIXED_COLOR, groupColor } from './rolecolors.js';
+
+export { countOf, settleText } from './readouts.js';
 
 /**
  * A panel element by id (form controls of several kinds: typed loosely).
@@ -11,42 +17,6 @@ const $ = (id) => document.getElementById(id);
 
 /** The control an event came from. @param {Event} e @returns {any} */
 const source = (e) => e.target;
-
-function fmtMs(v) {
-  if (v === null || v === undefined || !Number.isFinite(v)) return '–';
-  return v >= 100 ? `${v.toFixed(0)} ms` : `${v.toFixed(1)} ms`;
-}
-
-function fmtInt(v) {
-  return Number.isFinite(v) ? v.toLocaleString('en-US') : '–';
-}
-
-/** A count with its noun, singular for 1: "1 iteration", "3,000 iterations". */
-export function countOf(n, noun) {
-  return `${fmtInt(n)} ${n === 1 ? noun : `${noun}s`}`;
-}
-
-/**
- * The Shape line's text for a `settle` message.
- * @param {{status: string, iterations?: number, energy?: number|null}} msg
- */
-export function settleText(msg) {
-  const n = Number.isFinite(msg.iterations) ? msg.iterations : 0;
-  const after = n > 0 ? ` after ${countOf(n, 'iteration')}` : '';
-  const energy = Number.isFinite(msg.energy) ? `, energy ${msg.energy.toPrecision(6)}` : '';
-  switch (msg.status) {
-    case 'settling':
-      return `settling…${after}${energy}`;
-    case 'settled':
-      return `settled${after}${energy}`;
-    case 'stopped': // a request interrupted it; it resumes once the requests are answered
-      return `paused (editing)${after}${energy}`;
-    case 'unconverged': // the server's iteration cap was reached
-      return `not converged after ${countOf(n, 'iteration')}${energy}`;
-    default:
-      return `${msg.status}${after}${energy}`;
-  }
-}
 
 /**
  * Fill a drop-down with the choices of a solver parameter, labelled as the protocol names them.
@@ -64,11 +34,11 @@ function fillChoices(select, param) {
   select.value = param.default;
 }
 
-export class Panel {
+export class Panel extends PanelReadouts {
   /** @param {object} actions callbacks invoked by the controls (see main.js) */
   constructor(actions) {
+    super();
     this.actions = actions;
-    this._statusTimer = null;
     this.enabled = true; // the controls take input (not while the server is away)
 
     $('builtin-select').addEventListener('change', (e) => actions.loadBuiltin(source(e).value));
@@ -267,6 +237,9 @@ export class Panel {
   /**
    * The server is full and refused this tab (`reason`: its words); it is tried again after `delayMs`. `keptWork`:
    * this page holds work from an earlier connection, put back once the server lets it in.
+   * @param {string} reason
+   * @param {number} delayMs
+   * @param {boolean} keptWork
    */
   serverFull(reason, delayMs, keptWork) {
     this.setEnabled(false);
@@ -292,25 +265,6 @@ export class Panel {
     this.setEnabled(false);
     this.showStatus(`This page speaks version ${ours} of the studio protocol and the server version ${theirs}: `
       + 'reload the page.', 'error', 0, 'connection');
-  }
-
-  /**
-   * state: 'open', 'connecting', 'preparing' (connected, the server is not ready yet), 'closed', 'reconnecting' or
-   * 'full' (the server refused this tab); retry:
-   * {attempt, delayMs} of the next try.
-   */
-  setConnection(state, retry = null) {
-    const dot = $('conn-dot');
-    dot.className = `dot ${state === 'open' ? 'ok' : state === 'connecting' || state === 'preparing' ? '' : 'bad'}`;
-    const text = {
-      open: 'connected', closed: 'disconnected', connecting: 'connecting…', reconnecting: 'reconnecting…',
-      full: 'server full', preparing: 'preparing the solver…',
-    };
-    $('conn-text').textContent = text[state] ?? state;
-    const next = retry ? `next try in ${(retry.delayMs / 1000).toFixed(1)} s` : '';
-    $('conn-text').title = retry?.attempt ? `attempt ${retry.attempt}, ${next}` : next;
-    // while reconnecting, the retries run by themselves; a full server is worth asking again after a tab closed
-    $('btn-reconnect').hidden = state !== 'closed' && state !== 'full';
   }
 
   /** groups: [{id, partner?}] (partner: the id of its mirror partner), active: index, roi/fixed counts. */
@@ -350,118 +304,5 @@ export class Panel {
     const roi = counts.roi ? fmtInt(counts.roi) : `whole mesh (${fmtInt(nVertices)})`;
     const fixedSw = `<span class="swatch-inline" style="color:${cssColor(FIXED_COLOR)}">■</span>`;
     $('sel-counts').innerHTML = `ROI: ${roi} · ${fixedSw} anchors: ${fmtInt(counts.fixed)}`;
-  }
-
-  setStats(s) {
-    const set = (id, v) => ($(id).textContent = v);
-    if ('n_vertices' in s) set('st-vertices', fmtInt(s.n_vertices));
-    if ('n_faces' in s) set('st-faces', fmtInt(s.n_faces));
-    if ('roi_size' in s) set('st-roi', fmtInt(s.roi_size));
-    if ('n_free' in s) set('st-free', fmtInt(s.n_free));
-    if ('factor_ms' in s) set('st-factor', fmtMs(s.factor_ms));
-    if ('ms_per_iteration' in s) set('st-iter', fmtMs(s.ms_per_iteration));
-    if ('ups' in s) set('st-ups', Number.isFinite(s.ups) ? s.ups.toFixed(1) : '–');
-    if ('latency_ms' in s) set('st-latency', fmtMs(s.latency_ms));
-  }
-
-  /**
-   * The Shape line from a `settle` message: settling…, settled, paused (editing) or not converged, with the
-   * iterations and the energy; `data-status` is the message's status.
-   */
-  setSettle(msg) {
-    this._setShape(settleText(msg), msg.status);
-    this._settleBadge(msg);
-  }
-
-  /**
-   * The badge over the view: the settling's progress while the server iterates, then for a moment how it ended
-   * (not for a shape that was settled already, after undo, redo or loading).
-   */
-  _settleBadge(msg) {
-    const badge = $('settle-badge');
-    clearTimeout(this._badgeTimer);
-    const ran = msg.status === 'settling' || badge.dataset.status === 'settling' || badge.dataset.status === 'stopped';
-    if (!ran) {
-      badge.hidden = true;
-      badge.dataset.status = '';
-      return;
-    }
-    const text = settleText(msg);
-    badge.textContent = text.charAt(0).toUpperCase() + text.slice(1);
-    badge.dataset.status = msg.status;
-    badge.hidden = false;
-    if (msg.status !== 'settling' && msg.status !== 'stopped') {
-      this._badgeTimer = setTimeout(() => {
-        badge.hidden = true;
-        badge.dataset.status = '';
-      }, 2500);
-    }
-  }
-
-  /** A new mesh: nothing is known of its shape's settling until the server says. */
-  resetSettle() {
-    this._setShape('–', '');
-    clearTimeout(this._badgeTimer);
-    $('settle-badge').hidden = true;
-    $('settle-badge').dataset.status = '';
-  }
-
-  /** The connection was lost: a settling the line still shows as under way may never finish. */
-  settleUnknown() {
-    const status = $('st-settle').dataset.status;
-    if (status === 'settling' || status === 'stopped') {
-      this._setShape('unknown: the connection was lost while it settled', 'interrupted');
-      $('settle-badge').hidden = true;
-      $('settle-badge').dataset.status = '';
-    }
-  }
-
-  _setShape(text, status) {
-    const cell = $('st-settle');
-    cell.textContent = text;
-    cell.dataset.status = status;
-  }
-
-  /**
-   * Show a message in the status bar (kind 'info' or 'error'), hidden after `timeoutMs` (0: until replaced or
-   * dismissed). `tag` names what it is about, so that `clearStatus(tag)` takes it away once it no longer holds.
-   */
-  showStatus(text, kind = 'info', timeoutMs = 0, tag = '') {
-    const bar = $('statusbar');
-    bar.className = kind;
-    bar.dataset.tag = tag;
-    $('status-text').textContent = text;
-    bar.hidden = false;
-    clearTimeout(this._statusTimer);
-    if (timeoutMs) this._statusTimer = setTimeout(() => this.hideStatus(), timeoutMs);
-  }
-
-  /** True while the status bar shows a message tagged `tag` (see showStatus). */
-  showing(tag) {
-    return !$('statusbar').hidden && $('statusbar').dataset.tag === tag;
-  }
-
-  /**
-   * A short hint (a key that does nothing now, and why): shown for `timeoutMs` unless the status bar holds an
-   * error, which it must not hide.
-   */
-  hint(text, timeoutMs = 3000) {
-    if (!$('statusbar').hidden && $('statusbar').className === 'error') return;
-    this.showStatus(text, 'info', timeoutMs, 'hint');
-  }
-
-  /** Hide the status bar if it shows a message tagged `tag` (see showStatus). */
-  clearStatus(tag) {
-    if (!$('statusbar').hidden && $('statusbar').dataset.tag === tag) this.hideStatus();
-  }
-
-  hideStatus() {
-    clearTimeout(this._statusTimer);
-    $('statusbar').hidden = true;
-  }
-
-  setBusy(text) {
-    $('busy').hidden = !text;
-    if (text) $('busy-text').textContent = text;
   }
 }
