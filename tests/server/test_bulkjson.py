@@ -14,6 +14,7 @@ from hypothesis import given, settings
 
 from arap.server import bulkjson
 from arap.server.bulkjson import INLINE_BYTES, MAX_PARTS, NumberList, loads_bulk
+from arap.server.client_messages import SetConstraints
 from arap.server.decoder import arrays_from_lists, decode_text_frame
 from arap.server.protocol import ClientMessage, RequestError, check_against_mesh, parse_large_text, parse_text
 from tests.server.test_fuzz import messages as fuzzed_messages
@@ -120,7 +121,7 @@ def test_large_text_gives_the_same_message(text: str) -> None:
     assert isinstance(small, ClientMessage), small
     assert isinstance(large, ClientMessage), large
     assert small.type == large.type
-    assert _same(small.fields, large.fields), (small.fields, large.fields)
+    assert _same(vars(small), vars(large)), (small, large)
 
 
 @pytest.mark.parametrize("text", INVALID)
@@ -181,8 +182,9 @@ def test_many_indices_take_a_few_bytes_each() -> None:
     msg, peak, _ = _peak(decode_text_frame, data)
     assert peak < 2.5 * len(data), peak  # json.loads: a list of 8-byte pointers and the int64 array, 8 times
     assert isinstance(msg, ClientMessage), msg
-    assert len(msg.fields["fixed"]) == count and msg.fields["handle_groups"][0].sum() == 7 * count
-    assert msg.fields["fixed"].dtype == np.int32
+    assert isinstance(msg, SetConstraints)
+    assert len(msg.fixed) == count and msg.handle_groups[0].sum() == 7 * count
+    assert msg.fixed.dtype == np.int32
 
 
 def test_an_index_list_longer_than_the_mesh_is_refused_before_the_session_copies_it() -> None:
@@ -200,7 +202,7 @@ def test_frames_decoded_on_a_thread_take_bounded_memory_too() -> None:
     assert peak < 3 * len(text), peak  # json.loads: 400,000 lists
     assert isinstance(error, RequestError) and "has 400000 groups, at most 256" in error.message
     msg = parse_text(_message(fixed=LONG), cooperative=True)
-    assert isinstance(msg.fields["fixed"], np.ndarray) and msg.fields["fixed"].tolist() == LONG
+    assert isinstance(msg, SetConstraints) and isinstance(msg.fixed, np.ndarray) and msg.fixed.tolist() == LONG
 
 
 @settings(max_examples=300, deadline=None, database=None)
@@ -215,4 +217,4 @@ def test_fuzzed_messages_get_the_same_answer_from_both_decoders(text: str) -> No
         assert small.code == large.code, (text, small.message, large.message)
     else:
         assert isinstance(large, ClientMessage), (text, large)
-        assert small.type == large.type and _same(small.fields, large.fields), (text, small.fields, large.fields)
+        assert small.type == large.type and _same(vars(small), vars(large)), (text, small, large)

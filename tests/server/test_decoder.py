@@ -13,6 +13,7 @@ import pytest
 from starlette.testclient import TestClient
 
 from arap.server import create_app
+from arap.server.client_messages import SetConstraints
 from arap.server.decoder import PROCESS_BYTES, FrameDecoder, arrays_from_lists
 from arap.server.protocol import RequestError, parse_text
 from tests.server.helpers import StudioClient
@@ -39,12 +40,14 @@ def test_arrays_from_lists() -> None:
     text = ('{"type":"set_constraints","roi":[0,1,2,3],"fixed":[0],"handle_groups":[[1],[2,3]],'
             '"targets":[[0,0,1],[1,2,3],[4,5,6]]}')
     msg = arrays_from_lists(parse_text(text))
-    assert msg.fields["fixed"].dtype == np.int64 and msg.fields["roi"].tolist() == [0, 1, 2, 3]
-    assert [g.tolist() for g in msg.fields["handle_groups"]] == [[1], [2, 3]]
-    assert msg.fields["targets"].shape == (3, 3) and msg.fields["targets"][2, 1] == 5.0
+    assert isinstance(msg, SetConstraints)
+    assert msg.fixed.dtype == np.int64 and msg.roi.tolist() == [0, 1, 2, 3]
+    assert [g.tolist() for g in msg.handle_groups] == [[1], [2, 3]]
+    assert msg.targets.shape == (3, 3) and msg.targets[2, 1] == 5.0
     huge = arrays_from_lists(parse_text('{"type":"set_constraints","roi":null,"fixed":[' + "9" * 30 + '],'
                                         '"handle_groups":[]}'))
-    assert huge.fields["fixed"] == [int("9" * 30)]  # beyond int64: left as a list, reported out of range later
+    # beyond int64: left as a list, reported out of range later
+    assert isinstance(huge, SetConstraints) and huge.fixed == [int("9" * 30)]
     undo = parse_text('{"type":"undo"}')
     assert arrays_from_lists(undo) is undo
 

@@ -9,9 +9,10 @@ import numpy as np
 import pytest
 
 import arap
+from arap.server.errors import request_error
 from arap.server.meshdata import MeshData
-from arap.server.protocol import RequestError
 from arap.server.session import Session
+from arap.server.session_errors import ConstraintsRejected
 from tests.server.helpers import StudioClient, renumbered_bar_obj
 
 pytestmark = pytest.mark.timeout(120)
@@ -47,9 +48,9 @@ def _refusal(mesh: MeshData) -> str:
     s.load(mesh)
     fixed = np.flatnonzero(s.V[:, 1] <= s.V[:len(s.V) // 2, 1].min() + 1e-9)
     fixed = fixed[fixed < len(s.V) // 2]
-    with pytest.raises(RequestError) as err:
+    with pytest.raises(ConstraintsRejected) as err:
         s.set_constraints(None, fixed.tolist(), [])
-    assert err.value.code == "bad_constraints"
+    assert request_error(err.value).code == "bad_constraints"
     return err.value.message
 
 

@@ -12,9 +12,10 @@ import pytest
 
 from arap.cli import main as arap_main
 from arap.io import load_mesh
-from arap.server.dispatch import state_message
-from arap.server.protocol import RequestError
+from arap.server.errors import request_error
+from arap.server.replies import state_message
 from arap.server.session import Session
+from arap.server.session_errors import BadValues
 from tests.server.helpers import StudioClient, column_major, rotation_z, translation
 
 pytestmark = pytest.mark.timeout(180)
@@ -61,9 +62,9 @@ def test_groups_and_points_each_have_a_transform(bar_session: Session) -> None:
     middle = np.flatnonzero(np.abs(V[:, 1] - np.median(V[:, 1])) < 0.05 * np.ptp(V[:, 1]))[:4].tolist()
     bar_session.set_constraints(None, fixed, [middle], points=[{"face": face, "barycentric": BARY, "weight": 50.0}])
     assert bar_session.n_groups == 2 and state_message(bar_session)["constraints"]["points"][0]["weight"] == 50.0
-    with pytest.raises(RequestError) as err:
+    with pytest.raises(BadValues) as err:
         bar_session.drag([translation(0.1)])
-    assert err.value.code == "bad_message"
+    assert request_error(err.value).code == "bad_message"
     bar_session.drag([translation(0.0), translation(0.5)])
     np.testing.assert_allclose(bar_session.U[middle], V[middle], atol=1e-9)  # the group stays, the soft point pulls
     assert _on_surface(bar_session.U, F, face, BARY)[0] > _on_surface(V, F, face, BARY)[0] + 0.2

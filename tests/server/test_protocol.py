@@ -12,6 +12,7 @@ from pathlib import Path
 import pytest
 
 from arap.server import protocol as P
+from arap.server.client_messages import Drag, SetConstraints, SetParams, Upload
 from arap.server.jsgen import generate_js
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -62,13 +63,13 @@ def test_decode_binary_rejects_garbage(frame: bytes) -> None:
 # ---------------------------------------------------------------------------------------------- validation
 def test_parse_valid_messages() -> None:
     msg = P.parse_text(json.dumps({"type": "drag", "seq": 3, "transforms": [_identity()]}))
-    assert msg.type == "drag" and msg.fields["seq"] == 3 and msg.payload is None
+    assert isinstance(msg, Drag) and msg.type == "drag" and msg.seq == 3 and not hasattr(msg, "payload")
     msg = P.parse_text('{"type": "set_params", "iterations": 5}')
-    assert msg.fields == {"iterations": 5}
+    assert msg == SetParams(iterations=5)
     msg = P.parse_binary(P.encode_binary({"type": "upload", "filename": "a.obj"}, b"v 0 0 0"))
-    assert msg.type == "upload" and bytes(msg.payload or b"") == b"v 0 0 0"
+    assert isinstance(msg, Upload) and msg.type == "upload" and bytes(msg.payload or b"") == b"v 0 0 0"
     msg = P.parse_text('{"type": "set_constraints", "roi": null, "fixed": [1, 2], "handle_groups": [[3]]}')
-    assert msg.fields["roi"] is None and msg.fields["handle_groups"] == [[3]]
+    assert isinstance(msg, SetConstraints) and msg.roi is None and msg.handle_groups == [[3]]
 
 
 BAD_TEXT = {
@@ -222,7 +223,8 @@ def test_js_helpers_agree_with_python(tmp_path: Path) -> None:
     js_frame = base64.b64decode(got["uploadFrame"])
     assert js_frame == P.encode_binary({"type": "upload", "filename": "a.obj"}, b"\x01\x02\x03")
     msg = P.parse_binary(js_frame)
-    assert msg.fields == {"filename": "a.obj"} and bytes(msg.payload or b"") == b"\x01\x02\x03"
+    assert isinstance(msg, Upload) and msg == Upload("a.obj", msg.payload)
+    assert bytes(msg.payload or b"") == b"\x01\x02\x03"
     assert got["mesh"] == {"positions": [1.5, 2.5, 3.5], "faces": [0, 0, 0]}
     assert got["fromPython"] == {"header": {"type": "vertices", "seq": 7}, "positions": [0.25, -1.0, 8.0]}
     assert got["iterations"] == P.PARAMS["iterations"]

@@ -7,11 +7,13 @@ import pytest
 
 from arap.io import load_mesh_bytes
 from arap.server.constraints import matrices_from_json, matrices_to_json
-from arap.server.dispatch import state_message
+from arap.server.errors import request_error
 from arap.server.history import History, Snapshot
 from arap.server.meshdata import MeshData, load_builtin
-from arap.server.protocol import ENERGIES, WEIGHTS, RequestError
+from arap.server.protocol import ENERGIES, WEIGHTS
+from arap.server.replies import state_message
 from arap.server.session import Session
+from arap.server.session_errors import ConstraintsRejected
 from tests.server.helpers import column_major, rotation_z, translation
 
 
@@ -69,9 +71,9 @@ def test_constraint_errors_leave_the_session_unchanged(session: Session) -> None
         ([0, 0], fixed, [top]),                   # repeated roi vertex
     ]
     for roi, f, g in bad:
-        with pytest.raises(RequestError) as info:
+        with pytest.raises(ConstraintsRejected) as info:
             session.set_constraints(roi, f, g)
-        assert info.value.code == "bad_constraints", (roi, f, g)
+        assert request_error(info.value).code == "bad_constraints", (roi, f, g)
         assert state_message(session) == before
     session.set_constraints(None, [], [top[:1], top[1:2]])   # handles alone are a valid set
     assert session.n_groups == 2
@@ -83,17 +85,17 @@ def test_unconstrained_region_is_reported(session: Session) -> None:
     V = np.concatenate([session.V, session.V + np.array([5.0, 0, 0])])
     F = np.concatenate([session.mesh.F, session.mesh.F + len(session.V)])  # type: ignore[union-attr]
     two.load(MeshData.make("twins", V, F))
-    with pytest.raises(RequestError) as info:
+    with pytest.raises(ConstraintsRejected) as info:
         two.set_constraints(None, fixed, [top])
-    assert info.value.code == "bad_constraints"
+    assert request_error(info.value).code == "bad_constraints"
     assert "constrained" in info.value.message
     assert two.constraints.is_empty
 
 
 def test_nothing_to_solve_without_constraints(session: Session) -> None:
-    with pytest.raises(RequestError) as info:
+    with pytest.raises(ConstraintsRejected) as info:
         session.drag([])
-    assert info.value.code == "bad_constraints"
+    assert request_error(info.value).code == "bad_constraints"
 
 
 def test_undo_redo_walks_the_history(session: Session) -> None:

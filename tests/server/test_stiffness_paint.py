@@ -12,10 +12,13 @@ import pytest
 
 from arap.constraints import load_constraints
 from arap.method.rigid import rigid_regions
-from arap.server.dispatch import state_message
+from arap.server.client_messages import SetConstraints
+from arap.server.errors import request_error
 from arap.server.meshdata import load_upload
 from arap.server.protocol import RequestError, parse_text
+from arap.server.replies import state_message
 from arap.server.session import Session
+from arap.server.session_errors import ConstraintsRejected
 from tests.core.test_stiffness import _rigid_misfit
 from tests.server.helpers import column_major, rotation_z
 
@@ -87,9 +90,9 @@ def test_bad_paint_leaves_the_session_unchanged(bar_session: Session, paint: lis
     fixed, top, _ = _setup(bar_session.V)
     bar_session.set_constraints(None, fixed, [top])
     before = bar_session.constraints
-    with pytest.raises(RequestError, match=match) as err:
+    with pytest.raises(ConstraintsRejected, match=match) as err:
         bar_session.set_constraints(None, fixed, [top], stiffness=paint)
-    assert err.value.code == "bad_constraints" and bar_session.constraints is before
+    assert request_error(err.value).code == "bad_constraints" and bar_session.constraints is before
 
 
 @pytest.mark.parametrize(("stiffness", "ok"), [
@@ -105,7 +108,8 @@ def test_protocol_checks_the_paint(stiffness: object, ok: bool) -> None:
     text = json.dumps({"type": "set_constraints", "roi": None, "fixed": [0], "handle_groups": [[1]],
                        "stiffness": stiffness})
     if ok:
-        assert parse_text(text).fields["stiffness"] == stiffness
+        msg = parse_text(text)
+        assert isinstance(msg, SetConstraints) and msg.stiffness == stiffness
     else:
         with pytest.raises(RequestError) as err:
             parse_text(text)
@@ -123,9 +127,9 @@ def test_paint_the_energy_cannot_take_is_refused_with_the_session_unchanged(shar
     session.set_constraints(None, fixed, [top])
     before = session.constraints
     paint = [{"vertices": middle.tolist(), "value": "rigid"}]
-    with pytest.raises(RequestError, match="spokes_and_rims") as err:
+    with pytest.raises(ConstraintsRejected, match="spokes_and_rims") as err:
         session.set_constraints(None, fixed, [top], stiffness=paint)
-    assert err.value.code == "bad_constraints" and session.constraints is before
+    assert request_error(err.value).code == "bad_constraints" and session.constraints is before
     session.set_params(energy="spokes_and_rims")
     session.set_constraints(None, fixed, [top], stiffness=paint)
     U = _bend(session, top)
@@ -147,9 +151,9 @@ def test_undo_to_paint_the_energy_cannot_take_says_why_a_drag_cannot_solve(share
     session.set_constraints(None, fixed, [top])
     session.set_params(energy="spokes")
     assert session.undo() and session.constraints.stiffness is not None
-    with pytest.raises(RequestError, match=r"cannot be solved with the spokes energy.*spokes_and_rims") as err:
+    with pytest.raises(ConstraintsRejected, match=r"cannot be solved with the spokes energy.*spokes_and_rims") as err:
         session.drag([column_major(np.eye(4))])
-    assert err.value.code == "bad_constraints"
+    assert request_error(err.value).code == "bad_constraints"
     session.set_params(energy="spokes_and_rims")  # the way out works
     _bend(session, top)
     assert session.redo() is False  # the drag is an unfinished step

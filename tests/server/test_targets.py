@@ -9,9 +9,13 @@ import numpy as np
 import pytest
 
 from arap.server import protocol as P
+from arap.server.client_messages import SetConstraints
+from arap.server.errors import request_error
 from arap.server.meshdata import load_builtin
 from arap.server.protocol import RequestError
-from arap.server.session import LOAD_ITERATIONS, Session
+from arap.server.session import Session
+from arap.server.session_errors import BadValues
+from arap.server.solve_calls import LOAD_ITERATIONS
 from tests.server.helpers import StudioClient, translation
 
 pytestmark = pytest.mark.timeout(120)
@@ -146,9 +150,9 @@ def test_nan_targets_and_bad_indices(studio: StudioClient) -> None:
 def test_parse_targets() -> None:
     base = {"type": "set_constraints", "roi": None, "fixed": [0], "handle_groups": [[1, 2], [3]]}
     msg = P.parse_text(json.dumps({**base, "targets": [[0, 1, 2], [1.5, 2, 3], [-1, 0, 1e3]]}))
-    assert msg.fields["targets"][2] == [-1, 0, 1e3]
-    assert P.parse_text(json.dumps({**base, "targets": None})).fields["targets"] is None
-    assert "targets" not in P.parse_text(json.dumps(base)).fields
+    assert isinstance(msg, SetConstraints) and msg.targets[2] == [-1, 0, 1e3]
+    assert P.parse_text(json.dumps({**base, "targets": None})) == SetConstraints(None, [0], [[1, 2], [3]])
+    assert P.parse_text(json.dumps(base)) == SetConstraints(None, [0], [[1, 2], [3]], targets=None)
     for bad in ([[0, 1, 2], [1, 2, 3]], [[0, 1, 2], [1, 2, 3], [1, 2]], [[0, 1, 2], [1, 2, 3], [1, 2, True]],
                 [[0, 1, 2], [1, 2, 3], [1, 2, None]], [0, 1, 2], "here"):
         with pytest.raises(RequestError) as info:
@@ -162,12 +166,12 @@ def test_session_rejects_bad_targets_without_change() -> None:
     s = Session()
     s.load(load_builtin("cactus"))
     U, cs = s.U, s.constraints
-    with pytest.raises(RequestError) as info:
+    with pytest.raises(BadValues) as info:
         s.set_constraints(None, [0], [[1, 2]], [[0.0, 0.0, 0.0]])
-    assert info.value.code == "bad_message"
-    with pytest.raises(RequestError) as info:
+    assert request_error(info.value).code == "bad_message"
+    with pytest.raises(BadValues) as info:
         s.set_constraints(None, [0], [], [[0.0, 0.0, 0.0]])
-    assert info.value.code == "bad_message"
+    assert request_error(info.value).code == "bad_message"
     assert s.U is U and s.constraints is cs and not s.history.can_undo
     assert s.set_constraints(None, [0], [], []) is None
     assert s.U is U and s.constraints.fixed.tolist() == [0]

@@ -50,17 +50,6 @@ export const ERROR = Object.freeze(/** @type {const} */ ({
   "INTERNAL": "internal"
 }));
 
-/** What each error code means. */
-export const ERROR_DESCRIPTIONS = Object.freeze({
-  "bad_message": "not JSON, not an object, unknown type, unknown or missing field, wrong field type/range",
-  "bad_mesh": "the mesh could not be read or is unusable",
-  "too_large": "a frame, upload or mesh exceeds the server's limits",
-  "bad_constraints": "indices out of range or repeated, or a region no constraint pins down",
-  "no_mesh": "the request needs a mesh and the session has none",
-  "busy": "too many requests are waiting in this session; the request was dropped",
-  "internal": "an unexpected server error; the session continues"
-});
-
 /** Solver parameters (`set_params`), with ranges and defaults. */
 export const PARAMS = Object.freeze({
   "iterations": {
@@ -102,20 +91,6 @@ export const PARAMS = Object.freeze({
   }
 });
 
-/** Values of the `energy` parameter. */
-export const ENERGIES = Object.freeze([
-  "spokes",
-  "spokes_and_rims",
-  "smooth_rotations"
-]);
-
-/** Values of the `weights` parameter. */
-export const WEIGHTS = Object.freeze([
-  "cotangent",
-  "clamped",
-  "uniform"
-]);
-
 /** Formats of `export`. */
 export const EXPORT_FORMATS = Object.freeze([
   "obj",
@@ -131,579 +106,6 @@ export const UPLOAD_EXTENSIONS = Object.freeze([
   ".stl",
   ".glb"
 ]);
-
-/** Fixed protocol limits (size limits of the server are in `welcome.limits`). */
-export const LIMITS = Object.freeze({
-  "maxHandleGroups": 256,
-  "maxSeq": 9007199254740991,
-  "maxHeaderBytes": 65536,
-  "affineTolerance": 1e-09
-});
-
-/** Fields of each client message. */
-export const CLIENT_MESSAGES = Object.freeze({
-  "load_builtin": {
-    "binary": false,
-    "doc": "replace the session's mesh by a built-in model",
-    "fields": [
-      {
-        "name": "name",
-        "kind": "string",
-        "required": true,
-        "maxLength": 64
-      }
-    ]
-  },
-  "upload": {
-    "binary": true,
-    "doc": "load an uploaded OBJ/OFF/PLY/STL/GLB file (payload: the file's bytes)",
-    "fields": [
-      {
-        "name": "filename",
-        "kind": "string",
-        "required": true,
-        "maxLength": 255
-      }
-    ]
-  },
-  "set_constraints": {
-    "binary": false,
-    "doc": "new constraint set; transforms of all groups reset to identity",
-    "fields": [
-      {
-        "name": "roi",
-        "kind": "indices_or_null",
-        "required": true
-      },
-      {
-        "name": "fixed",
-        "kind": "indices",
-        "required": true
-      },
-      {
-        "name": "handle_groups",
-        "kind": "index_groups",
-        "required": true,
-        "maxLength": 256
-      },
-      {
-        "name": "targets",
-        "kind": "points_or_null",
-        "required": false
-      },
-      {
-        "name": "stiffness",
-        "kind": "stiffness_or_null",
-        "required": false,
-        "maxLength": 256
-      },
-      {
-        "name": "points",
-        "kind": "point_handles_or_null",
-        "required": false,
-        "maxLength": 256
-      }
-    ]
-  },
-  "drag": {
-    "binary": false,
-    "doc": "move the handle groups; only the newest pending drag is solved",
-    "fields": [
-      {
-        "name": "seq",
-        "kind": "int",
-        "required": true,
-        "min": 0,
-        "max": 9007199254740991
-      },
-      {
-        "name": "transforms",
-        "kind": "matrices",
-        "required": true,
-        "maxLength": 256
-      }
-    ]
-  },
-  "end_drag": {
-    "binary": false,
-    "doc": "the current deformation becomes one undo step",
-    "fields": []
-  },
-  "set_params": {
-    "binary": false,
-    "doc": "change solver parameters (any of the fields)",
-    "fields": [
-      {
-        "name": "iterations",
-        "kind": "int",
-        "required": false,
-        "min": 1,
-        "max": 100
-      },
-      {
-        "name": "energy",
-        "kind": "enum",
-        "required": false,
-        "choices": [
-          "spokes",
-          "spokes_and_rims",
-          "smooth_rotations"
-        ]
-      },
-      {
-        "name": "weights",
-        "kind": "enum",
-        "required": false,
-        "choices": [
-          "cotangent",
-          "clamped",
-          "uniform"
-        ]
-      },
-      {
-        "name": "alpha",
-        "kind": "number",
-        "required": false,
-        "min": 0,
-        "max": 1
-      }
-    ]
-  },
-  "undo": {
-    "binary": false,
-    "doc": "step back in the edit history",
-    "fields": []
-  },
-  "redo": {
-    "binary": false,
-    "doc": "step forward in the edit history",
-    "fields": []
-  },
-  "reset": {
-    "binary": false,
-    "doc": "back to the rest pose (undoable)",
-    "fields": []
-  },
-  "apply": {
-    "binary": false,
-    "doc": "the deformed shape becomes the new rest pose (undoable)",
-    "fields": []
-  },
-  "export": {
-    "binary": false,
-    "doc": "ask for the deformed mesh as a file (GLB keeps a textured or coloured source's UVs, textures and colours)",
-    "fields": [
-      {
-        "name": "format",
-        "kind": "enum",
-        "required": true,
-        "choices": [
-          "obj",
-          "ply",
-          "glb"
-        ]
-      }
-    ]
-  },
-  "get_constraints": {
-    "binary": false,
-    "doc": "ask for the constraints document (command-line format), with the timeline's keyframes when given (as arap animate reads them)",
-    "fields": [
-      {
-        "name": "times_ms",
-        "kind": "indices",
-        "required": false,
-        "maxLength": 1000
-      },
-      {
-        "name": "transforms",
-        "kind": "matrices",
-        "required": false,
-        "maxLength": 65536
-      }
-    ]
-  },
-  "export_animation": {
-    "binary": false,
-    "doc": "solve the keyframed animation at fps, every frame to convergence from the previous one with the session's solver and parameters (point handles hold still), and answer with an animated GLB (morph targets); animation_progress messages report the frames solved, and any new request cancels it",
-    "fields": [
-      {
-        "name": "times_ms",
-        "kind": "indices",
-        "required": true,
-        "maxLength": 1000
-      },
-      {
-        "name": "transforms",
-        "kind": "matrices",
-        "required": true,
-        "maxLength": 65536
-      },
-      {
-        "name": "fps",
-        "kind": "number",
-        "required": true,
-        "min": 1,
-        "max": 120
-      }
-    ]
-  },
-  "get_distortion": {
-    "binary": false,
-    "doc": "ask for the per-vertex distortion of the current shape (the heat map)",
-    "fields": []
-  }
-});
-
-/** Fields of each server message. */
-export const SERVER_MESSAGES = Object.freeze({
-  "welcome": {
-    "binary": false,
-    "doc": "sent once on connect, followed by a mesh frame",
-    "fields": [
-      {
-        "name": "version",
-        "kind": "string",
-        "required": true
-      },
-      {
-        "name": "protocol",
-        "kind": "int",
-        "required": true
-      },
-      {
-        "name": "builtin_meshes",
-        "kind": "list",
-        "required": true
-      },
-      {
-        "name": "limits",
-        "kind": "object",
-        "required": true
-      },
-      {
-        "name": "params",
-        "kind": "object",
-        "required": true
-      }
-    ]
-  },
-  "mesh": {
-    "binary": true,
-    "doc": "a new mesh (payload: float32[n_vertices*3], uint32[n_faces*3], then int32[file_vertices]); history is cleared",
-    "fields": [
-      {
-        "name": "name",
-        "kind": "string",
-        "required": true
-      },
-      {
-        "name": "n_vertices",
-        "kind": "int",
-        "required": true
-      },
-      {
-        "name": "n_faces",
-        "kind": "int",
-        "required": true
-      },
-      {
-        "name": "report",
-        "kind": "list",
-        "required": true
-      },
-      {
-        "name": "file_vertices",
-        "kind": "int",
-        "required": true
-      }
-    ]
-  },
-  "appearance": {
-    "binary": true,
-    "doc": "how the mesh just sent is drawn, right after its mesh frame when its file has vertex colours or a texture (none for a plain mesh); payload: uint32[render_vertices] (the mesh vertex each render vertex follows), float32[render_vertices*2] (UVs, v down from the image's top row), uint32[render_faces*3] (render triangles), uint8[n_vertices*3] (sRGB vertex colours) when colors, then the texture image's texture_bytes bytes",
-    "fields": [
-      {
-        "name": "colors",
-        "kind": "bool",
-        "required": true
-      },
-      {
-        "name": "render_vertices",
-        "kind": "int",
-        "required": true
-      },
-      {
-        "name": "render_faces",
-        "kind": "int",
-        "required": true
-      },
-      {
-        "name": "texture_bytes",
-        "kind": "int",
-        "required": true
-      },
-      {
-        "name": "texture_mime",
-        "kind": "string",
-        "required": true
-      },
-      {
-        "name": "notes",
-        "kind": "list",
-        "required": true
-      }
-    ]
-  },
-  "vertices": {
-    "binary": true,
-    "doc": "current deformed positions (payload: float32[n_vertices*3] then uint32[movable] in a full frame, float32[subset*3] in a subset frame)",
-    "fields": [
-      {
-        "name": "seq",
-        "kind": "int",
-        "required": true
-      },
-      {
-        "name": "skipped",
-        "kind": "int",
-        "required": true
-      },
-      {
-        "name": "iterations",
-        "kind": "int",
-        "required": true
-      },
-      {
-        "name": "energies",
-        "kind": "list",
-        "required": true
-      },
-      {
-        "name": "solve_ms",
-        "kind": "number",
-        "required": true
-      },
-      {
-        "name": "ms_per_iteration",
-        "kind": "number",
-        "required": true
-      },
-      {
-        "name": "subset",
-        "kind": "int",
-        "required": true
-      },
-      {
-        "name": "movable",
-        "kind": "int",
-        "required": true
-      }
-    ]
-  },
-  "settle": {
-    "binary": false,
-    "doc": "progress of settling: after a drag ends (and after loading, undo, redo, reset, apply or a parameter change) the server iterates until converged, streaming vertices frames (seq -1, at most 30 per second); any new request stops it at once",
-    "fields": [
-      {
-        "name": "status",
-        "kind": "enum",
-        "required": true,
-        "choices": [
-          "settling",
-          "settled",
-          "stopped",
-          "unconverged"
-        ]
-      },
-      {
-        "name": "iterations",
-        "kind": "int",
-        "required": true
-      },
-      {
-        "name": "energy",
-        "kind": "number",
-        "required": true
-      },
-      {
-        "name": "seconds",
-        "kind": "number",
-        "required": true
-      }
-    ]
-  },
-  "state": {
-    "binary": false,
-    "doc": "session state after any change",
-    "fields": [
-      {
-        "name": "can_undo",
-        "kind": "bool",
-        "required": true
-      },
-      {
-        "name": "can_redo",
-        "kind": "bool",
-        "required": true
-      },
-      {
-        "name": "params",
-        "kind": "object",
-        "required": true
-      },
-      {
-        "name": "constraints",
-        "kind": "object",
-        "required": true
-      },
-      {
-        "name": "transforms",
-        "kind": "matrices",
-        "required": true
-      },
-      {
-        "name": "stats",
-        "kind": "object",
-        "required": true
-      },
-      {
-        "name": "rest_id",
-        "kind": "int",
-        "required": true
-      }
-    ]
-  },
-  "constraints": {
-    "binary": false,
-    "doc": "answer to get_constraints",
-    "fields": [
-      {
-        "name": "document",
-        "kind": "object",
-        "required": true
-      }
-    ]
-  },
-  "export": {
-    "binary": true,
-    "doc": "answer to export (payload: the file's bytes)",
-    "fields": [
-      {
-        "name": "filename",
-        "kind": "string",
-        "required": true
-      },
-      {
-        "name": "mime",
-        "kind": "string",
-        "required": true
-      }
-    ]
-  },
-  "animation_progress": {
-    "binary": false,
-    "doc": "progress of export_animation: sent before the first frame, then at most 10 times per second while frames are solved, and once more when a new request cancelled it",
-    "fields": [
-      {
-        "name": "status",
-        "kind": "enum",
-        "required": true,
-        "choices": [
-          "solving",
-          "cancelled"
-        ]
-      },
-      {
-        "name": "frame",
-        "kind": "int",
-        "required": true
-      },
-      {
-        "name": "frames",
-        "kind": "int",
-        "required": true
-      },
-      {
-        "name": "seconds",
-        "kind": "number",
-        "required": true
-      }
-    ]
-  },
-  "animation": {
-    "binary": true,
-    "doc": "answer to export_animation (payload: the GLB file's bytes: the first frame as the mesh, every frame a morph target, and an animation of the morph weights)",
-    "fields": [
-      {
-        "name": "filename",
-        "kind": "string",
-        "required": true
-      },
-      {
-        "name": "mime",
-        "kind": "string",
-        "required": true
-      },
-      {
-        "name": "frames",
-        "kind": "int",
-        "required": true
-      },
-      {
-        "name": "seconds",
-        "kind": "number",
-        "required": true
-      }
-    ]
-  },
-  "distortion": {
-    "binary": true,
-    "doc": "answer to get_distortion: how far each cell is from rigid, its energy over its weighted rest size (payload: float32[n_vertices])",
-    "fields": [
-      {
-        "name": "high",
-        "kind": "number",
-        "required": true
-      },
-      {
-        "name": "max",
-        "kind": "number",
-        "required": true
-      }
-    ]
-  },
-  "error": {
-    "binary": false,
-    "doc": "a request was rejected; the session continues unchanged",
-    "fields": [
-      {
-        "name": "code",
-        "kind": "enum",
-        "required": true,
-        "choices": [
-          "bad_message",
-          "bad_mesh",
-          "too_large",
-          "bad_constraints",
-          "no_mesh",
-          "busy",
-          "internal"
-        ]
-      },
-      {
-        "name": "message",
-        "kind": "string",
-        "required": true
-      },
-      {
-        "name": "request",
-        "kind": "string",
-        "required": true
-      }
-    ]
-  }
-});
 
 /**
  * replace the session's mesh by a built-in model
@@ -817,9 +219,9 @@ export const SERVER_MESSAGES = Object.freeze({
  * @property {"welcome"} type
  * @property {string} version server package version
  * @property {number} protocol PROTOCOL_VERSION
- * @property {Array<any>} builtin_meshes names accepted by load_builtin
- * @property {Object<string, any>} limits max_upload_bytes, max_vertices, max_frame_bytes, max_handle_groups
- * @property {Object<string, any>} params current solver parameters
+ * @property {string[]} builtin_meshes names accepted by load_builtin
+ * @property {{max_upload_bytes: number, max_vertices: number, max_frame_bytes: number, max_handle_groups: number}} limits max_upload_bytes, max_vertices, max_frame_bytes, max_handle_groups
+ * @property {{iterations: number, energy: "spokes"|"spokes_and_rims"|"smooth_rotations", weights: "cotangent"|"clamped"|"uniform", alpha: number}} params current solver parameters
  */
 
 /**
@@ -829,7 +231,7 @@ export const SERVER_MESSAGES = Object.freeze({
  * @property {string} name model name
  * @property {number} n_vertices number of vertices
  * @property {number} n_faces number of triangles
- * @property {Array<any>} report repairs made while loading, one line each
+ * @property {string[]} report repairs made while loading, one line each
  * @property {number} file_vertices vertices of the mesh file when repair renumbered them (the payload then ends with the mesh vertex each file vertex became, -1 for one dropped), else 0: constraints documents use the file's numbering
  */
 
@@ -842,7 +244,7 @@ export const SERVER_MESSAGES = Object.freeze({
  * @property {number} render_faces triangles of the render mesh
  * @property {number} texture_bytes size of the base-colour image at the end of the payload (0: none)
  * @property {string} texture_mime its type: image/png or image/jpeg (empty without one)
- * @property {Array<any>} notes what is not shown and why (a texture over the size limit), one line each
+ * @property {string[]} notes what is not shown and why (a texture over the size limit), one line each
  */
 
 /**
@@ -852,7 +254,7 @@ export const SERVER_MESSAGES = Object.freeze({
  * @property {number} seq seq of the drag answered, or -1
  * @property {number} skipped stale drags dropped since the previous answer
  * @property {number} iterations iterations run
- * @property {Array<any>} energies energy after each iteration
+ * @property {Array<number|null>} energies energy after each iteration
  * @property {number} solve_ms solve time
  * @property {number} ms_per_iteration solve time per iteration
  * @property {number} subset -1: a full frame, the positions of all vertices; k >= 0: a subset frame, the positions of the k movable vertices listed by the last full frame, in its order (the others keep their positions)
@@ -865,8 +267,8 @@ export const SERVER_MESSAGES = Object.freeze({
  * @property {"settle"} type
  * @property {"settling"|"settled"|"stopped"|"unconverged"} status settling, settled (converged; also sent after undo, redo, apply and loading when the shape shown is already settled), stopped (a request interrupted it; it resumes once the requests are answered) or unconverged (the iteration cap was reached)
  * @property {number} iterations iterations run so far in this settling run (0: the shape was settled already)
- * @property {number} energy current energy, or null before the first iteration
- * @property {number} seconds time since settling started
+ * @property {number|null} energy current energy, or null before the first iteration
+ * @property {number|null} seconds time since settling started
  */
 
 /**
@@ -875,11 +277,11 @@ export const SERVER_MESSAGES = Object.freeze({
  * @property {"state"} type
  * @property {boolean} can_undo
  * @property {boolean} can_redo
- * @property {Object<string, any>} params solver parameters
- * @property {Object<string, any>} constraints roi, fixed, handle_groups, stiffness, points as last accepted
+ * @property {{iterations: number, energy: "spokes"|"spokes_and_rims"|"smooth_rotations", weights: "cotangent"|"clamped"|"uniform", alpha: number}} params solver parameters
+ * @property {{roi: number[]|null, fixed: number[], handle_groups: number[][], stiffness: Array<{vertices: number[], value: number|"rigid"}>|null, points: Array<{face: number, barycentric: number[], weight?: number}>}} constraints roi, fixed, handle_groups, stiffness, points as last accepted
  * @property {number[][]} transforms current transform of each handle group
- * @property {Object<string, any>} stats n_vertices, n_faces, roi_size, n_free, factor_ms
  * @property {number} rest_id the rest pose: a new value after apply, the earlier one again when an undo or redo goes back to it
+ * @property {{n_vertices: number, n_faces: number, roi_size: number, n_free: number, factor_ms: number}} stats n_vertices, n_faces, roi_size, n_free, factor_ms
  */
 
 /**
@@ -931,7 +333,7 @@ export const SERVER_MESSAGES = Object.freeze({
  * @property {"error"} type
  * @property {"bad_message"|"bad_mesh"|"too_large"|"bad_constraints"|"no_mesh"|"busy"|"internal"} code error code
  * @property {string} message explanation
- * @property {string} request type of the rejected message, or null
+ * @property {string|null} request type of the rejected message, or null
  */
 
 /** Any message the server sends (of a binary one: its header). @typedef {WelcomeServerMessage|MeshServerMessage|AppearanceServerMessage|VerticesServerMessage|SettleServerMessage|StateServerMessage|ConstraintsServerMessage|ExportServerMessage|AnimationProgressServerMessage|AnimationServerMessage|DistortionServerMessage|ErrorServerMessage} ServerMessage */

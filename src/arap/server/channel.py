@@ -12,8 +12,11 @@ import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 
-from arap.server.dispatch import Dispatcher, Reply, _Settle
-from arap.server.protocol import ClientMessage, RequestError
+from arap.server.client_messages import Drag, ExportAnimation
+from arap.server.dispatch import Dispatcher, Reply
+from arap.server.errors import RequestError
+from arap.server.messages import ClientMessage
+from arap.server.replies import _Settle
 
 __all__ = ["ChannelWorker"]
 
@@ -64,9 +67,9 @@ class ChannelWorker:
         with self._cond:
             if self._closed:
                 return
-            if isinstance(item, ClientMessage) and item.type == "drag" and self._queue:
+            if isinstance(item, Drag) and self._queue:
                 last = self._queue[-1]
-                if isinstance(last, ClientMessage) and last.type == "drag":
+                if isinstance(last, Drag):
                     self._queue[-1] = item
                     self.dispatcher.count_skipped()
                     return
@@ -122,7 +125,7 @@ class ChannelWorker:
                 self._emit(self.dispatcher.error(item))
             elif isinstance(item, _Task):
                 self._answer(None, item)
-            elif item.type == "export_animation":
+            elif isinstance(item, ExportAnimation):
                 self._answer(item, self._export_animation(item))
             else:
                 self._answer(item, self.dispatcher.handle(item))
@@ -134,8 +137,8 @@ class ChannelWorker:
                 except Exception:
                     logger.exception("unexpected error after answering")
 
-    def _export_animation(self, item: ClientMessage) -> Iterator[Reply]:
-        yield self.dispatcher.export_animation(item.fields, self._interrupted, self._emit)
+    def _export_animation(self, item: ExportAnimation) -> Iterator[Reply]:
+        yield self.dispatcher.export_animation(item, self._interrupted, self._emit)
 
     def _settle(self) -> None:
         try:

@@ -25,6 +25,7 @@ from starlette.websockets import WebSocket, WebSocketDisconnect
 
 from arap.method.kernel_cache import KERNELS_READY
 from arap.server.budget import ByteBudget, RequestQueue, request_cost
+from arap.server.client_messages import Drag, ExportAnimation, Upload
 from arap.server.decoder import PROCESS_BYTES, FrameDecoder
 from arap.server.dispatch import SETTLE, Dispatcher, Reply, StudioConfig
 from arap.server.meshdata import MeshData
@@ -38,6 +39,7 @@ from arap.server.protocol import (
 from arap.server.records import DragOutcome
 from arap.server.render_mesh import Look
 from arap.server.session import Session
+from arap.server.studio_config import check_upload_size
 
 __all__ = ["Connection", "StudioConfig"]
 
@@ -192,9 +194,9 @@ class Connection:
             else:
                 item = self._decode(text, data, False)
             del message, text, data
-            if isinstance(item, ClientMessage) and item.type == "upload":
+            if isinstance(item, Upload):
                 self.dispatch.arrived[id(item)] = (arrived, time.time())
-            cost = request_cost(size, item.payload is None) if isinstance(item, ClientMessage) else 0
+            cost = request_cost(size, not isinstance(item, Upload)) if isinstance(item, ClientMessage) else 0
             await self._enqueue(item, cost)
 
     @staticmethod
@@ -221,11 +223,7 @@ class Connection:
                 return parse_text(text, cooperative=large)
             if data is None:
                 raise RequestError("bad_message", "empty frame")
-            item = parse_binary(data)
-            if item.payload is not None and len(item.payload) > self.config.max_upload_bytes:
-                raise RequestError("too_large", f"upload of {len(item.payload):,} bytes exceeds the "
-                                   f"limit of {self.config.max_upload_bytes:,}", item.type)
-            return item
+            return check_upload_size(self.config, parse_binary(data))
         except RequestError as exc:
             return exc
         except MemoryError:
@@ -235,9 +233,9 @@ class Connection:
             return RequestError("internal", "unexpected server error while reading a message; see the server log")
 
     async def _enqueue(self, item: ClientMessage | RequestError, cost: int = 0) -> None:
-        if isinstance(item, ClientMessage) and item.type == "drag":
+        if isinstance(item, Drag):
             last = self._queue[-1] if self._queue else None
-            if isinstance(last, ClientMessage) and last.type == "drag":
+            if isinstance(last, Drag):
                 # the replaced drag is never answered; the answer to this one reports it in ``skipped``
                 self._queue.replace_last(item, cost)
                 self.dispatch.count_skipped()
@@ -303,7 +301,8 @@ class Connection:
 
         try:
             await self._send_reply(self.dispatch.settle_status("settling", 0, None, 0.0))
-            outcome = await self._off_loop(s.settle, lambda: bool(self._queue) or self._closed, on_frame)
+            outcome = await self._off_loop(self.dispatch.settle_session, lambda: bool(self._queue) or self._closed,
+                                           on_frame)
         except RequestError as exc:
             await self._send_error(exc)
             return
@@ -327,7 +326,7 @@ class Connection:
             for reply in replies:
                 await self._send_reply(reply)
 
-    async def _export_animation(self, f: dict[str, Any]) -> None:
+    async def _export_animation(self, msg: ExportAnimation) -> None:
         """Solve and send the animated GLB of export_animation off the event loop
         (:meth:`~arap.server.dispatch.Dispatcher.export_animation`); a queued request cancels it (``cancelled`` is
         sent, then that request runs)."""
@@ -339,7 +338,7 @@ class Connection:
                 loop.call_soon_threadsafe(self._spawn_json, message)
 
         try:
-            reply = await self._off_loop(self.dispatch.export_animation, f,
+            reply = await self._off_loop(self.dispatch.export_animation, msg,
                                          lambda: bool(self._queue) or self._closed, send)
         finally:
             if self._frame_tasks:
@@ -357,7 +356,7 @@ class Connection:
 
     # ------------------------------------------------------------------ requests
     async def _handle(self, msg: ClientMessage) -> None:
-        if msg.type == "export_animation":
-            await self._export_animation(msg.fields)
+        if isinstance(msg, ExportAnimation):
+            await self._export_animation(msg)
         else:
             await self._answer(self.dispatch.handle(msg))

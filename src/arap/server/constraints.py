@@ -19,7 +19,7 @@ import numpy as np
 from arap.constraints import check_selection, points_from_json, stiffness_from_json, stiffness_to_json
 from arap.errors import ConstraintError
 from arap.method.points import PointConstraints
-from arap.server.protocol import RequestError
+from arap.server.session_errors import ConstraintsRejected
 
 __all__ = ["ConstraintSet", "identity_transforms", "matrices_from_json", "matrices_to_json"]
 
@@ -140,8 +140,8 @@ class ConstraintSet:
 
         Raises
         ------
-        RequestError
-            ``bad_constraints`` with the message of :func:`arap.constraints.check_selection` (the validator the
+        ConstraintsRejected
+            With the message of :func:`arap.constraints.check_selection` (the validator the
             library and the command line use): indices that are not integers or out of range, a vertex repeated
             within or across ``fixed`` and the groups, a repeated ROI vertex, an empty handle group or an empty
             ROI; or the message of :func:`arap.constraints.stiffness_from_json` for bad stiffness, or of
@@ -157,7 +157,7 @@ class ConstraintSet:
                     raise ConstraintError("point handles need the mesh's triangles")
                 pts, point_targets, given = points_from_json(list(points), len(faces), require_target=False)
         except ConstraintError as exc:
-            raise RequestError("bad_constraints", str(exc)) from exc
+            raise ConstraintsRejected(str(exc)) from exc
         group_arrs = tuple(group_list)
         if handle_positions is not None and group_arrs:
             pose = np.array(pose, dtype=np.float64)

@@ -21,6 +21,7 @@ sessions, never lost.
 from __future__ import annotations
 
 import asyncio
+import dataclasses
 import logging
 import multiprocessing
 import os
@@ -28,11 +29,11 @@ import threading
 import time
 from concurrent.futures import ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
-from typing import Any
 
 import anyio.to_thread
 import numpy as np
 
+from arap.server.client_messages import SetConstraints
 from arap.server.memory import release_memory
 from arap.server.protocol import ClientMessage, parse_large_text
 
@@ -82,16 +83,12 @@ def arrays_from_lists(msg: ClientMessage) -> ClientMessage:
         ``roi``, ``fixed`` and each handle group as (k,) integer arrays (int64 from lists; int32 or int64 from
         :func:`arap.server.protocol.parse_large_text`), ``targets`` as a (t, 3) float64 array.
     """
-    if msg.type != "set_constraints":
+    if not isinstance(msg, SetConstraints):
         return msg
-    fields: dict[str, Any] = dict(msg.fields)
-    fields["fixed"] = _int_array(fields["fixed"])
-    if fields["roi"] is not None:
-        fields["roi"] = _int_array(fields["roi"])
-    fields["handle_groups"] = [_int_array(g) for g in fields["handle_groups"]]
-    if fields.get("targets") is not None:
-        fields["targets"] = np.asarray(fields["targets"], dtype=np.float64).reshape(-1, 3)
-    return ClientMessage(msg.type, fields, msg.payload)
+    targets = None if msg.targets is None else np.asarray(msg.targets, dtype=np.float64).reshape(-1, 3)
+    return dataclasses.replace(msg, fixed=_int_array(msg.fixed),
+                               roi=None if msg.roi is None else _int_array(msg.roi),
+                               handle_groups=[_int_array(g) for g in msg.handle_groups], targets=targets)
 
 
 def decode_text_frame(data: bytes | str) -> ClientMessage:

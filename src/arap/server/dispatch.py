@@ -1,10 +1,13 @@
 """The studio protocol's answers for one session, whatever carries them (a WebSocket, a Jupyter comm).
 
 A :class:`Dispatcher` turns validated client messages into the server messages that answer them, as
-:class:`Reply` values; the transport only sends them, in order. :mod:`arap.server.connection` runs it on an event
-loop (each step on a thread), :class:`arap.server.channel.ChannelWorker` on a thread of its own for synchronous
-channels such as a notebook widget's comm (:mod:`arap.jupyter_widget`). Both coalesce drags the same way, settle
-the shape when no request waits and stop settling as soon as one arrives.
+:class:`~arap.server.replies.Reply` values; the transport only sends them, in order. Each message class has its
+handler (:meth:`Dispatcher.handle` picks it by the message's class), and the session's refusals
+(:mod:`arap.server.session_errors`) become :class:`~arap.server.errors.RequestError` here, with the code of
+:data:`arap.server.errors.SESSION_ERROR_CODES`. :mod:`arap.server.connection` runs it on an event loop (each step
+on a thread), :class:`arap.server.channel.ChannelWorker` on a thread of its own for synchronous channels such as a
+notebook widget's comm (:mod:`arap.jupyter_widget`). Both coalesce drags the same way, settle the shape when no
+request waits and stop settling as soon as one arrives.
 """
 
 from __future__ import annotations
@@ -14,84 +17,56 @@ import logging
 import threading
 import time
 from collections.abc import Callable, Iterator
-from dataclasses import asdict, dataclass
-from typing import Any, Final
+from typing import Any
 
 import numpy as np
 
-import arap
 from arap.server.animation_export import AnimationCancelled, export_animation, keyframes_document
-from arap.server.constraints import matrices_to_json
+from arap.server.client_messages import (
+    Apply,
+    Drag,
+    EndDrag,
+    Export,
+    ExportAnimation,
+    GetConstraints,
+    GetDistortion,
+    LoadBuiltin,
+    Redo,
+    Reset,
+    SetConstraints,
+    SetParams,
+    Undo,
+    Upload,
+)
+from arap.server.errors import RequestError, request_error
 from arap.server.heatmap import distortion_frame
 from arap.server.liveframes import VertexPayload, VertexStream, still_frame_header
-from arap.server.meshdata import MeshData, builtin_names, load_builtin, load_upload, mesh_frame
-from arap.server.protocol import (
-    MAX_HANDLE_GROUPS,
-    PROTOCOL_VERSION,
-    ClientMessage,
-    RequestError,
-    check_against_mesh,
-    error_message,
-    server_message,
-    validate,
-)
-from arap.server.records import readable_energy
+from arap.server.meshdata import MeshData, load_builtin, load_upload, mesh_frame
+from arap.server.messages import ClientMessage
+from arap.server.protocol import check_against_mesh, error_message, validate
 from arap.server.render_mesh import Look, look_from_upload
+from arap.server.replies import (
+    SETTLE,
+    Reply,
+    _Settle,
+    settle_message,
+    state_message,
+    vertices_header,
+    welcome_message,
+)
+from arap.server.server_messages import Animation, AnimationProgress, Constraints
+from arap.server.server_messages import Export as ExportReply
 from arap.server.session import DragOutcome, Session, SettleOutcome
+from arap.server.session_errors import SessionError
+from arap.server.settling import FrameCallback
+from arap.server.studio_config import StudioConfig, check_upload_size
 
 __all__ = ["SETTLE", "Dispatcher", "Reply", "StudioConfig", "decode_message"]
 
 logger = logging.getLogger("arap.server.connection")
 
-Reply = dict[str, Any] | bytes | tuple[dict[str, Any], list[bytes]]
-"""A server message: a text message, an encoded binary frame, or a binary message's header and payload parts."""
-
-
-class _Settle:
-    def __repr__(self) -> str:
-        return "SETTLE"
-
-
-SETTLE: Final = _Settle()
-"""Yielded by :meth:`Dispatcher.handle` where the shape must be settled before it goes on (an export)."""
-
-
-@dataclass(frozen=True)
-class StudioConfig:
-    """Limits and settings shared by all sessions of a server.
-
-    Attributes
-    ----------
-    max_upload_bytes : int
-        Largest accepted upload payload.
-    max_vertices : int
-        Largest accepted uploaded mesh.
-    max_frame_bytes : int
-        Largest accepted WebSocket frame of any kind (also given to the WebSocket server).
-    max_pending : int
-        Most requests waiting in one session's queue; more are answered ``busy``.
-    max_history_steps, max_history_bytes : int
-        Undo history limits per session.
-    max_queued_bytes : int
-        Estimated memory of the requests waiting in one session's queue past which its frames are no longer
-        read (see :func:`arap.server.budget.request_cost`).
-    max_unsent_bytes : int
-        Bytes of one session's answers waiting to be handed to the socket past which its frames are no longer
-        read.
-    subset_frames : bool
-        Send only the movable vertices' positions while a constraint set with a region of interest is dragged
-        (see :mod:`arap.server.liveframes`); False sends every ``vertices`` frame in full.
-    """
-
-    max_upload_bytes: int = 50 * 2**20
-    max_vertices: int = 2_000_000
-    max_frame_bytes: int = 65 * 2**20
-    max_pending: int = 256
-    max_history_steps: int = 100
-    max_history_bytes: int = 512 * 2**20
-    max_queued_bytes: int = 64 * 2**20
-    max_unsent_bytes: int = 64 * 2**20
-    subset_frames: bool = True
+Answers = Iterator[Reply | _Settle]
+"""What a handler yields: the replies to send, and :data:`~arap.server.replies.SETTLE` where the shape must settle."""
 
 
 def _timed(fn: Callable[..., Any], *args: Any) -> tuple[Any, float]:
@@ -108,19 +83,12 @@ def decode_message(config: StudioConfig, content: Any, buffers: list[Any] | None
         if payload is not None and len(payload) > config.max_frame_bytes:
             raise RequestError("too_large", f"message of {len(payload):,} bytes exceeds the limit of "
                                f"{config.max_frame_bytes:,}")
-        return _check_upload(config, validate(content, binary=payload is not None, payload=payload))
+        return check_upload_size(config, validate(content, binary=payload is not None, payload=payload))
     except RequestError as exc:
         return exc
     except Exception:
         logger.exception("unexpected error while decoding a message")
         return RequestError("internal", "unexpected server error while reading a message; see the server log")
-
-
-def _check_upload(config: StudioConfig, item: ClientMessage) -> ClientMessage:
-    if item.payload is not None and len(item.payload) > config.max_upload_bytes:
-        raise RequestError("too_large", f"upload of {len(item.payload):,} bytes exceeds the "
-                           f"limit of {config.max_upload_bytes:,}", item.type)
-    return item
 
 
 class Dispatcher:
@@ -140,20 +108,27 @@ class Dispatcher:
         self._skipped_lock = threading.Lock()  # counted by the transport's thread, read by the answering one
         self.arrived: dict[int, tuple[float, float]] = {}
         """Arrival and decoding times of uploads waiting, by ``id`` of their message (for the timing log)."""
+        self._handlers: dict[type[ClientMessage], Callable[[Any], Answers]] = {
+            Drag: self._drag,
+            EndDrag: self._end_drag,
+            LoadBuiltin: self._load_builtin,
+            Upload: self._upload,
+            SetConstraints: self._set_constraints,
+            SetParams: self._set_params,
+            Undo: self._history_step,
+            Redo: self._history_step,
+            Reset: self._history_step,
+            Apply: self._history_step,
+            Export: self._export,
+            GetDistortion: self._get_distortion,
+            GetConstraints: self._get_constraints,
+        }
+        """The handler of each message class (``export_animation`` is run by the transports, which stream its
+        progress: :meth:`export_animation`)."""
 
     # ------------------------------------------------------------------ messages
     def welcome(self) -> Reply:
-        return server_message(
-            "welcome",
-            version=arap.__version__,
-            protocol=PROTOCOL_VERSION,
-            builtin_meshes=builtin_names(),
-            limits={"max_upload_bytes": self.config.max_upload_bytes,
-                    "max_vertices": self.config.max_vertices,
-                    "max_frame_bytes": self.config.max_frame_bytes,
-                    "max_handle_groups": MAX_HANDLE_GROUPS},
-            params=asdict(self.session.params),
-        )
+        return welcome_message(self.session, self.config)
 
     def greeting(self, mesh: MeshData, look: Look | None,
                  prepare: Callable[[Session], object] | None) -> Iterator[Reply]:
@@ -192,31 +167,6 @@ class Dispatcher:
         with self._skipped_lock:
             self._skipped += 1
 
-    def export_animation(self, fields: dict[str, Any], interrupted: Callable[[], bool],
-                         send: Callable[[Reply], object]) -> Reply:
-        """Solve ``export_animation``'s keyframes into an animated GLB (:mod:`arap.server.animation_export`),
-        sending ``animation_progress`` through ``send`` at most 10 times per second; the ``animation`` reply, or a
-        ``cancelled`` progress message when ``interrupted()`` turned true (a new request waits)."""
-        t0 = time.perf_counter()
-        last = [0.0]
-
-        def progress(done: int, frames: int) -> None:
-            now = time.perf_counter()
-            if done and done < frames and now - last[0] < 0.1:
-                return
-            last[0] = now
-            send(server_message("animation_progress", status="solving", frame=done, frames=frames,
-                                seconds=round(now - t0, 3)))
-
-        try:
-            filename, mime, data, frames, seconds = export_animation(
-                self.session, fields["times_ms"], fields["transforms"], fields["fps"], interrupted, progress)
-        except AnimationCancelled:
-            return server_message("animation_progress", status="cancelled", frame=0, frames=0,
-                                  seconds=round(time.perf_counter() - t0, 3))
-        return server_message("animation", filename=filename, mime=mime, frames=frames,
-                              seconds=round(seconds, 3)), [data]
-
     def take_skipped(self) -> int:
         """The drags replaced since the last call (the transport's thread counts while another answers)."""
         with self._skipped_lock:
@@ -233,17 +183,10 @@ class Dispatcher:
                                                                                        self.session.constraints)
         if outcome is None:
             return still_frame_header(seq, subset, movable), parts
-        header = server_message("vertices", seq=seq, skipped=self.take_skipped(), iterations=outcome.iterations,
-                                energies=[readable_energy(e, self.session.diagonal) for e in outcome.energies],
-                                solve_ms=round(outcome.solve_ms, 3),
-                                ms_per_iteration=round(outcome.ms_per_iteration, 3),
-                                subset=subset, movable=movable)
-        return header, parts
+        return vertices_header(self.session, seq, self.take_skipped(), outcome, subset, movable), parts
 
     def settle_status(self, status: str, iterations: int, energy: float | None, seconds: float | None) -> Reply:
-        return server_message("settle", status=status, iterations=iterations,
-                              energy=readable_energy(energy, self.session.diagonal),
-                              seconds=None if seconds is None else round(seconds, 4))
+        return settle_message(self.session, status, iterations, energy, seconds)
 
     @staticmethod
     def error(exc: RequestError) -> Reply:
@@ -272,10 +215,17 @@ class Dispatcher:
         replies.append(self.settle_status(outcome.status, outcome.iterations, outcome.energy, outcome.seconds))
         return replies
 
+    def settle_session(self, interrupted: Callable[[], bool], on_frame: FrameCallback) -> SettleOutcome | None:
+        """:meth:`Session.settle`, a refusal raised as :class:`RequestError`."""
+        try:
+            return self.session.settle(interrupted, on_frame)
+        except SessionError as exc:
+            error = request_error(exc)
+        raise error
+
     def settle(self, interrupted: Callable[[], bool], send: Callable[[Reply], object]) -> None:
         """Settle the shape on this thread, sending its progress with ``send``; ``interrupted`` stops it."""
-        s = self.session
-        if not s.needs_settle:
+        if not self.session.needs_settle:
             return
         streamed = 0
 
@@ -287,7 +237,7 @@ class Dispatcher:
 
         send(self.settle_status("settling", 0, None, 0.0))
         try:
-            outcome = s.settle(interrupted, on_frame)
+            outcome = self.settle_session(interrupted, on_frame)
         except RequestError as exc:
             send(self.error(exc))
             return
@@ -296,70 +246,117 @@ class Dispatcher:
                 send(reply)
 
     # ------------------------------------------------------------------ requests
-    def handle(self, msg: ClientMessage) -> Iterator[Reply | _Settle]:
-        """Check ``msg`` against the session's mesh and carry it out, yielding its answers (and :data:`SETTLE`
-        where the shape must be settled first). Raises :class:`RequestError`."""
-        s = self.session
-        f = msg.fields
-        t = msg.type
-        check_against_mesh(msg, s.n_vertices, s.n_groups)
-        if t == "drag":
-            outcome = s.drag(f["transforms"])
-            yield self.vertices(f["seq"], outcome)
-        elif t == "end_drag":
-            s.end_drag()
-            yield self.state()
-        elif t == "load_builtin":
-            mesh = load_builtin(f["name"])
-            s.load(mesh)
-            self.take_skipped()
-            yield from self.mesh(mesh)
-            yield self.state()
-            yield from self.shape_status()
-        elif t == "upload":
-            yield from self._upload(msg)
-            yield from self.shape_status()
-        elif t == "set_constraints":
-            solved = s.set_constraints(f["roi"], f["fixed"], f["handle_groups"], f.get("targets"),
-                                       f.get("stiffness"), f.get("points"))
-            if solved is not None:
-                yield self.vertices(-1, solved)
-            yield self.state()
-        elif t == "set_params":
-            s.set_params(**f)
-            yield self.state()
-        elif t in ("undo", "redo", "reset", "apply"):
-            before = s.U
-            getattr(s, t)()
-            self.stream.reset(None)  # everything may have changed: the next frame is full
-            if s.U is not before and not np.array_equal(s.U, before):
-                yield self.vertices(-1, None)
-            yield self.state()
-            yield from self.shape_status()
-        elif t == "export":
-            # The exported shape must not depend on timing: an unsettled shape settles first (a new request
-            # stops it, and the shape reached is exported).
-            yield SETTLE
-            filename, mime, data = s.export(f["format"])
-            yield server_message("export", filename=filename, mime=mime), [data]
-        elif t == "get_distortion":
-            header, data = distortion_frame(s)
-            yield header, [data]
-        elif t == "get_constraints":
-            # with the timeline's keyframes when the message carries them
-            times = f.get("times_ms")
-            document = keyframes_document(s, times, f.get("transforms") or []) if times else s.constraints_document()
-            yield server_message("constraints", document=document)
+    def handle(self, msg: ClientMessage) -> Answers:
+        """Check ``msg`` against the session's mesh and carry it out with its class's handler, yielding its answers
+        (and :data:`SETTLE` where the shape must be settled first). Raises :class:`RequestError`."""
+        check_against_mesh(msg, self.session.n_vertices, self.session.n_groups)
+        handler = self._handlers.get(type(msg))
+        if handler is None:
+            raise RequestError("bad_message", f"unhandled message type {msg.type!r}")
+        try:
+            yield from handler(msg)
+        except SessionError as exc:
+            error = request_error(exc, msg.type)
         else:
-            raise RequestError("bad_message", f"unhandled message type {t!r}")
+            return
+        raise error  # outside the handler: the session's error and its frames are not kept with it
 
-    def _upload(self, msg: ClientMessage) -> Iterator[Reply]:
-        """Load an upload and send its mesh and state; the times of each step are logged (INFO, one JSON line)."""
+    def export_animation(self, msg: ExportAnimation, interrupted: Callable[[], bool],
+                         send: Callable[[Reply], object]) -> Reply:
+        """Solve ``export_animation``'s keyframes into an animated GLB (:mod:`arap.server.animation_export`),
+        sending ``animation_progress`` through ``send`` at most 10 times per second; the ``animation`` reply, or a
+        ``cancelled`` progress message when ``interrupted()`` turned true (a new request waits)."""
+        t0 = time.perf_counter()
+        last = [0.0]
+
+        def progress(done: int, frames: int) -> None:
+            now = time.perf_counter()
+            if done and done < frames and now - last[0] < 0.1:
+                return
+            last[0] = now
+            send(AnimationProgress(status="solving", frame=done, frames=frames, seconds=round(now - t0, 3)).to_wire())
+
+        try:
+            filename, mime, data, frames, seconds = export_animation(
+                self.session, msg.times_ms, msg.transforms, msg.fps, interrupted, progress)
+        except AnimationCancelled:
+            return AnimationProgress(status="cancelled", frame=0, frames=0,
+                                     seconds=round(time.perf_counter() - t0, 3)).to_wire()
+        except SessionError as exc:
+            error = request_error(exc, msg.type)
+        else:
+            return Animation(filename=filename, mime=mime, frames=frames, seconds=round(seconds, 3)).to_wire(), [data]
+        raise error
+
+    def _drag(self, msg: Drag) -> Answers:
+        outcome = self.session.drag(msg.transforms)
+        yield self.vertices(msg.seq, outcome)
+
+    def _end_drag(self, msg: EndDrag) -> Answers:
+        self.session.end_drag()
+        yield self.state()
+
+    def _load_builtin(self, msg: LoadBuiltin) -> Answers:
+        mesh = load_builtin(msg.name)
+        self.session.load(mesh)
+        self.take_skipped()
+        yield from self.mesh(mesh)
+        yield self.state()
+        yield from self.shape_status()
+
+    def _set_constraints(self, msg: SetConstraints) -> Answers:
+        solved = self.session.set_constraints(msg.roi, msg.fixed, msg.handle_groups, msg.targets, msg.stiffness,
+                                              msg.points)
+        if solved is not None:
+            yield self.vertices(-1, solved)
+        yield self.state()
+
+    def _set_params(self, msg: SetParams) -> Answers:
+        self.session.set_params(msg.iterations, msg.energy, msg.weights, msg.alpha)
+        yield self.state()
+
+    def _history_step(self, msg: Undo | Redo | Reset | Apply) -> Answers:
+        s = self.session
+        before = s.U
+        if isinstance(msg, Undo):
+            s.undo()
+        elif isinstance(msg, Redo):
+            s.redo()
+        elif isinstance(msg, Reset):
+            s.reset()
+        else:
+            s.apply()
+        self.stream.reset(None)  # everything may have changed: the next frame is full
+        if s.U is not before and not np.array_equal(s.U, before):
+            yield self.vertices(-1, None)
+        yield self.state()
+        yield from self.shape_status()
+
+    def _export(self, msg: Export) -> Answers:
+        # The exported shape must not depend on timing: an unsettled shape settles first (a new request stops it,
+        # and the shape reached is exported).
+        yield SETTLE
+        filename, mime, data = self.session.export(msg.format)
+        yield ExportReply(filename=filename, mime=mime).to_wire(), [data]
+
+    def _get_distortion(self, msg: GetDistortion) -> Answers:
+        header, data = distortion_frame(self.session)
+        yield header, [data]
+
+    def _get_constraints(self, msg: GetConstraints) -> Answers:
+        # with the timeline's keyframes when the message carries them
+        s = self.session
+        times = msg.times_ms
+        document = keyframes_document(s, times, msg.transforms or []) if times else s.constraints_document()
+        yield Constraints(document=document).to_wire()
+
+    def _upload(self, msg: Upload) -> Answers:
+        """Load an upload and send its mesh and state, then the shape's status; the times of each step are logged
+        (INFO, one JSON line)."""
         arrived, decoded = self.arrived.pop(id(msg), (float("nan"), float("nan")))
         started = time.time()
-        assert msg.payload is not None
-        mesh, cpu = _timed(load_upload, msg.payload, msg.fields["filename"], self.config.max_vertices)
-        look = look_from_upload(msg.payload, msg.fields["filename"], mesh, self.config.max_vertices)
+        mesh, cpu = _timed(load_upload, msg.payload, msg.filename, self.config.max_vertices)
+        look = look_from_upload(msg.payload, msg.filename, mesh, self.config.max_vertices)
         parsed = time.time()
         self.session.load(mesh, look)
         self.take_skipped()
@@ -377,26 +374,4 @@ class Dispatcher:
                                                          "arrived": arrived, "mesh_sent": mesh_sent,
                                                          "parse_repair_cpu_ms": round(1000 * cpu, 2),
                                                          **{k: round(1000 * v, 2) for k, v in ms.items()}}))
-
-
-def state_message(session: Session) -> dict[str, Any]:
-    """The ``state`` message of ``session``: history, parameters, constraints, transforms and statistics."""
-    n = session.n_vertices
-    cs = session.constraints
-    solver = session.solver
-    return server_message(
-        "state",
-        can_undo=session.can_undo,
-        can_redo=session.can_redo,
-        params=asdict(session.params),
-        constraints=cs.to_json(),
-        transforms=matrices_to_json(session.transforms),
-        rest_id=session.rest_id,
-        stats={
-            "n_vertices": n,
-            "n_faces": 0 if session.mesh is None else session.mesh.n_faces,
-            "roi_size": n if cs.roi is None else len(cs.roi),
-            "n_free": 0 if solver is None else int(solver.n_free),
-            "factor_ms": 0.0 if solver is None else 1000.0 * float(solver.factor_seconds),
-        },
-    )
+        yield from self.shape_status()

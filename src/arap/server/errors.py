@@ -1,11 +1,21 @@
-"""Errors of the studio protocol: the ``error`` codes and the exception a rejected request raises.
+"""Errors of the studio protocol: the ``error`` codes, the exception a rejected request raises, and the one table
+that gives the code of each refusal of a session (:mod:`arap.server.session_errors`).
 
-Part of the wire protocol; :mod:`arap.server.protocol` re-exports both names.
+Part of the wire protocol; :mod:`arap.server.protocol` re-exports ``ERROR_CODES`` and ``RequestError``.
 """
 
 from __future__ import annotations
 
-__all__ = ["ERROR_CODES", "RequestError"]
+from arap.server.session_errors import (
+    BadValues,
+    ConstraintsRejected,
+    NoMesh,
+    SessionError,
+    SolveFailed,
+    UnusableMesh,
+)
+
+__all__ = ["ERROR_CODES", "SESSION_ERROR_CODES", "RequestError", "request_error"]
 
 ERROR_CODES: dict[str, str] = {
     "bad_message": "not JSON, not an object, unknown type, unknown or missing field, wrong field type/range",
@@ -44,3 +54,26 @@ class RequestError(Exception):
     def __reduce__(self) -> tuple[type[RequestError], tuple[str, str, str | None]]:
         # Pickled with its fields (a request decoded in another process raises it there).
         return (RequestError, (self.code, self.message, self.request))
+
+
+SESSION_ERROR_CODES: dict[type[SessionError], str] = {
+    NoMesh: "no_mesh",
+    ConstraintsRejected: "bad_constraints",
+    BadValues: "bad_message",
+    UnusableMesh: "bad_mesh",
+    SolveFailed: "internal",
+}
+"""The ``error`` code of each refusal of a session."""
+
+
+def request_error(exc: SessionError, request: str | None = None) -> RequestError:
+    """The :class:`RequestError` (and so the ``error`` message) that reports the session's refusal ``exc`` of a
+    ``request`` message.
+
+    Example
+    -------
+    >>> request_error(NoMesh("no mesh is loaded"), "undo").code
+    'no_mesh'
+    """
+    code = next((SESSION_ERROR_CODES[c] for c in type(exc).__mro__ if c in SESSION_ERROR_CODES), "internal")
+    return RequestError(code, exc.message, request)

@@ -9,7 +9,8 @@ import numpy as np
 
 from arap.method.cells import Cells, build_cells
 from arap.method.energy import distortion_from_cells
-from arap.server.protocol import RequestError, server_message
+from arap.server.protocol import RequestError
+from arap.server.server_messages import Distortion
 from arap.server.session import Session
 
 HIGH_PERCENTILE = 98.0
@@ -55,4 +56,4 @@ def distortion_frame(session: Session) -> tuple[dict[str, Any], bytes]:
     D = distortion_from_cells(_cells(session, F), session.V, F, session.U, p.energy, p.alpha)
     high = float(np.percentile(D, HIGH_PERCENTILE)) if len(D) else 0.0
     top = float(D.max(initial=0.0))
-    return server_message("distortion", high=high, max=top), np.ascontiguousarray(D, dtype="<f4").tobytes()
+    return Distortion(high=high, max=top).to_wire(), np.ascontiguousarray(D, dtype="<f4").tobytes()

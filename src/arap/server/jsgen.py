@@ -1,28 +1,24 @@
-"""Generation of the client's protocol module (``web/src/protocol.js``) from the message specifications
-(:mod:`arap.server.messages`)."""
+"""Generation of the client's protocol module (``web/src/protocol.js``) from the message classes
+(:mod:`arap.server.client_messages`, :mod:`arap.server.server_messages`): the constants the client imports, the
+binary frame helpers and a JSDoc typedef of every message (only types and constants: the client does not
+validate)."""
 
 from __future__ import annotations
 
 import json
 from typing import Any
 
+from arap.server.client_messages import CLIENT_MESSAGES
 from arap.server.errors import ERROR_CODES
-from arap.server.fields import AFFINE_TOLERANCE
-from arap.server.frames import MAX_HEADER_BYTES
 from arap.server.messages import (
-    CLIENT_MESSAGES,
-    ENERGIES,
     EXPORT_FORMATS,
-    MAX_HANDLE_GROUPS,
-    MAX_SEQ,
     PARAMS,
     PROTOCOL_VERSION,
-    SERVER_MESSAGES,
     UPLOAD_EXTENSIONS,
-    WEIGHTS,
     Field,
     MessageSpec,
 )
+from arap.server.server_messages import SERVER_MESSAGES
 
 __all__ = ["generate_js"]
 
@@ -166,9 +162,13 @@ def _type_name(message_type: str, side: str) -> str:
 
 
 def _field_type(f: Field) -> str:
-    if f.kind == "enum":
-        return "|".join(json.dumps(c) for c in f.choices)
-    return _TS_TYPES[f.kind]
+    if f.js_type is not None:
+        js = f.js_type
+    elif f.kind == "enum":
+        js = "|".join(json.dumps(c) for c in f.choices)
+    else:
+        js = _TS_TYPES[f.kind]
+    return f"{js}|null" if f.nullable else js
 
 
 def _typedefs(specs: dict[str, MessageSpec], side: str, union: str, doc: str) -> str:
@@ -186,22 +186,17 @@ def _typedefs(specs: dict[str, MessageSpec], side: str, union: str, doc: str) ->
     return "\n\n".join(out) + "\n"
 
 
-def _messages(specs: dict[str, MessageSpec]) -> dict[str, Any]:
-    return {
-        t: {"binary": s.binary, "doc": s.doc, "fields": [f.to_json() for f in s.fields]}
-        for t, s in specs.items()
-    }
-
-
 def generate_js() -> str:
     """Source of ``web/src/protocol.js``.
 
     Returns
     -------
     str
-        An ES module exporting the message type names (``CLIENT``, ``SERVER``), error codes (``ERROR``),
-        parameter ranges (``PARAMS``), limits and the message field descriptions, plus ``encodeBinary``,
-        ``decodeBinary``, ``meshArrays``, ``vertexArray`` and ``movableArray``.
+        An ES module exporting the protocol version, the message type names (``CLIENT``, ``SERVER``), error codes
+        (``ERROR``), parameter ranges (``PARAMS``), export formats and upload extensions, a JSDoc typedef of each
+        message (``<Name>ClientMessage``, ``<Name>ServerMessage``, unions ``ClientMessage`` and
+        ``ServerMessage``), plus ``encodeBinary``, ``decodeBinary``, ``meshArrays``, ``vertexArray`` and
+        ``movableArray``.
     """
     parts = [
         _HEADER,
@@ -212,17 +207,9 @@ def generate_js() -> str:
         _const("SERVER", {t.upper(): t for t in SERVER_MESSAGES}, "Types of the messages the server sends.",
                literal=True),
         _const("ERROR", {c.upper(): c for c in ERROR_CODES}, "Error codes of `error` messages.", literal=True),
-        _const("ERROR_DESCRIPTIONS", ERROR_CODES, "What each error code means."),
         _const("PARAMS", PARAMS, "Solver parameters (`set_params`), with ranges and defaults."),
-        _const("ENERGIES", list(ENERGIES), "Values of the `energy` parameter."),
-        _const("WEIGHTS", list(WEIGHTS), "Values of the `weights` parameter."),
         _const("EXPORT_FORMATS", list(EXPORT_FORMATS), "Formats of `export`."),
         _const("UPLOAD_EXTENSIONS", list(UPLOAD_EXTENSIONS), "File extensions `upload` accepts."),
-        _const("LIMITS", {"maxHandleGroups": MAX_HANDLE_GROUPS, "maxSeq": MAX_SEQ,
-                          "maxHeaderBytes": MAX_HEADER_BYTES, "affineTolerance": AFFINE_TOLERANCE},
-               "Fixed protocol limits (size limits of the server are in `welcome.limits`)."),
-        _const("CLIENT_MESSAGES", _messages(CLIENT_MESSAGES), "Fields of each client message."),
-        _const("SERVER_MESSAGES", _messages(SERVER_MESSAGES), "Fields of each server message."),
         _typedefs(CLIENT_MESSAGES, "Client", "ClientMessage", "Any message a client sends."),
         _typedefs(SERVER_MESSAGES, "Server", "ServerMessage",
                   "Any message the server sends (of a binary one: its header)."),

@@ -15,7 +15,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from arap.server.constraints import ConstraintSet
-from arap.server.protocol import server_message
+from arap.server.server_messages import Vertices
 
 __all__ = ["VertexPayload", "VertexStream", "movable_vertices", "still_frame_header"]
 
@@ -112,5 +112,5 @@ class VertexStream:
 
 def still_frame_header(seq: int, subset: int, movable: int) -> dict[str, Any]:
     """Header of a ``vertices`` frame that ran no solve (a settling frame, or the pose after a change)."""
-    return server_message("vertices", seq=seq, skipped=0, iterations=0, energies=[], solve_ms=0.0,
-                          ms_per_iteration=0.0, subset=subset, movable=movable)
+    return Vertices(seq=seq, skipped=0, iterations=0, energies=[], solve_ms=0.0, ms_per_iteration=0.0,
+                    subset=subset, movable=movable).to_wire()

@@ -17,7 +17,8 @@ import numpy as np
 import arap
 from arap.errors import ArapError, MeshFormatError, MeshTooLargeError
 from arap.io import load_mesh_bytes_with_report, load_mesh_with_report, save_mesh_bytes
-from arap.server.protocol import UPLOAD_EXTENSIONS, RequestError, encode_binary, server_message
+from arap.server.protocol import UPLOAD_EXTENSIONS, RequestError, encode_binary
+from arap.server.server_messages import Mesh
 
 __all__ = ["MeshData", "builtin_names", "export_mesh", "load_builtin", "load_default", "load_upload", "mesh_frame"]
 
@@ -191,8 +192,8 @@ def mesh_frame(mesh: MeshData) -> bytes:
     """The ``mesh`` message of ``mesh``: rest positions (float32), faces (uint32) and, for a repaired file, each
     vertex's number in the file (int32)."""
     vmap = mesh.vertex_map
-    header = server_message("mesh", name=mesh.name, n_vertices=mesh.n_vertices, n_faces=mesh.n_faces,
-                            report=mesh.report, file_vertices=0 if vmap is None else len(vmap))
+    header = Mesh(name=mesh.name, n_vertices=mesh.n_vertices, n_faces=mesh.n_faces, report=mesh.report,
+                  file_vertices=0 if vmap is None else len(vmap)).to_wire()
     parts = [np.ascontiguousarray(mesh.V, dtype="<f4").tobytes(), np.ascontiguousarray(mesh.F, dtype="<u4").tobytes()]
     if vmap is not None:
         parts.append(np.ascontiguousarray(vmap, dtype="<i4").tobytes())

@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 
 from arap.server.meshdata import MeshData
-from arap.server.protocol import RequestError
+from arap.server.session_errors import ConstraintsRejected
 
 __all__ = ["FileNumbering", "document_in_file_numbering", "message_in_file_numbering"]
 
@@ -160,8 +160,8 @@ def document_in_file_numbering(document: dict[str, Any], mesh: MeshData) -> dict
 
     Raises
     ------
-    RequestError
-        ``bad_constraints`` for point handles on a mesh that repair changed: they refer to the repaired
+    ConstraintsRejected
+        For point handles on a mesh that repair changed: they refer to the repaired
         triangles, and ``arap deform`` refuses them on such a mesh.
 
     Examples
@@ -173,7 +173,7 @@ def document_in_file_numbering(document: dict[str, Any], mesh: MeshData) -> dict
     {'fixed': [1], 'handles': [3], 'targets': [[0.0, 2, 0]], 'handle_groups': [[3]]}
     """
     if document.get("points") and mesh.report:
-        raise RequestError("bad_constraints", _points_refused(mesh))
+        raise ConstraintsRejected(_points_refused(mesh))
     if mesh.vertex_map is None:
         return document
     numbering = FileNumbering(mesh.vertex_map, mesh.n_vertices)

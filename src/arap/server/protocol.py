@@ -1,7 +1,8 @@
 """The studio wire protocol: message types, their fields, error codes and the binary frame layout.
 
-The message specifications live in :mod:`arap.server.messages`, the error codes in :mod:`arap.server.errors` and
-the binary frame helpers in :mod:`arap.server.frames`; all are re-exported here.
+The messages are classes, :mod:`arap.server.client_messages` and :mod:`arap.server.server_messages` (their
+specifications, derived from the classes, and the constants of :mod:`arap.server.messages` are re-exported here),
+the error codes live in :mod:`arap.server.errors` and the binary frame helpers in :mod:`arap.server.frames`.
 
 This module is the single source of truth of the protocol spoken over the studio's WebSocket (see
 ``docs/protocol.md``). The browser client's copy, ``web/src/protocol.js``, is generated from it::
@@ -10,24 +11,24 @@ This module is the single source of truth of the protocol spoken over the studio
 
 Incoming messages are validated in two stages: :func:`parse_text` / :func:`parse_binary` check the
 structure of a frame (JSON object, known type, every field of the right type and range) without knowing the
-session, and :func:`check_against_mesh` checks what depends on the session's current mesh (vertex index bounds,
-number of handle groups). Both raise :class:`RequestError`, which the server turns into an ``error`` reply.
+session and return an instance of the message's class, and :func:`check_against_mesh` checks what depends on
+the session's current mesh (vertex index bounds, number of handle groups). Both raise :class:`RequestError`, which
+the server turns into an ``error`` reply.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
 from arap.server.bulkjson import NumberList, loads_bulk
+from arap.server.client_messages import CLIENT_MESSAGE_CLASSES, CLIENT_MESSAGES, Drag, SetConstraints, Upload
 from arap.server.errors import ERROR_CODES, RequestError
 from arap.server.fields import check_field
 from arap.server.frames import MAX_HEADER_BYTES, decode_binary, encode_binary, loads_json
 from arap.server.messages import (
     ANIMATION_STATUSES,
-    CLIENT_MESSAGES,
     ENERGIES,
     EXPORT_FORMATS,
     MAX_FPS,
@@ -38,13 +39,16 @@ from arap.server.messages import (
     MAX_STIFFNESS_GROUPS,
     PARAMS,
     PROTOCOL_VERSION,
-    SERVER_MESSAGES,
     SETTLE_STATUSES,
     UPLOAD_EXTENSIONS,
     WEIGHTS,
+    ClientMessage,
     Field,
     MessageSpec,
+    ServerMessage,
+    message_spec,
 )
+from arap.server.server_messages import SERVER_MESSAGES, Error
 
 __all__ = [
     "ANIMATION_STATUSES",
@@ -69,6 +73,7 @@ __all__ = [
     "Field",
     "MessageSpec",
     "RequestError",
+    "ServerMessage",
     "check_against_mesh",
     "decode_binary",
     "encode_binary",
@@ -77,75 +82,16 @@ __all__ = [
     "parse_binary",
     "parse_large_text",
     "parse_text",
-    "server_message",
     "validate",
 ]
 
 
-def server_message(type_: str, **fields: Any) -> dict[str, Any]:
-    """Build a message the server sends (a text message, or the header of a binary one) from its specification.
-
-    Every field of :data:`SERVER_MESSAGES` ``[type_]`` must be given and no other, so the messages the server
-    builds cannot drift from the specification, the generated client module and ``docs/protocol.md``.
-
-    Parameters
-    ----------
-    type_ : str
-        A key of :data:`SERVER_MESSAGES`.
-    **fields
-        Its fields.
-
-    Returns
-    -------
-    dict
-        ``{"type": type_, **fields}``.
-
-    Raises
-    ------
-    KeyError
-        An unknown message type.
-    TypeError
-        A missing or unknown field (a bug in the server, not a client's fault).
-
-    Example
-    -------
-    >>> server_message("constraints", document={"fixed": []})
-    {'type': 'constraints', 'document': {'fixed': []}}
-    """
-    spec = SERVER_MESSAGES[type_]
-    given = fields.keys()
-    if given != spec.field_names:
-        missing = sorted(spec.field_names - given)
-        unknown = sorted(given - spec.field_names)
-        raise TypeError(f"server message {type_!r}: missing fields {missing}, unknown fields {unknown}")
-    return {"type": type_, **fields}
-
-
 def error_message(exc: RequestError) -> dict[str, Any]:
     """The ``error`` message that tells the client why ``exc``'s request was rejected."""
-    return server_message("error", code=exc.code, message=exc.message, request=exc.request)
+    return Error(code=exc.code, message=exc.message, request=exc.request).to_wire()
 
 
 # ---------------------------------------------------------------------------------------------- validation
-@dataclass
-class ClientMessage:
-    """A structurally valid client message.
-
-    Attributes
-    ----------
-    type : str
-    fields : dict
-        Validated fields (absent optional fields are left out). Index and point lists are Python lists, or NumPy
-        arrays when the frame was decoded by :mod:`arap.server.decoder`.
-    payload : memoryview or None
-        Payload of a binary message.
-    """
-
-    type: str
-    fields: dict[str, Any]
-    payload: memoryview | None = None
-
-
 def _check_fields_together(mtype: str, fields: dict[str, Any]) -> None:
     """Checks across the fields of one message."""
     if mtype == "set_constraints" and fields.get("points"):
@@ -166,7 +112,7 @@ def _request_name(obj: dict[str, Any]) -> str | None:
 
 
 def validate(obj: Any, binary: bool, payload: memoryview | None = None) -> ClientMessage:
-    """Check a decoded message against :data:`CLIENT_MESSAGES`.
+    """Check a decoded message against its class's specification (:data:`CLIENT_MESSAGES`) and build it.
 
     Parameters
     ----------
@@ -180,6 +126,7 @@ def validate(obj: Any, binary: bool, payload: memoryview | None = None) -> Clien
     Returns
     -------
     ClientMessage
+        An instance of the message's class (:mod:`arap.server.client_messages`); absent optional fields are None.
 
     Raises
     ------
@@ -194,9 +141,10 @@ def validate(obj: Any, binary: bool, payload: memoryview | None = None) -> Clien
         raise RequestError("bad_message", "message has no 'type'")
     if request is None:
         raise RequestError("bad_message", "'type' must be a string")
-    spec = CLIENT_MESSAGES.get(obj["type"])
-    if spec is None:
+    cls = CLIENT_MESSAGE_CLASSES.get(obj["type"])
+    if cls is None:
         raise RequestError("bad_message", f"unknown message type {request!r}", request)
+    spec = message_spec(cls)
     if spec.binary != binary:
         how = "a binary frame" if spec.binary else "a text frame"
         raise RequestError("bad_message", f"{spec.type} must be sent as {how}", request)
@@ -218,7 +166,9 @@ def validate(obj: Any, binary: bool, payload: memoryview | None = None) -> Clien
     except RequestError as exc:
         exc.request = request
         raise
-    return ClientMessage(spec.type, fields, payload if binary else None)
+    if cls is Upload:
+        return Upload(**fields, payload=payload if payload is not None else memoryview(b""))
+    return cls(**fields)
 
 
 def parse_text(text: str, *, cooperative: bool = False) -> ClientMessage:
@@ -278,11 +228,11 @@ def check_against_mesh(msg: ClientMessage, n_vertices: int, n_groups: int) -> No
         ``bad_constraints`` for an index out of range or a list longer than the mesh has vertices (some must
         repeat), ``bad_message`` for a wrong number of transforms.
     """
-    if msg.type == "set_constraints":
-        lists: list[tuple[str, list[int] | np.ndarray]] = [("fixed", msg.fields["fixed"])]
-        if msg.fields["roi"] is not None:
-            lists.append(("roi", msg.fields["roi"]))
-        lists += [(f"handle_groups[{i}]", g) for i, g in enumerate(msg.fields["handle_groups"])]
+    if isinstance(msg, SetConstraints):
+        lists: list[tuple[str, list[int] | np.ndarray]] = [("fixed", msg.fixed)]
+        if msg.roi is not None:
+            lists.append(("roi", msg.roi))
+        lists += [(f"handle_groups[{i}]", g) for i, g in enumerate(msg.handle_groups)]
         for name, values in lists:
             bad = _first_out_of_range(values, n_vertices)
             if bad is not None:
@@ -292,8 +242,8 @@ def check_against_mesh(msg: ClientMessage, n_vertices: int, n_groups: int) -> No
                 # checked here, before the session copies the list to look for the repeated ones
                 raise RequestError("bad_constraints", f"{name} lists {len(values):,} vertex indices, more than the "
                                    f"mesh's {n_vertices:,} vertices: some repeat", msg.type)
-    elif msg.type == "drag":
-        got = len(msg.fields["transforms"])
+    elif isinstance(msg, Drag):
+        got = len(msg.transforms)
         if got != n_groups:
             raise RequestError("bad_message",
                                f"drag has {got} transforms but the constraints have {n_groups} handle groups",

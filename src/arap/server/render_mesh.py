@@ -34,7 +34,8 @@ from arap.io import load_asset, load_asset_bytes, save_asset, save_mesh_bytes
 from arap.io.asset_model import MeshAsset, result_trimesh, weld_rows
 from arap.io.obj_write import obj_text
 from arap.server.meshdata import EXPORT_MIME, MeshData, export_mesh
-from arap.server.protocol import encode_binary, server_message
+from arap.server.protocol import encode_binary
+from arap.server.server_messages import Appearance
 
 __all__ = ["MAX_TEXTURE_BYTES", "Look", "build_look", "export_asset", "export_glb", "look_from_path",
            "look_from_upload"]
@@ -109,8 +110,9 @@ class Look:
         """The ``appearance`` message (built once: the default mesh's look is shared by every session)."""
         r = 0 if self.render_map is None else len(self.render_map)
         t = 0 if self.render_faces is None else len(self.render_faces)
-        header = server_message("appearance", colors=self.colors is not None, render_vertices=r, render_faces=t,
-                                texture_bytes=len(self.texture), texture_mime=self.texture_mime, notes=self.notes)
+        header = Appearance(colors=self.colors is not None, render_vertices=r, render_faces=t,
+                            texture_bytes=len(self.texture), texture_mime=self.texture_mime,
+                            notes=self.notes).to_wire()
         parts: list[bytes] = []
         if r:
             assert self.render_map is not None and self.render_uv is not None and self.render_faces is not None

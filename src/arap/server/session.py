@@ -1,13 +1,15 @@
-"""State of one studio editing session: mesh, constraints, solver, deformed pose, parameters and history.
+"""The requests of one studio editing session: load a mesh, set constraints, drag, settle, change parameters,
+undo, redo, reset, apply, export and describe the constraints.
 
 A :class:`Session` is synchronous and not thread-safe: the server calls it from one worker at a time (on a
-thread, since solves and factorisations take a while). Every request either succeeds or raises
-:class:`~arap.server.protocol.RequestError` and leaves the session unchanged.
+thread, since solves and factorisations take a while). Every request either succeeds or raises a
+:class:`~arap.server.session_errors.SessionError` and leaves the session unchanged; the session knows nothing of
+the wire protocol (the transports' layer turns its refusals into ``error`` messages). What it holds, and the
+bookkeeping the requests share, is :class:`~arap.server.session_state.SessionState`.
 """
 
 from __future__ import annotations
 
-import logging
 import time
 from collections.abc import Callable
 from dataclasses import asdict
@@ -17,28 +19,22 @@ import numpy as np
 
 import arap
 from arap.errors import ArapError
-from arap.meshes.mesh import bounding_box
 from arap.method.weights import WeightType
 from arap.options import EnergyType
 from arap.server.constraints import ConstraintSet, identity_transforms, matrices_from_json
-from arap.server.history import History, Snapshot
 from arap.server.meshdata import MeshData
-from arap.server.numbering import document_in_file_numbering, message_in_file_numbering
-from arap.server.protocol import RequestError
+from arap.server.numbering import document_in_file_numbering
 from arap.server.records import DragOutcome, Params, SettleOutcome
 from arap.server.render_mesh import Look, export_asset
-from arap.server.settling import FrameCallback, settle_solve
-from arap.server.solvers import SolverCache
+from arap.server.session_errors import BadValues, ConstraintsRejected, SolveFailed, UnusableMesh
+from arap.server.session_state import SessionState
+from arap.server.settling import FrameCallback
+from arap.server.solve_calls import check_target_range, checked_settle, solve_for_targets
 
 __all__ = ["DragOutcome", "Params", "Session", "SettleOutcome"]
 
-logger = logging.getLogger(__name__)
 
-_TARGET_RANGE = 1e6
-"""Handle targets farther from the origin than this times (1 + the mesh's largest coordinate) are rejected."""
-LOAD_ITERATIONS = 200
-"""Iteration cap of the solve that answers constraints loaded with explicit targets (settling then goes on)."""
-class Session:
+class Session(SessionState):
     """One client's editing session.
 
     Parameters
@@ -49,121 +45,6 @@ class Session:
         Memory budget of the undo history.
     """
 
-    def __init__(self, max_history_steps: int = 100, max_history_bytes: int = 512 * 2**20) -> None:
-        self.mesh: MeshData | None = None
-        self.look: Look | None = None
-        """The mesh file's colours, texture and render mesh (None for a plain mesh)."""
-        self.params = Params()
-        self.history = History(max_history_steps, max_history_bytes)
-        self._rest_counter = 0
-        self._solvers = SolverCache()
-        self.solver: Any = None
-        self._unsolvable: str | None = None
-        """Why the solver rejected the constraints an undo or redo restored (``solver`` is then None)."""
-        self._warm = False
-        self._dirty = False
-        self.rest_id = 0
-        self.V = np.zeros((0, 3))
-        self.U = self.V
-        self.constraints = ConstraintSet.empty(self.V)
-        self.transforms = identity_transforms(0)
-        self.solves = 0
-        self.settled = True
-        self.energy: float | None = 0.0
-        """Energy of the shape ``U`` when known (0 at a rest pose)."""
-        self._diagonal = (-1, 0.0)  # (rest_id, the rest pose's bounding-box diagonal)
-
-    # ------------------------------------------------------------------ helpers
-    def _require_mesh(self) -> MeshData:
-        if self.mesh is None:
-            raise RequestError("no_mesh", "no mesh is loaded")
-        return self.mesh
-
-    @property
-    def n_vertices(self) -> int:
-        """Vertices of the current mesh (0 without one)."""
-        return 0 if self.mesh is None else self.mesh.n_vertices
-
-    @property
-    def scale(self) -> float:
-        """Largest absolute rest coordinate (1 without a mesh): the size float32 frames resolve against."""
-        return max(float(np.abs(self.V).max(initial=0.0)), 1e-300) if self.mesh is not None else 1.0
-
-    @property
-    def diagonal(self) -> float:
-        """Bounding-box diagonal of the rest pose (0 without a mesh)."""
-        if self.mesh is None or not len(self.V):
-            return 0.0
-        if self._diagonal[0] != self.rest_id:
-            lo, hi = bounding_box(self.V)
-            self._diagonal = (self.rest_id, float(np.linalg.norm(hi - lo)))
-        return self._diagonal[1]
-
-    @property
-    def n_groups(self) -> int:
-        """Handle groups of the current constraint set."""
-        return self.constraints.n_groups
-
-    def _new_rest_id(self) -> int:
-        self._rest_counter += 1
-        return self._rest_counter
-
-    def _solver_for(self, rest_id: int, V: np.ndarray, cs: ConstraintSet, params: Params) -> Any:
-        """A factorised solver for the constraint set (cached), or None when nothing is constrained.
-
-        Raises RequestError (``bad_constraints``) when the solver rejects the constraints.
-        """
-        try:
-            return self._solvers.get(rest_id, V, self._require_mesh().F, cs, params)
-        except RequestError as exc:
-            raise self._in_file_numbering(exc) from exc.__cause__
-
-    def _in_file_numbering(self, exc: RequestError) -> RequestError:
-        """``exc`` with the vertices its message names numbered as in the mesh file (the user's numbering)."""
-        message = message_in_file_numbering(exc.message, self.mesh)
-        if message == exc.message:
-            return exc
-        return RequestError(exc.code, message, exc.request)
-
-    def _build(self, rest: np.ndarray, pose: np.ndarray, roi: Any, fixed: Any, groups: Any,
-               **kwargs: Any) -> ConstraintSet:
-        """:meth:`ConstraintSet.build` for the current mesh, its errors naming vertices in the file's numbering."""
-        try:
-            return ConstraintSet.build(rest, pose, roi, fixed, groups, faces=self._require_mesh().F, **kwargs)
-        except RequestError as exc:
-            raise self._in_file_numbering(exc) from exc.__cause__
-
-    def _snapshot(self) -> Snapshot:
-        return Snapshot(self.rest_id, self.V, self.U, self.constraints, self.transforms, self.settled,
-                        self.energy)
-
-    def _restore(self, snap: Snapshot) -> None:
-        self._unsolvable = None
-        try:
-            solver = self._solver_for(snap.rest_id, snap.V, snap.constraints, self.params)
-        except RequestError as exc:
-            logger.warning("restored constraints cannot be solved with the current parameters: %s", exc.message)
-            solver = None
-            self._unsolvable = (f"the constraints of this step cannot be solved with the {self.params.energy} "
-                                f"energy and {self.params.weights} weights: {exc.message}")
-        self.rest_id, self.V, self.U = snap.rest_id, snap.V, snap.U
-        self.constraints, self.transforms = snap.constraints, snap.transforms
-        self.solver = solver
-        self._warm = False
-        self._dirty = False
-        self.settled = snap.settled
-        self.energy = snap.energy
-
-    def _commit(self) -> None:
-        """Record the current state as a new history step."""
-        self.history.push(self._snapshot())
-        self._dirty = False
-
-    def _commit_pending_drag(self) -> None:
-        if self._dirty:
-            self._commit()
-
-    # ------------------------------------------------------------------ requests
     def load(self, mesh: MeshData, look: Look | None = None) -> None:
         """Replace the mesh (and its file's colours and texture); constraints, transforms and history start afresh
         (parameters are kept)."""
@@ -211,9 +92,10 @@ class Session:
 
         Raises
         ------
-        RequestError
-            ``bad_constraints`` for invalid indices or constraints the solver rejects, ``bad_message`` for
-            targets of the wrong shape or absurdly far away.
+        ConstraintsRejected
+            Invalid indices or constraints the solver rejects.
+        BadValues
+            Targets of the wrong shape or absurdly far away.
         """
         self._require_mesh()
         positions = None
@@ -221,8 +103,7 @@ class Session:
         if targets is not None:
             given = np.asarray(targets, dtype=np.float64)
             if given.shape != (n_handles, 3) and not (n_handles == 0 and given.size == 0):
-                raise RequestError("bad_message", f"targets must be {n_handles} points [x, y, z], one per handle "
-                                   "vertex")
+                raise BadValues(f"targets must be {n_handles} points [x, y, z], one per handle vertex")
             self._check_range(given)
             positions = given if n_handles else None
         cs = self._build(self.V, self.U, roi, fixed, groups, handle_positions=positions, stiffness=stiffness,
@@ -253,49 +134,38 @@ class Session:
         return outcome
 
     def _check_range(self, points: np.ndarray) -> None:
-        """Reject target positions absurdly far from the mesh (``bad_message``)."""
-        limit = _TARGET_RANGE * (1.0 + float(np.abs(self.V).max(initial=0.0)))
-        if not np.all(np.abs(points) <= limit):
-            raise RequestError("bad_message", "handle vertices would move absurdly far (beyond "
-                               f"{limit:.3g} from the origin)")
+        check_target_range(points, self.V)
 
     def _solve(self, solver: Any, targets: np.ndarray, initial: np.ndarray | None,
                settle: bool = False, point_targets: np.ndarray | None = None) -> tuple[np.ndarray, DragOutcome]:
-        """Solve for ``targets``; returns the positions and the outcome without changing the session.
-
-        ``settle`` runs until converged, at most :data:`LOAD_ITERATIONS` iterations, instead of the per-update
-        iteration count (a drag update runs exactly that count).
-        """
-        iterations = max(self.params.iterations, LOAD_ITERATIONS) if settle else self.params.iterations
-        kwargs: dict[str, Any] = {} if settle else {"tolerance": 0.0}
+        """:func:`~arap.server.solve_calls.solve_for_targets` with the session's parameters; the positions and the
+        outcome, the session unchanged but for the count of solves (and no warm start after a failed one)."""
         try:
-            result = solver.solve(targets, initial=initial, max_iterations=iterations, point_targets=point_targets,
-                                  **kwargs)
-        except ArapError as exc:
-            raise RequestError("bad_message", str(exc)) from exc
-        if not np.all(np.isfinite(result.vertices)):
+            U, outcome = solve_for_targets(solver, self.params, targets, initial, settle, point_targets)
+        except SolveFailed:
             self._warm = False
-            raise RequestError("internal", "the solve produced non-finite positions; the shape is unchanged")
+            raise
         self.solves += 1
-        return result.vertices, DragOutcome(result.iterations, [float(e) for e in result.energies],
-                                            1000.0 * float(result.timings.get("total", 0.0)))
+        return U, outcome
 
     def drag(self, transforms: list[list[float]]) -> DragOutcome:
         """Move the handle groups by ``transforms`` (column-major 4×4 each) and solve.
 
         Raises
         ------
-        RequestError
-            ``bad_constraints`` when nothing is constrained, ``bad_message`` when the targets are not finite.
+        ConstraintsRejected
+            Nothing is constrained.
+        BadValues
+            The targets are not finite, or absurdly far away.
         """
         self._require_mesh()
         if len(transforms) != self.n_groups:
-            raise RequestError("bad_message", f"drag has {len(transforms)} transforms but the constraints have "
-                               f"{self.n_groups} handle groups")
+            raise BadValues(f"drag has {len(transforms)} transforms but the constraints have {self.n_groups} handle "
+                            "groups")
         if self.solver is None:
             if self._unsolvable is not None and not self.constraints.is_empty:
-                raise RequestError("bad_constraints", self._unsolvable)
-            raise RequestError("bad_constraints", "nothing to solve: select fixed vertices or handles first")
+                raise ConstraintsRejected(self._unsolvable)
+            raise ConstraintsRejected("nothing to solve: select fixed vertices or handles first")
         T = matrices_from_json(transforms)
         targets = self.constraints.targets(T)
         point_targets = self.constraints.point_targets(T)
@@ -310,11 +180,6 @@ class Session:
         self._dirty = True
         self.settled = False
         return outcome
-
-    @property
-    def needs_settle(self) -> bool:
-        """True when the shape may not be converged and no drag is under way (see :meth:`settle`)."""
-        return not self.settled and not self._dirty and self.solver is not None and self.mesh is not None
 
     def settle(self, interrupted: Callable[[], bool],
                on_frame: FrameCallback | None = None) -> SettleOutcome | None:
@@ -344,17 +209,17 @@ class Session:
             return None
         t0 = time.perf_counter()
         try:
-            result, stopped = settle_solve(solver, self.constraints.targets(self.transforms),
-                                           self.constraints.point_targets(self.transforms),
-                                           None if self._warm else self.U, self.U, self.diagonal, interrupted,
-                                           on_frame)
-        except ArapError as exc:
-            self.settled = True
-            raise RequestError("bad_message", str(exc)) from exc
-        if not np.all(np.isfinite(result.vertices)):
+            result, stopped = checked_settle(solver, self.constraints.targets(self.transforms),
+                                             self.constraints.point_targets(self.transforms),
+                                             None if self._warm else self.U, self.U, self.diagonal, interrupted,
+                                             on_frame)
+        except SolveFailed:
             self._warm = False
             self.settled = True
-            raise RequestError("internal", "settling produced non-finite positions; the shape is unchanged")
+            raise
+        except BadValues:
+            self.settled = True
+            raise
         moved = float(np.abs(result.vertices - self.U).max(initial=0.0))
         if moved > 1e-12 * self.scale:
             self.U = result.vertices
@@ -382,8 +247,8 @@ class Session:
 
         Raises
         ------
-        RequestError
-            ``bad_constraints`` when the current constraints cannot be solved with the new parameters.
+        ConstraintsRejected
+            The current constraints cannot be solved with the new parameters.
         """
         new = Params(**asdict(self.params))
         if iterations is not None:
@@ -455,7 +320,7 @@ class Session:
         try:
             arap.check_mesh(V, mesh.F)
         except ArapError as exc:
-            raise RequestError("bad_mesh", f"the deformed shape cannot become the rest pose: {exc}") from exc
+            raise UnusableMesh(f"the deformed shape cannot become the rest pose: {exc}") from exc
         old = self.constraints
         cs = self._build(V, V, None if old.roi is None else old.roi.tolist(), old.fixed.tolist(),
                          [g.tolist() for g in old.groups], stiffness=old.stiffness_json(), points=old.points_json())
@@ -476,7 +341,7 @@ class Session:
         try:
             return export_asset(mesh.name, self.U, mesh.F, self.look, fmt)
         except ArapError as exc:
-            raise RequestError("bad_mesh", f"cannot export: {exc}") from exc
+            raise UnusableMesh(f"cannot export: {exc}") from exc
 
     def constraints_document(self) -> dict[str, Any]:
         """The current constraints in the command-line format, in the mesh file's vertex numbering (as ``arap
@@ -484,18 +349,3 @@ class Session:
         :func:`arap.server.animation_export.keyframes_document`."""
         mesh = self._require_mesh()
         return document_in_file_numbering(self.constraints.document(self.V, self.transforms), mesh)
-
-    def solver_moved_on(self) -> None:
-        """The solver was used for other shapes (an animation export): the next solve starts from the shape shown,
-        not from the solver's last solution."""
-        self._warm = False
-
-    # ------------------------------------------------------------------ replies
-    @property
-    def can_undo(self) -> bool:
-        """Whether undo has a step to go back to (an unfinished drag counts as one)."""
-        return self.history.can_undo or self._dirty
-
-    @property
-    def can_redo(self) -> bool:
-        return self.history.can_redo and not self._dirty

@@ -12,8 +12,8 @@ import numpy as np
 import arap
 from arap.errors import ArapError
 from arap.server.constraints import ConstraintSet
-from arap.server.protocol import RequestError
 from arap.server.records import Params
+from arap.server.session_errors import ConstraintsRejected
 
 __all__ = ["SOLVER_CACHE_VERTICES", "SolverCache"]
 
@@ -40,8 +40,8 @@ class SolverCache:
 
         Raises
         ------
-        RequestError
-            ``bad_constraints`` when the solver rejects the constraints.
+        ConstraintsRejected
+            When the solver rejects the constraints.
         """
         if cs.is_empty:
             return None
@@ -55,7 +55,7 @@ class SolverCache:
             solver = arap.ArapSolver(V, F, cs.constrained, energy=params.energy, weights=params.weights,
                                      roi=cs.roi, alpha=params.alpha, stiffness=cs.stiffness, points=cs.points)
         except ArapError as exc:
-            raise RequestError("bad_constraints", str(exc)) from exc
+            raise ConstraintsRejected(str(exc)) from exc
         logger.debug("factorised %d free vertices in %.1f ms", solver.n_free, 1000 * solver.factor_seconds)
         self._solvers[key] = solver
         keep = 2 if len(V) <= SOLVER_CACHE_VERTICES else 1

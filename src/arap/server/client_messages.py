@@ -1,0 +1,266 @@
+"""The messages a client sends, one frozen dataclass each, with their fields declared by
+:func:`arap.server.messages.wire` (kind, meaning, range): the single description of these messages, from which the
+validator (:func:`arap.server.protocol.validate`) builds instances, the dispatcher picks a handler by class, and the
+client module and the protocol document take their field lists (:data:`CLIENT_MESSAGES`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any, ClassVar
+
+from arap.options import EnergyType, WeightType
+from arap.server.messages import (
+    ENERGIES,
+    EXPORT_FORMATS,
+    MAX_FPS,
+    MAX_HANDLE_GROUPS,
+    MAX_KEYFRAME_MATRICES,
+    MAX_KEYFRAMES,
+    MAX_SEQ,
+    MAX_STIFFNESS_GROUPS,
+    PARAMS,
+    WEIGHTS,
+    ClientMessage,
+    MessageSpec,
+    message_spec,
+    wire,
+)
+
+__all__ = [
+    "CLIENT_MESSAGES",
+    "CLIENT_MESSAGE_CLASSES",
+    "Apply",
+    "Drag",
+    "EndDrag",
+    "Export",
+    "ExportAnimation",
+    "GetConstraints",
+    "GetDistortion",
+    "LoadBuiltin",
+    "Redo",
+    "Reset",
+    "SetConstraints",
+    "SetParams",
+    "Undo",
+    "Upload",
+]
+
+IndexList = Any
+"""A list of vertex indices: a Python list, or a (k,) integer NumPy array from :mod:`arap.server.decoder`."""
+
+
+@dataclass(frozen=True)
+class LoadBuiltin(ClientMessage):
+    type: ClassVar[str] = "load_builtin"
+    doc: ClassVar[str] = "replace the session's mesh by a built-in model"
+    name: str = field(metadata=wire("string", "built-in model name (welcome.builtin_meshes)", max_length=64))
+
+
+@dataclass(frozen=True)
+class Upload(ClientMessage):
+    type: ClassVar[str] = "upload"
+    doc: ClassVar[str] = "load an uploaded OBJ/OFF/PLY/STL/GLB file (payload: the file's bytes)"
+    binary: ClassVar[bool] = True
+    filename: str = field(metadata=wire("string", "original file name; only its extension is used", max_length=255))
+    payload: memoryview = field(repr=False, compare=False)
+    """The file's bytes (the binary frame's payload)."""
+
+
+@dataclass(frozen=True)
+class SetConstraints(ClientMessage):
+    type: ClassVar[str] = "set_constraints"
+    doc: ClassVar[str] = "new constraint set; transforms of all groups reset to identity"
+    roi: IndexList | None = field(metadata=wire("indices_or_null", "region of interest, or null for the whole mesh"))
+    fixed: IndexList = field(metadata=wire("indices", "vertices held in place"))
+    handle_groups: list[IndexList] = field(
+        metadata=wire(
+            "index_groups", "vertices moved together by one transform per group", max_length=MAX_HANDLE_GROUPS
+        )
+    )
+    targets: Any = field(
+        default=None,
+        metadata=wire(
+            "points_or_null",
+            "positions of the handle vertices (groups concatenated), or null to keep them where they are",
+        ),
+    )
+    stiffness: list[dict[str, Any]] | None = field(
+        default=None,
+        metadata=wire(
+            "stiffness_or_null",
+            'painted stiffness (cell weights) as [{vertices, value}], value > 0 or "rigid", 1 '
+            "elsewhere; null or absent: all 1",
+            max_length=MAX_STIFFNESS_GROUPS,
+        ),
+    )
+    points: list[dict[str, Any]] | None = field(
+        default=None,
+        metadata=wire(
+            "point_handles_or_null",
+            "point handles as [{face, barycentric, weight?, target?}] (no weight: hard); each "
+            "is a handle group of its own, after handle_groups; null or absent: none",
+            max_length=MAX_HANDLE_GROUPS,
+        ),
+    )
+
+
+@dataclass(frozen=True)
+class Drag(ClientMessage):
+    type: ClassVar[str] = "drag"
+    doc: ClassVar[str] = "move the handle groups; only the newest pending drag is solved"
+    seq: int = field(
+        metadata=wire("int", "sequence number echoed by the answering vertices frame", minimum=0, maximum=MAX_SEQ)
+    )
+    transforms: list[list[float]] = field(
+        metadata=wire(
+            "matrices",
+            "one affine 4x4 matrix per handle group, then per point handle, column-major",
+            max_length=MAX_HANDLE_GROUPS,
+        )
+    )
+
+
+@dataclass(frozen=True)
+class EndDrag(ClientMessage):
+    type: ClassVar[str] = "end_drag"
+    doc: ClassVar[str] = "the current deformation becomes one undo step"
+
+
+@dataclass(frozen=True)
+class SetParams(ClientMessage):
+    type: ClassVar[str] = "set_params"
+    doc: ClassVar[str] = "change solver parameters (any of the fields)"
+    at_least_one: ClassVar[bool] = True
+    iterations: int | None = field(
+        default=None,
+        metadata=wire(
+            "int",
+            "local/global iterations per update",
+            minimum=PARAMS["iterations"]["min"],
+            maximum=PARAMS["iterations"]["max"],
+        ),
+    )
+    energy: EnergyType | None = field(default=None, metadata=wire("enum", "ARAP energy", choices=ENERGIES))
+    weights: WeightType | None = field(default=None, metadata=wire("enum", "edge weights", choices=WEIGHTS))
+    alpha: float | None = field(
+        default=None,
+        metadata=wire(
+            "number",
+            "weight of the rotation term of smooth_rotations (SR-ARAP)",
+            minimum=PARAMS["alpha"]["min"],
+            maximum=PARAMS["alpha"]["max"],
+        )
+    )
+
+
+@dataclass(frozen=True)
+class Undo(ClientMessage):
+    type: ClassVar[str] = "undo"
+    doc: ClassVar[str] = "step back in the edit history"
+
+
+@dataclass(frozen=True)
+class Redo(ClientMessage):
+    type: ClassVar[str] = "redo"
+    doc: ClassVar[str] = "step forward in the edit history"
+
+
+@dataclass(frozen=True)
+class Reset(ClientMessage):
+    type: ClassVar[str] = "reset"
+    doc: ClassVar[str] = "back to the rest pose (undoable)"
+
+
+@dataclass(frozen=True)
+class Apply(ClientMessage):
+    type: ClassVar[str] = "apply"
+    doc: ClassVar[str] = "the deformed shape becomes the new rest pose (undoable)"
+
+
+@dataclass(frozen=True)
+class Export(ClientMessage):
+    type: ClassVar[str] = "export"
+    doc: ClassVar[str] = (
+        "ask for the deformed mesh as a file (GLB keeps a textured or coloured source's UVs, textures and colours)"
+    )
+    format: str = field(metadata=wire("enum", "file format", choices=EXPORT_FORMATS))
+
+
+@dataclass(frozen=True)
+class GetConstraints(ClientMessage):
+    type: ClassVar[str] = "get_constraints"
+    doc: ClassVar[str] = (
+        "ask for the constraints document (command-line format), with the timeline's keyframes "
+        "when given (as arap animate reads them)"
+    )
+    times_ms: IndexList | None = field(
+        default=None,
+        metadata=wire(
+            "indices",
+            "keyframe times in milliseconds, increasing (absent or empty: no keyframes)",
+            max_length=MAX_KEYFRAMES,
+        ),
+    )
+    transforms: list[list[float]] | None = field(
+        default=None,
+        metadata=wire(
+            "matrices",
+            "per keyframe, one column-major 4x4 matrix per handle group (point handles excluded), keyframe "
+            "after keyframe",
+            max_length=MAX_KEYFRAME_MATRICES,
+        ),
+    )
+
+
+@dataclass(frozen=True)
+class ExportAnimation(ClientMessage):
+    type: ClassVar[str] = "export_animation"
+    doc: ClassVar[str] = (
+        "solve the keyframed animation at fps, every frame to convergence from the previous one with the session's "
+        "solver and parameters (point handles hold still), and answer with an animated GLB (morph targets); "
+        "animation_progress messages report the frames solved, and any new request cancels it"
+    )
+    times_ms: IndexList = field(
+        metadata=wire("indices", "keyframe times in milliseconds, increasing", max_length=MAX_KEYFRAMES)
+    )
+    transforms: list[list[float]] = field(
+        metadata=wire(
+            "matrices",
+            "per keyframe, one column-major 4x4 matrix per handle group "
+            "(point handles excluded), keyframe after keyframe",
+            max_length=MAX_KEYFRAME_MATRICES,
+        )
+    )
+    fps: float = field(metadata=wire("number", "frames per second", minimum=1, maximum=MAX_FPS))
+
+
+@dataclass(frozen=True)
+class GetDistortion(ClientMessage):
+    type: ClassVar[str] = "get_distortion"
+    doc: ClassVar[str] = "ask for the per-vertex distortion of the current shape (the heat map)"
+
+
+CLIENT_MESSAGE_CLASSES: dict[str, type[ClientMessage]] = {
+    cls.type: cls
+    for cls in (
+        LoadBuiltin,
+        Upload,
+        SetConstraints,
+        Drag,
+        EndDrag,
+        SetParams,
+        Undo,
+        Redo,
+        Reset,
+        Apply,
+        Export,
+        GetConstraints,
+        ExportAnimation,
+        GetDistortion,
+    )
+}
+"""The class of each message a client may send, by type."""
+
+CLIENT_MESSAGES: dict[str, MessageSpec] = {t: message_spec(cls) for t, cls in CLIENT_MESSAGE_CLASSES.items()}
+"""Messages a client may send, by type (derived from their classes)."""
