@@ -100,6 +100,7 @@ export class Autosave {
       return undefined;
     }
     const { bytes, ...source } = snap.source;
+    /** @type {{id: string, key: number, bytes: ArrayBuffer}|null} */
     let mesh = null;
     if (source.kind === 'file' && source.key !== this.meshKey) mesh = { id: this.id, key: source.key, bytes };
     this.stored = true;

@@ -1,8 +1,9 @@
 // The panel's controls of the point-handle mode and the stiffness brush: the brush's strength (log slider, or
 // rigid), its eraser, and the weight of new point handles (empty: hard).
+import { byId, byIdAs } from './dom.js';
 import { sliderToStiffness, stiffnessLabel } from './stiffness.js';
 
-const $ = (id) => /** @type {HTMLInputElement} */ (document.getElementById(id));
+const $ = (/** @type {string} */ id) => byIdAs(id, HTMLInputElement);
 
 export class PaintModes {
   /**
@@ -17,7 +18,7 @@ export class PaintModes {
     this.eraser = $('stiffness-erase');
     this.weightInput = $('point-weight');
     this.on = true; // the panel's controls take input
-    document.getElementById('role-seg-2').addEventListener('click', (e) => {
+    byId('role-seg-2').addEventListener('click', (e) => {
       const b = /** @type {Element} */ (e.target).closest('button');
       if (b instanceof HTMLButtonElement && !b.disabled) setRole(b.dataset.role);
     });
@@ -77,7 +78,7 @@ export class PaintModes {
     const value = this.rigid.checked ? Infinity : sliderToStiffness(Number(this.slider.value));
     this.selection.stiffnessValue = value;
     this.slider.disabled = !this.on || this.rigid.checked;
-    document.getElementById('stiffness-val').textContent = stiffnessLabel(value);
+    byId('stiffness-val').textContent = stiffnessLabel(value);
   }
 
   /** Enable the strength slider with the panel's controls (`on`), except while rigid is ticked. */

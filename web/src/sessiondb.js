@@ -18,6 +18,10 @@ function request(req) {
   });
 }
 
+/**
+ * @param {IDBTransaction} tx
+ * @returns {Promise<void>} settles when the transaction completes or fails
+ */
 function done(tx) {
   return new Promise((resolve, reject) => {
     tx.oncomplete = () => resolve();
@@ -48,7 +52,11 @@ export function newSessionId() {
   return id;
 }
 
-/** Save a session record; `mesh` ({id, ...}) is written too when given (the record names it by `meshId`). */
+/**
+ * Save a session record; `mesh` ({id, ...}) is written too when given (the record names it by `meshId`).
+ * @param {object} record
+ * @param {{id: string, key: number, bytes: ArrayBuffer}|null} [mesh] a mesh file's bytes, under the source's key
+ */
 export async function putSession(record, mesh = null) {
   const db = await open();
   const tx = db.transaction([SESSIONS, MESHES], 'readwrite');
@@ -74,7 +82,8 @@ export async function getMesh(id) {
 async function heldIds() {
   if (!navigator.locks?.query) return new Set();
   const { held = [] } = await navigator.locks.query();
-  return new Set(held.map((l) => l.name).filter((n) => n?.startsWith(LOCK_PREFIX)).map((n) => n.slice(LOCK_PREFIX.length)));
+  return new Set(held.map((l) => l.name).filter((n) => typeof n === 'string')
+    .filter((n) => n.startsWith(LOCK_PREFIX)).map((n) => n.slice(LOCK_PREFIX.length)));
 }
 
 /**

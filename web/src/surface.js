@@ -1,5 +1,6 @@
 // Selection along the surface in the panel: the brush metric, growing and shrinking the current role by one ring,
 // and a region of interest grown from the handles by k rings or a distance along the surface.
+import { byId, byIdAs } from './dom.js';
 import { buildAdjacency, geodesicDistances, kRing, ringAround } from './geodesic.js';
 import { FIXED, HANDLE0 } from './selection.js';
 
@@ -127,14 +128,14 @@ export class SurfaceSelection {
  * @param {(text: string) => void} tell shows a short message
  */
 export function installSurfaceControls(surface, tools, tell) {
-  const $ = (id) => /** @type {HTMLInputElement} */ (document.getElementById(id));
-  $('brush-metric').addEventListener('change', () => (tools.metric = $('brush-metric').value));
-  $('btn-grow').addEventListener('click', () => surface.ring(false));
-  $('btn-shrink').addEventListener('click', () => surface.ring(true));
-  $('btn-roi-from-handles').addEventListener('click', () => {
-    const amount = Number($('roi-amount').value);
+  const metric = byIdAs('brush-metric', HTMLSelectElement);
+  metric.addEventListener('change', () => (tools.metric = metric.value));
+  byId('btn-grow').addEventListener('click', () => surface.ring(false));
+  byId('btn-shrink').addEventListener('click', () => surface.ring(true));
+  byId('btn-roi-from-handles').addEventListener('click', () => {
+    const amount = Number(byIdAs('roi-amount', HTMLInputElement).value);
     if (!(amount >= 0)) return tell('Give a number of rings or a distance of at least 0.');
-    if (!surface.roiFromHandles($('roi-mode').value, amount)) tell('Paint a handle first: the region grows from it.');
+    if (!surface.roiFromHandles(byIdAs('roi-mode', HTMLSelectElement).value, amount)) tell('Paint a handle first: the region grows from it.');
     return undefined;
   });
 }
