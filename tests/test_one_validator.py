@@ -30,9 +30,10 @@ from arap.options import (
     check_weights,
 )
 from arap.server.constraints import ConstraintSet
+from arap.server.errors import request_error
 from arap.server.meshdata import MeshData
-from arap.server.protocol import RequestError
 from arap.server.session import Session
+from arap.server.session_errors import ConstraintsRejected
 from arap.solve.solver import ArapSolver
 
 V, F = builtin_mesh("bar")
@@ -62,14 +63,14 @@ BAD: list[tuple[dict[str, Any], str]] = [
 
 def _server_message(case: dict[str, Any]) -> str:
     handles = case.get("handles", [])
-    with pytest.raises(RequestError) as info:
+    with pytest.raises(ConstraintsRejected) as info:
         ConstraintSet.build(V, V, case.get("roi"), case.get("fixed", []), [handles] if handles else [])
-    assert info.value.code == "bad_constraints"
+    assert request_error(info.value).code == "bad_constraints"
     session = Session()
     session.load(MeshData.make("bar", V, F))
-    with pytest.raises(RequestError) as again:
+    with pytest.raises(ConstraintsRejected) as again:
         session.set_constraints(case.get("roi"), case.get("fixed", []), [handles] if handles else [])
-    assert (again.value.code, again.value.message) == ("bad_constraints", info.value.message)
+    assert (request_error(again.value).code, again.value.message) == ("bad_constraints", info.value.message)
     assert session.constraints.is_empty
     return info.value.message.replace("handle group 0", "handles")
 
@@ -147,9 +148,9 @@ def test_point_handles_are_refused_alike_by_files_and_the_studio(point: dict[str
         load_constraints({"fixed": BOTTOM, "version": 2, "points": [point | {"target": [0.0, 0.0, 0.0]}]}, N, len(F))
     session = Session()
     session.load(MeshData.make("bar", V, F))
-    with pytest.raises(RequestError, match=expected) as err:
+    with pytest.raises(ConstraintsRejected, match=expected) as err:
         session.set_constraints(None, BOTTOM, [], points=[point])
-    assert err.value.code == "bad_constraints"
+    assert request_error(err.value).code == "bad_constraints"
 
 
 # ---------------------------------------------------------------------------------------------- solver options
