@@ -1,6 +1,10 @@
 // Distortion heat map: the server's per-vertex distortion (how far each cell is from rigid) drawn as vertex colours,
 // with a legend. While it is on, every new shape asks for fresh values (one request in flight at a time).
+import { byId, byIdAs, inside } from './dom.js';
 import { CLIENT } from './protocol.js';
+
+/** @typedef {import('./protocol.js').DistortionServerMessage} DistortionServerMessage */
+/** @typedef {import('./protocol.js').GetDistortionClientMessage} GetDistortionClientMessage */
 
 /**
  * Colour stops of the scale, sRGB, from rigid (0) to the top of the scale (1).
@@ -46,8 +50,7 @@ export class HeatMap {
    *   keep their colours), restore(): draw the role colours again, legend (element), checkbox (the toggle)
    */
   constructor({
-    viewer, send, role, restore, legend = document.getElementById('heat-legend'),
-    checkbox = /** @type {HTMLInputElement} */ (document.getElementById('heatmap')),
+    viewer, send, role, restore, legend = byId('heat-legend'), checkbox = byIdAs('heatmap', HTMLInputElement),
   }) {
     this.viewer = viewer;
     this.send = send;
@@ -63,7 +66,7 @@ export class HeatMap {
     this.stale = false;
     this.lastRequest = -Infinity;
     this.timer = 0;
-    this.legend.querySelector('.heat-bar').style.background = cssGradient();
+    inside(this.legend, '.heat-bar').style.background = cssGradient();
   }
 
   /** Turn the heat map on (asks for values) or off (back to the role colours). */
@@ -105,10 +108,15 @@ export class HeatMap {
     }
     this.stale = false;
     this.lastRequest = performance.now();
-    this.inFlight = this.send({ type: CLIENT.GET_DISTORTION });
+    /** @type {GetDistortionClientMessage} */
+    const msg = { type: CLIENT.GET_DISTORTION };
+    this.inFlight = this.send(msg);
   }
 
-  /** A `distortion` reply. */
+  /**
+   * A `distortion` reply.
+   * @param {DistortionServerMessage & {frame: {payload: Uint8Array}}} msg with its frame (float32 per vertex)
+   */
   received(msg) {
     this.inFlight = false;
     const p = msg.frame.payload;
@@ -116,8 +124,8 @@ export class HeatMap {
     if (this.on && values.length === this.viewer.nVertices) {
       this.values = Float32Array.from(values);
       this.high = msg.high > 0 ? msg.high : msg.max;
-      this.legend.querySelector('.heat-high').textContent = fmt(this.high);
-      this.legend.querySelector('.heat-max').textContent = `max ${fmt(msg.max)}`;
+      inside(this.legend, '.heat-high').textContent = fmt(this.high);
+      inside(this.legend, '.heat-max').textContent = `max ${fmt(msg.max)}`;
       this.paint();
     }
     if (this.stale && this.on) this.request();
