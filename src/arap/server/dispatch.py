@@ -49,6 +49,7 @@ from arap.server.replies import (
     SETTLE,
     Reply,
     _Settle,
+    appearance_frame,
     settle_message,
     state_message,
     vertices_header,
@@ -160,7 +161,7 @@ class Dispatcher:
         yield mesh_frame(mesh)
         look = self.session.look
         if look is not None:
-            yield look.frame
+            yield appearance_frame(look)
 
     def count_skipped(self) -> None:
         """A queued drag was replaced by a newer one: the answer to the newer one reports it (``skipped``)."""

@@ -1,4 +1,5 @@
-"""Meshes of the studio: built-in models, the operator's default mesh, client uploads and exports.
+"""Meshes of the studio: built-in models, the operator's default mesh, client uploads and the ``mesh`` frame that
+sends one (the loaded mesh itself and its export are :mod:`arap.server.mesh_model`, re-exported here).
 
 A client never names a file on the server: uploads arrive as bytes and are parsed from memory, and exports are
 encoded in memory.
@@ -9,81 +10,23 @@ from __future__ import annotations
 import logging
 import os
 import re
-from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 import arap
 from arap.errors import ArapError, MeshFormatError, MeshTooLargeError
-from arap.io import load_mesh_bytes_with_report, load_mesh_with_report, save_mesh_bytes
-from arap.server.protocol import UPLOAD_EXTENSIONS, RequestError, encode_binary
+from arap.io import load_mesh_bytes_with_report, load_mesh_with_report
+from arap.server.errors import RequestError
+from arap.server.frames import encode_binary
+from arap.server.mesh_model import EXPORT_MIME, MeshData, export_mesh
+from arap.server.messages import UPLOAD_EXTENSIONS
 from arap.server.server_messages import Mesh
 
-__all__ = ["MeshData", "builtin_names", "export_mesh", "load_builtin", "load_default", "load_upload", "mesh_frame"]
+__all__ = ["EXPORT_MIME", "MeshData", "builtin_names", "export_mesh", "load_builtin", "load_default", "load_upload",
+           "mesh_frame"]
 
 logger = logging.getLogger(__name__)
-
-EXPORT_MIME = {"obj": "model/obj", "ply": "application/octet-stream"}
-
-
-@dataclass(frozen=True, eq=False)
-class MeshData:
-    """A loaded mesh (arrays are read-only and may be shared between sessions).
-
-    Attributes
-    ----------
-    name : str
-        Display name.
-    V : (n, 3) float64 array
-    F : (m, 3) int64 array
-    report : list of str
-        Repairs made while loading, one line each.
-    vertex_map : (n_file,) int64 array or None
-        When repair renumbered the file's vertices (welded or dropped some): the index in :attr:`V` of each vertex
-        of the file, -1 for one dropped (:attr:`arap.meshes.repair.RepairResult.vertex_map`). None when the numbering is
-        the file's (clean files, built-in models, arrays). Constraints documents use the file's numbering
-        (:mod:`arap.server.numbering`).
-    """
-
-    name: str
-    V: np.ndarray
-    F: np.ndarray
-    report: list[str] = field(default_factory=list)
-    vertex_map: np.ndarray | None = None
-
-    @classmethod
-    def make(cls, name: str, V: np.ndarray, F: np.ndarray, report: list[str] | None = None,
-             vertex_map: np.ndarray | None = None) -> MeshData:
-        """Freeze copies of the arrays into a :class:`MeshData` (an identity ``vertex_map`` becomes None)."""
-        V = np.array(V, dtype=np.float64)
-        F = np.array(F, dtype=np.int64)
-        V.setflags(write=False)
-        F.setflags(write=False)
-        vmap = None
-        if vertex_map is not None and not np.array_equal(vertex_map, np.arange(len(V))):
-            vmap = np.array(vertex_map, dtype=np.int64)
-            if vmap.ndim != 1 or vmap.max(initial=-1) >= len(V) or vmap.min(initial=0) < -1 or \
-                    not np.isin(np.arange(len(V)), vmap).all():
-                raise ValueError("vertex_map must map the file's vertices onto every mesh vertex (-1: dropped)")
-            vmap.setflags(write=False)
-        return cls(name, V, F, list(report or []), vmap)
-
-    @property
-    def n_file_vertices(self) -> int:
-        """Vertices of the mesh file (:attr:`n_vertices` when repair kept the numbering)."""
-        return self.n_vertices if self.vertex_map is None else len(self.vertex_map)
-
-    @property
-    def n_vertices(self) -> int:
-        """Number of vertices."""
-        return len(self.V)
-
-    @property
-    def n_faces(self) -> int:
-        """Number of triangles."""
-        return len(self.F)
-
 
 def builtin_names() -> list[str]:
     """Names of the built-in models."""
@@ -174,18 +117,6 @@ def load_upload(data: bytes | memoryview, filename: str, max_vertices: int) -> M
         raise RequestError("bad_mesh", str(exc)) from exc
     logger.info("loaded upload %s%s: %d vertices, %d faces", name, ext, len(V), len(F))
     return MeshData.make(name, V, F, repair.report, repair.vertex_map if repair.renumbers else None)
-
-
-def export_mesh(name: str, U: np.ndarray, F: np.ndarray, fmt: str) -> tuple[str, str, bytes]:
-    """Encode the deformed mesh as a file.
-
-    Returns
-    -------
-    filename : str
-    mime : str
-    data : bytes
-    """
-    return f"{name}-deformed.{fmt}", EXPORT_MIME[fmt], save_mesh_bytes(U, F, fmt)
 
 
 def mesh_frame(mesh: MeshData) -> bytes:

@@ -19,7 +19,7 @@ from typing import Any
 
 import numpy as np
 
-from arap.server.meshdata import MeshData
+from arap.server.mesh_model import MeshData
 from arap.server.session_errors import ConstraintsRejected
 
 __all__ = ["FileNumbering", "document_in_file_numbering", "message_in_file_numbering"]

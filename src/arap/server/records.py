@@ -7,7 +7,7 @@ from dataclasses import dataclass
 
 from arap.method.weights import WeightType
 from arap.options import EnergyType
-from arap.server.protocol import PARAMS
+from arap.server.messages import PARAMS
 
 __all__ = ["ENERGY_ZERO", "DragOutcome", "Params", "SettleOutcome", "readable_energy"]
 

@@ -9,14 +9,14 @@ needs beside the mesh, sent in one ``appearance`` message right after the ``mesh
   every ``vertices`` frame) and its UV, the render triangles, and the base-colour texture image as stored (PNG or
   JPEG, at most :data:`MAX_TEXTURE_BYTES`; a larger one is left out and a note says so).
 
-Meshes without colours or texture have no look: nothing beyond the ``mesh`` frame is sent. The look also keeps the
+Meshes without colours or texture have no look: nothing beyond the ``mesh`` frame is sent (the ``appearance`` frame
+of a look is :func:`arap.server.replies.appearance_frame`). The look also keeps the
 :class:`~arap.io.MeshAsset`, so that the deformed shape is exported as GLB with its UVs, materials and textures
 (:func:`export_glb`).
 """
 
 from __future__ import annotations
 
-import functools
 import logging
 import os
 import re
@@ -33,9 +33,7 @@ from arap.errors import ArapError
 from arap.io import load_asset, load_asset_bytes, save_asset, save_mesh_bytes
 from arap.io.asset_model import MeshAsset, result_trimesh, weld_rows
 from arap.io.obj_write import obj_text
-from arap.server.meshdata import EXPORT_MIME, MeshData, export_mesh
-from arap.server.protocol import encode_binary
-from arap.server.server_messages import Appearance
+from arap.server.mesh_model import EXPORT_MIME, MeshData, export_mesh
 
 __all__ = ["MAX_TEXTURE_BYTES", "Look", "build_look", "export_asset", "export_glb", "look_from_path",
            "look_from_upload"]
@@ -104,25 +102,6 @@ class Look:
     def worth_sending(self) -> bool:
         """Something to draw or to say beyond the plain mesh."""
         return self.colors is not None or self.textured or bool(self.notes)
-
-    @functools.cached_property
-    def frame(self) -> bytes:
-        """The ``appearance`` message (built once: the default mesh's look is shared by every session)."""
-        r = 0 if self.render_map is None else len(self.render_map)
-        t = 0 if self.render_faces is None else len(self.render_faces)
-        header = Appearance(colors=self.colors is not None, render_vertices=r, render_faces=t,
-                            texture_bytes=len(self.texture), texture_mime=self.texture_mime,
-                            notes=self.notes).to_wire()
-        parts: list[bytes] = []
-        if r:
-            assert self.render_map is not None and self.render_uv is not None and self.render_faces is not None
-            parts += [np.ascontiguousarray(self.render_map, dtype="<u4").tobytes(),
-                      np.ascontiguousarray(self.render_uv, dtype="<f4").tobytes(),
-                      np.ascontiguousarray(self.render_faces, dtype="<u4").tobytes()]
-        if self.colors is not None:
-            parts.append(np.ascontiguousarray(self.colors, dtype=np.uint8).tobytes())
-        parts.append(self.texture)
-        return encode_binary(header, *parts)
 
     def file_positions(self, U: np.ndarray) -> np.ndarray:
         """Positions of the mesh (``U``, mesh numbering) for every vertex of the file (a dropped one keeps its own)."""

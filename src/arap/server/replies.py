@@ -1,4 +1,5 @@
-"""The server messages that describe a session (its ``welcome``, ``state``, ``vertices`` and ``settle`` messages),
+"""The server messages that describe a session (its ``welcome``, ``state``, ``vertices`` and ``settle`` messages, the
+``appearance`` frame of its mesh's look),
 built from the session by their classes (:mod:`arap.server.server_messages`), and :data:`Reply`, what a
 dispatcher hands its transport to send.
 
@@ -9,19 +10,26 @@ session is described.
 
 from __future__ import annotations
 
+import threading
 from dataclasses import asdict
 from typing import Any, Final
+from weakref import WeakKeyDictionary
+
+import numpy as np
 
 import arap
 from arap.server.constraints import matrices_to_json
+from arap.server.frames import encode_binary
 from arap.server.meshdata import builtin_names
 from arap.server.messages import MAX_HANDLE_GROUPS, PROTOCOL_VERSION
 from arap.server.records import DragOutcome, readable_energy
-from arap.server.server_messages import Settle, State, Vertices, Welcome
+from arap.server.render_mesh import Look
+from arap.server.server_messages import Appearance, Settle, State, Vertices, Welcome
 from arap.server.session import Session
 from arap.server.studio_config import StudioConfig
 
-__all__ = ["SETTLE", "Reply", "settle_message", "state_message", "vertices_header", "welcome_message"]
+__all__ = ["SETTLE", "Reply", "appearance_frame", "settle_message", "state_message", "vertices_header",
+           "welcome_message"]
 
 Reply = dict[str, Any] | bytes | tuple[dict[str, Any], list[bytes]]
 """A server message: a text message, an encoded binary frame, or a binary message's header and payload parts."""
@@ -87,3 +95,33 @@ def settle_message(session: Session, status: str, iterations: int, energy: float
     """A ``settle`` message: the status, iterations, energy (as the studio shows it) and time of a settling run."""
     return Settle(status=status, iterations=iterations, energy=readable_energy(energy, session.diagonal),
                   seconds=None if seconds is None else round(seconds, 4)).to_wire()
+
+
+_APPEARANCE: WeakKeyDictionary[Look, bytes] = WeakKeyDictionary()
+_APPEARANCE_LOCK = threading.Lock()
+
+
+def appearance_frame(look: Look) -> bytes:
+    """The ``appearance`` frame of ``look``: how its mesh is drawn (built once per look: the default mesh's look is
+    shared by every session)."""
+    with _APPEARANCE_LOCK:
+        frame = _APPEARANCE.get(look)
+    if frame is not None:
+        return frame
+    r = 0 if look.render_map is None else len(look.render_map)
+    t = 0 if look.render_faces is None else len(look.render_faces)
+    header = Appearance(colors=look.colors is not None, render_vertices=r, render_faces=t,
+                        texture_bytes=len(look.texture), texture_mime=look.texture_mime, notes=look.notes).to_wire()
+    parts: list[bytes] = []
+    if r:
+        assert look.render_map is not None and look.render_uv is not None and look.render_faces is not None
+        parts += [np.ascontiguousarray(look.render_map, dtype="<u4").tobytes(),
+                  np.ascontiguousarray(look.render_uv, dtype="<f4").tobytes(),
+                  np.ascontiguousarray(look.render_faces, dtype="<u4").tobytes()]
+    if look.colors is not None:
+        parts.append(np.ascontiguousarray(look.colors, dtype=np.uint8).tobytes())
+    parts.append(look.texture)
+    frame = encode_binary(header, *parts)
+    with _APPEARANCE_LOCK:
+        _APPEARANCE[look] = frame
+    return frame

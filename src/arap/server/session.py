@@ -22,7 +22,7 @@ from arap.errors import ArapError
 from arap.method.weights import WeightType
 from arap.options import EnergyType
 from arap.server.constraints import ConstraintSet, identity_transforms, matrices_from_json
-from arap.server.meshdata import MeshData
+from arap.server.mesh_model import MeshData
 from arap.server.numbering import document_in_file_numbering
 from arap.server.records import DragOutcome, Params, SettleOutcome
 from arap.server.render_mesh import Look, export_asset

@@ -1,0 +1,89 @@
+"""A mesh the studio has loaded (:class:`MeshData`: read-only arrays, its name, the repairs made and the file's
+vertex numbering) and its export as a mesh file.
+
+Kept apart from :mod:`arap.server.meshdata`, which loads meshes and frames them for the wire, so that a session
+(:mod:`arap.server.session`), which holds a mesh but knows nothing of the protocol, needs only this.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from arap.io import save_mesh_bytes
+
+__all__ = ["EXPORT_MIME", "MeshData", "export_mesh"]
+
+EXPORT_MIME = {"obj": "model/obj", "ply": "application/octet-stream"}
+"""Media type of each mesh export format (GLB: :data:`arap.server.render_mesh.GLB_MIME`)."""
+
+
+@dataclass(frozen=True, eq=False)
+class MeshData:
+    """A loaded mesh (arrays are read-only and may be shared between sessions).
+
+    Attributes
+    ----------
+    name : str
+        Display name.
+    V : (n, 3) float64 array
+    F : (m, 3) int64 array
+    report : list of str
+        Repairs made while loading, one line each.
+    vertex_map : (n_file,) int64 array or None
+        When repair renumbered the file's vertices (welded or dropped some): the index in :attr:`V` of each vertex
+        of the file, -1 for one dropped (:attr:`arap.meshes.repair.RepairResult.vertex_map`). None when the numbering is
+        the file's (clean files, built-in models, arrays). Constraints documents use the file's numbering
+        (:mod:`arap.server.numbering`).
+    """
+
+    name: str
+    V: np.ndarray
+    F: np.ndarray
+    report: list[str] = field(default_factory=list)
+    vertex_map: np.ndarray | None = None
+
+    @classmethod
+    def make(cls, name: str, V: np.ndarray, F: np.ndarray, report: list[str] | None = None,
+             vertex_map: np.ndarray | None = None) -> MeshData:
+        """Freeze copies of the arrays into a :class:`MeshData` (an identity ``vertex_map`` becomes None)."""
+        V = np.array(V, dtype=np.float64)
+        F = np.array(F, dtype=np.int64)
+        V.setflags(write=False)
+        F.setflags(write=False)
+        vmap = None
+        if vertex_map is not None and not np.array_equal(vertex_map, np.arange(len(V))):
+            vmap = np.array(vertex_map, dtype=np.int64)
+            if vmap.ndim != 1 or vmap.max(initial=-1) >= len(V) or vmap.min(initial=0) < -1 or \
+                    not np.isin(np.arange(len(V)), vmap).all():
+                raise ValueError("vertex_map must map the file's vertices onto every mesh vertex (-1: dropped)")
+            vmap.setflags(write=False)
+        return cls(name, V, F, list(report or []), vmap)
+
+    @property
+    def n_file_vertices(self) -> int:
+        """Vertices of the mesh file (:attr:`n_vertices` when repair kept the numbering)."""
+        return self.n_vertices if self.vertex_map is None else len(self.vertex_map)
+
+    @property
+    def n_vertices(self) -> int:
+        """Number of vertices."""
+        return len(self.V)
+
+    @property
+    def n_faces(self) -> int:
+        """Number of triangles."""
+        return len(self.F)
+
+
+def export_mesh(name: str, U: np.ndarray, F: np.ndarray, fmt: str) -> tuple[str, str, bytes]:
+    """Encode the deformed mesh as a file.
+
+    Returns
+    -------
+    filename : str
+    mime : str
+    data : bytes
+    """
+    return f"{name}-deformed.{fmt}", EXPORT_MIME[fmt], save_mesh_bytes(U, F, fmt)
