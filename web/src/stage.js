@@ -1,6 +1,7 @@
 // The fixed furniture of the viewer's scene: the lights, which ride with the camera so that the side facing the
-// viewer is always lit, and the floor grid under the mesh, which gives a sense of scale and of up. Neither depends
-// on the mesh's roles or shape beyond its bounds, so they live apart from the viewer that draws and updates the mesh.
+// viewer is always lit, the floor grid under the mesh, which gives a sense of scale and of up, and the camera's
+// framing of the whole mesh. None depends on the mesh's roles or shape beyond its bounds, so they live apart from
+// the viewer that draws and updates the mesh.
 import * as THREE from 'three';
 
 /**
@@ -39,4 +40,31 @@ export function floorGrid(box) {
   grid.position.set(center.x, box.min.y - 0.002 * extent, center.z);
   grid.raycast = () => {};
   return grid;
+}
+
+/**
+ * Point the camera at a sphere from a little above and to the right, far enough for all of it to show, and aim the
+ * orbit controls (when given) at its centre. The radius framed (at least 1e-6) is returned.
+ * @param {THREE.PerspectiveCamera} camera
+ * @param {import('three/addons/controls/OrbitControls.js').OrbitControls|null} controls
+ * @param {THREE.Sphere} sphere
+ */
+export function frameSphere(camera, controls, sphere) {
+  const radius = Math.max(sphere.radius, 1e-6);
+  const fov = THREE.MathUtils.degToRad(camera.fov);
+  const fitH = radius / Math.sin(fov / 2);
+  const fitW = radius / Math.sin(Math.atan(Math.tan(fov / 2) * camera.aspect));
+  const dist = Math.max(fitH, fitW) * 1.3;
+  const dir = new THREE.Vector3(0.35, 0.28, 1).normalize();
+  camera.position.copy(sphere.center).addScaledVector(dir, dist);
+  camera.near = dist / 100;
+  camera.far = dist * 100;
+  camera.updateProjectionMatrix();
+  if (controls) {
+    controls.target.copy(sphere.center);
+    controls.update();
+  } else {
+    camera.lookAt(sphere.center);
+  }
+  return radius;
 }

@@ -6,7 +6,7 @@ import * as THREE from 'three';
 import { OrbitControls } from 'three/addons/controls/OrbitControls.js';
 import { SubsetNormals, VertexFaces, computeBounds, computeNormals } from './normals.js';
 import { BASE_LIN, fillRoleColors } from './rolecolors.js';
-import { addLights, floorGrid } from './stage.js';
+import { addLights, floorGrid, frameSphere } from './stage.js';
 import { RenderMesh, textureParts } from './texture.js';
 
 /**
@@ -351,23 +351,8 @@ export class Viewer {
   /** Frame the whole mesh. */
   fit() {
     if (!this.geometry) return;
-    const s = partsOf(this.geometry).sphere; // kept up to date by every position change
-    this.radius = Math.max(s.radius, 1e-6);
-    const fov = THREE.MathUtils.degToRad(this.camera.fov);
-    const fitH = this.radius / Math.sin(fov / 2);
-    const fitW = this.radius / Math.sin(Math.atan(Math.tan(fov / 2) * this.camera.aspect));
-    const dist = Math.max(fitH, fitW) * 1.3;
-    const dir = new THREE.Vector3(0.35, 0.28, 1).normalize();
-    this.camera.position.copy(s.center).addScaledVector(dir, dist);
-    this.camera.near = dist / 100;
-    this.camera.far = dist * 100;
-    this.camera.updateProjectionMatrix();
-    if (this.controls) {
-      this.controls.target.copy(s.center);
-      this.controls.update();
-    } else {
-      this.camera.lookAt(s.center);
-    }
+    // the bounding sphere is kept up to date by every position change
+    this.radius = frameSphere(this.camera, this.controls, partsOf(this.geometry).sphere);
     this.requestRender();
   }
 
