@@ -154,7 +154,8 @@ class SessionState:
 
     @property
     def needs_settle(self) -> bool:
-        """True when the shape may not be converged and no drag is under way (see :meth:`settle`)."""
+        """True when the shape may not be converged and no drag is under way (see
+        :meth:`arap.server.session.Session.settle`)."""
         return not self.settled and not self._dirty and self.solver is not None and self.mesh is not None
 
     def solver_moved_on(self) -> None:
