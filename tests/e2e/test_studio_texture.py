@@ -16,7 +16,7 @@ from playwright.sync_api import Page, expect
 from arap.io import load_asset
 from tests.e2e.conftest import canvas_pixels, positions, wait_idle, wait_settled
 from tests.e2e.test_studio import drag_gizmo_x, select_anchor_and_handle
-from tests.server.test_textured_mesh import coloured_ply as server_coloured_ply
+from tests.io.asset_models import coloured_ply as server_coloured_ply
 
 pytestmark = pytest.mark.e2e
 

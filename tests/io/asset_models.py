@@ -189,3 +189,14 @@ def cube_gltf(folder: Path, name: str = "cube", embedded: bool = False) -> Path:
     path = folder / f"{name}.gltf"
     path.write_text(json.dumps(document, indent=2))
     return path
+
+
+def coloured_ply(path: Path, axis: int = 2, subdivisions: int = 1) -> Path:
+    """An icosphere with red vertices on the positive side of ``axis`` and blue ones on the other."""
+    import trimesh
+
+    mesh = trimesh.creation.icosphere(subdivisions=subdivisions)
+    colors = np.where((mesh.vertices[:, axis] > 0)[:, None], [255, 0, 0, 255], [0, 0, 255, 255]).astype(np.uint8)
+    mesh.visual = trimesh.visual.ColorVisuals(mesh, vertex_colors=colors)
+    path.write_bytes(mesh.export(file_type="ply"))
+    return path

@@ -18,6 +18,7 @@ from arap.io import load_asset
 from arap.server import create_app
 from arap.server.meshdata import load_default
 from arap.server.render_mesh import build_look, look_from_path
+from tests.io.asset_models import coloured_ply
 from tests.server.helpers import Reply, StudioClient, translation
 
 CHECKER = ((230, 40, 40), (40, 60, 220))
@@ -78,15 +79,6 @@ def box_glb(tmp_path: Path) -> Path:
 def grid_glb(tmp_path: Path) -> Path:
     path = tmp_path / "grid.glb"
     path.write_bytes(textured_grid().export(file_type="glb"))
-    return path
-
-
-def coloured_ply(path: Path, axis: int = 2, subdivisions: int = 1) -> Path:
-    """An icosphere with red vertices on the positive side of ``axis`` and blue ones on the other."""
-    mesh = trimesh.creation.icosphere(subdivisions=subdivisions)
-    colors = np.where((mesh.vertices[:, axis] > 0)[:, None], [255, 0, 0, 255], [0, 0, 255, 255]).astype(np.uint8)
-    mesh.visual = trimesh.visual.ColorVisuals(mesh, vertex_colors=colors)
-    path.write_bytes(mesh.export(file_type="ply"))
     return path
 
 
