@@ -22,7 +22,8 @@ export function keyframedDocument(text, rest, vertexMap) {
     return null; // readConstraintsFile says what is wrong
   }
   if (!doc || !Array.isArray(doc.keyframes) || !doc.keyframes.length || !Array.isArray(doc.handles)) return null;
-  if (!doc.keyframes.every((/** @type {any} */ k) => Array.isArray(k?.transforms) && Number.isFinite(k.time) && k.time >= 0)) {
+  const readable = (/** @type {any} */ k) => Array.isArray(k?.transforms) && Number.isFinite(k.time) && k.time >= 0;
+  if (!doc.keyframes.every(readable)) {
     throw new Error('the timeline shows keyframes of transforms at times from 0 s on; this document has others');
   }
   const base = Array.isArray(doc.keyframe_base) ? doc.keyframe_base : doc.handles.map((/** @type {number} */ i) => {
@@ -32,7 +33,8 @@ export function keyframedDocument(text, rest, vertexMap) {
   });
   const keys = doc.keyframes.map((/** @type {any} */ k) => ({
     ms: Math.round(1000 * k.time),
-    transforms: k.transforms.map((/** @type {any} */ m) => [0, 1, 2, 3].flatMap((c) => [0, 1, 2, 3].map((r) => Number(m[r][c])))),
+    transforms: k.transforms.map((/** @type {any} */ m) => [0, 1, 2, 3].flatMap((c) => [0, 1, 2, 3]
+      .map((r) => Number(m[r][c])))),
   }));
   return { text: JSON.stringify({ ...doc, targets: base }), keys };
 }

@@ -4,7 +4,7 @@
 import './style.css';
 import { createConnection } from './connection.js';
 import { ConstraintSync } from './constraintsync.js';
-import { checkMeshFile, downloadExport, installDropTarget } from './files.js';
+import { downloadExport, installDropTarget } from './files.js';
 import { HeatMap } from './heatmap.js';
 import { describedKeys, Help } from './help.js';
 import { installTestHook } from './hook.js';
@@ -13,6 +13,8 @@ import { SessionKeeper } from './keeper.js';
 import { ignoreTypeAhead, installShortcuts, releaseFocusAfterPointerUse } from './keys.js';
 import { loadConstraintsFile } from './loaddocument.js';
 import { installManipulation } from './manipulate.js';
+import { MeshLoading } from './meshloading.js';
+import { Requests } from './requests.js';
 import { ServerMessages } from './messages.js';
 import { MirrorEditing } from './mirror.js';
 import { Panel } from './panel.js';
@@ -22,7 +24,7 @@ import { PaintModes } from './paintmodes.js';
 import { PointHandles } from './pointhandles.js';
 import { CLIENT, SERVER } from './protocol.js';
 import { constraintsMessage, Selection } from './selection.js';
-import { builtinSource, fileSource } from './snapshot.js';
+import { SelectionView } from './selectionview.js';
 import { UpdateStats } from './stats.js';
 import { onSessionRestored } from './restore.js';
 import { addSnapshotPart } from './autosave.js';
@@ -54,9 +56,18 @@ const sync = new ConstraintSync(selection, {
     selection.fromConstraints(c);
     mirror.repair();
   },
-  selectionReplaced: () => refreshSelection(true),
+  selectionReplaced: () => shown.refresh(true),
   requestErrorCleared: () => panel.clearStatus('request'),
 });
+
+const requests = new Requests({
+  mesh, history, sync, conn: () => conn, panel: () => panel, gizmo: () => gizmo, timeline: () => timeline,
+  keeper: () => keeper,
+});
+const send = requests.send.bind(requests);
+const setBusy = requests.setBusy.bind(requests);
+const showRequestError = requests.showError.bind(requests);
+const stepHistory = requests.stepHistory.bind(requests);
 
 const keeper = new SessionKeeper({
   mesh,
@@ -68,7 +79,7 @@ const keeper = new SessionKeeper({
     return panel;
   },
   send,
-  requestMesh,
+  requestMesh: (source) => loading.request(source),
   get gizmo() {
     return gizmo;
   },
@@ -84,7 +95,7 @@ const { gizmo, transformUi } = installManipulation({
 const tools = new SelectionTools(viewer, {
   isGizmoActive: () => gizmo.active,
   onPaint: (indices, subtract) => {
-    if (mirror.paint(indices, painting.role, modes.subtract(painting.role, subtract))) refreshSelection(false);
+    if (mirror.paint(indices, painting.role, modes.subtract(painting.role, subtract))) shown.refresh(false);
   },
   onStrokeEnd: () => commitConstraints(),
   graph: () => surface.graph(),
@@ -96,9 +107,16 @@ const modes = new PaintModes({ selection, setRole, onWeightProblem: (text) => pa
 const surface = new SurfaceSelection({
   viewer, selection, role: () => painting.role, changed: selectionEdited, paint: (...a) => mirror.paint(...a),
 });
-const heat = new HeatMap({ viewer, send, role: () => selection.role, restore: () => refreshSelection(false) });
+const heat = new HeatMap({ viewer, send, role: () => selection.role, restore: () => shown.refresh(false) });
 const help = new Help();
 viewer.attachControls(); // after the gizmo and the tools, so they see pointer events first
+const shown = new SelectionView({
+  viewer, selection, role: () => painting.role, heat, points, gizmo, help, panel: () => panel, changed: () => keeper.touch(),
+});
+const loading = new MeshLoading({
+  mesh, diagnostics, conn: () => conn, keeper, panel: () => panel, setBusy,
+  notConnected: () => requests.notConnected(),
+});
 
 const timeline = new Timeline({
   blocked: timelineBlocked,
@@ -162,57 +180,6 @@ const conn = createConnection({
 });
 
 /**
- * Say that the page waits (`text`; null: it no longer does) for a server message of type `forType`.
- * @param {string|null} text
- * @param {string} [forType]
- */
-function setBusy(text, forType) {
-  history.busyFor = text ? /** @type {string} */ (forType) : null;
-  panel.setBusy(text);
-}
-
-/** @param {import('./protocol.js').ClientMessage} msg @returns {boolean} */
-function send(msg) {
-  // apply makes the shape the new rest pose and the pose of the constraints: keyframes are carried over to it
-  const current = msg.type === CLIENT.APPLY ? gizmo.transformsFor(sync.groupMap) : null;
-  if (!conn.send(msg)) {
-    notConnected();
-    return false;
-  }
-  if (current) timeline.rebase(current, sync.serverGroups.length);
-  keeper.sent(msg);
-  return true;
-}
-
-/** Say that nothing can be sent, unless the status bar already says why (connection lost, server full). */
-function notConnected() {
-  if (!panel.showing('connection')) panel.showStatus('Not connected to the studio server.', 'error');
-}
-
-/**
- * Undo or redo; a step there is none of says so instead.
- * @param {typeof CLIENT.UNDO | typeof CLIENT.REDO} type
- */
-function stepHistory(type) {
-  const undo = type === CLIENT.UNDO;
-  if (!conn.open) {
-    notConnected();
-    return false;
-  }
-  // a drag or selection under way (its state not back yet) may make a step where the last state had none
-  const pending = history.awaitingState || sync.pending || gizmo.dragging;
-  if (mesh.ready && !pending && !history.can(type)) {
-    panel.hint(undo ? 'Nothing to undo.' : 'Nothing to redo.', 2000);
-    return false;
-  }
-  history.lastHistory = type;
-  if (!send({ type })) return false;
-  // busy until the state that answers it: the shape and the gizmo move back, so a drag must wait for them
-  setBusy(undo ? 'Undoing…' : 'Redoing…', SERVER.STATE);
-  return true;
-}
-
-/**
  * Grow or shrink the current role by a ring from the keyboard; says so when there is nothing to grow.
  * @param {boolean} shrink
  */
@@ -223,50 +190,11 @@ function ringKey(shrink) {
   panel.hint(`${what} (+ and − grow and shrink the painted role by one ring).`);
 }
 
-/**
- * Show the error of a request (or a refused drag): it goes once a later constraint set is accepted.
- * @param {string} text
- */
-function showRequestError(text) {
-  sync.requestErrorShown();
-  panel.showStatus(text, 'error', 0, 'request');
-}
-
 // ------------------------------------------------------------------ selection
 
 function selectionEdited() {
-  refreshSelection(true);
+  shown.refresh(true);
   commitConstraints();
-}
-
-function refreshSelection(full = true) {
-  viewer.updateColors(selection.roiCount ? selection.roi : null, selection.role, selection.stiff,
-    painting.role === 'stiffness' ? 0.9 : 0.35);
-  heat.paint();
-  points.rebuild();
-  gizmo.syncGroups(selection.groups.length);
-  if (full) updateGroupsUi();
-  else scheduleGroupsUi();
-}
-
-let groupsUiQueued = false;
-function scheduleGroupsUi() {
-  if (groupsUiQueued) return;
-  groupsUiQueued = true;
-  setTimeout(() => {
-    groupsUiQueued = false;
-    updateGroupsUi();
-  }, 100);
-}
-
-function updateGroupsUi() {
-  keeper.touch();
-  const counts = selection.counts();
-  panel.setGroups(selection.groups, selection.activeGroup, counts, viewer.nVertices);
-  help.guideProgress({ anchors: counts.fixed > 0, handle: counts.groups.some((c) => c > 0) });
-  const anchor = points.anchor(selection.activeGroup);
-  if (!gizmo.dragging) gizmo.attach(selection.activeGroup, anchor.indices, anchor.weights);
-  points.refresh();
 }
 
 /**
@@ -278,7 +206,7 @@ function updateGroupsUi() {
  * @param {(number[]|null|undefined)[]|null} [pointTargets]
  */
 function commitConstraints(targets = null, force = false, pointTargets = null) {
-  updateGroupsUi();
+  shown.updateList();
   if (!mesh.ready) return;
   const c = selection.toConstraints();
   const moving = !!targets || !!pointTargets?.some((t) => t);
@@ -303,37 +231,7 @@ function commitConstraints(targets = null, force = false, pointTargets = null) {
 function setSurface(mode) {
   viewer.setSurface(mode);
   panel.setSurfaces(viewer.surfaces, viewer.surface);
-  refreshSelection(false);
-}
-
-/** Load a mesh source (snapshot.js): a built-in model by name, or a mesh file's bytes. */
-function requestMesh(source) {
-  const ok = source.kind === 'builtin'
-    ? conn.send({ type: CLIENT.LOAD_BUILTIN, name: source.name })
-    : conn.sendBinary({ type: CLIENT.UPLOAD, filename: source.filename }, source.bytes);
-  if (!ok) {
-    notConnected();
-    return false;
-  }
-  if (source.kind !== 'builtin') diagnostics.mark('sent');
-  keeper.meshRequested(source);
-  setBusy(`Loading ${source.kind === 'builtin' ? source.name : source.filename}…`, SERVER.MESH);
-  return true;
-}
-
-function uploadFile(file) {
-  const problem = checkMeshFile(file, mesh.limits.max_upload_bytes);
-  if (problem) {
-    diagnostics.error('client_check', problem, CLIENT.UPLOAD);
-    panel.showStatus(problem, 'error');
-    return;
-  }
-  if (!keeper.confirmReplace(file.name)) return;
-  diagnostics.uploadChosen();
-  file.arrayBuffer().then((buf) => {
-    diagnostics.mark('read');
-    requestMesh(fileSource(file.name, buf));
-  });
+  shown.refresh(false);
 }
 
 function applySavedSelection(snap) {
@@ -341,7 +239,7 @@ function applySavedSelection(snap) {
     snap.groupPoints);
   selection.activeGroup = Math.max(0, Math.min(snap.activeGroup ?? 0, selection.groups.length - 1));
   mirror.setPartners(snap.partners);
-  refreshSelection(true);
+  shown.refresh(true);
   commitConstraints(null, true);
   gizmo.restorePivots(snap.pivots); // after the new constraint set made the restored shape every group's frame
 }
@@ -350,7 +248,7 @@ function setRole(role) {
   painting.role = role;
   panel.setSegment('role-seg', 'role', role);
   modes.showRole(role);
-  refreshSelection(false);
+  shown.refresh(false);
   roleControls();
 }
 
@@ -378,14 +276,11 @@ function setGizmoMode(mode) {
 
 const panel = new Panel({
   send,
-  loadBuiltin: (name) => {
-    if (!name || name === mesh.name) return;
-    if (keeper.confirmReplace(name)) requestMesh(builtinSource(name));
-    else panel.setCurrentModel(mesh.name);
-  },
-  uploadFile,
+  loadBuiltin: (name) => loading.builtin(name),
+  uploadFile: (file) => loading.upload(file),
   loadConstraintsFile: (file) => loadConstraintsFile(file, {
-    mesh, diagnostics, viewer, selection, mirror, timeline, rest: () => keeper.rest, refreshSelection,
+    mesh, diagnostics, viewer, selection, mirror, timeline, rest: () => keeper.rest,
+    refreshSelection: (full) => shown.refresh(full),
     commit: commitConstraints, say: (text, kind) => panel.showStatus(text, kind),
   }),
   setTool,
@@ -411,7 +306,7 @@ const panel = new Panel({
   newGroup: () => {
     selection.addGroup();
     setRole('handle');
-    refreshSelection(true);
+    shown.refresh(true);
   },
   removeGroup: (g) => {
     selection.removeGroup(g);
@@ -420,7 +315,7 @@ const panel = new Panel({
   selectGroup: (g) => {
     selection.activeGroup = g;
     setRole(selection.groups[g]?.point ? 'point' : 'handle');
-    updateGroupsUi();
+    shown.updateList();
   },
   undo: () => stepHistory(CLIENT.UNDO),
   redo: () => stepHistory(CLIENT.REDO),
@@ -474,15 +369,19 @@ installPanelFold(byId('panel'), /** @type {HTMLButtonElement} */ (byId('btn-pane
 ignoreTypeAhead(byId('builtin-select'));
 releaseFocusAfterPointerUse(byId('panel'));
 
-installDropTarget(byId('viewport'), byId('drop-overlay'), uploadFile);
+installDropTarget(byId('viewport'), byId('drop-overlay'), (file) => loading.upload(file));
 
 const messages = new ServerMessages({
   mesh, history, params, diagnostics, sync, viewer, livePose, selection, gizmo, transformUi, timeline, stats, panel,
-  heat, mirror, keeper, help, points, conn, refreshSelection, updateGroupsUi, setBusy, showRequestError,
+  heat, mirror, keeper, help, points, conn, refreshSelection: (full) => shown.refresh(full),
+  updateGroupsUi: () => shown.updateList(), setBusy, showRequestError,
   commitConstraints,
 });
 
-installTestHook({ mesh, history, params, diagnostics, tools: painting, sync, viewer, livePose, selection, gizmo, conn, keeper, points, mirror, transformUi, timeline });
+installTestHook({
+  mesh, history, params, diagnostics, tools: painting, sync, viewer, livePose, selection, gizmo, conn, keeper, points,
+  mirror, transformUi, timeline,
+});
 
 // ------------------------------------------------------------------ start
 
@@ -492,6 +391,6 @@ setTool('brush');
 setRole('handle');
 setGizmoMode('translate');
 panel.setBrushRadius('screen', painting.brush.screen);
-updateGroupsUi();
+shown.updateList();
 conn.connect();
 keeper.offerSaved().catch((err) => panel.showStatus(`Saved sessions cannot be read: ${err.message || err}`, 'error'));

@@ -72,7 +72,9 @@ export class ServerMessages {
     d.keeper.touch();
     // a shape received and not drawn yet is shown before anything that may read it; settling progress is not such
     if (msg.type === SERVER.MESH) d.livePose.reset();
-    else if (msg.type !== SERVER.VERTICES && !(msg.type === SERVER.SETTLE && msg.status === 'settling')) d.livePose.flush();
+    else if (msg.type !== SERVER.VERTICES && !(msg.type === SERVER.SETTLE && msg.status === 'settling')) {
+      d.livePose.flush();
+    }
     switch (msg.type) {
       case SERVER.WELCOME:
         return this.welcome(msg);

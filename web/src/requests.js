@@ -1,0 +1,95 @@
+// Sending the page's requests to the studio server, and what they leave waiting: the busy note until the message
+// that answers them, the undo and redo steps (refused here when the last state says there is none), the keyframes
+// carried over when apply makes the shape the new rest pose, a note when nothing can be sent, and the request
+// errors shown until a later constraint set is accepted.
+import { CLIENT, SERVER } from './protocol.js';
+
+/** @typedef {import('./protocol.js').ClientMessage} ClientMessage */
+/** @typedef {import('./stores/historystore.js').HistoryStep} HistoryStep */
+
+/**
+ * What sending reads and tells (the getters: pieces created later).
+ * @typedef {object} RequestDeps
+ * @property {import('./stores/meshstore.js').MeshStore} mesh
+ * @property {import('./stores/historystore.js').HistoryStore} history
+ * @property {import('./constraintsync.js').ConstraintSync} sync
+ * @property {() => import('./connection.js').Connection} conn
+ * @property {() => any} panel the Panel
+ * @property {() => any} gizmo the HandleGizmo
+ * @property {() => import('./timeline.js').Timeline} timeline
+ * @property {() => import('./keeper.js').SessionKeeper} keeper
+ */
+
+export class Requests {
+  /** @param {RequestDeps} deps */
+  constructor(deps) {
+    this.d = deps;
+  }
+
+  /**
+   * Send a request; false (said on the status line) when not connected.
+   * @param {ClientMessage} msg
+   * @returns {boolean}
+   */
+  send(msg) {
+    const { d } = this;
+    // apply makes the shape the new rest pose and the pose of the constraints: keyframes are carried over to it
+    const current = msg.type === CLIENT.APPLY ? d.gizmo().transformsFor(d.sync.groupMap) : null;
+    if (!d.conn().send(msg)) {
+      this.notConnected();
+      return false;
+    }
+    if (current) d.timeline().rebase(current, d.sync.serverGroups.length);
+    d.keeper().sent(msg);
+    return true;
+  }
+
+  /** Say that nothing can be sent, unless the status bar already says why (connection lost, server full). */
+  notConnected() {
+    const panel = this.d.panel();
+    if (!panel.showing('connection')) panel.showStatus('Not connected to the studio server.', 'error');
+  }
+
+  /**
+   * Say that the page waits (`text`; null: it no longer does) for a server message of type `forType`.
+   * @param {string|null} text
+   * @param {string} [forType]
+   */
+  setBusy(text, forType) {
+    this.d.history.busyFor = text ? /** @type {string} */ (forType) : null;
+    this.d.panel().setBusy(text);
+  }
+
+  /**
+   * Undo or redo; a step there is none of says so instead.
+   * @param {HistoryStep} type
+   */
+  stepHistory(type) {
+    const { d } = this;
+    const undo = type === CLIENT.UNDO;
+    if (!d.conn().open) {
+      this.notConnected();
+      return false;
+    }
+    // a drag or selection under way (its state not back yet) may make a step where the last state had none
+    const pending = d.history.awaitingState || d.sync.pending || d.gizmo().dragging;
+    if (d.mesh.ready && !pending && !d.history.can(type)) {
+      d.panel().hint(undo ? 'Nothing to undo.' : 'Nothing to redo.', 2000);
+      return false;
+    }
+    d.history.lastHistory = type;
+    if (!this.send({ type })) return false;
+    // busy until the state that answers it: the shape and the gizmo move back, so a drag must wait for them
+    this.setBusy(undo ? 'Undoing…' : 'Redoing…', SERVER.STATE);
+    return true;
+  }
+
+  /**
+   * Show the error of a request (or a refused drag): it goes once a later constraint set is accepted.
+   * @param {string} text
+   */
+  showError(text) {
+    this.d.sync.requestErrorShown();
+    this.d.panel().showStatus(text, 'error', 0, 'request');
+  }
+}
