@@ -174,7 +174,7 @@ const conn = createConnection({
     history.awaitingState = false;
     panel.serverFull(reason, delayMs, keeper.keepsWork);
   },
-  onRetry: ({ attempt, delayMs }) => panel.setConnection('reconnecting', /** @type {any} */ ({ attempt, delayMs })),
+  onRetry: ({ attempt, delayMs }) => panel.setConnection('reconnecting', { attempt, delayMs }),
   onWaiting: () => panel.preparingSolver(),
   onMessage: (msg) => messages.handle(msg),
 });

@@ -14,7 +14,7 @@ import { builtinSource, fileSource } from './snapshot.js';
  * @property {import('./stores/diagnostics.js').Diagnostics} diagnostics
  * @property {() => import('./connection.js').Connection} conn (created later)
  * @property {import('./keeper.js').SessionKeeper} keeper
- * @property {() => any} panel the Panel (created later)
+ * @property {() => import('./panel.js').Panel} panel (created later)
  * @property {() => void} notConnected say that nothing can be sent
  * @property {(text: string|null, forType?: string) => void} setBusy
  */

@@ -15,6 +15,7 @@ import { appearanceArrays } from './texture.js';
 /** @typedef {import('./protocol.js').StateServerMessage} StateServerMessage */
 /** @typedef {import('./protocol.js').ErrorServerMessage} ErrorServerMessage */
 /** A binary message's header fields with its `frame` (connection.js). @typedef {{frame?: any}} Framed */
+/** @typedef {{frame: {header: any, payload: Uint8Array}}} WithFrame a message that is always binary */
 
 /**
  * Why point handles are not saved for a mesh that repair changed (the server says the same of a mesh it repaired
@@ -37,16 +38,16 @@ export const POINTS_NOT_SAVED = (name) => `Point handles cannot be saved in a co
  * @property {import('./viewer.js').Viewer} viewer
  * @property {import('./livepose.js').LivePose} livePose
  * @property {import('./selection.js').Selection} selection
- * @property {any} gizmo the HandleGizmo
- * @property {any} transformUi
+ * @property {import('./gizmo.js').HandleGizmo} gizmo
+ * @property {ReturnType<typeof import('./transformui.js').installTransformUi>} transformUi
  * @property {import('./timeline.js').Timeline} timeline
  * @property {import('./stats.js').UpdateStats} stats
- * @property {any} panel the Panel
- * @property {any} heat the HeatMap
+ * @property {import('./panel.js').Panel} panel
+ * @property {import('./heatmap.js').HeatMap} heat
  * @property {import('./mirror.js').MirrorEditing} mirror
  * @property {import('./keeper.js').SessionKeeper} keeper
- * @property {any} help the Help
- * @property {any} points the PointHandles
+ * @property {import('./help.js').Help} help
+ * @property {import('./pointhandles.js').PointHandles} points
  * @property {import('./connection.js').Connection} conn
  * @property {(full?: boolean) => void} refreshSelection redraw the selection (full: its panel list at once)
  * @property {() => void} updateGroupsUi
@@ -99,7 +100,7 @@ export class ServerMessages {
       case SERVER.ANIMATION:
         return d.timeline.received(msg);
       case SERVER.DISTORTION:
-        return d.heat.received(msg);
+        return d.heat.received(/** @type {typeof msg & WithFrame} */ (msg)); // a binary message
       case SERVER.ERROR:
         return this.error(msg);
       default:

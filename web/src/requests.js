@@ -14,8 +14,8 @@ import { CLIENT, SERVER } from './protocol.js';
  * @property {import('./stores/historystore.js').HistoryStore} history
  * @property {import('./constraintsync.js').ConstraintSync} sync
  * @property {() => import('./connection.js').Connection} conn
- * @property {() => any} panel the Panel
- * @property {() => any} gizmo the HandleGizmo
+ * @property {() => import('./panel.js').Panel} panel
+ * @property {() => import('./gizmo.js').HandleGizmo} gizmo
  * @property {() => import('./timeline.js').Timeline} timeline
  * @property {() => import('./keeper.js').SessionKeeper} keeper
  */

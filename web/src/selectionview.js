@@ -11,11 +11,11 @@ const LIST_DELAY_MS = 100;
  * @property {import('./viewer.js').Viewer} viewer
  * @property {import('./selection.js').Selection} selection
  * @property {() => string} role the role painted
- * @property {any} heat the HeatMap
- * @property {any} points the PointHandles
- * @property {any} gizmo the HandleGizmo
- * @property {any} help the Help (its guide)
- * @property {() => any} panel the Panel (created later)
+ * @property {import('./heatmap.js').HeatMap} heat
+ * @property {import('./pointhandles.js').PointHandles} points
+ * @property {import('./gizmo.js').HandleGizmo} gizmo
+ * @property {import('./help.js').Help} help (its guide)
+ * @property {() => import('./panel.js').Panel} panel (created later)
  * @property {() => void} changed something to save
  */
 
