@@ -12,8 +12,11 @@ VS Code, Colab, and kernels on another machine.
 The comm carries the studio protocol's messages unchanged (``docs/protocol.md``): a text message as the custom
 message's content, a binary one as its header (the content) and its payload (one buffer). The one message of its
 own is ``{"widget": "open"}``, which a view sends when it opens; the kernel answers with the greeting (``welcome``,
-``mesh``, ``state`` and the current shape). Requests are answered in order on a thread of the widget's, as by the
-studio's server (:mod:`arap.server.channel`): drags coalesce, and the shape settles while no request waits.
+``mesh``, ``state`` and the current shape). A view names itself in a ``"view"`` key of what it sends (removed before
+the message is read); the replies meant for that view alone (its greeting, the answer to an export, an error) carry
+it as ``"to"``, and the views drop those meant for another. Requests are answered in order on a thread of the
+widget's, as by the studio's server (:mod:`arap.server.channel`, which also says which replies go to every view):
+drags coalesce, and the shape settles while no request waits.
 
 A saved notebook keeps no live widget, so a picture of the shape with its constraints (:func:`arap.show`) is shown
 under it and replaced whenever an edit is finished (after a drag has settled, an undo, a new constraint set):
@@ -49,8 +52,11 @@ __all__ = ["OPEN_MESSAGE", "StudioWidget", "has_comm_kernel", "widget", "widget_
 logger = logging.getLogger(__name__)
 
 OPEN_MESSAGE = {"widget": "open"}
-"""What a view of the widget sends when it opens (outside the studio protocol); the kernel answers with the
-greeting."""
+"""What a view of the widget sends when it opens (outside the studio protocol, with its ``"view"`` name); the kernel
+answers with the greeting."""
+
+MAX_VIEW_NAME = 64
+"""Longest view name a view may give; a longer one, or one that is not a string, is ignored."""
 
 PICTURE_SIZE = (480, 320)
 """Width and height of the picture kept in the notebook."""
@@ -171,18 +177,20 @@ class StudioWidget:
     def _send_message(self, content: dict[str, Any], buffers: list[Any] | None) -> None:
         raise NotImplementedError  # the widget class sends through its comm
 
-    def _send_reply(self, reply: Reply) -> None:
-        """Send one server message: a text message as the content, a binary one as its header and one buffer."""
+    def _send_reply(self, reply: Reply, view: str | None = None) -> None:
+        """Send one server message: a text message as the content, a binary one as its header and one buffer;
+        addressed ``"to"`` ``view`` when it is for that view alone."""
         from arap.server.protocol import decode_binary
 
+        to = {} if view is None else {"to": view}
         if isinstance(reply, dict):
-            self._send_message(reply, None)
+            self._send_message({**reply, **to}, None)
         elif isinstance(reply, bytes):
             header, payload = decode_binary(reply)
-            self._send_message(header, [payload])
+            self._send_message({**header, **to}, [payload])
         else:
             header, parts = reply
-            self._send_message(header, [parts[0] if len(parts) == 1 else b"".join(parts)])
+            self._send_message({**header, **to}, [parts[0] if len(parts) == 1 else b"".join(parts)])
 
     def _receive(self, content: Any, buffers: list[Any] | None) -> None:
         """A custom message from a view: the open message, or a studio request (answered on the worker thread)."""
@@ -190,10 +198,15 @@ class StudioWidget:
 
         if self._stopped:
             return
+        view = None
+        if isinstance(content, dict) and "view" in content:
+            content = dict(content)
+            name = content.pop("view")
+            view = name if isinstance(name, str) and 0 < len(name) <= MAX_VIEW_NAME else None
         if content == OPEN_MESSAGE:
-            self._worker.call(self._dispatcher.rejoin)
+            self._worker.call(self._dispatcher.rejoin, view)
             return
-        self._worker.put(decode_message(self._config, content, buffers))
+        self._worker.put(decode_message(self._config, content, buffers), view)
 
     def wait(self, timeout: float = 30.0) -> bool:
         """Wait until every request has been answered and the shape has settled; False on timeout."""

@@ -413,3 +413,34 @@ def test_a_real_kernel_round_trip() -> None:
     finally:
         kc.stop_channels()
         km.shutdown_kernel(now=True)
+
+
+def test_replies_go_to_the_view_that_asked(opened: tuple[StudioWidget, Comm],
+                                           cactus: tuple[np.ndarray, np.ndarray]) -> None:
+    """Two views of one widget: a view opening gets its greeting alone, an export answers the view that asked, an
+    error too, while what changes the shared session (state, positions, settling) goes to both."""
+    w, comm = opened
+    V, _ = cactus
+    assert w.wait(60)
+    start = len(comm.sent)
+    comm.request({**OPEN_MESSAGE, "view": "b"}, [])
+    comm.wait_for(lambda m: m["type"] == "vertices", start)
+    assert w.wait(60)
+    greeting = comm.sent[start:]
+    assert [c["type"] for c, _ in greeting][:3] == ["welcome", "mesh", "state"]
+    assert all(c.get("to") == "b" for c, _ in greeting)
+
+    start = len(comm.sent)
+    fixed, top = _bottom_top(V)
+    comm.request({"type": "set_constraints", "roi": None, "fixed": fixed, "handle_groups": [top], "view": "a"})
+    comm.request({"type": "drag", "seq": 1, "transforms": [_translation(0.3)], "view": "a"})
+    comm.request({"type": "end_drag", "view": "a"})
+    comm.request({"type": "export", "format": "obj", "view": "a"})
+    comm.request({"type": "nonsense", "view": "b"})
+    _, export, _ = comm.wait_for(lambda m: m["type"] == "export", start)
+    _, error, _ = comm.wait_for(lambda m: m["type"] == "error", start)
+    assert w.wait(60)
+    assert export["to"] == "a" and error["to"] == "b"
+    shared = [c for c, _ in comm.sent[start:] if c["type"] in ("state", "vertices", "settle")]
+    assert shared and all("to" not in c for c in shared)
+    assert not any("view" in c for c, _ in comm.sent)
