@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 
 import arap
+from arap.cli import common as cli_common
 from arap.cli import deform as cli_deform
 from arap.cli import main
 from arap.cli.bench import bench_constraints
@@ -84,14 +85,14 @@ def test_deform_says_when_the_cap_stopped_it(tmp_path: Path, capsys: pytest.Capt
 
 def _press_ctrl_c_at_iteration_3(monkeypatch: pytest.MonkeyPatch) -> None:
     """Make ``arap deform`` send itself SIGINT (as Ctrl-C does) after its third iteration."""
-    progress = cli_deform._Progress.__call__
+    progress = cli_common.Progress.__call__
 
-    def press(self: cli_deform._Progress, iteration: int, energy: float) -> None:
+    def press(self: cli_common.Progress, iteration: int, energy: float) -> None:
         progress(self, iteration, energy)
         if iteration == 3:
             signal.raise_signal(signal.SIGINT)
 
-    monkeypatch.setattr(cli_deform._Progress, "__call__", press)
+    monkeypatch.setattr(cli_common.Progress, "__call__", press)
 
 
 def test_ctrl_c_during_deform_writes_the_last_iterate(tmp_path: Path, capsys: pytest.CaptureFixture[str],
@@ -113,14 +114,14 @@ def test_ctrl_c_during_deform_writes_the_last_iterate(tmp_path: Path, capsys: py
 
 
 def _press_ctrl_c_at(monkeypatch: pytest.MonkeyPatch, iteration: int) -> None:
-    progress = cli_deform._Progress.__call__
+    progress = cli_common.Progress.__call__
 
-    def press(self: cli_deform._Progress, k: int, energy: float) -> None:
+    def press(self: cli_common.Progress, k: int, energy: float) -> None:
         progress(self, k, energy)
         if k == iteration:
             signal.raise_signal(signal.SIGINT)
 
-    monkeypatch.setattr(cli_deform._Progress, "__call__", press)
+    monkeypatch.setattr(cli_common.Progress, "__call__", press)
 
 
 def test_ctrl_c_in_the_last_iteration_leaves_a_complete_output(tmp_path: Path, capsys: pytest.CaptureFixture[str],

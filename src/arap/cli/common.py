@@ -1,5 +1,5 @@
 """What the commands of ``arap`` share: output lines, exit statuses, the mesh argument, the kernel warm-up and the
-checks of option values (each option is checked here, and only here).
+checks of option values (each option is checked here, and only here), and a long solve's progress line and Ctrl-C.
 
 This module imports no other module of :mod:`arap.cli`, and none of the server stack.
 """
@@ -7,9 +7,12 @@ This module imports no other module of :mod:`arap.cli`, and none of the server s
 from __future__ import annotations
 
 import argparse
+import signal
 import sys
+import threading
+import time
 from pathlib import Path
-from typing import Any
+from typing import Any, TextIO
 
 import numpy as np
 
@@ -31,6 +34,8 @@ __all__ = [
     "EXIT_INTERRUPTED",
     "EXIT_OK",
     "EXIT_USAGE",
+    "FirstInterrupt",
+    "Progress",
     "add_energy_options",
     "add_iteration_options",
     "add_selector_options",
@@ -244,3 +249,65 @@ def check_bench_runs(iterations: int, repeats: int) -> None:
     """``arap bench -n/--iterations`` and ``-r/--repeats``."""
     if iterations < 1 or repeats < 1:
         raise ArapError("--iterations and --repeats must be >= 1")
+
+
+# ---------------------------------------------------------------------------------------------- long commands
+class Progress:
+    """Per-iteration line on a stream: ``iteration k/N  energy E  change r``."""
+
+    def __init__(self, total: int | None, stream: TextIO, enabled: bool) -> None:
+        self.total = total
+        self.stream = stream
+        self.enabled = enabled
+        self.tty = enabled and stream.isatty()
+        self.previous: float | None = None
+        self.start = time.perf_counter()
+        self.last_line = 0.0
+
+    def __call__(self, iteration: int, energy: float) -> None:
+        if not self.enabled:
+            return
+        change = "" if self.previous is None else (
+            f"  change {abs(self.previous - energy) / max(abs(self.previous), 1e-300):.2e}")
+        self.previous = energy
+        elapsed = time.perf_counter() - self.start
+        # Without a terminal, a line per half second at most: a converging solve runs hundreds of iterations.
+        if not self.tty and iteration > 1 and elapsed - self.last_line < 0.5:
+            return
+        self.last_line = elapsed
+        of = "" if self.total is None else f"/{self.total}"
+        line = f"iteration {iteration}{of}  energy {energy:.9g}{change}  ({elapsed:.2f} s)"
+        if self.tty:
+            self.stream.write("\r" + line.ljust(78))
+        else:
+            self.stream.write(line + "\n")
+        self.stream.flush()
+
+    def close(self) -> None:
+        if self.tty and self.previous is not None:
+            self.stream.write("\n")
+            self.stream.flush()
+
+
+class FirstInterrupt:
+    """While active (a ``with`` block in the main thread): the first Ctrl-C only sets :attr:`requested`, so that a
+    solve can stop at the end of its iteration and its iterate be written; a second one interrupts at once."""
+
+    def __init__(self) -> None:
+        self.requested = False
+        self._previous: Any = None
+
+    def _handle(self, signum: int, frame: object) -> None:
+        self.requested = True
+        signal.signal(signal.SIGINT, self._previous)
+
+    def __enter__(self) -> FirstInterrupt:
+        # Only Python's own handlers are replaced: an ignored SIGINT (a job started with it ignored) stays ignored,
+        # and a handler installed outside Python could not be put back.
+        if threading.current_thread() is threading.main_thread() and callable(signal.getsignal(signal.SIGINT)):
+            self._previous = signal.signal(signal.SIGINT, self._handle)
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        if self._previous is not None and not self.requested:
+            signal.signal(signal.SIGINT, self._previous)

@@ -5,18 +5,18 @@ from __future__ import annotations
 
 import argparse
 import os
-import signal
 import sys
-import threading
 import time
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, TextIO
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 import arap.options
 from arap.cli.common import (
     EXIT_INTERRUPTED,
+    FirstInterrupt,
+    Progress,
     add_energy_options,
     add_iteration_options,
     add_selector_options,
@@ -63,67 +63,6 @@ def add_parser(commands: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     p.add_argument("-q", "--quiet", action="store_true", help="print nothing but errors")
     add_selector_options(p)
     p.set_defaults(func=run_deform)
-
-
-class _Progress:
-    """Per-iteration line on a stream: ``iteration k/N  energy E  change r``."""
-
-    def __init__(self, total: int | None, stream: TextIO, enabled: bool) -> None:
-        self.total = total
-        self.stream = stream
-        self.enabled = enabled
-        self.tty = enabled and stream.isatty()
-        self.previous: float | None = None
-        self.start = time.perf_counter()
-        self.last_line = 0.0
-
-    def __call__(self, iteration: int, energy: float) -> None:
-        if not self.enabled:
-            return
-        change = "" if self.previous is None else (
-            f"  change {abs(self.previous - energy) / max(abs(self.previous), 1e-300):.2e}")
-        self.previous = energy
-        elapsed = time.perf_counter() - self.start
-        # Without a terminal, a line per half second at most: a converging solve runs hundreds of iterations.
-        if not self.tty and iteration > 1 and elapsed - self.last_line < 0.5:
-            return
-        self.last_line = elapsed
-        of = "" if self.total is None else f"/{self.total}"
-        line = f"iteration {iteration}{of}  energy {energy:.9g}{change}  ({elapsed:.2f} s)"
-        if self.tty:
-            self.stream.write("\r" + line.ljust(78))
-        else:
-            self.stream.write(line + "\n")
-        self.stream.flush()
-
-    def close(self) -> None:
-        if self.tty and self.previous is not None:
-            self.stream.write("\n")
-            self.stream.flush()
-
-
-class _FirstInterrupt:
-    """While active (a ``with`` block in the main thread): the first Ctrl-C only sets :attr:`requested`, so that a
-    solve can stop at the end of its iteration and its iterate be written; a second one interrupts at once."""
-
-    def __init__(self) -> None:
-        self.requested = False
-        self._previous: Any = None
-
-    def _handle(self, signum: int, frame: object) -> None:
-        self.requested = True
-        signal.signal(signal.SIGINT, self._previous)
-
-    def __enter__(self) -> _FirstInterrupt:
-        # Only Python's own handlers are replaced: an ignored SIGINT (a job started with it ignored) stays ignored,
-        # and a handler installed outside Python could not be put back.
-        if threading.current_thread() is threading.main_thread() and callable(signal.getsignal(signal.SIGINT)):
-            self._previous = signal.signal(signal.SIGINT, self._handle)
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        if self._previous is not None and not self.requested:
-            signal.signal(signal.SIGINT, self._previous)
 
 
 def _start_shape(spec: str, repair: RepairResult, F: np.ndarray, label: str) -> np.ndarray:
@@ -320,8 +259,8 @@ def run_deform(args: argparse.Namespace) -> int:
         err(f"arap: warning: no vertex {where}is free to move (every one is fixed or a handle): the handles jump to "
             "their targets and nothing follows them; leave vertices out of \"fixed\" and \"handles\""
             f"{' or widen the region' if constraints.roi is not None else ''}")
-    progress = _Progress(args.iterations, sys.stderr, enabled=not args.quiet)
-    interrupt = _FirstInterrupt()
+    progress = Progress(args.iterations, sys.stderr, enabled=not args.quiet)
+    interrupt = FirstInterrupt()
     stopped_at: list[int] = []  # the iteration after which the callback stopped the solve
 
     def callback(iteration: int, energy: float) -> bool:
