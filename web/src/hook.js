@@ -2,6 +2,12 @@
 import { computeNormals } from './normals.js';
 import { interpolate } from './timeline.js';
 
+/**
+ * The triangles of a mesh the viewer shows (it always draws them indexed).
+ * @param {import('three').BufferGeometry} geometry
+ */
+const indexOf = (geometry) => /** @type {import('three').BufferAttribute} */ (geometry.index);
+
 /** Screen position of the gizmo, of points on its axes and on its rotate rings (CSS pixels relative to the canvas). */
 function gizmoInfo(viewer, gizmo, transformUi) {
   if (!gizmo.controls.object) return null;
@@ -48,14 +54,34 @@ function gizmoInfo(viewer, gizmo, transformUi) {
 }
 
 /**
+ * What the test hook reads.
+ * @typedef {object} HookDeps
+ * @property {import('./stores/meshstore.js').MeshStore} mesh
+ * @property {import('./stores/historystore.js').HistoryStore} history
+ * @property {import('./stores/paramstore.js').ParamStore} params
+ * @property {import('./stores/diagnostics.js').Diagnostics} diagnostics
+ * @property {import('./stores/toolstore.js').ToolStore} tools
+ * @property {import('./constraintsync.js').ConstraintSync} sync
+ * @property {import('./viewer.js').Viewer} viewer
+ * @property {import('./livepose.js').LivePose} livePose
+ * @property {import('./selection.js').Selection} selection
+ * @property {import('./gizmo.js').HandleGizmo} gizmo
+ * @property {import('./connection.js').Connection} conn
+ * @property {import('./keeper.js').SessionKeeper} keeper
+ * @property {import('./pointhandles.js').PointHandles} points
+ * @property {import('./mirror.js').MirrorEditing} mirror
+ * @property {ReturnType<typeof import('./transformui.js').installTransformUi>} transformUi
+ * @property {import('./timeline.js').Timeline} timeline
+ */
+
+/**
  * Install `window.__arap`.
- * @param {object} deps the stores (mesh, history, params, diagnostics, tools: the ToolStore), sync (ConstraintSync),
- *   viewer, livePose, selection, gizmo, conn, keeper, points, mirror, transformUi, timeline
+ * @param {HookDeps} deps
  */
 export function installTestHook({
   mesh, history, params, diagnostics, tools, sync, viewer, livePose, selection, gizmo, conn, keeper, points, mirror, transformUi, timeline,
 }) {
-  const toPage = ([x, y]) => {
+  const toPage = (/** @type {number[]} */ [x, y]) => {
     const r = viewer.canvas.getBoundingClientRect();
     return [x + r.left, y + r.top];
   };
@@ -164,21 +190,23 @@ export function installTestHook({
     positions: () => Array.from(viewer.positions),
     /** Vertex colours (linear RGB, 3 per vertex) as drawn. */
     colors: () => (viewer.geometry ? Array.from(viewer.geometry.attributes.color.array) : []),
-    faces: () => Array.from(viewer.geometry ? viewer.geometry.index.array : []),
+    faces: () => Array.from(viewer.geometry ? indexOf(viewer.geometry).array : []),
     normals: () => Array.from(viewer.geometry ? viewer.geometry.attributes.normal.array : []),
     /** Every vertex normal recomputed from the positions shown (what the normals kept per frame must equal). */
     recomputedNormals: () => {
       if (!viewer.geometry) return [];
       const out = new Float32Array(viewer.positions.length);
-      computeNormals(viewer.positions, viewer.geometry.index.array, out);
+      computeNormals(viewer.positions, indexOf(viewer.geometry).array, out);
       return Array.from(out);
     },
     /** Bounding box [min, max] and sphere [centre, radius] the viewer keeps. */
     bounds: () => {
       const g = viewer.geometry;
       if (!g) return null;
-      return { min: g.boundingBox.min.toArray(), max: g.boundingBox.max.toArray(),
-        center: g.boundingSphere.center.toArray(), radius: g.boundingSphere.radius };
+      // the viewer computes both for every mesh it shows
+      const box = /** @type {import('three').Box3} */ (g.boundingBox);
+      const sphere = /** @type {import('three').Sphere} */ (g.boundingSphere);
+      return { min: box.min.toArray(), max: box.max.toArray(), center: sphere.center.toArray(), radius: sphere.radius };
     },
     counts: () => selection.counts(),
     constraints: () => {

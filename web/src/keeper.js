@@ -7,12 +7,24 @@ import { SessionRestore } from './restore.js';
 import { deleteSession, getMesh, newestOrphan, newSessionId } from './sessiondb.js';
 import { builtinSource, captureSession, describe, encodePly, fileSource, hasEdits } from './snapshot.js';
 
+/**
+ * What the keeper reads and tells (panel and gizmo: getters, as they are created later).
+ * @typedef {object} KeeperDeps
+ * @property {import('./stores/meshstore.js').MeshStore} mesh
+ * @property {import('./stores/historystore.js').HistoryStore} history
+ * @property {import('./stores/paramstore.js').ParamStore} params
+ * @property {import('./selection.js').Selection} selection
+ * @property {import('./viewer.js').Viewer} viewer
+ * @property {import('./panel.js').Panel} panel
+ * @property {import('./gizmo.js').HandleGizmo} gizmo
+ * @property {(msg: import('./protocol.js').ClientMessage) => boolean} send
+ * @property {(source: import('./stores/meshstore.js').MeshSource) => boolean} requestMesh load or upload it
+ * @property {(snap: any) => void} applySelection put a saved selection back and send it
+ * @property {HTMLElement} offerParent the element of the restore offer's banner
+ */
+
 export class SessionKeeper {
-  /**
-   * @param {object} deps mesh (MeshStore), history (HistoryStore), params (ParamStore), selection, viewer, panel,
-   *   gizmo, send(msg) → bool, requestMesh(source) → bool, applySelection(snap) (put a saved selection back and send
-   *   it), offerParent (element for the offer banner)
-   */
+  /** @param {KeeperDeps} deps */
   constructor(deps) {
     this.deps = deps;
     this.id = newSessionId();
@@ -123,7 +135,10 @@ export class SessionKeeper {
       // the deformed shape is now the rest pose: a restore must upload it
       this.applying--;
       this.rest = Float32Array.from(viewer.positions);
-      const bytes = encodePly(viewer.positions, viewer.geometry.index.array, mesh.vertexMap);
+      // an apply was answered, so a mesh is shown: its geometry and triangles are there
+      const geometry = /** @type {NonNullable<typeof viewer.geometry>} */ (viewer.geometry);
+      const faces = /** @type {import('three').BufferAttribute} */ (geometry.index).array;
+      const bytes = encodePly(viewer.positions, faces, mesh.vertexMap);
       if (!mesh.limits.max_upload_bytes || bytes.byteLength <= mesh.limits.max_upload_bytes) {
         mesh.source = fileSource(`${mesh.name}.ply`, bytes, mesh.repaired);
       }

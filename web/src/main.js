@@ -111,7 +111,8 @@ const heat = new HeatMap({ viewer, send, role: () => selection.role, restore: ()
 const help = new Help();
 viewer.attachControls(); // after the gizmo and the tools, so they see pointer events first
 const shown = new SelectionView({
-  viewer, selection, role: () => painting.role, heat, points, gizmo, help, panel: () => panel, changed: () => keeper.touch(),
+  viewer, selection, role: () => painting.role, heat, points, gizmo, help, panel: () => panel,
+  changed: () => keeper.touch(),
 });
 const loading = new MeshLoading({
   mesh, diagnostics, conn: () => conn, keeper, panel: () => panel, setBusy,
