@@ -194,7 +194,7 @@ export function parseConstraints(text, nVertices = undefined) {
   try {
     doc = JSON.parse(text);
   } catch (err) {
-    throw new Error(`not valid JSON (${err.message})`);
+    throw new Error(`not valid JSON (${errorText(err)})`);
   }
   if (!doc || typeof doc !== 'object' || Array.isArray(doc)) throw new Error('expected a JSON object');
   const roi = doc.roi === null || doc.roi === undefined ? null : indexList(doc.roi, 'roi');
@@ -245,7 +245,7 @@ export async function readConstraintsFile(file, nVertices, nFaces, vertexMap = n
   try {
     c = parseConstraints(text, nFile);
   } catch (err) {
-    throw new Error(`Cannot read ${file.name}: ${err.message}`);
+    throw new Error(`Cannot read ${file.name}: ${errorText(err)}`);
   }
   const bad = [...(c.roi || []), ...c.fixed, ...c.handle_groups.flat()].find((i) => i >= nFile);
   if (bad !== undefined) {
@@ -261,7 +261,7 @@ export async function readConstraintsFile(file, nVertices, nFaces, vertexMap = n
   try {
     return toMeshNumbering(c, vertexMap, nVertices);
   } catch (err) {
-    throw new Error(`Cannot load ${file.name}: ${err.message}.`);
+    throw new Error(`Cannot load ${file.name}: ${errorText(err)}.`);
   }
 }
 
@@ -271,4 +271,12 @@ function partnerPairs(doc, nGroups) {
   if (!Array.isArray(raw)) return [];
   const ok = (k) => Number.isInteger(k) && k >= 0 && k < nGroups;
   return raw.filter((p) => Array.isArray(p) && p.length === 2 && ok(p[0]) && ok(p[1]) && p[0] !== p[1]);
+}
+
+/**
+ * The message of a caught error (anything may be thrown).
+ * @param {unknown} err
+ */
+function errorText(err) {
+  return err instanceof Error ? err.message : String(err);
 }

@@ -40,25 +40,25 @@ export const FIXED = 1;
 export const HANDLE0 = 2;
 
 export class Selection {
-  // All set by reset(), which the constructor calls.
+  // All set again by reset(), which the constructor calls.
   /** @type {number} vertices */
-  n;
+  n = 0;
   /** @type {Uint8Array} */
-  roi;
+  roi = new Uint8Array(0);
   /** @type {Int16Array} */
-  role;
+  role = new Int16Array(0);
   /** @type {Float64Array} */
-  stiff;
+  stiff = new Float64Array(0);
   /** @type {number} */
-  stiffnessValue;
+  stiffnessValue = 10;
   /** @type {HandleGroup[]} */
-  groups;
+  groups = [];
   /** @type {number} */
-  nextGroupId;
+  nextGroupId = 1;
   /** @type {number} */
-  activeGroup;
+  activeGroup = 0;
   /** @type {number} */
-  version;
+  version = 0;
 
   constructor() {
     this.reset(0);
