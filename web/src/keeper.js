@@ -55,7 +55,8 @@ export class SessionKeeper {
   /** The session as snapshot.js reads it: the stores' fields under the names of a saved session. */
   _session() {
     const { mesh, history, params, selection, viewer } = this.deps;
-    const app = {
+    /** @type {import('./snapshot.js').SessionFacts} */
+    const facts = {
       canUndo: history.canUndo,
       canRedo: history.canRedo,
       source: mesh.source,
@@ -63,7 +64,7 @@ export class SessionKeeper {
       nFaces: mesh.nFaces,
       params: params.values,
     };
-    return { app, selection, viewer, gizmo: this.deps.gizmo };
+    return { facts, selection, viewer, gizmo: this.deps.gizmo };
   }
 
   /** Work of this page waits for the server: a session to put back after reconnecting, or a chosen restore. */

@@ -49,9 +49,23 @@ export function encodePly(positions, faces, vertexMap = null) {
   return buf;
 }
 
-/** True when a session has something to lose: a selection, a deformation or history. */
-export function hasEdits({ app, selection }) {
-  if (app.canUndo || app.canRedo) return true;
+/**
+ * What a snapshot takes from the page's stores besides the selection and the view.
+ * @typedef {object} SessionFacts
+ * @property {boolean} canUndo
+ * @property {boolean} canRedo
+ * @property {any} source where the mesh came from (builtinSource, fileSource)
+ * @property {string|null} meshName
+ * @property {number} nFaces
+ * @property {object} params the solver parameters
+ */
+
+/**
+ * True when a session has something to lose: a selection, a deformation or history.
+ * @param {{facts: SessionFacts, selection: any}} deps
+ */
+export function hasEdits({ facts, selection }) {
+  if (facts.canUndo || facts.canRedo) return true;
   for (let i = 0; i < selection.n; i++) if (selection.role[i] || selection.roi[i] || selection.stiff[i] !== 1) return true;
   return selection.groups.some((g) => g.point);
 }
@@ -63,10 +77,10 @@ export function hasEdits({ app, selection }) {
  * mirror partner, -1 for none), `pivots` (per group, its placed pivot as a world point of the current shape, or
  * null), `positions` (Float32Array of the current shape), `deformed` (the shape is not the rest pose `rest`, the
  * mesh as its source gives it; null when `rest` is not known) and `params`.
- * @param {{app: any, selection: any, viewer: any, gizmo?: any}} deps
+ * @param {{facts: SessionFacts, selection: any, viewer: any, gizmo?: any}} deps
  * @param {ArrayLike<number>|null} [rest]
  */
-export function captureSession({ app, selection, viewer, gizmo }, rest = null) {
+export function captureSession({ facts, selection, viewer, gizmo }, rest = null) {
   const groups = selection.groups.map(() => []);
   const roi = [];
   const fixed = [];
@@ -78,10 +92,10 @@ export function captureSession({ app, selection, viewer, gizmo }, rest = null) {
   }
   return {
     savedAt: Date.now(),
-    source: app.source,
-    meshName: app.meshName,
+    source: facts.source,
+    meshName: facts.meshName,
     nVertices: viewer.nVertices,
-    nFaces: app.nFaces,
+    nFaces: facts.nFaces,
     roi,
     fixed,
     groups,
@@ -92,8 +106,8 @@ export function captureSession({ app, selection, viewer, gizmo }, rest = null) {
     pivots: gizmo ? gizmo.placedPivots() : [],
     positions: new Float32Array(viewer.positions),
     deformed: rest && rest.length === viewer.positions.length ? moved(rest, viewer.positions) : null,
-    params: { ...app.params },
-    edits: hasEdits({ app, selection }),
+    params: { ...facts.params },
+    edits: hasEdits({ facts, selection }),
   };
 }
 
