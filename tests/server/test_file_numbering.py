@@ -201,7 +201,7 @@ def test_a_studio_document_loads_into_arap_deform_as_the_studio_had_it(value: ob
 
 NODE_SCRIPT = """
 import { readFileSync, writeFileSync } from 'fs';
-import { decodeBinary, meshArrays } from '%(web)s/protocol.js';
+import { decodeBinary, meshArrays } from '%(web)s/frames.js';
 import { encodePly } from '%(web)s/snapshot.js';
 const bytes = readFileSync('%(dir)s/mesh.bin');
 const m = meshArrays(decodeBinary(bytes.buffer.slice(bytes.byteOffset, bytes.byteOffset + bytes.length)));

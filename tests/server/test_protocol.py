@@ -184,7 +184,8 @@ def test_docs_describe_every_type_and_code() -> None:
 
 
 NODE_CHECK = """
-import { encodeBinary, decodeBinary, meshArrays, vertexArray, CLIENT, PARAMS } from '%s';
+import { encodeBinary, decodeBinary, meshArrays, vertexArray } from '%s';
+import { CLIENT, PARAMS } from '%s';
 const out = {};
 const frame = encodeBinary({type: CLIENT.UPLOAD, filename: 'a.obj'}, new Uint8Array([1, 2, 3]));
 const d = decodeBinary(frame);
@@ -214,7 +215,7 @@ def test_js_helpers_agree_with_python(tmp_path: Path) -> None:
     module = tmp_path / "protocol.mjs"
     module.write_text(generate_js(), encoding="utf-8")
     script = tmp_path / "check.mjs"
-    script.write_text(NODE_CHECK % module.as_uri(), encoding="utf-8")
+    script.write_text(NODE_CHECK % ((ROOT / "web" / "src" / "frames.js").as_uri(), module.as_uri()), encoding="utf-8")
     frame = P.encode_binary({"type": "vertices", "seq": 7}, np.array([0.25, -1.0, 8.0], dtype="<f4").tobytes())
     out = subprocess.run(["node", str(script), base64.b64encode(frame).decode()], capture_output=True, text=True,
                          check=True, timeout=60)

@@ -1,5 +1,6 @@
 // WebSocket session with the studio server: framing, reconnection and drag coalescing.
-import { CLIENT, decodeBinary, encodeBinary, ERROR, SERVER } from './protocol.js';
+import { decodeBinary, encodeBinary } from './frames.js';
+import { CLIENT, ERROR, SERVER } from './protocol.js';
 
 const DRAG_REPLY_TIMEOUT_MS = 5000;
 const RETRY_FIRST_MS = 500; // delay before the first reconnection attempt; doubled after each failure

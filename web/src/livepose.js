@@ -3,7 +3,7 @@
 // frames replace every position (and may list the movable vertices); subset frames carry only the movable
 // vertices' positions, which a full frame still waiting to be applied takes in place, so that it stays the newest
 // shape and the subset frames after it keep the list it brought.
-import { movableArray, vertexArray } from './protocol.js';
+import { movableArray, vertexArray } from './frames.js';
 
 /** Longest wait (ms) for an animation frame before a waiting frame is applied anyway (a page drawn rarely). */
 const LATEST_APPLY_MS = 250;

@@ -4,7 +4,8 @@
 // constraint set), settling progress, documents and exports to download, and errors. The stores take what the
 // messages say; this module tells the views.
 import { downloadConstraints, downloadExport } from './files.js';
-import { CLIENT, ERROR, meshArrays, PROTOCOL_VERSION, SERVER } from './protocol.js';
+import { meshArrays } from './frames.js';
+import { CLIENT, ERROR, PROTOCOL_VERSION, SERVER } from './protocol.js';
 import { appearanceArrays } from './texture.js';
 
 /** @typedef {import('./protocol.js').ServerMessage} ServerMessage */
