@@ -1,4 +1,4 @@
-"""Constraint scenarios shared by the solver tests."""
+"""Constraint scenarios and measures of results shared by the solver tests."""
 
 from __future__ import annotations
 
@@ -20,3 +20,13 @@ def random_rigid(seed: int) -> tuple[np.ndarray, np.ndarray]:
     if np.linalg.det(Q) < 0:
         Q[:, 0] *= -1
     return Q, rng.normal(size=3)
+
+
+def rigid_misfit(V: np.ndarray, U: np.ndarray, idx: np.ndarray) -> float:
+    """Largest distance of ``U[idx]`` from the best rigid motion of ``V[idx]``, in bounding-box diagonals."""
+    P, Q = U[idx], V[idx]
+    pc, qc = P.mean(axis=0), Q.mean(axis=0)
+    u, _, vt = np.linalg.svd((Q - qc).T @ (P - pc))
+    d = np.sign(np.linalg.det(vt.T @ u.T))
+    R = vt.T @ np.diag([1.0, 1.0, d]) @ u.T
+    return float(np.abs((Q - qc) @ R.T + pc - P).max() / np.linalg.norm(np.ptp(V, axis=0)))

@@ -13,7 +13,7 @@ from arap.constraints import FORMAT_VERSION, load_constraints, save_constraints
 from arap.errors import ConstraintError
 from arap.io import load_mesh
 from arap.meshes.shapes import builtin_mesh
-from tests.core.test_stiffness import _rigid_misfit
+from tests.core.scenarios import rigid_misfit
 
 
 def _bar_document() -> tuple[np.ndarray, dict]:
@@ -86,8 +86,8 @@ def test_deform_keeps_a_rigid_region_rigid(tmp_path: Path) -> None:
     assert main(["deform", "bar", "-c", str(tmp_path / "plain.json"), "-o", str(tmp_path / "plain.obj"), "-q"]) == 0
     rigid, _ = load_mesh(tmp_path / "rigid.obj")
     bent, _ = load_mesh(tmp_path / "plain.obj")
-    assert _rigid_misfit(V, rigid, middle) < 1e-6
-    assert _rigid_misfit(V, bent, middle) > 1e-3
+    assert rigid_misfit(V, rigid, middle) < 1e-6
+    assert rigid_misfit(V, bent, middle) > 1e-3
 
 
 def test_point_handles_in_files_and_deform(tmp_path: Path) -> None:

@@ -12,6 +12,7 @@ from arap.errors import OptionError
 from arap.meshes.shapes import obtuse_cylinder
 from arap.method.rigid import rigid_regions
 from arap.method.stiffness import RIGID_STIFFNESS, check_stiffness
+from tests.core.scenarios import rigid_misfit
 
 
 def _band(V: np.ndarray, lo: float, hi: float) -> np.ndarray:
@@ -19,16 +20,6 @@ def _band(V: np.ndarray, lo: float, hi: float) -> np.ndarray:
     y = V[:, int(np.argmax(np.ptp(V, axis=0)))]
     a, b = np.quantile(y, [lo, hi])
     return np.flatnonzero((y > a) & (y < b))
-
-
-def _rigid_misfit(V: np.ndarray, U: np.ndarray, idx: np.ndarray) -> float:
-    """Largest distance of ``U[idx]`` from the best rigid motion of ``V[idx]``, in bounding-box diagonals."""
-    P, Q = U[idx], V[idx]
-    pc, qc = P.mean(axis=0), Q.mean(axis=0)
-    u, _, vt = np.linalg.svd((Q - qc).T @ (P - pc))
-    d = np.sign(np.linalg.det(vt.T @ u.T))
-    R = vt.T @ np.diag([1.0, 1.0, d]) @ u.T
-    return float(np.abs((Q - qc) @ R.T + pc - P).max() / np.linalg.norm(np.ptp(V, axis=0)))
 
 
 @pytest.fixture(scope="module")
@@ -70,7 +61,7 @@ def test_a_stiff_region_bends_less(cactus: tuple[np.ndarray, np.ndarray]) -> Non
         stiffness[region] = value
         result = arap.ArapSolver(V, F, s.constrained, stiffness=stiffness).solve(s.targets)
         assert np.all(np.diff(result.energies) <= 1e-12 * result.energies[0])
-        misfit[value] = _rigid_misfit(V, result.vertices, trunk)
+        misfit[value] = rigid_misfit(V, result.vertices, trunk)
     assert misfit[30.0] < 0.5 * misfit[1.0]
 
 
@@ -87,7 +78,7 @@ def test_rigid_regions_stay_rigid(mesh: str, cactus: tuple[np.ndarray, np.ndarra
     assert np.all(np.diff(result.energies) <= 1e-12 * abs(result.energies[0]))
     labels = rigid_regions(F, np.isinf(stiffness))
     for k in range(labels.max() + 1):
-        assert _rigid_misfit(V, result.vertices, np.flatnonzero(labels == k)) < 1e-6
+        assert rigid_misfit(V, result.vertices, np.flatnonzero(labels == k)) < 1e-6
     free = np.setdiff1d(np.arange(len(V)), np.concatenate([region, s.constrained]))
     assert np.abs(result.vertices[free] - V[free]).max() > 0.05 * np.linalg.norm(np.ptp(V, axis=0))  # it did bend
     R = solver.fit_rotations(result.vertices)

@@ -12,7 +12,7 @@ import pytest
 from arap.cli import main
 from arap.meshes.shapes import builtin_mesh
 from arap.render.png import SIGNATURE, decode_png
-from tests.render.test_show import _share
+from tests.render.pixels import colour_share
 
 V, F = builtin_mesh("bar")
 BOTTOM = np.flatnonzero(V[:, 1] < 0.5)
@@ -30,7 +30,7 @@ def test_info_png_writes_a_readable_picture(tmp_path: Path, capsys: pytest.Captu
     pixels = decode_png(data)
     assert pixels.shape == (90, 120, 3)
     assert (pixels != pixels[0, 0]).any(axis=2).mean() > 0.05  # the bar is in it
-    assert _share(pixels, "#e64c45") == 0
+    assert colour_share(pixels, "#e64c45") == 0
 
 
 def test_info_png_marks_a_constraints_file(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
@@ -42,7 +42,7 @@ def test_info_png_marks_a_constraints_file(tmp_path: Path, capsys: pytest.Captur
                  "--elevation", "0"]) == 0
     assert json.loads(capsys.readouterr().out)["mesh"] == "built-in bar"  # --json output stays one JSON object
     pixels = decode_png(out.read_bytes())
-    assert _share(pixels, "#e64c45") > 0.005 and _share(pixels, "#ff9e1a") > 0.005
+    assert colour_share(pixels, "#e64c45") > 0.005 and colour_share(pixels, "#ff9e1a") > 0.005
     rows = np.flatnonzero(((pixels[:, :, 0] > 150) & (pixels[:, :, 1] < 120)).any(axis=1))
     assert rows.min() > 0.6 * len(pixels)  # the anchors at the bottom of the upright bar
 

@@ -15,7 +15,8 @@ from arap.errors import ConstraintError, MeshError, OptionError
 from arap.io.paths import SpecialFileError
 from arap.render.camera import view_basis
 from arap.render.png import SIGNATURE, decode_png, encode_png
-from arap.render.show import STUDIO_COLORS, as_rgb
+from arap.render.show import STUDIO_COLORS
+from tests.render.pixels import colour_share
 
 V, F = arap.builtin_mesh("sphere:500")
 TOWARD = view_basis(30.0, 20.0)[2]  # the default view
@@ -24,31 +25,21 @@ SIDE = np.setdiff1d(np.flatnonzero((V @ TOWARD > 0) & (V[:, 1] > 0.7 * V[:, 1].m
 SMALL = {"width": 96, "height": 72}
 
 
-def _share(pixels: np.ndarray, hex_color: str, tolerance: float = 0.12) -> float:
-    """Share of pixels of the hue of ``hex_color`` (its direction in RGB, whatever the brightness)."""
-    target = as_rgb(hex_color)
-    p = pixels.reshape(-1, 3).astype(float)
-    norm = np.linalg.norm(p, axis=1)
-    lit = norm > 60
-    cos = p[lit] @ target / (norm[lit] * np.linalg.norm(target))
-    return float(np.mean(cos > 1 - tolerance ** 2 / 2)) * lit.mean()
-
-
 def test_anchors_show_in_the_studios_red_and_only_when_marked() -> None:
     plain = arap.show(V, F, **SMALL).pixels
     marked = arap.show(V, F, fixed=CAP, **SMALL).pixels
-    assert _share(plain, STUDIO_COLORS["fixed"]) == 0
-    assert _share(marked, STUDIO_COLORS["fixed"]) > 0.02
+    assert colour_share(plain, STUDIO_COLORS["fixed"]) == 0
+    assert colour_share(marked, STUDIO_COLORS["fixed"]) > 0.02
     assert (plain[0, 0] == marked[0, 0]).all()
 
 
 def test_handle_groups_get_distinct_colours() -> None:
     pic = arap.show(V, F, handles=[CAP, SIDE], **SMALL).pixels
     first, second = STUDIO_COLORS["handles"][:2]
-    assert _share(pic, first) > 0.02 and _share(pic, second) > 0.005
-    assert _share(pic, STUDIO_COLORS["fixed"]) == 0
+    assert colour_share(pic, first) > 0.02 and colour_share(pic, second) > 0.005
+    assert colour_share(pic, STUDIO_COLORS["fixed"]) == 0
     one_group = arap.show(V, F, handles=np.concatenate([CAP, SIDE]), **SMALL).pixels
-    assert _share(one_group, first) > 0.02 and _share(one_group, second) == 0
+    assert colour_share(one_group, first) > 0.02 and colour_share(one_group, second) == 0
 
 
 @pytest.mark.parametrize("kind", ["dict", "file", "Constraints"])
@@ -61,14 +52,14 @@ def test_constraints_documents_files_and_sets_are_marked(kind: str, tmp_path: Pa
     elif kind == "Constraints":
         source = arap.load_constraints(doc, len(V))
     pic = arap.show(V, F, constraints=source, **SMALL).pixels
-    assert _share(pic, STUDIO_COLORS["fixed"]) > 0.02
-    assert _share(pic, STUDIO_COLORS["handles"][0]) > 0.005
+    assert colour_share(pic, STUDIO_COLORS["fixed"]) > 0.02
+    assert colour_share(pic, STUDIO_COLORS["handles"][0]) > 0.005
 
 
 def test_a_region_of_interest_is_blue_and_the_rest_darker() -> None:
     roi = np.flatnonzero(V @ TOWARD > 0).tolist()
     pic = arap.show(V, F, constraints={"fixed": CAP.tolist(), "roi": roi}, **SMALL).pixels
-    assert _share(pic, STUDIO_COLORS["roi"], 0.08) > 0.05
+    assert colour_share(pic, STUDIO_COLORS["roi"], 0.08) > 0.05
 
 
 def test_bad_constraints_are_refused_with_the_librarys_messages() -> None:
@@ -103,10 +94,10 @@ def test_arrays_results_mesh_objects_and_names_are_taken(tmp_path: Path) -> None
 
 def test_per_vertex_and_single_colours() -> None:
     blue = arap.show(V, F, colors="#0000ff", **SMALL).pixels
-    assert _share(blue, "#0000ff") > 0.2
+    assert colour_share(blue, "#0000ff") > 0.2
     per_vertex = np.where((V[:, 0] > 0)[:, None], [255, 0, 0], [0, 255, 0]).astype(np.uint8)
     both = arap.show(V, F, colors=per_vertex, **SMALL).pixels
-    assert _share(both, "#ff0000") > 0.05 and _share(both, "#00ff00") > 0.05
+    assert colour_share(both, "#ff0000") > 0.05 and colour_share(both, "#00ff00") > 0.05
     white = arap.show(V, F, background=(255, 255, 255), **SMALL).pixels
     assert white[0, 0].tolist() == [255, 255, 255]
 

@@ -17,7 +17,7 @@ from arap.server.bulkjson import INLINE_BYTES, MAX_PARTS, NumberList, loads_bulk
 from arap.server.client_messages import SetConstraints
 from arap.server.decoder import arrays_from_lists, decode_text_frame
 from arap.server.protocol import ClientMessage, RequestError, check_against_mesh, parse_large_text, parse_text
-from tests.server.test_fuzz import messages as fuzzed_messages
+from tests.server.fuzz_messages import messages as fuzzed_messages
 
 pytestmark = pytest.mark.timeout(120)
 

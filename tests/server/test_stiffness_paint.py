@@ -19,7 +19,7 @@ from arap.server.protocol import RequestError, parse_text
 from arap.server.replies import state_message
 from arap.server.session import Session
 from arap.server.session_errors import ConstraintsRejected
-from tests.core.test_stiffness import _rigid_misfit
+from tests.core.scenarios import rigid_misfit
 from tests.server.helpers import column_major, rotation_z
 
 
@@ -42,12 +42,12 @@ def test_a_rigid_band_stays_rigid(bar_session: Session) -> None:
     V = bar_session.V
     fixed, top, middle = _setup(V)
     bar_session.set_constraints(None, fixed, [top])
-    assert _rigid_misfit(V, _bend(bar_session, top), middle) > 1e-3
+    assert rigid_misfit(V, _bend(bar_session, top), middle) > 1e-3
     bar_session.reset()
     bar_session.set_constraints(None, fixed, [top], stiffness=[{"vertices": middle.tolist(), "value": "rigid"}])
     assert np.isinf(bar_session.constraints.stiffness[middle]).sum() == len(middle)
     assert bar_session.solver.stiffness is not None
-    assert _rigid_misfit(V, _bend(bar_session, top), middle) < 1e-6
+    assert rigid_misfit(V, _bend(bar_session, top), middle) < 1e-6
 
 
 def test_stiffness_in_state_document_and_history(bar_session: Session) -> None:
@@ -137,7 +137,7 @@ def test_paint_the_energy_cannot_take_is_refused_with_the_session_unchanged(shar
     mask[middle] = True
     labels = rigid_regions(session.mesh.F, mask)  # the knight's band is several parts, each rigid on its own
     for k in range(labels.max() + 1):
-        assert _rigid_misfit(session.V, U, np.flatnonzero(labels == k)) < 1e-6
+        assert rigid_misfit(session.V, U, np.flatnonzero(labels == k)) < 1e-6
 
 
 def test_undo_to_paint_the_energy_cannot_take_says_why_a_drag_cannot_solve(shared_meshes_dir: Path) -> None:
