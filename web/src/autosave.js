@@ -2,19 +2,31 @@
 // while the session is being replaced or restored, and a warning before the page is left with edits.
 import { deleteSession, putSession } from './sessiondb.js';
 
-/** @type {Map<string, () => any>} */
+/**
+ * A saved session: what snapshot.js captures, with the parts added here under their names.
+ * @typedef {ReturnType<typeof import('./snapshot.js').captureSession> & {[part: string]: unknown}} Snapshot
+ */
+
+/** @type {Map<string, () => unknown>} */
 const parts = new Map();
 
 /**
  * Keep `capture()` under `name` in every snapshot saved from now on (nothing when it gives null or undefined); a
  * part makes the snapshot worth keeping (`edits`).
+ * @param {string} name
+ * @param {() => unknown} capture
  */
 export function addSnapshotPart(name, capture) {
   parts.set(name, capture);
 }
 
+/**
+ * @param {Snapshot} snap
+ * @returns {Snapshot}
+ */
 function withParts(snap) {
   if (!snap || !parts.size) return snap;
+  /** @type {Snapshot} */
   const out = { ...snap };
   for (const [name, capture] of parts) {
     const value = capture();
@@ -27,8 +39,12 @@ function withParts(snap) {
 
 export class Autosave {
   /**
-   * @param {object} opts id (this page's record), capture() → snapshot (see snapshot.js), delayMs (a number or a
-   *   function giving one: the longest a change waits to be written), onError(err)
+   * @param {object} opts
+   * @param {string} opts.id this page's record
+   * @param {() => Snapshot} opts.capture the session now (see snapshot.js)
+   * @param {number|(() => number)} [opts.delayMs] a number or a function giving one: the longest a change waits to
+   *   be written
+   * @param {((err: any) => void)|null} [opts.onError] told of a failed write (err: whatever IndexedDB rejected with)
    */
   constructor({ id, capture, delayMs = 500, onError = null }) {
     this.id = id;
@@ -83,6 +99,10 @@ export class Autosave {
     if (this.changes !== this.savedChanges) this._schedule();
   }
 
+  /**
+   * @param {Promise<void>} promise a write
+   * @returns {Promise<void>}
+   */
   _track(promise) {
     this.writing = promise;
     promise.catch(() => {}).finally(() => {
@@ -91,6 +111,10 @@ export class Autosave {
     return promise;
   }
 
+  /**
+   * @param {Snapshot} snap
+   * @returns {Promise<void>}
+   */
   async _write(snap) {
     if (!snap || !snap.edits || !snap.source) {
       if (!this.stored) return undefined;
@@ -123,7 +147,10 @@ export class Autosave {
     return snap;
   }
 
-  /** Save under another id from now on, leaving the record of the old one as it is. */
+  /**
+   * Save under another id from now on, leaving the record of the old one as it is.
+   * @param {string} id
+   */
   renew(id) {
     this.id = id;
     this.meshKey = null;
@@ -137,7 +164,10 @@ export class Autosave {
   }
 }
 
-/** Ask before the page is left (reload, close, navigation) while `hasEdits()` is true. */
+/**
+ * Ask before the page is left (reload, close, navigation) while `hasEdits()` is true.
+ * @param {() => boolean} hasEdits
+ */
 export function warnBeforeUnload(hasEdits) {
   window.addEventListener('beforeunload', (e) => {
     if (!hasEdits()) return;
