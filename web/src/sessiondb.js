@@ -9,8 +9,19 @@ const MESHES = 'meshes';
 const LOCK_PREFIX = 'arap-session:';
 const KEEP = 5; // saved sessions kept; older ones are deleted
 
+/**
+ * A stored session record (autosave.js): what was written, as read back.
+ * @typedef {import('./autosave.js').Snapshot & {id: string}} SavedSession
+ */
+
+/** @type {Promise<IDBDatabase>|null} */
 let dbPromise = null;
 
+/**
+ * @template T
+ * @param {IDBRequest<T>} req
+ * @returns {Promise<T>} its result, once it succeeds
+ */
 function request(req) {
   return new Promise((resolve, reject) => {
     req.onsuccess = () => resolve(req.result);
@@ -30,6 +41,7 @@ function done(tx) {
   });
 }
 
+/** @returns {Promise<IDBDatabase>} */
 function open() {
   if (!dbPromise) {
     if (typeof indexedDB === 'undefined') return Promise.reject(new Error('this browser has no IndexedDB'));
@@ -65,7 +77,10 @@ export async function putSession(record, mesh = null) {
   return done(tx);
 }
 
-/** Delete a session record and its mesh. */
+/**
+ * Delete a session record and its mesh.
+ * @param {string} id
+ */
 export async function deleteSession(id) {
   const db = await open();
   const tx = db.transaction([SESSIONS, MESHES], 'readwrite');
@@ -74,6 +89,11 @@ export async function deleteSession(id) {
   return done(tx);
 }
 
+/**
+ * The mesh stored with a session record, or undefined.
+ * @param {string} id the record's
+ * @returns {Promise<{id: string, key: number, bytes: ArrayBuffer}|undefined>}
+ */
 export async function getMesh(id) {
   const db = await open();
   return request(db.transaction(MESHES).objectStore(MESHES).get(id));
@@ -89,9 +109,12 @@ async function heldIds() {
 /**
  * The newest saved session of a page that is gone (not `ownId`, not open elsewhere), or null. Sessions beyond
  * the newest few are deleted on the way.
+ * @param {string} ownId this page's record
+ * @returns {Promise<SavedSession|null>}
  */
 export async function newestOrphan(ownId) {
   const db = await open();
+  /** @type {SavedSession[]} */
   const all = await request(db.transaction(SESSIONS).objectStore(SESSIONS).getAll());
   all.sort((a, b) => b.savedAt - a.savedAt);
   for (const old of all.slice(KEEP)) await deleteSession(old.id);
