@@ -72,7 +72,10 @@ export class SessionKeeper {
     return !!(this.lost?.snap?.edits || this.queued);
   }
 
-  /** True when the current session may be replaced: it has no edits, or the user agrees to lose them. */
+  /**
+   * True when the current session may be replaced: it has no edits, or the user agrees to lose them.
+   * @param {string} what what replaces it, in words
+   */
   confirmReplace(what) {
     if (!this.hasEdits()) return true;
     return window.confirm(`Replace ${this.deps.mesh.name || 'the current mesh'} with ${what}? Its selection, ` +
@@ -84,11 +87,15 @@ export class SessionKeeper {
     this.autosave.touch();
   }
 
-  /** A mesh source (snapshot.js) was requested. */
+  /**
+   * A mesh source (snapshot.js) was requested.
+   * @param {import('./stores/meshstore.js').MeshSource} source
+   */
   meshRequested(source) {
     this.pendingSource = source;
   }
 
+  /** @param {import('./protocol.js').ClientMessage} msg a message sent to the server */
   sent(msg) {
     if (msg.type === CLIENT.APPLY) this.applying++;
   }
@@ -108,7 +115,12 @@ export class SessionKeeper {
     if (this.lost?.live) this.lost.snap = captureSession(this._session(), this.rest);
   }
 
-  /** A mesh arrived (positions and faces as sent). */
+  /**
+   * A mesh arrived (positions and faces as sent).
+   * @param {import('./protocol.js').MeshServerMessage} msg
+   * @param {Float32Array} positions
+   * @param {Uint32Array} faces
+   */
   meshArrived(msg, positions, faces) {
     const { mesh } = this.deps;
     mesh.source = this.pendingSource
@@ -129,7 +141,10 @@ export class SessionKeeper {
     }
   }
 
-  /** A state arrived; `synced`: the server holds the local selection. */
+  /**
+   * A state arrived; `synced`: the server holds the local selection.
+   * @param {boolean} synced
+   */
   stateArrived(synced) {
     const { mesh, viewer } = this.deps;
     if (this.applying > 0) {
@@ -147,13 +162,18 @@ export class SessionKeeper {
     this.restore.stateArrived(synced);
   }
 
+  /** @param {import('./protocol.js').ErrorServerMessage} msg */
   errorArrived(msg) {
     if (msg.request === CLIENT.LOAD_BUILTIN || msg.request === CLIENT.UPLOAD) this.pendingSource = null;
     if (msg.request === CLIENT.APPLY) this.applying = Math.max(0, this.applying - 1);
     this.restore.errorArrived(msg);
   }
 
-  /** Put a saved session back (`recordId`: its saved record, deleted once restored). */
+  /**
+   * Put a saved session back (`recordId`: its saved record, deleted once restored).
+   * @param {import('./autosave.js').Snapshot} snap
+   * @param {string|null} recordId
+   */
   startRestore(snap, recordId) {
     const { mesh, panel } = this.deps;
     if (!mesh.ready) {
@@ -163,7 +183,7 @@ export class SessionKeeper {
     }
     if (!this.autosave.held) this.autosave.hold();
     panel.showStatus(`Restoring ${snap.meshName}…`, 'info');
-    this.restore.start(snap, (error) => {
+    this.restore.start(snap, (/** @type {string|null} */ error) => {
       if (error && !recordId) {
         // keep what was saved of this page's session (offered after a reload) and save on under a new id
         this.id = newSessionId();
@@ -195,6 +215,7 @@ export class SessionKeeper {
     this.offer = { banner, record };
   }
 
+  /** @param {import('./sessiondb.js').SavedSession} record */
   async _restoreRecord(record) {
     let source = record.source;
     if (source.kind === 'file') {
