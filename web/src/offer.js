@@ -5,6 +5,9 @@ import './offer.css';
  * Show the offer over `parent`. After onRestore() (unless it returns false) or onDiscard() the banner goes away.
  * Returns {close()} to take it away without an answer, setText(text) to describe it again and `open` (false once
  * it went away).
+ * @param {HTMLElement} parent
+ * @param {{text: string, onRestore: () => boolean, onDiscard: () => void}} offer
+ * @returns {{open: boolean, close: () => void, setText: (text: string) => void}}
  */
 export function showRestoreOffer(parent, { text, onRestore, onDiscard }) {
   const box = document.createElement('div');
@@ -24,6 +27,7 @@ export function showRestoreOffer(parent, { text, onRestore, onDiscard }) {
   discard.dataset.testid = 'restore-discard';
   box.append(msg, restore, discard);
   parent.appendChild(box);
+  /** @type {{open: boolean, close: () => void, setText: (text: string) => void}} */
   const offer = {
     open: true,
     close: () => {
