@@ -15,15 +15,38 @@ const FULL_CLOSE_CODE = 1013;
  */
 export const WELCOME_WAIT_MS = 1500;
 
+/**
+ * A server message as handed on: a binary one as its header fields plus its `frame` (see decodeBinary).
+ * @typedef {import('./protocol.js').ServerMessage & {frame?: {header: any, payload: Uint8Array}}} ReceivedMessage
+ */
+
+/**
+ * What a connection tells.
+ * @typedef {object} ConnectionHandlers
+ * @property {() => void} [onOpen] the server greeted a new connection: called before its welcome is handed on
+ * @property {(event: CloseEvent) => void} [onClose] an open connection was lost or closed
+ * @property {(refusal: {reason: string, delayMs: number}) => void} [onRefused] the server is full: it refused the
+ *   connection, tried again after delayMs; onClose and onRetry are not called
+ * @property {(retry: {attempt: number, delayMs: number}) => void} [onRetry] a reconnection is scheduled
+ * @property {() => void} [onWaiting] the connection is open but the server has not greeted it after
+ *   WELCOME_WAIT_MS: it is preparing the solver
+ * @property {(msg: ReceivedMessage) => void} [onMessage] a message of the server
+ */
+
+/**
+ * A binary message's payload as a widget model carries it.
+ * @typedef {ArrayBuffer|ArrayBufferView} Buffer
+ */
+
+/**
+ * A listener of a widget model's custom messages: `content` is whatever JSON the kernel sent.
+ * @typedef {(content: any, buffers?: Buffer[]) => void} CustomListener
+ */
+
 export class Connection {
   /**
    * @param {string} url WebSocket address
-   * @param {object} handlers onOpen() (the server greeted a new connection: called before its welcome is handed
-   *   on), onClose(event) (an open connection was lost or closed), onRefused({reason, delayMs}) (the server is full:
-   *   it refused the connection, tried again after delayMs; onClose and onRetry are not called),
-   *   onRetry({attempt, delayMs}) (a reconnection is scheduled), onWaiting() (the connection is open but the server
-   *   has not greeted it after WELCOME_WAIT_MS: it is preparing the solver), onMessage(msg); a binary frame arrives
-   *   as its header fields plus `frame` ({header, payload}, see decodeBinary)
+   * @param {ConnectionHandlers} handlers
    */
   constructor(url, handlers) {
     this.url = url;
@@ -90,7 +113,10 @@ export class Connection {
     this.ws?.close();
   }
 
-  /** The server is full: tell, and try again slowly (a tab must close first). */
+  /**
+   * The server is full: tell, and try again slowly (a tab must close first).
+   * @param {string} reason
+   */
   _refused(reason) {
     if (this.stopped) return;
     this.retryTimer = setTimeout(() => this.connect(), FULL_RETRY_MS);
@@ -132,7 +158,10 @@ export class Connection {
     return true;
   }
 
-  /** Queue a drag; at most one drag is unanswered, later ones collapse into the newest. */
+  /**
+   * Queue a drag; at most one drag is unanswered, later ones collapse into the newest.
+   * @param {number[][]} transforms one 4x4 matrix per handle group, then per point handle (see DragClientMessage)
+   */
   drag(transforms) {
     if (this.inFlight && performance.now() - this.inFlight.sentAt > DRAG_REPLY_TIMEOUT_MS) this.inFlight = null;
     if (this.inFlight) {
@@ -155,6 +184,7 @@ export class Connection {
     return this.inFlight !== null;
   }
 
+  /** @param {number[][]} transforms */
   _sendDrag(transforms) {
     this.seq += 1;
     if (this.send({ type: CLIENT.DRAG, seq: this.seq, transforms })) {
@@ -162,6 +192,7 @@ export class Connection {
     }
   }
 
+  /** @param {number} seq the drag answered */
   _dragAnswered(seq) {
     if (!this.inFlight || seq < this.inFlight.seq) return;
     this.lastLatencyMs = performance.now() - this.inFlight.sentAt;
@@ -173,7 +204,9 @@ export class Connection {
     }
   }
 
+  /** @param {string|ArrayBuffer} data a text or binary WebSocket message */
   _receive(data) {
+    /** @type {ReceivedMessage} */
     let msg;
     try {
       if (typeof data === 'string') {
@@ -189,7 +222,10 @@ export class Connection {
     this._dispatch(msg);
   }
 
-  /** Hand on a decoded server message (a binary one with its `frame`). */
+  /**
+   * Hand on a decoded server message (a binary one with its `frame`).
+   * @param {ReceivedMessage} msg
+   */
   _dispatch(msg) {
     if (msg.type === SERVER.WELCOME) {
       this.attempt = 0; // a server that accepts and drops at once still backs off
@@ -223,9 +259,9 @@ export function defaultSocketUrl(loc = location) {
  * What a studio session needs of a Jupyter widget model (anywidget's `model`): custom messages both ways, a binary
  * message as its header (the content) and its payload (the first buffer).
  * @typedef {{
- *   send: (content: object, callbacks?: unknown, buffers?: (ArrayBuffer|ArrayBufferView)[]) => void,
- *   on: (name: 'msg:custom', cb: (content: any, buffers?: (ArrayBuffer|ArrayBufferView)[]) => void) => void,
- *   off: (name: 'msg:custom', cb: (content: any, buffers?: (ArrayBuffer|ArrayBufferView)[]) => void) => void,
+ *   send: (content: object, callbacks?: unknown, buffers?: Buffer[]) => void,
+ *   on: (name: 'msg:custom', cb: (content: any, buffers?: Buffer[]) => void) => void,
+ *   off: (name: 'msg:custom', cb: (content: any, buffers?: Buffer[]) => void) => void,
  * }} WidgetModel
  */
 
@@ -240,11 +276,12 @@ export const WIDGET_OPEN = { widget: 'open' };
 export class ModelConnection extends Connection {
   /**
    * @param {WidgetModel} model
-   * @param {object} handlers as Connection's
+   * @param {ConnectionHandlers} handlers
    */
   constructor(model, handlers) {
     super('', handlers);
     this.model = model;
+    /** @type {CustomListener} */
     this._listener = (content, buffers) => this._custom(content, buffers);
   }
 
@@ -275,18 +312,28 @@ export class ModelConnection extends Connection {
     return false;
   }
 
+  /**
+   * @param {import('./protocol.js').ClientMessage} msg
+   * @returns {boolean}
+   */
   send(msg) {
     if (!this.open) return false;
     this.model.send(msg);
     return true;
   }
 
+  /**
+   * @param {import('./protocol.js').UploadClientMessage} header
+   * @param {Buffer} bytes
+   * @returns {boolean}
+   */
   sendBinary(header, bytes) {
     if (!this.open) return false;
     this.model.send(header, undefined, [bytes]);
     return true;
   }
 
+  /** @type {CustomListener} */
   _custom(content, buffers) {
     if (!content || typeof content !== 'object' || typeof content.type !== 'string') return;
     if (!buffers || buffers.length === 0) {
@@ -302,9 +349,11 @@ export class ModelConnection extends Connection {
 /**
  * A WidgetModel for a studio page inside a frame of the notebook's page: custom messages go to and come from the
  * parent window, which forwards them to and from the widget model (see widget.js).
+ * @param {Window} [target] the window of the notebook's page
  * @returns {WidgetModel}
  */
 export function parentModel(target = window.parent) {
+  /** @type {Set<CustomListener>} */
   const listeners = new Set();
   window.addEventListener('message', (ev) => {
     if (ev.source !== target || !ev.data || ev.data.arap !== 'msg') return;
@@ -320,7 +369,7 @@ export function parentModel(target = window.parent) {
 /**
  * The studio session of this page: through the notebook's widget when the page is a widget's frame (the widget
  * sets `window.__ARAP_HOST__` to 'parent'), else the WebSocket of the server that served it.
- * @param {object} handlers as Connection's
+ * @param {ConnectionHandlers} handlers
  * @returns {Connection}
  */
 export function createConnection(handlers) {
