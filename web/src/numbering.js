@@ -6,8 +6,8 @@
 // handles of one group with the same target, or the same stiffness), anything else is refused naming the file's
 // vertices. The browser's saved sessions keep the mesh's numbering (the same file is repaired the same way again).
 
-const welded = (a, b) => `file vertices ${a} and ${b} are copies of one vertex (mesh repair welded them)`;
-const fmt = (v) => (v === 'rigid' ? 'rigid' : String(v));
+const welded = (/** @type {number} */ a, /** @type {number} */ b) => `file vertices ${a} and ${b} are copies of one vertex (mesh repair welded them)`;
+const fmt = (/** @type {number|string} */ v) => (v === 'rigid' ? 'rigid' : String(v));
 
 /**
  * The mesh vertex of file vertex `i` of a constraint role (`what`), refusing a vertex repair dropped.
@@ -24,10 +24,19 @@ function meshVertex(vertexMap, i, what) {
   return v;
 }
 
-/** The targets (Map file vertex → [x, y, z]) by mesh vertex; copies must have the same target. */
+/** A painted stiffness group: vertices and their stiffness (a number or 'rigid'). @typedef {{vertices: number[], value: number|string}} StiffnessGroup */
+
+/**
+ * The targets (Map file vertex → [x, y, z]) by mesh vertex; copies must have the same target.
+ * @param {Map<number, number[]>|null} targets
+ * @param {Int32Array} vertexMap
+ * @returns {Map<number, number[]>|null}
+ */
 function mapTargets(targets, vertexMap) {
   if (!targets) return null;
+  /** @type {Map<number, number[]>} */
   const out = new Map();
+  /** @type {Map<number, number>} mesh vertex → the file vertex whose target it took */
   const from = new Map();
   for (const [i, p] of targets) {
     const v = meshVertex(vertexMap, i, 'handle');
@@ -39,15 +48,22 @@ function mapTargets(targets, vertexMap) {
     }
     const tol = 1e-12 * Math.max(1, ...p.map(Math.abs), ...q.map(Math.abs));
     if (p.some((x, k) => Math.abs(x - q[k]) > tol)) {
-      throw new Error(`${welded(from.get(v), i)} but their targets differ: [${q.join(', ')}] and [${p.join(', ')}]`);
+      throw new Error(`${welded(/** @type {number} */ (from.get(v)), i)} but their targets differ: [${q.join(', ')}] and [${p.join(', ')}]`);
     }
   }
   return out;
 }
 
-/** Painted stiffness ([{vertices, value}] of file vertices) of the mesh; every copy of a vertex must agree. */
+/**
+ * Painted stiffness ([{vertices, value}] of file vertices) of the mesh; every copy of a vertex must agree.
+ * @param {StiffnessGroup[]|null} stiffness
+ * @param {Int32Array} vertexMap
+ * @param {number} nVertices
+ * @returns {StiffnessGroup[]|null}
+ */
 function mapStiffness(stiffness, vertexMap, nVertices) {
   if (!stiffness) return null;
+  /** @type {Map<number, [number|string, number]>} */
   const value = new Map(); // mesh vertex → [value, file vertex]
   const painted = new Int32Array(nVertices);
   for (const g of stiffness) {
@@ -70,10 +86,11 @@ function mapStiffness(stiffness, vertexMap, nVertices) {
     const other = vertexMap.findIndex((w, j) => w === v && !given.has(j));
     throw new Error(`${welded(i, other)} but their stiffness differs: ${fmt(x)} and 1 (not given)`);
   }
+  /** @type {Map<number|string, number[]>} */
   const groups = new Map();
   for (const [v, [x]] of value) {
     if (!groups.has(x)) groups.set(x, []);
-    groups.get(x).push(v);
+    /** @type {number[]} */ (groups.get(x)).push(v);
   }
   return [...groups].map(([x, vertices]) => ({ vertices, value: x }));
 }
@@ -91,7 +108,14 @@ function mapStiffness(stiffness, vertexMap, nVertices) {
  * @returns {T}
  */
 export function toMeshNumbering(c, vertexMap, nVertices) {
+  /** @type {Map<number, [number, string, number]>} */
   const role = new Map(); // mesh vertex → [role, label, file vertex]
+  /**
+   * @param {number} i file vertex
+   * @param {number} v its mesh vertex
+   * @param {number} r its role: -1 fixed, k handle group k
+   * @param {string} label the role in words
+   */
   const claim = (i, v, r, label) => {
     const seen = role.get(v);
     if (seen && seen[2] === i) return true; // a vertex repeated in the document: the server's validator answers
@@ -102,12 +126,14 @@ export function toMeshNumbering(c, vertexMap, nVertices) {
     if (seen[0] === r) return false; // another copy in the same role: one vertex
     throw new Error(`${welded(seen[2], i)} but one is ${seen[1]} and the other ${label}`);
   };
+  /** @type {number[]} */
   const fixed = [];
   for (const i of c.fixed) {
     const v = meshVertex(vertexMap, i, 'fixed');
     if (claim(i, v, -1, 'fixed')) fixed.push(v);
   }
   const groups = c.handle_groups.map((g, k) => {
+    /** @type {number[]} */
     const out = [];
     for (const i of g) {
       const v = meshVertex(vertexMap, i, 'handle');
