@@ -9,14 +9,28 @@ export const ROI_GROW_MODES = ['rings', 'distance'];
 /** Grow steps that Shrink can take back exactly (each keeps a copy of the selection). */
 const MAX_GROWN = 32;
 
+/** How a selection paints: indices painted with a mode (subtract takes it away); true when something changed. @typedef {(indices: Iterable<number>, mode: string, subtract: boolean) => boolean} Paint */
+
+/**
+ * A Grow that Shrink can take back: the selection before it, the role it grew, and the selection's vertex count and
+ * version right after it.
+ * @typedef {{before: {role: Int16Array, roi: Uint8Array, stiff: Float64Array, activeGroup: number,
+ *   groups: import('./selection.js').HandleGroup[]}, role: string, n: number, version: number}} Grown
+ */
+
 export class SurfaceSelection {
   /**
-   * @param {object} opts viewer, selection, role(): the role being painted, changed(): after the selection
-   *   changed (refresh and send it), paint(indices, mode, subtract): paints (Selection.paint by default)
+   * @param {object} opts
+   * @param {import('./viewer.js').Viewer} opts.viewer
+   * @param {import('./selection.js').Selection} opts.selection
+   * @param {() => string} opts.role the role being painted
+   * @param {() => void} opts.changed after the selection changed (refresh and send it)
+   * @param {Paint|null} [opts.paint] paints (Selection.paint by default)
    */
   constructor({ viewer, selection, role, changed, paint = null }) {
     this.viewer = viewer;
     this.selection = selection;
+    /** @type {Paint} */
     this.paint = paint ?? ((indices, mode, subtract) => selection.paint(indices, mode, subtract));
     this.role = role;
     this.changed = changed;
@@ -25,6 +39,7 @@ export class SurfaceSelection {
     /** @type {Uint32Array|null} the triangles `_graph` was built from */
     this._graphFor = null;
     /** The selection as it was before each Grow still undone by Shrink, newest last (see ring). */
+    /** @type {Grown[]} */
     this._grown = [];
   }
 
@@ -42,20 +57,24 @@ export class SurfaceSelection {
     return graph;
   }
 
-  /** Membership test of the role being painted, or null for erase. */
+  /**
+   * Membership test of the role being painted, or null for erase.
+   * @returns {((i: number) => boolean)|null}
+   */
   _member() {
     const s = this.selection;
     const role = this.role();
-    if (role === 'roi') return (i) => s.roi[i] === 1;
+    if (role === 'roi') return (/** @type {number} */ i) => s.roi[i] === 1;
     const value = s.roleValue(role);
     if (value === null || value === 0) return null;
-    return (i) => s.role[i] === value;
+    return (/** @type {number} */ i) => s.role[i] === value;
   }
 
   /**
    * Grow (or shrink) the role being painted by one ring of edges; false when nothing changed. Shrink right after Grow
    * (nothing else edited in between) takes away exactly the layer Grow added, giving back what it painted over, so
    * Grow, Grow, Shrink, Shrink ends where it began; otherwise Shrink takes away the members with a neighbour outside.
+   * @param {boolean} shrink
    */
   ring(shrink) {
     const member = this._member();
@@ -65,7 +84,7 @@ export class SurfaceSelection {
     const last = this._grown[this._grown.length - 1];
     if (last && (last.version !== s.version || last.role !== role || last.n !== s.n)) this._grown = [];
     if (shrink && this._grown.length) {
-      const before = this._grown.pop().before;
+      const before = /** @type {Grown} */ (this._grown.pop()).before;
       s.role.set(before.role);
       s.roi.set(before.roi);
       s.stiff.set(before.stiff);
@@ -94,9 +113,12 @@ export class SurfaceSelection {
    * The region of interest becomes the handles' surroundings: every vertex within `amount` rings (mode "rings")
    * or within `amount` percent of the bounding-box diagonal along the surface (mode "distance") of a handle
    * vertex (or corner of a point handle's triangle), anchors included. False when there are no handles.
+   * @param {string} mode one of ROI_GROW_MODES
+   * @param {number} amount
    */
   roiFromHandles(mode, amount) {
     const s = this.selection;
+    /** @type {number[]} */
     const handles = [];
     for (let i = 0; i < s.n; i++) if (s.role[i] >= HANDLE0) handles.push(i);
     const faces = this.viewer.faces;
