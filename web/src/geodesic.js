@@ -154,18 +154,25 @@ export function triangleSeeds(positions, face, point) {
 /**
  * The patch connected to the seeds through vertices that lie within `radius` (straight distance) of `point`: a
  * ball cut down to the piece of surface under the cursor, without parts that only come near it.
+ * @param {{ptr: Int32Array, adj: Int32Array}} graph from buildAdjacency
+ * @param {ArrayLike<number>} positions (n*3)
+ * @param {Iterable<number>} seeds
+ * @param {{x: number, y: number, z: number}} point
+ * @param {number} radius
  * @returns {number[]} vertex indices
  */
 export function connectedPatch(graph, positions, seeds, point, radius) {
   const { ptr, adj } = graph;
   const r2 = radius * radius;
-  const inside = (v) => {
+  const inside = (/** @type {number} */ v) => {
     const dx = positions[3 * v] - point.x;
     const dy = positions[3 * v + 1] - point.y;
     const dz = positions[3 * v + 2] - point.z;
     return dx * dx + dy * dy + dz * dz <= r2;
   };
+  /** @type {Set<number>} */
   const seen = new Set();
+  /** @type {number[]} */
   const stack = [];
   for (const v of seeds) {
     if (!seen.has(v) && inside(v)) {
@@ -174,7 +181,7 @@ export function connectedPatch(graph, positions, seeds, point, radius) {
     }
   }
   while (stack.length) {
-    const v = stack.pop();
+    const v = /** @type {number} */ (stack.pop());
     for (let k = ptr[v]; k < ptr[v + 1]; k++) {
       const w = adj[k];
       if (!seen.has(w) && inside(w)) {
@@ -189,11 +196,15 @@ export function connectedPatch(graph, positions, seeds, point, radius) {
 /**
  * One ring around a vertex set: the outside neighbours of members (grow), or the members with an outside
  * neighbour (shrink).
+ * @param {{ptr: Int32Array, adj: Int32Array}} graph from buildAdjacency
+ * @param {number} n number of vertices
  * @param {(i: number) => boolean} member
+ * @param {boolean} [shrink]
  * @returns {number[]} the vertices to add (grow) or remove (shrink)
  */
 export function ringAround(graph, n, member, shrink = false) {
   const { ptr, adj } = graph;
+  /** @type {number[]} */
   const out = [];
   for (let v = 0; v < n; v++) {
     if (member(v) === shrink) {
@@ -211,7 +222,9 @@ export function ringAround(graph, n, member, shrink = false) {
 
 /**
  * Vertices within `k` rings of the seeds (breadth-first over the edges).
+ * @param {{ptr: Int32Array, adj: Int32Array}} graph from buildAdjacency
  * @param {number[]} seeds
+ * @param {number} k
  * @returns {number[]}
  */
 export function kRing(graph, seeds, k) {
