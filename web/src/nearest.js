@@ -156,7 +156,11 @@ export class Surface {
   }
 }
 
-/** Mean edge length of (a sample of) the triangles. */
+/**
+ * Mean edge length of (a sample of) the triangles.
+ * @param {ArrayLike<number>} pos positions, 3 per vertex
+ * @param {ArrayLike<number>} faces triangles, 3 indices each
+ */
 function meanEdge(pos, faces) {
   const nf = faces.length / 3;
   const step = Math.max(1, Math.floor(nf / 5000));
@@ -176,6 +180,15 @@ function meanEdge(pos, faces) {
 /**
  * The point of triangle (i, j, k) closest to (x, y, z), written into `out`; its squared distance (Ericson, Real-Time
  * Collision Detection, 5.1.5).
+ * @param {ArrayLike<number>} pos positions, 3 per vertex
+ * @param {number} i
+ * @param {number} j
+ * @param {number} k
+ * @param {number} x
+ * @param {number} y
+ * @param {number} z
+ * @param {number[]|Float64Array} out x, y, z of the closest point
+ * @returns {number}
  */
 function closestOnTriangle(pos, i, j, k, x, y, z, out) {
   const ax = pos[3 * i], ay = pos[3 * i + 1], az = pos[3 * i + 2];
