@@ -4,6 +4,8 @@
 // that a move of the movable vertices changes: those of the movable vertices and their one-ring, found through a
 // vertex→face adjacency (CSR) built once per mesh.
 
+/** A geometry attribute's array (normals: Float32Array). @typedef {import('three/src/core/BufferAttribute.js').TypedArray} TypedArray */
+
 /** Faces around each vertex: faces of vertex v are `faces[offsets[v]..offsets[v+1]]`. */
 export class VertexFaces {
   /** @param {Uint32Array} index 3 vertex indices per face. @param {number} nVertices */
@@ -22,6 +24,10 @@ export class VertexFaces {
   }
 }
 
+/**
+ * @param {TypedArray} normals 3 per vertex
+ * @param {number} i the first of a vertex's three
+ */
 function normalise(normals, i) {
   const x = normals[i], y = normals[i + 1], z = normals[i + 2];
   const l = Math.sqrt(x * x + y * y + z * z) || 1;
@@ -30,7 +36,12 @@ function normalise(normals, i) {
   normals[i + 2] = z / l;
 }
 
-/** Every vertex normal of `pos` (Float32Array, 3 per vertex) into `normals` (same length). */
+/**
+ * Every vertex normal of `pos` (Float32Array, 3 per vertex) into `normals` (same length).
+ * @param {ArrayLike<number>} pos
+ * @param {ArrayLike<number>} index 3 vertex indices per face
+ * @param {TypedArray} normals
+ */
 export function computeNormals(pos, index, normals) {
   normals.fill(0);
   for (let o = 0; o < index.length; o += 3) {
@@ -52,8 +63,9 @@ export class SubsetNormals {
     const { offsets, faces, index, nVertices } = adjacency;
     // touched: the vertices of the faces around a movable vertex (their normals change)
     const touched = new Uint8Array(nVertices);
+    /** @type {number[]} */
     const list = [];
-    const mark = (v) => {
+    const mark = (/** @type {number} */ v) => {
       if (!touched[v]) {
         touched[v] = 1;
         list.push(v);
@@ -96,7 +108,11 @@ export class SubsetNormals {
     this.last = list.length ? this.vertices[list.length - 1] : -1;
   }
 
-  /** Recompute `normals` (Float32Array, 3 per vertex) of the touched vertices from `pos`. */
+  /**
+   * Recompute `normals` (Float32Array, 3 per vertex) of the touched vertices from `pos`.
+   * @param {ArrayLike<number>} pos
+   * @param {TypedArray} normals
+   */
   update(pos, normals) {
     const vs = this.vertices, fs = this.faces, corners = this.corners;
     for (let k = 0; k < vs.length; k++) {
@@ -119,6 +135,9 @@ export class SubsetNormals {
 /**
  * Bounding box and sphere of `pos` (Float32Array, 3 per vertex) into a Three.js Box3 and Sphere: the sphere is
  * centred on the box, with the largest distance of a vertex as radius (as Three.js's computeBoundingSphere).
+ * @param {ArrayLike<number>} pos
+ * @param {import('three').Box3} box
+ * @param {import('three').Sphere} sphere
  */
 export function computeBounds(pos, box, sphere) {
   let x0 = Infinity, y0 = Infinity, z0 = Infinity, x1 = -Infinity, y1 = -Infinity, z1 = -Infinity;
