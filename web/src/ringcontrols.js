@@ -40,15 +40,16 @@ export class RingControls extends TransformControls {
     this._muted = false;
     /** @type {RingDrag|null} state of the rotation under way */
     this._ring = null;
+    /** @type {PointerEvent|null} */
     this._lastPointer = null; // the latest pointer of the drag (re-applied when the modifier changes)
-    const track = (e) => {
+    const track = (/** @type {PointerEvent|KeyboardEvent} */ e) => {
       const held = e.ctrlKey || e.metaKey;
       if (held === this.snapKey) return;
       this.snapKey = held;
       if (this.dragging && this._lastPointer) this.pointerMove(this._lastPointer); // snap (or not) at once
     };
     // capture on the window: seen before the controls' own pointer handlers on the canvas
-    for (const type of ['pointerdown', 'pointermove', 'keydown', 'keyup']) window.addEventListener(type, track, true);
+    for (const type of /** @type {const} */ (['pointerdown', 'pointermove', 'keydown', 'keyup'])) window.addEventListener(type, track, true);
   }
 
   /** TransformControls' internal state (the drag's start, the pivot's and the camera's world pose). */
@@ -61,11 +62,19 @@ export class RingControls extends TransformControls {
     return this.snapAlways || this.snapKey;
   }
 
+  /**
+   * @template {Extract<keyof import('three/addons/controls/TransformControls.js').TransformControlsEventMap, string>} T
+   * @param {THREE.BaseEvent<T> & import('three/addons/controls/TransformControls.js').TransformControlsEventMap[T]} event
+   */
   dispatchEvent(event) {
     if (!this._muted) super.dispatchEvent(event);
   }
 
-  /** Pixel coordinates (relative to the canvas) of a pointer in normalised device coordinates. */
+  /**
+   * Pixel coordinates (relative to the canvas) of a pointer in normalised device coordinates.
+   * @param {{x: number, y: number}} pointer
+   * @returns {number[]}
+   */
   _pixels(pointer) {
     const r = this.canvas.getBoundingClientRect();
     return [((pointer.x + 1) / 2) * r.width, ((1 - pointer.y) / 2) * r.height];
@@ -80,6 +89,7 @@ export class RingControls extends TransformControls {
    * TransformControls picks the first picker the pointer's ray meets: where two rings cross on screen, the one in
    * front, even with the pointer on the other ring's line. Of the rings, the one whose line passes nearest to the
    * pointer on screen is picked instead.
+   * @param {PointerEvent|null} pointer (TransformControls' pointer: x, y in normalised device coordinates)
    */
   pointerHover(pointer) {
     super.pointerHover(pointer);
@@ -100,7 +110,11 @@ export class RingControls extends TransformControls {
     this.axis = best;
   }
 
-  /** Distance on screen (pixels) from `at` to the line of ring `name` (X, Y, Z: radius 0.5; E: 0.75). */
+  /**
+   * Distance on screen (pixels) from `at` to the line of ring `name` (X, Y, Z: radius 0.5; E: 0.75).
+   * @param {"X"|"Y"|"Z"|"E"} name
+   * @param {number[]} at
+   */
   _ringDistance(name, at) {
     let axis;
     if (name === 'E') axis = this.tc.eye.clone();
@@ -125,6 +139,7 @@ export class RingControls extends TransformControls {
     return best;
   }
 
+  /** @param {PointerEvent|null} pointer */
   pointerDown(pointer) {
     super.pointerDown(pointer);
     this._ring = null;
@@ -148,6 +163,7 @@ export class RingControls extends TransformControls {
     };
   }
 
+  /** @param {PointerEvent|null} pointer */
   pointerMove(pointer) {
     if (pointer !== null) this._lastPointer = pointer;
     if (this.mode === 'rotate' && this._ring && this.dragging && pointer !== null) {
@@ -180,7 +196,10 @@ export class RingControls extends TransformControls {
     this.object.position.copy(this.tc._positionStart).add(offset);
   }
 
-  /** @param {RingDrag} ring the rotation under way */
+  /**
+   * @param {PointerEvent} pointer
+   * @param {RingDrag} ring the rotation under way
+   */
   _rotate(pointer, ring) {
     const at = this._pixels(pointer);
     if (pointer.button !== -1 && pointer.button !== undefined) return;
@@ -224,7 +243,7 @@ export class RingControls extends TransformControls {
     const d = this.object.position.clone().sub(this.tc._positionStart);
     if (this.space === 'local' && this.axis !== 'XYZ') d.applyQuaternion(this.tc._quaternionStart.clone().invert());
     const shown = this.axis;
-    const parts = ['x', 'y', 'z'].filter((c) => shown.includes(c.toUpperCase()));
+    const parts = /** @type {('x'|'y'|'z')[]} */ (['x', 'y', 'z']).filter((c) => shown.includes(c.toUpperCase()));
     return `Move ${shown}: ${parts.map((c) => Number(d[c].toPrecision(4))).join(', ')}`;
   }
 
@@ -235,7 +254,11 @@ export class RingControls extends TransformControls {
     return (d * Math.min((1.9 * Math.tan((Math.PI * cam.fov) / 360)) / cam.zoom, 7) * this.size) / 4;
   }
 
-  /** Screen offset (pixels) from the centre to a point of an axis ring (radius 0.5 of the gizmo's size). */
+  /**
+   * Screen offset (pixels) from the centre to a point of an axis ring (radius 0.5 of the gizmo's size).
+   * @param {number[]} centre
+   * @returns {[number, number]}
+   */
   _ringOffsetPixels(centre) {
     const scale = this.handleScale();
     const up = _v.set(0, 1, 0).applyQuaternion(this.tc.cameraQuaternion).multiplyScalar(0.5 * scale);
@@ -244,7 +267,12 @@ export class RingControls extends TransformControls {
   }
 }
 
-/** Distance from point p to the segment a–b (2D). */
+/**
+ * Distance from point p to the segment a–b (2D).
+ * @param {number[]} p
+ * @param {number[]} a
+ * @param {number[]} b
+ */
 function segmentDistance(p, a, b) {
   const dx = b[0] - a[0];
   const dy = b[1] - a[1];
