@@ -14,7 +14,13 @@ import * as THREE from 'three';
 
 // ------------------------------------------------------------------ 3×3 algebra (row-major arrays of 9)
 
+/**
+ * @param {number[]} a
+ * @param {number[]} b
+ * @returns {number[]} a · b
+ */
 function mul3(a, b) {
+  /** @type {number[]} */
   const out = new Array(9);
   for (let r = 0; r < 3; r++) {
     for (let c = 0; c < 3; c++) out[3 * r + c] = a[3 * r] * b[c] + a[3 * r + 1] * b[3 + c] + a[3 * r + 2] * b[6 + c];
@@ -22,10 +28,18 @@ function mul3(a, b) {
   return out;
 }
 
+/**
+ * @param {number[]} a
+ * @returns {number[]}
+ */
 function transpose3(a) {
   return [a[0], a[3], a[6], a[1], a[4], a[7], a[2], a[5], a[8]];
 }
 
+/**
+ * @param {number[]} a
+ * @returns {number[]}
+ */
 function inverse3(a) {
   const [m00, m01, m02, m10, m11, m12, m20, m21, m22] = a;
   const c00 = m11 * m22 - m12 * m21;
@@ -59,21 +73,35 @@ export function polar(A) {
   return { R, S: S.map((x, i) => 0.5 * (x + S[3 * (i % 3) + Math.floor(i / 3)])) };
 }
 
-/** Row-major 3×3 part and translation of a column-major 4×4. */
+/**
+ * Row-major 3×3 part and translation of a column-major 4×4.
+ * @param {number[]} e
+ * @returns {{A: number[], t: number[]}}
+ */
 function split(e) {
   return { A: [e[0], e[4], e[8], e[1], e[5], e[9], e[2], e[6], e[10]], t: [e[12], e[13], e[14]] };
 }
 
+/**
+ * @param {number[]} A row-major 3×3
+ * @param {number[]} p
+ * @returns {number[]} A p
+ */
 function apply3(A, p) {
   return [0, 1, 2].map((r) => A[3 * r] * p[0] + A[3 * r + 1] * p[1] + A[3 * r + 2] * p[2]);
 }
 
 const _m4 = new THREE.Matrix4();
+/** @param {number[]} R a row-major rotation */
 function quaternionOf(R) {
   _m4.set(R[0], R[1], R[2], 0, R[3], R[4], R[5], 0, R[6], R[7], R[8], 0, 0, 0, 0, 1);
   return new THREE.Quaternion().setFromRotationMatrix(_m4);
 }
 
+/**
+ * @param {THREE.Quaternion} q
+ * @returns {number[]} row-major
+ */
 function rotationOf(q) {
   const e = _m4.makeRotationFromQuaternion(q).elements;
   return [e[0], e[4], e[8], e[1], e[5], e[9], e[2], e[6], e[10]];
