@@ -8,15 +8,22 @@ import { interpolate } from './timeline.js';
  */
 const indexOf = (geometry) => /** @type {import('three').BufferAttribute} */ (geometry.index);
 
-/** Screen position of the gizmo, of points on its axes and on its rotate rings (CSS pixels relative to the canvas). */
+/**
+ * Screen position of the gizmo, of points on its axes and on its rotate rings (CSS pixels relative to the canvas).
+ * @param {import('./viewer.js').Viewer} viewer
+ * @param {import('./gizmo.js').HandleGizmo} gizmo
+ * @param {ReturnType<typeof import('./transformui.js').installTransformUi>} transformUi
+ */
 function gizmoInfo(viewer, gizmo, transformUi) {
   if (!gizmo.controls.object) return null;
   const c = gizmo.pivotWorld;
   const cam = viewer.camera;
   // TransformControls scales its helper to a constant screen size; its arrow pickers span 0..0.6 of that
   const scale = (cam.position.distanceTo(gizmo.pivot.position) * 1.9 * Math.tan((Math.PI * cam.fov) / 360) * gizmo.controls.size) / 4;
-  const at = (d, r) => viewer.project([c[0] + d.x * r, c[1] + d.y * r, c[2] + d.z * r]);
+  const at = (/** @type {import('three').Vector3} */ d, /** @type {number} */ r) => viewer.project([c[0] + d.x * r, c[1] + d.y * r, c[2] + d.z * r]);
+  /** @type {Record<string, number[]>} screen point of each axis (x, y, z) */
   const axes = {};
+  /** @type {Record<string, number[][]>} screen points of each ring (x, y, z, e) */
   const rings = {};
   const eye = cam.position.clone().sub(gizmo.pivot.position).normalize();
   for (const name of ['x', 'y', 'z', 'e']) {
@@ -163,12 +170,12 @@ export function installTestHook({
      * Make the page slow at showing shapes: applying each vertices frame takes `ms` more milliseconds of
      * JavaScript (0: as fast as it is). For tests of how the page keeps up with frames that arrive faster.
      */
-    slowDrawing: (ms) => {
+    slowDrawing: (/** @type {number} */ ms) => {
       const v = /** @type {any} */ (viewer);
       for (const name of ['updatePositions', 'updateSubset']) {
         const own = Object.getPrototypeOf(v)[name];
         if (ms > 0) {
-          v[name] = (...args) => {
+          v[name] = (/** @type {unknown[]} */ ...args) => {
             const until = performance.now() + ms;
             while (performance.now() < until);
             return own.apply(v, args);
@@ -215,7 +222,7 @@ export function installTestHook({
     },
     /** Per client group: {point, screen} of a point handle (page coordinates of its marker), null otherwise. */
     pointHandles: () => selection.groups.map((g, k) => (g.point
-      ? { point: { ...g.point }, screen: toPage(points.screen()[k]) } : null)),
+      ? { point: { ...g.point }, screen: toPage(/** @type {number[]} */ (points.screen()[k])) } : null)),
     get activeGroup() {
       return selection.activeGroup;
     },
@@ -240,7 +247,7 @@ export function installTestHook({
     /** The mirror partner of each client handle group (-1: none). */
     partners: () => mirror.partners(),
     /** Page coordinates (CSS pixels) of a world point. */
-    project: (p) => toPage(viewer.project(p)),
+    project: (/** @type {number[]} */ p) => toPage(viewer.project(p)),
     gizmo: () => {
       const g = gizmoInfo(viewer, gizmo, transformUi);
       if (!g) return null;
@@ -269,9 +276,11 @@ export function installTestHook({
         lastExport: timeline.lastExport ? { ...timeline.lastExport } : null,
       };
     },
-    interpolate: (keys, pivots, seconds) => interpolate(keys, pivots, seconds),
+    interpolate: (
+      /** @type {import('./keyframes.js').Keyframe[]} */ keys, /** @type {number[][]} */ pivots, /** @type {number} */ seconds,
+    ) => interpolate(keys, pivots, seconds),
     /** Move the playhead to `ms` as a scrub does (a drag there; `end`: then end the drag). */
-    seek: (ms, end = true) => (end ? timeline.goTo(ms) : timeline.seek(ms)),
+    seek: (/** @type {number} */ ms, end = true) => (end ? timeline.goTo(ms) : timeline.seek(ms)),
     /** What the typed-transform line shows, or null when no transform is being typed. */
     get typing() {
       return transformUi.entry.active ? transformUi.entry.line.textContent : null;
