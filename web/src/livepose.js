@@ -8,26 +8,28 @@ import { movableArray, vertexArray } from './frames.js';
 /** Longest wait (ms) for an animation frame before a waiting frame is applied anyway (a page drawn rarely). */
 const LATEST_APPLY_MS = 250;
 
+/** @typedef {import('./protocol.js').VerticesServerMessage} VerticesServerMessage */
+
 /**
  * @typedef {object} Waiting
  * @property {Float32Array} positions every position (full) or the movable vertices' (subset)
  * @property {Uint32Array|null} movable the subset's vertices, in its order; null for a full frame
- * @property {object} msg the newest message taken in (its header fields)
+ * @property {VerticesServerMessage} msg the newest message taken in (its header fields)
  * @property {number} seq the newest request sequence number among the frames taken in (-1: none)
- * @property {object|null} solved the newest message taken in that came from a solve (iterations > 0), or null
+ * @property {VerticesServerMessage|null} solved the newest message taken in that came from a solve (iterations > 0), or null
  * @property {number} frames how many frames it stands for
  */
 
 export class LivePose {
   /**
-   * @param {object} viewer the Viewer (nVertices, updatePositions, updateSubset)
+   * @param {import('./viewer.js').Viewer} viewer
    * @param {(w: Waiting, ms: number) => void} [onApplied] called after a waiting frame was applied (`ms`: the
    *   JavaScript time the viewer took to apply it, drawing excluded)
    */
   constructor(viewer, onApplied = () => {}) {
     this.viewer = viewer;
     this.onApplied = onApplied;
-    /** Movable vertices listed by the last full frame received (Uint32Array), or null. */
+    /** @type {Uint32Array|null} movable vertices listed by the last full frame received, or null */
     this.movable = null;
     /** @type {Waiting|null} the newest shape received and not yet applied */
     this.waiting = null;
@@ -52,8 +54,8 @@ export class LivePose {
   /**
    * Take in one `vertices` frame (decodeBinary's result, with its message's fields in `msg`); it is applied at the
    * next animation frame unless a newer one replaces it first. False when it does not fit the mesh shown (dropped).
-   * @param {{header: object, payload: Uint8Array}} frame
-   * @param {object} [msg]
+   * @param {{header: VerticesServerMessage, payload: Uint8Array}} frame
+   * @param {VerticesServerMessage} [msg]
    * @returns {boolean}
    */
   receive(frame, msg = frame.header) {
