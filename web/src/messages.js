@@ -89,7 +89,7 @@ export class ServerMessages {
       case SERVER.STATE:
         return this.state(msg);
       case SERVER.SETTLE:
-        if (Number.isFinite(msg.energy)) d.stats.noteEnergies([msg.energy]);
+        if (Number.isFinite(msg.energy)) d.stats.noteEnergies([/** @type {number} finite */ (msg.energy)]);
         return d.panel.setSettle(msg);
       case SERVER.CONSTRAINTS: // the document carries the mirror pairs of its handle groups in "meta"
         if (d.mesh.repaired && msg.document?.points?.length) return d.showRequestError(POINTS_NOT_SAVED(d.mesh.name));

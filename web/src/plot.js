@@ -1,21 +1,31 @@
 // Small 2D line plots drawn on a canvas.
 
 export class LinePlot {
+  /**
+   * @param {HTMLCanvasElement} canvas
+   * @param {{color?: string, xLabel?: string, maxPoints?: number}} [opts] maxPoints: the most values kept (0: all)
+   */
   constructor(canvas, { color = '#4c9aff', xLabel = '', maxPoints = 0 } = {}) {
     this.canvas = canvas;
     this.color = color;
     this.xLabel = xLabel;
     this.maxPoints = maxPoints;
+    /** @type {number[]} */
     this.values = [];
     new ResizeObserver(() => this.draw()).observe(canvas);
   }
 
+  /** @param {Iterable<number>|ArrayLike<number>} values the values to draw (those not finite are left out) */
   set(values) {
     this.values = Array.from(values).filter((v) => Number.isFinite(v));
     this.draw();
   }
 
-  /** Append a value; `draw` false leaves the drawing to a later draw(). */
+  /**
+   * Append a value; `draw` false leaves the drawing to a later draw().
+   * @param {number} value
+   * @param {boolean} [draw]
+   */
   push(value, draw = true) {
     if (!Number.isFinite(value)) return;
     this.values.push(value);
@@ -37,7 +47,7 @@ export class LinePlot {
       c.width = w;
       c.height = h;
     }
-    const ctx = c.getContext('2d');
+    const ctx = /** @type {CanvasRenderingContext2D} */ (c.getContext('2d')); // a canvas has a 2D context
     ctx.setTransform(dpr, 0, 0, dpr, 0, 0);
     const W = c.clientWidth;
     const H = c.clientHeight;
@@ -69,8 +79,8 @@ export class LinePlot {
       hi += Math.abs(hi) * 0.05 + 1e-12;
       lo -= Math.abs(lo) * 0.05 + 1e-12;
     }
-    const sx = (i) => padL + (vals.length === 1 ? 0.5 : i / (vals.length - 1)) * (W - padL - padR);
-    const sy = (v) => padT + (1 - (v - lo) / (hi - lo)) * (H - padT - padB);
+    const sx = (/** @type {number} */ i) => padL + (vals.length === 1 ? 0.5 : i / (vals.length - 1)) * (W - padL - padR);
+    const sy = (/** @type {number} */ v) => padT + (1 - (v - lo) / (hi - lo)) * (H - padT - padB);
     ctx.textAlign = 'right';
     ctx.fillText(fmt(hi), padL - 4, padT + 4);
     ctx.fillText(fmt(lo), padL - 4, H - padB + 3);
@@ -92,6 +102,10 @@ export class LinePlot {
   }
 }
 
+/**
+ * A number in a few characters, for a plot's axis.
+ * @param {number} v
+ */
 export function fmt(v) {
   const a = Math.abs(v);
   if (a === 0) return '0';

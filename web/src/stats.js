@@ -7,14 +7,17 @@ const energyNote = () => /** @type {HTMLElement} */ (document.getElementById('en
 
 export class UpdateStats {
   /**
-   * @param {object} opts panel (its setStats), latencyMs() (the connection's last round trip, or null)
+   * @param {object} opts
+   * @param {() => import('./panel.js').Panel} opts.panel the panel (its setStats)
+   * @param {() => number|null} opts.latencyMs the connection's last round trip, or null
    */
   constructor({ panel, latencyMs }) {
     this.panel = panel;
     this.latencyMs = latencyMs;
+    /** @type {number[]} */
     this.updateTimes = []; // when each solved update of the last second arrived
-    this.iterPlot = new LinePlot(document.getElementById('plot-iter'), { color: '#4c9aff', xLabel: 'iterations' });
-    this.timePlot = new LinePlot(document.getElementById('plot-time'),
+    this.iterPlot = new LinePlot(/** @type {HTMLCanvasElement} */ (document.getElementById('plot-iter')), { color: '#4c9aff', xLabel: 'iterations' });
+    this.timePlot = new LinePlot(/** @type {HTMLCanvasElement} */ (document.getElementById('plot-time')),
       { color: '#f0883e', xLabel: 'updates', maxPoints: 300 });
     setInterval(() => {
       if (this.updateTimes.length) this.panel().setStats({ ups: this._ups() });
@@ -35,19 +38,28 @@ export class UpdateStats {
     energyNote().hidden = true;
   }
 
-  /** Show the note on energies below 0 while the energies last reported include one. */
+  /**
+   * Show the note on energies below 0 while the energies last reported include one.
+   * @param {number[]} energies
+   */
   noteEnergies(energies) {
     energyNote().hidden = !energies.some((e) => e < 0);
   }
 
-  /** A vertices frame of a solve (iterations > 0) arrived: counted, and its last energy noted (drawn later). */
+  /**
+   * A vertices frame of a solve (iterations > 0) arrived: counted, and its last energy noted (drawn later).
+   * @param {import('./protocol.js').VerticesServerMessage} msg
+   */
   received(msg) {
     this.updateTimes.push(performance.now());
     const energies = (msg.energies || []).filter((e) => e !== null);
     if (energies.length) this.timePlot.push(energies[energies.length - 1], false);
   }
 
-  /** The newest vertices frame of a solve was drawn: its energies, timings and the update rate. */
+  /**
+   * The newest vertices frame of a solve was drawn: its energies, timings and the update rate.
+   * @param {import('./protocol.js').VerticesServerMessage} msg
+   */
   frame(msg) {
     const energies = (msg.energies || []).filter((e) => e !== null);
     this.iterPlot.set(energies);
