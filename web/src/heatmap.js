@@ -20,9 +20,13 @@ const STOPS = [
 /** Least time between two requests while the shape keeps changing (a drag), so the map does not slow the solve. */
 export const MIN_INTERVAL_MS = 250;
 
-const srgbToLinear = (c) => (c < 0.04045 ? c / 12.92 : ((c + 0.055) / 1.055) ** 2.4);
+const srgbToLinear = (/** @type {number} */ c) => (c < 0.04045 ? c / 12.92 : ((c + 0.055) / 1.055) ** 2.4);
 
-/** The sRGB colour of a scale position `t` in [0, 1]. */
+/**
+ * The sRGB colour of a scale position `t` in [0, 1].
+ * @param {number} t
+ * @returns {number[]} r, g, b
+ */
 export function heatColor(t) {
   const x = Math.max(0, Math.min(1, t));
   for (let k = 1; k < STOPS.length; k++) {
@@ -38,7 +42,10 @@ export function heatColor(t) {
 
 const cssGradient = () => `linear-gradient(to right, ${STOPS.map(([t, c]) => `rgb(${c.map((v) => Math.round(255 * v)).join(',')}) ${100 * t}%`).join(', ')})`;
 
-/** A compact number for the legend. */
+/**
+ * A compact number for the legend.
+ * @param {number} x
+ */
 function fmt(x) {
   if (!(x > 0)) return '0';
   return x >= 0.01 ? x.toFixed(x >= 1 ? 1 : 3) : x.toExponential(1);
@@ -46,8 +53,13 @@ function fmt(x) {
 
 export class HeatMap {
   /**
-   * @param {object} opts viewer (the 3D view), send(msg): bool, role(): the per-vertex roles (anchors and handles
-   *   keep their colours), restore(): draw the role colours again, legend (element), checkbox (the toggle)
+   * @param {object} opts
+   * @param {import('./viewer.js').Viewer} opts.viewer the 3D view
+   * @param {(msg: GetDistortionClientMessage) => boolean} opts.send
+   * @param {() => Int16Array} opts.role the per-vertex roles (anchors and handles keep their colours)
+   * @param {() => void} opts.restore draw the role colours again
+   * @param {HTMLElement} [opts.legend]
+   * @param {HTMLInputElement} [opts.checkbox] the toggle
    */
   constructor({
     viewer, send, role, restore, legend = byId('heat-legend'), checkbox = byIdAs('heatmap', HTMLInputElement),
@@ -60,6 +72,7 @@ export class HeatMap {
     this.checkbox = checkbox;
     checkbox.addEventListener('change', () => this.setOn(checkbox.checked));
     this.on = false;
+    /** @type {Float32Array|null} the distortion of each vertex, while on */
     this.values = null;
     this.high = 0;
     this.inFlight = false;
@@ -69,7 +82,10 @@ export class HeatMap {
     inside(this.legend, '.heat-bar').style.background = cssGradient();
   }
 
-  /** Turn the heat map on (asks for values) or off (back to the role colours). */
+  /**
+   * Turn the heat map on (asks for values) or off (back to the role colours).
+   * @param {boolean} on
+   */
   setOn(on) {
     this.on = on;
     this.checkbox.checked = on;
