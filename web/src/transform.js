@@ -9,6 +9,9 @@ export const ROTATION_SNAP_DEG = 15;
  * Signed angle (radians, in (-π, π]) from screen point `a` to screen point `b` around `centre`, counter-clockwise
  * as seen on screen positive. Points are CSS pixels [x, y] with y down, as pointer events give them; 0 when
  * either point is on the centre.
+ * @param {number[]} centre
+ * @param {number[]} a
+ * @param {number[]} b
  */
 export function sweptAngle(centre, a, b) {
   const ax = a[0] - centre[0];
@@ -19,14 +22,21 @@ export function sweptAngle(centre, a, b) {
   return Math.atan2(ax * by - ay * bx, ax * bx + ay * by);
 }
 
-/** `value` rounded to a multiple of `step` (unchanged when the step is not positive). */
+/**
+ * `value` rounded to a multiple of `step` (unchanged when the step is not positive).
+ * @param {number} value
+ * @param {number} step
+ */
 export function snapTo(value, step) {
   if (!(step > 0)) return value;
   const s = Math.round(value / step) * step;
   return s === 0 ? 0 : s; // no -0
 }
 
-/** The 1-2-5 value (…, 0.01, 0.02, 0.05, 0.1, …) nearest to `x` on a log scale; 0 for x ≤ 0 or not finite. */
+/**
+ * The 1-2-5 value (…, 0.01, 0.02, 0.05, 0.1, …) nearest to `x` on a log scale; 0 for x ≤ 0 or not finite.
+ * @param {number} x
+ */
 export function niceStep(x) {
   if (!(x > 0) || !Number.isFinite(x)) return 0;
   const e = Math.floor(Math.log10(x));
@@ -37,7 +47,10 @@ export function niceStep(x) {
   return Number((pick * base).toPrecision(12));
 }
 
-/** Translation grid step of a model: 1/100 of its bounding-box diagonal, as a 1-2-5 value. */
+/**
+ * Translation grid step of a model: 1/100 of its bounding-box diagonal, as a 1-2-5 value.
+ * @param {THREE.Box3|null} box
+ */
 export function gridStep(box) {
   return box ? niceStep(box.min.distanceTo(box.max) / 100) : 0;
 }
@@ -67,13 +80,21 @@ export function rotationAbout(pivot, axis, angle, previous) {
   return previous ? m.multiply(previous) : m;
 }
 
-/** The translation by `offset` applied after `previous`. */
+/**
+ * The translation by `offset` applied after `previous`.
+ * @param {THREE.Vector3} offset
+ * @param {THREE.Matrix4} [previous]
+ * @returns {THREE.Matrix4}
+ */
 export function translationBy(offset, previous) {
   const m = new THREE.Matrix4().makeTranslation(offset.x, offset.y, offset.z);
   return previous ? m.multiply(previous) : m;
 }
 
-/** The rotation part of a rigid transform as a quaternion. */
+/**
+ * The rotation part of a rigid transform as a quaternion.
+ * @param {THREE.Matrix4} matrix
+ */
 export function rotationOf(matrix) {
   const q = new THREE.Quaternion();
   matrix.decompose(new THREE.Vector3(), q, new THREE.Vector3());
