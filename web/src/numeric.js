@@ -12,7 +12,10 @@ const VERB = { translate: 'Move', rotate: 'Rotate' };
  *   refused: string|null}} Entry
  */
 
-/** The number typed so far ('' and lone signs or points count as 0; an unfinished exponent as none). */
+/**
+ * The number typed so far ('' and lone signs or points count as 0; an unfinished exponent as none).
+ * @param {string} text
+ */
 export function typedValue(text) {
   const v = Number.parseFloat(text);
   return Number.isFinite(v) ? v : 0;
@@ -42,6 +45,9 @@ export function typedText(text, key) {
  * The active group's whole transform after moving it by `amount` model units along `axis` ('x', 'y', 'z'), or
  * rotating it by `amount` degrees about the axis through the pivot ('view': the axis towards the camera).
  * @param {import('./gizmo.js').HandleGizmo} gizmo @param {THREE.Camera} camera
+ * @param {string} mode 'translate' or 'rotate'
+ * @param {string} axis 'x', 'y', 'z' or 'view'
+ * @param {number} amount model units or degrees
  * @returns {THREE.Matrix4|null} null when no group is active
  */
 export function typedTransform(gizmo, camera, mode, axis, amount) {
@@ -143,6 +149,7 @@ export class NumericEntry {
     this.line.hidden = false;
   }
 
+  /** @param {KeyboardEvent} ev */
   _key(ev) {
     const e = this.entry;
     if (!e || ev.isComposing) return;
@@ -170,6 +177,7 @@ export class NumericEntry {
     if (this.entry) this._update(this.entry);
   }
 
+  /** @param {PointerEvent} ev */
   _pointer(ev) {
     if (!this.entry) return;
     // a click on the view applies (as in Blender), any other button or a click elsewhere cancels
