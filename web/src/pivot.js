@@ -5,8 +5,12 @@ export class PivotPicker {
   /**
    * Create it before the selection tools and the orbit controls: its pointer handler on the canvas must run
    * first, to keep the placing click from painting or orbiting.
-   * @param {object} opts viewer, gizmo, changed(placing: boolean) (the placing mode began or ended),
-   *   say(text) (a short message), hush() (take the message away)
+   * @param {object} opts
+   * @param {import('./viewer.js').Viewer} opts.viewer
+   * @param {import('./gizmo.js').HandleGizmo} opts.gizmo
+   * @param {(placing: boolean) => void} opts.changed the placing mode began or ended
+   * @param {(text: string) => void} opts.say show a short message
+   * @param {() => void} opts.hush take the message away
    */
   constructor({ viewer, gizmo, changed, say, hush }) {
     this.viewer = viewer;
@@ -58,6 +62,7 @@ export class PivotPicker {
     this.gizmo.resetPivot();
   }
 
+  /** @param {PointerEvent} e a press on the canvas */
   _down(e) {
     if (!this.placing) return;
     e.stopImmediatePropagation();
