@@ -19,14 +19,18 @@ SHORTCUTS.push(
 /**
  * Wire the controls to the gizmo. Call it before the selection tools and the orbit controls are created (the
  * pivot's click on the surface goes first).
- * @param {object} opts viewer, gizmo, canStart() (a typed transform may start: studio ready), say(text) (a short
- *   message), hush() (take it away)
+ * @param {object} opts
+ * @param {import('./viewer.js').Viewer} opts.viewer
+ * @param {import('./gizmo.js').HandleGizmo} opts.gizmo
+ * @param {() => boolean} opts.canStart a typed transform may start: studio ready
+ * @param {(text: string) => void} opts.say show a short message
+ * @param {() => void} opts.hush take it away
  * @returns {{keys: Record<string, () => void>, meshChanged: () => void, entry: NumericEntry,
  *   picker: PivotPicker}}
  */
 export function installTransformUi({ viewer, gizmo, canStart, say, hush }) {
   const placeBtn = byId('btn-place-pivot');
-  const changed = (on) => placeBtn.classList.toggle('active', on);
+  const changed = (/** @type {boolean} */ on) => placeBtn.classList.toggle('active', on);
   const picker = new PivotPicker({ viewer, gizmo, say, hush, changed });
   const entry = new NumericEntry({ gizmo, viewer, line: byId('numeric-line'), canStart });
   const local = /** @type {HTMLInputElement} */ (byId('local-axes'));
@@ -35,7 +39,7 @@ export function installTransformUi({ viewer, gizmo, canStart, say, hush }) {
   const axis = /** @type {HTMLSelectElement} */ (byId('exact-axis'));
   const amount = /** @type {HTMLInputElement} */ (byId('exact-amount'));
 
-  const setSpace = (isLocal) => {
+  const setSpace = (/** @type {boolean} */ isLocal) => {
     local.checked = isLocal;
     gizmo.setSpace(isLocal ? 'local' : 'world');
   };
@@ -86,7 +90,7 @@ export function installTransformUi({ viewer, gizmo, canStart, say, hush }) {
     byId('snap-step').textContent = `grid ${gizmo.gridStep}, ${ROTATION_SNAP_DEG}°`;
   };
 
-  const startEntry = (what) => {
+  const startEntry = (/** @type {'translate'|'rotate'} */ what) => {
     if (entry.start(what)) return;
     const key = what === 'rotate' ? 'R' : 'G';
     if (!gizmo.indices.length) say('Pick a handle group first: G and R move or turn it.');
