@@ -106,11 +106,12 @@ export class Help {
   /**
    * Some of the guide's steps were done (`{anchors, handle, drag}`, true for those done now): each is ticked off,
    * and once all three are the guide closes by itself (after a moment, so that the last tick is seen) for good.
+   * @param {{anchors?: boolean, handle?: boolean, drag?: boolean}} steps
    */
   guideProgress(steps) {
     if (this.guide.hidden || this._closing) return;
     const items = this.guide.querySelectorAll('li');
-    ['anchors', 'handle', 'drag'].forEach((step, k) => {
+    /** @type {('anchors'|'handle'|'drag')[]} */ (['anchors', 'handle', 'drag']).forEach((step, k) => {
       if (!steps[step] || this.done[step]) return;
       this.done[step] = true;
       items[k]?.classList.add('done');
