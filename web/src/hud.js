@@ -10,12 +10,13 @@ export const NARROW_VIEW_PX = 760;
  * @param {HTMLElement} toggle the collapse button inside the title bar
  */
 export function installHud(hud, handle, toggle) {
-  const setCollapsed = (on) => {
+  const setCollapsed = (/** @type {boolean} */ on) => {
     hud.classList.toggle('collapsed', on);
     toggle.textContent = on ? '+' : '–';
   };
   toggle.addEventListener('click', () => setCollapsed(!hud.classList.contains('collapsed')));
 
+  /** @type {{id: number, dx: number, dy: number, parent: HTMLElement}|null} the title bar's drag under way */
   let drag = null;
   handle.addEventListener('pointerdown', (e) => {
     if (e.button !== 0 || (e.target instanceof Element && e.target.closest('button'))) return;
@@ -31,13 +32,14 @@ export function installHud(hud, handle, toggle) {
     hud.style.left = `${Math.max(0, Math.min(maxX, e.clientX - drag.dx))}px`;
     hud.style.top = `${Math.max(0, Math.min(maxY, e.clientY - drag.dy))}px`;
   });
-  const end = (e) => {
+  const end = (/** @type {PointerEvent} */ e) => {
     if (drag && e.pointerId === drag.id) drag = null;
   };
   handle.addEventListener('pointerup', end);
   handle.addEventListener('pointercancel', end);
 
   const view = /** @type {HTMLElement} */ (hud.parentElement);
+  /** @type {boolean|null} the view was narrow at the last fit (null: not fitted yet) */
   let wasNarrow = null;
   const fit = () => {
     const narrow = view.clientWidth < NARROW_VIEW_PX;
