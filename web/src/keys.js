@@ -5,7 +5,10 @@ const TEXT_TYPES = new Set([
   'text', 'search', 'email', 'url', 'tel', 'password', 'number', 'date', 'datetime-local', 'month', 'time', 'week',
 ]);
 
-/** True for elements that read typed keys: text fields, text areas, drop-downs and editable content. */
+/**
+ * True for elements that read typed keys: text fields, text areas, drop-downs and editable content.
+ * @param {EventTarget|null} el
+ */
 export function takesKeys(el) {
   if (!(el instanceof Element)) return false;
   if (el instanceof HTMLTextAreaElement || el instanceof HTMLSelectElement) return true;
@@ -41,7 +44,10 @@ export function installShortcuts({ undo, redo, keys, unbound }) {
   });
 }
 
-/** Letters typed into a drop-down must not pick an option (a letter there is meant as a shortcut). */
+/**
+ * Letters typed into a drop-down must not pick an option (a letter there is meant as a shortcut).
+ * @param {HTMLElement} select a drop-down (a select element)
+ */
 export function ignoreTypeAhead(select) {
   select.addEventListener('keydown', (e) => {
     if (e.key.length === 1 && e.key !== ' ' && !e.ctrlKey && !e.metaKey && !e.altKey) e.preventDefault();
@@ -53,12 +59,13 @@ const CONTROLS = 'button, select, input, [role="button"]';
 /**
  * After a control inside `root` (other than a text field) has been used with the pointer, take the focus off it,
  * so that the shortcuts work again without clicking the 3D view first. Keyboard use keeps the focus.
+ * @param {HTMLElement} root
  */
 export function releaseFocusAfterPointerUse(root) {
   let byPointer = false;
   document.addEventListener('pointerdown', () => (byPointer = true), true);
   document.addEventListener('keydown', () => (byPointer = false), true);
-  const release = (e) => {
+  const release = (/** @type {Event} */ e) => {
     if (!byPointer) return;
     // a click on a drop-down opens it; only its change is the end of its use
     if (e.type === 'click' && e.target instanceof HTMLSelectElement) return;
