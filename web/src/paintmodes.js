@@ -7,8 +7,10 @@ const $ = (/** @type {string} */ id) => byIdAs(id, HTMLInputElement);
 
 export class PaintModes {
   /**
-   * @param {object} opts selection (its stiffnessValue is what the brush paints), setRole(role),
-   *   onWeightProblem(text)
+   * @param {object} opts
+   * @param {import('./selection.js').Selection} opts.selection its stiffnessValue is what the brush paints
+   * @param {(role: string) => void} opts.setRole
+   * @param {(text: string) => void} opts.onWeightProblem
    */
   constructor({ selection, setRole, onWeightProblem }) {
     this.selection = selection;
@@ -20,7 +22,8 @@ export class PaintModes {
     this.on = true; // the panel's controls take input
     byId('role-seg-2').addEventListener('click', (e) => {
       const b = /** @type {Element} */ (e.target).closest('button');
-      if (b instanceof HTMLButtonElement && !b.disabled) setRole(b.dataset.role);
+      // every button of the row names its role
+      if (b instanceof HTMLButtonElement && !b.disabled) setRole(/** @type {string} */ (b.dataset.role));
     });
     const strength = () => {
       this._update();
@@ -81,13 +84,20 @@ export class PaintModes {
     byId('stiffness-val').textContent = stiffnessLabel(value);
   }
 
-  /** Enable the strength slider with the panel's controls (`on`), except while rigid is ticked. */
+  /**
+   * Enable the strength slider with the panel's controls (`on`), except while rigid is ticked.
+   * @param {boolean} on
+   */
   enable(on) {
     this.on = on;
     this.slider.disabled = !on || this.rigid.checked;
   }
 
-  /** Whether a stroke in `role` removes (the modifier held, or the stiffness eraser on). */
+  /**
+   * Whether a stroke in `role` removes (the modifier held, or the stiffness eraser on).
+   * @param {string} role
+   * @param {boolean} modifier
+   */
   subtract(role, modifier) {
     return modifier || (role === 'stiffness' && this.eraser.checked);
   }
@@ -109,7 +119,10 @@ export class PaintModes {
     return null;
   }
 
-  /** Mark the active buttons of the second row of roles; show each mode's settings only while it is chosen. */
+  /**
+   * Mark the active buttons of the second row of roles; show each mode's settings only while it is chosen.
+   * @param {string} role
+   */
   showRole(role) {
     for (const b of document.querySelectorAll('#role-seg-2 button')) {
       b.classList.toggle('active', /** @type {HTMLElement} */ (b).dataset.role === role);
