@@ -7,26 +7,38 @@ import { CLIENT, PARAMS } from './protocol.js';
 import { constraintsKey } from './selection.js';
 import { mismatch } from './snapshot.js';
 
-/** @type {((snap: any) => void)[]} */
+/** @typedef {import('./autosave.js').Snapshot} Snapshot */
+
+/** @type {((snap: Snapshot) => void)[]} */
 const restored = [];
 
-/** Call `fn(snap)` whenever a saved session has been restored (its shape and selection are back on the server). */
+/**
+ * Call `fn(snap)` whenever a saved session has been restored (its shape and selection are back on the server).
+ * @param {(snap: Snapshot) => void} fn
+ */
 export function onSessionRestored(fn) {
   restored.push(fn);
 }
 
 export class SessionRestore {
   /**
-   * @param {object} deps send(msg) → bool, requestMesh(source) → bool (load or upload it), applySelection(snap)
+   * @param {{send: (msg: import('./protocol.js').ClientMessage) => boolean,
+   *   requestMesh: (source: import('./stores/meshstore.js').MeshSource) => boolean, applySelection: (snap: Snapshot) => void}} deps
+   *   send(msg) → bool, requestMesh(source) → bool (load or upload it), applySelection(snap)
    *   (put the selection back and send it, even when the server seems to hold it already)
    */
   constructor(deps) {
     this.deps = deps;
-    this.active = null; // {snap, stage: 'mesh' | 'constraints', onDone}
+    /** @type {{snap: Snapshot, stage: 'mesh'|'constraints', onDone: (error: string|null) => void}|null} */
+    this.active = null;
+    /** @type {string|null} */
     this.pinKey = null; // constraintsKey of the set that put the shape back, while the server's history holds it
   }
 
-  /** True when the server's constraint set (its constraintsKey) is the one a restore put the shape back with. */
+  /**
+   * True when the server's constraint set (its constraintsKey) is the one a restore put the shape back with.
+   * @param {string} key
+   */
   isPinStep(key) {
     return this.pinKey !== null && key === this.pinKey;
   }
@@ -35,7 +47,11 @@ export class SessionRestore {
     return this.active !== null;
   }
 
-  /** Start restoring `snap` (its source with the file's bytes); onDone(error or null) is called once. */
+  /**
+   * Start restoring `snap` (its source with the file's bytes); onDone(error or null) is called once.
+   * @param {Snapshot} snap
+   * @param {(error: string|null) => void} onDone
+   */
   start(snap, onDone) {
     const names = Object.keys(PARAMS).filter((k) => snap.params?.[k] !== undefined);
     const params = Object.fromEntries(names.map((k) => [k, snap.params[k]]));
@@ -54,6 +70,8 @@ export class SessionRestore {
   /**
    * A mesh arrived (`rest`: its positions): true when it was the restored one (its shape and selection have then
    * been sent).
+   * @param {import('./protocol.js').MeshServerMessage} msg
+   * @param {ArrayLike<number>} rest
    */
   meshArrived(msg, rest) {
     this.pinKey = null; // a new mesh starts a new history
@@ -75,20 +93,27 @@ export class SessionRestore {
     return true;
   }
 
-  /** A state arrived; `synced`: the server holds the local selection. */
+  /**
+   * A state arrived; `synced`: the server holds the local selection.
+   * @param {boolean} synced
+   */
   stateArrived(synced) {
     if (this.active?.stage === 'constraints' && synced) this._finish(null);
   }
 
-  /** An error arrived: fatal to the restore when it answers one of its requests. */
+  /**
+   * An error arrived: fatal to the restore when it answers one of its requests.
+   * @param {import('./protocol.js').ErrorServerMessage} msg
+   */
   errorArrived(msg) {
     const a = this.active;
     if (!a) return;
-    /** @type {string[]} */
+    /** @type {(string|null)[]} */
     const fatal = a.stage === 'mesh' ? [CLIENT.LOAD_BUILTIN, CLIENT.UPLOAD] : [CLIENT.SET_CONSTRAINTS];
     if (fatal.includes(msg.request)) this._finish(msg.message || msg.code);
   }
 
+  /** @param {string|null} error */
   _finish(error) {
     const a = this.active;
     this.active = null;
@@ -97,9 +122,16 @@ export class SessionRestore {
   }
 }
 
-/** set_constraints holding every vertex of `positions` that differs from `rest` there (others fixed), or null. */
+/**
+ * set_constraints holding every vertex of `positions` that differs from `rest` there (others fixed), or null.
+ * @param {ArrayLike<number>} positions
+ * @param {ArrayLike<number>} rest
+ * @returns {import('./protocol.js').SetConstraintsClientMessage|null}
+ */
 function pinShape(positions, rest) {
+  /** @type {number[]} */
   const moved = [];
+  /** @type {number[]} */
   const still = [];
   for (let i = 0, n = rest.length / 3; i < n; i++) {
     const same = positions[3 * i] === rest[3 * i] && positions[3 * i + 1] === rest[3 * i + 1]

@@ -12,10 +12,16 @@ import { stiffnessToJson } from './stiffness.js';
  */
 let sourceKeys = 0;
 
+/** @param {string} name */
 export function builtinSource(name) {
   return { kind: 'builtin', name, key: ++sourceKeys };
 }
 
+/**
+ * @param {string} filename
+ * @param {ArrayBuffer|Uint8Array} bytes
+ * @param {boolean} [repaired]
+ */
 export function fileSource(filename, bytes, repaired = false) {
   return { kind: 'file', filename, bytes, key: ++sourceKeys, repaired };
 }
@@ -57,12 +63,12 @@ export function encodePly(positions, faces, vertexMap = null) {
  * @property {any} source where the mesh came from (builtinSource, fileSource)
  * @property {string|null} meshName
  * @property {number} nFaces
- * @property {object} params the solver parameters
+ * @property {{[name: string]: unknown}} params the solver parameters, by name
  */
 
 /**
  * True when a session has something to lose: a selection, a deformation or history.
- * @param {{facts: SessionFacts, selection: any}} deps
+ * @param {{facts: SessionFacts, selection: import('./selection.js').Selection}} deps
  */
 export function hasEdits({ facts, selection }) {
   if (facts.canUndo || facts.canRedo) return true;
@@ -77,12 +83,15 @@ export function hasEdits({ facts, selection }) {
  * mirror partner, -1 for none), `pivots` (per group, its placed pivot as a world point of the current shape, or
  * null), `positions` (Float32Array of the current shape), `deformed` (the shape is not the rest pose `rest`, the
  * mesh as its source gives it; null when `rest` is not known) and `params`.
- * @param {{facts: SessionFacts, selection: any, viewer: any, gizmo?: any}} deps
+ * @param {{facts: SessionFacts, selection: import('./selection.js').Selection, viewer: import('./viewer.js').Viewer,
+ *   gizmo?: import('./gizmo.js').HandleGizmo}} deps
  * @param {ArrayLike<number>|null} [rest]
  */
 export function captureSession({ facts, selection, viewer, gizmo }, rest = null) {
-  const groups = selection.groups.map(() => []);
+  const groups = selection.groups.map(() => /** @type {number[]} */ ([]));
+  /** @type {number[]} */
   const roi = [];
+  /** @type {number[]} */
   const fixed = [];
   for (let i = 0; i < selection.n; i++) {
     if (selection.roi[i]) roi.push(i);
@@ -111,7 +120,11 @@ export function captureSession({ facts, selection, viewer, gizmo }, rest = null)
   };
 }
 
-/** True when some coordinate of `b` differs from `a`'s by more than a millionth of their extent. */
+/**
+ * True when some coordinate of `b` differs from `a`'s by more than a millionth of their extent.
+ * @param {ArrayLike<number>} a
+ * @param {ArrayLike<number>} b
+ */
 function moved(a, b) {
   let lo = Infinity;
   let hi = -Infinity;
@@ -124,7 +137,12 @@ function moved(a, b) {
   return false;
 }
 
-/** Why a snapshot does not fit a loaded mesh, or null. */
+/**
+ * Why a snapshot does not fit a loaded mesh, or null.
+ * @param {{nVertices: number, nFaces: number}} snap
+ * @param {number} nVertices
+ * @param {number} nFaces
+ */
 export function mismatch(snap, nVertices, nFaces) {
   if (snap.nVertices === nVertices && snap.nFaces === nFaces) return null;
   return `the mesh now has ${nVertices.toLocaleString('en-US')} vertices and ${nFaces.toLocaleString('en-US')} ` +
@@ -134,7 +152,7 @@ export function mismatch(snap, nVertices, nFaces) {
 /**
  * What a snapshot holds, in a line or two: the mesh and whether its shape is deformed, the selection, and (with
  * `shown`, the name of the mesh the page shows now, when it is another) that restoring replaces that mesh.
- * @param {object} snap
+ * @param {import('./autosave.js').Snapshot} snap
  * @param {string|null} [shown]
  */
 export function describe(snap, shown = null) {
