@@ -6,7 +6,7 @@
  * @param {HTMLButtonElement} toggle the button in its head that folds and unfolds it
  */
 export function installPanelFold(panel, toggle) {
-  const set = (folded) => {
+  const set = (/** @type {boolean} */ folded) => {
     panel.classList.toggle('collapsed', folded);
     toggle.textContent = folded ? '«' : '»';
     toggle.title = folded ? 'Show the panel' : 'Hide the panel (more room for the view)';
