@@ -10,7 +10,7 @@ export const ROLE_BLEND = 0.7;
 /** How strongly the grey of vertices outside the region of interest covers them. */
 export const OUTSIDE_BLEND = 0.55;
 
-const srgbToLinear = (c) => (c < 0.04045 ? c / 12.92 : ((c + 0.055) / 1.055) ** 2.4);
+const srgbToLinear = (/** @type {number} */ c) => (c < 0.04045 ? c / 12.92 : ((c + 0.055) / 1.055) ** 2.4);
 
 /**
  * @typedef {object} Look
@@ -33,7 +33,7 @@ export function appearanceArrays(frame, nVertices) {
   const p = frame.payload;
   const r = h.render_vertices | 0;
   const t = h.render_faces | 0;
-  const copy = (start, bytes) => p.slice(start, start + bytes).buffer;
+  const copy = (/** @type {number} */ start, /** @type {number} */ bytes) => p.slice(start, start + bytes).buffer;
   let o = 0;
   let map = null, uv = null, faces = null;
   if (r > 0) {
