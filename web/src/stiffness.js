@@ -29,6 +29,8 @@ export function stiffnessToJson(stiff) {
 
 /**
  * Per-vertex stiffness (n,) from `[{vertices, value}]` (or null: all 1); bad entries are skipped.
+ * @param {any} groups JSON as read from a constraints document or a saved session: checked here, entry by entry
+ * @param {number} n vertices
  * @returns {Float64Array}
  */
 export function stiffnessFromJson(groups, n) {
@@ -42,31 +44,46 @@ export function stiffnessFromJson(groups, n) {
   return out;
 }
 
-/** A canonical string of painted stiffness (null and [] are the same: nothing painted). */
+/**
+ * A canonical string of painted stiffness (null and [] are the same: nothing painted).
+ * @param {{vertices: number[], value: number|string}[]|null} [groups]
+ */
 export function stiffnessKey(groups) {
   if (!Array.isArray(groups) || !groups.length) return '';
   return groups.map((g) => `${g.value}=${g.vertices.join(',')}`).join('|');
 }
 
-/** The brush value of a slider position 0..100 (log scale from 1 to MAX_STIFFNESS, two significant digits). */
+/**
+ * The brush value of a slider position 0..100 (log scale from 1 to MAX_STIFFNESS, two significant digits).
+ * @param {number} position
+ */
 export function sliderToStiffness(position) {
   const v = MAX_STIFFNESS ** (Math.min(100, Math.max(0, position)) / 100);
   return Number(v.toPrecision(2));
 }
 
-/** The slider position 0..100 of a stiffness value. */
+/**
+ * The slider position 0..100 of a stiffness value.
+ * @param {number} value
+ */
 export function stiffnessToSlider(value) {
   return Math.round((100 * Math.log(Math.max(1, value))) / Math.log(MAX_STIFFNESS));
 }
 
-/** How strongly a stiffness value tints the surface: 0 at 1, rising with its logarithm, 1 when rigid. */
+/**
+ * How strongly a stiffness value tints the surface: 0 at 1, rising with its logarithm, 1 when rigid.
+ * @param {number} value
+ */
 export function stiffnessTint(value) {
   if (value === Infinity) return 1;
   if (!(value > 1)) return 0;
   return Math.min(1, 0.25 + (0.6 * Math.log(value)) / Math.log(MAX_STIFFNESS));
 }
 
-/** Label of a stiffness value. */
+/**
+ * Label of a stiffness value.
+ * @param {number} value
+ */
 export function stiffnessLabel(value) {
   return value === Infinity ? 'rigid' : `×${value}`;
 }
