@@ -5,18 +5,24 @@ import { UPLOAD_EXTENSIONS } from './protocol.js';
 
 export const MESH_EXTENSIONS = UPLOAD_EXTENSIONS.map((e) => e.replace(/^\./, '').toLowerCase());
 
+/** @param {string|null|undefined} name */
 export function extensionOf(name) {
   const m = /\.([^.]+)$/.exec(name || '');
   return m ? m[1].toLowerCase() : '';
 }
 
+/** @param {number} n */
 export function formatBytes(n) {
   if (n >= 1024 * 1024) return `${(n / (1024 * 1024)).toFixed(1)} MB`;
   if (n >= 1024) return `${(n / 1024).toFixed(0)} KB`;
   return `${n} B`;
 }
 
-/** Check a mesh file before upload; returns an error message or null. */
+/**
+ * Check a mesh file before upload; returns an error message or null.
+ * @param {File} file
+ * @param {number} maxBytes 0: no limit
+ */
 export function checkMeshFile(file, maxBytes) {
   const ext = extensionOf(file.name);
   if (!MESH_EXTENSIONS.includes(ext)) {
@@ -28,7 +34,12 @@ export function checkMeshFile(file, maxBytes) {
   return null;
 }
 
-/** Save bytes (or a string) under a file name. */
+/**
+ * Save bytes (or a string) under a file name.
+ * @param {Blob|BlobPart} data
+ * @param {string} filename
+ * @param {string} [mime]
+ */
 export function download(data, filename, mime = 'application/octet-stream') {
   const blob = data instanceof Blob ? data : new Blob([data], { type: mime });
   const url = URL.createObjectURL(blob);
@@ -42,24 +53,37 @@ export function download(data, filename, mime = 'application/octet-stream') {
   setTimeout(() => URL.revokeObjectURL(url), 10000);
 }
 
-/** Download a constraints document as `<mesh name>-constraints.json`; returns the message to show. */
+/**
+ * Download a constraints document as `<mesh name>-constraints.json`; returns the message to show.
+ * @param {object} doc the document (any JSON object)
+ * @param {string|null} meshName
+ */
 export function downloadConstraints(doc, meshName) {
   const base = (meshName || 'mesh').replace(/\.[^.]+$/, '');
   download(JSON.stringify(doc, null, 2), `${base}-constraints.json`, 'application/json');
   return 'Constraints saved.';
 }
 
-/** Download an exported mesh (the server's export message with its binary frame); returns the message to show. */
+/**
+ * Download an exported mesh (the server's export message with its binary frame); returns the message to show.
+ * @param {(import('./protocol.js').ExportServerMessage|import('./protocol.js').AnimationServerMessage)
+ *   & import('./messages.js').Framed} msg
+ */
 export function downloadExport(msg) {
   const p = msg.frame.payload;
   download(new Blob([p], { type: msg.mime || 'application/octet-stream' }), msg.filename || 'mesh');
   return `Exported ${msg.filename} (${formatBytes(p.byteLength)}).`;
 }
 
-/** Route files dropped on `target` to onFile(file); shows `overlay` while dragging files over it. */
+/**
+ * Route files dropped on `target` to onFile(file); shows `overlay` while dragging files over it.
+ * @param {HTMLElement} target
+ * @param {HTMLElement} overlay
+ * @param {(file: File) => void} onFile
+ */
 export function installDropTarget(target, overlay, onFile) {
   let depth = 0;
-  const hasFiles = (e) => Array.from(e.dataTransfer?.types || []).includes('Files');
+  const hasFiles = (/** @type {DragEvent} */ e) => Array.from(e.dataTransfer?.types || []).includes('Files');
   target.addEventListener('dragenter', (e) => {
     if (!hasFiles(e)) return;
     e.preventDefault();
@@ -69,7 +93,7 @@ export function installDropTarget(target, overlay, onFile) {
   target.addEventListener('dragover', (e) => {
     if (!hasFiles(e)) return;
     e.preventDefault();
-    e.dataTransfer.dropEffect = 'copy';
+    /** @type {DataTransfer} hasFiles saw it */ (e.dataTransfer).dropEffect = 'copy';
   });
   target.addEventListener('dragleave', () => {
     depth = Math.max(0, depth - 1);
@@ -100,6 +124,10 @@ function indexList(v, what) {
   return v;
 }
 
+/**
+ * @param {any} doc a parsed constraints document (JSON from a file: anything)
+ * @returns {Map<number, number[]>|null}
+ */
 function targetMap(doc) {
   if (doc.targets === undefined || doc.targets === null) return null;
   const handles = indexList(doc.handles, 'handles');
@@ -117,14 +145,19 @@ function targetMap(doc) {
   return map;
 }
 
+/** @type {(x: unknown) => x is number} */
 const isNumber = (x) => typeof x === 'number' && Number.isFinite(x);
-const isTriple = (p) => Array.isArray(p) && p.length === 3 && p.every(isNumber);
+const isTriple = (/** @type {unknown} */ p) => Array.isArray(p) && p.length === 3 && p.every(isNumber);
 
-/** The point handles of a document (version 2): [{face, barycentric, weight?, target?}]. */
+/**
+ * The point handles of a document (version 2): [{face, barycentric, weight?, target?}].
+ * @param {any} doc a parsed constraints document (JSON from a file: anything)
+ * @returns {{face: number, barycentric: number[], weight?: number, target?: number[]}[]}
+ */
 function pointList(doc) {
   if (doc.points === undefined || doc.points === null) return [];
   if (!Array.isArray(doc.points)) throw new Error('"points" must be a list');
-  return doc.points.map((p, k) => {
+  return doc.points.map((/** @type {any} an entry of the JSON document */ p, /** @type {number} */ k) => {
     if (!p || typeof p !== 'object' || !Number.isInteger(p.face) || p.face < 0 || !isTriple(p.barycentric)) {
       throw new Error(`"points[${k}]" must have a triangle index "face" and three "barycentric" numbers`);
     }
@@ -132,6 +165,7 @@ function pointList(doc) {
     if (p.weight !== undefined && !(isNumber(p.weight) && p.weight > 0)) {
       throw new Error(`"points[${k}].weight" must be a positive number`);
     }
+    /** @type {{face: number, barycentric: number[], weight?: number, target?: number[]}} */
     const out = { face: p.face, barycentric: p.barycentric.slice() };
     if (p.weight !== undefined) out.weight = p.weight;
     if (p.target !== undefined) out.target = p.target.slice();
@@ -139,12 +173,15 @@ function pointList(doc) {
   });
 }
 
-const isStiffness = (v) => v === 'rigid' || (isNumber(v) && v > 0);
+const isStiffness = (/** @type {unknown} */ v) => v === 'rigid' || (isNumber(v) && v > 0);
 
 /**
  * Painted stiffness of a document: [{vertices, value}] (a list of one value per vertex is turned into that). With
  * `nVertices`, checked as `arap deform` checks it: a value for each vertex, indices in range, no vertex given two
  * values.
+ * @param {any} doc a parsed constraints document (JSON from a file: anything)
+ * @param {number} [nVertices]
+ * @returns {{vertices: number[], value: number|'rigid'}[]|null}
  */
 function stiffnessList(doc, nVertices) {
   const s = doc.stiffness;
@@ -154,17 +191,19 @@ function stiffnessList(doc, nVertices) {
     if (nVertices !== undefined && s.length !== nVertices) {
       throw new Error(`"stiffness" lists one value per vertex: ${nVertices} expected, ${s.length} given`);
     }
+    /** @type {Map<number|'rigid', number[]>} */
     const groups = new Map();
-    s.forEach((v, i) => {
+    s.forEach((/** @type {any} an entry of the JSON document */ v, /** @type {number} */ i) => {
       if (!isStiffness(v)) throw new Error(`"stiffness[${i}]" must be a positive number or "rigid"`);
       if (v === 1) return;
       if (!groups.has(v)) groups.set(v, []);
-      groups.get(v).push(i);
+      /** @type {number[]} set just above */ (groups.get(v)).push(i);
     });
     return [...groups].map(([value, vertices]) => ({ vertices, value }));
   }
+  /** @type {Set<number>} */
   const seen = new Set();
-  return s.map((g, k) => {
+  return s.map((/** @type {any} an entry of the JSON document */ g, /** @type {number} */ k) => {
     const ok = g && typeof g === 'object' && isStiffness(g.value);
     if (!ok) throw new Error(`"stiffness[${k}]" must be {"vertices": [...], "value": a positive number or "rigid"}`);
     const vertices = indexList(g.vertices, `stiffness[${k}].vertices`);
@@ -203,7 +242,7 @@ export function parseConstraints(text, nVertices = undefined) {
   /** @type {number[][]} */
   let groups;
   if (Array.isArray(doc.handle_groups)) {
-    groups = doc.handle_groups.map((g, k) => indexList(g, `handle_groups[${k}]`));
+    groups = doc.handle_groups.map((/** @type {unknown} */ g, /** @type {number} */ k) => indexList(g, `handle_groups[${k}]`));
     if (targets) {
       const grouped = new Set(groups.flat());
       const missing = groups.flat().find((i) => !targets.has(i));
@@ -265,11 +304,16 @@ export async function readConstraintsFile(file, nVertices, nFaces, vertexMap = n
   }
 }
 
-/** The mirror partners of handle groups saved in the document's "meta" (pairs [k, l] of groups; others skipped). */
+/**
+ * The mirror partners of handle groups saved in the document's "meta" (pairs [k, l] of groups; others skipped).
+ * @param {any} doc a parsed constraints document (JSON from a file: anything)
+ * @param {number} nGroups
+ * @returns {[number, number][]}
+ */
 function partnerPairs(doc, nGroups) {
   const raw = doc.meta && typeof doc.meta === 'object' ? doc.meta[PARTNERS_KEY] : null;
   if (!Array.isArray(raw)) return [];
-  const ok = (k) => Number.isInteger(k) && k >= 0 && k < nGroups;
+  const ok = (/** @type {any} an entry of the JSON document */ k) => Number.isInteger(k) && k >= 0 && k < nGroups;
   return raw.filter((p) => Array.isArray(p) && p.length === 2 && ok(p[0]) && ok(p[1]) && p[0] !== p[1]);
 }
 
