@@ -22,7 +22,10 @@ export const AXES = ['x', 'y', 'z'];
 
 /** A plane: a unit normal whose largest component is positive, and a point on it. @typedef {{normal: number[], point: number[]}} Plane */
 
-/** Bounding box, diagonal, centroid and covariance of float positions (3 per vertex). */
+/**
+ * Bounding box, diagonal, centroid and covariance of float positions (3 per vertex).
+ * @param {ArrayLike<number>} pos
+ */
 function moments(pos) {
   const n = pos.length / 3;
   const lo = [Infinity, Infinity, Infinity];
@@ -57,7 +60,11 @@ function moments(pos) {
   return { n, lo, hi, diag, mean, centre, cov };
 }
 
-/** Eigenvectors (columns of the returned row-major 3×3) of a symmetric 3×3 matrix, by Jacobi rotations. */
+/**
+ * Eigenvectors (columns of the returned row-major 3×3) of a symmetric 3×3 matrix, by Jacobi rotations.
+ * @param {number[]} m row-major, 9 numbers
+ * @returns {number[][]}
+ */
 export function eigenvectors3(m) {
   const a = m.slice();
   const v = [1, 0, 0, 0, 1, 0, 0, 0, 1];
@@ -95,7 +102,12 @@ export function eigenvectors3(m) {
   return [0, 1, 2].map((j) => [v[j], v[3 + j], v[6 + j]]);
 }
 
-/** A plane {normal, point} with a unit normal whose largest component is positive. */
+/**
+ * A plane {normal, point} with a unit normal whose largest component is positive.
+ * @param {number[]} normal
+ * @param {number[]} point
+ * @returns {Plane}
+ */
 function plane(normal, point) {
   const len = Math.hypot(normal[0], normal[1], normal[2]);
   let nrm = normal.map((c) => c / len);
@@ -122,15 +134,27 @@ export function reflectionMatrix(pl) {
   ];
 }
 
-/** About `count` of the vertices 0..n-1, evenly spread over the numbering. */
+/**
+ * About `count` of the vertices 0..n-1, evenly spread over the numbering.
+ * @param {number} n
+ * @param {number} count
+ */
 function spread(n, count) {
   const stride = Math.max(1, Math.floor(n / count));
+  /** @type {number[]} */
   const out = [];
   for (let i = 0; i < n; i += stride) out.push(i);
   return out;
 }
 
-/** Reflection of (x, y, z) about a plane, into `out`. */
+/**
+ * Reflection of (x, y, z) about a plane, into `out`.
+ * @param {Plane} pl
+ * @param {number} x
+ * @param {number} y
+ * @param {number} z
+ * @param {number[]} out
+ */
 function reflectPoint(pl, x, y, z, out) {
   const [a, b, c] = pl.normal;
   const s = 2 * (a * (x - pl.point[0]) + b * (y - pl.point[1]) + c * (z - pl.point[2]));
@@ -172,6 +196,12 @@ function pairAcross(pos, surface, pl, tol, which = null) {
 /**
  * The plane that best maps the vertices `which[k]` onto the surface points `points[k]` paired with them: its normal
  * the dominant direction of their differences, through the mean of their midpoints. `pl` when there are none.
+ * @param {ArrayLike<number>} pos
+ * @param {Plane} pl
+ * @param {number[]|null} which
+ * @param {Int32Array} partner
+ * @param {Float64Array} points
+ * @returns {Plane}
  */
 function fitPlane(pos, pl, which, partner, points) {
   const cov = [0, 0, 0, 0, 0, 0, 0, 0, 0];
@@ -208,6 +238,12 @@ function fitPlane(pos, pl, which, partner, points) {
 /**
  * Move plane `pl` until the sample's reflections lie closest to the surface: pair, fit the plane to the pairs, and
  * again, with a search radius shrinking from `far` to `tol`.
+ * @param {ArrayLike<number>} pos
+ * @param {{grid: VertexGrid, radius: number}} far
+ * @param {Surface} near
+ * @param {Plane} pl
+ * @param {number[]} sample
+ * @param {number} tol
  */
 function refine(pos, far, near, pl, sample, tol) {
   let current = pl;
@@ -247,7 +283,7 @@ export function detectSymmetry(pos, faces, axis = 'auto', tolerance = DEFAULT_TO
   const frac = Math.min(TOLERANCE_RANGE.max, Math.max(TOLERANCE_RANGE.min, Number(tolerance) || DEFAULT_TOLERANCE));
   const tol = frac * diag;
   const near = new Surface(pos, faces, tol);
-  const unit = (k) => [0, 1, 2].map((t) => (t === k ? 1 : 0));
+  const unit = (/** @type {number} */ k) => [0, 1, 2].map((t) => (t === k ? 1 : 0));
   const fixedAxis = AXES.indexOf(axis);
   let pl;
   if (fixedAxis >= 0) pl = plane(unit(fixedAxis), mo.centre);
