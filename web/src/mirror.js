@@ -13,12 +13,14 @@ import {
 /** Key of the handle-group pairs in a constraints document's "meta" object: [[k, l], ...] of handle_groups. */
 export const PARTNERS_KEY = 'mirror_partners';
 
-const pct = (x) => `${(100 * x).toFixed(x > 0.995 && x < 1 ? 1 : 0)}%`;
+const pct = (/** @type {number} */ x) => `${(100 * x).toFixed(x > 0.995 && x < 1 ? 1 : 0)}%`;
 
 export class MirrorEditing {
   /**
-   * @param {object} opts viewer, selection, tell(text) (a short message), checkbox, axisSelect, toleranceInput
-   *   (percent of the bounding-box diagonal), statusEl
+   * @param {{viewer: import('./viewer.js').Viewer, selection: import('./selection.js').Selection,
+   *   tell: (text: string) => void, checkbox?: HTMLInputElement, axisSelect?: HTMLSelectElement,
+   *   toleranceInput?: HTMLInputElement, statusEl?: HTMLElement}} opts viewer, selection, tell(text) (a short
+   *   message), checkbox, axisSelect, toleranceInput (percent of the bounding-box diagonal), statusEl
    */
   constructor({
     viewer, selection, tell,
@@ -37,13 +39,18 @@ export class MirrorEditing {
     this.axis = 'auto';
     this.tolerance = DEFAULT_TOLERANCE; // a fraction of the bounding-box diagonal
     this.toleranceInput = toleranceInput;
-    this.result = null; // detectSymmetry's answer for the rest pose, null until needed
+    /** @type {ReturnType<typeof detectSymmetry>|null} detectSymmetry's answer for the rest pose, null until needed */
+    this.result = null;
     /** @type {Float32Array|null} rest positions of the current mesh (its faces: `faces`) */
     this.rest = null;
-    this.restId = null; // the server's id of that rest pose (null until a state names it)
-    this.rests = new Map(); // rest positions by id: undo and redo of an apply come back to an earlier one
+    /** @type {number|null} the server's id of that rest pose (null until a state names it) */
+    this.restId = null;
+    /** @type {Map<number, Float32Array|null>} rest positions by id: undo and redo of an apply come back to an earlier one */
+    this.rests = new Map();
+    /** @type {ArrayLike<number>|null} */
     this.faces = null;
     this.matrix = new THREE.Matrix4();
+    /** @type {THREE.Mesh<THREE.PlaneGeometry, THREE.MeshBasicMaterial>|null} */
     this.planeMesh = null;
     checkbox.addEventListener('change', () => this.setOn(checkbox.checked));
     axisSelect.addEventListener('change', () => this.setAxis(axisSelect.value));
@@ -71,7 +78,11 @@ export class MirrorEditing {
     return this.on && r?.plane ? r.mirrorOf : null;
   }
 
-  /** A new mesh: its positions are the rest pose. */
+  /**
+   * A new mesh: its positions are the rest pose.
+   * @param {ArrayLike<number>} positions
+   * @param {ArrayLike<number>} faces
+   */
   meshChanged(positions, faces) {
     this.rest = Float32Array.from(positions);
     this.faces = faces;
@@ -105,7 +116,10 @@ export class MirrorEditing {
     else this._show();
   }
 
-  /** Turn mirror editing on (finding the plane first if needed; it stays off when none is found) or off. */
+  /**
+   * Turn mirror editing on (finding the plane first if needed; it stays off when none is found) or off.
+   * @param {boolean} on
+   */
   setOn(on) {
     this.on = on;
     if (on && !this.result && this.rest) {
@@ -121,7 +135,10 @@ export class MirrorEditing {
     this._show();
   }
 
-  /** The plane: 'auto' (found) or 'x', 'y', 'z' (that axis's plane through the middle of the model). */
+  /**
+   * The plane: 'auto' (found) or 'x', 'y', 'z' (that axis's plane through the middle of the model).
+   * @param {string} axis
+   */
   setAxis(axis) {
     this.axis = axis;
     this.axisSelect.value = axis;
@@ -131,6 +148,7 @@ export class MirrorEditing {
   /**
    * How far (a fraction of the bounding-box diagonal, clamped to TOLERANCE_RANGE) a vertex's reflection may lie from
    * the surface for the vertex to have a partner; the plane and the partners are found again with it.
+   * @param {number} fraction
    */
   setTolerance(fraction) {
     const f = Math.min(TOLERANCE_RANGE.max, Math.max(TOLERANCE_RANGE.min, fraction));
@@ -196,6 +214,10 @@ export class MirrorEditing {
   /**
    * Paint like Selection.paint, and with mirror editing on the mirrored vertices too: for a handle group, into its
    * partner group (created and paired on first use); vertices painted directly keep the group they were painted.
+   * @param {Iterable<number>} indices
+   * @param {string} mode
+   * @param {boolean} [subtract]
+   * @returns {boolean} something changed
    */
   paint(indices, mode, subtract = false) {
     const s = this.selection;
@@ -224,7 +246,10 @@ export class MirrorEditing {
     return changed;
   }
 
-  /** Clear a role (Selection.clear); with mirror editing on, a handle group's partner is cleared as well. */
+  /**
+   * Clear a role (Selection.clear); with mirror editing on, a handle group's partner is cleared as well.
+   * @param {string} mode
+   */
   clear(mode) {
     const s = this.selection;
     const p = this.active && mode === 'handle' ? s.partnerOf(s.activeGroup) : -1;
@@ -287,7 +312,10 @@ export class MirrorEditing {
     return this.selection.groups.map((_, g) => this.selection.partnerOf(g));
   }
 
-  /** Pair client groups again from partners() as saved. */
+  /**
+   * Pair client groups again from partners() as saved.
+   * @param {number[]|null|undefined} partners
+   */
   setPartners(partners) {
     const s = this.selection;
     (partners || []).forEach((h, g) => {
@@ -295,8 +323,13 @@ export class MirrorEditing {
     });
   }
 
-  /** A constraints document with the pairs of its handle_groups (server group k = client group groupMap[k]). */
+  /**
+   * A constraints document with the pairs of its handle_groups (server group k = client group groupMap[k]).
+   * @param {{[key: string]: any}} doc the server's document (JSON)
+   * @param {number[]} groupMap
+   */
   documentWithPartners(doc, groupMap) {
+    /** @type {[number, number][]} */
     const pairs = [];
     groupMap.forEach((g, k) => {
       const l = groupMap.indexOf(this.selection.partnerOf(g));
@@ -306,7 +339,10 @@ export class MirrorEditing {
     return { ...doc, meta: { ...(doc.meta || {}), [PARTNERS_KEY]: pairs } };
   }
 
-  /** Pair client groups from a document's [[k, l], ...] (its handle_groups k and l are client groups k and l). */
+  /**
+   * Pair client groups from a document's [[k, l], ...] (its handle_groups k and l are client groups k and l).
+   * @param {[number, number][]|null|undefined} pairs
+   */
   setPairs(pairs) {
     const n = this.selection.groups.length;
     for (const [k, l] of pairs || []) if (k < n && l < n && k !== l) this.selection.pair(k, l);
