@@ -10,8 +10,10 @@ const IDENTITY = new THREE.Matrix4().elements.slice();
 export class HandleGizmo {
   /**
    * @param {import('./viewer.js').Viewer} viewer
-   * @param {object} opts onDragStart() (return false to refuse the drag), onDrag(), onDragEnd(),
-   *   onDraggingChanged(bool), onPivot() (the active group's pivot was placed or reset)
+   * @param {{onDragStart?: () => boolean|void, onDrag: () => void, onDragEnd: () => void,
+   *   onDraggingChanged?: (dragging: boolean) => void, onPivot?: () => void}} opts onDragStart() (return false to
+   *   refuse the drag), onDrag(), onDragEnd(), onDraggingChanged(bool), onPivot() (the active group's pivot was
+   *   placed or reset)
    */
   constructor(viewer, opts) {
     this.viewer = viewer;
@@ -32,13 +34,17 @@ export class HandleGizmo {
       this.marker.updateMatrixWorld(true);
     };
     viewer.scene.add(this.marker);
-    this.matrices = []; // one THREE.Matrix4 per client handle group
-    this.pivots = []; // per group: the placed pivot in the group's untransformed frame, or null (the centroid)
+    /** @type {THREE.Matrix4[]} one per client handle group */
+    this.matrices = [];
+    /** @type {(THREE.Vector3|null)[]} per group: the placed pivot in the group's untransformed frame, or null (the centroid) */
+    this.pivots = [];
     this.group = -1;
+    /** @type {number[]} */
     this.indices = [];
     this.previewing = false;
     /** @type {{indices: number[], xyz: Float32Array}|null} the group's positions before a preview */
     this._saved = null;
+    /** @type {number[]|null} */
     this.weights = null;
     this._base = new THREE.Matrix4();
     this._baseInv = new THREE.Matrix4();
@@ -46,7 +52,7 @@ export class HandleGizmo {
     this.controls.addEventListener('change', () => viewer.requestRender());
     this.controls.addEventListener('dragging-changed', (e) => {
       if (viewer.controls) viewer.controls.enabled = !e.value;
-      opts.onDraggingChanged?.(e.value);
+      opts.onDraggingChanged?.(/** @type {boolean} */ (e.value));
     });
     this.refused = false;
     this.controls.addEventListener('mouseDown', () => {
@@ -73,6 +79,7 @@ export class HandleGizmo {
     return this.controls.dragging || (this.controls.object !== undefined && this.controls.axis !== null);
   }
 
+  /** @param {'translate'|'rotate'|'scale'} mode */
   setMode(mode) {
     this.controls.setMode(mode);
   }
@@ -82,12 +89,16 @@ export class HandleGizmo {
     return this.controls.space;
   }
 
+  /** @param {'world'|'local'} space */
   setSpace(space) {
     this.controls.setSpace(space);
     this.recenter();
   }
 
-  /** Snap every move (true), or only while Ctrl/⌘ is held (false). */
+  /**
+   * Snap every move (true), or only while Ctrl/⌘ is held (false).
+   * @param {boolean} on
+   */
   setSnap(on) {
     this.controls.snapAlways = on;
   }
@@ -104,7 +115,10 @@ export class HandleGizmo {
     this.controls.gridStep = gridStep(this.viewer.geometry?.boundingBox ?? null);
   }
 
-  /** Keep one matrix per client group, new groups start at identity. */
+  /**
+   * Keep one matrix per client group, new groups start at identity.
+   * @param {number} nGroups
+   */
   syncGroups(nGroups) {
     while (this.matrices.length < nGroups) this.matrices.push(new THREE.Matrix4());
     this.matrices.length = nGroups;
@@ -120,7 +134,11 @@ export class HandleGizmo {
     });
   }
 
-  /** Server transforms (server group k = client group groupMap[k]). */
+  /**
+   * Server transforms (server group k = client group groupMap[k]).
+   * @param {number[][]|null|undefined} transforms column-major 4×4 per server group
+   * @param {number[]} groupMap
+   */
   setTransforms(transforms, groupMap) {
     for (const m of this.matrices) m.identity();
     (transforms || []).forEach((t, k) => {
@@ -134,6 +152,9 @@ export class HandleGizmo {
    * Attach to client group g with vertex indices (empty: hide the gizmo); `weights` (one per index) puts the pivot
    * at that combination of their positions instead of their centroid (a point handle: its triangle's corners and
    * barycentric coordinates).
+   * @param {number} g
+   * @param {number[]} indices
+   * @param {number[]|null} [weights]
    */
   attach(g, indices, weights = null) {
     this.group = g;
@@ -155,7 +176,10 @@ export class HandleGizmo {
     return !!this.pivots[this.group];
   }
 
-  /** Turn the active group about the world point p from now on. */
+  /**
+   * Turn the active group about the world point p from now on.
+   * @param {number[]} p
+   */
   placePivot(p) {
     const m = this.matrices[this.group];
     if (!m || !this.indices.length) return;
@@ -172,6 +196,7 @@ export class HandleGizmo {
   /**
    * Put back pivots that `placedPivots` gave (world points of the current shape), after a new constraint set made
    * the current shape every group's frame; entries for groups that do not exist are ignored.
+   * @param {(number[]|null)[]|null|undefined} points
    */
   restorePivots(points) {
     (points || []).forEach((p, g) => {
@@ -202,6 +227,7 @@ export class HandleGizmo {
     this.viewer.requestRender();
   }
 
+  /** @param {boolean} on */
   _showMarker(on) {
     this.marker.visible = on;
     if (!on) return;
@@ -229,14 +255,20 @@ export class HandleGizmo {
     return this.pivot.position.toArray();
   }
 
-  /** Unit vector of axis 'x', 'y' or 'z' in the gizmo's space. */
+  /**
+   * Unit vector of axis 'x', 'y' or 'z' in the gizmo's space.
+   * @param {string} letter
+   */
   axisVector(letter) {
     const v = new THREE.Vector3(letter === 'x' ? 1 : 0, letter === 'y' ? 1 : 0, letter === 'z' ? 1 : 0);
     if (this.space === 'local') v.applyQuaternion(rotationOf(this.matrices[this.group] || new THREE.Matrix4()));
     return v;
   }
 
-  /** Show the gizmo where `matrix` (the active group's whole transform) would put it, without sending it. */
+  /**
+   * Show the gizmo where `matrix` (the active group's whole transform) would put it, without sending it.
+   * @param {THREE.Matrix4} matrix
+   */
   preview(matrix) {
     const m = this.matrices[this.group];
     if (!m || this.controls.dragging) return;
@@ -254,7 +286,10 @@ export class HandleGizmo {
     this.viewer.requestRender();
   }
 
-  /** Show the group's vertices moved rigidly by `delta` (their positions before the preview are kept). */
+  /**
+   * Show the group's vertices moved rigidly by `delta` (their positions before the preview are kept).
+   * @param {THREE.Matrix4} delta
+   */
   _moveHandle(delta) {
     const pos = this.viewer.positions;
     let saved = this._saved;
@@ -289,6 +324,7 @@ export class HandleGizmo {
   /**
    * Make `matrix` the active group's transform and send it as a whole drag (drag, then end_drag); false when the
    * drag is refused (the selection is not on the server yet).
+   * @param {THREE.Matrix4} matrix
    */
   apply(matrix) {
     const m = this.matrices[this.group];
@@ -321,7 +357,11 @@ export class HandleGizmo {
     this.opts.onDrag();
   }
 
-  /** The drag payload: one column-major 4×4 per server group. */
+  /**
+   * The drag payload: one column-major 4×4 per server group.
+   * @param {number[]} groupMap
+   * @returns {number[][]}
+   */
   transformsFor(groupMap) {
     return groupMap.map((g) => (this.matrices[g] ? Array.from(this.matrices[g].elements) : IDENTITY.slice()));
   }
