@@ -9,9 +9,12 @@ export const BRUSH_METRICS = ['straight', 'surface', 'patch'];
 export class SelectionTools {
   /**
    * @param {import('./viewer.js').Viewer} viewer
-   * @param {object} opts isGizmoActive(): bool, onPaint(indices, subtract), onStrokeEnd(), graph(): the mesh's
-   *   adjacency (geodesic.js buildAdjacency), picking(): true when a click places a point instead of painting,
-   *   onPick(hit, subtract) (the raycast intersection under a click in that mode)
+   * @param {{isGizmoActive: () => boolean, onPaint: (indices: number[], subtract: boolean) => void,
+   *   onStrokeEnd: () => void, graph: () => {ptr: Int32Array, adj: Int32Array}, picking?: () => boolean,
+   *   onPick: (hit: THREE.Intersection, subtract: boolean) => void}} opts isGizmoActive(): bool,
+   *   onPaint(indices, subtract), onStrokeEnd(), graph(): the mesh's adjacency (geodesic.js buildAdjacency),
+   *   picking(): true when a click places a point instead of painting, onPick(hit, subtract) (the raycast
+   *   intersection under a click in that mode)
    */
   constructor(viewer, opts) {
     this.viewer = viewer;
@@ -44,17 +47,23 @@ export class SelectionTools {
     c.addEventListener('contextmenu', (e) => e.preventDefault());
   }
 
+  /** @param {string} tool */
   setTool(tool) {
     this.tool = tool;
     this._hideCursor();
   }
 
+  /** @param {PointerEvent} e */
   _local(e) {
     const r = this.viewer.canvas.getBoundingClientRect();
     return [e.clientX - r.left, e.clientY - r.top];
   }
 
-  /** The nearest intersection of the mesh under canvas pixel (x, y), or null. */
+  /**
+   * The nearest intersection of the mesh under canvas pixel (x, y), or null.
+   * @param {number} x
+   * @param {number} y
+   */
   _intersect(x, y) {
     const v = this.viewer;
     if (!v.mesh) return null;
@@ -64,6 +73,10 @@ export class SelectionTools {
     return hits.length ? hits[0] : null;
   }
 
+  /**
+   * @param {number} x
+   * @param {number} y
+   */
   _hit(x, y) {
     const hit = this._intersect(x, y);
     this._hitFace = hit?.face ?? null;
@@ -84,6 +97,7 @@ export class SelectionTools {
     return this.radiusPx * this.viewer.worldPerPixel(point);
   }
 
+  /** @param {PointerEvent} e */
   _down(e) {
     if (e.button !== 0 || !this.viewer.mesh) return;
     const [x, y] = this._local(e);
@@ -127,6 +141,8 @@ export class SelectionTools {
    * The position of the vertex that shows nearest to canvas pixel (x, y) within the brush's radius (at least a few
    * pixels; front-facing ones only with `frontOnly`), or null: a press that misses the surface but whose brush
    * circle reaches the model. The face under the brush is then unknown (`_hitFace` null: straight distances).
+   * @param {number} x
+   * @param {number} y
    */
   _nearby(x, y) {
     const v = this.viewer;
@@ -159,12 +175,14 @@ export class SelectionTools {
     return best < 0 ? null : new THREE.Vector3(pos[3 * best], pos[3 * best + 1], pos[3 * best + 2]);
   }
 
+  /** @param {PointerEvent} e */
   _takePointer(e) {
     e.stopImmediatePropagation();
     if (this.viewer.controls) this.viewer.controls.enabled = false;
     this.viewer.canvas.setPointerCapture(e.pointerId);
   }
 
+  /** @param {PointerEvent} e */
   _move(e) {
     const [x, y] = this._local(e);
     if (this.box) {
@@ -191,6 +209,7 @@ export class SelectionTools {
     });
   }
 
+  /** @param {PointerEvent} e */
   _up(e) {
     if (this.picked) {
       this.picked = false;
@@ -215,11 +234,13 @@ export class SelectionTools {
     }
   }
 
+  /** @param {PointerEvent} e */
   _release(e) {
     if (this.viewer.controls) this.viewer.controls.enabled = true;
     if (this.viewer.canvas.hasPointerCapture(e.pointerId)) this.viewer.canvas.releasePointerCapture(e.pointerId);
   }
 
+  /** @param {THREE.Vector3} p */
   _paintAt(p) {
     const r = this.worldRadius(p);
     const pos = this.viewer.positions;
@@ -233,6 +254,7 @@ export class SelectionTools {
       return;
     }
     const r2 = r * r;
+    /** @type {number[]} */
     const out = [];
     for (let i = 0, n = pos.length / 3; i < n; i++) {
       const dx = pos[3 * i] - p.x;
@@ -243,7 +265,14 @@ export class SelectionTools {
     this.opts.onPaint(out, this.erasing);
   }
 
-  /** Vertices whose projection falls inside the screen rectangle (optionally front-facing only). */
+  /**
+   * Vertices whose projection falls inside the screen rectangle (optionally front-facing only).
+   * @param {number} x0
+   * @param {number} y0
+   * @param {number} x1
+   * @param {number} y1
+   * @returns {number[]}
+   */
   boxIndices(x0, y0, x1, y1) {
     const v = this.viewer;
     const w = v.canvas.clientWidth;
@@ -287,6 +316,11 @@ export class SelectionTools {
     this.rectEl.hidden = false;
   }
 
+  /**
+   * @param {number} x
+   * @param {number} y
+   * @param {boolean} erase
+   */
   _showCursor(x, y, erase) {
     let r = this.radiusPx;
     if (this.units === 'world' && this.viewer.geometry) {
