@@ -18,7 +18,7 @@ const MARKER_SIZE = 0.012;
 export function pointFromHit(hit, positions, faces) {
   const f = hit.faceIndex;
   if (f === null || f === undefined || 3 * f + 2 >= faces.length) return null;
-  const corner = (k) => {
+  const corner = (/** @type {number} */ k) => {
     const i = faces[3 * f + k];
     return new THREE.Vector3(positions[3 * i], positions[3 * i + 1], positions[3 * i + 2]);
   };
@@ -32,7 +32,13 @@ export function pointFromHit(hit, positions, faces) {
   return { face: f, barycentric };
 }
 
-/** Where a point handle lies on the surface `positions`. */
+/**
+ * Where a point handle lies on the surface `positions`.
+ * @param {{face: number, barycentric: number[]}} point
+ * @param {ArrayLike<number>} positions
+ * @param {ArrayLike<number>} faces
+ * @returns {number[]} x, y, z
+ */
 export function pointPosition(point, positions, faces) {
   const out = [0, 0, 0];
   for (let k = 0; k < 3; k++) {
@@ -45,8 +51,11 @@ export function pointPosition(point, positions, faces) {
 
 export class PointHandles {
   /**
-   * @param {object} opts viewer, selection, changed() (the selection was edited: redraw and send it),
-   *   weight() (the weight of new handles, null for hard ones)
+   * @param {object} opts
+   * @param {import('./viewer.js').Viewer} opts.viewer
+   * @param {import('./selection.js').Selection} opts.selection
+   * @param {() => void} opts.changed the selection was edited: redraw and send it
+   * @param {() => number|null} opts.weight the weight of new handles, null for hard ones
    */
   constructor({ viewer, selection, changed, weight }) {
     this.viewer = viewer;
@@ -61,10 +70,15 @@ export class PointHandles {
   }
 
   get faces() {
-    return this.viewer.geometry ? this.viewer.geometry.index.array : new Uint32Array(0);
+    // a geometry of the viewer always has its triangles (viewer.js setMesh)
+    return this.viewer.geometry ? /** @type {THREE.BufferAttribute} */ (this.viewer.geometry.index).array : new Uint32Array(0);
   }
 
-  /** A click on the surface in point mode: add a handle there, or (subtract) remove the nearest one. */
+  /**
+   * A click on the surface in point mode: add a handle there, or (subtract) remove the nearest one.
+   * @param {{faceIndex?: number|null, point: THREE.Vector3}} hit
+   * @param {boolean} subtract
+   */
   pick(hit, subtract) {
     const point = pointFromHit(hit, this.viewer.positions, this.faces);
     if (!point) return;
@@ -86,7 +100,8 @@ export class PointHandles {
     const { roi, role } = this.selection;
     const withRoi = this.selection.roiCount > 0;
     const faces = this.faces;
-    const free = (i) => role[i] === NONE && (!withRoi || roi[i] === 1);
+    const free = (/** @type {number} */ i) => role[i] === NONE && (!withRoi || roi[i] === 1);
+    /** @type {number[]} */
     const out = [];
     this.selection.groups.forEach((g, k) => {
       if (!g.point) return;
@@ -96,7 +111,10 @@ export class PointHandles {
     return out;
   }
 
-  /** The point group nearest to a world position, within a few marker sizes (or -1). */
+  /**
+   * The point group nearest to a world position, within a few marker sizes (or -1).
+   * @param {THREE.Vector3} p
+   */
   nearest(p) {
     let best = -1;
     let bestD = (4 * this.markerRadius()) ** 2;
@@ -117,7 +135,11 @@ export class PointHandles {
     return box ? MARKER_SIZE * box.min.distanceTo(box.max) : 0.01;
   }
 
-  /** What the gizmo of group g attaches to: its vertices, or a point's triangle corners and weights. */
+  /**
+   * What the gizmo of group g attaches to: its vertices, or a point's triangle corners and weights.
+   * @param {number} g
+   * @returns {{indices: number[], weights: number[]|null}}
+   */
   anchor(g) {
     const group = this.selection.groups[g];
     if (!group?.point) return { indices: this.selection.groupIndices(g), weights: null };
