@@ -16,7 +16,7 @@ export { countOf, settleText } from './readouts.js';
 const $ = (id) => document.getElementById(id);
 
 /** The control an event came from. @param {Event} e @returns {any} */
-const source = (e) => e.target;
+const source = (/** @type {Event} */ e) => e.target;
 
 /**
  * Fill a drop-down with the choices of a solver parameter, labelled as the protocol names them.
@@ -34,29 +34,59 @@ function fillChoices(select, param) {
   select.value = param.default;
 }
 
+/**
+ * What the panel's controls do (main.js supplies them).
+ * @typedef {object} PanelActions
+ * @property {(msg: import('./protocol.js').ClientMessage) => boolean} send
+ * @property {(name: string) => void} loadBuiltin
+ * @property {(file: File) => void} uploadFile
+ * @property {(file: File) => void} loadConstraintsFile
+ * @property {(tool: string) => void} setTool
+ * @property {(role: string) => void} setRole
+ * @property {(mode: 'translate'|'rotate') => void} setGizmoMode
+ * @property {(mode: 'texture'|'colours'|'plain') => void} setSurface
+ * @property {(value: number) => void} setBrushRadius
+ * @property {(units: string) => void} setBrushUnits
+ * @property {(on: boolean) => void} setFrontOnly
+ * @property {() => void} clearRole
+ * @property {() => void} invertRole
+ * @property {() => void} clearAll
+ * @property {() => void} newGroup
+ * @property {(g: number) => void} removeGroup
+ * @property {(g: number) => void} selectGroup
+ * @property {() => void} undo
+ * @property {() => void} redo
+ * @property {(params: Omit<import('./protocol.js').SetParamsClientMessage, 'type'>) => void} setParams
+ * @property {() => void} saveConstraints
+ * @property {(on: boolean) => void} setFlatShading
+ * @property {(on: boolean) => void} setWireframe
+ * @property {() => void} fit
+ * @property {() => void} reconnect
+ */
+
 export class Panel extends PanelReadouts {
-  /** @param {object} actions callbacks invoked by the controls (see main.js) */
+  /** @param {PanelActions} actions callbacks invoked by the controls (see main.js) */
   constructor(actions) {
     super();
     this.actions = actions;
     this.enabled = true; // the controls take input (not while the server is away)
 
-    $('builtin-select').addEventListener('change', (e) => actions.loadBuiltin(source(e).value));
+    $('builtin-select').addEventListener('change', (/** @type {Event} */ e) => actions.loadBuiltin(source(e).value));
     $('btn-open').addEventListener('click', () => $('file-input').click());
-    $('file-input').addEventListener('change', (e) => {
+    $('file-input').addEventListener('change', (/** @type {Event} */ e) => {
       const f = source(e).files?.[0];
       source(e).value = '';
       if (f) actions.uploadFile(f);
     });
     this._segment('tool-seg', 'tool', (v) => actions.setTool(v));
     this._segment('role-seg', 'role', (v) => actions.setRole(v));
-    this._segment('gizmo-seg', 'gizmo', (v) => actions.setGizmoMode(v));
-    this._segment('surface-seg', 'surface', (v) => actions.setSurface(v));
+    this._segment('gizmo-seg', 'gizmo', (v) => actions.setGizmoMode(/** @type {'translate'|'rotate'} the buttons' data-gizmo */ (v)));
+    this._segment('surface-seg', 'surface', (v) => actions.setSurface(/** @type {'texture'|'colours'|'plain'} */ (v)));
 
     const radius = $('brush-radius');
     radius.addEventListener('input', () => actions.setBrushRadius(Number(radius.value)));
-    $('brush-units').addEventListener('change', (e) => actions.setBrushUnits(source(e).value));
-    $('front-only').addEventListener('change', (e) => actions.setFrontOnly(source(e).checked));
+    $('brush-units').addEventListener('change', (/** @type {Event} */ e) => actions.setBrushUnits(source(e).value));
+    $('front-only').addEventListener('change', (/** @type {Event} */ e) => actions.setFrontOnly(source(e).checked));
     $('btn-clear').addEventListener('click', () => actions.clearRole());
     $('btn-invert').addEventListener('click', () => actions.invertRole());
     $('btn-clear-all').addEventListener('click', () => actions.clearAll());
@@ -84,44 +114,59 @@ export class Panel extends PanelReadouts {
     alpha.addEventListener('change', () => actions.setParams({ alpha: Number(alpha.value) }));
     it.addEventListener('input', () => ($('iterations-val').textContent = it.value));
     it.addEventListener('change', () => actions.setParams({ iterations: Number(it.value) }));
-    $('energy').addEventListener('change', (e) => actions.setParams({ energy: source(e).value }));
-    $('weights').addEventListener('change', (e) => actions.setParams({ weights: source(e).value }));
+    $('energy').addEventListener('change', (/** @type {Event} */ e) => actions.setParams({ energy: source(e).value }));
+    $('weights').addEventListener('change', (/** @type {Event} */ e) => actions.setParams({ weights: source(e).value }));
 
     for (const format of EXPORT_FORMATS) {
       const b = document.createElement('button');
       b.id = `btn-export-${format}`;
       b.dataset.testid = `export-${format}`;
       b.textContent = `Export ${format.toUpperCase()}`;
-      b.addEventListener('click', () => actions.send({ type: 'export', format }));
+      b.addEventListener('click', () => actions.send({
+        type: 'export', format: /** @type {import('./protocol.js').ExportClientMessage['format']} */ (format) }));
       $('export-buttons').appendChild(b);
     }
     $('btn-save-constraints').addEventListener('click', () => actions.saveConstraints());
     $('btn-load-constraints').addEventListener('click', () => $('constraints-input').click());
-    $('constraints-input').addEventListener('change', (e) => {
+    $('constraints-input').addEventListener('change', (/** @type {Event} */ e) => {
       const f = source(e).files?.[0];
       source(e).value = '';
       if (f) actions.loadConstraintsFile(f);
     });
 
-    $('flat-shading').addEventListener('change', (e) => actions.setFlatShading(source(e).checked));
-    $('wireframe').addEventListener('change', (e) => actions.setWireframe(source(e).checked));
+    $('flat-shading').addEventListener('change', (/** @type {Event} */ e) => actions.setFlatShading(source(e).checked));
+    $('wireframe').addEventListener('change', (/** @type {Event} */ e) => actions.setWireframe(source(e).checked));
     $('btn-fit').addEventListener('click', () => actions.fit());
     $('btn-reconnect').addEventListener('click', () => actions.reconnect());
     $('status-close').addEventListener('click', () => this.hideStatus());
   }
 
+  /**
+   * @param {string} id
+   * @param {string} key the buttons' data attribute
+   * @param {(value: string) => void} onPick
+   */
   _segment(id, key, onPick) {
     const el = $(id);
-    el.addEventListener('click', (e) => {
+    el.addEventListener('click', (/** @type {Event} */ e) => {
       const b = source(e).closest('button');
       if (b && !b.disabled) onPick(b.dataset[key]);
     });
   }
 
+  /**
+   * @param {string} id
+   * @param {string} key
+   * @param {string} value
+   */
   setSegment(id, key, value) {
     for (const b of $(id).querySelectorAll('button')) b.classList.toggle('active', b.dataset[key] === value);
   }
 
+  /**
+   * @param {string} units 'world' or 'screen'
+   * @param {number} value
+   */
   setBrushRadius(units, value) {
     const r = $('brush-radius');
     if (units === 'world') {
@@ -139,6 +184,10 @@ export class Panel extends PanelReadouts {
     }
   }
 
+  /**
+   * @param {string[]} names
+   * @param {string|null} current
+   */
   setBuiltins(names, current) {
     const sel = $('builtin-select');
     sel.innerHTML = '';
@@ -156,22 +205,29 @@ export class Panel extends PanelReadouts {
     this.setCurrentModel(current);
   }
 
-  /** Show the model loaded: a built-in one selected in the list, any other (a file) by its name at the list's head. */
+  /**
+   * Show the model loaded: a built-in one selected in the list, any other (a file) by its name at the list's head.
+   * @param {string|null} name
+   */
   setCurrentModel(name) {
     const sel = /** @type {HTMLSelectElement} */ ($('builtin-select'));
     const known = Array.from(sel.options).some((o) => o.value === name && name);
     const head = sel.options[0];
     if (head && head.value === '') head.textContent = !known && name ? `${name} (file)` : 'Built-in model…';
-    sel.value = known ? name : '';
+    sel.value = known ? /** @type {string} known */ (name) : '';
   }
 
+  /** @param {string} text */
   setMeshInfo(text) {
     $('mesh-info').textContent = text;
   }
 
-  /** A new mesh arrived (the server's mesh message): its name and counts, and the repairs made loading it. */
+  /**
+   * A new mesh arrived (the server's mesh message): its name and counts, and the repairs made loading it.
+   * @param {import('./protocol.js').MeshServerMessage} msg
+   */
   meshLoaded(msg) {
-    const n = (x) => x.toLocaleString('en-US');
+    const n = (/** @type {number} */ x) => x.toLocaleString('en-US');
     this.setCurrentModel(msg.name);
     this.setMeshInfo(`${msg.name}: ${n(msg.n_vertices)} vertices, ${n(msg.n_faces)} faces`);
     this.setStats({ n_vertices: msg.n_vertices, n_faces: msg.n_faces, ups: NaN, latency_ms: null, ms_per_iteration: null });
@@ -193,10 +249,11 @@ export class Panel extends PanelReadouts {
     this.setSegment('surface-seg', 'surface', current);
   }
 
+  /** @param {Partial<import('./stores/paramstore.js').SolverParams>|null|undefined} p */
   setParams(p) {
     if (!p) return;
     if (Number.isFinite(p.iterations)) {
-      const v = Math.max(PARAMS.iterations.min, Math.min(PARAMS.iterations.max, p.iterations));
+      const v = Math.max(PARAMS.iterations.min, Math.min(PARAMS.iterations.max, /** @type {number} finite */ (p.iterations)));
       $('iterations').value = String(v);
       $('iterations-val').textContent = String(p.iterations);
     }
@@ -211,11 +268,16 @@ export class Panel extends PanelReadouts {
     if (p.weights) $('weights').value = p.weights;
   }
 
+  /**
+   * @param {boolean} canUndo
+   * @param {boolean} canRedo
+   */
   setHistory(canUndo, canRedo) {
     $('btn-undo').disabled = !canUndo;
     $('btn-redo').disabled = !canRedo;
   }
 
+  /** @param {boolean} on */
   setEnabled(on) {
     this.enabled = on;
     for (const b of document.querySelectorAll('#panel button, #panel select, #panel input')) {
@@ -260,14 +322,24 @@ export class Panel extends PanelReadouts {
       + 'which takes up to a minute. Editing starts as soon as it is ready.', 'info', 0, 'preparing');
   }
 
-  /** The server speaks another protocol version (a page left open across an upgrade): nothing is sent. */
+  /**
+   * The server speaks another protocol version (a page left open across an upgrade): nothing is sent.
+   * @param {number} ours
+   * @param {number} theirs
+   */
   protocolMismatch(ours, theirs) {
     this.setEnabled(false);
     this.showStatus(`This page speaks version ${ours} of the studio protocol and the server version ${theirs}: `
       + 'reload the page.', 'error', 0, 'connection');
   }
 
-  /** groups: [{id, partner?}] (partner: the id of its mirror partner), active: index, roi/fixed counts. */
+  /**
+   * groups: [{id, partner?}] (partner: the id of its mirror partner), active: index, roi/fixed counts.
+   * @param {import('./selection.js').HandleGroup[]} groups
+   * @param {number} active
+   * @param {ReturnType<import('./selection.js').Selection['counts']>} counts
+   * @param {number} nVertices
+   */
   setGroups(groups, active, counts, nVertices) {
     const ul = $('group-list');
     ul.innerHTML = '';
@@ -293,7 +365,7 @@ export class Panel extends PanelReadouts {
       del.title = 'Remove this group';
       del.textContent = '×';
       del.dataset.testid = `group-delete-${k}`;
-      del.addEventListener('click', (e) => {
+      del.addEventListener('click', (/** @type {Event} */ e) => {
         e.stopPropagation();
         this.actions.removeGroup(k);
       });
