@@ -80,7 +80,7 @@ export class Panel extends PanelReadouts {
     });
     this._segment('tool-seg', 'tool', (v) => actions.setTool(v));
     this._segment('role-seg', 'role', (v) => actions.setRole(v));
-    this._segment('gizmo-seg', 'gizmo', (v) => actions.setGizmoMode(/** @type {'translate'|'rotate'} the buttons' data-gizmo */ (v)));
+    this._segment('gizmo-seg', 'gizmo', (v) => actions.setGizmoMode(/** @type {'translate'|'rotate'} */ (v)));
     this._segment('surface-seg', 'surface', (v) => actions.setSurface(/** @type {'texture'|'colours'|'plain'} */ (v)));
 
     const radius = $('brush-radius');

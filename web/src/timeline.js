@@ -18,16 +18,10 @@ export { frameCount, interpolate, polar, turn } from './keyframes.js';
 /** Most frames an export may have (the server refuses more). */
 export const MAX_EXPORT_FRAMES = 600;
 
-
 export class Timeline {
   /**
-   * @param {object} deps
-   *   blocked() → null when keyframes can be made and played, else why not;
-   *   handleGroups() → the server's handle groups (vertex lists, point handles excluded), in drag order;
-   *   transforms() → the current transform of every server group (handle groups, then point handles);
-   *   matrixOf(g) → the current transform of server group g; positions() → the shown positions;
-   *   drag(transforms) (every server group), endDrag(), send(msg) → bool, download(msg) → text,
-   *   changed() (something to autosave), say(text, kind)
+   * @param {import('./types.js').TimelineDeps} deps what it reads (blocked, handleGroups, transforms, matrixOf,
+   *   positions) and calls (drag, endDrag, send, download, changed, say)
    */
   constructor(deps) {
     this.deps = deps;
@@ -99,7 +93,8 @@ export class Timeline {
     return undefined;
   }
 
-  /** Centroid of a handle group's vertices in the pose its transform applies to. */
+  /** Centroid of a handle group's vertices in the pose its transform applies to.
+   * @param {number[]} indices @param {number} g */
   _pivot(indices, g) {
     const P = this.deps.positions();
     const c = [0, 0, 0];
@@ -111,7 +106,7 @@ export class Timeline {
   /**
    * The constraint set is replaced by one whose pose is the current shape (its transforms back to identity):
    * keyframes follow, each transform composed with the inverse of the current one (`current`: one per server group).
-   */
+   * @param {number[][]} current @param {number} nHandleGroups */
   rebase(current, nHandleGroups) {
     if (!this.keys.length) return;
     if (this.keys[0].transforms.length !== nHandleGroups) {
@@ -128,7 +123,7 @@ export class Timeline {
   /**
    * Keyframes read from a constraints document whose handle groups were just sent with the positions their
    * transforms apply to (`pivots`: per group, the centroid of those positions).
-   */
+   * @param {Keyframe[]} keys @param {number[][]} pivots */
   load(keys, pivots) {
     this.pause();
     const n = pivots.length;
@@ -168,7 +163,9 @@ export class Timeline {
     };
   }
 
-  /** Put back a snapshot once the session it belongs to is restored (its shape is the pose of the new set). */
+  /**
+   * Put back a snapshot once the session it belongs to is restored (its shape is the pose of the new set).
+   * @param {ReturnType<Timeline['snapshot']>|undefined} saved */
   restore(saved) {
     this.pause();
     if (!saved || !Array.isArray(saved.keys)) return;
@@ -183,7 +180,7 @@ export class Timeline {
 
   // ------------------------------------------------------------------ time
 
-  setDuration(seconds) {
+  setDuration(/** @type {number} */ seconds) {
     if (!Number.isFinite(seconds) || seconds <= 0) return this.render();
     const last = this.keys.length ? this.keys[this.keys.length - 1].ms : 0;
     this.durationMs = Math.max(Math.round(seconds * 1000), last, 1);
@@ -192,12 +189,13 @@ export class Timeline {
     return undefined;
   }
 
-  setFps(fps) {
+  setFps(/** @type {number} */ fps) {
     if (Number.isFinite(fps) && fps >= 1 && fps <= 120) this.fps = fps;
     this._changed();
   }
 
-  /** The interpolated transforms of every server group at `ms` (point handles keep theirs), or null. */
+  /** The interpolated transforms of every server group at `ms` (point handles keep theirs), or null.
+   * @param {number} ms */
   transformsAt(ms) {
     if (!this.keys.length || this.deps.blocked()) return null;
     const n = this.keys[0].transforms.length;
@@ -206,7 +204,7 @@ export class Timeline {
     return [...interpolate(this.keys, this.pivots || [], ms / 1000), ...all.slice(n)];
   }
 
-  /** Move the playhead to `ms`; with keyframes, the handles go to their pose there (a drag). */
+  /** Move the playhead to `ms`; with keyframes, the handles go to their pose there (a drag). @param {number} ms */
   seek(ms) {
     this.timeMs = Math.max(0, Math.min(Math.round(ms), this.durationMs));
     const t = this.transformsAt(this.timeMs);
@@ -236,7 +234,7 @@ export class Timeline {
     const loop = Math.floor((this.durationMs / 1000) * this.fps + 1e-9) + 1; // frames of one pass
     const startFrame = Math.round((this.timeMs / 1000) * this.fps) % loop;
     const start = performance.now() - (startFrame / this.fps) * 1000;
-    const tick = (now) => {
+    const tick = (/** @type {number} */ now) => {
       if (!this.playing) return;
       if (this.deps.blocked()) {
         this.pause(); // a drag of the gizmo, a new selection, the connection lost
@@ -264,13 +262,13 @@ export class Timeline {
 
   // ------------------------------------------------------------------ pointer on the bar
 
-  _msAt(e) {
+  _msAt(/** @type {PointerEvent} */ e) {
     const r = this.bar.getBoundingClientRect();
     const x = Math.max(0, Math.min(e.clientX - r.left, r.width));
     return (x / Math.max(r.width, 1)) * this.durationMs;
   }
 
-  _pointerDown(e) {
+  _pointerDown(/** @type {PointerEvent} */ e) {
     if (e.button !== 0 || /** @type {any} */ (this.bar).disabled) return;
     this.pause();
     const marker = /** @type {HTMLElement} */ (e.target).closest?.('.tl-marker');
@@ -283,18 +281,18 @@ export class Timeline {
     this.seek(this._msAt(e));
   }
 
-  _pointerMove(e) {
+  _pointerMove(/** @type {PointerEvent} */ e) {
     if (this.scrubbing) this.seek(this._msAt(e));
   }
 
-  _pointerUp(e) {
+  _pointerUp(/** @type {PointerEvent} */ e) {
     if (!this.scrubbing) return;
     this.scrubbing = false;
     if (this.bar.hasPointerCapture(e.pointerId)) this.bar.releasePointerCapture(e.pointerId);
     this._endMove();
   }
 
-  /** Go to a time (a keyframe's): one drag there, ending at once. */
+  /** Go to a time (a keyframe's): one drag there, ending at once. @param {number} ms */
   goTo(ms) {
     this.pause();
     this.seek(ms);
@@ -360,7 +358,7 @@ export class Timeline {
     return false;
   }
 
-  /** An error answered the export. */
+  /** An error answered the export. @param {string} message */
   failed(message) {
     this.exporting = false;
     this.exportNote = `Export failed: ${message}`;
@@ -375,7 +373,7 @@ export class Timeline {
   }
 
   render() {
-    const pct = (ms) => `${(100 * ms) / Math.max(this.durationMs, 1)}%`;
+    const pct = (/** @type {number} */ ms) => `${(100 * ms) / Math.max(this.durationMs, 1)}%`;
     this.playhead.style.left = pct(this.timeMs);
     this.markers.replaceChildren(...this.keys.map((k, i) => {
       const m = document.createElement('div');
