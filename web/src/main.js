@@ -60,7 +60,7 @@ const sync = new ConstraintSync(selection, {
   requestErrorCleared: () => panel.clearStatus('request'),
 });
 
-const requests = new Requests({
+/** @type {Requests} */ const requests = new Requests({
   mesh, history, sync, conn: () => conn, panel: () => panel, gizmo: () => gizmo, timeline: () => timeline,
   keeper: () => keeper,
 });
@@ -69,7 +69,7 @@ const setBusy = requests.setBusy.bind(requests);
 const showRequestError = requests.showError.bind(requests);
 const stepHistory = requests.stepHistory.bind(requests);
 
-const keeper = new SessionKeeper({
+/** @type {SessionKeeper} */ const keeper = new SessionKeeper({
   mesh,
   history,
   params,
@@ -114,7 +114,7 @@ const shown = new SelectionView({
   viewer, selection, role: () => painting.role, heat, points, gizmo, help, panel: () => panel,
   changed: () => keeper.touch(),
 });
-const loading = new MeshLoading({
+/** @type {MeshLoading} */ const loading = new MeshLoading({
   mesh, diagnostics, conn: () => conn, keeper, panel: () => panel, setBusy,
   notConnected: () => requests.notConnected(),
 });
@@ -138,9 +138,11 @@ const timeline = new Timeline({
   changed: () => keeper.touch(),
   say: (text, kind) => panel.showStatus(text, kind, kind === 'error' ? 8000 : 4000),
 });
+/** @typedef {ReturnType<Timeline['snapshot']>} TimelineSnapshot what the 'timeline' part of a snapshot holds */
 addSnapshotPart('timeline', () => timeline.snapshot());
-let lostTimeline = null; // the keyframes when the connection went away, put back with the session
-onSessionRestored((snap) => timeline.restore(snap.timeline ?? lostTimeline));
+/** @type {TimelineSnapshot} the keyframes when the connection went away, put back with the session */
+let lostTimeline = null;
+onSessionRestored((snap) => timeline.restore(/** @type {TimelineSnapshot|undefined} */ (snap.timeline) ?? lostTimeline));
 
 /** Why the timeline cannot pose the handles now (null: it can). */
 function timelineBlocked() {
@@ -235,7 +237,7 @@ function setSurface(mode) {
   shown.refresh(false);
 }
 
-function applySavedSelection(snap) {
+function applySavedSelection(/** @type {import('./autosave.js').Snapshot} */ snap) {
   selection.fromConstraints({ roi: snap.roi, fixed: snap.fixed, handle_groups: snap.groups, stiffness: snap.stiffness },
     snap.groupPoints);
   selection.activeGroup = Math.max(0, Math.min(snap.activeGroup ?? 0, selection.groups.length - 1));
@@ -245,7 +247,7 @@ function applySavedSelection(snap) {
   gizmo.restorePivots(snap.pivots); // after the new constraint set made the restored shape every group's frame
 }
 
-function setRole(role) {
+function setRole(/** @type {string} */ role) {
   painting.role = role;
   panel.setSegment('role-seg', 'role', role);
   modes.showRole(role);
@@ -260,22 +262,22 @@ function roleControls() {
   modes.enable(panel.enabled);
 }
 
-function setTool(tool) {
+function setTool(/** @type {string} */ tool) {
   tools.setTool(tool);
   panel.setSegment('tool-seg', 'tool', tool);
 }
 
-function setBrushUnits(units) {
+function setBrushUnits(/** @type {string} 'screen' or 'world' */ units) {
   tools.units = units;
   panel.setBrushRadius(units, painting.brush[units]);
 }
 
-function setGizmoMode(mode) {
+function setGizmoMode(/** @type {'translate'|'rotate'} */ mode) {
   gizmo.setMode(mode);
   panel.setSegment('gizmo-seg', 'gizmo', mode);
 }
 
-const panel = new Panel({
+/** @type {Panel} */ const panel = new Panel({
   send,
   loadBuiltin: (name) => loading.builtin(name),
   uploadFile: (file) => loading.upload(file),
@@ -394,4 +396,4 @@ setGizmoMode('translate');
 panel.setBrushRadius('screen', painting.brush.screen);
 shown.updateList();
 conn.connect();
-keeper.offerSaved().catch((err) => panel.showStatus(`Saved sessions cannot be read: ${err.message || err}`, 'error'));
+keeper.offerSaved().catch((/** @type {Error} */ err) => panel.showStatus(`Saved sessions cannot be read: ${err.message || err}`, 'error'));
