@@ -182,15 +182,17 @@ class StudioWidget:
         addressed ``"to"`` ``view`` when it is for that view alone."""
         from arap.server.protocol import decode_binary
 
-        to = {} if view is None else {"to": view}
+        def addressed(content: dict[str, Any]) -> dict[str, Any]:
+            return content if view is None else {**content, "to": view}
+
         if isinstance(reply, dict):
-            self._send_message({**reply, **to}, None)
+            self._send_message(addressed(reply), None)
         elif isinstance(reply, bytes):
             header, payload = decode_binary(reply)
-            self._send_message({**header, **to}, [payload])
+            self._send_message(addressed(header), [payload])
         else:
             header, parts = reply
-            self._send_message({**header, **to}, [parts[0] if len(parts) == 1 else b"".join(parts)])
+            self._send_message(addressed(header), [parts[0] if len(parts) == 1 else b"".join(parts)])
 
     def _receive(self, content: Any, buffers: list[Any] | None) -> None:
         """A custom message from a view: the open message, or a studio request (answered on the worker thread)."""

@@ -39,6 +39,9 @@ export const NONE = 0;
 export const FIXED = 1;
 export const HANDLE0 = 2;
 
+/** The value the stiffness brush paints until one is chosen. */
+const STIFFNESS_BRUSH = 10;
+
 export class Selection {
   // All set again by reset(), which the constructor calls.
   /** @type {number} vertices */
@@ -50,7 +53,7 @@ export class Selection {
   /** @type {Float64Array} */
   stiff = new Float64Array(0);
   /** @type {number} */
-  stiffnessValue = 10;
+  stiffnessValue = STIFFNESS_BRUSH;
   /** @type {HandleGroup[]} */
   groups = [];
   /** @type {number} */
@@ -70,7 +73,7 @@ export class Selection {
     this.roi = new Uint8Array(n);
     this.role = new Int16Array(n);
     this.stiff = new Float64Array(n).fill(1);
-    this.stiffnessValue = 10; // what the stiffness brush paints
+    this.stiffnessValue = STIFFNESS_BRUSH;
     this.groups = [{ id: 1 }];
     this.nextGroupId = 2;
     this.activeGroup = 0;

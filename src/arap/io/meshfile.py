@@ -260,7 +260,7 @@ def load_mesh_bytes_with_report(
         from arap.io.gltf_asset import read_gltf_asset
 
         asset = read_gltf_asset(data, name, Path(folder) if folder is not None else None, max_vertices)
-        V, F, result = _finish(asset.vertices, asset.faces, repair, name)
+        V, F, result = mesh_of_asset(asset, repair=repair, name=name)
         if max_vertices is not None and len(V) > max_vertices:
             raise MeshTooLargeError(f"{name} has {len(V):,} vertices; at most {max_vertices:,} vertices are "
                                     "accepted", len(V), max_vertices)

@@ -19,6 +19,7 @@ from dataclasses import dataclass
 from arap.server.client_messages import Drag, ExportAnimation
 from arap.server.dispatch import Dispatcher, Reply
 from arap.server.errors import RequestError
+from arap.server.frames import decode_binary
 from arap.server.messages import ClientMessage
 from arap.server.replies import _Settle
 
@@ -45,8 +46,6 @@ class _Request:
 
 def reply_type(reply: Reply) -> str:
     """The message type of a reply (a text message, an encoded binary frame, or a header with its payload)."""
-    from arap.server.frames import decode_binary
-
     if isinstance(reply, dict):
         return str(reply["type"])
     if isinstance(reply, bytes):
@@ -133,8 +132,8 @@ class ChannelWorker:
         """Send ``reply`` to ``view``, or to every view when it shows the shared session (unless ``only``) or no view
         asked."""
         try:
-            shared = not only and reply_type(reply) in SHARED_REPLIES
-            self._send(reply, None if view is None or shared else view)
+            shared = view is None or (not only and reply_type(reply) in SHARED_REPLIES)
+            self._send(reply, None if shared else view)
         except Exception:
             logger.exception("could not send a reply")
 
