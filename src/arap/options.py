@@ -18,6 +18,7 @@ from arap.errors import OptionError
 __all__ = [
     "ACCELERATIONS",
     "DEFAULT_ALPHA",
+    "DEFAULT_ELEMENT_ENERGY",
     "DEFAULT_ENERGY",
     "DEFAULT_LBFGS_MEMORY",
     "DEFAULT_TOLERANCE",
@@ -39,12 +40,15 @@ __all__ = [
 ]
 
 # ---------------------------------------------------------------------------------------------- energy and weights
-EnergyType = Literal["spokes", "spokes_and_rims", "smooth_rotations"]
+EnergyType = Literal["spokes", "spokes_and_rims", "smooth_rotations", "elements"]
 ENERGY_TYPES: tuple[str, ...] = get_args(EnergyType)
 """Energy names: the one list the library, the command line, the studio protocol and its client use."""
 DEFAULT_ENERGY: EnergyType = "spokes_and_rims"
 """The default cells: unlike ``spokes`` with cotangent weights, they do not fold meshes with obtuse triangles, and
 their energy is a sum of non-negative per-triangle terms (see ``benchmarks/bench_folds.py``)."""
+DEFAULT_ELEMENT_ENERGY: EnergyType = "elements"
+"""The default cells of planar meshes given with two coordinates and of tetrahedral solids: one rotation per element
+(libigl's ``ARAP_ENERGY_TYPE_ELEMENTS``), the only cells a tetrahedron has."""
 
 WeightType = Literal["cotangent", "clamped", "uniform"]
 WEIGHT_TYPES: tuple[str, ...] = get_args(WeightType)

@@ -45,6 +45,8 @@ class Cells:
         ``w · (V[a] − V[b])``, the weighted rest edge.
     rest_sq : (n,) float64
         ``Σ_terms w ‖V[a] − V[b]‖²`` per cell.
+    planar : bool
+        The mesh lies in ``z = 0`` and every rotation turns about ``z`` (:mod:`arap.method.planar`).
     """
 
     ptr: np.ndarray
@@ -53,6 +55,7 @@ class Cells:
     w: np.ndarray
     we: np.ndarray
     rest_sq: np.ndarray
+    planar: bool = False
 
     @property
     def n_cells(self) -> int:
@@ -63,7 +66,8 @@ class Cells:
         return np.repeat(np.arange(self.n_cells), np.diff(self.ptr))
 
 
-def build_cells(V: np.ndarray, F: np.ndarray, energy: str = DEFAULT_ENERGY, weights: str = DEFAULT_WEIGHTS) -> Cells:
+def build_cells(V: np.ndarray, F: np.ndarray, energy: str = DEFAULT_ENERGY, weights: str = DEFAULT_WEIGHTS,
+                planar: bool = False) -> Cells:
     """Build the cell structure of a mesh.
 
     Parameters
@@ -73,6 +77,8 @@ def build_cells(V: np.ndarray, F: np.ndarray, energy: str = DEFAULT_ENERGY, weig
     energy : {"spokes", "spokes_and_rims", "smooth_rotations"}
         ``smooth_rotations`` uses the spoke cells (its rotation term lives in :mod:`arap.method.smooth`).
     weights : {"cotangent", "clamped", "uniform"}
+    planar : bool
+        The mesh lies in ``z = 0``: its rotations turn about ``z``.
 
     Returns
     -------
@@ -82,20 +88,20 @@ def build_cells(V: np.ndarray, F: np.ndarray, energy: str = DEFAULT_ENERGY, weig
     n = len(V)
     F = np.asarray(F, dtype=np.int64)
     if energy in ("spokes", "smooth_rotations"):  # SR-ARAP adds a rotation term to the spoke cells
-        return _spoke_cells(V, F, weights)
+        return _spoke_cells(V, F, weights, planar)
     cw = np.ascontiguousarray(corner_weights(V, F, weights), dtype=np.float64)
     ptr, a, b, w = _rim_cells_kernel(np.ascontiguousarray(F), cw, n)
-    return _finish(V, ptr, a, b, w)
+    return finish_cells(V, ptr, a, b, w, planar)
 
 
-def _spoke_cells(V: np.ndarray, F: np.ndarray, weights: str) -> Cells:
+def _spoke_cells(V: np.ndarray, F: np.ndarray, weights: str, planar: bool) -> Cells:
     """Spoke cells are the rows of the edge-weight matrix: cell ``i`` holds ``(i, j, W[i, j])``."""
     W = edge_weight_matrix(V, F, weights)
     W.sort_indices()
     n = len(V)
     ptr = W.indptr.astype(np.int64)
     cell = np.repeat(np.arange(n, dtype=np.int64), np.diff(ptr))
-    return _finish(V, ptr, cell, W.indices, W.data)
+    return finish_cells(V, ptr, cell, W.indices, W.data, planar)
 
 
 @nb.njit(cache=True, nogil=True)
@@ -216,12 +222,26 @@ def _sort_pairs(first, second, val, lo, hi, by_first):  # pragma: no cover - com
         val[q + 1] = v
 
 
-def _finish(V: np.ndarray, ptr: np.ndarray, a: np.ndarray, b: np.ndarray, w: np.ndarray) -> Cells:
+def finish_cells(V: np.ndarray, ptr: np.ndarray, a: np.ndarray, b: np.ndarray, w: np.ndarray,
+                 planar: bool = False) -> Cells:
+    """Cells from their terms: the weighted rest edges and rest sums computed, the arrays in the kernels' types.
+
+    Parameters
+    ----------
+    V : (n, 3) float array
+        Rest positions.
+    ptr : (c+1,) int64 array
+        Terms of cell ``c`` are ``ptr[c]:ptr[c+1]``.
+    a, b : (t,) int arrays
+    w : (t,) float array
+    planar : bool
+        See :class:`Cells`.
+    """
     a = np.ascontiguousarray(a, dtype=np.int32)
     b = np.ascontiguousarray(b, dtype=np.int32)
     w = np.ascontiguousarray(w, dtype=np.float64)
     we, rest_sq = _rest_edges(np.ascontiguousarray(V, dtype=np.float64), ptr, a, b, w)
-    return Cells(ptr=ptr, a=a, b=b, w=w, we=we, rest_sq=rest_sq)
+    return Cells(ptr=ptr, a=a, b=b, w=w, we=we, rest_sq=rest_sq, planar=planar)
 
 
 @nb.njit(cache=True, nogil=True)

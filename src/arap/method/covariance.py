@@ -19,6 +19,7 @@ import scipy.sparse as sp
 
 from arap.method._parallel import policy
 from arap.method.cells import Cells, RhsGather
+from arap.method.planar import planar_local_parallel, planar_local_serial
 from arap.method.rotations import BLOCK, ROW_TRACE, SCRATCH_ROWS, put_covariance, rotations_block, take_rotation
 from arap.sparse._csr import row_times
 
@@ -176,10 +177,10 @@ def local_step(cells: Cells, cell_ids: np.ndarray, U: np.ndarray, R: np.ndarray,
         Cells to process.
     U : (n, 3) float64 array
         Deformed positions.
-    R : (n, 3, 3) float64 array
+    R : (c, 3, 3) float64 array
         In: the previous rotations (any values; finite ones close to the optimum speed up the fit). Out: ``R[c]``
-        maximises ``tr(R S_c)`` over rotations.
-    E : (n,) float64 array
+        maximises ``tr(R S_c)`` over rotations (about ``z`` for planar cells).
+    E : (c,) float64 array
         Output: ``E[c] = Σ w ‖e' − R_c e‖²``, the cell's energy with its optimal rotation.
 
     Returns
@@ -188,6 +189,9 @@ def local_step(cells: Cells, cell_ids: np.ndarray, U: np.ndarray, R: np.ndarray,
         ``Σ E[c]`` over ``cell_ids``, summed in an order that does not depend on the thread count.
     """
     args = (cell_ids, cells.ptr, cells.a, cells.b, cells.w, cells.we, cells.rest_sq, U, R, E)
+    if cells.planar:  # rotations about z (arap.method.planar)
+        return float(policy.run("local", _local_work(cells, cell_ids), lambda: planar_local_serial(*args),
+                                lambda: planar_local_parallel(*args)))
     return float(policy.run("local", _local_work(cells, cell_ids), lambda: _local_serial(*args),
                             lambda: _local_parallel(*args)))
 

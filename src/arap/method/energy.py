@@ -8,15 +8,18 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from arap.errors import ArapError
-from arap.meshes.mesh import MeshLike, check_mesh, is_mesh_like, mesh_arrays
-from arap.method.cells import Cells, build_cells
+from arap.meshes.domain import Domain, check_domain
+from arap.meshes.mesh import MeshLike
+from arap.method.assembly import assemble, check_energy_for
+from arap.method.cells import Cells
 from arap.method.covariance import local_step
-from arap.method.rigid import RigidRegions, rigid_regions
+from arap.method.rigid import RigidRegions
 from arap.method.rotations import identity_rotations
 from arap.method.smooth import SmoothRotations
-from arap.method.stiffness import check_stiffness, scale_cells
+from arap.method.stiffness import check_stiffness
 from arap.options import (
     DEFAULT_ALPHA,
+    DEFAULT_ELEMENT_ENERGY,
     DEFAULT_ENERGY,
     DEFAULT_WEIGHTS,
     EnergyType,
@@ -29,19 +32,27 @@ from arap.solve.start import vertex_areas
 __all__ = ["arap_energy", "cell_distortion", "cell_energies", "distortion_from_cells"]
 
 
-def _inputs(V: Any, F: Any, U: Any) -> tuple[NDArray[np.float64], NDArray[np.int64], NDArray[np.float64]]:
-    """Rest mesh and deformed positions from arrays or mesh objects (``f(mesh, U)`` leaves out ``F``)."""
-    if U is None and is_mesh_like(V) and F is not None:
+def _inputs(V: Any, F: Any, U: Any, energy: EnergyType | None) -> tuple[Domain, NDArray[np.float64], EnergyType]:
+    """Rest mesh, deformed positions (in the solver's coordinates) and the energy (None: the mesh's default) from
+    arrays or mesh objects (``f(mesh, U)`` leaves out ``F``)."""
+    if U is None and not isinstance(V, np.ndarray | list | tuple) and F is not None:
         F, U = None, F
     if U is None:
         raise ArapError("U (the deformed positions) is missing")
-    V, F = check_mesh(*mesh_arrays(V, F))
-    U = np.ascontiguousarray(U.vertices if is_mesh_like(U) else U, dtype=np.float64)
-    if U.shape != V.shape:
-        raise ArapError(f"U must have the shape of V {V.shape}, got {U.shape}")
-    if not np.isfinite(U).all():
+    domain = check_domain(V, F, elements=energy == "elements")
+    if energy is None:
+        energy = DEFAULT_ELEMENT_ENERGY if domain.kind in ("planar", "solid") else DEFAULT_ENERGY
+    check_energy_for(energy, domain.kind)
+    raw = getattr(U, "vertices", None)
+    if raw is None:
+        raw = getattr(U, "points", U)  # a mesh object: trimesh's vertices, meshio's and pyvista's points
+    X = np.ascontiguousarray(raw, dtype=np.float64)
+    shape = (len(domain.V), domain.columns)
+    if X.shape != shape:
+        raise ArapError(f"U must have the shape of V {shape}, got {X.shape}")
+    if not np.isfinite(X).all():
         raise ArapError("U has non-finite coordinates")
-    return V, F, U
+    return domain, domain.lift(X, "U", ArapError), energy
 
 
 ROUNDS = 1000
@@ -85,7 +96,7 @@ def cell_energies(
     V: NDArray[np.floating] | MeshLike,
     F: NDArray[np.integer] | None = None,
     U: NDArray[np.floating] | MeshLike | None = None,
-    energy: EnergyType = DEFAULT_ENERGY,
+    energy: EnergyType | None = None,
     weights: WeightType = DEFAULT_WEIGHTS,
     stiffness: ArrayLike | None = None,
     alpha: float = DEFAULT_ALPHA,
@@ -100,9 +111,10 @@ def cell_energies(
     F : (m, 3) int array
     U : (n, 3) float array or MeshLike
         Deformed positions (or a mesh object holding them).
-    energy : {"spokes_and_rims", "spokes"}
-        Cell definition: spokes and rims (Chao et al. 2010, the default) or the paper's one-ring spokes (Sorkine &
-        Alexa 2007).
+    energy : {"spokes_and_rims", "spokes", "smooth_rotations", "elements"} or None
+        Cell definition: spokes and rims (Chao et al. 2010, the default for surfaces), the paper's one-ring spokes
+        (Sorkine & Alexa 2007), or one cell per triangle or tetrahedron (``elements``, the default for planar meshes
+        given with two coordinates and for tetrahedra; see :mod:`arap.method.elements`). None: the mesh's default.
     weights : {"cotangent", "clamped", "uniform"}
     stiffness : (n,) array of float or None
         Cell weights ``w_i`` (see :class:`arap.ArapSolver`): each cell's energy is multiplied by its weight, and
@@ -113,8 +125,9 @@ def cell_energies(
 
     Returns
     -------
-    (n,) float64 array
-        ``E_i = w_i min_R Σ w ‖(p'_a − p'_b) − R (p_a − p_b)‖²`` over the cell's terms.
+    (n,) float64 array, or (m,) for ``elements``
+        ``E_i = w_i min_R Σ w ‖(p'_a − p'_b) − R (p_a − p_b)‖²`` over the cell's terms: one per vertex, or one per
+        element in the order of ``F``.
 
     Raises
     ------
@@ -135,23 +148,23 @@ def cell_energies(
     return _cells_and_energies(V, F, U, energy, weights, stiffness, alpha)[1]
 
 
-def _cells_and_energies(V: Any, F: Any, U: Any, energy: EnergyType, weights: WeightType, stiffness: ArrayLike | None,
-                        alpha: float) -> tuple[Cells, NDArray[np.float64]]:
+def _cells_and_energies(V: Any, F: Any, U: Any, energy: EnergyType | None, weights: WeightType,
+                        stiffness: ArrayLike | None, alpha: float) -> tuple[Cells, NDArray[np.float64]]:
     """The (unscaled) cells of the rest mesh and :func:`cell_energies` of ``U``."""
-    check_energy_and_weights(energy, weights)
-    Vc, Fc, Uc = _inputs(V, F, U)
+    check_energy_and_weights(DEFAULT_ENERGY if energy is None else energy, weights)
+    domain, Uc, energy = _inputs(V, F, U, energy)
+    Vc, Fc = domain.V, domain.elements
     scale, rigid = (None, None) if stiffness is None else check_stiffness(stiffness, len(Vc))
-    rest = build_cells(Vc, Fc, energy, weights)
-    pair_weights = np.maximum(rest.w, 0.0)  # the rotation term of smooth_rotations: not scaled by stiffness
-    cells = rest if scale is None else scale_cells(rest, scale)
-    n = len(Vc)
-    E = np.empty(n)
-    R = identity_rotations(n)
-    local_step(cells, np.arange(n), Uc, R, E)
+    assembly = assemble(Vc, Fc, domain.graph_faces, energy, weights, domain.planar, scale, rigid)
+    rest, cells = assembly.rest, assembly.cells
+    nc = cells.n_cells
+    E = np.empty(nc)
+    R = identity_rotations(nc)
+    local_step(cells, np.arange(nc), Uc, R, E)
     if energy == "smooth_rotations":
-        _settle_rotations(cells, Vc, Fc, Uc, R, E, alpha, pair_weights)
-    if rigid is not None and rigid.any():
-        RigidRegions(cells, rigid_regions(Fc, rigid), np.arange(n)).share(Uc, R, E)
+        _settle_rotations(cells, Vc, Fc, Uc, R, E, alpha, np.maximum(rest.w, 0.0))
+    if assembly.region is not None:
+        RigidRegions(cells, assembly.region, np.arange(nc)).share(Uc, R, E)
     return rest, E
 
 
@@ -159,7 +172,7 @@ def cell_distortion(
     V: NDArray[np.floating] | MeshLike,
     F: NDArray[np.integer] | None = None,
     U: NDArray[np.floating] | MeshLike | None = None,
-    energy: EnergyType = DEFAULT_ENERGY,
+    energy: EnergyType | None = None,
     weights: WeightType = DEFAULT_WEIGHTS,
     stiffness: ArrayLike | None = None,
     alpha: float = DEFAULT_ALPHA,
@@ -178,7 +191,8 @@ def cell_distortion(
     F : (m, 3) int array
     U : (n, 3) float array or MeshLike
         Deformed positions.
-    energy : {"spokes_and_rims", "spokes", "smooth_rotations"}
+    energy : {"spokes_and_rims", "spokes", "smooth_rotations", "elements"} or None
+        See :func:`cell_energies`.
     weights : {"cotangent", "clamped", "uniform"}
     stiffness : (n,) array of float or None
         Cell weights (see :func:`cell_energies`); they scale the energy, not the rest size.
@@ -187,7 +201,7 @@ def cell_distortion(
 
     Returns
     -------
-    (n,) float64 array
+    (n,) float64 array, or (m,) for ``elements``
 
     Raises
     ------
@@ -247,7 +261,7 @@ def arap_energy(
     V: NDArray[np.floating] | MeshLike,
     F: NDArray[np.integer] | None = None,
     U: NDArray[np.floating] | MeshLike | None = None,
-    energy: EnergyType = DEFAULT_ENERGY,
+    energy: EnergyType | None = None,
     weights: WeightType = DEFAULT_WEIGHTS,
     stiffness: ArrayLike | None = None,
     alpha: float = DEFAULT_ALPHA,
@@ -267,7 +281,8 @@ def arap_energy(
     F : (m, 3) int array
     U : (n, 3) float array or MeshLike
         Deformed positions.
-    energy : {"spokes_and_rims", "spokes"}
+    energy : {"spokes_and_rims", "spokes", "smooth_rotations", "elements"} or None
+        See :func:`cell_energies`.
     weights : {"cotangent", "clamped", "uniform"}
     stiffness : (n,) array of float or None
         Cell weights (see :func:`cell_energies`).

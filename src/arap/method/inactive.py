@@ -53,9 +53,10 @@ class InactiveCells:
     def __init__(self, cells: Cells, active: NDArray[np.integer], constrained: NDArray[np.integer],
                  V: NDArray[np.float64]) -> None:
         n = len(V)
+        nc = cells.n_cells
         self._cells = cells
         self._constrained = constrained
-        is_active = np.zeros(n, dtype=bool)
+        is_active = np.zeros(nc, dtype=bool)
         is_active[active] = True
         counts = np.diff(cells.ptr)
         self._inactive = np.flatnonzero(~is_active)
@@ -63,13 +64,14 @@ class InactiveCells:
         self._term_cell = np.repeat(self._inactive, counts[self._inactive])
         self._a = cells.a[terms]
         self._b = cells.b[terms]
-        self._R = identity_rotations(n)  # the rest pose's rotations: where later fits start
-        self._E = np.zeros(n)  # energy of every inactive cell at the cached targets
+        self._R = identity_rotations(nc)  # the rest pose's rotations: where later fits start
+        self._E = np.zeros(nc)  # energy of every inactive cell at the cached targets
         if len(self._inactive):
             local_step(cells, self._inactive, V, self._R, self._E)
         box = bounding_box(V) if n else np.zeros((2, 3))
         self._tolerance = RIGID_TOLERANCE * float(np.linalg.norm(box[1] - box[0]))
         self._n = n
+        self._nc = nc
         self._targets = V[constrained].copy()
         self._value = float(self._E[self._inactive].sum())
         self._sets: tuple[NDArray[np.bool_], NDArray[np.int64], NDArray[np.int64]] | None = None
@@ -114,9 +116,9 @@ class InactiveCells:
         moved = np.zeros(self._n, dtype=bool)
         moved[self._constrained[changed]] = True
         moved_a, moved_b = moved[self._a], moved[self._b]
-        is_touched = np.zeros(self._n, dtype=bool)
+        is_touched = np.zeros(self._nc, dtype=bool)
         is_touched[self._term_cell[moved_a | moved_b]] = True
-        is_mixed = np.zeros(self._n, dtype=bool)
+        is_mixed = np.zeros(self._nc, dtype=bool)
         is_mixed[self._term_cell[~(moved_a & moved_b)]] = True
         touched = np.flatnonzero(is_touched)
         mixed = np.flatnonzero(is_touched & is_mixed)

@@ -64,18 +64,22 @@ class PointConstraints:
         return np.einsum("pc,pcx->px", self.barycentric, V[F[self.faces]])
 
 
-def check_points(faces: object, barycentric: object, weights: object, n_faces: int) -> PointConstraints:
+def check_points(faces: object, barycentric: object, weights: object, n_faces: int,
+                 corners: int = 3) -> PointConstraints:
     """Validate point constraints.
 
     Parameters
     ----------
     faces : (p,) sequence of int
         Triangle indices.
-    barycentric : (p, 3) array-like of float
+    barycentric : (p, corners) array-like of float
         Barycentric coordinates, each ``≥ 0`` and summing to 1 (within :data:`BARYCENTRIC_TOLERANCE`).
     weights : (p,) array-like of float, or None
         ``inf`` (hard) or a positive weight per point; None: all hard.
     n_faces : int
+        Number of triangles (or tetrahedra).
+    corners : int
+        3 for points in triangles, 4 for points in tetrahedra.
 
     Returns
     -------
@@ -101,11 +105,12 @@ def check_points(faces: object, barycentric: object, weights: object, n_faces: i
         raise ConstraintError(f"point face {int(f[out][0])} out of range 0..{n_faces - 1}")
     f = f.astype(np.int64)
     try:
-        b = np.array(barycentric, dtype=np.float64).reshape(-1, 3) if len(f) else np.zeros((0, 3))
+        b = np.array(barycentric, dtype=np.float64).reshape(-1, corners) if len(f) else np.zeros((0, corners))
     except (TypeError, ValueError) as exc:
-        raise ConstraintError(f"barycentric coordinates must be {len(f)} triples of numbers ({exc})") from exc
-    if b.shape != (len(f), 3):
-        raise ConstraintError(f"barycentric coordinates must have shape ({len(f)}, 3), got {b.shape}")
+        raise ConstraintError(f"barycentric coordinates must be {len(f)} {'triples' if corners == 3 else 'quadruples'}"
+                              f" of numbers ({exc})") from exc
+    if b.shape != (len(f), corners):
+        raise ConstraintError(f"barycentric coordinates must have shape ({len(f)}, {corners}), got {b.shape}")
     if not np.isfinite(b).all():
         raise ConstraintError("barycentric coordinates must be finite")
     if (b < -BARYCENTRIC_TOLERANCE).any() or (np.abs(b.sum(axis=1) - 1.0) > BARYCENTRIC_TOLERANCE).any():
@@ -133,8 +138,8 @@ class PointSystem:
     Parameters
     ----------
     points : PointConstraints
-    corners : (p, 3) int array
-        The corner vertices of each point's triangle, in the solver's internal numbering.
+    corners : (p, 3) or (p, 4) int array
+        The corner vertices of each point's triangle (or tetrahedron), in the solver's internal numbering.
     n_free : int
         Free vertices: internal indices ``0..n_free-1``; the others are non-free (fixed values).
     mu : float
@@ -143,7 +148,7 @@ class PointSystem:
 
     def __init__(self, points: PointConstraints, corners: NDArray[np.int64], n_free: int, n: int, mu: float) -> None:
         p = len(points)
-        rows = np.repeat(np.arange(p), 3)
+        rows = np.repeat(np.arange(p), corners.shape[1] if corners.ndim == 2 else 3)
         C = sp.csr_matrix((points.barycentric.ravel(), (rows, corners.ravel())), shape=(p, n))
         self.C_free = C[:, :n_free].tocsr()
         self.C_known = C[:, n_free:].tocsr()

@@ -17,6 +17,7 @@ from numpy.typing import NDArray
 from scipy.sparse.csgraph import connected_components
 
 from arap.method.cells import Cells
+from arap.method.planar import planar_rotations
 from arap.method.rotations import fit_rotations
 
 __all__ = ["RIGID_TOLERANCE", "RigidRegions", "rigid_regions"]
@@ -115,6 +116,7 @@ class RigidRegions:
         self._e = np.zeros_like(self._we)  # rest edge vectors, for energies without cancellation
         self._e[nonzero] = self._we[nonzero] / self._w[nonzero, None]
         self._n = cells.n_cells
+        self._planar = cells.planar
 
     def share(self, U: NDArray[np.float64], R: NDArray[np.float64], E: NDArray[np.float64]) -> float:
         """Give every cell of a region the region's best rotation, after a local step fitted each on its own.
@@ -138,7 +140,7 @@ class RigidRegions:
             return 0.0
         S = np.zeros((self.n_regions, 3, 3))
         _region_covariances(self._a, self._b, self._we, self._term_region, U, S)
-        shared = fit_rotations(S)
+        shared = planar_rotations(S) if self._planar else fit_rotations(S)
         # Σ w ‖e' − R e‖² term by term: the expanded form the local step uses would lose the small residuals of
         # rigid cells to cancellation between their large weighted terms.
         before = float(E[self.cells].sum())

@@ -11,7 +11,8 @@ from numpy.typing import NDArray
 from arap.errors import ArapError, ConstraintError, OptionError
 from arap.method.cells import Cells
 
-__all__ = ["MAX_STIFFNESS", "RIGID_STIFFNESS", "check_stiffness", "scale_cells", "singular_system_error"]
+__all__ = ["MAX_STIFFNESS", "RIGID_STIFFNESS", "check_stiffness", "element_stiffness", "scale_cells",
+           "singular_system_error"]
 
 MAX_STIFFNESS = 1e6
 """Largest finite stiffness. Stiffer cells turn ever more slowly in the alternating iteration (a band of the cactus:
@@ -95,8 +96,8 @@ def scale_cells(cells: Cells, stiffness: NDArray[np.float64]) -> Cells:
     Parameters
     ----------
     cells : Cells
-    stiffness : (n,) float64 array
-        Validated weights (see :func:`check_stiffness`).
+    stiffness : (c,) float64 array
+        Validated weights of the cells (see :func:`check_stiffness`, and :func:`cell_stiffness` for element cells).
 
     Returns
     -------
@@ -105,4 +106,42 @@ def scale_cells(cells: Cells, stiffness: NDArray[np.float64]) -> Cells:
     """
     per_term = stiffness[cells.cell_of_term()]
     return Cells(ptr=cells.ptr, a=cells.a, b=cells.b, w=cells.w * per_term, we=cells.we * per_term[:, None],
-                 rest_sq=cells.rest_sq * stiffness)
+                 rest_sq=cells.rest_sq * stiffness, planar=cells.planar)
+
+
+def element_stiffness(T: NDArray[np.int64], weights: NDArray[np.float64],
+                      rigid: NDArray[np.bool_]) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
+    """Per-vertex stiffness (:func:`check_stiffness`'s output) as the weights of element cells.
+
+    An element is rigid when all its vertices are; the others weigh the mean of their vertices' finite weights (a
+    rigid corner does not stiffen the elements that merely touch a rigid part).
+
+    Parameters
+    ----------
+    T : (m, k) int array
+        Elements (triangles or tetrahedra).
+    weights : (n,) float64 array
+    rigid : (n,) bool array
+
+    Returns
+    -------
+    weights : (m,) float64 array
+    rigid : (m,) bool array
+
+    Example
+    -------
+    >>> w, r = check_stiffness([1.0, 3.0, np.inf, np.inf, np.inf], 5)
+    >>> ew, er = element_stiffness(np.array([[0, 1, 2], [1, 2, 3], [2, 3, 4]]), w, r)
+    >>> ew[:2].tolist(), er.tolist()
+    ([2.0, 3.0], [False, False, True])
+    """
+    corner_rigid = rigid[T]
+    element_rigid: NDArray[np.bool_] = np.asarray(corner_rigid.all(axis=1), dtype=bool)
+    finite = np.where(corner_rigid, 0.0, weights[T])
+    count = (~corner_rigid).sum(axis=1)
+    out = np.empty(len(T))
+    soft = ~element_rigid
+    out[soft] = finite[soft].sum(axis=1) / count[soft]
+    if element_rigid.any():
+        out[element_rigid] = float(weights[rigid].max())
+    return out, element_rigid

@@ -55,6 +55,7 @@ class LocalState:
 
     @classmethod
     def empty(cls, n: int) -> LocalState:
+        """The state of ``n`` cells before any fit."""
         return cls(R=identity_rotations(n), E=np.zeros(n), term=np.zeros(n))
 
 
@@ -96,7 +97,7 @@ class PlainFit(RotationFit):
         return local_step(self.cells, self.active, U, state.R, state.E)
 
     def fit_all(self, U: Array, R: Array, E: Array) -> None:
-        local_step(self.cells, np.arange(len(U)), U, R, E)
+        local_step(self.cells, np.arange(self.cells.n_cells), U, R, E)
 
 
 class SmoothFit(RotationFit):

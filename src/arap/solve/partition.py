@@ -107,26 +107,28 @@ def _floats(value: object, name: str, expected: str, error: type[ArapError]) -> 
     return raw.astype(np.float64, copy=False)
 
 
-def check_targets(targets: object, k: int) -> NDArray[np.float64]:
-    """Targets of ``k`` constrained vertices as a (k, 3) float64 array; raises ConstraintError otherwise."""
-    T = _floats(targets, "targets", f"({k}, 3) floats, one row per constrained vertex", ConstraintError)
-    if T.shape != (k, 3):
-        raise ConstraintError(f"targets must have shape ({k}, 3), one row per constrained vertex; got {T.shape}")
+def check_targets(targets: object, k: int, columns: int = 3) -> NDArray[np.float64]:
+    """Targets of ``k`` constrained vertices as a (k, columns) float64 array; raises ConstraintError otherwise."""
+    T = _floats(targets, "targets", f"({k}, {columns}) floats, one row per constrained vertex", ConstraintError)
+    if T.shape != (k, columns):
+        raise ConstraintError(f"targets must have shape ({k}, {columns}), one row per constrained vertex; "
+                              f"got {T.shape}")
     if not np.all(np.isfinite(T)):
         bad = int(np.flatnonzero(~np.all(np.isfinite(T), axis=1))[0])
         raise ConstraintError(f"targets must be finite; row {bad} is {T[bad].tolist()}")
     return T
 
 
-def check_point_targets(point_targets: object, p: int) -> NDArray[np.float64] | None:
-    """Targets of ``p`` point constraints, shape (p, 3); required exactly when there are point constraints."""
+def check_point_targets(point_targets: object, p: int, columns: int = 3) -> NDArray[np.float64] | None:
+    """Targets of ``p`` point constraints, shape (p, columns); required exactly when there are point constraints."""
     if point_targets is None:
         if p:
             raise ConstraintError(f"point_targets is missing: the solver has {p} point constraints")
         return None
-    P = _floats(point_targets, "point_targets", f"({p}, 3) floats, one row per point constraint", ConstraintError)
-    if P.shape != (p, 3):
-        raise ConstraintError(f"point_targets must have shape ({p}, 3), got {P.shape}")
+    P = _floats(point_targets, "point_targets", f"({p}, {columns}) floats, one row per point constraint",
+                ConstraintError)
+    if P.shape != (p, columns):
+        raise ConstraintError(f"point_targets must have shape ({p}, {columns}), got {P.shape}")
     if not np.isfinite(P).all():
         raise ConstraintError("point_targets must be finite")
     return P
@@ -166,11 +168,12 @@ def check_reach(bounds: NDArray[np.float64], X: NDArray[np.float64], what: str =
         raise ConstraintError(f"the {what} lie too far from the mesh: with them, {problem}")
 
 
-def check_positions(U: object, n: int, name: str) -> NDArray[np.float64]:
-    """Positions of all ``n`` vertices as an (n, 3) float64 array; raises ArapError (naming ``name``) otherwise."""
-    X = _floats(U, name, f"({n}, 3) floats, one row per vertex", ArapError)
-    if X.shape != (n, 3):
-        raise ArapError(f"{name} must have shape ({n}, 3), got {X.shape}")
+def check_positions(U: object, n: int, name: str, columns: int = 3) -> NDArray[np.float64]:
+    """Positions of all ``n`` vertices as an (n, columns) float64 array; raises ArapError (naming ``name``)
+    otherwise."""
+    X = _floats(U, name, f"({n}, {columns}) floats, one row per vertex", ArapError)
+    if X.shape != (n, columns):
+        raise ArapError(f"{name} must have shape ({n}, {columns}), got {X.shape}")
     if not np.all(np.isfinite(X)):
         raise ArapError(f"{name} has non-finite coordinates")
     return X

@@ -15,18 +15,22 @@ import numpy as np
 import scipy.sparse as sp
 from numpy.typing import ArrayLike, NDArray
 
-from arap.errors import ConstraintError
-from arap.meshes.mesh import MeshLike, bounding_box, check_mesh, is_mesh_like, mesh_arrays
+from arap.errors import ArapError, ConstraintError
+from arap.meshes.domain import Domain, check_domain
+from arap.meshes.mesh import MeshLike, bounding_box
 from arap.meshes.topology import locality_order, vertex_adjacency
-from arap.method.cells import Cells, RhsGather, build_cells, build_rhs_gather, system_matrix
+from arap.method.assembly import assemble, check_energy_for
+from arap.method.cells import Cells, RhsGather, build_rhs_gather, system_matrix
 from arap.method.colouring import colour_order
+from arap.method.elements import vertex_measures
 from arap.method.inactive import InactiveCells
 from arap.method.points import PointConstraints, PointSystem, check_points
-from arap.method.rigid import RigidRegions, rigid_regions
+from arap.method.rigid import RigidRegions
 from arap.method.smooth import SmoothRotations
-from arap.method.stiffness import check_stiffness, scale_cells, singular_system_error
+from arap.method.stiffness import check_stiffness, singular_system_error
 from arap.options import (
     DEFAULT_ALPHA,
+    DEFAULT_ELEMENT_ENERGY,
     DEFAULT_ENERGY,
     DEFAULT_WEIGHTS,
     EnergyType,
@@ -86,7 +90,10 @@ class Prepared:
     Attributes
     ----------
     V, F : arrays
-        The checked rest positions (n, 3) and triangles (m, 3), caller's numbering.
+        The checked rest positions (n, 3), or (n, 2) for a planar mesh given so, and the triangles (m, 3) or
+        tetrahedra (m, 4), caller's numbering.
+    domain : Domain
+        The kind of mesh and its positions in the solver's coordinates (:mod:`arap.meshes.domain`).
     energy_type, weight_type : str
         The energy and the edge weights (see :mod:`arap.options`).
     alpha : float
@@ -109,7 +116,10 @@ class Prepared:
     areas : (n,) float array
         Vertex areas (the rigid start's weights).
     cells : Cells
-        The energy's terms (scaled by ``stiffness``).
+        The energy's terms (scaled by ``stiffness``): one cell per vertex, or per element for ``elements``.
+    cell_order : (c,) int array or None
+        Element cells: the element (caller's index) behind each cell; None for vertex cells (cell ``c`` is internal
+        vertex ``c``).
     non_negative : bool
         Every cell's energy is a sum of non-negative terms.
     matrix : csr_matrix
@@ -134,6 +144,7 @@ class Prepared:
 
     V: NDArray[np.float64]
     F: NDArray[np.int64]
+    domain: Domain
     energy_type: EnergyType
     weight_type: WeightType
     alpha: float
@@ -151,6 +162,7 @@ class Prepared:
     rest: NDArray[np.float64]
     areas: NDArray[np.float64]
     cells: Cells
+    cell_order: NDArray[np.int64] | None
     non_negative: bool
     matrix: sp.csr_matrix
     L_fn: sp.csr_matrix
@@ -187,31 +199,56 @@ class Prepared:
         return X - self.origin if self.origin.any() else X
 
     def to_caller(self, U: NDArray[np.float64]) -> NDArray[np.float64]:
-        """Internal positions (internal order, relative to the origin) as the caller's: a new array."""
-        return rows_of(U, self.numbering.inv, self.origin)
+        """Internal positions (internal order, relative to the origin) as the caller's (caller's order and
+        coordinates): a new array."""
+        return self.domain.drop(rows_of(U, self.numbering.inv, self.origin))
+
+    def cells_to_caller(self, R: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Per-cell rows (rotations, energies) in the caller's order: of vertices, or of elements."""
+        if self.cell_order is None:
+            return R[self.numbering.inv]
+        out = np.empty_like(R)
+        out[self.cell_order] = R
+        return out
+
+    def cells_to_internal(self, R: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Per-cell rows given in the caller's order, in the cells' order."""
+        if self.cell_order is None:
+            return self.to_internal(R)
+        return np.ascontiguousarray(R[self.cell_order])
+
+    @property
+    def columns(self) -> int:
+        """Coordinates per vertex in the caller's arrays (2 for a planar mesh given with two)."""
+        return self.domain.columns
 
     def check_positions(self, U: object, name: str) -> NDArray[np.float64]:
         """Checked positions (n, 3), relative to the solver's origin."""
-        return self.relative(check_positions(U, self.n, name))
+        X = self.domain.lift(check_positions(U, self.n, name, self.columns), name, ArapError)
+        return self.relative(X)
 
     def check_targets(self, targets: object) -> NDArray[np.float64]:
         """Checked targets, relative to the solver's origin."""
-        T = check_targets(targets, len(self.constrained))
+        T = self.domain.lift(check_targets(targets, len(self.constrained), self.columns), "targets",
+                             ConstraintError)
         check_reach(self.bounds, T)
         return self.relative(T)
 
     def check_point_targets(self, point_targets: object) -> NDArray[np.float64] | None:
         """Checked point-handle targets (or None), relative to the solver's origin."""
-        P = check_point_targets(point_targets, 0 if self.points is None else len(self.points))
-        if P is not None:
-            check_reach(self.bounds, P, "point targets")
-        return None if P is None else self.relative(P)
+        P = check_point_targets(point_targets, 0 if self.points is None else len(self.points), self.columns)
+        if P is None:
+            return None
+        P = self.domain.lift(P, "point targets", ConstraintError)
+        check_reach(self.bounds, P, "point targets")
+        return self.relative(P)
 
 
 @dataclass(frozen=True, eq=False)
 class _Input:
     V: NDArray[np.float64]
-    F: NDArray[np.int64]
+    domain: Domain
+    energy: EnergyType
     constrained: NDArray[np.int64]
     roi: NDArray[np.int64] | None
     stiffness: NDArray[np.float64] | None
@@ -221,18 +258,22 @@ class _Input:
 
 
 def _check_input(V: NDArray[np.floating] | MeshLike, F: NDArray[np.integer] | None,
-                 constrained: NDArray[np.integer] | list[int] | None, energy: EnergyType, weights: WeightType,
+                 constrained: NDArray[np.integer] | list[int] | None, energy: EnergyType | None, weights: WeightType,
                  roi: NDArray[np.integer] | list[int] | None, stiffness: ArrayLike | None, alpha: float,
                  points: Points | None) -> _Input:
     """Step 1: check the mesh, the constraint set and the options."""
-    check_energy_and_weights(energy, weights)
+    check_energy_and_weights(DEFAULT_ENERGY if energy is None else energy, weights)
     alpha = check_alpha(alpha)
-    if constrained is None and is_mesh_like(V) and F is not None:
+    if constrained is None and not isinstance(V, np.ndarray | list | tuple) and F is not None:
         F, constrained = None, F  # ArapSolver(mesh, constrained)
     if constrained is None:
         raise ConstraintError("constrained (the anchor and handle vertices) is missing")
-    V, F = check_mesh(*mesh_arrays(V, F))
-    n = len(V)
+    domain = check_domain(V, F, elements=energy == "elements")
+    if energy is None:
+        energy = DEFAULT_ELEMENT_ENERGY if domain.kind in ("planar", "solid") else DEFAULT_ENERGY
+    check_energy_for(energy, domain.kind)
+    F = domain.elements
+    n = len(domain.V)
     checked = check_index_array(constrained, n, "constrained")
     checked_roi = None if roi is None else check_index_array(roi, n, "roi", allow_empty=False)
     weights_w: NDArray[np.float64] | None = None
@@ -243,8 +284,9 @@ def _check_input(V: NDArray[np.floating] | MeshLike, F: NDArray[np.integer] | No
     if points is not None:
         p = (points.faces, points.barycentric, points.weights) if isinstance(points, PointConstraints) \
             else tuple(points)
-        checked_points = check_points(p[0], p[1], p[2] if len(p) > 2 else None, len(F))
-    return _Input(V, F, checked, checked_roi, weights_w, rigid, checked_points, float(alpha))
+        checked_points = check_points(p[0], p[1], p[2] if len(p) > 2 else None, len(F), F.shape[1])
+    caller_V = domain.drop(domain.V) if domain.kind == "planar" else domain.V
+    return _Input(caller_V, domain, energy, checked, checked_roi, weights_w, rigid, checked_points, float(alpha))
 
 
 def _number_vertices(F: NDArray[np.int64], n: int, adjacency: sp.csr_matrix, free: NDArray[np.int64],
@@ -265,8 +307,8 @@ def _number_vertices(F: NDArray[np.int64], n: int, adjacency: sp.csr_matrix, fre
     return Numbering(perm=perm, inv=inv, nf=nf, constrained=internal, constrained_slot=slot, colour=colour)
 
 
-def _attach_addons(cells: Cells, numbering: Numbering, F: NDArray[np.int64], energy: EnergyType, alpha: float,
-                   area: float, pair_weights: NDArray[np.float64], rigid: NDArray[np.bool_] | None,
+def _attach_addons(cells: Cells, numbering: Numbering, energy: EnergyType, alpha: float, area: float,
+                   pair_weights: NDArray[np.float64], region: NDArray[np.int64] | None,
                    point_system: PointSystem | None, active: NDArray[np.int64]
                    ) -> tuple[RotationFit, tuple[AddOn, ...], NDArray[np.int64]]:
     """Step 4: the rotation fit and the add-ons, and the cells the iterations fit."""
@@ -282,17 +324,16 @@ def _attach_addons(cells: Cells, numbering: Numbering, F: NDArray[np.int64], ene
         addons.append(SmoothAddOn(smooth_fit))
     else:
         fit = PlainFit(cells, active)
-    if rigid is not None and rigid.any():
-        region = rigid_regions(numbering.inv[F], rigid[numbering.perm])
-        addons.append(RigidAddOn(RigidRegions(cells, region, active), RigidRegions(cells, region, np.arange(n)),
-                                 smooth_fit))
+    if region is not None:
+        addons.append(RigidAddOn(RigidRegions(cells, region, active),
+                                 RigidRegions(cells, region, np.arange(cells.n_cells)), smooth_fit))
     if point_system is not None:
         addons.append(PointHandles(point_system, numbering.nf))
     return fit, tuple(addons), active
 
 
 def prepare(V: NDArray[np.floating] | MeshLike, F: NDArray[np.integer] | None = None,
-            constrained: NDArray[np.integer] | list[int] | None = None, energy: EnergyType = DEFAULT_ENERGY,
+            constrained: NDArray[np.integer] | list[int] | None = None, energy: EnergyType | None = None,
             weights: WeightType = DEFAULT_WEIGHTS, roi: NDArray[np.integer] | list[int] | None = None,
             backend: str | None = None, stiffness: ArrayLike | None = None, alpha: float = DEFAULT_ALPHA,
             points: Points | None = None) -> Prepared:
@@ -311,40 +352,46 @@ def prepare(V: NDArray[np.floating] | MeshLike, F: NDArray[np.integer] | None = 
     (162, True, True)
     """
     given = _check_input(V, F, constrained, energy, weights, roi, stiffness, alpha, points)
-    V, F = given.V, given.F
-    n = len(V)
-    adjacency = vertex_adjacency(F, n)
+    domain, energy = given.domain, given.energy
+    F = domain.elements
+    graph = domain.graph_faces
+    n = len(domain.V)
+    adjacency = vertex_adjacency(graph, n)
     free, held, nonfree = partition_vertices(
         F, n, given.constrained, given.roi, None if given.points is None else given.points.faces, adjacency)
-    numbering = _number_vertices(F, n, adjacency, free, given.constrained, energy == "smooth_rotations")
+    numbering = _number_vertices(graph, n, adjacency, free, given.constrained, energy == "smooth_rotations")
     perm, inv, nf = numbering.perm, numbering.inv, numbering.nf
     # The reduced system's fill-reducing ordering needs only its pattern: it runs beside the set-up below.
     ordering = background_ordering(adjacency, perm, nf, backend)
 
     # Step 3: cells and the reduced system
-    bounds = bounding_box(V)
+    bounds = bounding_box(domain.V)
     diagonal = float(np.linalg.norm(bounds[1] - bounds[0])) or 1.0
-    origin = internal_origin(V, diagonal)
-    rest = np.ascontiguousarray(V[perm] - origin)
-    areas = vertex_areas(rest, inv[F])
-    cells = build_cells(rest, inv[F], energy, weights)
-    pair_weights = np.maximum(cells.w, 0.0)  # the rotation term of smooth_rotations: not scaled by stiffness
-    # every cell's energy a sum of non-negative terms (per triangle for spokes and rims)
-    non_negative = energy == "spokes_and_rims" or not bool((cells.w < 0).any())
-    if given.stiffness is not None:
-        cells = scale_cells(cells, given.stiffness[perm])
+    origin = internal_origin(domain.V, diagonal)
+    rest = np.ascontiguousarray(domain.V[perm] - origin)
+    F_int = inv[F]
+    areas = vertex_areas(rest, F_int) if domain.kind == "surface" else vertex_measures(rest, F_int)
+    # Element cells in the order of their first internal vertex, so that neighbouring cells stay close in memory.
+    cell_order = np.argsort(F_int.min(axis=1), kind="stable") if energy == "elements" else None
+    assembly = assemble(rest, F_int, inv[graph] if domain.kind == "solid" else F_int, energy, weights,
+                        domain.planar, None if given.stiffness is None else given.stiffness[perm],
+                        None if given.rigid is None else given.rigid[perm], cell_order)
+    cells = assembly.cells
+    pair_weights = np.maximum(assembly.rest.w, 0.0)  # the rotation term of smooth_rotations: not scaled by stiffness
+    # every cell's energy a sum of non-negative terms (per triangle for spokes and rims, per element for elements)
+    non_negative = energy in ("spokes_and_rims", "elements") or not bool((assembly.rest.w < 0).any())
     L = system_matrix(cells, n)
     L_ff, L_fn = leading_blocks(L, nf)  # free rows first: L[free][:, free], L[free][:, nonfree]
     point_system: PointSystem | None = None
     if given.points is not None and len(given.points) and nf:
         mu = float(L_ff.diagonal().mean())
-        point_system = PointSystem(given.points, inv[F[given.points.faces]], nf, n, mu)
+        point_system = PointSystem(given.points, F_int[given.points.faces], nf, n, mu)
         L_ff = (L_ff + point_system.matrix()).tocsr()
     gather = build_rhs_gather(cells, numbering.free, n)
-    active = np.flatnonzero(np.bincount(gather.cell, minlength=n))
+    active = np.flatnonzero(np.bincount(gather.cell, minlength=cells.n_cells))
 
-    fit, addons, active = _attach_addons(cells, numbering, F, energy, given.alpha, float(areas.sum()),
-                                         pair_weights, given.rigid, point_system, active)
+    fit, addons, active = _attach_addons(cells, numbering, energy, given.alpha, float(areas.sum()), pair_weights,
+                                         assembly.region, point_system, active)
     inactive = InactiveCells(cells, active, numbering.constrained, rest)
 
     # Step 5: the factorisation, once per constraint set
@@ -356,9 +403,10 @@ def prepare(V: NDArray[np.floating] | MeshLike, F: NDArray[np.integer] | None = 
                 point_system.prepare(factor.solve)
         except NotPositiveDefiniteError as exc:
             raise singular_system_error(cells, energy, given.stiffness, str(exc)) from exc
-    return Prepared(V=V, F=F, energy_type=energy, weight_type=weights, alpha=given.alpha,
+    return Prepared(V=given.V, F=F, domain=domain, energy_type=energy, weight_type=weights, alpha=given.alpha,
                     constrained=given.constrained, roi=given.roi, stiffness=given.stiffness, points=given.points,
                     free=free, held=held, nonfree=nonfree, numbering=numbering, bounds=bounds, diagonal=diagonal,
-                    origin=origin, rest=rest, areas=areas, cells=cells, non_negative=non_negative,
-                    matrix=L_ff.tocsr(), L_fn=L_fn, coupling=SparseRowsProduct(L_fn), gather=gather, active=active,
-                    rotation_fit=fit, addons=addons, point_system=point_system, inactive=inactive, factor=factor)
+                    origin=origin, rest=rest, areas=areas, cells=cells, cell_order=cell_order,
+                    non_negative=non_negative, matrix=L_ff.tocsr(), L_fn=L_fn, coupling=SparseRowsProduct(L_fn),
+                    gather=gather, active=active, rotation_fit=fit, addons=addons, point_system=point_system,
+                    inactive=inactive, factor=factor)

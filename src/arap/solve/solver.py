@@ -13,7 +13,6 @@ from arap.method.kernel_cache import announce_first_compile
 from arap.method.points import PointConstraints
 from arap.options import (
     DEFAULT_ALPHA,
-    DEFAULT_ENERGY,
     DEFAULT_LBFGS_MEMORY,
     DEFAULT_TOLERANCE,
     DEFAULT_WEIGHTS,
@@ -37,22 +36,28 @@ from arap.sparse.linsolve import Factor
 
 
 class ArapSolver:
-    """As-Rigid-As-Possible surface deformation (Sorkine & Alexa 2007).
+    """As-Rigid-As-Possible deformation (Sorkine & Alexa 2007) of a surface, a planar mesh or a tetrahedral solid.
 
     Construction validates the mesh and the constraint set, builds the cells and factorises the reduced global-step
     matrix once (Cholesky); every :meth:`solve` then only back-substitutes.
 
     Parameters
     ----------
-    V : (n, 3) float array or MeshLike
-        Rest positions, or a mesh object with ``vertices`` and ``faces`` (e.g. ``trimesh.Trimesh``; then leave out
-        ``F``: ``ArapSolver(mesh, constrained)``).
-    F : (m, 3) int array
-        Triangles. Degenerate faces are rejected (see :func:`arap.repair_mesh`).
+    V : (n, 3) or (n, 2) float array, or a mesh object
+        Rest positions, or a mesh object (a ``trimesh.Trimesh``, a ``meshio.Mesh`` with ``triangle`` or ``tetra``
+        cells, a ``pyvista.PolyData`` or ``UnstructuredGrid`` of tetrahedra, anything with ``vertices`` and
+        ``faces``; then leave out ``F``: ``ArapSolver(mesh, constrained)``). Two columns make a planar mesh: its
+        results have two columns too, and its rotations turn in the plane (:mod:`arap.meshes.domain`).
+    F : (m, 3) or (m, 4) int array
+        Triangles, or tetrahedra (then ``energy="elements"``). Degenerate faces are rejected (see
+        :func:`arap.repair_mesh`); so are elements of zero area or volume and elements oriented against the others.
     constrained : (k,) int array
         Constrained vertices (anchors and handles, any order, unique). :meth:`solve` takes their targets in this order.
-    energy : {"spokes_and_rims", "spokes", "smooth_rotations"}
-        ``spokes_and_rims`` (default): cells over all edges of the triangles around a vertex (Chao et al. 2010); a
+    energy : {"spokes_and_rims", "spokes", "smooth_rotations", "elements"} or None
+        None: ``elements`` for planar meshes given with two coordinates and for tetrahedra, ``spokes_and_rims`` for
+        surfaces. ``elements``: one rotation per triangle or tetrahedron (libigl's ``ARAP_ENERGY_TYPE_ELEMENTS``;
+        see :mod:`arap.method.elements`); a triangle mesh in space with one constant coordinate then deforms in its
+        plane. ``spokes_and_rims``: cells over all edges of the triangles around a vertex (Chao et al. 2010); a
         sum of non-negative per-triangle terms even with obtuse triangles, so it does not fold scans.
         ``spokes``: the paper's one-ring cells (Sorkine & Alexa 2007); with negative cotangent weights its energy can
         be negative and its minima fold scans (see "Energy and weights" in docs/solver.md).
@@ -70,13 +75,15 @@ class ArapSolver:
         value this term couples rotations about 7 times as strongly as CGAL's, see :mod:`arap.method.smooth`). Ignored
         by the other energies.
     points : PointConstraints, (faces, barycentric) or (faces, barycentric, weights), or None
-        Handles anywhere on the surface (see :mod:`arap.method.points`): point ``k`` lies in triangle ``faces[k]`` at
-        ``barycentric[k]`` (3 coordinates ≥ 0 summing to 1, corners in the order of ``F``); its weight is ``inf``
+        Handles anywhere on the mesh (see :mod:`arap.method.points`): point ``k`` lies in element ``faces[k]`` at
+        ``barycentric[k]`` (3 coordinates in a triangle, 4 in a tetrahedron, ≥ 0 summing to 1, corners in the
+        order of ``F``); its weight is ``inf``
         (default) for a hard constraint, met exactly, or a positive weight for a soft one that pulls with that
         strength. :meth:`solve` then takes their targets as ``point_targets``. The factorisation stays once per
         constraint set.
     stiffness : (n,) array of float or None
-        Per-vertex cell weights ``w_i`` of the paper's energy ``Σ_i w_i Σ_j w_ij ‖…‖²`` (Sorkine & Alexa 2007):
+        Per-vertex cell weights ``w_i`` (element cells weigh the mean of their vertices' weights, and are rigid
+        when all their vertices are) of the paper's energy ``Σ_i w_i Σ_j w_ij ‖…‖²`` (Sorkine & Alexa 2007):
         1 is the plain energy (None: all 1), larger values make a vertex's cell stiffer, so a region painted stiff
         moves almost rigidly while softer parts bend; ``np.inf`` keeps a region rigid (to about 1e-8 of its size;
         see :data:`arap.method.stiffness.RIGID_STIFFNESS`). The energies reported include the weights. With the spoke
@@ -108,7 +115,7 @@ class ArapSolver:
         V: NDArray[np.floating] | MeshLike,
         F: NDArray[np.integer] | None = None,
         constrained: NDArray[np.integer] | list[int] | None = None,
-        energy: EnergyType = DEFAULT_ENERGY,
+        energy: EnergyType | None = None,
         weights: WeightType = DEFAULT_WEIGHTS,
         roi: NDArray[np.integer] | list[int] | None = None,
         backend: str | None = None,
@@ -120,7 +127,7 @@ class ArapSolver:
         announce_first_compile()
         #: The set-up record (:class:`arap.solve.prepared.Prepared`): everything a solve reads, built once.
         self.prepared: Prepared = prepare(V, F, constrained, energy, weights, roi, backend, stiffness, alpha, points)
-        self._state = SolveState(LocalState.empty(self.prepared.n))
+        self._state = SolveState(LocalState.empty(self.prepared.cells.n_cells))
         self.factor_seconds = time.perf_counter() - t0
 
     # ------------------------------------------------------------------ the set-up, as given and checked
@@ -326,7 +333,8 @@ class ArapSolver:
         For ``smooth_rotations`` the rotations are coupled: this is one block-coordinate sweep from ``start``
         (n, 3, 3) (None: the solver's current rotations), which never raises the energy.
         """
-        R = self._state.local.R if start is None else self.prepared.to_internal(np.asarray(start, dtype=np.float64))
+        R = self._state.local.R if start is None else self.prepared.cells_to_internal(np.asarray(start,
+                                                                                                 dtype=np.float64))
         return steps.fit_rotations(self.prepared, U, R)
 
     def energy(self, U: np.ndarray, R: np.ndarray | None = None) -> float:

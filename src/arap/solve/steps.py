@@ -24,14 +24,15 @@ def fit_rotations(p: Prepared, U: object, start: NDArray[np.float64]) -> NDArray
     never raises the energy; the other fits ignore it.
     """
     X = p.to_internal(p.check_positions(U, "U"))
-    R = identity_rotations(p.n)
+    nc = p.cells.n_cells
+    R = identity_rotations(nc)
     if p.rotation_fit.coupled:
         R[:] = start
-    E = np.empty(p.n)
+    E = np.empty(nc)
     p.rotation_fit.fit_all(X, R, E)
     for addon in p.addons:
         addon.after_fit_all(X, R, E)
-    return R[p.numbering.inv]
+    return p.cells_to_caller(R)
 
 
 def energy_of(p: Prepared, U: object, R: object | None, current: NDArray[np.float64]) -> float:
@@ -41,8 +42,8 @@ def energy_of(p: Prepared, U: object, R: object | None, current: NDArray[np.floa
         R = fit_rotations(p, U, current)
     X = p.to_internal(p.check_positions(U, "U"))
     if R is None:
-        E = np.empty(p.n)
-        R_opt = identity_rotations(p.n)
+        E = np.empty(p.cells.n_cells)
+        R_opt = identity_rotations(p.cells.n_cells)
         p.rotation_fit.fit_all(X, R_opt, E)
         for addon in p.addons:
             addon.after_fit_all(X, R_opt, E)
@@ -51,7 +52,7 @@ def energy_of(p: Prepared, U: object, R: object | None, current: NDArray[np.floa
     d = X[cells.a] - X[cells.b]
     cur = float(np.dot(cells.w, np.einsum("ij,ij->i", d, d)))
     S = covariances(cells, X)
-    R_int = p.to_internal(np.asarray(R, dtype=np.float64))
+    R_int = p.cells_to_internal(np.asarray(R, dtype=np.float64))
     value = cur + float(cells.rest_sq.sum()) - 2.0 * float(np.einsum("cij,cji->", R_int, S))
     return value + p.rotation_fit.rotation_energy(R_int)
 
@@ -65,7 +66,7 @@ def global_step(p: Prepared, R: object, targets: object, point_targets: object =
     U[p.nf:] = fixed
     if p.factor is not None:
         rhs = np.empty((p.nf, 3))
-        assemble_rhs(p.gather, p.to_internal(np.asarray(R, dtype=np.float64)), rhs_constant(p, fixed, P), rhs)
+        assemble_rhs(p.gather, p.cells_to_internal(np.asarray(R, dtype=np.float64)), rhs_constant(p, fixed, P), rhs)
         g = p.factor.solve(rhs)
         for addon in p.addons:
             correct = addon.corrector(P, fixed)
