@@ -1,4 +1,4 @@
-"""arap: As-Rigid-As-Possible surface modeling (Sorkine & Alexa 2007).
+"""arap: As-Rigid-As-Possible modeling (Sorkine & Alexa 2007) of surfaces, planar meshes and tetrahedral solids.
 
 Fix both ends of a bar and move one of them sideways:
 
@@ -42,6 +42,9 @@ _LAZY: dict[str, str] = {
     "fit_rotations": "arap.method.rotations",
     "cotangent_laplacian": "arap.method.weights",
     "check_mesh": "arap.meshes.mesh",
+    "check_domain": "arap.meshes.domain",
+    "rectangle_triangles": "arap.meshes.grids",
+    "box_tetrahedra": "arap.meshes.grids",
     "mesh_arrays": "arap.meshes.mesh",
     "MeshLike": "arap.meshes.mesh",
     "repair_mesh": "arap.meshes.repair",
@@ -100,9 +103,11 @@ __all__ = [
     "animate",
     "arap_energy",
     "batch",
+    "box_tetrahedra",
     "builtin_mesh",
     "cell_distortion",
     "cell_energies",
+    "check_domain",
     "check_mesh",
     "cotangent_laplacian",
     "fit_rotations",
@@ -114,6 +119,7 @@ __all__ = [
     "load_mesh_bytes",
     "load_mesh_with_report",
     "mesh_arrays",
+    "rectangle_triangles",
     "repair_mesh",
     "save_asset",
     "save_constraints",
@@ -142,6 +148,8 @@ if TYPE_CHECKING:
     )
     from arap.jupyter_widget import StudioWidget, widget
     from arap.meshes.diagnose import MeshInfo, inspect_mesh
+    from arap.meshes.domain import check_domain
+    from arap.meshes.grids import box_tetrahedra, rectangle_triangles
     from arap.meshes.mesh import MeshLike, check_mesh, mesh_arrays
     from arap.meshes.repair import RepairResult, repair_mesh
     from arap.meshes.shapes import BUILTIN_MESHES, builtin_mesh, sphere
