@@ -28,6 +28,7 @@ __all__ = [
     "MAX_ALPHA",
     "MAX_ITERATIONS",
     "START_NAMES",
+    "SURFACE_ENERGY_TYPES",
     "WEIGHT_TYPES",
     "Acceleration",
     "EnergyType",
@@ -42,7 +43,10 @@ __all__ = [
 # ---------------------------------------------------------------------------------------------- energy and weights
 EnergyType = Literal["spokes", "spokes_and_rims", "smooth_rotations", "elements"]
 ENERGY_TYPES: tuple[str, ...] = get_args(EnergyType)
-"""Energy names: the one list the library, the command line, the studio protocol and its client use."""
+"""Energy names: the one list the library and the command line use."""
+SURFACE_ENERGY_TYPES: tuple[str, ...] = ("spokes", "spokes_and_rims", "smooth_rotations")
+"""The energies with one cell per vertex, which the studio offers for surfaces (its heat map and rigid parts read
+per-vertex cells)."""
 DEFAULT_ENERGY: EnergyType = "spokes_and_rims"
 """The default cells: unlike ``spokes`` with cotangent weights, they do not fold meshes with obtuse triangles, and
 their energy is a sum of non-negative per-triangle terms (see ``benchmarks/bench_folds.py``)."""

@@ -34,7 +34,8 @@ from arap.meshes.mesh import (
     mesh_arrays,
 )
 
-__all__ = ["PLANAR_TOLERANCE", "Domain", "DomainKind", "check_domain", "element_mesh_arrays", "tetrahedron_faces"]
+__all__ = ["PLANAR_TOLERANCE", "Domain", "DomainKind", "boundary_faces", "check_domain", "element_mesh_arrays",
+           "signed_measures", "tetrahedron_faces"]
 
 DomainKind = Literal["surface", "planar", "solid"]
 
@@ -126,6 +127,39 @@ def tetrahedron_faces(T: NDArray[np.integer]) -> NDArray[np.int64]:
     T = np.asarray(T, dtype=np.int64)
     return np.concatenate([T[:, [1, 2, 3]], T[:, [0, 3, 2]], T[:, [0, 1, 3]], T[:, [0, 2, 1]]]).reshape(4, -1, 3) \
         .transpose(1, 0, 2).reshape(-1, 3)
+
+
+def boundary_faces(T: NDArray[np.integer], V: NDArray[np.floating] | None = None) -> NDArray[np.int64]:
+    """The boundary triangles of a tetrahedral mesh: the faces that belong to one tetrahedron only, turned outwards.
+
+    Parameters
+    ----------
+    T : (m, 4) int array
+    V : (n, 3) float array or None
+        Positions, to turn the faces of negatively oriented tetrahedra outwards too (None: the tetrahedra are taken
+        as positively oriented).
+
+    Returns
+    -------
+    (k, 3) int64 array
+        In the order of the tetrahedra.
+
+    Example
+    -------
+    >>> boundary_faces(np.array([[0, 1, 2, 3], [1, 2, 3, 4]])).shape
+    (6, 3)
+    """
+    T64: NDArray[np.int64] = np.asarray(T, dtype=np.int64)
+    T = T64
+    if V is not None:
+        negative = signed_measures(np.asarray(V, dtype=np.float64), T64) < 0
+        if negative.any():
+            T = T.copy()
+            T[negative] = T[negative][:, [0, 2, 1, 3]]
+    faces = tetrahedron_faces(T)
+    key = np.sort(faces, axis=1)
+    _, inverse, counts = np.unique(key, axis=0, return_inverse=True, return_counts=True)
+    return np.ascontiguousarray(faces[counts[inverse.ravel()] == 1])
 
 
 def element_mesh_arrays(V: Any, F: Any = None) -> tuple[np.ndarray, np.ndarray]:

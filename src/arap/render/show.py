@@ -91,7 +91,7 @@ def _rgb_array(value: Any, name: str, *, one: bool, n: int = 0) -> NDArray[np.fl
 def _mesh_of(obj: Any, F: Any) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
     """The vertices and faces ``show`` pictures, checked for what rendering needs (not for what a solve needs:
     a mesh with defects can be pictured)."""
-    from arap.meshes.mesh import mesh_arrays
+    from arap.meshes.domain import boundary_faces, element_mesh_arrays
     from arap.solve.result import ArapResult
 
     if isinstance(obj, str) and F is None:
@@ -113,8 +113,12 @@ def _mesh_of(obj: Any, F: Any) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
         if F is None:
             raise MeshError("an ArapResult holds the deformed vertices only: give the faces too, arap.show(result, F)")
         obj = obj.vertices
-    V, F = mesh_arrays(obj, F)
+    V, F = element_mesh_arrays(obj, F)
     V, F = np.asarray(V), np.asarray(F)
+    if V.ndim == 2 and V.shape[1] == 2 and V.dtype.kind in "iuf":  # a planar mesh: drawn in the plane z = 0
+        V = np.column_stack([V, np.zeros(len(V))])
+    if F.ndim == 2 and F.shape[1] == 4 and F.dtype.kind in "iu" and len(V) and V.shape[-1] == 3:
+        F = boundary_faces(F, V if np.isfinite(V).all() else None)  # a solid: drawn by its boundary
     if V.dtype == object or V.dtype.kind not in "iuf" or V.ndim != 2 or V.shape[1] != 3:
         raise MeshError(f"vertices must be an (n, 3) array of numbers, got {V.dtype} {V.shape}")
     if F.size == 0 or len(V) == 0:
@@ -215,8 +219,8 @@ def role_colors(n: int, base: NDArray[np.float64], fixed: NDArray[np.int64] | No
 
 # ---------------------------------------------------------------------------------------------- show
 def show(obj: Any, F: Any = None, *, constraints: Any = None, handles: Any = None, fixed: Any = None,
-         colors: Any = None, width: int = 640, height: int = 480, azimuth: float = DEFAULT_AZIMUTH,
-         elevation: float = DEFAULT_ELEVATION, background: Any = BACKGROUND, camera: Camera | None = None,
+         colors: Any = None, width: int = 640, height: int = 480, azimuth: float | None = None,
+         elevation: float | None = None, background: Any = BACKGROUND, camera: Camera | None = None,
          antialias: bool = True) -> Picture:
     """A picture of a mesh, with its constrained vertices marked.
 
@@ -243,9 +247,10 @@ def show(obj: Any, F: Any = None, *, constraints: Any = None, handles: Any = Non
         integers from 0 to 255. Default: the studio's grey. Marks are painted over it.
     width, height : int
         Picture size in pixels (1 to 4096).
-    azimuth, elevation : float
-        Viewing direction in degrees: 0, 0 looks along -z with +y up (the studio's axes); the default is a
-        three-quarter view from the front right and above.
+    azimuth, elevation : float or None
+        Viewing direction in degrees: 0, 0 looks along -z with +y up (the studio's axes); None: a three-quarter view
+        from the front right and above (30, 20), or 0, 0 for a mesh flat in z (a planar mesh given with two
+        coordinates is drawn in z = 0, a tetrahedral one by its boundary).
     background : str or sequence of 3 numbers
         Colour around the mesh (the studio's by default).
     camera : arap.render.camera.Camera, optional
@@ -299,7 +304,11 @@ def show(obj: Any, F: Any = None, *, constraints: Any = None, handles: Any = Non
     marked = anchors is not None or groups or roi is not None
     vertex_colors = role_colors(n, base, anchors, groups, roi) if marked else base
     if camera is None:
-        camera = fit_camera(V[np.unique(F)], width, height, azimuth=azimuth, elevation=elevation)
+        used = V[np.unique(F)]
+        flat = bool(np.ptp(used[:, 2]) == 0)  # a planar mesh: seen from +z, x to the right and y up, by default
+        camera = fit_camera(used, width, height,
+                            azimuth=(0.0 if flat else DEFAULT_AZIMUTH) if azimuth is None else azimuth,
+                            elevation=(0.0 if flat else DEFAULT_ELEVATION) if elevation is None else elevation)
     pixels = render_mesh(V, F, camera, vertex_colors, back, supersample=2 if antialias else 1)
     return Picture(pixels, camera)
 

@@ -14,7 +14,7 @@ import dataclasses
 from dataclasses import dataclass, field
 from typing import Any, ClassVar
 
-from arap.options import DEFAULT_ALPHA, DEFAULT_ENERGY, DEFAULT_WEIGHTS, ENERGY_TYPES, WEIGHT_TYPES
+from arap.options import DEFAULT_ALPHA, DEFAULT_ENERGY, DEFAULT_WEIGHTS, SURFACE_ENERGY_TYPES, WEIGHT_TYPES
 from arap.server.labels import ENERGY_LABELS, WEIGHT_LABELS
 
 __all__ = [
@@ -65,7 +65,7 @@ ANIMATION_STATUSES: tuple[str, ...] = ("solving", "cancelled")
 MAX_SEQ = 2**53 - 1
 """Largest ``seq`` of a drag (the largest integer a JavaScript number holds exactly)."""
 
-ENERGIES = ENERGY_TYPES
+ENERGIES = SURFACE_ENERGY_TYPES
 WEIGHTS = WEIGHT_TYPES
 EXPORT_FORMATS = ("obj", "ply", "glb")
 UPLOAD_EXTENSIONS = (".obj", ".off", ".ply", ".stl", ".glb")
