@@ -84,6 +84,11 @@ def _textured(ns: dict[str, Any]) -> Scene:
     return Scene(asset.vertices[corner], split, twisted.vertices[corner], {"colors": colors})
 
 
+def _ends(ns: dict[str, Any]) -> Scene:
+    return Scene(ns["V"], ns["F"] if "F" in ns else ns["T"], ns["result"].vertices,
+                 {"fixed": ns["left"], "handles": ns["right"]})
+
+
 def _animation(ns: dict[str, Any]) -> Scene:
     frames = ns["animation"].vertices
     marks = {"fixed": ns["fixed"], "handles": ns["top"]}
@@ -100,6 +105,8 @@ EXAMPLES: dict[str, Callable[[dict[str, Any]], Scene]] = {
     "point-handles": _points,
     "textured-asset": _textured,
     "animation": _animation,
+    "planar-strip": _ends,
+    "solid-bar": _ends,
 }
 
 
@@ -134,8 +141,10 @@ def render(name: str, out: Path = OUT, *, width: int = 320, height: int = 300,
     from arap.render.picture import Picture
 
     scene = EXAMPLES[name](run_example(name, pages))
-    shapes = [scene.V, scene.deformed, *scene.frames]
-    camera = fit_camera(np.vstack(shapes), width, height)
+    shapes = [X if X.shape[1] == 3 else np.column_stack([X, np.zeros(len(X))])  # planar meshes lie in z = 0
+              for X in (scene.V, scene.deformed, *scene.frames)]
+    view = {"azimuth": 0.0, "elevation": 0.0} if all(np.ptp(X[:, 2]) == 0 for X in shapes) else {}
+    camera = fit_camera(np.vstack(shapes), width, height, **view)
     before = arap.show(scene.V, scene.F, camera=camera, **(scene.marks | scene.before))
     after = arap.show(scene.deformed, scene.F, camera=camera, **(scene.marks | scene.after))
     out.mkdir(parents=True, exist_ok=True)
@@ -146,7 +155,7 @@ def render(name: str, out: Path = OUT, *, width: int = 320, height: int = 300,
         picture.save(path)
         written.append(path)
     if scene.frames:
-        strip_camera = fit_camera(np.vstack(shapes), 128, height)
+        strip_camera = fit_camera(np.vstack(shapes), 128, height, **view)
         pixels = [arap.show(U, scene.F, camera=strip_camera, **scene.marks).pixels for U in scene.frames]
         path = out / f"{name}-frames.png"
         Picture(np.hstack(pixels)).save(path)
