@@ -21,10 +21,12 @@ __all__ = [
     "DEFAULT_ELEMENT_ENERGY",
     "DEFAULT_ENERGY",
     "DEFAULT_LBFGS_MEMORY",
+    "DEFAULT_LOOSE_PARTS",
     "DEFAULT_TOLERANCE",
     "DEFAULT_WEIGHTS",
     "DEFAULT_WINDOW",
     "ENERGY_TYPES",
+    "LOOSE_PARTS",
     "MAX_ALPHA",
     "MAX_ITERATIONS",
     "START_NAMES",
@@ -32,10 +34,12 @@ __all__ = [
     "WEIGHT_TYPES",
     "Acceleration",
     "EnergyType",
+    "LoosePartsMode",
     "StartName",
     "WeightType",
     "check_alpha",
     "check_energy_and_weights",
+    "check_loose_parts",
     "check_solve_options",
     "check_weights",
 ]
@@ -72,6 +76,22 @@ def check_energy_and_weights(energy: str, weights: str) -> None:
     if energy not in ENERGY_TYPES:
         raise OptionError(f"unknown energy {energy!r}; expected one of {ENERGY_TYPES}")
     check_weights(weights)
+
+
+# ---------------------------------------------------------------------------------------------- loose parts
+LoosePartsMode = Literal["error", "hold", "follow"]
+LOOSE_PARTS: tuple[str, ...] = get_args(LoosePartsMode)
+"""What happens to a connected part of the mesh that no constraint reaches (a wheel beside a car body, a button on
+a coat): ``error`` refuses the constraint set, naming the part; ``hold`` keeps it where it is; ``follow`` moves it
+with the rigid motion of the nearest constrained part around it."""
+DEFAULT_LOOSE_PARTS: LoosePartsMode = "error"
+"""The library's default: a part left without constraints is most often a mistake worth naming."""
+
+
+def check_loose_parts(loose: object) -> None:
+    """Refuse an unknown loose-parts mode (:class:`~arap.errors.OptionError`)."""
+    if loose not in LOOSE_PARTS:
+        raise OptionError(f"unknown loose {loose!r}; expected one of {LOOSE_PARTS}")
 
 
 # ---------------------------------------------------------------------------------------------- smooth rotations

@@ -14,16 +14,19 @@ from numpy.typing import NDArray
 
 from arap.errors import ArapError, ConstraintError, UnconstrainedRegionError
 from arap.meshes.mesh import MIN_RELATIVE_SIZE, SIZE_RANGE, bounding_box, coordinate_problem
+from arap.meshes.topology import free_components
 from arap.solve.indexing import find_unconstrained_part
 
-__all__ = ["check_point_targets", "check_positions", "check_reach", "check_targets", "partition_vertices"]
+__all__ = ["check_point_targets", "check_positions", "check_reach", "check_targets", "loose_parts",
+           "partition_vertices"]
 
 
 def partition_vertices(
     F: NDArray[np.integer], n: int, constrained: NDArray[np.integer], roi: NDArray[np.integer] | None,
-    point_faces: NDArray[np.integer] | None, adjacency: sp.csr_matrix,
-) -> tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.int64]]:
-    """The free, held and non-free (constrained or held) vertices of a constraint set, in increasing order.
+    point_faces: NDArray[np.integer] | None, adjacency: sp.csr_matrix, loose: bool = False,
+) -> tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.int64], list[NDArray[np.int64]]]:
+    """The free, held and non-free (constrained or held) vertices of a constraint set, in increasing order, and the
+    loose parts.
 
     Parameters
     ----------
@@ -38,22 +41,27 @@ def partition_vertices(
         Triangles holding point handles: their corners count as pinned.
     adjacency : (n, n) sparse matrix
         The mesh's vertex adjacency.
+    loose : bool
+        Connected parts of the free vertices that touch nothing that fixes them are held (and listed) rather than
+        refused.
 
     Returns
     -------
     free, held, nonfree : int arrays
+    loose : list of int arrays
+        The vertices of each loose part (among ``held``); empty unless ``loose``.
 
     Raises
     ------
     UnconstrainedRegionError
-        A connected part of the free vertices touches nothing that fixes it.
+        A connected part of the free vertices touches nothing that fixes it (unless ``loose``).
 
     Example
     -------
     >>> import numpy as np
     >>> from arap.meshes.topology import vertex_adjacency
     >>> F = np.array([[0, 1, 2], [0, 2, 3]])
-    >>> free, held, nonfree = partition_vertices(F, 5, np.array([0]), None, None, vertex_adjacency(F, 5))
+    >>> free, held, nonfree, _ = partition_vertices(F, 5, np.array([0]), None, None, vertex_adjacency(F, 5))
     >>> free.tolist(), held.tolist(), nonfree.tolist()
     ([1, 2, 3], [4], [0, 4])
     """
@@ -72,6 +80,12 @@ def partition_vertices(
     pinned = np.zeros(n, dtype=bool)  # a free part that holds a point handle's corner is pinned by it
     if point_faces is not None:
         pinned[F[point_faces].ravel()] = True
+    if loose:
+        pieces = loose_parts(free[~pinned[free]], adjacency)
+        if pieces:
+            held = np.union1d(held, np.concatenate(pieces))
+            free = np.setdiff1d(free, held)
+        return free, held, np.union1d(nonfree, held), pieces
     part = find_unconstrained_part(F, n, free[~pinned[free]], adjacency)
     if part is not None:
         sample, size, parts, in_all = part
@@ -85,7 +99,25 @@ def partition_vertices(
             + ("" if roi is None else " or shrink the region of interest"),
             vertices=sample, size=size,
         )
-    return free, held, nonfree
+    return free, held, nonfree, []
+
+
+def loose_parts(free: NDArray[np.int64], adjacency: sp.csr_matrix) -> list[NDArray[np.int64]]:
+    """The connected parts of the ``free`` vertices that have no edge to another vertex, largest first.
+
+    Example
+    -------
+    >>> from arap.meshes.topology import vertex_adjacency
+    >>> A = vertex_adjacency(np.array([[0, 1, 2], [3, 4, 5]]), 6)
+    >>> [p.tolist() for p in loose_parts(np.array([1, 2, 3, 4, 5]), A)]
+    [[3, 4, 5]]
+    """
+    if not len(free):
+        return []
+    _, labels, pinned = free_components(adjacency, free)
+    bad = np.flatnonzero(~pinned)
+    parts = [free[labels == k] for k in bad]
+    return sorted(parts, key=len, reverse=True)
 
 
 def _floats(value: object, name: str, expected: str, error: type[ArapError]) -> NDArray[np.float64]:

@@ -32,14 +32,18 @@ from arap.options import (
     DEFAULT_ALPHA,
     DEFAULT_ELEMENT_ENERGY,
     DEFAULT_ENERGY,
+    DEFAULT_LOOSE_PARTS,
     DEFAULT_WEIGHTS,
     EnergyType,
+    LoosePartsMode,
     WeightType,
     check_alpha,
     check_energy_and_weights,
+    check_loose_parts,
 )
 from arap.solve.addons import AddOn, PlainFit, PointHandles, RigidAddOn, RotationFit, SmoothAddOn, SmoothFit
 from arap.solve.indexing import check_index_array, internal_origin, rows_of, with_rows
+from arap.solve.loose import FollowingParts
 from arap.solve.partition import check_point_targets, check_positions, check_reach, check_targets, partition_vertices
 from arap.solve.start import vertex_areas
 from arap.sparse._csr import SparseRowsProduct, leading_blocks
@@ -106,6 +110,12 @@ class Prepared:
         Point handles.
     free, held, nonfree : int arrays
         The caller's vertices by role (:func:`arap.solve.partition.partition_vertices`).
+    loose : str
+        What the loose parts do (:data:`arap.options.LOOSE_PARTS`).
+    loose_parts : list of int arrays
+        The caller's vertices of each part no constraint reaches (held, and placed by ``following``).
+    following : FollowingParts or None
+        Where the loose parts go (``loose="follow"``).
     numbering : Numbering
     bounds : (2, 3) float array
         Bounding box of ``V``; ``diagonal`` its diagonal (1 for a single point).
@@ -155,6 +165,9 @@ class Prepared:
     free: NDArray[np.int64]
     held: NDArray[np.int64]
     nonfree: NDArray[np.int64]
+    loose: LoosePartsMode
+    loose_parts: list[NDArray[np.int64]]
+    following: FollowingParts | None
     numbering: Numbering
     bounds: NDArray[np.float64]
     diagonal: float
@@ -201,6 +214,8 @@ class Prepared:
     def to_caller(self, U: NDArray[np.float64]) -> NDArray[np.float64]:
         """Internal positions (internal order, relative to the origin) as the caller's (caller's order and
         coordinates): a new array."""
+        if self.following is not None:
+            U = self.following.place(U)
         return self.domain.drop(rows_of(U, self.numbering.inv, self.origin))
 
     def cells_to_caller(self, R: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -336,7 +351,7 @@ def prepare(V: NDArray[np.floating] | MeshLike, F: NDArray[np.integer] | None = 
             constrained: NDArray[np.integer] | list[int] | None = None, energy: EnergyType | None = None,
             weights: WeightType = DEFAULT_WEIGHTS, roi: NDArray[np.integer] | list[int] | None = None,
             backend: str | None = None, stiffness: ArrayLike | None = None, alpha: float = DEFAULT_ALPHA,
-            points: Points | None = None) -> Prepared:
+            points: Points | None = None, loose: LoosePartsMode = DEFAULT_LOOSE_PARTS) -> Prepared:
     """Build a solver's set-up record (the parameters are :class:`arap.ArapSolver`'s; it passes its defaults).
 
     Returns
@@ -352,13 +367,15 @@ def prepare(V: NDArray[np.floating] | MeshLike, F: NDArray[np.integer] | None = 
     (162, True, True)
     """
     given = _check_input(V, F, constrained, energy, weights, roi, stiffness, alpha, points)
+    check_loose_parts(loose)
     domain, energy = given.domain, given.energy
     F = domain.elements
     graph = domain.graph_faces
     n = len(domain.V)
     adjacency = vertex_adjacency(graph, n)
-    free, held, nonfree = partition_vertices(
-        F, n, given.constrained, given.roi, None if given.points is None else given.points.faces, adjacency)
+    free, held, nonfree, parts = partition_vertices(
+        F, n, given.constrained, given.roi, None if given.points is None else given.points.faces, adjacency,
+        loose=loose != "error")
     numbering = _number_vertices(graph, n, adjacency, free, given.constrained, energy == "smooth_rotations")
     perm, inv, nf = numbering.perm, numbering.inv, numbering.nf
     # The reduced system's fill-reducing ordering needs only its pattern: it runs beside the set-up below.
@@ -393,6 +410,12 @@ def prepare(V: NDArray[np.floating] | MeshLike, F: NDArray[np.integer] | None = 
     fit, addons, active = _attach_addons(cells, numbering, energy, given.alpha, float(areas.sum()), pair_weights,
                                          assembly.region, point_system, active)
     inactive = InactiveCells(cells, active, numbering.constrained, rest)
+    following = None
+    if loose == "follow" and parts:
+        placed = np.zeros(n, dtype=bool)
+        placed[F_int.ravel()] = True
+        placed[inv[np.concatenate(parts)]] = False
+        following = FollowingParts(rest, [inv[p] for p in parts], np.flatnonzero(placed))
 
     # Step 5: the factorisation, once per constraint set
     factor = None
@@ -405,7 +428,8 @@ def prepare(V: NDArray[np.floating] | MeshLike, F: NDArray[np.integer] | None = 
             raise singular_system_error(cells, energy, given.stiffness, str(exc)) from exc
     return Prepared(V=given.V, F=F, domain=domain, energy_type=energy, weight_type=weights, alpha=given.alpha,
                     constrained=given.constrained, roi=given.roi, stiffness=given.stiffness, points=given.points,
-                    free=free, held=held, nonfree=nonfree, numbering=numbering, bounds=bounds, diagonal=diagonal,
+                    free=free, held=held, nonfree=nonfree, loose=loose, loose_parts=parts, following=following,
+                    numbering=numbering, bounds=bounds, diagonal=diagonal,
                     origin=origin, rest=rest, areas=areas, cells=cells, cell_order=cell_order,
                     non_negative=non_negative, matrix=L_ff.tocsr(), L_fn=L_fn, coupling=SparseRowsProduct(L_fn),
                     gather=gather, active=active, rotation_fit=fit, addons=addons, point_system=point_system,

@@ -14,11 +14,13 @@ from arap.method.points import PointConstraints
 from arap.options import (
     DEFAULT_ALPHA,
     DEFAULT_LBFGS_MEMORY,
+    DEFAULT_LOOSE_PARTS,
     DEFAULT_TOLERANCE,
     DEFAULT_WEIGHTS,
     DEFAULT_WINDOW,
     Acceleration,
     EnergyType,
+    LoosePartsMode,
     StartName,
     WeightType,
     check_solve_options,
@@ -90,6 +92,10 @@ class ArapSolver:
         energies (``spokes``, ``smooth_rotations``) on a mesh with obtuse triangles (negative cotangent weights),
         unequal weights can leave the energy without a minimum: that raises OptionError (``spokes_and_rims`` or
         ``weights="clamped"`` work).
+    loose : {"error", "hold", "follow"}
+        A connected part of the mesh that no constraint reaches (a wheel beside a car body): ``error`` (default)
+        raises UnconstrainedRegionError naming it; ``hold`` keeps it at rest; ``follow`` moves it with the rigid
+        motion of the constrained surface nearest to it (see :mod:`arap.solve.loose`).
     backend : str or None
         Sparse Cholesky backend (see :mod:`arap.sparse.linsolve`); None chooses by system size
         (:func:`arap.sparse.linsolve.default_backend`).
@@ -105,7 +111,8 @@ class ArapSolver:
     ConstraintError
         Out-of-range or duplicate indices.
     UnconstrainedRegionError
-        A connected part of the free vertices touches no constrained or held vertex (its system is singular).
+        A connected part of the free vertices touches no constrained or held vertex (its system is singular), with
+        ``loose="error"``.
     OptionError
         An unknown energy, weights or backend name.
     """
@@ -122,11 +129,13 @@ class ArapSolver:
         stiffness: ArrayLike | None = None,
         alpha: float = DEFAULT_ALPHA,
         points: Points | None = None,
+        loose: LoosePartsMode = DEFAULT_LOOSE_PARTS,
     ) -> None:
         t0 = time.perf_counter()
         announce_first_compile()
         #: The set-up record (:class:`arap.solve.prepared.Prepared`): everything a solve reads, built once.
-        self.prepared: Prepared = prepare(V, F, constrained, energy, weights, roi, backend, stiffness, alpha, points)
+        self.prepared: Prepared = prepare(V, F, constrained, energy, weights, roi, backend, stiffness, alpha, points,
+                                          loose)
         self._state = SolveState(LocalState.empty(self.prepared.cells.n_cells))
         self.factor_seconds = time.perf_counter() - t0
 
