@@ -104,6 +104,7 @@ export class Panel extends PanelReadouts {
     $('iterations-val').textContent = it.value;
     fillChoices($('energy'), PARAMS.energy);
     fillChoices($('weights'), PARAMS.weights);
+    fillChoices($('loose'), PARAMS.loose);
     const alpha = $('alpha');
     alpha.min = String(PARAMS.alpha.min);
     alpha.max = String(PARAMS.alpha.max);
@@ -116,6 +117,7 @@ export class Panel extends PanelReadouts {
     it.addEventListener('change', () => actions.setParams({ iterations: Number(it.value) }));
     $('energy').addEventListener('change', (/** @type {Event} */ e) => actions.setParams({ energy: source(e).value }));
     $('weights').addEventListener('change', (/** @type {Event} */ e) => actions.setParams({ weights: source(e).value }));
+    $('loose').addEventListener('change', (/** @type {Event} */ e) => actions.setParams({ loose: source(e).value }));
 
     for (const format of EXPORT_FORMATS) {
       const b = document.createElement('button');
@@ -266,6 +268,7 @@ export class Panel extends PanelReadouts {
       $('alpha-val').textContent = String(p.alpha);
     }
     if (p.weights) $('weights').value = p.weights;
+    if (p.loose) $('loose').value = p.loose;
   }
 
   /**

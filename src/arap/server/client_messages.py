@@ -9,7 +9,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any, ClassVar
 
-from arap.options import EnergyType, WeightType
+from arap.options import EnergyType, LoosePartsMode, WeightType
 from arap.server.messages import (
     ENERGIES,
     EXPORT_FORMATS,
@@ -152,6 +152,8 @@ class SetParams(ClientMessage):
             maximum=PARAMS["alpha"]["max"],
         )
     )
+    loose: LoosePartsMode | None = field(default=None, metadata=wire(
+        "enum", "what parts no constraint reaches do", choices=tuple(PARAMS["loose"]["choices"])))
 
 
 @dataclass(frozen=True)

@@ -313,7 +313,7 @@ class Dispatcher:
         yield self.state()
 
     def _set_params(self, msg: SetParams) -> Answers:
-        self.session.set_params(msg.iterations, msg.energy, msg.weights, msg.alpha)
+        self.session.set_params(msg.iterations, msg.energy, msg.weights, msg.alpha, msg.loose)
         yield self.state()
 
     def _history_step(self, msg: Undo | Redo | Reset | Apply) -> Answers:

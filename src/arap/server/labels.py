@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
-__all__ = ["ENERGY_LABELS", "WEIGHT_LABELS"]
+__all__ = ["ENERGY_LABELS", "LOOSE_LABELS", "WEIGHT_LABELS"]
 
 ENERGY_LABELS: dict[str, str] = {"spokes": "spokes (2007 paper)", "spokes_and_rims": "spokes and rims",
                                  "smooth_rotations": "smooth rotations (SR-ARAP)"}
 """How the studio names each energy."""
 WEIGHT_LABELS: dict[str, str] = {"cotangent": "cotangent", "clamped": "cotangent, clamped at 0", "uniform": "uniform"}
 """How the studio names each weighting."""
+LOOSE_LABELS: dict[str, str] = {"follow": "follow the nearest constrained part", "hold": "stay where they are"}
+"""How the studio names what loose parts (parts no constraint reaches) do."""

@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 from typing import Any, ClassVar
 
 from arap.options import DEFAULT_ALPHA, DEFAULT_ENERGY, DEFAULT_WEIGHTS, SURFACE_ENERGY_TYPES, WEIGHT_TYPES
-from arap.server.labels import ENERGY_LABELS, WEIGHT_LABELS
+from arap.server.labels import ENERGY_LABELS, LOOSE_LABELS, WEIGHT_LABELS
 
 __all__ = [
     "ANIMATION_STATUSES",
@@ -75,6 +75,7 @@ PARAMS: dict[str, dict[str, Any]] = {
     "energy": {"choices": list(ENERGIES), "labels": dict(ENERGY_LABELS), "default": DEFAULT_ENERGY},
     "weights": {"choices": list(WEIGHTS), "labels": dict(WEIGHT_LABELS), "default": DEFAULT_WEIGHTS},
     "alpha": {"min": 0, "max": 1, "step": 0.005, "default": DEFAULT_ALPHA},
+    "loose": {"choices": list(LOOSE_LABELS), "labels": dict(LOOSE_LABELS), "default": "follow"},
 }
 """Solver parameters a client may set, with their ranges, display labels and defaults."""
 

@@ -6,7 +6,7 @@ import math
 from dataclasses import dataclass
 
 from arap.method.weights import WeightType
-from arap.options import EnergyType
+from arap.options import EnergyType, LoosePartsMode
 from arap.server.messages import PARAMS
 
 __all__ = ["ENERGY_ZERO", "DragOutcome", "Params", "SettleOutcome", "readable_energy"]
@@ -39,6 +39,7 @@ class Params:
     energy: EnergyType = PARAMS["energy"]["default"]
     weights: WeightType = PARAMS["weights"]["default"]
     alpha: float = PARAMS["alpha"]["default"]
+    loose: LoosePartsMode = PARAMS["loose"]["default"]
 
 
 @dataclass

@@ -14,6 +14,7 @@ from arap.server.errors import ERROR_CODES
 from arap.server.messages import (
     ANIMATION_STATUSES,
     ENERGIES,
+    PARAMS,
     SETTLE_STATUSES,
     WEIGHTS,
     MessageSpec,
@@ -44,7 +45,8 @@ def _union(values: tuple[str, ...] | list[str]) -> str:
     return "|".join(json.dumps(v) for v in values)
 
 
-_PARAMS_JS = f"{{iterations: number, energy: {_union(ENERGIES)}, weights: {_union(WEIGHTS)}, alpha: number}}"
+_PARAMS_JS = (f"{{iterations: number, energy: {_union(ENERGIES)}, weights: {_union(WEIGHTS)}, alpha: number, "
+              f"loose: {_union(tuple(PARAMS['loose']['choices']))}}}")
 _STIFFNESS_JS = 'Array<{vertices: number[], value: number|"rigid"}>'
 _POINTS_JS = "Array<{face: number, barycentric: number[], weight?: number}>"
 

@@ -20,7 +20,7 @@ import numpy as np
 import arap
 from arap.errors import ArapError
 from arap.method.weights import WeightType
-from arap.options import EnergyType
+from arap.options import EnergyType, LoosePartsMode
 from arap.server.constraints import ConstraintSet, identity_transforms, matrices_from_json
 from arap.server.mesh_model import MeshData
 from arap.server.numbering import document_in_file_numbering
@@ -242,8 +242,9 @@ class Session(SessionState):
         return dirty
 
     def set_params(self, iterations: int | None = None, energy: EnergyType | None = None,
-                   weights: WeightType | None = None, alpha: float | None = None) -> None:
-        """Change solver parameters; a new energy or weighting refactorises.
+                   weights: WeightType | None = None, alpha: float | None = None,
+                   loose: LoosePartsMode | None = None) -> None:
+        """Change solver parameters; a new energy, weighting or loose-parts mode refactorises.
 
         Raises
         ------
@@ -259,7 +260,10 @@ class Session(SessionState):
             new.weights = weights
         if alpha is not None:
             new.alpha = float(alpha)
-        changed = (new.energy, new.weights) != (self.params.energy, self.params.weights) or (
+        if loose is not None:
+            new.loose = loose
+        changed = (new.energy, new.weights, new.loose) != (self.params.energy, self.params.weights,
+                                                           self.params.loose) or (
             new.energy == "smooth_rotations" and new.alpha != self.params.alpha)
         if changed and self.mesh is not None:
             self.solver = self._solver_for(self.rest_id, self.V, self.constraints, new)

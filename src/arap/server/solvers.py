@@ -24,7 +24,8 @@ SOLVER_CACHE_VERTICES = 200_000
 
 
 class SolverCache:
-    """Solvers by (rest pose, energy, weights, alpha, constraint set), the least recently used dropped first."""
+    """Solvers by (rest pose, energy, weights, alpha, loose parts, constraint set), the least recently used dropped
+    first."""
 
     def __init__(self) -> None:
         self._solvers: OrderedDict[tuple[Any, ...], arap.ArapSolver] = OrderedDict()
@@ -46,14 +47,15 @@ class SolverCache:
         if cs.is_empty:
             return None
         alpha = params.alpha if params.energy == "smooth_rotations" else None  # other energies ignore it
-        key = (rest_id, params.energy, params.weights, alpha, cs.solver_digest())
+        key = (rest_id, params.energy, params.weights, alpha, params.loose, cs.solver_digest())
         solver = self._solvers.get(key)
         if solver is not None:
             self._solvers.move_to_end(key)
             return solver
         try:
             solver = arap.ArapSolver(V, F, cs.constrained, energy=params.energy, weights=params.weights,
-                                     roi=cs.roi, alpha=params.alpha, stiffness=cs.stiffness, points=cs.points)
+                                     roi=cs.roi, alpha=params.alpha, stiffness=cs.stiffness, points=cs.points,
+                                     loose=params.loose)
         except ArapError as exc:
             raise ConstraintsRejected(str(exc)) from exc
         logger.debug("factorised %d free vertices in %.1f ms", solver.n_free, 1000 * solver.factor_seconds)
