@@ -232,7 +232,8 @@ def repair_mesh(
 
     messages = {
         "triangulated_polygons": "split polygons into triangles ({} extra faces)",
-        "welded_vertices": "welded {} duplicate vertices",
+        "welded_vertices": "welded {} vertices sharing a position with another (seams of UVs or normals, or a "
+                           "soup's copies; the file's numbering is kept)",
         "repeated_vertex_faces": "dropped {} faces repeating a vertex",
         "degenerate_faces": "dropped {} zero-area faces",
         "duplicate_faces": "dropped {} duplicate faces",
