@@ -41,6 +41,11 @@ def run_batch(args: argparse.Namespace) -> int:
     warm_up_kernels(args.quiet)
     report = batch(args.manifest, backend=args.backend, workers=args.workers, address=args.address,
                    skip_existing=not args.force, progress=not args.quiet)
+    if report.failed and len(report.preflight_failed) == len(report.outcomes):
+        reasons = {o.reason for o in report.failed}
+        if len(reasons) == 1:  # every job fails alike (a missing mesh, say): one line
+            err(f"arap: {args.manifest}: every job fails the pre-flight check, no worker started: {reasons.pop()}")
+            return EXIT_BAD_INPUT
     for o in report.failed:
         err(f"arap: {args.manifest}, line {o.line}: {o.reason}")
     out(f"arap batch: {report.summary()}")
