@@ -12,9 +12,9 @@ while the others finish.
 
 Before any worker starts, the batch checks the jobs' files in its own process (:mod:`arap.batching.preflight`): a
 missing or unreadable mesh or constraints file, a FIFO or a device named as one, an output that cannot be written
-fail their jobs there, and missing output folders are made. While a job runs it holds a lock on its output
-(:mod:`arap.batching.locks`), so that two batches writing into one folder never both run it; the workers of a pool
-end with the batch, even when it is killed.
+fail their jobs there, and missing output folders are made (on a cluster at ``address``, the workers check and make
+them). While a job runs it holds a lock on its output (:mod:`arap.batching.locks`), so that two batches writing
+into one folder never both run it; the workers of a pool end with the batch, even when it is killed.
 
 Example
 -------
@@ -157,8 +157,9 @@ def batch(jobs: Iterable[Job | Mapping[str, Any]] | str | os.PathLike[str], back
         else:
             seen[job.output] = job.line
             runnable.append(job)
-    runnable, refused = preflight(runnable)
-    outcomes += refused
+    if address is None:  # a cluster elsewhere may see files this machine does not: its workers check them
+        runnable, refused = preflight(runnable)
+        outcomes += refused
     count = workers or os.cpu_count() or 1
     if backend == "serial":
         count = 1

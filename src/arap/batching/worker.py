@@ -7,6 +7,7 @@ data, and catches every error of a job into that job's outcome so that the other
 
 from __future__ import annotations
 
+import contextlib
 import os
 import time
 from collections.abc import Iterator
@@ -126,6 +127,8 @@ def _locked(job: Job, state: _Chunk, skip_existing: bool, wait: bool) -> JobOutc
     """Run ``job`` holding its output's lock (:mod:`arap.batching.locks`); None when another process holds it and
     ``wait`` is false. With ``skip_existing``, a job whose output appeared meanwhile (another batch wrote it) is
     skipped."""
+    with contextlib.suppress(OSError):  # made before the pool started, unless on a cluster (else save_mesh says why)
+        os.makedirs(os.path.dirname(job.output), exist_ok=True)
     with output_lock(job.output, wait=wait) as held:
         if not held:
             return None

@@ -19,7 +19,9 @@ def add_parser(commands: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         description="Run the deformations of MANIFEST.jsonl, one JSON object a line: {\"mesh\": ..., \"constraints\": "
                     "..., \"output\": ...} and optionally \"energy\", \"weights\", \"alpha\", \"tolerance\", "
                     "\"max_iterations\" (paths relative to the manifest). Jobs sharing a mesh and a constraint set "
-                    "share one factorisation; finished outputs are skipped, so a second run completes the first.")
+                    "share one factorisation; finished outputs are skipped, so a second run completes the first. Every "
+                    "job's files are checked before the workers start, output folders are made, and a job another "
+                    "batch is running is left to it.")
     p.add_argument("manifest", metavar="MANIFEST.jsonl")
     p.add_argument("--backend", choices=BACKENDS, default="process",
                    help="where the jobs run (default: process, a pool on this machine; ray and dask need "
