@@ -3,12 +3,14 @@ a broken job fails alone with its manifest line, and an interrupted batch leaves
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import signal
 import subprocess
 import sys
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -120,3 +122,147 @@ def test_interrupted_batch_leaves_no_partial_output(tmp_path: Path) -> None:
         assert U.shape == V.shape and np.array_equal(G, F)
     report = batch(manifest, workers=2, progress=False)  # and the next run finishes the rest
     assert report.counts() == {"done": 24 - len(written), "skipped": len(written), "failed": 0}
+
+
+def _limited_memory() -> None:  # pragma: no cover - runs in the child before exec
+    import resource
+
+    # A reader of /dev/zero fails with MemoryError instead of taking the machine's memory.
+    resource.setrlimit(resource.RLIMIT_AS, (3 << 30, 3 << 30))
+
+
+@pytest.mark.parametrize("special", ["device", "fifo"])
+def test_a_device_or_a_fifo_as_constraints_fails_that_job_only(special: str, tmp_path: Path) -> None:
+    manifest = _family(tmp_path, 3, mesh="bar")
+    if special == "fifo":
+        os.mkfifo(tmp_path / "pipe.json")
+        named, words = "pipe.json", "named pipe (FIFO)"
+    else:
+        named, words = "/dev/zero", "character device"
+    lines = manifest.read_text().splitlines()
+    lines[1] = json.dumps({"mesh": "bar", "constraints": named, "output": "out/pose_1.ply"})
+    manifest.write_text("\n".join(lines) + "\n")
+    # In a child with a memory limit and a deadline: reading /dev/zero or the FIFO must neither exhaust nor hang it.
+    proc = subprocess.run([sys.executable, "-m", "arap.cli", "batch", str(manifest), "--workers", "2", "-q"],
+                          capture_output=True, text=True, timeout=240, preexec_fn=_limited_memory)
+    assert proc.returncode == 1, proc.stderr
+    assert f"line 2: cannot read constraints file {tmp_path / named if special == 'fifo' else named}" in proc.stderr
+    assert words in proc.stderr and "2 done" in proc.stdout, proc.stderr
+    assert sorted(p.name for p in (tmp_path / "out").iterdir()) == ["pose_0.ply", "pose_2.ply"]
+
+
+def test_a_batch_makes_the_output_folders_it_needs(tmp_path: Path) -> None:
+    manifest = _family(tmp_path, 3, mesh="bar")
+    (tmp_path / "out").rmdir()
+    (tmp_path / "file").write_text("a file where a folder is needed")
+    lines = manifest.read_text().splitlines()
+    lines[1] = lines[1].replace("out/pose_1.ply", "deeper/still/pose_1.ply")
+    lines.append(lines[0].replace("out/pose_0.ply", "file/pose_3.ply"))
+    manifest.write_text("\n".join(lines) + "\n")
+    report = batch(manifest, backend="serial", progress=False)
+    assert report.counts() == {"done": 3, "skipped": 0, "failed": 1}, report.failed
+    assert (tmp_path / "out/pose_0.ply").is_file() and (tmp_path / "out/pose_2.ply").is_file()
+    assert (tmp_path / "deeper/still/pose_1.ply").is_file()
+    (failed,) = report.failed
+    assert failed.line == 4 and "cannot make the folder" in failed.reason and "not a folder" in failed.reason
+    assert failed.extra.get("preflight")
+
+
+def test_jobs_that_all_fail_alike_fail_before_any_worker_starts(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                                                capsys: pytest.CaptureFixture[str]) -> None:
+    import arap.batching.backends as backends
+
+    manifest = _family(tmp_path, 3, mesh="bar")
+    manifest.write_text(manifest.read_text().replace('"mesh": "bar"', '"mesh": "missing.obj"'))
+
+    def no_pool(*args: object, **kwargs: object) -> None:
+        raise AssertionError("a worker pool was started")
+
+    monkeypatch.setattr(backends, "ProcessPoolExecutor", no_pool)
+    assert main(["batch", str(manifest), "--workers", "2", "-q"]) == 1
+    captured = capsys.readouterr()
+    lines = captured.err.splitlines()
+    assert len(lines) == 1, captured.err
+    assert "every job fails the pre-flight check, no worker started" in lines[0]
+    assert f"cannot read mesh {tmp_path / 'missing.obj'}" in lines[0]
+    assert not list((tmp_path / "out").iterdir())
+    report = batch(manifest, progress=False)
+    assert report.counts()["failed"] == 3 and len(report.preflight_failed) == 3 and not report.started
+    assert "no worker started" in report.summary()
+
+
+def test_killing_a_batch_ends_its_workers(tmp_path: Path) -> None:
+    psutil = pytest.importorskip("psutil")
+    # Each worker's chunk takes minutes: without the parent watch, its worker would go on long after the kill.
+    manifest = _family(tmp_path, 200, mesh="sphere:20000", shift=0.004)
+    proc = subprocess.Popen([sys.executable, "-m", "arap.cli", "batch", str(manifest), "--workers", "2", "-q"],
+                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, start_new_session=True)
+    children: list[Any] = []
+    try:
+        def running() -> bool:
+            assert proc.poll() is None, proc.communicate()
+            return any((tmp_path / "out").glob("pose_*.ply"))
+
+        assert poll_until(running, 180, interval=0.05), "no job was done in time"
+        children = psutil.Process(proc.pid).children(recursive=True)
+        assert children
+        proc.kill()  # SIGKILL: the batch cannot stop its workers itself
+        proc.wait(timeout=30)
+
+        def gone(p: Any) -> bool:
+            try:
+                return not p.is_running() or p.status() == psutil.STATUS_ZOMBIE
+            except psutil.NoSuchProcess:
+                return True
+
+        assert poll_until(lambda: all(gone(p) for p in children), 20, interval=0.1), \
+            f"still running 20 s after the batch was killed: {[p.pid for p in children if not gone(p)]}"
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+        for p in children:
+            with contextlib.suppress(psutil.Error):
+                p.kill()
+    written = len(list((tmp_path / "out").glob("pose_*.ply")))
+    assert written < 200
+
+
+def test_a_job_another_batch_is_running_is_not_run_twice(tmp_path: Path) -> None:
+    import fcntl
+    import threading
+
+    from arap.batching.locks import lock_path
+
+    manifest = _family(tmp_path, 3, mesh="bar")
+    out = tmp_path / "out"
+    held = lock_path(out / "pose_1.ply")
+    fd = os.open(held, os.O_RDWR | os.O_CREAT)
+    fcntl.flock(fd, fcntl.LOCK_EX)  # as a batch running that job holds it
+    stale = lock_path(out / "pose_2.ply")
+    stale.write_text("999999\n")  # left by a batch that was killed: no one holds it
+    reports: list[Any] = []
+    second = threading.Thread(target=lambda: reports.append(batch(manifest, backend="serial", progress=False)))
+    second.start()
+    try:
+        assert poll_until(lambda: (out / "pose_0.ply").exists() and (out / "pose_2.ply").exists(), 120)
+        assert second.is_alive() and not (out / "pose_1.ply").exists()  # it waits for the other batch
+        (out / "pose_1.ply").write_bytes((out / "pose_0.ply").read_bytes())  # the other batch finishes the job
+    finally:
+        os.unlink(held)
+        os.close(fd)
+        second.join(120)
+    (report,) = reports
+    assert [o.status for o in report.outcomes] == ["done", "skipped", "done"]
+    assert sorted(p.name for p in out.iterdir()) == ["pose_0.ply", "pose_1.ply", "pose_2.ply"]  # locks removed
+
+
+def test_a_quiet_dask_batch_prints_only_its_summary(tmp_path: Path) -> None:
+    pytest.importorskip("distributed")
+    manifest = _family(tmp_path, 2, mesh="bar")
+    # A process of its own: the command's logging set-up, not pytest's, decides what reaches stderr.
+    proc = subprocess.run([sys.executable, "-m", "arap.cli", "batch", str(manifest), "--backend", "dask", "--workers",
+                           "1", "-q"], capture_output=True, text=True, timeout=240)
+    assert proc.returncode == 0, proc.stderr
+    noise = [line for line in proc.stderr.splitlines() if not line.startswith("arap: compiling")]  # first run only
+    assert noise == []
+    assert proc.stdout.startswith("arap batch: 2 done") and len(proc.stdout.splitlines()) == 1

@@ -162,7 +162,7 @@ def test_arap_animate_writes_the_frames_the_library_solves(tmp_path: Path, capsy
     assert main(["animate", "bar", "-k", str(keys), "-o", str(tmp_path / "f_###.obj"), "--fps", "10"]) == 0
     err = capsys.readouterr().err
     assert "4 frames solved" in err and "frame 4/4" in err
-    expected = animate(V, F, doc, fps=10)
+    expected = animate(V, F, doc, fps=10, exact=False)  # arap animate's default
     for k in range(4):
         np.testing.assert_allclose(arap.load_mesh(tmp_path / f"f_{k:03d}.obj")[0], expected.vertices[k], atol=1e-9)
     assert main(["animate", "bar", "-k", str(keys), "-o", str(tmp_path / "a.glb"), "-q"]) == 0
@@ -171,3 +171,73 @@ def test_arap_animate_writes_the_frames_the_library_solves(tmp_path: Path, capsy
     assert "####" in capsys.readouterr().err
     assert main(["animate", "bar", "-k", str(keys), "-o", str(tmp_path / "f_#.obj"), "--fps", "0"]) == 1
     assert "fps must be a positive number" in capsys.readouterr().err
+
+
+def _turn_and_back(V: np.ndarray, seconds: float) -> dict[str, object]:
+    """The lowest 10% of the vertices held, the highest 10% turned 60° about a horizontal axis and back."""
+    y = V[:, 1]
+    fixed, top = np.flatnonzero(y <= np.quantile(y, 0.1)), np.flatnonzero(y >= np.quantile(y, 0.9))
+    pivot = V[top].mean(axis=0)
+    a = np.radians(60.0)
+    R = np.array([[1.0, 0.0, 0.0], [0.0, np.cos(a), -np.sin(a)], [0.0, np.sin(a), np.cos(a)]])
+    turned = np.eye(4)
+    turned[:3, :3], turned[:3, 3] = R, pivot - R @ pivot
+    return {"fixed": fixed.tolist(), "handles": top.tolist(),
+            "keyframes": [{"time": 0.0, "transforms": [np.eye(4).tolist()]},
+                          {"time": seconds / 2, "transforms": [turned.tolist()]},
+                          {"time": seconds, "transforms": [np.eye(4).tolist()]}]}
+
+
+def _each_to_convergence(V: np.ndarray, F: np.ndarray, doc: dict[str, object], fps: float) -> np.ndarray:
+    """Every frame solved to the default tolerance, each from the previous one (a plain loop over the solver)."""
+    keys = load_keyframes(doc, V)
+    c = keys.constraints
+    solver = arap.ArapSolver(V, F, c.constrained)
+    frames = []
+    for t in frame_times(keys, fps):
+        result = solver.solve(np.concatenate([V[c.fixed], keys.handle_targets(float(t))]))
+        assert result.converged
+        frames.append(result.vertices)
+    return np.array(frames)
+
+
+def test_frames_between_keys_are_within_the_stated_distance_of_converged_frames() -> None:
+    from arap.animation import FRAME_TOLERANCE
+
+    V, F = arap.builtin_mesh("cactus")
+    diag = float(np.linalg.norm(V.max(0) - V.min(0)))
+    doc = _turn_and_back(V, 1.0)
+    exact = animate(V, F, doc, fps=10)  # the library's default
+    fast = animate(V, F, doc, fps=10, exact=False)
+    assert fast.at_key is not None and fast.at_key.tolist() == [True] + [False] * 4 + [True] + [False] * 4 + [True]
+    assert exact.converged.all() and fast.converged.all()
+    np.testing.assert_allclose(exact.vertices, _each_to_convergence(V, F, doc, 10), atol=1e-9 * diag)
+    distance = np.linalg.norm(fast.vertices - exact.vertices, axis=2).max(axis=1) / diag
+    assert distance.max() <= 1e-3, distance  # the module's stated bound
+    assert distance[fast.at_key].max() <= 1e-6  # the keyframes are converged
+    assert fast.iterations[~fast.at_key].sum() < 0.6 * exact.iterations[~exact.at_key].sum()
+    with pytest.raises(OptionError, match="frame_tolerance"):
+        animate(V, F, doc, fps=10, exact=False, frame_tolerance=-1.0)
+    loose = animate(V, F, doc, fps=10, exact=False, frame_tolerance=10 * FRAME_TOLERANCE)
+    assert loose.iterations[~loose.at_key].sum() < fast.iterations[~fast.at_key].sum()
+
+
+def test_arap_animate_estimates_its_time_and_exact_converges_every_frame(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    from arap.cli import main
+
+    V, F = arap.builtin_mesh("bar")
+    diag = float(np.linalg.norm(V.max(0) - V.min(0)))
+    doc = _turn_and_back(V, 0.8)
+    keys = tmp_path / "keys.json"
+    keys.write_text(json.dumps(doc))
+    assert main(["animate", "bar", "-k", str(keys), "-o", str(tmp_path / "f_##.ply"), "--fps", "10"]) == 0
+    err = capsys.readouterr().err
+    assert "expected time for the 9 frames: about" in err and "left" in err
+    assert main(["animate", "bar", "-k", str(keys), "-o", str(tmp_path / "e_##.ply"), "--fps", "10", "--exact"]) == 0
+    assert "every frame to convergence" in capsys.readouterr().err
+    converged = _each_to_convergence(V, F, doc, 10)
+    fast = np.array([arap.load_mesh(tmp_path / f"f_{k:02d}.ply")[0] for k in range(9)])
+    exact = np.array([arap.load_mesh(tmp_path / f"e_{k:02d}.ply")[0] for k in range(9)])
+    np.testing.assert_allclose(exact, converged, atol=1e-9 * diag)
+    assert np.linalg.norm(fast - converged, axis=2).max() <= 1e-3 * diag

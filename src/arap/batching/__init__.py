@@ -10,6 +10,12 @@ Outputs are written atomically, so an interrupted batch leaves finished files an
 (a bad file, a constraint set with a free part no constraint holds) is reported with its manifest line and reason
 while the others finish.
 
+Before any worker starts, the batch checks the jobs' files in its own process (:mod:`arap.batching.preflight`): a
+missing or unreadable mesh or constraints file, a FIFO or a device named as one, an output that cannot be written
+fail their jobs there, and missing output folders are made (on a cluster at ``address``, the workers check and make
+them). While a job runs it holds a lock on its output (:mod:`arap.batching.locks`), so that two batches writing
+into one folder never both run it; the workers of a pool end with the batch, even when it is killed.
+
 Example
 -------
 >>> import json, pathlib, tempfile, numpy as np, arap
@@ -37,6 +43,7 @@ from typing import Any
 
 from arap.batching.backends import BACKENDS, run_chunks
 from arap.batching.jobs import Job, JobOutcome, chunks_for, job_from_json, read_manifest
+from arap.batching.preflight import preflight
 from arap.errors import ArapError, OptionError
 
 __all__ = ["BACKENDS", "BatchReport", "Job", "JobOutcome", "batch", "read_manifest"]
@@ -50,6 +57,8 @@ class BatchReport:
     backend: str
     workers: int
     seconds: float
+    started: bool = True
+    """Whether any job reached a worker (False when every job was skipped or failed the checks before)."""
 
     def counts(self) -> dict[str, int]:
         """Jobs done, skipped and failed."""
@@ -60,6 +69,11 @@ class BatchReport:
         return [o for o in self.outcomes if o.status == "failed"]
 
     @property
+    def preflight_failed(self) -> list[JobOutcome]:
+        """The failed jobs that the checks before the workers started refused (see :mod:`arap.batching.preflight`)."""
+        return [o for o in self.failed if o.extra.get("preflight")]
+
+    @property
     def factorisations(self) -> int:
         """Factorisations run (fewer than jobs done where jobs shared a constraint set)."""
         return sum(o.factorised for o in self.outcomes)
@@ -68,9 +82,12 @@ class BatchReport:
         """One line: counts, factorisations, wall time and throughput."""
         c = self.counts()
         rate = c["done"] / self.seconds if self.seconds > 0 else 0.0
-        return (f"{c['done']} done, {c['skipped']} skipped (output exists), {c['failed']} failed; "
-                f"{self.factorisations} factorisations; {self.seconds:.1f} s on {self.workers} {self.backend} "
-                f"worker{'s' if self.workers != 1 else ''} ({rate:.2f} jobs/s)")
+        early = len(self.preflight_failed)
+        checks = f" ({early} before any worker started)" if early else ""
+        where = (f" on {self.workers} {self.backend} worker{'s' if self.workers != 1 else ''}" if self.started
+                 else ", no worker started")
+        return (f"{c['done']} done, {c['skipped']} skipped (output exists), {c['failed']} failed{checks}; "
+                f"{self.factorisations} factorisations; {self.seconds:.1f} s{where} ({rate:.2f} jobs/s)")
 
 
 def _jobs(jobs: Iterable[Job | Mapping[str, Any]], base: Path) -> tuple[list[Job], list[JobOutcome]]:
@@ -140,10 +157,14 @@ def batch(jobs: Iterable[Job | Mapping[str, Any]] | str | os.PathLike[str], back
         else:
             seen[job.output] = job.line
             runnable.append(job)
+    if address is None:  # a cluster elsewhere may see files this machine does not: its workers check them
+        runnable, refused = preflight(runnable)
+        outcomes += refused
     count = workers or os.cpu_count() or 1
     if backend == "serial":
         count = 1
     chunks = chunks_for(runnable, count) if runnable else []
-    outcomes += run_chunks(chunks, backend, count, address, progress, total=len(runnable))
+    outcomes += run_chunks(chunks, backend, count, address, progress, total=len(runnable), skip_existing=skip_existing)
     outcomes.sort(key=lambda o: o.line)
-    return BatchReport(outcomes=outcomes, backend=backend, workers=count, seconds=time.perf_counter() - t0)
+    return BatchReport(outcomes=outcomes, backend=backend, workers=count, seconds=time.perf_counter() - t0,
+                       started=bool(chunks))

@@ -9,6 +9,7 @@ and are imported only when asked for.
 
 from __future__ import annotations
 
+import logging
 import multiprocessing
 import os
 from collections.abc import Callable, Iterator
@@ -17,7 +18,7 @@ from contextlib import contextmanager
 from typing import Any
 
 from arap.batching.jobs import Job, JobOutcome
-from arap.batching.worker import environment, run_chunk, worker_environment
+from arap.batching.worker import environment, run_chunk, start_worker, worker_environment
 from arap.errors import OptionError
 
 __all__ = ["BACKENDS", "run_chunks"]
@@ -49,23 +50,28 @@ def _threads(workers: int) -> dict[str, str]:
     return worker_environment((os.cpu_count() or 1) // max(workers, 1))
 
 
-def _serial(chunks: list[list[Job]], update: Callable[[list[JobOutcome]], None]) -> list[JobOutcome]:
+def _serial(chunks: list[list[Job]], skip_existing: bool,
+            update: Callable[[list[JobOutcome]], None]) -> list[JobOutcome]:
     outcomes: list[JobOutcome] = []
     for chunk in chunks:
-        done = run_chunk(chunk)
+        done = run_chunk(chunk, skip_existing)
         update(done)
         outcomes += done
     return outcomes
 
 
-def _process(chunks: list[list[Job]], workers: int, update: Callable[[list[JobOutcome]], None]) -> list[JobOutcome]:
-    # "spawn": a fresh interpreter per worker, never a fork of a process whose kernel threads are running.
+def _process(chunks: list[list[Job]], workers: int, skip_existing: bool,
+             update: Callable[[list[JobOutcome]], None]) -> list[JobOutcome]:
+    # "spawn": a fresh interpreter per worker, never a fork of a process whose kernel threads are running. Each worker
+    # ends with this process, even when it is killed (start_worker).
     count = min(workers, len(chunks))
     outcomes: list[JobOutcome] = []
-    pool = ProcessPoolExecutor(max_workers=count, mp_context=multiprocessing.get_context("spawn"))
+    pool = ProcessPoolExecutor(max_workers=count, mp_context=multiprocessing.get_context("spawn"),
+                               initializer=start_worker, initargs=(os.getpid(),))
     try:
         with environment(_threads(count)):  # the workers start inside, with these thread counts
-            pending: dict[Future[list[JobOutcome]], list[Job]] = {pool.submit(run_chunk, c): c for c in chunks}
+            pending: dict[Future[list[JobOutcome]], list[Job]] = {
+                pool.submit(run_chunk, c, skip_existing): c for c in chunks}
         while pending:
             finished, _ = wait(pending, return_when=FIRST_COMPLETED)
             for future in finished:
@@ -83,7 +89,7 @@ def _process(chunks: list[list[Job]], workers: int, update: Callable[[list[JobOu
     return outcomes
 
 
-def _ray(chunks: list[list[Job]], workers: int, address: str | None,
+def _ray(chunks: list[list[Job]], workers: int, address: str | None, skip_existing: bool,
          update: Callable[[list[JobOutcome]], None]) -> list[JobOutcome]:
     try:
         import ray
@@ -97,8 +103,8 @@ def _ray(chunks: list[list[Job]], workers: int, address: str | None,
             options["num_cpus"] = workers
         ray.init(address=address, **options)
     try:
-        remote = ray.remote(num_cpus=1, max_retries=0)(run_chunk)
-        pending = {remote.remote(c): c for c in chunks}
+        remote: Any = ray.remote(num_cpus=1, max_retries=0)(run_chunk)
+        pending = {remote.remote(c, skip_existing): c for c in chunks}
         outcomes: list[JobOutcome] = []
         while pending:
             ready, _ = ray.wait(list(pending), num_returns=1)
@@ -116,19 +122,48 @@ def _ray(chunks: list[list[Job]], workers: int, address: str | None,
             ray.shutdown()
 
 
-def _dask(chunks: list[list[Job]], workers: int, address: str | None,
+def _dask(chunks: list[list[Job]], workers: int, address: str | None, skip_existing: bool, quiet: bool,
           update: Callable[[list[JobOutcome]], None]) -> list[JobOutcome]:
     try:
         from dask.distributed import Client, LocalCluster, as_completed
     except ImportError:
         raise OptionError("the dask backend needs Dask's distributed scheduler: pip install 'arap[dask]'") from None
+    level = logging.ERROR if quiet else logging.WARNING
+    with _log_level(_DASK_LOGGERS, level):
+        return _dask_run(chunks, workers, address, skip_existing, level, update, Client, LocalCluster, as_completed)
+
+
+_DASK_LOGGERS = ("distributed", "bokeh", "tornado")
+"""Loggers of Dask's distributed scheduler and what it runs on; their info lines (the cluster starting, every worker
+and connection) are not shown."""
+
+
+@contextmanager
+def _log_level(names: tuple[str, ...], level: int) -> Iterator[None]:
+    """Loggers ``names`` set to ``level`` at least for the block."""
+    loggers = [logging.getLogger(name) for name in names]
+    saved = [lg.level for lg in loggers]
+    for lg in loggers:
+        lg.setLevel(max(level, lg.getEffectiveLevel()))
+    try:
+        yield
+    finally:
+        for lg, value in zip(loggers, saved, strict=True):
+            lg.setLevel(value)
+
+
+def _dask_run(chunks: list[list[Job]], workers: int, address: str | None, skip_existing: bool, level: int,
+              update: Callable[[list[JobOutcome]], None], Client: Any, LocalCluster: Any,
+              as_completed: Any) -> list[JobOutcome]:
     cluster = None
     if address is None:
         with environment(_threads(workers)):
-            cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None)
+            # silence_logs: the level of the cluster's loggers, in the worker processes too
+            cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, silence_logs=level,
+                                   dashboard_address=None)
     client = Client(address if address is not None else cluster)
     try:
-        futures = client.map(run_chunk, chunks, pure=False, retries=0)
+        futures = client.map(run_chunk, chunks, skip_existing=skip_existing, pure=False, retries=0)
         chunk_of = {f.key: c for f, c in zip(futures, chunks, strict=True)}
         outcomes: list[JobOutcome] = []
         for future in as_completed(futures):
@@ -146,17 +181,18 @@ def _dask(chunks: list[list[Job]], workers: int, address: str | None,
 
 
 def run_chunks(chunks: list[list[Job]], backend: str, workers: int, address: str | None, progress: bool,
-               total: int) -> list[JobOutcome]:
-    """Run every chunk on ``backend`` with ``workers`` workers; the outcomes of all their jobs."""
+               total: int, skip_existing: bool = True) -> list[JobOutcome]:
+    """Run every chunk on ``backend`` with ``workers`` workers; the outcomes of all their jobs. Without ``progress``,
+    the cluster backends log nothing but errors either."""
     if not chunks:
         return []
     with _bar(total, progress) as update:
         if backend == "serial":
-            return _serial(chunks, update)
+            return _serial(chunks, skip_existing, update)
         if backend == "process":
-            return _process(chunks, workers, update)
+            return _process(chunks, workers, skip_existing, update)
         if backend == "ray":
-            return _ray(chunks, workers, address, update)
+            return _ray(chunks, workers, address, skip_existing, update)
         if backend == "dask":
-            return _dask(chunks, workers, address, update)
+            return _dask(chunks, workers, address, skip_existing, not progress, update)
     raise OptionError(f"unknown backend {backend!r}; expected one of {BACKENDS}")

@@ -171,9 +171,12 @@ def read_manifest(path: str | os.PathLike[str]) -> tuple[list[Job], list[JobOutc
 
 def _constraint_set_key(path: str) -> str:
     """A digest of the constraints file without its targets: files with equal digests share a solver. A file that
-    cannot be read gets a key of its own (the job then fails with the reason)."""
+    cannot be read (or is not a regular file: a FIFO would block, a device fill the memory) gets a key of its own
+    (the job then fails with the reason)."""
+    from arap.io.paths import read_regular_file
+
     try:
-        data = json.loads(Path(path).read_bytes())
+        data = json.loads(read_regular_file(path))
     except (OSError, ValueError, RecursionError):
         return "unreadable:" + path
     if not isinstance(data, dict):

@@ -7,17 +7,20 @@ data, and catches every error of a job into that job's outcome so that the other
 
 from __future__ import annotations
 
+import contextlib
 import os
 import time
 from collections.abc import Iterator
 from contextlib import contextmanager
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
 from arap.batching.jobs import Job, JobOutcome
+from arap.batching.locks import exit_with_parent, output_lock
 
-__all__ = ["run_chunk", "worker_environment"]
+__all__ = ["run_chunk", "start_worker", "worker_environment"]
 
 
 def worker_environment(threads: int) -> dict[str, str]:
@@ -63,61 +66,107 @@ def _structure(c: Any) -> tuple[bytes, ...]:
     return tuple(np.ascontiguousarray(p).tobytes() + str(np.asarray(p).dtype).encode() for p in parts)
 
 
-def run_chunk(jobs: list[Job]) -> list[JobOutcome]:
-    """Solve and write ``jobs`` (one mesh and options; constraint sets usually equal) in order.
+@dataclass
+class _Chunk:
+    """What the jobs of a chunk share: the mesh (or why it could not be loaded) and the last solver."""
 
-    Returns
-    -------
-    list of JobOutcome
-        One per job: ``done`` with its iterations, or ``failed`` with the reason (the others still run).
-    """
+    mesh: tuple[np.ndarray, np.ndarray, Any] | None = None
+    load_error: str = ""
+    solver: Any = None
+    built_for: tuple[bytes, ...] | None = None
+
+
+def _solve_and_write(job: Job, state: _Chunk) -> JobOutcome:
+    """Solve one job and write its output, reusing the mesh and the solver of the jobs before."""
     from arap.constraints import load_constraints
     from arap.errors import ArapError
     from arap.io import format_of, save_mesh
     from arap.solve.solver import ArapSolver
 
-    outcomes: list[JobOutcome] = []
-    loaded: tuple[np.ndarray, np.ndarray, Any] | None = None
-    load_error = ""
-    solver: Any = None
-    built_for: tuple[bytes, ...] | None = None
-    for job in jobs:
-        t0 = time.perf_counter()
-        try:
-            if loaded is None and not load_error:
-                try:
-                    loaded = _load(job.mesh)
-                except (ArapError, OSError, ValueError, MemoryError) as exc:
-                    load_error = f"{job.mesh}: {exc}"
-            if loaded is None:
-                raise ArapError(load_error)
-            V, F, repair = loaded
-            constraints = load_constraints(job.constraints, len(repair.vertex_map), len(F))
-            if repair.renumbers:
-                constraints = constraints.remapped(repair.vertex_map)
-            indices, targets = constraints.indices_and_targets(V)
-            structure = _structure(constraints)
-            factorised = solver is None or structure != built_for
-            if factorised:
-                solver = None  # the previous factor goes before the next is built
-                solver = ArapSolver(V, F, indices, energy=job.energy, weights=job.weights, roi=constraints.roi,  # type: ignore[arg-type]
-                                    stiffness=constraints.stiffness, alpha=job.alpha, points=constraints.points)
-                built_for = structure
-            result = solver.solve(targets, initial="auto", max_iterations=job.max_iterations,
-                                  tolerance=job.tolerance, point_targets=constraints.point_targets)
-            if not np.isfinite(result.vertices).all():
-                raise ArapError("the solve produced non-finite positions; nothing was written")
-            U, F_out = result.vertices, F
-            if repair.renumbers and not (os.path.isabs(job.mesh) and format_of(job.mesh) == "stl"):
-                back = repair.in_input_order(result.vertices)
-                if back is not None:
-                    U, F_out = back
-            save_mesh(job.output, U, F_out)
-            outcomes.append(JobOutcome(line=job.line, output=job.output, status="done",
-                                       iterations=result.iterations, converged=result.converged,
-                                       seconds=time.perf_counter() - t0, factorised=factorised))
-        except (ArapError, OSError, ValueError, MemoryError) as exc:
-            reason = " ".join(str(exc).split()) or type(exc).__name__
-            outcomes.append(JobOutcome(line=job.line, output=job.output, status="failed", reason=reason[:500],
-                                       seconds=time.perf_counter() - t0))
-    return outcomes
+    t0 = time.perf_counter()
+    try:
+        if state.mesh is None and not state.load_error:
+            try:
+                state.mesh = _load(job.mesh)
+            except (ArapError, OSError, ValueError, MemoryError) as exc:
+                state.load_error = f"{job.mesh}: {exc}"
+        if state.mesh is None:
+            raise ArapError(state.load_error)
+        V, F, repair = state.mesh
+        constraints = load_constraints(job.constraints, len(repair.vertex_map), len(F))
+        if repair.renumbers:
+            constraints = constraints.remapped(repair.vertex_map)
+        indices, targets = constraints.indices_and_targets(V)
+        structure = _structure(constraints)
+        factorised = state.solver is None or structure != state.built_for
+        if factorised:
+            state.solver = None  # the previous factor goes before the next is built
+            state.solver = ArapSolver(V, F, indices, energy=job.energy, weights=job.weights,  # type: ignore[arg-type]
+                                      roi=constraints.roi, stiffness=constraints.stiffness, alpha=job.alpha,
+                                      points=constraints.points)
+            state.built_for = structure
+        result = state.solver.solve(targets, initial="auto", max_iterations=job.max_iterations,
+                                    tolerance=job.tolerance, point_targets=constraints.point_targets)
+        if not np.isfinite(result.vertices).all():
+            raise ArapError("the solve produced non-finite positions; nothing was written")
+        U, F_out = result.vertices, F
+        if repair.renumbers and not (os.path.isabs(job.mesh) and format_of(job.mesh) == "stl"):
+            back = repair.in_input_order(result.vertices)
+            if back is not None:
+                U, F_out = back
+        save_mesh(job.output, U, F_out)
+        return JobOutcome(line=job.line, output=job.output, status="done", iterations=result.iterations,
+                          converged=result.converged, seconds=time.perf_counter() - t0, factorised=factorised)
+    except (ArapError, OSError, ValueError, MemoryError) as exc:
+        reason = " ".join(str(exc).split()) or type(exc).__name__
+        return JobOutcome(line=job.line, output=job.output, status="failed", reason=reason[:500],
+                          seconds=time.perf_counter() - t0)
+
+
+def _locked(job: Job, state: _Chunk, skip_existing: bool, wait: bool) -> JobOutcome | None:
+    """Run ``job`` holding its output's lock (:mod:`arap.batching.locks`); None when another process holds it and
+    ``wait`` is false. With ``skip_existing``, a job whose output appeared meanwhile (another batch wrote it) is
+    skipped."""
+    with contextlib.suppress(OSError):  # made before the pool started, unless on a cluster (else save_mesh says why)
+        os.makedirs(os.path.dirname(job.output), exist_ok=True)
+    with output_lock(job.output, wait=wait) as held:
+        if not held:
+            return None
+        if skip_existing and os.path.exists(job.output):
+            return JobOutcome(line=job.line, output=job.output, status="skipped")
+        return _solve_and_write(job, state)
+
+
+def run_chunk(jobs: list[Job], skip_existing: bool = True) -> list[JobOutcome]:
+    """Solve and write ``jobs`` (one mesh and options; constraint sets usually equal) in order.
+
+    Each job holds its output's lock while it runs (:mod:`arap.batching.locks`): a job that another batch is running
+    waits until the others of the chunk are done, then until that batch lets it go; it is then skipped if its output
+    exists (with ``skip_existing``), or run.
+
+    Returns
+    -------
+    list of JobOutcome
+        One per job, in the order of ``jobs``: ``done`` with its iterations, ``skipped`` when its output appeared while
+        it waited, or ``failed`` with the reason (the others still run).
+    """
+    state = _Chunk()
+    outcomes: dict[int, JobOutcome] = {}
+    busy: list[int] = []
+    for k, job in enumerate(jobs):
+        outcome = _locked(job, state, skip_existing, wait=False)
+        if outcome is None:
+            busy.append(k)
+        else:
+            outcomes[k] = outcome
+    for k in busy:
+        done = _locked(jobs[k], state, skip_existing, wait=True)
+        assert done is not None
+        outcomes[k] = done
+    return [outcomes[k] for k in range(len(jobs))]
+
+
+def start_worker(parent: int) -> None:
+    """Initializer of a pool's worker process: it ends with the process ``parent`` that started the pool, however that
+    one ended (see :func:`arap.batching.locks.exit_with_parent`), so that no worker of a killed batch keeps writing."""
+    exit_with_parent(parent)

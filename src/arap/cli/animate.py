@@ -24,11 +24,14 @@ __all__ = ["add_parser", "run_animate"]
 
 def add_parser(commands: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     """Add ``arap animate`` and its options to the subcommands of ``arap``."""
-    from arap.animation import DEFAULT_FPS
+    from arap.animation import DEFAULT_FPS, FRAME_TOLERANCE
 
     p = commands.add_parser("animate", help="solve a keyframed animation",
-                            description="Pose MESH's handles at keyframes and solve every frame between them, each to "
-                                        "convergence from the previous frame.")
+                            description="Pose MESH's handles at keyframes and solve every frame between them, each "
+                                        "from the previous frame: the frames at the keyframes to convergence, the "
+                                        f"others to tolerance {FRAME_TOLERANCE:g} (within about 1e-3 of the mesh's "
+                                        "size of converged frames, a few times faster; --exact solves every frame to "
+                                        "convergence).")
     p.add_argument("mesh", metavar="MESH")
     p.add_argument("-k", "--keyframes", required=True, metavar="KEYS.json",
                    help='a constraints file with "keyframes": [{"time": seconds, "targets": [...]} or '
@@ -37,9 +40,26 @@ def add_parser(commands: argparse._SubParsersAction[argparse.ArgumentParser]) ->
                    help="frame_####.obj (numbered files in that mesh format) or OUT.glb (one animated glTF)")
     p.add_argument("--fps", type=float, default=DEFAULT_FPS, help=f"frames per second (default: {DEFAULT_FPS:g})")
     add_iteration_options(p)
+    p.add_argument("--exact", action="store_true",
+                   help="solve every frame to convergence (-t/--tolerance), not only the frames at the keyframes")
     add_energy_options(p)
     p.add_argument("-q", "--quiet", action="store_true", help="print nothing but errors")
     p.set_defaults(func=run_animate)
+
+
+def _duration(seconds: float) -> str:
+    """``40 ms``, ``2.5 s``, ``12 s``, ``3 min 20 s``, ``1 h 05 min``."""
+    seconds = max(float(seconds), 0.0)
+    if seconds < 1:
+        return f"{1e3 * seconds:.0f} ms"
+    if seconds < 10:
+        return f"{seconds:.1f} s"
+    s = round(seconds)
+    if s < 60:
+        return f"{s} s"
+    if s < 3600:
+        return f"{s // 60} min {s % 60:02d} s"
+    return f"{s // 3600} h {s % 3600 // 60:02d} min"
 
 
 def _check_output(output: str) -> None:
@@ -62,7 +82,15 @@ def _check_output(output: str) -> None:
 
 def run_animate(args: argparse.Namespace) -> int:
     """``arap animate``: the exit status."""
-    from arap.animation import Animation, frame_times, iter_frames, load_keyframes, save_animation
+    from arap.animation import (
+        FRAME_TOLERANCE,
+        Animation,
+        at_keyframes,
+        frame_times,
+        iter_frames,
+        load_keyframes,
+        save_animation,
+    )
     from arap.solve.solver import ArapSolver
 
     _check_output(args.output)
@@ -78,23 +106,35 @@ def run_animate(args: argparse.Namespace) -> int:
     solver = ArapSolver(V, F, c.constrained, energy=args.energy, weights=args.weights, roi=c.roi,
                         stiffness=c.stiffness, alpha=args.alpha, points=c.points)
     if not args.quiet:
+        how = ("every frame to convergence" if args.exact else
+               f"keyframes to convergence, the frames between to tolerance {FRAME_TOLERANCE:g}; --exact: all to "
+               "convergence")
         err(f"arap: {label}: {len(V):,} vertices; {len(keys.keys)} keyframes, {len(times)} frames at {args.fps:g} "
-            f"fps; precompute {1e3 * solver.factor_seconds:.0f} ms")
+            f"fps ({how}); precompute {1e3 * solver.factor_seconds:.0f} ms")
     frames = np.empty((len(times), len(V), 3))
     iterations = np.zeros(len(times), dtype=np.int64)
     converged = np.zeros(len(times), dtype=bool)
     seconds = np.zeros(len(times))
+    at_key = at_keyframes(keys, times)
     t0 = time.perf_counter()
-    for k, (t, result) in enumerate(iter_frames(solver, keys, V, times, tolerance=args.tolerance,
+    for k, (t, result) in enumerate(iter_frames(solver, keys, V, times, exact=args.exact, tolerance=args.tolerance,
                                                 max_iterations=args.iterations)):
         frames[k], iterations[k], converged[k] = result.vertices, result.iterations, result.converged
         seconds[k] = result.timings["total"]
         if not args.quiet:
+            # What is left at the mean time of the frames so far that started from the frame before (the first one
+            # starts from the rest pose: it may take far more or far fewer iterations than the others).
+            typical = seconds[1:k + 1].mean() if k else seconds[0]
+            left = (len(times) - k - 1) * typical
+            eta = f"; about {_duration(left)} left" if 0 < k < len(times) - 1 or len(times) == 2 else ""
             err(f"arap: frame {k + 1}/{len(times)} at {t:.3f} s: {result.iterations} iterations"
-                f"{'' if result.converged else ' (not converged)'}")
+                f"{'' if result.converged else ' (not converged)'} in {_duration(seconds[k])}{eta}")
+            if k == min(1, len(times) - 2):
+                err(f"arap: expected time for the {len(times)} frames: about {_duration(seconds[:k + 1].sum() + left)} "
+                    f"(the frames left × this frame's {_duration(seconds[k])}; updated on every frame)")
     total = time.perf_counter() - t0
     animation = Animation(times=times, vertices=frames, iterations=iterations, converged=converged, seconds=seconds,
-                          setup_seconds=solver.factor_seconds)
+                          setup_seconds=solver.factor_seconds, at_key=at_key)
     paths = save_animation(args.output, F, animation)
     if not args.quiet:
         rest = f", the others {1e3 * seconds[1:].mean():.0f} ms on average" if len(times) > 1 else ""

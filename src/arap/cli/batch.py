@@ -19,7 +19,9 @@ def add_parser(commands: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         description="Run the deformations of MANIFEST.jsonl, one JSON object a line: {\"mesh\": ..., \"constraints\": "
                     "..., \"output\": ...} and optionally \"energy\", \"weights\", \"alpha\", \"tolerance\", "
                     "\"max_iterations\" (paths relative to the manifest). Jobs sharing a mesh and a constraint set "
-                    "share one factorisation; finished outputs are skipped, so a second run completes the first.")
+                    "share one factorisation; finished outputs are skipped, so a second run completes the first. Every "
+                    "job's files are checked before the workers start, output folders are made, and a job another "
+                    "batch is running is left to it.")
     p.add_argument("manifest", metavar="MANIFEST.jsonl")
     p.add_argument("--backend", choices=BACKENDS, default="process",
                    help="where the jobs run (default: process, a pool on this machine; ray and dask need "
@@ -41,6 +43,11 @@ def run_batch(args: argparse.Namespace) -> int:
     warm_up_kernels(args.quiet)
     report = batch(args.manifest, backend=args.backend, workers=args.workers, address=args.address,
                    skip_existing=not args.force, progress=not args.quiet)
+    if report.failed and len(report.preflight_failed) == len(report.outcomes):
+        reasons = {o.reason for o in report.failed}
+        if len(reasons) == 1:  # every job fails alike (a missing mesh, say): one line
+            err(f"arap: {args.manifest}: every job fails the pre-flight check, no worker started: {reasons.pop()}")
+            return EXIT_BAD_INPUT
     for o in report.failed:
         err(f"arap: {args.manifest}, line {o.line}: {o.reason}")
     out(f"arap batch: {report.summary()}")
