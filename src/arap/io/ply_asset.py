@@ -18,7 +18,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from arap.errors import MeshError, MeshFormatError, MeshTooLargeError
-from arap.io.asset_model import MeshAsset, fan, group_normals, missing_file_warning, vertex_normal_groups, write_beside
+from arap.io.asset_model import MeshAsset, fan, group_normals, read_referenced, vertex_normal_groups, write_beside
 from arap.io.screening import screen
 
 __all__ = ["PlyData", "PlyElement", "read_ply_asset", "write_ply_asset"]
@@ -288,17 +288,8 @@ def _read_ply_asset(data: bytes, label: str, folder: Path | None, max_vertices: 
             break
     textures: dict[str, bytes] = {}
     for ref in ply.texture_files:
-        blob = None
-        if folder is not None:
-            from arap.io.paths import read_regular_file
-
-            try:
-                blob = read_regular_file(folder / ref)
-            except OSError:
-                blob = None
-        if blob is None:
-            missing_file_warning(f"{label}: the texture {ref!r} cannot be read; its reference is kept")
-        else:
+        blob = read_referenced(folder, ref, label, f"the texture {ref!r}", "its reference is kept")
+        if blob is not None:
             textures[ref] = blob
     return MeshAsset(format="ply", vertices=V, faces=F, face_materials=np.full(len(F), -1, dtype=np.int64),
                      face_groups=np.full(len(F), -1, dtype=np.int64), uvs=uvs, vertex_colors=colors,
