@@ -223,8 +223,10 @@ def parse_ply(data: bytes, label: str) -> PlyData:
     return PlyData(elements=elements, comments=comments)
 
 
-def read_ply_asset(data: bytes, label: str, folder: Path | None, max_vertices: int | None) -> MeshAsset:
-    """A :class:`MeshAsset` from the bytes of a PLY file (its texture read from ``folder``).
+def read_ply_asset(data: bytes, label: str, folder: Path | None, max_vertices: int | None, *,
+                   textures: bool = True) -> MeshAsset:
+    """A :class:`MeshAsset` from the bytes of a PLY file (its texture read from ``folder``; with ``textures``
+    False, not read at all, without a warning).
 
     Raises
     ------
@@ -232,14 +234,15 @@ def read_ply_asset(data: bytes, label: str, folder: Path | None, max_vertices: i
         Anything malformed.
     """
     try:
-        return _read_ply_asset(data, label, folder, max_vertices)
+        return _read_ply_asset(data, label, folder, max_vertices, textures)
     except MeshError:
         raise
     except (KeyError, TypeError, IndexError, ValueError, OverflowError) as exc:
         raise MeshFormatError(f"cannot parse {label} as PLY: {type(exc).__name__}: {exc}") from exc
 
 
-def _read_ply_asset(data: bytes, label: str, folder: Path | None, max_vertices: int | None) -> MeshAsset:
+def _read_ply_asset(data: bytes, label: str, folder: Path | None, max_vertices: int | None,
+                    read_textures: bool = True) -> MeshAsset:
     data = screen(data, "ply", label)
     end = data.find(b"end_header")
     counts = dict(re.findall(rb"^\s*element\s+(\S+)\s+(\d+)", data[:end], re.M))
@@ -287,7 +290,7 @@ def _read_ply_asset(data: bytes, label: str, folder: Path | None, max_vertices: 
             colors = np.stack([vertex.data[n] for n in present], axis=1)
             break
     textures: dict[str, bytes] = {}
-    for ref in ply.texture_files:
+    for ref in ply.texture_files if read_textures else []:
         blob = read_referenced(folder, ref, label, f"the texture {ref!r}", "its reference is kept")
         if blob is not None:
             textures[ref] = blob
