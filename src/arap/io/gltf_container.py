@@ -95,19 +95,23 @@ def split_glb(data: bytes, label: str) -> tuple[dict[str, Any], bytes | None]:
         raise format_error(label, f"GLB version {version} (only glTF 2.0 is supported)")
     if length > len(data):
         raise format_error(label, f"its header announces {length:,} bytes but the file has {len(data):,} (truncated?)")
-    chunks: list[tuple[int, bytes]] = []
+    text: bytes | None = None
+    binary: bytes | None = None
     at = 12
-    while at + 8 <= length:
+    while at + 8 <= length and binary is None:  # the JSON chunk, then the first binary chunk; others are skipped
         size, kind = struct.unpack_from("<II", data, at)
         if at + 8 + size > length:
             raise format_error(label, f"a chunk of {size:,} bytes runs past the end of the file (truncated?)")
-        chunks.append((kind, data[at + 8:at + 8 + size]))
+        if text is None:
+            if kind != JSON_CHUNK:
+                break
+            text = data[at + 8:at + 8 + size]
+        elif kind == BIN_CHUNK:
+            binary = data[at + 8:at + 8 + size]
         at += 8 + size
-    if not chunks or chunks[0][0] != JSON_CHUNK:
+    if text is None:
         raise format_error(label, "the first chunk is not the JSON document")
-    document = parse_json(chunks[0][1], label)
-    binary = next((c for k, c in chunks[1:] if k == BIN_CHUNK), None)
-    return document, binary
+    return parse_json(text, label), binary
 
 
 def _json_depth(document: Any, limit: int) -> int:
