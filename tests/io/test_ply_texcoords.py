@@ -21,7 +21,8 @@ from tests.io.asset_models import png
 
 
 def fuze_like(folder: Path, fmt: str) -> Path:
-    """A sphere with grey vertex colours, per-face texture coordinates and face colours, naming ``fuze uv.png``."""
+    """A sphere with grey vertex colours, per-face texture coordinates and face colours, naming ``fuze uv.png``; as
+    ASCII, its face lines hold more words than the header says, as MeshLab writes them."""
     V, F = sphere(1)
     uv = np.random.default_rng(0).random((len(F), 6)).astype("<f4")
     head = ["ply", f"format {fmt} 1.0", "comment VCGLIB generated", "comment TextureFile fuze uv.png",
@@ -32,12 +33,12 @@ def fuze_like(folder: Path, fmt: str) -> Path:
     header = ("\n".join(head) + "\n").encode()
     if fmt == "ascii":
         rows = [" ".join(repr(float(x)) for x in v.astype("<f4")) + " 192 192 192 255" for v in V]
-        rows += [f"3 {f[0]} {f[1]} {f[2]} 6 " + " ".join(repr(float(x)) for x in t) + " 10 20 30 255"
+        rows += [f"3 {f[0]} {f[1]} {f[2]} 6 " + " ".join(repr(float(x)) for x in t) + " 9 1 1 1 1 1 1 1 1 1 "
                  for f, t in zip(F, uv, strict=True)]
         body = ("\n".join(rows) + "\n").encode()
     else:
         body = b"".join(v.astype("<f4").tobytes() + bytes([192, 192, 192, 255]) for v in V)
-        body += b"".join(struct.pack("<B3iB", 3, *f, 6) + t.tobytes() + bytes([10, 20, 30, 255])
+        body += b"".join(struct.pack("<B3iB", 3, *f, 6) + t.tobytes() + bytes([9, 1, 1, 1])
                          for f, t in zip(F, uv, strict=True))
     path = folder / f"fuze_{fmt}.ply"
     path.write_bytes(header + body)
@@ -54,6 +55,16 @@ def test_every_reader_keeps_the_file_numbering(tmp_path: Path, fmt: str) -> None
     assert len(V) == len(asset.vertices) == n
     np.testing.assert_array_equal(F, asset.faces)
     assert asset.uvs is not None and list(asset.textures) == ["fuze uv.png"]
+
+
+def test_binary_and_ascii_read_alike(tmp_path: Path) -> None:
+    binary = load_asset(fuze_like(tmp_path, "binary_little_endian"))
+    ascii_ = load_asset(fuze_like(tmp_path, "ascii"))
+    np.testing.assert_array_equal(binary.vertices, ascii_.vertices)
+    np.testing.assert_array_equal(binary.faces, ascii_.faces)
+    np.testing.assert_array_equal(binary.uvs, ascii_.uvs)
+    face = ascii_.data.element("face")
+    assert [int(face.data[c][0]) for c in ("red", "green", "blue", "alpha")] == [9, 1, 1, 1]
 
 
 @pytest.mark.parametrize("fmt", ["binary_little_endian", "ascii"])
