@@ -51,6 +51,8 @@ __all__ = ["GltfData", "accessor_array", "geometry_glb", "read_gltf_asset", "wri
 
 logger = logging.getLogger(__name__)
 
+_IDENTITY = np.eye(4)
+_IDENTITY.setflags(write=False)
 TRIANGLES_PER_VERTEX = 4
 """Most triangles accepted per vertex of a glTF file's triangle primitives: a surface has about two; many more can
 only be primitives repeating the same indices, refused before they are read (they would cost memory out of all
@@ -150,8 +152,8 @@ def _read_gltf_asset(data: bytes, label: str, folder: Path | None, max_vertices:
                     raise MeshTooLargeError(f"{label} has more than {max_vertices:,} vertices ({total:,} so far); at "
                                             f"most {max_vertices:,} vertices are accepted", total, max_vertices)
                 local = accessor_array(document, buffers, pos, label).astype(np.float64)
-                M = transforms.get(m, np.eye(4))
-                world = local if np.array_equal(M, np.eye(4)) else local @ M[:3, :3].T + M[:3, 3]
+                M = transforms.get(m, _IDENTITY)
+                world = local if M is _IDENTITY or np.array_equal(M, _IDENTITY) else local @ M[:3, :3].T + M[:3, 3]
                 where[pos], counts[pos] = n_vertices, len(world)
                 n_vertices += len(world)
                 gltf.positions.append(pos)
