@@ -179,3 +179,28 @@ def _glb_with_text(text: bytes, blob: bytes) -> bytes:
     text += b" " * (-len(text) % 4)
     chunks = struct.pack("<II", len(text), 0x4E4F534A) + text + struct.pack("<II", len(blob), 0x004E4942) + blob
     return struct.pack("<4sII", b"glTF", 2, 12 + len(chunks)) + chunks
+
+
+def _png_header(width: int, height: int) -> bytes:
+    """A PNG file announcing ``width`` x ``height`` pixels, with almost no pixel data."""
+    import zlib
+
+    def chunk(kind: bytes, body: bytes) -> bytes:
+        return struct.pack(">I", len(body)) + kind + body + struct.pack(">I", zlib.crc32(kind + body))
+
+    ihdr = struct.pack(">IIBBBBB", width, height, 8, 2, 0, 0, 0)
+    return b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", ihdr) + chunk(b"IDAT", zlib.compress(b"\0" * 16)) + \
+        chunk(b"IEND", b"")
+
+
+def test_a_texture_announcing_too_many_pixels_is_not_decoded(tmp_path: Path) -> None:
+    from arap.io.asset_model import MAX_TEXTURE_PIXELS
+    from tests.io.asset_models import cube_obj
+
+    asset = load_asset(cube_obj(tmp_path))
+    asset.textures = {"huge.png": _png_header(12_000, 12_000)}
+    assert 12_000 * 12_000 > MAX_TEXTURE_PIXELS
+    with pytest.warns(UserWarning, match=r"the texture 'huge\.png' is 12,000 x 12,000 pixels"):
+        mesh = asset.to_trimesh()
+    image = mesh.visual.material.image  # trimesh's default picture, or none
+    assert image is None or image.size != (12_000, 12_000)
