@@ -19,10 +19,14 @@ from arap.errors import ConstraintError, MeshError, MeshFormatError
 if TYPE_CHECKING:
     import trimesh
 
-__all__ = ["ASSET_FORMATS", "MeshAsset", "SolveMesh", "asset_format", "face_normals", "fan", "group_normals",
-           "missing_file_warning", "result_trimesh", "vertex_normal_groups", "weld_rows", "write_beside"]
+__all__ = ["ASSET_FORMATS", "MAX_TEXTURE_PIXELS", "MeshAsset", "SolveMesh", "asset_format", "face_normals", "fan",
+           "group_normals", "missing_file_warning", "read_referenced", "result_trimesh", "vertex_normal_groups",
+           "weld_rows", "write_beside"]
 
 logger = logging.getLogger("arap.io.assets")
+
+#: Most pixels of a texture image decoded (for :func:`result_trimesh`); a larger one is left out.
+MAX_TEXTURE_PIXELS = 1 << 27
 
 #: File types :func:`load_asset` reads and :func:`save_asset` writes with their attributes.
 ASSET_FORMATS = ("obj", "ply", "glb", "gltf")
@@ -317,6 +321,36 @@ def missing_file_warning(message: str) -> None:
     logger.warning("%s", message)
 
 
+def read_referenced(folder: Path | None, reference: str, label: str, what: str, consequence: str) -> bytes | None:
+    """The content of a file a mesh file names (an MTL file, a texture image), read by the one rule of
+    :func:`arap.io.paths.read_reference` (inside the mesh file's folder, a regular file, within the size limit);
+    None with a warning naming the reference (and why it is refused) when it is missing or may not be read.
+
+    Parameters
+    ----------
+    folder : Path or None
+        The folder of the mesh file (None: there is none, and the file is missing).
+    label : str
+        The mesh file, for the warning.
+    what : str
+        What the reference is, ``"the texture 'a.png' named in 'a.mtl'"``.
+    consequence : str
+        What loading does without it, ``"its reference is kept"``.
+    """
+    from arap.io.paths import SpecialFileError, read_reference
+
+    reason = ""
+    if folder is not None:
+        try:
+            return read_reference(folder, reference)
+        except SpecialFileError as exc:
+            reason = f" ({exc.strerror})"
+        except OSError:
+            pass
+    missing_file_warning(f"{label}: {what} cannot be read{reason}; {consequence}")
+    return None
+
+
 def write_beside(folder: Path, reference: str, data: bytes, written: list[Path]) -> None:
     """Write a file the mesh names by a relative reference (a texture), unless the same bytes are already there.
 
@@ -373,9 +407,14 @@ def result_trimesh(vertices: Any, mesh: Any) -> trimesh.Trimesh:
 
             from PIL import Image
 
-            for blob in asset.textures.values():
+            for name, blob in asset.textures.items():
                 try:
-                    image = Image.open(io.BytesIO(blob))
+                    image = Image.open(io.BytesIO(blob))  # reads the header: the size is known before decoding
+                    if image.width * image.height > MAX_TEXTURE_PIXELS:
+                        missing_file_warning(f"the texture {name!r} is {image.width:,} x {image.height:,} pixels, "
+                                             f"more than the {MAX_TEXTURE_PIXELS:,} decoded; left out")
+                        image = None
+                        continue
                     image.load()
                     break
                 except Exception:  # noqa: BLE001 - an unreadable image only costs the picture, not the mesh

@@ -94,8 +94,9 @@ def load_asset(path: str | os.PathLike[str], *, max_vertices: int | None = None)
     Warns
     -----
     UserWarning
-        An MTL file or texture image the file names cannot be read; the mesh loads without it (its reference is
-        kept for writing).
+        An MTL file or texture image the file names cannot be read, or may not be: only regular files inside the
+        file's own folder are read (:func:`arap.io.paths.read_reference`); the mesh loads without it (its reference
+        is kept for writing). A glTF buffer that cannot be read is a :class:`MeshFormatError`.
     """
     path = Path(path)
     if path.is_dir():

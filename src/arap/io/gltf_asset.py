@@ -34,6 +34,7 @@ from arap.io.gltf_container import (
     UINT,
     GltfData,
     accessor_array,
+    accessor_count,
     check_compression,
     format_error,
     glb_bytes,
@@ -44,10 +45,18 @@ from arap.io.gltf_container import (
     split_glb,
     triangles,
 )
+from arap.io.paths import SpecialFileError
 
 __all__ = ["GltfData", "accessor_array", "geometry_glb", "read_gltf_asset", "write_gltf_asset"]
 
 logger = logging.getLogger(__name__)
+
+_IDENTITY = np.eye(4)
+_IDENTITY.setflags(write=False)
+TRIANGLES_PER_VERTEX = 4
+"""Most triangles accepted per vertex of a glTF file's triangle primitives: a surface has about two; many more can
+only be primitives repeating the same indices, refused before they are read (they would cost memory out of all
+proportion to the file)."""
 
 
 def read_gltf_asset(data: bytes, label: str, folder: Path | None, max_vertices: int | None) -> MeshAsset:
@@ -87,26 +96,29 @@ def _read_gltf_asset(data: bytes, label: str, folder: Path | None, max_vertices:
             content = chunk
         else:
             try:
-                read = read_uri(str(uri), folder)
+                content = read_uri(str(uri), folder)
             except ValueError as exc:
                 raise format_error(label, f"buffer {i} has a malformed data URI ({exc})") from exc
-            if read is None:
-                raise format_error(label, f"buffer {i} ({str(uri)[:60]!r}) cannot be read")
-            content = read
+            except OSError as exc:
+                reason = f" ({exc.strerror})" if isinstance(exc, SpecialFileError) else ""
+                raise format_error(label, f"buffer {i} ({str(uri)[:60]!r}) cannot be read{reason}") from exc
         length = int(buffer.get("byteLength", len(content)))
         if len(content) < length:
             raise format_error(label, f"buffer {i} holds {len(content):,} bytes, fewer than its byteLength {length:,} "
                                "(truncated?)")
         buffers.append(content)
     gltf = GltfData(document=document, buffers=buffers, binary=binary)
-    transforms = mesh_transforms(document)
+    transforms = mesh_transforms(document, label)
     blocks: list[NDArray[np.float64]] = []
     faces: list[NDArray[np.int64]] = []
     face_materials: list[NDArray[np.int64]] = []
     face_groups: list[NDArray[np.int64]] = []
     uv_blocks: dict[int, NDArray[np.float64]] = {}
     color_blocks: dict[int, NDArray[Any]] = {}
-    where: dict[int, int] = {}
+    where: dict[int, int] = {}  # first vertex of each POSITION accessor read
+    counts: dict[int, int] = {}  # and its count
+    normal_pairs: set[tuple[int, int]] = set()
+    n_vertices = n_triangles = 0
     skipped: dict[str, int] = {}
     meshes = document.get("meshes", [])
     for m, mesh in enumerate(meshes):
@@ -131,30 +143,53 @@ def _read_gltf_asset(data: bytes, label: str, folder: Path | None, max_vertices:
                 if acc.get("componentType") != FLOAT:
                     raise MeshFormatError(f"{label}: {what} has quantized or non-float positions "
                                           "(KHR_mesh_quantization), which are not supported")
-                count = int(acc.get("count", 0))
-                total = sum(len(b) for b in blocks) + count
+                if "bufferView" not in acc and "sparse" not in acc:
+                    raise format_error(label, f"{what}'s POSITION accessor has no buffer view (every vertex would be "
+                                       "at the origin)")
+                count = accessor_count(document, pos, label)
+                total = n_vertices + count
                 if max_vertices is not None and total > max_vertices:
                     raise MeshTooLargeError(f"{label} has more than {max_vertices:,} vertices ({total:,} so far); at "
                                             f"most {max_vertices:,} vertices are accepted", total, max_vertices)
                 local = accessor_array(document, buffers, pos, label).astype(np.float64)
-                M = transforms.get(m, np.eye(4))
-                world = local if np.array_equal(M, np.eye(4)) else local @ M[:3, :3].T + M[:3, 3]
-                where[pos] = sum(len(b) for b in blocks)
+                M = transforms.get(m, _IDENTITY)
+                world = local if M is _IDENTITY or np.array_equal(M, _IDENTITY) else local @ M[:3, :3].T + M[:3, 3]
+                where[pos], counts[pos] = n_vertices, len(world)
+                n_vertices += len(world)
                 gltf.positions.append(pos)
                 gltf.offsets.append(where[pos])
                 gltf.transforms.append(M)
                 blocks.append(world)
                 if "TEXCOORD_0" in attributes:
-                    uv_blocks[pos] = accessor_array(document, buffers, int(attributes["TEXCOORD_0"]), label)
+                    uv_blocks[pos] = accessor_array(document, buffers, int(attributes["TEXCOORD_0"]), label,
+                                                    len(world))
                 if "COLOR_0" in attributes:
-                    color_blocks[pos] = accessor_array(document, buffers, int(attributes["COLOR_0"]), label)
-            if "NORMAL" in attributes and (pos, int(attributes["NORMAL"])) not in gltf.normals:
+                    color_blocks[pos] = accessor_array(document, buffers, int(attributes["COLOR_0"]), label,
+                                                       len(world))
+            n = counts[pos]
+            if "NORMAL" in attributes and (pos, int(attributes["NORMAL"])) not in normal_pairs:
+                normal_acc = item(document, "accessors", int(attributes["NORMAL"]), label, what)
+                if "bufferView" not in normal_acc and accessor_count(document, int(attributes["NORMAL"]), label) > n:
+                    raise format_error(label, f"{what}'s NORMAL accessor has no buffer view and more elements than "
+                                       f"its {n:,} vertices")
+                normal_pairs.add((pos, int(attributes["NORMAL"])))
                 gltf.normals.append((pos, int(attributes["NORMAL"])))
-            n = int(acc.get("count", 0))
             if "indices" in prim:
                 idx_acc = item(document, "accessors", prim["indices"], label, what)
                 if idx_acc.get("type") != "SCALAR" or idx_acc.get("componentType") not in (5121, 5123, 5125):
                     raise format_error(label, f"{what} has indices that are not unsigned integer scalars")
+                if "bufferView" not in idx_acc:
+                    raise format_error(label, f"{what}'s indices have no buffer view (every triangle would be one "
+                                       "point)")
+                n_indices = accessor_count(document, int(prim["indices"]), label)
+            else:
+                n_indices = n
+            n_triangles += n_indices // 3 if mode == 4 else max(n_indices - 2, 0)
+            if n_triangles > TRIANGLES_PER_VERTEX * n_vertices:
+                raise format_error(label, f"its triangle primitives make {n_triangles:,} triangles on {n_vertices:,} "
+                                   f"vertices, more than {TRIANGLES_PER_VERTEX} per vertex (primitives repeating the "
+                                   "same triangles?)")
+            if "indices" in prim:
                 indices = accessor_array(document, buffers, int(prim["indices"]), label).reshape(-1)
                 indices = indices.astype(np.int64)
             else:
@@ -181,11 +216,10 @@ def _read_gltf_asset(data: bytes, label: str, folder: Path | None, max_vertices:
     if uv_blocks:
         uv = np.full((len(V), 2), np.nan)
         for pos, block in uv_blocks.items():
-            k = gltf.positions.index(pos)
             values = block[:, :2].astype(np.float64)
             if block.dtype.kind in "iu":  # normalized integers (KHR_mesh_quantization)
                 values = values / float(2 ** (8 * block.dtype.itemsize - (block.dtype.kind == "i")) - 1)
-            uv[gltf.offsets[k]:gltf.offsets[k] + len(block)] = values
+            uv[where[pos]:where[pos] + len(block)] = values
         uvs = uv[F]
     colors = None
     if len(color_blocks) == len(gltf.positions):
@@ -208,9 +242,8 @@ def _read_gltf_asset(data: bytes, label: str, folder: Path | None, max_vertices:
                 raise format_error(label, f"image {i} refers to a buffer view that cannot be read") from exc
             textures[name] = bytes(content)
         elif "uri" in image:
-            blob = read_uri(str(image["uri"]), folder)
+            blob = _read_image(str(image["uri"]), folder, label)
             if blob is None:
-                missing_file_warning(f"{label}: the texture {image['uri']!r} cannot be read; its reference is kept")
                 continue
             textures[name] = blob
             if not str(image["uri"]).startswith("data:"):
@@ -223,6 +256,17 @@ def _read_gltf_asset(data: bytes, label: str, folder: Path | None, max_vertices:
                      data=gltf)
 
 
+def _read_image(uri: str, folder: Path | None, label: str) -> bytes | None:
+    """The content of an image's URI (:func:`~arap.io.gltf_container.read_uri`), or None with a warning naming it."""
+    try:
+        return read_uri(uri, folder)
+    except (OSError, ValueError) as exc:
+        reason = f" ({exc.strerror})" if isinstance(exc, SpecialFileError) else f" ({exc})" \
+            if isinstance(exc, ValueError) else ""
+        missing_file_warning(f"{label}: the texture {uri[:200]!r} cannot be read{reason}; its reference is kept")
+        return None
+
+
 # ---------------------------------------------------------------------------------------------- writing
 def _new_normals(asset: MeshAsset, gltf: GltfData, V: NDArray[np.float64],
                  buffers: list[bytearray]) -> None:
@@ -230,9 +274,10 @@ def _new_normals(asset: MeshAsset, gltf: GltfData, V: NDArray[np.float64],
     if not gltf.normals:
         return
     n = len(asset.vertices)
+    slot = {pos: k for k, pos in enumerate(gltf.positions)}
     old = np.full((n, 3), np.nan, dtype=np.float32)
     for pos, normal in gltf.normals:
-        k = gltf.positions.index(pos)
+        k = slot[pos]
         values = accessor_array(gltf.document, gltf.buffers, normal, "the asset")
         if values.dtype != np.float32 or values.shape[1] != 3:
             continue
@@ -244,7 +289,7 @@ def _new_normals(asset: MeshAsset, gltf: GltfData, V: NDArray[np.float64],
     group = vertex_normal_groups(asset.solve_mesh().to_solve, old)
     normals, valid = group_normals(V, asset.faces, group[asset.faces], n)
     for pos, normal in gltf.normals:
-        k = gltf.positions.index(pos)
+        k = slot[pos]
         target = accessor_array(gltf.document, buffers, normal, "the asset")
         if target.dtype != np.float32 or target.shape[1] != 3:
             logger.warning("normal accessor %d is not float VEC3; left as it is", normal)

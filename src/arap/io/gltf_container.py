@@ -7,8 +7,10 @@ scene's node transforms and primitive modes; and a GLB written back from a docum
 from __future__ import annotations
 
 import base64
+import errno
 import json
 import logging
+import re
 import struct
 import urllib.parse
 from dataclasses import dataclass, field
@@ -20,8 +22,9 @@ from numpy.typing import NDArray
 
 from arap.errors import MeshFormatError
 
-__all__ = ["GltfData", "accessor_array", "check_compression", "data_uri", "format_error", "glb_bytes", "item",
-           "mesh_transforms", "node_matrix", "pad4", "parse_json", "read_uri", "split_glb", "triangles"]
+__all__ = ["MAX_JSON_DEPTH", "MAX_NODE_DEPTH", "GltfData", "accessor_array", "accessor_count", "check_compression",
+           "data_uri", "format_error", "glb_bytes", "item", "mesh_transforms", "node_matrix", "pad4", "parse_json",
+           "percent_decoded", "read_uri", "split_glb", "triangles"]
 
 logger = logging.getLogger(__name__)
 
@@ -33,6 +36,15 @@ WIDTHS = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4, "MAT2": 4, "MAT3": 9, "M
 COMPRESSION = ("KHR_draco_mesh_compression", "EXT_meshopt_compression", "KHR_meshopt_compression")
 MODES = {0: "points", 1: "lines", 2: "line loops", 3: "line strips", 4: "triangles", 5: "triangle strips",
           6: "triangle fans"}
+MAX_JSON_DEPTH = 64
+"""Deepest nesting of arrays and objects accepted in a glTF document (a glTF document needs about 8 levels, with
+room for deep ``extras``); deeper is refused with a clear error, never a ``RecursionError``."""
+MAX_NODE_DEPTH = 1024
+"""Deepest node hierarchy accepted (a skeleton needs a few dozen levels)."""
+_SCHEME = re.compile(r"^[A-Za-z][A-Za-z0-9+.-]+:")
+_HEX = np.full(256, -1, dtype=np.int16)
+for _digits, _first in ((b"0123456789", 0), (b"abcdef", 10), (b"ABCDEF", 10)):
+    _HEX[np.frombuffer(_digits, dtype=np.uint8)] = np.arange(_first, _first + len(_digits))
 
 
 @dataclass(eq=False)
@@ -83,28 +95,51 @@ def split_glb(data: bytes, label: str) -> tuple[dict[str, Any], bytes | None]:
         raise format_error(label, f"GLB version {version} (only glTF 2.0 is supported)")
     if length > len(data):
         raise format_error(label, f"its header announces {length:,} bytes but the file has {len(data):,} (truncated?)")
-    chunks: list[tuple[int, bytes]] = []
+    text: bytes | None = None
+    binary: bytes | None = None
     at = 12
-    while at + 8 <= length:
+    while at + 8 <= length and binary is None:  # the JSON chunk, then the first binary chunk; others are skipped
         size, kind = struct.unpack_from("<II", data, at)
         if at + 8 + size > length:
             raise format_error(label, f"a chunk of {size:,} bytes runs past the end of the file (truncated?)")
-        chunks.append((kind, data[at + 8:at + 8 + size]))
+        if text is None:
+            if kind != JSON_CHUNK:
+                break
+            text = data[at + 8:at + 8 + size]
+        elif kind == BIN_CHUNK:
+            binary = data[at + 8:at + 8 + size]
         at += 8 + size
-    if not chunks or chunks[0][0] != JSON_CHUNK:
+    if text is None:
         raise format_error(label, "the first chunk is not the JSON document")
-    document = parse_json(chunks[0][1], label)
-    binary = next((c for k, c in chunks[1:] if k == BIN_CHUNK), None)
-    return document, binary
+    return parse_json(text, label), binary
+
+
+def _json_depth(document: Any, limit: int) -> int:
+    """The nesting depth of parsed JSON (an object or array is one level), counted level by level without recursion
+    up to ``limit + 1``."""
+    level: list[Any] = [document]
+    depth = 0
+    while level and depth <= limit:
+        depth += 1
+        level = [child for value in level for child in (value.values() if isinstance(value, dict) else value)
+                 if isinstance(child, dict | list)]
+    return depth
 
 
 def parse_json(text: bytes, label: str) -> dict[str, Any]:
+    """The JSON document of a glTF file, an object nested at most :data:`MAX_JSON_DEPTH` levels deep."""
     try:
         document = json.loads(text.decode("utf-8").rstrip(" \0"))
+    except RecursionError as exc:
+        raise format_error(label, f"the JSON document is nested too deeply (more than {MAX_JSON_DEPTH} levels of "
+                           "arrays and objects)") from exc
     except (UnicodeDecodeError, ValueError) as exc:
         raise format_error(label, f"the JSON document is malformed ({exc})") from exc
     if not isinstance(document, dict):
         raise format_error(label, "the JSON document is not an object")
+    if _json_depth(document, MAX_JSON_DEPTH) > MAX_JSON_DEPTH:
+        raise format_error(label, f"the JSON document is nested too deeply (more than {MAX_JSON_DEPTH} levels of "
+                           "arrays and objects)")
     version = str(document.get("asset", {}).get("version", "2.0")) if isinstance(document.get("asset"), dict) \
         else "2.0"
     if not version.startswith("2"):
@@ -112,27 +147,90 @@ def parse_json(text: bytes, label: str) -> dict[str, Any]:
     return document
 
 
-def data_uri(uri: str) -> bytes | None:
+def percent_decoded(text: str) -> bytes:
+    """The bytes of percent-encoded text (UTF-8, ``%XX`` escapes decoded, a ``%`` not followed by two hexadecimal
+    digits kept), as :func:`urllib.parse.unquote_to_bytes` gives them, in time and memory linear in the length.
+
+    Example
+    -------
+    >>> percent_decoded("a%20b%zz%4")
+    b'a b%zz%4'
+    """
+    raw = text.encode("utf-8")
+    if b"%" not in raw:
+        return raw
+    parts: list[bytes] = []
+    start = 0
+    while start < len(raw):  # in pieces, to bound the memory of the index arrays
+        end = min(start + _PIECE, len(raw))
+        while end < len(raw) and b"%" in raw[end - 2:end]:  # no escape straddles two pieces
+            end += 1
+        parts.append(_percent_piece(raw[start:end]))
+        start = end
+    return b"".join(parts)
+
+
+_PIECE = 1 << 22
+
+
+def _percent_piece(raw: bytes) -> bytes:
+    a = np.frombuffer(raw, dtype=np.uint8)
+    at = np.flatnonzero(a[:-2] == ord("%")).astype(np.int32)
+    if not len(at):
+        return raw
+    high, low = _HEX[a[at + 1]], _HEX[a[at + 2]]
+    valid = (high >= 0) & (low >= 0)  # the two digits of an escape are never a '%': escapes do not overlap
+    at = at[valid]
+    out = a.copy()
+    out[at] = (high[valid] * 16 + low[valid]).astype(np.uint8)
+    keep = np.ones(len(a), dtype=bool)
+    keep[at + 1] = False
+    keep[at + 2] = False
+    return out[keep].tobytes()
+
+
+def data_uri(uri: str, max_bytes: int | None = None) -> bytes | None:
+    """The content of a ``data:`` URI (base64 or percent-encoded), None for another URI.
+
+    Raises
+    ------
+    ValueError
+        Malformed base64, or content longer than ``max_bytes``.
+    """
     if not uri.startswith("data:"):
         return None
     head, _, payload = uri.partition(",")
-    if head.endswith(";base64"):
-        return base64.b64decode(payload)
-    return urllib.parse.unquote_to_bytes(payload)
+    base64_encoded = head.endswith(";base64")
+    if max_bytes is not None and (len(payload) // 4 * 3 if base64_encoded else len(payload) // 3) > max_bytes:
+        raise ValueError(f"it holds more than the {max_bytes:,} bytes accepted")
+    data = base64.b64decode(payload) if base64_encoded else percent_decoded(payload)
+    if max_bytes is not None and len(data) > max_bytes:
+        raise ValueError(f"it holds {len(data):,} bytes, more than the {max_bytes:,} accepted")
+    return data
 
 
-def read_uri(uri: str, folder: Path | None) -> bytes | None:
-    from arap.io.paths import read_regular_file
+def read_uri(uri: str, folder: Path | None) -> bytes:
+    """The content of a buffer's or image's URI: a ``data:`` URI decoded, or a file inside ``folder`` named by a
+    relative URI (:func:`arap.io.paths.read_reference`: nothing outside the folder is read); other URIs (``file:``,
+    ``http:``) are not read.
 
-    data = data_uri(uri)
+    Raises
+    ------
+    ValueError
+        A malformed or too long data URI.
+    OSError
+        The file cannot or may not be read; ``strerror`` says why where the reference itself is refused.
+    """
+    from arap.io.paths import MAX_REFERENCED_BYTES, SpecialFileError, read_reference
+
+    data = data_uri(uri, MAX_REFERENCED_BYTES)
     if data is not None:
         return data
+    if _SCHEME.match(uri):
+        raise SpecialFileError(errno.EPERM, "only data: URIs and files beside the mesh file are read", uri)
     if folder is None:
-        return None
-    try:
-        return read_regular_file(folder / urllib.parse.unquote(uri))
-    except OSError:
-        return None
+        raise FileNotFoundError(errno.ENOENT, "there is no folder to read it from", uri)
+    return read_reference(folder, urllib.parse.unquote(uri))
 
 
 def item(document: dict[str, Any], key: str, index: Any, label: str, what: str) -> dict[str, Any]:
@@ -143,8 +241,26 @@ def item(document: dict[str, Any], key: str, index: Any, label: str, what: str) 
     return items[index]
 
 
-def accessor_array(document: dict[str, Any], buffers: list[Any], index: int, label: str) -> NDArray[Any]:
-    """The (count, width) array of an accessor, a view into its buffer (writable where the buffer is)."""
+def accessor_count(document: dict[str, Any], index: int, label: str) -> int:
+    """The ``count`` of an accessor, read without reading the accessor."""
+    acc = item(document, "accessors", index, label, "a primitive")
+    try:
+        count = int(acc["count"])
+    except (KeyError, TypeError, ValueError) as exc:
+        raise format_error(label, f"accessor {index} has no valid count") from exc
+    if count < 0:
+        raise format_error(label, f"accessor {index} has a negative count")
+    return count
+
+
+def accessor_array(document: dict[str, Any], buffers: list[Any], index: int, label: str,
+                   max_count: int | None = None) -> NDArray[Any]:
+    """The (count, width) array of an accessor, a view into its buffer (writable where the buffer is).
+
+    The count is checked before anything is allocated: against the bytes of its buffer view, or for an accessor
+    without one (zeros by the specification) against ``max_count`` (None: no limit; the readers give the count of
+    the vertices the accessor belongs to).
+    """
     acc = item(document, "accessors", index, label, "a primitive")
     if "sparse" in acc:
         raise format_error(label, f"accessor {index} is sparse (sparse accessors are not supported here)")
@@ -157,6 +273,9 @@ def accessor_array(document: dict[str, Any], buffers: list[Any], index: int, lab
     if count < 0:
         raise format_error(label, f"accessor {index} has a negative count")
     if "bufferView" not in acc:
+        if max_count is not None and count > max_count:
+            raise format_error(label, f"accessor {index} has no buffer view and {count:,} elements, more than the "
+                               f"{max_count:,} vertices it belongs to")
         return np.zeros((count, width), dtype=dtype)
     view = item(document, "bufferViews", acc["bufferView"], label, f"accessor {index}")
     buffer_index = view.get("buffer")
@@ -180,6 +299,9 @@ def accessor_array(document: dict[str, Any], buffers: list[Any], index: int, lab
                       strides=(stride, dtype.itemsize))
 
 
+_TRANSFORM_KEYS = frozenset(("matrix", "rotation", "scale", "translation"))
+
+
 def node_matrix(node: dict[str, Any]) -> NDArray[np.float64]:
     if "matrix" in node:
         return np.asarray(node["matrix"], dtype=np.float64).reshape(4, 4).T  # stored column by column
@@ -193,8 +315,14 @@ def node_matrix(node: dict[str, Any]) -> NDArray[np.float64]:
     return M
 
 
-def mesh_transforms(document: dict[str, Any]) -> dict[int, NDArray[np.float64]]:
-    """The transform of the first node (depth first through the scene) showing each mesh."""
+def mesh_transforms(document: dict[str, Any], label: str = "the document") -> dict[int, NDArray[np.float64]]:
+    """The transform of the first node (depth first through the scene) showing each mesh.
+
+    Raises
+    ------
+    MeshFormatError
+        A hierarchy more than :data:`MAX_NODE_DEPTH` levels deep.
+    """
     nodes = document.get("nodes", [])
     scenes = document.get("scenes", [])
     if scenes:
@@ -204,21 +332,25 @@ def mesh_transforms(document: dict[str, Any]) -> dict[int, NDArray[np.float64]]:
         children = {c for node in nodes for c in node.get("children", [])}
         roots = [i for i in range(len(nodes)) if i not in children]
     out: dict[int, NDArray[np.float64]] = {}
-    stack = [(int(i), np.eye(4)) for i in reversed(roots)]
+    identity = np.eye(4)
+    stack = [(int(i), identity, 1) for i in reversed(roots)]
     seen: set[int] = set()
-    while stack:
-        i, parent = stack.pop()
+    while stack:  # each node once, without recursion
+        i, parent, depth = stack.pop()
         if i in seen or not 0 <= i < len(nodes):
             continue
+        if depth > MAX_NODE_DEPTH:
+            raise format_error(label, f"its node hierarchy is more than {MAX_NODE_DEPTH} levels deep")
         seen.add(i)
-        M = parent @ node_matrix(nodes[i])
-        if "mesh" in nodes[i]:
-            mesh = int(nodes[i]["mesh"])
+        node = nodes[i]
+        M = parent @ node_matrix(node) if _TRANSFORM_KEYS.intersection(node) else parent
+        if "mesh" in node:
+            mesh = int(node["mesh"])
             if mesh in out and not np.array_equal(out[mesh], M):
                 logger.info("mesh %d is shown by several nodes; its vertices are placed by the first, and every "
                             "instance shows the deformed mesh", mesh)
             out.setdefault(mesh, M)
-        stack.extend((int(c), M) for c in reversed(nodes[i].get("children", [])))
+        stack.extend((int(c), M, depth + 1) for c in reversed(node.get("children", [])))
     return out
 
 

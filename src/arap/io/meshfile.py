@@ -98,10 +98,22 @@ def _parse_error(exc: Exception, file_type: str, label: str) -> MeshFormatError:
     return MeshFormatError(f"{what}: {text}")
 
 
+_PLY_TEXTURE = re.compile(rb"^[ \t]*(?:comment[ \t]+TextureFile|property[ \t]+list[ \t]+\w+[ \t]+\w+[ \t]+texcoord)\b",
+                          re.MULTILINE | re.IGNORECASE)
+"""A PLY header naming a texture image or giving texture coordinates per face corner."""
+
+
 def _parse(stream: io.BytesIO, file_type: str, label: str) -> tuple[np.ndarray, np.ndarray]:
     """Vertices and faces (polygons triangulated) as stored, without any processing."""
     from trimesh.exchange.load import mesh_loaders
 
+    if file_type == "ply" and _PLY_TEXTURE.search(stream.getvalue()[:stream.getvalue().find(b"end_header")]):
+        # trimesh would split the vertices at the seams of per-face texture coordinates (so that the mesh no longer
+        # matches the file's numbering) and log a traceback for the texture file it cannot open
+        from arap.io.ply_asset import read_ply_asset
+
+        asset = read_ply_asset(stream.getvalue(), label, None, None, textures=False)
+        return asset.vertices, asset.faces
     kwargs: dict[str, object] = {"file_type": file_type}
     if file_type == "obj":
         kwargs.update(skip_materials=True, maintain_order=True)

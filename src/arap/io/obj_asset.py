@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import itertools
 import logging
+import posixpath
 import re
 import warnings
 from dataclasses import dataclass, field
@@ -20,14 +21,14 @@ import numpy as np
 from numpy.typing import NDArray
 
 from arap.errors import MeshError, MeshFormatError, MeshTooLargeError
-from arap.io.asset_model import MeshAsset, fan, missing_file_warning
+from arap.io.asset_model import MeshAsset, fan, read_referenced
 from arap.io.screening import screen
 
-__all__ = ["ObjData", "mtl_texture_references", "parse_obj", "read_obj_asset"]
+__all__ = ["ObjData", "map_file_name", "mtl_texture_references", "parse_obj", "read_obj_asset"]
 
 logger = logging.getLogger(__name__)
 
-#: MTL statements naming a texture image (the file name is the last word; options come before it).
+#: MTL statements naming a texture image (options first, then the file name to the end of the line).
 _MAP_KEYS = {"map_ka", "map_kd", "map_ks", "map_ns", "map_d", "map_bump", "bump", "disp", "decal", "refl", "norm",
              "map_pr", "map_pm", "map_ps", "map_ke", "map_rma", "map_orm", "map_tr"}
 
@@ -310,6 +311,45 @@ def _parse_obj(text: bytes, label: str) -> tuple[NDArray[np.float64], ObjData, l
     return V, data, list(tables[0]), list(tables[1])
 
 
+#: MTL texture options and how many values follow each (at most; numbers are taken while they read as numbers).
+_MAP_OPTIONS = {"-blendu": 1, "-blendv": 1, "-bm": 1, "-boost": 1, "-cc": 1, "-clamp": 1, "-imfchan": 1, "-mm": 2,
+                "-o": 3, "-s": 3, "-t": 3, "-texres": 1, "-type": 1}
+_WORD = re.compile(r"\S+")
+
+
+def _is_number(word: str) -> bool:
+    try:
+        float(word)
+    except ValueError:
+        return False
+    return True
+
+
+def map_file_name(arguments: str) -> str:
+    """The file name of an MTL texture statement: what follows the statement's options (``-s 1 1 1``, ``-clamp on``,
+    ``-bm 0.5``, ...), to the end of the line, spaces included.
+
+    Example
+    -------
+    >>> map_file_name("-s 2 2 -clamp on fuze uv.jpg")
+    'fuze uv.jpg'
+    """
+    words = list(_WORD.finditer(arguments))
+    k = 0
+    while k < len(words) and words[k].group().startswith("-") and not _is_number(words[k].group()):
+        option = words[k].group().lower()
+        k += 1
+        values = _MAP_OPTIONS.get(option, 1)
+        taken = 0
+        while taken < values and k < len(words) - 1:  # the last word is the file name
+            word = words[k].group()
+            if option in ("-o", "-s", "-t", "-mm") and taken and not _is_number(word):
+                break
+            k += 1
+            taken += 1
+    return arguments[words[k].start():].strip() if k < len(words) else ""
+
+
 def mtl_texture_references(mtl: bytes) -> list[str]:
     """The texture files an MTL file names (``map_Kd``, ``bump``, ...), in order, each once."""
     out: list[str] = []
@@ -317,24 +357,12 @@ def mtl_texture_references(mtl: bytes) -> list[str]:
         line = raw.strip()
         if not line or line[0] == "#":
             continue
-        words = line.split()
+        words = line.split(None, 1)
         if words[0].lower() in _MAP_KEYS and len(words) > 1:
-            ref = words[-1]
-            if ref not in out:
+            ref = map_file_name(words[1])
+            if ref and ref not in out:
                 out.append(ref)
     return out
-
-
-def _read_beside(folder: Path | None, reference: str) -> tuple[Path | None, bytes | None]:
-    from arap.io.paths import read_regular_file
-
-    if folder is None:
-        return None, None
-    path = folder / reference.replace("\\", "/")
-    try:
-        return path, read_regular_file(path)
-    except OSError:
-        return path, None
 
 
 def read_obj_asset(data: bytes, label: str, folder: Path | None, max_vertices: int | None) -> MeshAsset:
@@ -348,17 +376,15 @@ def read_obj_asset(data: bytes, label: str, folder: Path | None, max_vertices: i
         raise MeshFormatError(f"{label} has {len(V):,} vertices but no faces; a surface is needed")
     textures: dict[str, bytes] = {}
     for lib in obj.mtllibs:
-        mtl_path, mtl = _read_beside(folder, lib)
+        mtl = read_referenced(folder, lib, label, f"the material file {lib!r}", "the mesh loads without it")
         if mtl is None:
-            missing_file_warning(f"{label}: the material file {lib!r} cannot be read; the mesh loads without it")
             continue
         obj.mtl_files[lib] = mtl
-        for ref in mtl_texture_references(mtl):
-            _, image = _read_beside(mtl_path.parent if mtl_path is not None else None, ref)
-            if image is None:
-                missing_file_warning(f"{label}: the texture {ref!r} named in {lib!r} cannot be read; its "
-                                     "reference is kept")
-            else:
+        beside = posixpath.dirname(lib.replace("\\", "/"))
+        for ref in mtl_texture_references(mtl):  # relative to the MTL file, which may be in a folder of its own
+            image = read_referenced(folder, posixpath.join(beside, ref.replace("\\", "/")), label,
+                                    f"the texture {ref!r} named in {lib!r}", "its reference is kept")
+            if image is not None:
                 textures[ref] = image
     F = fan(obj.face_sizes, obj.corner_vertices)
     polygon = fan(obj.face_sizes, np.repeat(np.arange(len(obj.face_sizes)), obj.face_sizes))[:, 0]

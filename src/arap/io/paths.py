@@ -21,9 +21,13 @@ __all__ = [
     "folder_problem",
     "kind_of",
     "not_regular",
+    "read_reference",
     "read_regular_file",
     "write_destination",
 ]
+
+#: Largest file a mesh file may name (a glTF buffer, an MTL file, a texture image) that is read with it.
+MAX_REFERENCED_BYTES = 1 << 30
 
 
 class SpecialFileError(OSError):
@@ -93,28 +97,74 @@ def check_regular_file(path: str | os.PathLike[str]) -> os.stat_result:
     return st
 
 
-def read_regular_file(path: str | os.PathLike[str]) -> bytes:
+def _too_large(path: Path, size: int, max_bytes: int) -> SpecialFileError:
+    return SpecialFileError(errno.EFBIG, f"it is {size:,} bytes long, more than the {max_bytes:,} accepted", path)
+
+
+def read_regular_file(path: str | os.PathLike[str], max_bytes: int | None = None) -> bytes:
     """The content of the regular file ``path``; anything else is refused before it is opened.
 
     The file is opened without blocking (a FIFO put in its place after the check cannot hang the reader) and
     examined again once open, so that what is read is the regular file that was checked.
 
+    Parameters
+    ----------
+    max_bytes : int or None
+        Largest accepted size; a longer file is refused before it is read (and never read past it).
+
     Raises
     ------
     SpecialFileError
-        ``path`` is not a regular file (see :func:`check_regular_file`).
+        ``path`` is not a regular file (see :func:`check_regular_file`), or is longer than ``max_bytes``.
     OSError
         It cannot be read.
     """
     path = Path(path)
-    check_regular_file(path)
+    st = check_regular_file(path)
+    if max_bytes is not None and st.st_size > max_bytes:
+        raise _too_large(path, st.st_size, max_bytes)
     flags = os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_NOCTTY", 0) | getattr(os, "O_BINARY", 0)
     fd = os.open(path, flags)
     with os.fdopen(fd, "rb") as stream:
         mode = os.fstat(stream.fileno()).st_mode
         if not stat.S_ISREG(mode):
             raise not_regular(path, mode)
-        return stream.read()
+        if max_bytes is None:
+            return stream.read()
+        data = stream.read(max_bytes + 1)  # a file that grew since it was examined
+        if len(data) > max_bytes:
+            raise _too_large(path, len(data), max_bytes)
+        return data
+
+
+def read_reference(folder: str | os.PathLike[str], reference: str, max_bytes: int = MAX_REFERENCED_BYTES) -> bytes:
+    """The content of a file that a mesh file in ``folder`` names by ``reference`` (a glTF buffer or image, an OBJ
+    ``mtllib``, an MTL texture, a PLY ``TextureFile``): the one rule every reader applies to the files it is
+    pointed to.
+
+    The reference is a path relative to ``folder`` (``/`` or ``\\`` between folder names). It is read only when the
+    file it names lies inside ``folder`` once symbolic links are resolved (the real path of the file is under the
+    real path of the folder), is a regular file (no folder, FIFO, device or socket) and holds at most ``max_bytes``:
+    an absolute path, ``..`` leading out, or a link pointing out of the folder is refused, so that a mesh file
+    cannot make the program read (and copy into what it writes) any other file of the machine.
+
+    Raises
+    ------
+    SpecialFileError
+        The reference leads outside ``folder``, names no regular file, or a file longer than ``max_bytes``; the
+        message (``strerror``) says which.
+    OSError
+        The file does not exist or cannot be read.
+    """
+    base = os.path.realpath(folder)
+    text = reference.replace("\\", "/")
+    try:
+        target = os.path.realpath(os.path.join(base, text))
+    except ValueError as exc:  # a NUL character
+        raise SpecialFileError(errno.EINVAL, "it is not a valid file name", reference) from exc
+    if os.path.commonpath([base, target]) != base:
+        raise SpecialFileError(errno.EPERM, f"it leads outside {base}, the folder of the mesh file", reference)
+    return read_regular_file(target, max_bytes)
 
 
 def folder_problem(folder: Path) -> str | None:

@@ -18,7 +18,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from arap.errors import MeshError, MeshFormatError, MeshTooLargeError
-from arap.io.asset_model import MeshAsset, fan, group_normals, missing_file_warning, vertex_normal_groups, write_beside
+from arap.io.asset_model import MeshAsset, fan, group_normals, read_referenced, vertex_normal_groups, write_beside
 from arap.io.screening import screen
 
 __all__ = ["PlyData", "PlyElement", "read_ply_asset", "write_ply_asset"]
@@ -151,8 +151,79 @@ def _binary_element(buf: bytes, at: int, count: int, props: list[tuple[str, str,
     return out, at
 
 
-def _ascii_elements(body: bytes, elements: list[tuple[str, int, list[tuple[str, str, str | None]]]],
-                    label: str) -> list[dict[str, NDArray[Any]]]:
+_Elements = list[tuple[str, int, list[tuple[str, str, str | None]]]]
+
+
+def _ascii_elements(body: bytes, elements: _Elements, label: str) -> list[dict[str, NDArray[Any]]]:
+    """The columns of every element of an ASCII PLY body: one element per line, as the format has it (words after
+    the properties of a line are ignored: MeshLab writes more than its header says on face lines); a file that
+    breaks its lines elsewhere is read as one stream of words."""
+    try:
+        return _ascii_lines(body, elements, label)
+    except MeshFormatError:
+        return _ascii_words(body, elements, label)
+
+
+def _ascii_columns(columns: dict[str, list[Any]], props: list[tuple[str, str, str | None]],
+                   count: int) -> dict[str, NDArray[Any]]:
+    """Arrays of the values read row by row: a list property of one length as an (n, k) array, of several as an
+    object array of arrays."""
+    element: dict[str, NDArray[Any]] = {}
+    for prop, item, counter in props:
+        if counter is None:
+            element[prop] = np.asarray(columns[prop]).astype(item)
+            continue
+        lengths = {len(x) for x in columns[prop]}
+        if len(lengths) == 1:
+            element[prop] = np.stack(columns[prop]).astype(item) if count else np.zeros((0, 0), dtype=item)
+        else:
+            column = np.empty(count, dtype=object)
+            column[:] = columns[prop]
+            element[prop] = column
+    return element
+
+
+def _ascii_lines(body: bytes, elements: _Elements, label: str) -> list[dict[str, NDArray[Any]]]:
+    lines = [line for line in body.splitlines() if line.strip()]
+    at = 0
+    out = []
+    for name, count, props in elements:
+        rows = lines[at:at + count]
+        at += count
+        if len(rows) < count:
+            raise MeshFormatError(f"cannot parse {label} as PLY: the file ends early in element {name!r} "
+                                  "(truncated?)")
+        width = len(props)
+        try:
+            if all(c is None for _, _, c in props):
+                words = b" ".join(rows).split()
+                if len(words) != width * count:
+                    words = [w for row in rows for w in row.split()[:width] + [b"x"] * (width - len(row.split()))]
+                table = np.array(words, dtype=np.float64).reshape(count, width)
+                out.append({prop: table[:, k].astype(item) for k, (prop, item, _) in enumerate(props)})
+                continue
+            columns: dict[str, list[Any]] = {prop: [] for prop, _, _ in props}
+            for row in rows:
+                words = row.split()
+                k = 0
+                for prop, item, counter in props:
+                    if counter is None:
+                        columns[prop].append(float(words[k]))
+                        k += 1
+                    else:
+                        n = int(words[k])
+                        if k + 1 + n > len(words):
+                            raise IndexError
+                        columns[prop].append(np.array(words[k + 1:k + 1 + n], dtype=np.float64).astype(item))
+                        k += n + 1
+        except (IndexError, ValueError) as exc:
+            raise MeshFormatError(f"cannot parse {label} as PLY: element {name!r} ends early or holds a word that "
+                                  "is not a number") from exc
+        out.append(_ascii_columns(columns, props, count))
+    return out
+
+
+def _ascii_words(body: bytes, elements: _Elements, label: str) -> list[dict[str, NDArray[Any]]]:
     words = body.split()
     at = 0
     out = []
@@ -187,19 +258,7 @@ def _ascii_elements(body: bytes, elements: list[tuple[str, int, list[tuple[str, 
         except (IndexError, ValueError) as exc:
             raise MeshFormatError(f"cannot parse {label} as PLY: element {name!r} ends early or holds a word that "
                                   "is not a number") from exc
-        element: dict[str, NDArray[Any]] = {}
-        for prop, item, counter in props:
-            if counter is None:
-                element[prop] = np.asarray(columns[prop]).astype(item)
-                continue
-            lengths = {len(x) for x in columns[prop]}
-            if len(lengths) == 1:
-                element[prop] = np.stack(columns[prop]).astype(item) if count else np.zeros((0, 0), dtype=item)
-            else:
-                column = np.empty(count, dtype=object)
-                column[:] = columns[prop]
-                element[prop] = column
-        out.append(element)
+        out.append(_ascii_columns(columns, props, count))
     return out
 
 
@@ -223,8 +282,10 @@ def parse_ply(data: bytes, label: str) -> PlyData:
     return PlyData(elements=elements, comments=comments)
 
 
-def read_ply_asset(data: bytes, label: str, folder: Path | None, max_vertices: int | None) -> MeshAsset:
-    """A :class:`MeshAsset` from the bytes of a PLY file (its texture read from ``folder``).
+def read_ply_asset(data: bytes, label: str, folder: Path | None, max_vertices: int | None, *,
+                   textures: bool = True) -> MeshAsset:
+    """A :class:`MeshAsset` from the bytes of a PLY file (its texture read from ``folder``; with ``textures``
+    False, not read at all, without a warning).
 
     Raises
     ------
@@ -232,14 +293,15 @@ def read_ply_asset(data: bytes, label: str, folder: Path | None, max_vertices: i
         Anything malformed.
     """
     try:
-        return _read_ply_asset(data, label, folder, max_vertices)
+        return _read_ply_asset(data, label, folder, max_vertices, textures)
     except MeshError:
         raise
     except (KeyError, TypeError, IndexError, ValueError, OverflowError) as exc:
         raise MeshFormatError(f"cannot parse {label} as PLY: {type(exc).__name__}: {exc}") from exc
 
 
-def _read_ply_asset(data: bytes, label: str, folder: Path | None, max_vertices: int | None) -> MeshAsset:
+def _read_ply_asset(data: bytes, label: str, folder: Path | None, max_vertices: int | None,
+                    read_textures: bool = True) -> MeshAsset:
     data = screen(data, "ply", label)
     end = data.find(b"end_header")
     counts = dict(re.findall(rb"^\s*element\s+(\S+)\s+(\d+)", data[:end], re.M))
@@ -287,18 +349,9 @@ def _read_ply_asset(data: bytes, label: str, folder: Path | None, max_vertices: 
             colors = np.stack([vertex.data[n] for n in present], axis=1)
             break
     textures: dict[str, bytes] = {}
-    for ref in ply.texture_files:
-        blob = None
-        if folder is not None:
-            from arap.io.paths import read_regular_file
-
-            try:
-                blob = read_regular_file(folder / ref)
-            except OSError:
-                blob = None
-        if blob is None:
-            missing_file_warning(f"{label}: the texture {ref!r} cannot be read; its reference is kept")
-        else:
+    for ref in ply.texture_files if read_textures else []:
+        blob = read_referenced(folder, ref, label, f"the texture {ref!r}", "its reference is kept")
+        if blob is not None:
             textures[ref] = blob
     return MeshAsset(format="ply", vertices=V, faces=F, face_materials=np.full(len(F), -1, dtype=np.int64),
                      face_groups=np.full(len(F), -1, dtype=np.int64), uvs=uvs, vertex_colors=colors,
