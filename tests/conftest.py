@@ -10,6 +10,8 @@ from pathlib import Path
 
 import pytest
 
+from tests.waiting import time_factor
+
 REPO_ROOT = Path(__file__).resolve().parents[1]
 
 _HYPOTHESIS_HOME = Path(tempfile.mkdtemp(prefix="arap-hypothesis-"))
@@ -48,6 +50,21 @@ def pytest_configure(config: pytest.Config) -> None:
     from hypothesis.configuration import set_hypothesis_home_dir
 
     set_hypothesis_home_dir(_HYPOTHESIS_HOME)
+
+
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    """On a loaded machine each test's time limit (pytest-timeout's marker, else its ``timeout`` setting) is
+    stretched as its waits are (:func:`tests.waiting.time_factor`): such a test should pass slowly, not fail."""
+    factor = time_factor()
+    if factor <= 1.0:
+        return
+    default = config.getoption("timeout", None) or config.getini("timeout")
+    for item in items:
+        marker = item.get_closest_marker("timeout")
+        kwargs = dict(marker.kwargs) if marker is not None else {}
+        seconds = kwargs.pop("timeout", marker.args[0] if marker is not None and marker.args else default)
+        if seconds and float(seconds) > 0:
+            item.add_marker(pytest.mark.timeout(float(seconds) * factor, **kwargs))
 
 
 def pytest_unconfigure(config: pytest.Config) -> None:

@@ -1,8 +1,13 @@
 """Waiting for a condition instead of sleeping for a fixed time: a test goes on as soon as what it waits for has
-happened, and fails with a message naming it when it does not happen in time."""
+happened, and fails with a message naming it when it does not happen in time.
+
+Deadlines are those of an idle machine times :func:`time_factor`: on a loaded machine (a CI runner running other jobs,
+a laptop compiling) everything takes longer, and a test should then pass slowly rather than fail.
+"""
 
 from __future__ import annotations
 
+import os
 import time
 from collections.abc import Callable
 from typing import Any, TypeVar
@@ -11,6 +16,36 @@ T = TypeVar("T")
 
 POLL_SECONDS = 0.01
 """Pause between two looks at the condition."""
+TIME_FACTOR_ENV = "ARAP_TEST_TIME_FACTOR"
+"""Environment variable: how many times longer than on an idle machine a test may wait (a number, at least 1)."""
+MAX_LOAD_FACTOR = 8.0
+"""Most that the measured load stretches deadlines by (without :data:`TIME_FACTOR_ENV`)."""
+
+
+def time_factor() -> float:
+    """How many times longer than on an idle machine waits may take now: :data:`TIME_FACTOR_ENV` when set, else the
+    load average of the last minute per CPU core (at least 1, at most :data:`MAX_LOAD_FACTOR`)."""
+    value = os.environ.get(TIME_FACTOR_ENV, "").strip()
+    if value:
+        try:
+            return max(1.0, float(value))
+        except ValueError:
+            raise ValueError(f"{TIME_FACTOR_ENV}={value!r} is not a number") from None
+    try:
+        load = os.getloadavg()[0] / (os.cpu_count() or 1)
+    except OSError:  # no load average on this platform
+        return 1.0
+    return min(MAX_LOAD_FACTOR, max(1.0, load))
+
+
+def scaled(seconds: float) -> float:
+    """A deadline of ``seconds`` on an idle machine, stretched by :func:`time_factor`."""
+    return seconds * time_factor()
+
+
+def scaled_ms(seconds: float) -> float:
+    """:func:`scaled` in milliseconds (Playwright's timeouts)."""
+    return 1000.0 * scaled(seconds)
 
 
 def poll_until(predicate: Callable[[], T], timeout: float, interval: float = POLL_SECONDS,
@@ -27,13 +62,16 @@ def poll_until(predicate: Callable[[], T], timeout: float, interval: float = POL
 
 def wait_until(predicate: Callable[[], T], timeout: float = 10.0, what: str = "the condition",
                interval: float = POLL_SECONDS, pause: Callable[[float], Any] = time.sleep) -> T:
-    """Wait until ``predicate()`` returns a true value and return it; fail naming ``what`` after ``timeout`` seconds.
+    """Wait until ``predicate()`` returns a true value and return it; fail naming ``what`` after ``timeout`` seconds
+    (those of an idle machine, stretched by :func:`time_factor`).
 
     ``predicate`` may itself raise (an ``assert`` on a child process still running, say) to fail at once.
     """
-    value = poll_until(predicate, timeout, interval, pause)
+    factor = time_factor()
+    value = poll_until(predicate, timeout * factor, interval, pause)
     if not value:
-        raise AssertionError(f"timed out after {timeout:g} s waiting for {what}")
+        raise AssertionError(f"timed out after {timeout * factor:g} s ({timeout:g} s × load factor {factor:.3g}) "
+                             f"waiting for {what}")
     return value
 
 

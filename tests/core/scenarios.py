@@ -30,3 +30,19 @@ def rigid_misfit(V: np.ndarray, U: np.ndarray, idx: np.ndarray) -> float:
     d = np.sign(np.linalg.det(vt.T @ u.T))
     R = vt.T @ np.diag([1.0, 1.0, d]) @ u.T
     return float(np.abs((Q - qc) @ R.T + pc - P).max() / np.linalg.norm(np.ptp(V, axis=0)))
+
+
+ROUNDING = 1e-12
+"""Relative slack of comparisons that round-off decides: another CPU's vector width or summation order, or another
+Cholesky backend (``ARAP_BACKEND``, see :mod:`arap.sparse.linsolve`), moves results by about 1e-15 of their size per
+operation; a comparison across code paths or of an energy "never rising" allows this much of the values' size."""
+
+
+def rises(energies: np.ndarray | list[float], rel: float = ROUNDING, tiny: float = 1e-300) -> np.ndarray:
+    """Steps ``k`` where ``energies[k + 1]`` rises above ``energies[k]`` by more than round-off: more than ``rel``
+    times the largest energy's size (plus ``tiny``, for energies that are all zero). An empty array: it never rose."""
+    E = np.asarray(energies, dtype=np.float64)
+    if len(E) < 2:
+        return np.zeros(0, dtype=np.int64)
+    slack = rel * float(np.abs(E).max()) + tiny
+    return np.flatnonzero(np.diff(E) > slack)

@@ -51,7 +51,7 @@ def test_energy_follows_any_change_of_targets(sphere_solver: tuple) -> None:
         rows = rng.choice(len(T), size=5, replace=False) if k < 3 else np.arange(len(fixed), len(T))
         T[rows] += 0.05 * rng.normal(size=(len(rows), 3))
         value = cells.energy(*at_targets(solver, T))
-        assert value == pytest.approx(direct(solver, T), rel=1e-12, abs=1e-14)
+        assert value == pytest.approx(direct(solver, T), rel=1e-10, abs=1e-14)
         assert value > 0
     assert cells.energy(*at_targets(solver, rest)) == pytest.approx(direct(solver, rest), abs=1e-12)
 
@@ -79,7 +79,7 @@ def test_a_rigid_move_of_the_handle_recomputes_no_cell(sphere_solver: tuple) -> 
     T2[h[1:]] = T[h[1:]] @ R.T + t
     value = cells.energy(*at_targets(solver, T2))
     assert cells.recomputed > 0
-    assert value == pytest.approx(direct(solver, T2), rel=1e-12)
+    assert value == pytest.approx(direct(solver, T2), rel=1e-10)
 
 
 def test_a_cell_holding_moved_and_unmoved_vertices_is_recomputed(icosphere: tuple) -> None:
@@ -94,6 +94,6 @@ def test_a_cell_holding_moved_and_unmoved_vertices_is_recomputed(icosphere: tupl
     T[top] = V[top] @ R.T + t
     E = np.zeros(n)
     local_step(cells, np.arange(n), T, np.empty((n, 3, 3)), E)
-    assert inactive.energy(T, T) == pytest.approx(float(E.sum()), rel=1e-12)
+    assert inactive.energy(T, T) == pytest.approx(float(E.sum()), rel=1e-10)
     assert 0 < inactive.recomputed < top.sum(), "only the cells across the cut change"
     assert float(E.sum()) > 1e-3

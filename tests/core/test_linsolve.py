@@ -12,9 +12,11 @@ import pytest
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from arap.errors import OptionError
 from arap.meshes.shapes import sphere, sphere_frequency_for
 from arap.solve.solver import ArapSolver
 from arap.sparse.linsolve import (
+    BACKEND_ENV,
     BACKENDS,
     LARGE_SYSTEM,
     ORDERINGS,
@@ -122,12 +124,30 @@ def test_unknown_names_are_rejected(reduced: sp.csr_matrix) -> None:
         factorize(reduced, "scipy", ordering="rcm")
 
 
-def test_default_backend_follows_the_system_size() -> None:
+def test_default_backend_follows_the_system_size(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.delenv(BACKEND_ENV, raising=False)
     found = available_backends()
     small = default_backend(1_000)
     assert small == ("cholespy" if "cholespy" in found else found[0])
     large = default_backend(LARGE_SYSTEM)
     assert large == ("sksparse" if HAVE_SKSPARSE else small)
+
+
+@pytest.mark.parametrize("name", available_backends())
+def test_the_environment_names_the_default_backend_for_every_size(name: str, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setenv(BACKEND_ENV, name)
+    assert default_backend(1_000) == default_backend(LARGE_SYSTEM) == name
+    V, F = sphere(2)
+    assert ArapSolver(V, F, _caps(V)).backend == name
+    assert ArapSolver(V, F, _caps(V), backend="scipy").backend == "scipy"  # a backend named in the call wins
+
+
+def test_an_unknown_backend_in_the_environment_is_refused(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setenv(BACKEND_ENV, "pardiso")
+    with pytest.raises(OptionError, match=BACKEND_ENV):
+        default_backend(1_000)
+    monkeypatch.setenv(BACKEND_ENV, "")
+    assert default_backend(1_000) in BACKENDS
 
 
 def test_solver_uses_the_default_backend_and_agrees_with_the_fallback() -> None:

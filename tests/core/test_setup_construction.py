@@ -108,15 +108,16 @@ def test_rim_cells_equal_the_sorted_construction_bit_for_bit(manifold: Mesh, wei
 
 
 def test_rim_cells_of_non_manifold_edges_equal_to_rounding() -> None:
+    # to rounding: the compiled kernels may fuse a multiply and an add where NumPy rounds twice (CPUs with FMA)
     V, F = _fan_with_a_fin()
     cells = build_cells(V, F)
     ptr, a, b, w, we, rest_sq = _reference_rim_cells(V, F, "cotangent")
     np.testing.assert_array_equal(cells.ptr, ptr)
     np.testing.assert_array_equal(cells.a, a)
     np.testing.assert_array_equal(cells.b, b)
-    np.testing.assert_allclose(cells.w, w, rtol=1e-15, atol=1e-15)
-    np.testing.assert_allclose(cells.we, we, rtol=1e-14, atol=1e-15)
-    np.testing.assert_allclose(cells.rest_sq, rest_sq, rtol=1e-14, atol=1e-15)
+    np.testing.assert_allclose(cells.w, w, rtol=1e-13, atol=1e-15)
+    np.testing.assert_allclose(cells.we, we, rtol=1e-13, atol=1e-15)
+    np.testing.assert_allclose(cells.rest_sq, rest_sq, rtol=1e-13, atol=1e-15)
     cw = corner_weights(V, F, "cotangent")
 
     def weight(cell: int, a: int, b: int) -> float:
@@ -125,9 +126,9 @@ def test_rim_cells_of_non_manifold_edges_equal_to_rounding() -> None:
         return float(cells.w[k])
 
     # edge (0, 1) lies in three faces: one spoke of cell 0 sums the three corner weights opposite it
-    assert weight(0, 0, 1) == pytest.approx(cw[0, 2] + cw[1, 2] + cw[2, 2], rel=1e-15)
+    assert weight(0, 0, 1) == pytest.approx(cw[0, 2] + cw[1, 2] + cw[2, 2], rel=1e-13)
     # the face listed twice gives its rim (2, 5) twice to the cell of its corner 1: summed
-    assert weight(1, 2, 5) == pytest.approx(2 * cw[3, 0], rel=1e-15)
+    assert weight(1, 2, 5) == pytest.approx(2 * cw[3, 0], rel=1e-13)
 
 
 @pytest.mark.parametrize("energy", ["spokes", "spokes_and_rims"])

@@ -52,11 +52,13 @@ def test_alpha_zero_is_the_spokes_energy(mesh: str, knight: tuple[np.ndarray, np
                                                                        acceleration="none")
     smooth = arap.ArapSolver(V, F, s.constrained, energy="smooth_rotations", alpha=0.0).solve(
         s.targets, max_iterations=40, acceleration="none")
-    np.testing.assert_allclose(smooth.vertices, spokes.vertices, rtol=0, atol=1e-12)
-    np.testing.assert_allclose(smooth.energies, spokes.energies, rtol=1e-12, atol=1e-15)
+    # two code paths: equal to round-off, which 40 iterations (and another CPU or Cholesky backend) may grow
+    diagonal = float(np.linalg.norm(V.max(0) - V.min(0)))
+    np.testing.assert_allclose(smooth.vertices, spokes.vertices, rtol=0, atol=1e-9 * diagonal)
+    np.testing.assert_allclose(smooth.energies, spokes.energies, rtol=1e-9, atol=1e-15)
     U = spokes.vertices
     assert arap.arap_energy(V, F, U, energy="smooth_rotations", alpha=0.0) == pytest.approx(
-        arap.arap_energy(V, F, U, energy="spokes"), rel=1e-12)
+        arap.arap_energy(V, F, U, energy="spokes"), rel=1e-9)
 
 
 @pytest.mark.parametrize("mesh", ["knight", "camelhead", "obtuse_cylinder"])

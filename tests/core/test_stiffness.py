@@ -32,8 +32,8 @@ def test_unit_stiffness_is_the_plain_energy(cactus: tuple[np.ndarray, np.ndarray
     s = bend(V)
     plain = arap.ArapSolver(V, F, s.constrained).solve(s.targets, max_iterations=30)
     ones = arap.ArapSolver(V, F, s.constrained, stiffness=np.ones(len(V))).solve(s.targets, max_iterations=30)
-    np.testing.assert_allclose(ones.vertices, plain.vertices, rtol=0, atol=1e-12)
-    np.testing.assert_allclose(ones.energies, plain.energies, rtol=1e-12)
+    np.testing.assert_allclose(ones.vertices, plain.vertices, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(ones.energies, plain.energies, rtol=1e-9)
 
 
 def test_uniform_stiffness_scales_the_energy_not_the_shape(cactus: tuple[np.ndarray, np.ndarray]) -> None:
@@ -46,7 +46,7 @@ def test_uniform_stiffness_scales_the_energy_not_the_shape(cactus: tuple[np.ndar
     np.testing.assert_allclose(scaled.energies, 7.0 * np.asarray(plain.energies), rtol=1e-9)
     U = scaled.vertices
     assert arap.arap_energy(V, F, U, stiffness=np.full(len(V), 7.0)) == pytest.approx(
-        7.0 * arap.arap_energy(V, F, U), rel=1e-12)
+        7.0 * arap.arap_energy(V, F, U), rel=1e-10)
 
 
 def test_a_stiff_region_bends_less(cactus: tuple[np.ndarray, np.ndarray]) -> None:

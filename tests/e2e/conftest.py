@@ -15,11 +15,13 @@ from typing import Any
 import numpy as np
 import pytest
 import uvicorn
-from playwright.sync_api import Browser, ConsoleMessage, Page, Playwright, sync_playwright
+from playwright.sync_api import Browser, ConsoleMessage, Frame, Page, Playwright, expect, sync_playwright
+from playwright.sync_api import TimeoutError as PlaywrightTimeoutError
 
 from arap.server import bind_socket, create_app, studio_url
 from arap.server.app import STATIC_DIR, frame_limit
-from tests.waiting import wait_until
+from arap.server.runner import websocket_protocol
+from tests.waiting import scaled_ms, wait_until
 
 REPO = Path(__file__).resolve().parents[2]
 WEB = REPO / "web"
@@ -36,6 +38,10 @@ CHROMIUM_ARGS = [
 MAX_UPLOAD_BYTES = 256 * 1024
 """Upload cap of the test server (small, so that the oversized-upload test needs only a modest file)."""
 VIEWPORT = {"width": 1280, "height": 800}
+DEFAULT_WAIT_SECONDS = 30.0
+"""Playwright's own default deadline (actions, waits without one), before :func:`tests.waiting.scaled` stretches it."""
+EXPECT_SECONDS = 5.0
+"""Playwright's default deadline of an ``expect`` assertion, before it is stretched likewise."""
 
 
 def _client_built() -> bool:
@@ -69,7 +75,7 @@ class _ServerThread(threading.Thread):
         self.sock = bind_socket("127.0.0.1", port)
         self.port = int(self.sock.getsockname()[1])
         self.url = studio_url("127.0.0.1", self.sock.getsockname()[1])
-        config = uvicorn.Config(app, log_level="warning", ws_per_message_deflate=False,
+        config = uvicorn.Config(app, log_level="warning", ws=websocket_protocol(), ws_per_message_deflate=False,
                                 ws_max_size=frame_limit(MAX_UPLOAD_BYTES), lifespan="off")
         self.server = uvicorn.Server(config)
 
@@ -139,6 +145,16 @@ def browser(pw: Playwright, tmp_path_factory: pytest.TempPathFactory) -> Iterato
         pytest.skip(f"{CHROMIUM} is missing (apt-get install chromium)")
     b = pw.chromium.launch(executable_path=str(CHROMIUM), args=CHROMIUM_ARGS,
                            downloads_path=tmp_path_factory.mktemp("downloads"))
+    # a loaded machine: slower, not failing (every context's default deadline, every expect's)
+    expect.set_options(timeout=scaled_ms(EXPECT_SECONDS))
+    new_context = b.new_context
+
+    def scaled_context(*args: Any, **kwargs: Any) -> Any:
+        context = new_context(*args, **kwargs)
+        context.set_default_timeout(scaled_ms(DEFAULT_WAIT_SECONDS))
+        return context
+
+    b.new_context = scaled_context  # type: ignore[method-assign]
     yield b
     b.close()
 
@@ -163,21 +179,33 @@ def page(browser: Browser, server_url: str) -> Iterator[Page]:
     assert not page_errors, f"errors in the page: {page_errors}"
 
 
-def wait_ready(page: Page, timeout_ms: float = 30_000) -> None:
-    """Wait until the studio has a mesh and nothing is pending."""
-    page.wait_for_function("() => window.__arap && window.__arap.ready && !window.__arap.busy", timeout=timeout_ms)
+def wait_for_page(page: Page | Frame, expression: str, what: str, seconds: float = DEFAULT_WAIT_SECONDS) -> None:
+    """Wait until the JavaScript ``expression`` (a function) is true in the page; fail naming ``what`` after
+    ``seconds`` on an idle machine, stretched on a loaded one (:func:`tests.waiting.scaled`)."""
+    timeout = scaled_ms(seconds)
+    try:
+        page.wait_for_function(expression, timeout=timeout)
+    except PlaywrightTimeoutError:
+        raise AssertionError(f"timed out after {timeout / 1000:g} s waiting for {what} "
+                             f"(in the page: {expression})") from None
+
+
+def wait_ready(page: Page | Frame, timeout_ms: float = 30_000) -> None:
+    """Wait until the studio has a mesh and nothing is pending (``timeout_ms`` on an idle machine)."""
+    wait_for_page(page, "() => window.__arap && window.__arap.ready && !window.__arap.busy",
+                  "the studio to be ready (its mesh shown, no request pending)", timeout_ms / 1000)
 
 
 def wait_settled(page: Page, timeout_ms: float = 60_000) -> None:
     """Wait until the server reports the shape settled (after a drag ends it keeps iterating and streaming frames)."""
-    page.wait_for_function(
-        "() => document.querySelector('[data-testid=settle-status]')?.dataset.status === 'settled'"
-        " && !window.__arap.busy", timeout=timeout_ms)
+    wait_for_page(page, "() => document.querySelector('[data-testid=settle-status]')?.dataset.status === 'settled'"
+                  " && !window.__arap.busy", "the shape to settle (settle status 'settled', no request pending)",
+                  timeout_ms / 1000)
 
 
 def wait_idle(page: Page, timeout_ms: float = 30_000) -> None:
     """Wait until no request that changes the view is unanswered, then for one more frame to be drawn."""
-    page.wait_for_function("() => !window.__arap.busy", timeout=timeout_ms)
+    wait_for_page(page, "() => !window.__arap.busy", "every request of the page to be answered", timeout_ms / 1000)
     page.evaluate("() => new Promise((r) => requestAnimationFrame(() => requestAnimationFrame(r)))")
 
 

@@ -10,6 +10,7 @@ from playwright.sync_api import Browser, Page, WebSocketRoute, expect
 
 from arap.server.protocol import EXPORT_FORMATS, PARAMS
 from tests.e2e.conftest import VIEWPORT, wait_ready
+from tests.waiting import scaled_ms
 
 pytestmark = pytest.mark.e2e
 
@@ -56,10 +57,10 @@ def test_a_server_of_another_protocol_version_is_refused(browser: Browser, serve
 
     page.route_web_socket("**/ws", relay)
     page.goto(server_url)
-    expect(page.get_by_test_id("status-text")).to_contain_text("reload the page", timeout=30_000)
+    expect(page.get_by_test_id("status-text")).to_contain_text("reload the page", timeout=scaled_ms(30))
     expect(page.get_by_test_id("status-text")).to_contain_text("version 999")
     # the mesh and state that follow the welcome arrive, and are ignored
-    page.wait_for_function("() => window.__arap.messages >= 3", timeout=30_000)
+    page.wait_for_function("() => window.__arap.messages >= 3", timeout=scaled_ms(30))
     assert not page.evaluate("() => window.__arap.ready")
     assert page.evaluate("() => window.__arap.nVertices") == 0
     context.close()
@@ -120,7 +121,7 @@ def test_the_shape_line_tells_each_settle_status(browser: Browser, server_url: s
     settle("settling", 242, 0.3)
     expect(shape).to_contain_text("settling…")
     route["page"].close()
-    expect(shape).to_have_attribute("data-status", "interrupted", timeout=10_000)
+    expect(shape).to_have_attribute("data-status", "interrupted", timeout=scaled_ms(10))
     expect(shape).to_contain_text("unknown")
     expect(shape).not_to_contain_text("settling…")
     wait_ready(page)  # reconnected

@@ -20,7 +20,7 @@ from tests.e2e.conftest import (
     wait_settled,
 )
 from tests.e2e.test_studio import box_select, drag_gizmo_x, select_anchor_and_handle, sphere_obj
-from tests.waiting import page_wait_until
+from tests.waiting import page_wait_until, scaled_ms
 
 pytestmark = pytest.mark.e2e
 
@@ -56,7 +56,8 @@ def active_tool(page: Page) -> str:
 
 
 def wait_autosaved(page: Page) -> None:
-    page.wait_for_function("() => window.__arap.autosave.idle && window.__arap.autosave.saves > 0", timeout=10_000)
+    page.wait_for_function("() => window.__arap.autosave.idle && window.__arap.autosave.saves > 0",
+                           timeout=scaled_ms(10))
 
 
 def edit_session(page: Page) -> dict:
@@ -208,7 +209,7 @@ def test_replacing_an_edited_mesh_asks_first(page: Page, tmp_path: Path) -> None
 def test_leaving_without_edits_does_not_ask(page: Page) -> None:
     dialogs = Dialogs(page, accept=False)
     page.get_by_test_id("fit-view").click()  # the page has been used, but nothing is edited
-    with page.expect_event("close", timeout=10_000):
+    with page.expect_event("close", timeout=scaled_ms(10)):
         page.close(run_before_unload=True)
     assert dialogs.seen == []
 
@@ -374,7 +375,7 @@ def test_reconnects_and_restores_after_a_server_restart(browser: Browser, own_se
         rest = positions(page)
         before = edit_session(page)
         own_server[-1].stop()
-        expect(page.get_by_test_id("conn-text")).to_have_text("reconnecting…", timeout=10_000)
+        expect(page.get_by_test_id("conn-text")).to_have_text("reconnecting…", timeout=scaled_ms(10))
         expect(page.get_by_test_id("status-text")).to_contain_text("reconnecting")
         opened = len(attempts)
         page_wait_until(page, lambda: len(attempts) >= opened + 2, 30,
@@ -389,9 +390,9 @@ def test_reconnects_and_restores_after_a_server_restart(browser: Browser, own_se
         assert offline["counts"]["fixed"] > before["counts"]["fixed"]
         before.update(offline)
         own_server.append(own_server[-1].restarted())
-        expect(page.get_by_test_id("conn-text")).to_have_text("connected", timeout=20_000)
+        expect(page.get_by_test_id("conn-text")).to_have_text("connected", timeout=scaled_ms(20))
         page.wait_for_function(f"() => window.__arap.counts().fixed === {before['counts']['fixed']}",
-                               timeout=20_000)
+                               timeout=scaled_ms(20))
         wait_ready(page)
         wait_idle(page)
         assert_restored(page, before, rest)
@@ -472,7 +473,7 @@ def test_a_tab_the_full_server_refuses_says_why_and_retries_slowly(browser: Brow
         second.on("websocket", lambda ws: sockets.append(ws))
         second.goto(server.url)
         status = second.get_by_test_id("status-text")
-        expect(status).to_contain_text("The studio server is full", timeout=10_000)
+        expect(status).to_contain_text("The studio server is full", timeout=scaled_ms(10))
         expect(status).to_contain_text("Close another studio tab")
         expect(status).not_to_contain_text("work is kept")  # this tab has no work yet
         expect(second.get_by_test_id("conn-text")).to_have_text("server full")

@@ -20,6 +20,7 @@ from tests.e2e.conftest import (
     screen_points,
     wait_idle,
 )
+from tests.waiting import scaled_ms
 
 pytestmark = pytest.mark.e2e
 
@@ -170,7 +171,7 @@ def test_select_drag_export_undo(page: Page, shoot: Shoot, tmp_path: Path) -> No
     assert np.linalg.norm(exported[handle] - rest[handle], axis=1).min() > 0.02 * diag
 
     # after the release the server settled the shape, and the statistics say so
-    expect(page.get_by_test_id("settle-status")).to_have_attribute("data-status", "settled", timeout=30_000)
+    expect(page.get_by_test_id("settle-status")).to_have_attribute("data-status", "settled", timeout=scaled_ms(30))
     expect(page.get_by_test_id("settle-status")).to_contain_text("settled")
 
     # undo restores the rest pose, redo (keyboard) the deformation

@@ -15,7 +15,9 @@ from pathlib import Path
 import pytest
 from playwright.sync_api import Browser
 
-from .conftest import VIEWPORT, wait_ready
+from tests.waiting import scaled, time_factor
+
+from .conftest import VIEWPORT, wait_for_page, wait_ready
 
 pytestmark = [pytest.mark.e2e, pytest.mark.timeout(300)]
 
@@ -32,7 +34,7 @@ def test_the_page_comes_at_once_and_says_the_solver_is_being_prepared(browser: B
         match = re.search(r"(http://\S+)", line)
         assert match, (line, err_lines)
         url = match.group(1)
-        with urllib.request.urlopen(url, timeout=30) as answer:
+        with urllib.request.urlopen(url, timeout=scaled(30)) as answer:
             assert answer.status == 200 and b"<html" in answer.read().lower()
         page_seconds = time.monotonic() - t0
         assert not any("compiled" in e and "kernels in" in e for e in err_lines), "the page waited for the compile"
@@ -40,14 +42,15 @@ def test_the_page_comes_at_once_and_says_the_solver_is_being_prepared(browser: B
         context = browser.new_context(viewport=VIEWPORT)
         page = context.new_page()
         page.goto(url)
-        page.wait_for_function("() => document.getElementById('status-text')?.textContent.includes("
-                               "'preparing the solver')", timeout=30_000)
+        wait_for_page(page, "() => document.getElementById('status-text')?.textContent.includes("
+                      "'preparing the solver')", "the page to say that the solver is being prepared")
         assert "preparing the solver" in (page.text_content("#conn-text") or "")
         wait_ready(page, timeout_ms=240_000)  # the compile ends, the welcome and the mesh arrive
         assert "preparing" not in (page.text_content("#status-text") or "") or page.is_hidden("#statusbar")
         assert page.text_content("#conn-text") == "connected"
         context.close()
-        assert page_seconds < 20, page_seconds
+        factor = time_factor()  # the page comes before the compile ends, however loaded the machine
+        assert page_seconds < 20 * factor, (page_seconds, factor)
     finally:
         proc.terminate()
         proc.wait(timeout=30)

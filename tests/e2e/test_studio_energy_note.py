@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 from playwright.sync_api import Page, expect
 
-from tests.e2e.conftest import wait_settled
+from tests.e2e.conftest import wait_for_page, wait_settled
 from tests.e2e.test_session_safety import Dialogs
 from tests.e2e.test_studio import drag_gizmo_x, select_anchor_and_handle
 
@@ -17,8 +17,8 @@ pytestmark = pytest.mark.e2e
 
 def test_the_negative_energy_note_goes_with_a_new_mesh(page: Page, shared_meshes_dir: Path) -> None:
     page.get_by_test_id("file-input").set_input_files(str(shared_meshes_dir / "decimated-knight.off"))
-    page.wait_for_function("() => window.__arap.meshName === 'decimated-knight' && !window.__arap.busy",
-                           timeout=60_000)
+    wait_for_page(page, "() => window.__arap.meshName === 'decimated-knight' && !window.__arap.busy",
+                  "the decimated knight to load", 60)
     select_anchor_and_handle(page)
     note = page.get_by_test_id("energy-note")
     expect(note).to_be_hidden()
@@ -32,5 +32,5 @@ def test_the_negative_energy_note_goes_with_a_new_mesh(page: Page, shared_meshes
     expect(note).to_be_visible()
     Dialogs(page, accept=True)
     page.get_by_test_id("builtin-select").select_option("bar")
-    page.wait_for_function("() => window.__arap.meshName === 'bar' && !window.__arap.busy", timeout=60_000)
+    wait_for_page(page, "() => window.__arap.meshName === 'bar' && !window.__arap.busy", "the bar to load", 60)
     expect(note).to_be_hidden()

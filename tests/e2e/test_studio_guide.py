@@ -9,6 +9,7 @@ from playwright.sync_api import Page, expect
 from tests.e2e.conftest import wait_ready, wait_settled
 from tests.e2e.test_session_safety import Dialogs
 from tests.e2e.test_studio import drag_gizmo_x, select_anchor_and_handle
+from tests.waiting import scaled_ms
 
 pytestmark = pytest.mark.e2e
 
@@ -23,7 +24,7 @@ def test_the_guide_closes_after_its_last_step(page: Page) -> None:
     expect(guide).to_be_visible()  # the drag is still to come
     drag_gizmo_x(page, 60)
     expect(done).to_have_count(3)
-    expect(guide).to_be_hidden(timeout=5000)
+    expect(guide).to_be_hidden(timeout=scaled_ms(5))
     wait_settled(page)
     Dialogs(page, accept=True)  # the warning before leaving an edited session
     page.reload()

@@ -8,7 +8,7 @@ import pytest
 from playwright.sync_api import Browser, Page, expect
 
 from arap.server.protocol import PARAMS
-from tests.e2e.conftest import screen_points, wait_idle, wait_ready
+from tests.e2e.conftest import screen_points, wait_for_page, wait_idle, wait_ready
 from tests.e2e.test_studio import box_select, drag_gizmo_x, select_anchor_and_handle
 
 pytestmark = pytest.mark.e2e
@@ -31,7 +31,8 @@ def test_heat_map_colours_the_distortion_and_goes_away(page: Page) -> None:
     legend = page.get_by_test_id("heat-legend")
     expect(legend).to_be_visible()
     expect(page.get_by_test_id("heat-high")).not_to_have_text("")
-    page.wait_for_function("() => { const c = window.__arap.colors(); return c.some((v, i) => v !== c[i % 3]); }")
+    wait_for_page(page, "() => { const c = window.__arap.colors(); return c.some((v, i) => v !== c[i % 3]); }",
+                  "the heat map's colours (vertices of different colours)")
     heat = colors(page)
     assert len(np.unique(np.round(heat[free], 3), axis=0)) > 20, "the heat map should vary over the mesh"
     np.testing.assert_array_equal(heat[fixed], before[fixed])  # anchors and handles keep their colours

@@ -8,6 +8,7 @@ from playwright.sync_api import Page, expect
 
 from tests.e2e.conftest import wait_idle
 from tests.e2e.test_studio_offline import own_page  # noqa: F401  (fixture)
+from tests.waiting import scaled_ms
 
 pytestmark = pytest.mark.e2e
 
@@ -36,7 +37,7 @@ def test_undo_while_the_server_is_away_keeps_the_reconnecting_message(own_page: 
                                                                       own_server: list) -> None:
     page = own_page
     own_server[-1].stop()
-    expect(page.get_by_test_id("conn-text")).to_have_text("reconnecting…", timeout=10_000)
+    expect(page.get_by_test_id("conn-text")).to_have_text("reconnecting…", timeout=scaled_ms(10))
     status = page.get_by_test_id("status-text")
     expect(status).to_contain_text("Lost the connection to the studio server")
     for key in ("Control+z", "Control+y", "q", "+"):

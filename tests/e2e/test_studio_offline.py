@@ -11,6 +11,7 @@ from playwright.sync_api import Browser, Page, expect
 
 from tests.e2e.conftest import VIEWPORT, positions, wait_ready
 from tests.e2e.test_studio import select_anchor_and_handle
+from tests.waiting import scaled_ms
 
 pytestmark = pytest.mark.e2e
 
@@ -42,7 +43,7 @@ def test_the_gizmo_does_not_move_handles_while_disconnected(own_page: Page, own_
     before = positions(page)
     gizmo = page.evaluate("() => window.__arap.gizmo()")
     own_server[-1].stop()
-    expect(page.get_by_test_id("conn-text")).to_have_text("reconnecting…", timeout=10_000)
+    expect(page.get_by_test_id("conn-text")).to_have_text("reconnecting…", timeout=scaled_ms(10))
     cx, cy = gizmo["screen"]
     ax, ay = gizmo["axes"]["x"]
     d = np.array([ax - cx, ay - cy]) / np.hypot(ax - cx, ay - cy)
@@ -66,9 +67,9 @@ def test_mode_controls_keep_their_state_after_a_reconnection(own_page: Page, own
     page.get_by_test_id("stiffness-rigid").check()
     assert _disabled(page) == {"invert": True, "slider": True}
     own_server[-1].stop()
-    expect(page.get_by_test_id("conn-text")).to_have_text("reconnecting…", timeout=10_000)
+    expect(page.get_by_test_id("conn-text")).to_have_text("reconnecting…", timeout=scaled_ms(10))
     own_server.append(own_server[-1].restarted())
-    expect(page.get_by_test_id("conn-text")).to_have_text("connected", timeout=20_000)
+    expect(page.get_by_test_id("conn-text")).to_have_text("connected", timeout=scaled_ms(20))
     wait_ready(page)
     # stiffness cannot be inverted, and a rigid brush has no strength to set
     assert _disabled(page) == {"invert": True, "slider": True}

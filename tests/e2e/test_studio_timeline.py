@@ -20,6 +20,7 @@ from tests.animated_glb import glb_frames
 from tests.e2e.conftest import positions, wait_idle, wait_ready, wait_settled
 from tests.e2e.test_session_safety import Dialogs, wait_autosaved
 from tests.e2e.test_studio import drag_gizmo_x, select_anchor_and_handle
+from tests.waiting import scaled_ms
 
 pytestmark = pytest.mark.e2e
 
@@ -92,8 +93,8 @@ def test_keyframes_scrub_play_restore_export(page: Page, tmp_path: Path) -> None
     # play advances frames, loops and pauses
     seq = page.evaluate("() => window.__arap.lastSeq")
     page.get_by_test_id("tl-play").click()
-    page.wait_for_function("() => window.__arap.timeline.framesShown >= 6", timeout=20_000)
-    page.wait_for_function(f"() => window.__arap.lastSeq > {seq} + 3", timeout=20_000)
+    page.wait_for_function("() => window.__arap.timeline.framesShown >= 6", timeout=scaled_ms(20))
+    page.wait_for_function(f"() => window.__arap.lastSeq > {seq} + 3", timeout=scaled_ms(20))
     page.get_by_test_id("tl-play").click()
     assert not timeline(page)["playing"]
     wait_idle(page)
@@ -109,7 +110,7 @@ def test_keyframes_scrub_play_restore_export(page: Page, tmp_path: Path) -> None
     assert timeline(page)["keys"] == []
     page.get_by_test_id("restore-accept").click()
     page.wait_for_function("() => !window.__arap.restoring && window.__arap.timeline.keys.length === 2",
-                           timeout=30_000)
+                           timeout=scaled_ms(30))
     wait_idle(page)
     wait_settled(page)
     tl = timeline(page)
@@ -123,7 +124,7 @@ def test_keyframes_scrub_play_restore_export(page: Page, tmp_path: Path) -> None
 
     # export: an animated GLB of every frame from 0 s to 1 s at the frame rate
     fps = tl["fps"]
-    with page.expect_download(timeout=120_000) as info:
+    with page.expect_download(timeout=scaled_ms(120)) as info:
         page.get_by_test_id("tl-export").click()
     glb = tmp_path / info.value.suggested_filename
     info.value.save_as(glb)

@@ -13,7 +13,7 @@ from playwright.sync_api import Browser, WebSocketRoute
 from arap.server.protocol import decode_binary
 from tests.e2e.conftest import VIEWPORT, positions, wait_ready
 from tests.server.helpers import translation
-from tests.waiting import page_wait_until
+from tests.waiting import page_wait_until, scaled_ms
 
 pytestmark = pytest.mark.e2e
 
@@ -62,7 +62,7 @@ def test_the_page_holds_the_full_frame_positions_after_subset_frames(browser: Br
     server.send(json.dumps({"type": "set_constraints", "roi": roi, "fixed": fixed, "handle_groups": [top]}))
     for seq in range(1, 7):
         server.send(json.dumps({"type": "drag", "seq": seq, "transforms": [translation(0.2 * seq, 0.1 * seq)]}))
-        page.wait_for_function(f"() => window.__arap.lastSeq === {seq}", timeout=30_000)
+        page.wait_for_function(f"() => window.__arap.lastSeq === {seq}", timeout=scaled_ms(30))
     held = positions(page).astype("<f4")
     normals = np.asarray(page.evaluate("() => window.__arap.normals()")).reshape(-1, 3)
     faces = np.asarray(page.evaluate("() => window.__arap.faces()")).reshape(-1, 3)
@@ -136,7 +136,7 @@ def test_normals_kept_per_frame_equal_a_full_recomputation(browser: Browser, ser
         for _ in range(rounds):
             seq += 1
             server.send(json.dumps({"type": "drag", "seq": seq, "transforms": [translation(0.1 * seq, 0.05 * seq)]}))
-            page.wait_for_function(f"() => window.__arap.lastSeq === {seq}", timeout=30_000)
+            page.wait_for_function(f"() => window.__arap.lastSeq === {seq}", timeout=scaled_ms(30))
         check(f"after drag {seq} (region {'20%' if region else 'whole mesh'})")
         server.send(json.dumps({"type": "end_drag"}))
     assert kinds[:4][0] < 0 and all(k >= 0 for k in kinds[1:4]), f"expected a full frame then subset frames: {kinds}"

@@ -17,6 +17,7 @@ from playwright.sync_api import Browser, Frame, Page
 
 from arap.server.app import STATIC_DIR
 from tests.e2e.conftest import VIEWPORT, canvas_pixels, positions, wait_idle
+from tests.waiting import scaled_ms
 
 pytestmark = [pytest.mark.e2e, pytest.mark.timeout(180)]
 
@@ -112,7 +113,7 @@ def widget_page(browser: Browser) -> Iterator[tuple[Page, Frame, StudioWidget, K
     element = page.wait_for_selector("iframe[data-testid=arap-widget-frame]")
     frame = element.content_frame()
     assert frame is not None
-    frame.wait_for_function("() => window.__arap && window.__arap.ready && !window.__arap.busy", timeout=60_000)
+    frame.wait_for_function("() => window.__arap && window.__arap.ready && !window.__arap.busy", timeout=scaled_ms(60))
     try:
         yield page, frame, w, kernel
     finally:
@@ -190,7 +191,7 @@ def test_the_widget_draws_the_mesh_and_a_drag_moves_it(widget_page: tuple[Page, 
     wait_idle(frame)  # type: ignore[arg-type]
     frame.wait_for_function(
         "() => document.querySelector('[data-testid=settle-status]')?.dataset.status === 'settled'"
-        " && !window.__arap.busy", timeout=60_000)
+        " && !window.__arap.busy", timeout=scaled_ms(60))
     elapsed = time.perf_counter() - t0
     assert w.wait(30)
     U = w.vertices
@@ -214,7 +215,7 @@ def test_a_mesh_file_uploaded_in_the_widget_reaches_the_kernel(
     path = tmp_path / "small_sphere.obj"
     path.write_text("\n".join(lines) + "\n")
     frame.get_by_test_id("file-input").set_input_files(str(path))
-    frame.wait_for_function("() => window.__arap.meshName === 'small_sphere'", timeout=60_000)
+    frame.wait_for_function("() => window.__arap.meshName === 'small_sphere'", timeout=scaled_ms(60))
     wait_idle(frame)  # type: ignore[arg-type]
     assert frame.evaluate("() => window.__arap.nVertices") == len(mesh.vertices)
     assert w.wait(30)

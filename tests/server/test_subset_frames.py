@@ -139,7 +139,7 @@ def test_a_region_with_nothing_movable_has_only_full_frames() -> None:
 
 def test_frames_of_an_interrupted_settle_arrive_before_the_next_answer(static_dir: Path,
                                                                        monkeypatch: pytest.MonkeyPatch) -> None:
-    """Settling frames are sent by tasks of their own; a slow socket must not let one of them arrive after the
+    """Settling frames are sent by a task of their own; a slow socket must not let one of them arrive after the
     answer to the request that interrupted the settle (a frame of the old constraint set would be applied to the
     new one's movable vertices)."""
     import asyncio
@@ -148,12 +148,12 @@ def test_frames_of_an_interrupted_settle_arrive_before_the_next_answer(static_di
     from arap.server.connection import Connection
     from arap.server.session import Session
 
-    send_frame = Connection._send_settle_frame
+    until_taken = Connection._until_taken
     settle = Session.settle
 
-    async def slow_socket(self: Connection, *args: object) -> None:
-        await asyncio.sleep(0.3)  # the scenario: a slow socket holds every settle frame back
-        await send_frame(self, *args)  # type: ignore[arg-type]
+    async def slow_socket(self: Connection) -> None:
+        await asyncio.sleep(0.3)  # the scenario: a slow socket holds every frame back
+        await until_taken(self)
 
     def slow_settle(self: Session, interrupted: Any, on_frame: Any = None) -> Any:
         def polled() -> bool:
@@ -163,7 +163,7 @@ def test_frames_of_an_interrupted_settle_arrive_before_the_next_answer(static_di
             return bool(interrupted())
         return settle(self, polled, on_frame)
 
-    monkeypatch.setattr(Connection, "_send_settle_frame", slow_socket)
+    monkeypatch.setattr(Connection, "_until_taken", slow_socket)
     monkeypatch.setattr(Session, "settle", slow_settle)
     app = create_app("cactus", static_dir=static_dir, allowed_hosts=["testserver"])
     with TestClient(app) as http, http.websocket_connect("/ws") as ws:

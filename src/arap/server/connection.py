@@ -7,6 +7,11 @@ file parsing on a thread so that the event loop (and the other sessions) keep go
 and validated on a thread too; the reader stops reading while the session's byte budgets
 (:mod:`arap.server.budget`) are exhausted, and no frame, however malformed, ends the session: every failure
 becomes an ``error`` answer.
+
+A ``vertices`` frame is sent only once the client has taken what was sent before it (at most :data:`TAKEN_BYTES`
+still queued for it: :meth:`Connection._until_taken`), and while settling only the newest shape waits to be sent: a
+newer one replaces it. A page that reads slowly gets fewer frames, never a backlog: the socket never holds more than
+about one frame in front of the keepalive pings, however large the mesh.
 """
 
 from __future__ import annotations
@@ -41,16 +46,25 @@ from arap.server.render_mesh import Look
 from arap.server.session import Session
 from arap.server.studio_config import check_upload_size
 
-__all__ = ["Connection", "StudioConfig"]
+__all__ = ["SEND_QUEUE_EXTENSION", "TAKEN_BYTES", "Connection", "StudioConfig"]
 
 logger = logging.getLogger(__name__)
 
 T = TypeVar("T")
 
 OFF_LOOP_BYTES = 256 * 1024
+"""Frames at least this large are decoded and validated on a thread, not on the event loop."""
 KERNEL_WAIT_SECONDS = 600.0
 """Longest a new connection waits for a background warm-up of the kernels before it is greeted anyway."""
-"""Frames at least this large are decoded and validated on a thread, not on the event loop."""
+SEND_QUEUE_EXTENSION = "arap.send_queue"
+"""ASGI scope extension of the studio's WebSocket protocol (:func:`arap.server.runner.websocket_protocol`):
+``{"bytes": callable}``, the bytes written to the connection that its client has not taken yet. Without it (another
+server) a frame counts as taken once the server's WebSocket has accepted it."""
+TAKEN_BYTES = 16 * 1024
+"""The client has taken what was sent to it when at most this much of it is still queued for it (asyncio's
+low-water mark): then the next ``vertices`` frame is sent."""
+TAKEN_POLL_SECONDS = 0.01
+"""Pause between two looks at the bytes queued for a client while a frame waits for it."""
 
 
 def _dumps(message: dict[str, Any]) -> str:
@@ -93,6 +107,15 @@ class Connection:
         self._send_lock = asyncio.Lock()
         self._frame_tasks: set[asyncio.Task[None]] = set()
         self._closed = False
+        queue = ws.scope.get("extensions", {}).get(SEND_QUEUE_EXTENSION)
+        self._queued: Callable[[], int] | None = queue.get("bytes") if isinstance(queue, dict) else None
+        self._shape: np.ndarray | None = None
+        """The newest settling shape not yet sent (a newer one replaces it)."""
+        self._statuses: list[Reply] = []
+        """Settling progress messages not yet sent, in order (every one is sent)."""
+        self._pump: asyncio.Task[None] | None = None
+        self.superseded = 0
+        """Settling shapes replaced by a newer one before the client had taken the frame before them."""
 
     # ------------------------------------------------------------------ sending
     async def _send_frame(self, frame: str | bytes) -> None:
@@ -114,7 +137,18 @@ class Connection:
     async def _send_binary(self, header: dict[str, Any], *payload: bytes) -> None:
         await self._send_frame(encode_binary(header, *payload))
 
+    async def _until_taken(self) -> None:
+        """Wait until the client has taken what was sent to it (at most :data:`TAKEN_BYTES` still queued for it), or
+        has gone. The keepalive pings go out meanwhile: what is queued in front of them stays bounded."""
+        queued = self._queued
+        if queued is None:
+            return
+        while not self._closed and queued() > TAKEN_BYTES:
+            await asyncio.sleep(TAKEN_POLL_SECONDS)
+
     async def _send_reply(self, reply: Reply) -> None:
+        if isinstance(reply, tuple) and reply[0].get("type") == "vertices":
+            await self._until_taken()  # a frame never queues behind another one
         if isinstance(reply, dict):
             await self._send_json(reply)
         elif isinstance(reply, bytes):
@@ -295,10 +329,11 @@ class Connection:
         def on_frame(U: np.ndarray | None, iteration: int, energy: float) -> None:
             nonlocal streamed
             streamed += U is not None
-            replies = self.dispatch.settle_frame(U, iteration, energy)  # encoded here, on the settling thread
+            status = self.dispatch.settle_status("settling", iteration, energy, None)
             with contextlib.suppress(RuntimeError):  # the loop has closed: the connection is gone
-                loop.call_soon_threadsafe(self._spawn_settle_frame, replies)
+                loop.call_soon_threadsafe(self._offer_settle_frame, U, status)
 
+        outcome = None
         try:
             await self._send_reply(self.dispatch.settle_status("settling", 0, None, 0.0))
             outcome = await self._off_loop(self.dispatch.settle_session, lambda: bool(self._queue) or self._closed,
@@ -307,6 +342,8 @@ class Connection:
             await self._send_error(exc)
             return
         finally:
+            if outcome is not None:
+                self._shape = None  # superseded by the shape settle_done sends (it was streamed, so it is sent)
             # Frames of this run go out before anything that answers the next request: a frame of the old
             # constraint set or mesh arriving after the new one would be applied to the wrong shape.
             if self._frame_tasks:
@@ -316,15 +353,41 @@ class Connection:
         for reply in await self._off_loop(self.dispatch.settle_done, outcome, streamed):
             await self._send_reply(reply)
 
-    def _spawn_settle_frame(self, replies: list[Reply]) -> None:
-        task = asyncio.ensure_future(self._send_settle_frame(replies))
-        self._frame_tasks.add(task)
-        task.add_done_callback(self._frame_tasks.discard)
+    def _offer_settle_frame(self, U: np.ndarray | None, status: Reply) -> None:
+        """A settling run's report (on the event loop): ``U`` (None: no visible change) replaces the shape waiting to
+        be sent, ``status`` is queued; both go out as soon as the client has taken the frame before."""
+        if U is not None:
+            self.superseded += self._shape is not None
+            self._shape = U
+        self._statuses.append(status)
+        if self._pump is None:
+            self._pump = asyncio.ensure_future(self._send_settle_frames())
+            self._frame_tasks.add(self._pump)
+            self._pump.add_done_callback(self._frame_tasks.discard)
 
-    async def _send_settle_frame(self, replies: list[Reply]) -> None:
-        with contextlib.suppress(WebSocketDisconnect, RuntimeError, OSError):
-            for reply in replies:
-                await self._send_reply(reply)
+    async def _send_settle_frames(self) -> None:
+        """Send the newest settling shape once the client has taken the frame before it, then the progress
+        messages queued meanwhile; until none waits."""
+        try:
+            with contextlib.suppress(WebSocketDisconnect, RuntimeError, OSError):
+                while self._shape is not None or self._statuses:
+                    if self._shape is not None:
+                        await self._until_taken()
+                    U, self._shape = self._shape, None
+                    if U is not None:
+                        frame = await self._off_loop(self._encode_shape, U)
+                        await self._send_reply(frame)
+                    statuses, self._statuses = self._statuses, []
+                    for status in statuses:
+                        await self._send_reply(status)
+        finally:
+            self._pump = None
+            self._shape = None
+            self._statuses = []
+
+    def _encode_shape(self, U: np.ndarray) -> Reply:
+        """The ``vertices`` frame (seq -1) of a settling shape (on a thread)."""
+        return self.dispatch.vertices(-1, None, self.dispatch.stream.encode(U, self.session.constraints))
 
     async def _export_animation(self, msg: ExportAnimation) -> None:
         """Solve and send the animated GLB of export_animation off the event loop

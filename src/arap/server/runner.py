@@ -2,13 +2,16 @@
 
 from __future__ import annotations
 
+import asyncio
 import logging
 import os
 import secrets
 import socket
+import struct
 import threading
 import webbrowser
 from collections.abc import Callable, Iterable
+from typing import Any
 from urllib.parse import quote
 
 import uvicorn
@@ -20,13 +23,63 @@ from arap.server.app import (
     create_app,
     frame_limit,
 )
+from arap.server.connection import SEND_QUEUE_EXTENSION
 from arap.server.guard import TOKEN_PARAM, is_loopback_host
 from arap.server.headtimeout import DEFAULT_HEAD_TIMEOUT, head_timeout_protocol
 from arap.server.meshdata import MeshData
 
-__all__ = ["bind_socket", "make_server", "new_token", "serve", "studio_url"]
+__all__ = ["bind_socket", "kernel_unsent_bytes", "make_server", "new_token", "serve", "studio_url",
+           "websocket_protocol"]
 
 logger = logging.getLogger(__name__)
+
+try:
+    import fcntl
+    import termios
+
+    _OUTQ: int | None = termios.TIOCOUTQ  # Linux: SIOCOUTQ, bytes the peer has not acknowledged
+except (ImportError, AttributeError):  # no such query here: the transport's own buffer is all that is measured
+    _OUTQ = None
+
+
+def kernel_unsent_bytes(sock: Any) -> int:
+    """Bytes of a TCP socket's send queue that its peer has not acknowledged (0 where the system cannot tell).
+
+    Parameters
+    ----------
+    sock : socket-like
+        Anything with ``fileno()`` (an asyncio transport's ``get_extra_info("socket")``).
+    """
+    if _OUTQ is None or sock is None:
+        return 0
+    try:
+        return int(struct.unpack("i", fcntl.ioctl(sock.fileno(), _OUTQ, b"\0\0\0\0"))[0])
+    except (OSError, ValueError):  # closed meanwhile
+        return 0
+
+
+def websocket_protocol() -> type[asyncio.Protocol]:
+    """uvicorn's WebSocket protocol (``websockets``' sans-I/O one, what ``ws="auto"`` picks) telling the studio how
+    much its client has not taken yet: the scope's :data:`~arap.server.connection.SEND_QUEUE_EXTENSION` holds
+    ``{"bytes": callable}``, the bytes in the transport's buffer plus those of the socket's send queue not yet
+    acknowledged (:func:`kernel_unsent_bytes`). A connection sends its next ``vertices`` frame only once the client
+    took the last one, so frames never pile up in the socket in front of the keepalive pings."""
+    from uvicorn.protocols.websockets.websockets_sansio_impl import WebSocketsSansIOProtocol
+
+    class SendQueueProtocol(WebSocketsSansIOProtocol):
+        def handle_connect(self, event: Any) -> None:
+            super().handle_connect(event)
+            scope = getattr(self, "scope", None)
+            if scope is not None:
+                scope.setdefault("extensions", {})[SEND_QUEUE_EXTENSION] = {"bytes": self.unsent_bytes}
+
+        def unsent_bytes(self) -> int:
+            transport = self.transport
+            if transport is None or transport.is_closing():
+                return 0
+            return transport.get_write_buffer_size() + kernel_unsent_bytes(transport.get_extra_info("socket"))
+
+    return SendQueueProtocol
 
 
 def studio_url(host: str = "127.0.0.1", port: int = 8000, token: str | None = None) -> str:
@@ -114,6 +167,7 @@ def make_server(
     config = uvicorn.Config(
         app,
         http=head_timeout_protocol(head_timeout),
+        ws=websocket_protocol(),
         log_level=log_level,
         ws_per_message_deflate=False,
         ws_max_size=frame_limit(max_upload_bytes),

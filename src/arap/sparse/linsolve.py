@@ -19,12 +19,15 @@ The default (:func:`default_backend`) trades factorisation time against solve ti
 factor keeps the zeros of CHOLMOD's relaxed supernodes and solves noticeably slower, at every size (both are measured
 side by side by ``benchmarks/bench_scaling.py --backends sksparse cholespy``). So cholespy is the default below
 :data:`LARGE_SYSTEM` unknowns, where it also factorises as fast, and scikit-sparse above, where factorisation
-dominates.
+dominates. The environment variable :data:`BACKEND_ENV` (``ARAP_BACKEND``) names one backend for every size instead,
+e.g. to run the tests with a backend they would not otherwise use (``.ci/run`` runs the core tests once with
+``ARAP_BACKEND=sksparse``); a backend named in a call still wins.
 """
 
 from __future__ import annotations
 
 import logging
+import os
 import time
 from dataclasses import dataclass
 from typing import Any, Literal, Protocol
@@ -49,6 +52,9 @@ ORDERINGS: tuple[str, ...] = ("metis", "nesdis", "amd")
 DEFAULT_ORDERING: Ordering = "metis"
 LARGE_SYSTEM = 250_000
 """Unknowns from which the default backend is ``sksparse`` (when installed)."""
+BACKEND_ENV = "ARAP_BACKEND"
+"""Environment variable naming the default backend for every size (one of :data:`BACKENDS`; unset or empty: by size,
+see :func:`default_backend`)."""
 Permutation = NDArray[np.integer] | BackgroundOrdering
 """A given fill-reducing ordering: the permutation, or the thread computing it."""
 
@@ -248,9 +254,19 @@ def default_backend(size: int) -> str:
     Returns
     -------
     str
-        ``sksparse`` from :data:`LARGE_SYSTEM` unknowns on if installed, else ``cholespy`` if installed, else the
-        first available.
+        The backend named by the environment variable :data:`BACKEND_ENV` if set; else ``sksparse`` from
+        :data:`LARGE_SYSTEM` unknowns on if installed, else ``cholespy`` if installed, else the first available.
+
+    Raises
+    ------
+    OptionError
+        :data:`BACKEND_ENV` names no backend.
     """
+    forced = os.environ.get(BACKEND_ENV, "").strip()
+    if forced:
+        if forced not in BACKENDS:
+            raise OptionError(f"{BACKEND_ENV}={forced!r} names no backend; expected one of {BACKENDS}")
+        return forced
     found = available_backends()
     if size >= LARGE_SYSTEM and "sksparse" in found:
         return "sksparse"
