@@ -34,7 +34,8 @@ from arap.meshes.mesh import (
     mesh_arrays,
 )
 
-__all__ = ["PLANAR_TOLERANCE", "Domain", "DomainKind", "boundary_faces", "check_domain", "element_mesh_arrays",
+__all__ = ["PLANAR_TOLERANCE", "Domain", "DomainKind", "boundary_faces", "boundary_faces_and_owners", "check_domain",
+           "element_mesh_arrays",
            "signed_measures", "tetrahedron_faces"]
 
 DomainKind = Literal["surface", "planar", "solid"]
@@ -130,6 +131,18 @@ def tetrahedron_faces(T: NDArray[np.integer]) -> NDArray[np.int64]:
 
 
 def boundary_faces(T: NDArray[np.integer], V: NDArray[np.floating] | None = None) -> NDArray[np.int64]:
+    """The boundary triangles of a tetrahedral mesh (see :func:`boundary_faces_and_owners`).
+
+    Example
+    -------
+    >>> boundary_faces(np.array([[0, 1, 2, 3], [1, 2, 3, 4]])).shape
+    (6, 3)
+    """
+    return boundary_faces_and_owners(T, V)[0]
+
+
+def boundary_faces_and_owners(T: NDArray[np.integer], V: NDArray[np.floating] | None = None
+                              ) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
     """The boundary triangles of a tetrahedral mesh: the faces that belong to one tetrahedron only, turned outwards.
 
     Parameters
@@ -141,13 +154,16 @@ def boundary_faces(T: NDArray[np.integer], V: NDArray[np.floating] | None = None
 
     Returns
     -------
-    (k, 3) int64 array
+    faces : (k, 3) int64 array
         In the order of the tetrahedra.
+    owners : (k,) int64 array
+        The tetrahedron of each face.
 
     Example
     -------
-    >>> boundary_faces(np.array([[0, 1, 2, 3], [1, 2, 3, 4]])).shape
-    (6, 3)
+    >>> faces, owners = boundary_faces_and_owners(np.array([[0, 1, 2, 3], [1, 2, 3, 4]]))
+    >>> owners.tolist()
+    [0, 0, 0, 1, 1, 1]
     """
     T64: NDArray[np.int64] = np.asarray(T, dtype=np.int64)
     T = T64
@@ -159,7 +175,8 @@ def boundary_faces(T: NDArray[np.integer], V: NDArray[np.floating] | None = None
     faces = tetrahedron_faces(T)
     key = np.sort(faces, axis=1)
     _, inverse, counts = np.unique(key, axis=0, return_inverse=True, return_counts=True)
-    return np.ascontiguousarray(faces[counts[inverse.ravel()] == 1])
+    once = np.flatnonzero(counts[inverse.ravel()] == 1)
+    return np.ascontiguousarray(faces[once]), once // 4
 
 
 def element_mesh_arrays(V: Any, F: Any = None) -> tuple[np.ndarray, np.ndarray]:

@@ -230,13 +230,14 @@ def distortion_from_cells(cells: Cells, V: NDArray[np.float64], F: NDArray[np.in
     Parameters
     ----------
     cells : Cells
-        ``build_cells(V, F, energy, weights)`` of the checked rest mesh.
+        ``build_cells(V, F, energy, weights)`` of the checked rest mesh (or its element cells,
+        :func:`arap.method.elements.element_cells`).
     V : (n, 3) float64 array
         Rest positions, as checked by :func:`arap.check_mesh`.
-    F : (m, 3) int64 array
+    F : (m, 3) or (m, 4) int64 array
     U : (n, 3) float64 array
         Deformed positions (finite, of the shape of ``V``).
-    energy : {"spokes_and_rims", "spokes", "smooth_rotations"}
+    energy : {"spokes_and_rims", "spokes", "smooth_rotations", "elements"}
         The energy ``cells`` were built for.
     alpha : float
         Weight of the rotation term of ``smooth_rotations``.
@@ -245,10 +246,10 @@ def distortion_from_cells(cells: Cells, V: NDArray[np.float64], F: NDArray[np.in
     -------
     (n,) float64 array
     """
-    n = len(V)
-    E = np.empty(n)
-    R = identity_rotations(n)
-    local_step(cells, np.arange(n), U, R, E)
+    nc = cells.n_cells
+    E = np.empty(nc)
+    R = identity_rotations(nc)
+    local_step(cells, np.arange(nc), U, R, E)
     if energy == "smooth_rotations":
         _settle_rotations(cells, V, F, U, R, E, alpha, np.maximum(cells.w, 0.0))
     out = np.zeros_like(E)

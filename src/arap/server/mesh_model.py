@@ -29,6 +29,7 @@ class MeshData:
         Display name.
     V : (n, 3) float64 array
     F : (m, 3) int64 array
+        The triangles drawn (and picked): the surface, or the boundary of a solid.
     report : list of str
         Repairs made while loading, one line each.
     vertex_map : (n_file,) int64 array or None
@@ -36,6 +37,10 @@ class MeshData:
         of the file, -1 for one dropped (:attr:`arap.meshes.repair.RepairResult.vertex_map`). None when the numbering is
         the file's (clean files, built-in models, arrays). Constraints documents use the file's numbering
         (:mod:`arap.server.numbering`).
+    elements : (t, 4) int64 array or None
+        The tetrahedra of a solid, which the solver deforms (``F`` is then their boundary); None for a surface.
+    face_owner : (m,) int64 array or None
+        For a solid: the tetrahedron behind each boundary triangle.
     """
 
     name: str
@@ -43,6 +48,26 @@ class MeshData:
     F: np.ndarray
     report: list[str] = field(default_factory=list)
     vertex_map: np.ndarray | None = None
+    elements: np.ndarray | None = None
+    face_owner: np.ndarray | None = None
+
+    @classmethod
+    def solid(cls, name: str, V: np.ndarray, T: np.ndarray, report: list[str] | None = None) -> MeshData:
+        """A tetrahedral solid, drawn by its boundary (checked: :func:`arap.check_domain`)."""
+        from arap.meshes.domain import boundary_faces_and_owners, check_domain
+
+        domain = check_domain(V, T)
+        boundary, owner = boundary_faces_and_owners(domain.elements, domain.V)
+        mesh = cls.make(name, domain.V, boundary, report)
+        elements = np.array(domain.elements, dtype=np.int64)
+        elements.setflags(write=False)
+        owner.setflags(write=False)
+        return cls(mesh.name, mesh.V, mesh.F, mesh.report, None, elements, owner)
+
+    @property
+    def solve_elements(self) -> np.ndarray:
+        """What the solver deforms: the tetrahedra of a solid, else the triangles."""
+        return self.F if self.elements is None else self.elements
 
     @classmethod
     def make(cls, name: str, V: np.ndarray, F: np.ndarray, report: list[str] | None = None,

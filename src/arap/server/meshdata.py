@@ -28,9 +28,16 @@ __all__ = ["EXPORT_MIME", "MeshData", "builtin_names", "export_mesh", "load_buil
 
 logger = logging.getLogger(__name__)
 
+SOLID_BUILTINS: dict[str, tuple[tuple[int, int, int], tuple[float, float, float]]] = {
+    "solid bar": ((4, 20, 4), (1.0, 5.0, 1.0)),
+}
+"""Built-in tetrahedral solids (:func:`arap.box_tetrahedra`: cubes each way, extent), drawn by their boundary and
+deformed through their tetrahedra."""
+
+
 def builtin_names() -> list[str]:
-    """Names of the built-in models."""
-    return list(arap.BUILTIN_MESHES)
+    """Names of the built-in models: the surfaces, then the solids."""
+    return [*arap.BUILTIN_MESHES, *SOLID_BUILTINS]
 
 
 def load_builtin(name: str) -> MeshData:
@@ -44,6 +51,10 @@ def load_builtin(name: str) -> MeshData:
     names = builtin_names()
     if name not in names:
         raise RequestError("bad_message", f"unknown built-in mesh {name[:64]!r}; expected one of {names}")
+    if name in SOLID_BUILTINS:
+        (nx, ny, nz), size = SOLID_BUILTINS[name]
+        V, T = arap.box_tetrahedra(nx, ny, nz, size=size)
+        return MeshData.solid(name, V - np.array([size[0], 0.0, size[2]]) / 2, T)
     V, F = arap.builtin_mesh(name)
     return MeshData.make(name, V, F)
 

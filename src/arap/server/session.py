@@ -322,7 +322,7 @@ class Session(SessionState):
         V = np.array(self.U, dtype=np.float64)
         V.setflags(write=False)
         try:
-            arap.check_mesh(V, mesh.F)
+            arap.check_domain(V, mesh.solve_elements)
         except ArapError as exc:
             raise UnusableMesh(f"the deformed shape cannot become the rest pose: {exc}") from exc
         old = self.constraints

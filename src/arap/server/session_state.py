@@ -103,7 +103,9 @@ class SessionState:
         Raises ConstraintsRejected when the solver rejects the constraints.
         """
         try:
-            return self._solvers.get(rest_id, V, self._require_mesh().F, cs, params)
+            mesh = self._require_mesh()
+            solid = None if mesh.elements is None or mesh.face_owner is None else (mesh.elements, mesh.face_owner)
+            return self._solvers.get(rest_id, V, mesh.F, cs, params, solid)
         except ConstraintsRejected as exc:
             raise self._in_file_numbering(exc) from exc.__cause__
 

@@ -11,11 +11,12 @@ import numpy as np
 
 import arap
 from arap.errors import ArapError
+from arap.method.points import PointConstraints
 from arap.server.constraints import ConstraintSet
 from arap.server.records import Params
 from arap.server.session_errors import ConstraintsRejected
 
-__all__ = ["SOLVER_CACHE_VERTICES", "SolverCache"]
+__all__ = ["SOLVER_CACHE_VERTICES", "SolverCache", "points_in_tetrahedra"]
 
 logger = logging.getLogger(__name__)
 
@@ -34,10 +35,14 @@ class SolverCache:
         """Drop every solver (a new mesh)."""
         self._solvers.clear()
 
-    def get(self, rest_id: int, V: np.ndarray, F: np.ndarray, cs: ConstraintSet,
-            params: Params) -> arap.ArapSolver | None:
+    def get(self, rest_id: int, V: np.ndarray, F: np.ndarray, cs: ConstraintSet, params: Params,
+            solid: tuple[np.ndarray, np.ndarray] | None = None) -> arap.ArapSolver | None:
         """A factorised solver for the constraint set on the rest pose ``V`` (numbered ``rest_id``), or None when
         nothing is constrained.
+
+        ``solid``: the tetrahedra of a solid and the tetrahedron behind each of its boundary triangles ``F``; the
+        solver then deforms the tetrahedra (the element energy), with the point handles on the boundary taken
+        into their tetrahedra.
 
         Raises
         ------
@@ -46,15 +51,20 @@ class SolverCache:
         """
         if cs.is_empty:
             return None
-        alpha = params.alpha if params.energy == "smooth_rotations" else None  # other energies ignore it
-        key = (rest_id, params.energy, params.weights, alpha, params.loose, cs.solver_digest())
+        energy = "elements" if solid is not None else params.energy  # the only energy tetrahedra have
+        alpha = params.alpha if energy == "smooth_rotations" else None  # other energies ignore it
+        key = (rest_id, energy, params.weights, alpha, params.loose, cs.solver_digest())
         solver = self._solvers.get(key)
         if solver is not None:
             self._solvers.move_to_end(key)
             return solver
+        elements, points = F, cs.points
+        if solid is not None:
+            elements = solid[0]
+            points = None if points is None else points_in_tetrahedra(points, F, solid[0], solid[1])
         try:
-            solver = arap.ArapSolver(V, F, cs.constrained, energy=params.energy, weights=params.weights,
-                                     roi=cs.roi, alpha=params.alpha, stiffness=cs.stiffness, points=cs.points,
+            solver = arap.ArapSolver(V, elements, cs.constrained, energy=energy, weights=params.weights,
+                                     roi=cs.roi, alpha=params.alpha, stiffness=cs.stiffness, points=points,
                                      loose=params.loose)
         except ArapError as exc:
             raise ConstraintsRejected(str(exc)) from exc
@@ -64,3 +74,21 @@ class SolverCache:
         while len(self._solvers) > keep:
             self._solvers.popitem(last=False)
         return solver
+
+
+def points_in_tetrahedra(points: PointConstraints, F: np.ndarray, T: np.ndarray,
+                         owner: np.ndarray) -> PointConstraints:
+    """Point handles on boundary triangles ``F`` of a solid as points in the tetrahedra ``T`` behind them
+    (``owner``): the same positions, with a zero coordinate at each tetrahedron's fourth corner.
+
+    Example
+    -------
+    >>> p = PointConstraints(np.array([0]), np.array([[0.2, 0.3, 0.5]]), np.array([np.inf]))
+    >>> points_in_tetrahedra(p, np.array([[1, 2, 3]]), np.array([[0, 1, 2, 3]]), np.array([0])).barycentric.tolist()
+    [[0.0, 0.2, 0.3, 0.5]]
+    """
+    corners = F[points.faces]
+    tets = T[owner[points.faces]]
+    match = tets[:, :, None] == corners[:, None, :]
+    barycentric = (match * points.barycentric[:, None, :]).sum(axis=2)
+    return PointConstraints(owner[points.faces], barycentric, points.weights)
