@@ -58,7 +58,9 @@ class MeshData:
 
         domain = check_domain(V, T)
         boundary, owner = boundary_faces_and_owners(domain.elements, domain.V)
-        mesh = cls.make(name, domain.V, boundary, report)
+        note = (f"a solid of {len(domain.elements):,} tetrahedra, drawn by its {len(boundary):,} boundary triangles; "
+                "the solver deforms the tetrahedra")
+        mesh = cls.make(name, domain.V, boundary, [*(report or []), note])
         elements = np.array(domain.elements, dtype=np.int64)
         elements.setflags(write=False)
         owner.setflags(write=False)
