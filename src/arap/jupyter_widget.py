@@ -10,9 +10,11 @@ VS Code, Colab, and kernels on another machine.
 >>> w.vertices, w.constraints      # doctest: +SKIP
 
 The comm carries the studio protocol's messages unchanged (``docs/protocol.md``): a text message as the custom
-message's content, a binary one as its header (the content) and its payload (one buffer). The one message of its
-own is ``{"widget": "open"}``, which a view sends when it opens; the kernel answers with the greeting (``welcome``,
-``mesh``, ``state`` and the current shape). A view names itself in a ``"view"`` key of what it sends (removed before
+message's content, a binary one as its header (the content) and its payload (one buffer). Two messages are its own:
+``{"widget": "open"}``, which a view sends when it opens (the kernel answers with the greeting: ``welcome``,
+``mesh``, ``state`` and the current shape), and ``{"widget": "stopped"}``, which the kernel sends to every view
+when the widget is stopped, and to a view that opens afterwards instead of the greeting (the view says so in place
+of the studio, which no longer answers). A view names itself in a ``"view"`` key of what it sends (removed before
 the message is read); the replies meant for that view alone (its greeting, the answer to an export, an error) carry
 it as ``"to"``, and the views drop those meant for another. Requests are answered in order on a thread of the
 widget's, as by the studio's server (:mod:`arap.server.channel`, which also says which replies go to every view):
@@ -47,13 +49,17 @@ if TYPE_CHECKING:
     from arap.server.dispatch import Dispatcher, Reply
     from arap.server.session import Session
 
-__all__ = ["OPEN_MESSAGE", "StudioWidget", "has_comm_kernel", "widget", "widget_module"]
+__all__ = ["OPEN_MESSAGE", "STOPPED_MESSAGE", "StudioWidget", "has_comm_kernel", "widget", "widget_module"]
 
 logger = logging.getLogger(__name__)
 
 OPEN_MESSAGE = {"widget": "open"}
 """What a view of the widget sends when it opens (outside the studio protocol, with its ``"view"`` name); the kernel
 answers with the greeting."""
+
+STOPPED_MESSAGE = {"widget": "stopped"}
+"""What the kernel sends to the views of a stopped widget (outside the studio protocol): to every view when it is
+stopped, and to a view that opens afterwards (addressed to it)."""
 
 MAX_VIEW_NAME = 64
 """Longest view name a view may give; a longer one, or one that is not a string, is ignored."""
@@ -70,7 +76,7 @@ def widget_module() -> str:
     ArapError
         It is not built.
     """
-    from arap.server.app import STATIC_DIR, client_missing_advice
+    from arap.server.client_files import STATIC_DIR, client_missing_advice
 
     path = STATIC_DIR / "widget.js"
     if not path.is_file():
@@ -198,13 +204,15 @@ class StudioWidget:
         """A custom message from a view: the open message, or a studio request (answered on the worker thread)."""
         from arap.server.dispatch import decode_message
 
-        if self._stopped:
-            return
         view = None
         if isinstance(content, dict) and "view" in content:
             content = dict(content)
             name = content.pop("view")
             view = name if isinstance(name, str) and 0 < len(name) <= MAX_VIEW_NAME else None
+        if self._stopped:
+            if content == OPEN_MESSAGE:  # a view shown after the stop: it says so instead of waiting for a greeting
+                self._send_message(STOPPED_MESSAGE if view is None else {**STOPPED_MESSAGE, "to": view}, None)
+            return
         if content == OPEN_MESSAGE:
             self._worker.call(self._dispatcher.rejoin, view)
             return
@@ -240,10 +248,15 @@ class StudioWidget:
         return session_selection(self.session if self.session.mesh is not None else None)
 
     def stop(self, timeout: float = 10.0) -> None:
-        """Stop answering the views (a settling run stops at its next iteration); idempotent. The results stay
-        readable."""
+        """Stop answering the views (a settling run stops at its next iteration) and tell them so; idempotent. The
+        results stay readable."""
+        if getattr(self, "_worker", None) is None:  # never set up (its construction failed)
+            return
+        stopping = not self._stopped
         self._stopped = True
         self._worker.close(timeout)
+        if stopping:  # after the worker's last reply, so that nothing follows it
+            self._send_message(dict(STOPPED_MESSAGE), None)
 
     def __enter__(self) -> StudioWidget:
         return self

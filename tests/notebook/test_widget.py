@@ -4,6 +4,9 @@ keeps."""
 
 from __future__ import annotations
 
+import os
+import subprocess
+import sys
 import threading
 import time
 from collections.abc import Callable, Iterator
@@ -54,7 +57,7 @@ class Comm:
                 self._cond.wait(left)
 
     def types(self, start: int = 0, stop: int | None = None) -> list[str]:
-        return [c["type"] for c, _ in self.sent[start:stop]]
+        return [c.get("type", "widget") for c, _ in self.sent[start:stop]]
 
 
 @pytest.fixture
@@ -444,3 +447,62 @@ def test_replies_go_to_the_view_that_asked(opened: tuple[StudioWidget, Comm],
     shared = [c for c, _ in comm.sent[start:] if c["type"] in ("state", "vertices", "settle")]
     assert shared and all("to" not in c for c in shared)
     assert not any("view" in c for c, _ in comm.sent)
+
+
+def test_a_stopped_widget_tells_its_views(cactus: tuple[np.ndarray, np.ndarray]) -> None:
+    """Stopping tells every view (after the last reply); a view shown afterwards is told so instead of a greeting it
+    would wait for forever."""
+    w = arap.widget(*cactus)
+    comm = Comm(w)
+    comm.request({**OPEN_MESSAGE, "view": "a"}, [])
+    comm.wait_for(lambda m: m.get("type") == "state")
+    assert w.wait(60)
+    w.stop()
+    assert comm.sent[-1] == ({"widget": "stopped"}, [])
+    w.stop()  # idempotent: told once
+    assert [c for c, _ in comm.sent].count({"widget": "stopped"}) == 1
+    comm.request({**OPEN_MESSAGE, "view": "b"}, [])
+    assert comm.sent[-1] == ({"widget": "stopped", "to": "b"}, [])
+    comm.request({"type": "get_constraints", "view": "b"})
+    assert comm.sent[-1] == ({"widget": "stopped", "to": "b"}, [])  # nothing else is answered
+
+
+SERVER_STACK = ("starlette", "uvicorn", "websockets", "anyio")
+
+WIDGET_WITHOUT_SERVER_STACK = f"""
+import sys
+import threading
+
+
+class Refused:
+    def find_spec(self, name, path=None, target=None):
+        if name.split(".")[0] in {SERVER_STACK!r}:
+            raise ModuleNotFoundError(f"No module named {{name!r}}", name=name)
+
+
+sys.meta_path.insert(0, Refused())
+import arap
+from arap.jupyter_widget import OPEN_MESSAGE
+
+w = arap.widget(*arap.builtin_mesh("bar"))
+sent, greeted = [], threading.Event()
+def send(content, buffers=None):
+    sent.append(content.get("type"))
+    if content.get("type") == "state":
+        greeted.set()
+w.send = send
+w._receive(OPEN_MESSAGE, [])
+assert greeted.wait(240), sent
+w.stop()
+assert not [m for m in sys.modules if m.split(".")[0] in {SERVER_STACK!r}]
+print("greeted:", sent[:3])
+"""
+
+
+def test_the_widget_needs_no_server_stack() -> None:
+    """``pip install "arap[notebook]"`` brings anywidget, not the studio server's stack: the widget, its greeting
+    included, imports none of it."""
+    run = subprocess.run([sys.executable, "-c", WIDGET_WITHOUT_SERVER_STACK], capture_output=True, text=True,
+                         timeout=300, env=os.environ.copy())
+    assert run.returncode == 0, run.stderr[-3000:]
+    assert "greeted: ['welcome', 'mesh', 'state']" in run.stdout

@@ -4,6 +4,8 @@
 // and no server: it works wherever the notebook's widgets do (JupyterLab, Notebook 7, VS Code, Colab, remote kernels).
 // Every view of one widget shares its session: a view names itself in what it sends ("view"), and drops the kernel's
 // messages addressed to another view ("to": its greeting, an export, an error), so only the view that asked gets them.
+// The kernel's own messages ({widget: ...}) are for this module, not the page: {widget: "stopped"} says the widget was
+// stopped in the kernel (its .stop()), so the view says so over the page, which no longer gets answers.
 // @ts-ignore: a module of the build (vite.config.js): the built studio page with its script and styles inlined
 import page from 'virtual:arap-studio-page';
 
@@ -28,6 +30,10 @@ export function render({ model, el }) {
     if (!content || typeof content !== 'object') return;
     const { to, ...message } = content;
     if (to !== undefined && to !== view) return; // another view's answer
+    if ('widget' in message) {
+      if (message.widget === 'stopped') showStopped(el, frame);
+      return;
+    }
     frame.contentWindow?.postMessage({ arap: 'msg', content: message, buffers: buffers ?? [] }, '*');
   };
   /** @param {MessageEvent} ev */
@@ -43,7 +49,37 @@ export function render({ model, el }) {
     model.off('msg:custom', toFrame);
     window.removeEventListener('message', fromFrame);
     frame.remove();
+    el.querySelector('[data-testid=arap-widget-stopped]')?.remove();
   };
+}
+
+/**
+ * Say over the page that the widget was stopped in the kernel, and how to get a studio again; the page stays under
+ * it, dimmed, with the last shape it showed.
+ * @param {HTMLElement} el
+ * @param {HTMLIFrameElement} frame
+ */
+function showStopped(el, frame) {
+  if (el.querySelector('[data-testid=arap-widget-stopped]')) return;
+  el.style.position = 'relative';
+  frame.style.opacity = '0.35';
+  frame.style.pointerEvents = 'none';
+  const note = document.createElement('div');
+  note.dataset.testid = 'arap-widget-stopped';
+  note.setAttribute('role', 'status');
+  note.style.cssText = 'position: absolute; inset: 0; display: flex; align-items: center; justify-content: center;'
+    + ' padding: 1em; font: 14px/1.5 system-ui, sans-serif; text-align: center;';
+  const box = document.createElement('div');
+  box.style.cssText = 'max-width: 32em; padding: 1em 1.4em; border-radius: 6px; background: #20242b; color: #e8e8e8;'
+    + ' box-shadow: 0 2px 12px rgba(0, 0, 0, 0.4);';
+  const title = document.createElement('strong');
+  title.textContent = 'This studio was stopped in the kernel.';
+  const text = document.createElement('div');
+  text.textContent = 'It no longer answers the page (its stop() was called, or the widget was closed). Its results'
+    + ' stay readable in Python (.vertices, .constraints); run the cell that made it again to start a new studio.';
+  box.append(title, text);
+  note.appendChild(box);
+  el.appendChild(note);
 }
 
 /** A name for one view, unique among the views of a page (the kernel echoes it in the replies for this view). */
