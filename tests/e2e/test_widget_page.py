@@ -1,7 +1,7 @@
 """The notebook widget's built ES module (``static/widget.js``) in headless Chromium, rendered by anywidget's
 ``render({model, el})`` with a stand-in model whose custom messages go to and come from an ``arap.widget`` in this
 process (as the kernel's comm would carry them): the mesh is drawn, and painting and a gizmo drag move the shape,
-both in the page and in the widget's ``vertices``."""
+both in the page and in the widget's ``vertices``; a widget stopped in the kernel says so in the page."""
 
 from __future__ import annotations
 
@@ -81,7 +81,7 @@ class Kernel:
     def _send(self, content: dict[str, Any], buffers: list[Any] | None = None) -> None:
         with self.lock:
             self.outbox.append((content, [base64.b64encode(bytes(b)).decode() for b in buffers or []]))
-            self.sent_types.append(content["type"])
+            self.sent_types.append(content.get("type", "widget"))
 
     def receive(self, content: Any, buffers: list[str]) -> None:
         self.w._receive(content, [base64.b64decode(b) for b in buffers])
@@ -221,3 +221,13 @@ def test_a_mesh_file_uploaded_in_the_widget_reaches_the_kernel(
     assert w.wait(30)
     assert w.vertices.shape == mesh.vertices.shape and w.faces.shape == mesh.faces.shape
     np.testing.assert_allclose(w.vertices, mesh.vertices, atol=1e-5)
+
+
+def test_a_widget_stopped_in_the_kernel_says_so(widget_page: tuple[Page, Frame, StudioWidget, Kernel]) -> None:
+    page, _, w, _ = widget_page
+    assert page.query_selector("[data-testid=arap-widget-stopped]") is None
+    w.stop()
+    note = page.wait_for_selector("[data-testid=arap-widget-stopped]", timeout=30_000)
+    assert note is not None
+    text = note.inner_text()
+    assert "stopped" in text and "run the cell that made it again" in text

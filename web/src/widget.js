@@ -75,7 +75,7 @@ function showStopped(el, frame) {
   const title = document.createElement('strong');
   title.textContent = 'This studio was stopped in the kernel.';
   const text = document.createElement('div');
-  text.textContent = 'It no longer answers the page (its stop() was called, or the widget was closed). Its results'
+  text.textContent = 'It no longer answers this page (its stop() was called in Python). Its results'
     + ' stay readable in Python (.vertices, .constraints); run the cell that made it again to start a new studio.';
   box.append(title, text);
   note.appendChild(box);
