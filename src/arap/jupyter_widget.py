@@ -10,18 +10,17 @@ VS Code, Colab, and kernels on another machine.
 >>> w.vertices, w.constraints      # doctest: +SKIP
 
 The comm carries the studio protocol's messages unchanged (``docs/protocol.md``): a text message as the custom
-message's content, a binary one as its header (the content) and its payload (one buffer). Two messages are its own:
-``{"widget": "open"}``, which a view sends when it opens (the kernel answers with the greeting: ``welcome``,
-``mesh``, ``state`` and the current shape), and two that the kernel sends: ``{"widget": "preparing"}``, to a view
-that opens while the session is still being prepared (on the first run in an environment the solver's kernels
-compile first, for tens of seconds), with a PNG picture of the mesh as its buffer, which the view shows with the
-time waited until its greeting comes; and ``{"widget": "stopped"}``, to every view when the widget is stopped, and to
-a view that opens afterwards instead of the greeting (the view says so in place of the studio, which no longer
-answers). A view names itself in a ``"view"`` key of what it sends (removed before
-the message is read); the replies meant for that view alone (its greeting, the answer to an export, an error) carry
-it as ``"to"``, and the views drop those meant for another. Requests are answered in order on a thread of the
-widget's, as by the studio's server (:mod:`arap.server.channel`, which also says which replies go to every view):
-drags coalesce, and the shape settles while no request waits.
+message's content, a binary one as its header (the content) and its payload (one buffer). Three messages are its
+own. A view sends ``{"widget": "open"}`` when it opens; the kernel answers with the greeting (``welcome``, ``mesh``,
+``state`` and the current shape). The kernel sends ``{"widget": "preparing"}`` to a view that opens while the session
+is still being prepared (on the first run in an environment the solver's kernels compile first, for tens of
+seconds), with a PNG picture of the mesh as its buffer, which the view shows with the time waited until its greeting
+comes; and ``{"widget": "stopped"}`` to every view when the widget is stopped, and to a view that opens afterwards
+instead of the greeting (the view says so over the studio's page, which no longer gets answers). A view names itself
+in a ``"view"`` key of what it sends (removed before the message is read); the replies meant for that view alone
+(its greeting, the answer to an export, an error) carry it as ``"to"``, and the views drop those meant for another.
+Requests are answered in order on a thread of the widget's, as by the studio's server (:mod:`arap.server.channel`,
+which also says which replies go to every view): drags coalesce, and the shape settles while no request waits.
 
 A saved notebook keeps no live widget, so a picture of the shape with its constraints (:func:`arap.show`) is shown
 under it and replaced whenever an edit is finished (after a drag has settled, an undo, a new constraint set):
