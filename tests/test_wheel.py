@@ -1,5 +1,6 @@
 """The package as a user gets it: build the sdist and wheel from a clean copy of the checkout, install the wheel
-into a fresh virtual environment (core first, then the ``studio`` extra) and use it without Node.js.
+into a fresh virtual environment (core first, then the ``notebook`` extra, then the ``studio`` extra) and use each
+install as its documentation shows, without Node.js.
 
 Needs git, npm and the package indexes (PyPI, npm); about one to two minutes. Deselect with ``-m "not packaging"``.
 """
@@ -49,11 +50,11 @@ def _clean_copy(dest: Path) -> None:
             shutil.copy2(source, dest / name)
 
 
-def _pins(dest: Path) -> Path:
-    """``requirements/runtime.txt`` as a constraints file (versions and markers, hashes dropped)."""
-    text = (REPO_ROOT / "requirements" / "runtime.txt").read_text()
+def _pins(dest: Path, lock: str = "runtime.txt") -> Path:
+    """``requirements/LOCK`` as a constraints file (versions and markers, hashes dropped)."""
+    text = (REPO_ROOT / "requirements" / lock).read_text()
     pins = re.findall(r"^([A-Za-z0-9_.\-]+==[^\s;\\]+(?: ; [^\\\n]+?)?)[ \\]*$", text, flags=re.MULTILINE)
-    assert pins, "no pins in requirements/runtime.txt"
+    assert pins, f"no pins in requirements/{lock}"
     dest.write_text("\n".join(pins) + "\n")
     return dest
 
@@ -114,8 +115,10 @@ def test_wheel_carries_the_client_and_right_metadata(dists: tuple[Path, Path]) -
     requires = re.findall(r"^Requires-Dist: (.+)$", metadata, flags=re.MULTILINE)
     core = [r for r in requires if "extra ==" not in r]
     studio = [r for r in requires if 'extra == "studio"' in r]
+    notebook = [r for r in requires if 'extra == "notebook"' in r]
     assert {re.split(r"[<>=\[ ;]", r)[0] for r in core} == {"numpy", "scipy", "numba", "trimesh", "cholespy", "tqdm"}
     assert {re.split(r"[<>=\[ ;]", r)[0] for r in studio} == {"starlette", "uvicorn", "websockets"}
+    assert {re.split(r"[<>=\[ ;]", r)[0] for r in notebook} == {"anywidget"}
     assert "License-Expression: MIT" in metadata
 
 
@@ -150,7 +153,38 @@ def _studio(bin_dir: Path, cwd: Path) -> Iterator[tuple[str, queue.Queue[str]]]:
             process.wait(timeout=30)
 
 
-def test_fresh_install_core_then_studio(dists: tuple[Path, Path], fresh_venv: Path, tmp_path: Path) -> None:
+NOTEBOOK_WIDGET = """
+import importlib.util
+import threading
+
+import arap
+from arap.jupyter_widget import OPEN_MESSAGE
+
+assert importlib.util.find_spec("starlette") is None and importlib.util.find_spec("uvicorn") is None
+V, F = arap.builtin_mesh("bar")
+w = arap.widget(V, F, name="bar")  # as docs/notebook.md shows it, here without a kernel: no view, no comm
+sent, greeted = [], threading.Event()
+def send(content, buffers=None):
+    if "widget" in content:  # the widget's own note: a picture while the session is prepared
+        return
+    sent.append(content.get("type"))
+    if content.get("type") == "state":
+        greeted.set()
+w.send = send  # what a view would get through the comm
+w._receive(OPEN_MESSAGE, [])
+assert greeted.wait(120), sent
+assert w.vertices.shape == V.shape and w.constraints.fixed.size == 0
+w.stop()
+print("greeted:", sent[:3], repr(w))
+try:
+    arap.studio(V, F, show=False)  # outside a kernel: the server, which the notebook extra does not bring
+except arap.ArapError as exc:
+    print("server:", exc)
+"""
+
+
+def test_fresh_install_core_then_notebook_then_studio(dists: tuple[Path, Path], fresh_venv: Path,
+                                                      tmp_path: Path) -> None:
     _, wheel = dists
     pins = _pins(tmp_path / "pins.txt")
     pip = [str(fresh_venv / "python"), "-m", "pip", "install", "-q", "--disable-pip-version-check", "-c", str(pins)]
@@ -170,6 +204,13 @@ def test_fresh_install_core_then_studio(dists: tuple[Path, Path], fresh_venv: Pa
     second = json.loads(_run(bench, cwd=tmp_path, env=_env()).stdout)["kernels"]
     assert first["compiled"] is True and second["compiled"] is False
     assert "site-packages" in first["cache_dir"] and first["cache_dir"] == second["cache_dir"]
+
+    # The notebook extra alone: the widget (anywidget) without the server's stack.
+    notebook_pins = _pins(tmp_path / "notebook-pins.txt", "lock.txt")
+    _run([*pip[:-2], "-c", str(notebook_pins), f"{wheel}[notebook]"], cwd=tmp_path, env=_env())
+    widget = _run([str(fresh_venv / "python"), "-c", NOTEBOOK_WIDGET], cwd=tmp_path, env=_env()).stdout
+    assert "greeted: ['welcome', 'mesh', 'state'] <arap.StudioWidget stopped, 4314 vertices>" in widget, widget
+    assert 'server: the studio needs its server stack: pip install "arap[studio]"' in widget, widget
 
     # The studio extra, then the studio from the wheel alone (no Node.js, no checkout).
     _run([*pip, f"{wheel}[studio]"], cwd=tmp_path, env=_env())

@@ -10,13 +10,17 @@ VS Code, Colab, and kernels on another machine.
 >>> w.vertices, w.constraints      # doctest: +SKIP
 
 The comm carries the studio protocol's messages unchanged (``docs/protocol.md``): a text message as the custom
-message's content, a binary one as its header (the content) and its payload (one buffer). The one message of its
-own is ``{"widget": "open"}``, which a view sends when it opens; the kernel answers with the greeting (``welcome``,
-``mesh``, ``state`` and the current shape). A view names itself in a ``"view"`` key of what it sends (removed before
-the message is read); the replies meant for that view alone (its greeting, the answer to an export, an error) carry
-it as ``"to"``, and the views drop those meant for another. Requests are answered in order on a thread of the
-widget's, as by the studio's server (:mod:`arap.server.channel`, which also says which replies go to every view):
-drags coalesce, and the shape settles while no request waits.
+message's content, a binary one as its header (the content) and its payload (one buffer). Three messages are its
+own. A view sends ``{"widget": "open"}`` when it opens; the kernel answers with the greeting (``welcome``, ``mesh``,
+``state`` and the current shape). The kernel sends ``{"widget": "preparing"}`` to a view that opens while the session
+is still being prepared (on the first run in an environment the solver's kernels compile first, for tens of
+seconds), with a PNG picture of the mesh as its buffer, which the view shows with the time waited until its greeting
+comes; and ``{"widget": "stopped"}`` to every view when the widget is stopped, and to a view that opens afterwards
+instead of the greeting (the view says so over the studio's page, which no longer gets answers). A view names itself
+in a ``"view"`` key of what it sends (removed before the message is read); the replies meant for that view alone
+(its greeting, the answer to an export, an error) carry it as ``"to"``, and the views drop those meant for another.
+Requests are answered in order on a thread of the widget's, as by the studio's server (:mod:`arap.server.channel`,
+which also says which replies go to every view): drags coalesce, and the shape settles while no request waits.
 
 A saved notebook keeps no live widget, so a picture of the shape with its constraints (:func:`arap.show`) is shown
 under it and replaced whenever an edit is finished (after a drag has settled, an undo, a new constraint set):
@@ -47,13 +51,23 @@ if TYPE_CHECKING:
     from arap.server.dispatch import Dispatcher, Reply
     from arap.server.session import Session
 
-__all__ = ["OPEN_MESSAGE", "StudioWidget", "has_comm_kernel", "widget", "widget_module"]
+__all__ = ["OPEN_MESSAGE", "PREPARING_MESSAGE", "STOPPED_MESSAGE", "StudioWidget", "has_comm_kernel", "widget",
+           "widget_module"]
 
 logger = logging.getLogger(__name__)
 
 OPEN_MESSAGE = {"widget": "open"}
 """What a view of the widget sends when it opens (outside the studio protocol, with its ``"view"`` name); the kernel
 answers with the greeting."""
+
+PREPARING_MESSAGE = {"widget": "preparing"}
+"""What the kernel sends to a view that opens before the session is ready (outside the studio protocol), addressed to
+it, with ``first_run`` (whether the solver's kernels are being compiled) and a PNG picture of the mesh as its
+buffer."""
+
+STOPPED_MESSAGE = {"widget": "stopped"}
+"""What the kernel sends to the views of a stopped widget (outside the studio protocol): to every view when it is
+stopped, and to a view that opens afterwards (addressed to it)."""
 
 MAX_VIEW_NAME = 64
 """Longest view name a view may give; a longer one, or one that is not a string, is ignored."""
@@ -70,7 +84,7 @@ def widget_module() -> str:
     ArapError
         It is not built.
     """
-    from arap.server.app import STATIC_DIR, client_missing_advice
+    from arap.server.client_files import STATIC_DIR, client_missing_advice
 
     path = STATIC_DIR / "widget.js"
     if not path.is_file():
@@ -161,13 +175,18 @@ class StudioWidget:
         self._picture_wanted = threading.Event()
         self._picture_thread: threading.Thread | None = None
         self._stopped = False
+        self._ready = threading.Event()
+        self._preview: bytes | None = None
         mesh = MeshData.make(name, V, F)
 
         def load() -> Any:
-            KERNELS_READY.wait(600.0)
-            self.session.load(mesh, None)
-            if prepare is not None:
-                prepare(self.session)
+            try:
+                KERNELS_READY.wait(600.0)
+                self.session.load(mesh, None)
+                if prepare is not None:
+                    prepare(self.session)
+            finally:
+                self._ready.set()
             return iter(())
 
         self._worker.start()
@@ -198,17 +217,33 @@ class StudioWidget:
         """A custom message from a view: the open message, or a studio request (answered on the worker thread)."""
         from arap.server.dispatch import decode_message
 
-        if self._stopped:
-            return
         view = None
         if isinstance(content, dict) and "view" in content:
             content = dict(content)
             name = content.pop("view")
             view = name if isinstance(name, str) and 0 < len(name) <= MAX_VIEW_NAME else None
+        if self._stopped:
+            if content == OPEN_MESSAGE:  # a view shown after the stop: it says so instead of waiting for a greeting
+                self._send_message(STOPPED_MESSAGE if view is None else {**STOPPED_MESSAGE, "to": view}, None)
+            return
         if content == OPEN_MESSAGE:
+            if not self._ready.is_set():  # the greeting waits for the session: the view shows the mesh meanwhile
+                self._send_preparing(view)
             self._worker.call(self._dispatcher.rejoin, view)
             return
         self._worker.put(decode_message(self._config, content, buffers), view)
+
+    def _send_preparing(self, view: str | None) -> None:
+        """Tell a view that its greeting waits for the session to be prepared, with a picture of the mesh to show
+        meanwhile (drawn once, without the solver's kernels)."""
+        from arap.method.kernel_cache import first_compile_pending
+        from arap.render.show import show
+
+        if self._preview is None:
+            width, height = PICTURE_SIZE
+            self._preview = show(self._V, self._F, width=width, height=height).png()
+        message = {**PREPARING_MESSAGE, "first_run": first_compile_pending()}
+        self._send_message(message if view is None else {**message, "to": view}, [self._preview])
 
     def wait(self, timeout: float = 30.0) -> bool:
         """Wait until every request has been answered and the shape has settled; False on timeout."""
@@ -240,10 +275,15 @@ class StudioWidget:
         return session_selection(self.session if self.session.mesh is not None else None)
 
     def stop(self, timeout: float = 10.0) -> None:
-        """Stop answering the views (a settling run stops at its next iteration); idempotent. The results stay
-        readable."""
+        """Stop answering the views (a settling run stops at its next iteration) and tell them so; idempotent. The
+        results stay readable."""
+        if getattr(self, "_worker", None) is None:  # never set up (its construction failed)
+            return
+        stopping = not self._stopped
         self._stopped = True
         self._worker.close(timeout)
+        if stopping:  # after the worker's last reply, so that nothing follows it
+            self._send_message(dict(STOPPED_MESSAGE), None)
 
     def __enter__(self) -> StudioWidget:
         return self

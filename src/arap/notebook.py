@@ -254,7 +254,7 @@ def _widget_works() -> bool:
         import anywidget  # noqa: F401
     except ImportError:
         return False
-    from arap.server.app import STATIC_DIR
+    from arap.server.client_files import STATIC_DIR
 
     return (STATIC_DIR / "widget.js").is_file()
 

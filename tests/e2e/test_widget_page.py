@@ -1,7 +1,7 @@
 """The notebook widget's built ES module (``static/widget.js``) in headless Chromium, rendered by anywidget's
 ``render({model, el})`` with a stand-in model whose custom messages go to and come from an ``arap.widget`` in this
 process (as the kernel's comm would carry them): the mesh is drawn, and painting and a gizmo drag move the shape,
-both in the page and in the widget's ``vertices``."""
+both in the page and in the widget's ``vertices``; a widget stopped in the kernel says so in the page."""
 
 from __future__ import annotations
 
@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 import pytest
-from playwright.sync_api import Browser, Frame, Page
+from playwright.sync_api import Browser, BrowserContext, Frame, Page
 
 from arap.server.app import STATIC_DIR
 from tests.e2e.conftest import VIEWPORT, canvas_pixels, positions, wait_idle
@@ -25,6 +25,7 @@ anywidget = pytest.importorskip("anywidget")
 
 import arap  # noqa: E402
 from arap.jupyter_widget import StudioWidget  # noqa: E402
+from arap.server.session import Session  # noqa: E402
 
 ORIGIN = "http://notebook.test"
 HOST = f"""<!doctype html>
@@ -81,7 +82,8 @@ class Kernel:
     def _send(self, content: dict[str, Any], buffers: list[Any] | None = None) -> None:
         with self.lock:
             self.outbox.append((content, [base64.b64encode(bytes(b)).decode() for b in buffers or []]))
-            self.sent_types.append(content["type"])
+            if "type" in content:  # a studio message, not the widget's own note
+                self.sent_types.append(content["type"])
 
     def receive(self, content: Any, buffers: list[str]) -> None:
         self.w._receive(content, [base64.b64decode(b) for b in buffers])
@@ -92,13 +94,8 @@ class Kernel:
         return out
 
 
-@pytest.fixture
-def widget_page(browser: Browser) -> Iterator[tuple[Page, Frame, StudioWidget, Kernel]]:
-    if not (STATIC_DIR / "widget.js").is_file():
-        pytest.skip("the widget module is not built (./dev setup)")
-    V, F = arap.builtin_mesh("cactus")
-    w = arap.widget(V, F, name="cactus", height=VIEWPORT["height"])
-    kernel = Kernel(w)
+def _open_page(browser: Browser, kernel: Kernel) -> tuple[BrowserContext, Page, Frame, list[str]]:
+    """The stand-in notebook page with the widget's view rendered; its errors are collected."""
     context = browser.new_context(viewport=VIEWPORT)
     page = context.new_page()
     errors: list[str] = []
@@ -113,6 +110,17 @@ def widget_page(browser: Browser) -> Iterator[tuple[Page, Frame, StudioWidget, K
     element = page.wait_for_selector("iframe[data-testid=arap-widget-frame]")
     frame = element.content_frame()
     assert frame is not None
+    return context, page, frame, errors
+
+
+@pytest.fixture
+def widget_page(browser: Browser) -> Iterator[tuple[Page, Frame, StudioWidget, Kernel]]:
+    if not (STATIC_DIR / "widget.js").is_file():
+        pytest.skip("the widget module is not built (./dev setup)")
+    V, F = arap.builtin_mesh("cactus")
+    w = arap.widget(V, F, name="cactus", height=VIEWPORT["height"])
+    kernel = Kernel(w)
+    context, page, frame, errors = _open_page(browser, kernel)
     frame.wait_for_function("() => window.__arap && window.__arap.ready && !window.__arap.busy", timeout=scaled_ms(60))
     try:
         yield page, frame, w, kernel
@@ -221,3 +229,47 @@ def test_a_mesh_file_uploaded_in_the_widget_reaches_the_kernel(
     assert w.wait(30)
     assert w.vertices.shape == mesh.vertices.shape and w.faces.shape == mesh.faces.shape
     np.testing.assert_allclose(w.vertices, mesh.vertices, atol=1e-5)
+
+
+def test_a_widget_stopped_in_the_kernel_says_so(widget_page: tuple[Page, Frame, StudioWidget, Kernel]) -> None:
+    page, _, w, _ = widget_page
+    assert page.query_selector("[data-testid=arap-widget-stopped]") is None
+    w.stop()
+    note = page.wait_for_selector("[data-testid=arap-widget-stopped]", timeout=scaled_ms(30))
+    assert note is not None
+    text = note.inner_text()
+    assert "stopped" in text and "run the cell that made it again" in text
+
+
+def test_while_the_session_is_prepared_the_view_shows_the_mesh_and_the_time_waited(
+        browser: Browser, monkeypatch: pytest.MonkeyPatch) -> None:
+    """On a first run the kernel compiles the solver before it greets the page: meanwhile the view shows its picture
+    of the mesh and the seconds waited, then the studio once greeted."""
+    if not (STATIC_DIR / "widget.js").is_file():
+        pytest.skip("the widget module is not built (./dev setup)")
+    load = Session.load
+    gate = threading.Event()
+
+    def held_load(self: Session, *args: Any, **kwargs: Any) -> Any:
+        gate.wait(60)
+        return load(self, *args, **kwargs)
+
+    monkeypatch.setattr(Session, "load", held_load)
+    w = arap.widget(*arap.builtin_mesh("cactus"), height=VIEWPORT["height"])
+    context, page, frame, errors = _open_page(browser, Kernel(w))
+    try:
+        note = page.wait_for_selector("[data-testid=arap-widget-preparing]", state="visible", timeout=scaled_ms(30))
+        assert note is not None and "Preparing the solver" in note.inner_text()
+        page.wait_for_function("() => document.querySelector('[data-testid=arap-widget-preparing] img')"
+                               "?.naturalWidth === 480", timeout=scaled_ms(30))  # the kernel's picture, decoded
+        page.wait_for_function("() => /[1-9][0-9]* s\\./.test(document.querySelector("  # the seconds count
+                               "'[data-testid=arap-widget-preparing]').textContent)", timeout=scaled_ms(30))
+        gate.set()
+        frame.wait_for_function("() => window.__arap && window.__arap.ready", timeout=scaled_ms(60))
+        page.wait_for_selector("[data-testid=arap-widget-preparing]", state="detached", timeout=scaled_ms(30))
+        assert frame.evaluate("() => window.__arap.nVertices") == len(w.vertices)
+    finally:
+        gate.set()
+        context.close()
+        w.stop()
+    assert not errors, f"errors in the page: {errors}"

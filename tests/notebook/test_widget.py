@@ -4,6 +4,9 @@ keeps."""
 
 from __future__ import annotations
 
+import os
+import subprocess
+import sys
 import threading
 import time
 from collections.abc import Callable, Iterator
@@ -24,17 +27,20 @@ PNG = b"\x89PNG\r\n\x1a\n"
 
 
 class Comm:
-    """What the widget sends, as (content, buffers), with waiting for a message."""
+    """What the widget sends, as (content, buffers), with waiting for a message: the studio's messages in ``sent``,
+    the widget's own (``{"widget": ...}``) in ``notes``."""
 
     def __init__(self, w: StudioWidget) -> None:
         self.w = w
         self.sent: list[tuple[dict[str, Any], list[bytes]]] = []
+        self.notes: list[tuple[dict[str, Any], list[bytes]]] = []
         self._cond = threading.Condition()
         w.send = self._send  # type: ignore[attr-defined]
 
     def _send(self, content: dict[str, Any], buffers: list[Any] | None = None) -> None:
         with self._cond:
-            self.sent.append((content, [bytes(b) for b in buffers or []]))
+            kept = self.notes if "widget" in content else self.sent  # the widget's own messages, or the studio's
+            kept.append((content, [bytes(b) for b in buffers or []]))
             self._cond.notify_all()
 
     def request(self, content: Any, buffers: list[bytes] | None = None) -> None:
@@ -376,6 +382,8 @@ def test_a_real_kernel_round_trip() -> None:
                 m = kc.get_iopub_msg(timeout=30)
                 if m["msg_type"] == "comm_msg" and m["content"]["comm_id"] == comm_id:
                     content = m["content"]["data"]["content"]
+                    if "widget" in content:  # the widget's own note (a picture while the session is prepared)
+                        continue
                     got.append((content, [bytes(b) for b in m.get("buffers", [])]))
                     if until(content):
                         return got
@@ -444,3 +452,102 @@ def test_replies_go_to_the_view_that_asked(opened: tuple[StudioWidget, Comm],
     shared = [c for c, _ in comm.sent[start:] if c["type"] in ("state", "vertices", "settle")]
     assert shared and all("to" not in c for c in shared)
     assert not any("view" in c for c, _ in comm.sent)
+
+
+def test_a_stopped_widget_tells_its_views(cactus: tuple[np.ndarray, np.ndarray]) -> None:
+    """Stopping tells every view (after the last reply); a view shown afterwards is told so instead of a greeting it
+    would wait for forever."""
+    w = arap.widget(*cactus)
+    comm = Comm(w)
+    comm.request({**OPEN_MESSAGE, "view": "a"}, [])
+    comm.wait_for(lambda m: m["type"] == "state")
+    assert w.wait(60)
+    n, notes = len(comm.sent), len(comm.notes)  # a note while the session was prepared, perhaps
+    w.stop()
+    assert comm.notes[notes:] == [({"widget": "stopped"}, [])] and len(comm.sent) == n
+    w.stop()  # idempotent: told once
+    assert len(comm.notes) == notes + 1
+    comm.request({**OPEN_MESSAGE, "view": "b"}, [])
+    assert comm.notes[-1] == ({"widget": "stopped", "to": "b"}, [])
+    comm.request({"type": "get_constraints", "view": "b"})
+    time.sleep(0.2)
+    assert len(comm.notes) == notes + 2 and len(comm.sent) == n  # nothing else is answered
+
+
+SERVER_STACK = ("starlette", "uvicorn", "websockets", "anyio")
+
+WIDGET_WITHOUT_SERVER_STACK = f"""
+import sys
+import threading
+
+
+class Refused:
+    def find_spec(self, name, path=None, target=None):
+        if name.split(".")[0] in {SERVER_STACK!r}:
+            raise ModuleNotFoundError(f"No module named {{name!r}}", name=name)
+
+
+sys.meta_path.insert(0, Refused())
+import arap
+from arap.jupyter_widget import OPEN_MESSAGE
+
+w = arap.widget(*arap.builtin_mesh("bar"))
+sent, greeted = [], threading.Event()
+def send(content, buffers=None):
+    if "widget" in content:  # the widget's own note: a picture while the session is prepared
+        return
+    sent.append(content.get("type"))
+    if content.get("type") == "state":
+        greeted.set()
+w.send = send
+w._receive(OPEN_MESSAGE, [])
+assert greeted.wait(240), sent
+w.stop()
+assert not [m for m in sys.modules if m.split(".")[0] in {SERVER_STACK!r}]
+print("greeted:", sent[:3])
+"""
+
+
+def test_the_widget_needs_no_server_stack() -> None:
+    """``pip install "arap[notebook]"`` brings anywidget, not the studio server's stack: the widget, its greeting
+    included, imports none of it."""
+    run = subprocess.run([sys.executable, "-c", WIDGET_WITHOUT_SERVER_STACK], capture_output=True, text=True,
+                         timeout=300, env=os.environ.copy())
+    assert run.returncode == 0, run.stderr[-3000:]
+    assert "greeted: ['welcome', 'mesh', 'state']" in run.stdout
+
+
+def test_a_view_opening_while_the_session_is_prepared_gets_a_picture_of_the_mesh(
+        cactus: tuple[np.ndarray, np.ndarray], monkeypatch: pytest.MonkeyPatch) -> None:
+    """On a first run the session waits for the solver's kernels (tens of seconds): a view that opens meanwhile is
+    sent a picture of the mesh at once, then its greeting once the session is ready; later views get the greeting
+    alone."""
+    from arap.render.png import decode_png
+
+    load = Session.load
+    gate = threading.Event()
+
+    def held_load(self: Session, *args: Any, **kwargs: Any) -> Any:
+        gate.wait(60)
+        return load(self, *args, **kwargs)
+
+    monkeypatch.setattr(Session, "load", held_load)
+    w = arap.widget(*cactus)
+    try:
+        comm = Comm(w)
+        comm.request({**OPEN_MESSAGE, "view": "a"}, [])
+        (content, buffers), = comm.notes
+        assert content["widget"] == "preparing" and content["to"] == "a" and isinstance(content["first_run"], bool)
+        assert buffers[0].startswith(PNG) and decode_png(buffers[0]).shape == (320, 480, 3)
+        assert comm.sent == []  # the greeting waits for the session
+        gate.set()
+        comm.wait_for(lambda m: m["type"] == "state")
+        assert comm.types()[:3] == ["welcome", "mesh", "state"]
+        assert w.wait(60)
+        start = len(comm.sent)
+        comm.request({**OPEN_MESSAGE, "view": "b"}, [])  # the session is ready: the greeting alone
+        comm.wait_for(lambda m: m["type"] == "state", start)
+        assert comm.types(start)[:3] == ["welcome", "mesh", "state"] and len(comm.notes) == 1
+    finally:
+        gate.set()
+        w.stop()

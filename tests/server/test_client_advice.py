@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-from arap.server import app as app_module
+from arap.server import client_files
 from arap.server.app import client_missing_advice, create_app
 
 
@@ -21,7 +21,7 @@ def test_checkout_advice_names_dev_setup(tmp_path: Path, caplog: pytest.LogCaptu
 
 def test_installed_advice_does_not_mention_dev(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     static = tmp_path / "site-packages" / "arap" / "static"
-    monkeypatch.setattr(app_module, "STATIC_DIR", static)
+    monkeypatch.setattr(client_files, "STATIC_DIR", static)
     advice = client_missing_advice(static)
     assert advice is not None
     assert "./dev" not in advice and "pip install" in advice and "Node.js" in advice

@@ -24,6 +24,7 @@ from starlette.types import Receive, Scope, Send
 from starlette.websockets import WebSocket, WebSocketDisconnect
 
 import arap
+from arap.server.client_files import STATIC_DIR, client_missing_advice
 from arap.server.connection import Connection, StudioConfig
 from arap.server.decoder import FrameDecoder
 from arap.server.errors import RequestError
@@ -38,9 +39,6 @@ __all__ = ["DEFAULT_MAX_SESSIONS", "DEFAULT_MAX_UPLOAD_BYTES", "DEFAULT_MAX_VERT
            "client_missing_advice", "create_app", "frame_limit"]
 
 logger = logging.getLogger(__name__)
-
-STATIC_DIR = Path(__file__).resolve().parent.parent / "static"
-"""The built client: packaged in the wheel, or built there by ``./dev setup`` (``npm run build`` in ``web/``)."""
 
 DEFAULT_MAX_UPLOAD_BYTES = 50 * 2**20
 DEFAULT_MAX_VERTICES = 2_000_000
@@ -59,23 +57,6 @@ _NOT_BUILT = """<!doctype html>
 <p>{advice}</p>
 </body></html>
 """
-
-
-def client_missing_advice(static_dir: Path = STATIC_DIR) -> str | None:
-    """None when the built client is in ``static_dir``; else what is missing and what to do, for this install.
-
-    A repository checkout (``web/`` beside ``src/``) builds it with ``./dev setup``; an installed package was built
-    without it (no Node.js at build time) and needs a package that carries it.
-    """
-    if (static_dir / "index.html").is_file():
-        return None
-    missing = f"The studio's browser client is missing: no index.html in {static_dir}."
-    root = STATIC_DIR.parents[2]
-    if (root / "web" / "package.json").is_file():
-        return f"{missing} Build it with ./dev setup in {root} (Node.js >= 20 with npm), then reload the page."
-    return (f"{missing} This installation of arap was built without it (Node.js was not available when its wheel "
-            "was built). Install a package that includes it, e.g. pip install --force-reinstall 'arap[studio]' "
-            "from PyPI, or build the wheel from the source with Node.js >= 20 and npm on PATH.")
 
 
 def frame_limit(max_upload_bytes: int) -> int:
