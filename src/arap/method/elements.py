@@ -71,7 +71,7 @@ def element_weights(V: NDArray[np.float64], T: NDArray[np.int64], weights: str =
     A right isosceles triangle: ``½ cot 45° = ½`` at the legs, ``½ cot 90° = 0`` at the hypotenuse.
 
     >>> V = np.array([[0., 0, 0], [1, 0, 0], [0, 1, 0]])
-    >>> element_weights(V, np.array([[0, 1, 2]])).round(12).tolist()
+    >>> (element_weights(V, np.array([[0, 1, 2]])).round(12) + 0.0).tolist()
     [[0.0, 0.5, 0.5]]
     """
     check_weights(weights)
