@@ -76,6 +76,10 @@ _LAZY: dict[str, str] = {
     "batch": "arap.batching",
     "show": "arap.render.show",
     "Picture": "arap.render.picture",
+    "image_mesh": "arap.puppet.imagemesh",
+    "ImageMesh": "arap.puppet.imagemesh",
+    "warp": "arap.puppet.warp",
+    "PuppetWarp": "arap.puppet.warp",
 }
 
 __all__ = [
@@ -87,6 +91,7 @@ __all__ = [
     "ArapSolver",
     "ConstraintError",
     "Constraints",
+    "ImageMesh",
     "MeshAsset",
     "MeshError",
     "MeshFormatError",
@@ -95,6 +100,7 @@ __all__ = [
     "MeshTooLargeError",
     "OptionError",
     "Picture",
+    "PuppetWarp",
     "RepairResult",
     "Studio",
     "StudioWidget",
@@ -111,6 +117,7 @@ __all__ = [
     "check_mesh",
     "cotangent_laplacian",
     "fit_rotations",
+    "image_mesh",
     "inspect_mesh",
     "load_asset",
     "load_constraints",
@@ -128,6 +135,7 @@ __all__ = [
     "show",
     "sphere",
     "studio",
+    "warp",
     "widget",
 ]
 
@@ -157,6 +165,8 @@ if TYPE_CHECKING:
     from arap.method.rotations import fit_rotations
     from arap.method.weights import cotangent_laplacian
     from arap.notebook import Studio, studio
+    from arap.puppet.imagemesh import ImageMesh, image_mesh
+    from arap.puppet.warp import PuppetWarp, warp
     from arap.render.picture import Picture
     from arap.render.show import show
     from arap.solve.solver import ArapResult, ArapSolver

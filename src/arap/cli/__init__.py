@@ -22,7 +22,7 @@ import sys
 from collections.abc import Sequence
 
 from arap import __version__
-from arap.cli import animate, batch, bench, constraints, deform, info, studio, warmup
+from arap.cli import animate, batch, bench, constraints, deform, info, studio, warmup, warp
 from arap.cli.common import EXIT_BAD_INPUT, EXIT_INTERRUPTED, EXIT_USAGE, err, one_line
 from arap.errors import ArapError
 
@@ -42,7 +42,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--version", action="version", version=f"arap {__version__}")
     parser.add_argument("-v", "--verbose", action="store_true", help="log what the library does")
     commands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
-    for command in (deform, constraints, animate, batch, info, bench, studio, warmup):  # ``arap --help``'s order
+    for command in (deform, constraints, animate, batch, info, bench, studio, warmup, warp):  # ``arap --help``'s order
         command.add_parser(commands)
     return parser
 

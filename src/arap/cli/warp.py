@@ -1,0 +1,107 @@
+"""``arap warp``: the puppet warp of a picture file with a pins file, written as a PNG with alpha.
+
+The pins file is JSON: ``{"pins": [[x, y], ...], "targets": [[x, y], ...]}`` in pixels (x to the right, y down);
+``targets`` may be shorter than ``pins`` or hold ``null`` for pins that stay where they are.
+"""
+
+from __future__ import annotations
+
+import argparse
+import io
+import json
+import math
+import os
+from pathlib import Path
+from typing import Any
+
+from arap.cli.common import err
+from arap.errors import ArapError, ConstraintError
+
+__all__ = ["add_parser", "read_pins", "run_warp"]
+
+
+def add_parser(commands: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    """Add ``arap warp`` and its options to the subcommands of ``arap``."""
+    p = commands.add_parser("warp", help="puppet-warp a picture with pins",
+                            description="Move pins on a picture's shape (its opaque pixels, or the whole frame "
+                                        "without alpha) and bend the rest as rigidly as it can (Igarashi et al. "
+                                        "2005); write the warped picture as a PNG with alpha.")
+    p.add_argument("image", metavar="IMAGE", help="picture file (PNG, JPEG, WebP, ...; at most 64 megapixels)")
+    p.add_argument("--pins", required=True, metavar="PINS.json",
+                   help='JSON {"pins": [[x, y], ...], "targets": [[x, y] or null, ...]} in pixels (x right, y '
+                        "down); pins without a target hold")
+    p.add_argument("-o", "--output", required=True, metavar="OUT.png", help="the warped picture (PNG with alpha)")
+    p.add_argument("--spacing", type=float, default=None, metavar="PX",
+                   help="mesh edge length in pixels (default: about 5,000 vertices over the whole picture)")
+    p.add_argument("--mode", choices=("rigid", "distort"), default="rigid",
+                   help="rigid: as rigid as possible (default); distort: as similar as possible, parts may grow "
+                        "and shrink")
+    p.add_argument("--fit", action="store_true", help="enlarge the canvas to hold the warped shape")
+    p.add_argument("--alpha-threshold", type=int, default=0, metavar="A",
+                   help="the shape is the pixels whose alpha is above A, 0 to 254 (default: 0)")
+    p.set_defaults(func=run_warp)
+
+
+def read_pins(path: str | os.PathLike[str]) -> tuple[list[Any], list[Any] | None]:
+    """The pins and targets of a pins file (checked in shape by :func:`arap.puppet.warp.pin_targets`).
+
+    Raises
+    ------
+    ConstraintError
+        Unreadable, not JSON, or not an object with a ``pins`` list (and a ``targets`` list or nothing).
+    """
+    try:
+        text = Path(path).read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise ConstraintError(f"{path}: no such file") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ConstraintError(f"{path}: cannot read the pins file ({exc})") from None
+    try:
+        doc = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise ConstraintError(f"{path}: not JSON ({exc})") from None
+    if not isinstance(doc, dict) or not isinstance(doc.get("pins"), list):
+        raise ConstraintError(f'{path}: expected an object {{"pins": [[x, y], ...], "targets": [...]}}')
+    targets = doc.get("targets")
+    if targets is not None and not isinstance(targets, list):
+        raise ConstraintError(f'{path}: "targets" must be a list of [x, y] or null')
+    return doc["pins"], targets
+
+
+def _check_destination(path: str) -> None:
+    """Refuse an output that is not a PNG or cannot be written, before any work."""
+    from arap.io.paths import write_destination
+
+    if Path(path).suffix.lower() != ".png":
+        raise ArapError(f"{path}: the warped picture is written as PNG; name the output OUT.png")
+    try:
+        folder = write_destination(path).parent
+    except OSError as exc:
+        raise ArapError(f"cannot write {path}: {exc.strerror or exc}") from None
+    if not os.access(folder, os.W_OK):
+        raise ArapError(f"cannot write {path}: the folder {folder} is not writable")
+
+
+def run_warp(args: argparse.Namespace) -> int:
+    """``arap warp``: read, warp, write; the exit status."""
+    from arap.io.atomic import write_atomic
+    from arap.puppet.picture import read_picture
+    from arap.puppet.warp import warp
+
+    _check_destination(args.output)
+    if args.spacing is not None and not (args.spacing > 0 and math.isfinite(args.spacing)):
+        raise ArapError(f"--spacing must be a positive number of pixels, got {args.spacing}")
+    pins, targets = read_pins(args.pins)
+    picture = read_picture(args.image)
+    out = warp(picture, pins, targets, spacing=args.spacing, mode=args.mode, fit=args.fit,
+               alpha_threshold=args.alpha_threshold)
+    from PIL import Image
+
+    buffer = io.BytesIO()
+    Image.fromarray(out, "RGBA").save(buffer, format="PNG")
+    try:
+        write_atomic(args.output, buffer.getvalue())
+    except OSError as exc:
+        raise ArapError(f"cannot write {args.output}: {exc.strerror or exc}") from None
+    err(f"arap: wrote {args.output} ({out.shape[1]}x{out.shape[0]})")
+    return 0

@@ -1,0 +1,372 @@
+"""The puppet warp of a picture (Igarashi, Moscovich & Hughes 2005; Photoshop's Puppet Warp).
+
+Pins are points of the picture's shape; moving some of them bends the picture around the others, as rigidly as it
+can. The shape is meshed (:func:`arap.puppet.imagemesh.image_mesh`), every pin becomes a hard point handle at its
+place in its triangle (barycentric coordinates; :mod:`arap.method.points`), the planar mesh is deformed until
+converged, and the picture is drawn on the deformed mesh (:mod:`arap.puppet.raster`).
+
+Modes:
+
+- ``"rigid"``: the element ARAP energy (one rotation per triangle, :mod:`arap.method.elements`): every triangle stays
+  as close to a rotated copy of itself as the pins allow.
+- ``"distort"``: the as-similar-as-possible energy, each triangle as close to a rotated *and scaled* copy of itself
+  (the first, linear step of Igarashi et al.; the conformal energy of least-squares conformal maps): parts may grow
+  and shrink, so a pin pulled away stretches the picture instead of dragging it along. It is one sparse linear
+  solve.
+
+A part of the shape (an island of the picture) without any pin stays where it is.
+"""
+
+from __future__ import annotations
+
+from typing import Literal
+
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.csgraph as csgraph
+import scipy.sparse.linalg as spla
+from numpy.typing import ArrayLike, NDArray
+
+from arap.errors import ArapError, ConstraintError, OptionError
+from arap.puppet.imagemesh import DEFAULT_DENSITY, ImageMesh, image_mesh
+from arap.puppet.picture import as_picture
+from arap.puppet.raster import draw_textured
+
+__all__ = ["MODES", "PuppetWarp", "WarpMode", "pin_targets", "warp"]
+
+WarpMode = Literal["rigid", "distort"]
+MODES: tuple[str, ...] = ("rigid", "distort")
+
+
+def _points(value: object, what: str) -> NDArray[np.float64]:
+    try:
+        A = np.array(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise ConstraintError(f"{what} must be (x, y) pairs of numbers") from None
+    if A.size == 0:
+        return np.zeros((0, 2))
+    if A.ndim != 2 or A.shape[1] != 2:
+        raise ConstraintError(f"{what} must have shape (k, 2), got {A.shape}")
+    if not np.isfinite(A).all():
+        raise ConstraintError(f"{what} must be finite numbers")
+    return A
+
+
+def pin_targets(pins: ArrayLike, targets: object = None) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Pins and where they go, a pin without a new place holding where it is.
+
+    Parameters
+    ----------
+    pins : (k, 2) array-like
+        Pixel positions (x, y) on the picture's shape.
+    targets : (k, 2) array-like, a shorter sequence, a sequence with None entries, or None
+        Target of each pin in order; a pin past the end, or whose entry is None, holds (None: all hold).
+
+    Returns
+    -------
+    pins, targets : (k, 2) float64 arrays
+
+    Raises
+    ------
+    ConstraintError
+        No pin, malformed or non-finite pins or targets, more targets than pins, two pins at one place.
+
+    Example
+    -------
+    >>> p, t = pin_targets([[1, 2], [3, 4], [5, 6]], [None, [0, 0]])
+    >>> t.tolist()
+    [[1.0, 2.0], [0.0, 0.0], [5.0, 6.0]]
+    """
+    P = _points(pins, "pins")
+    if len(P) == 0:
+        raise ConstraintError("give at least one pin")
+    T = P.copy()
+    if targets is not None:
+        if isinstance(targets, np.ndarray):
+            entries: list[object] = list(targets.reshape(len(targets), -1))
+        elif isinstance(targets, (list, tuple)):
+            entries = list(targets)
+        else:
+            raise ConstraintError("targets must be a list of (x, y) pairs or None")
+        if len(entries) > len(P):
+            raise ConstraintError(f"{len(entries)} targets for {len(P)} pins; give at most one target per pin")
+        for k, entry in enumerate(entries):
+            if entry is None:
+                continue
+            T[k] = _points([entry], f"the target of pin {k}")[0]
+    order = np.lexsort((P[:, 1], P[:, 0]))
+    same = np.flatnonzero(np.all(P[order[1:]] == P[order[:-1]], axis=1))
+    if len(same):
+        a, b = sorted((int(order[same[0]]), int(order[same[0] + 1])))
+        raise ConstraintError(f"pins {a} and {b} are at the same place ({P[a, 0]:g}, {P[a, 1]:g})")
+    return P, T
+
+
+def _locate(mesh: ImageMesh, pins: NDArray[np.float64]) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
+    """The triangle of every pin and its barycentric coordinates there.
+
+    A pin on a shape pixel that the mesh misses by a little (where the outline cuts a corner) goes to the nearest
+    point of the mesh.
+    """
+    V, F = mesh.vertices, mesh.triangles
+    A, B, C = V[F[:, 0]], V[F[:, 1]], V[F[:, 2]]
+    e1, e2 = B - A, C - A
+    det = e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]
+    w, h = mesh.size
+    faces = np.empty(len(pins), dtype=np.int64)
+    bary = np.empty((len(pins), 3))
+    for k, (x, y) in enumerate(pins):
+        d = np.array([x, y]) - A
+        l1 = (d[:, 0] * e2[:, 1] - d[:, 1] * e2[:, 0]) / det
+        l2 = (e1[:, 0] * d[:, 1] - e1[:, 1] * d[:, 0]) / det
+        L = np.column_stack([1.0 - l1 - l2, l1, l2])
+        low = L.min(axis=1)
+        t = int(np.argmax(low))
+        if low[t] < -1e-12:
+            on_shape = 0 <= x < w and 0 <= y < h and bool(mesh.mask[int(y), int(x)])
+            if not on_shape:
+                raise ConstraintError(f"pin {k} at ({x:g}, {y:g}) is outside the picture's shape (on a transparent "
+                                      "or background pixel, or off the picture)")
+            clipped = np.clip(L, 0.0, None)
+            clipped /= clipped.sum(axis=1, keepdims=True)
+            near = np.einsum("mc,mcx->mx", clipped, V[F])
+            t = int(np.argmin(np.hypot(near[:, 0] - x, near[:, 1] - y)))
+            L[t] = clipped[t]
+        b = np.clip(L[t], 0.0, None)
+        faces[k], bary[k] = t, b / b.sum()
+    return faces, bary
+
+
+def _similarity_matrix(V: NDArray[np.float64], F: NDArray[np.int64]) -> sp.csr_matrix:
+    """The rows whose squares sum to the as-similar-as-possible energy ``Σ_t |t| ‖J_t − S_t‖²`` (``S_t`` the
+    similarity nearest the deformation gradient ``J_t``), over the unknowns ``[x; y]``."""
+    n, m = len(V), len(F)
+    P = V[F][:, :, :2]
+    E = np.stack([P[:, 1] - P[:, 0], P[:, 2] - P[:, 0]], axis=1)
+    inv = np.linalg.inv(E)
+    G = np.empty((m, 3, 2))
+    G[:, 1:, :] = np.transpose(inv, (0, 2, 1))
+    G[:, 0, :] = -G[:, 1:, :].sum(axis=1)
+    area = 0.5 * np.abs(np.linalg.det(E))
+    s = np.sqrt(area / 2.0)[:, None]
+    # J = [[a, b], [c, d]] with a = Σ x_i gx_i, b = Σ x_i gy_i, c = Σ y_i gx_i, d = Σ y_i gy_i; its distance to the
+    # nearest similarity is ((a − d)² + (b + c)²) / 2.
+    cols = np.concatenate([F, F + n, F, F + n], axis=1)
+    vals = np.concatenate([G[:, :, 0] * s, -G[:, :, 1] * s, G[:, :, 1] * s, G[:, :, 0] * s], axis=1)
+    order = np.concatenate([np.zeros((m, 6), dtype=np.int64), np.ones((m, 6), dtype=np.int64)], axis=1)
+    row_index = 2 * np.arange(m)[:, None] + order
+    return sp.csr_matrix((vals.ravel(), (row_index.ravel(), cols.ravel())), shape=(2 * m, 2 * n))
+
+
+class PuppetWarp:
+    """A picture meshed and pinned, ready to warp: the mesh and the solver are built once, each new set of targets
+    is one solve.
+
+    Parameters
+    ----------
+    image : (h, w, 3|4) uint8 array or a path
+        The picture (with alpha, its shape is its opaque pixels; see :func:`arap.image_mesh`).
+    pins : (k, 2) array-like
+        Pixel positions (x right, y down) on the shape.
+    spacing, density, alpha_threshold, background, tolerance
+        The mesh's, as :func:`arap.image_mesh` takes them (ignored when ``mesh`` is given).
+    rigid : (h, w) bool array or None
+        Parts of the picture kept rigid (``mode="rigid"`` only): the triangles whose corners all lie on these
+        pixels move as one piece.
+    mode : {"rigid", "distort"}
+        The energy (see :mod:`arap.puppet.warp`).
+    mesh : ImageMesh or None
+        A mesh of this picture made earlier (None: made here).
+
+    Raises
+    ------
+    ArapError
+        An unusable picture, a pin outside the shape (named), two pins at one place, an unknown mode.
+    """
+
+    def __init__(self, image: object, pins: ArrayLike, *, spacing: float | None = None,
+                 density: int = DEFAULT_DENSITY, rigid: ArrayLike | None = None, mode: WarpMode = "rigid",
+                 alpha_threshold: int = 0, background: tuple[int, int, int] | None = None, tolerance: float = 0.0,
+                 mesh: ImageMesh | None = None) -> None:
+        if mode not in MODES:
+            raise OptionError(f"unknown warp mode {mode!r}; expected one of {', '.join(MODES)}")
+        self.picture = as_picture(image)
+        self.mesh = mesh if mesh is not None else image_mesh(self.picture, spacing, density=density,
+                                                             alpha_threshold=alpha_threshold,
+                                                             background=background, tolerance=tolerance)
+        if self.mesh.size != (self.picture.shape[1], self.picture.shape[0]):
+            raise ArapError(f"the mesh is of a {self.mesh.size[0]}x{self.mesh.size[1]} picture, not of this "
+                            f"{self.picture.shape[1]}x{self.picture.shape[0]} one")
+        self.mode = mode
+        self.pins, _ = pin_targets(pins)
+        self.faces, self.barycentric = _locate(self.mesh, self.pins)
+        V, F = self.mesh.vertices, self.mesh.triangles
+        n = len(V)
+        adjacency = sp.coo_matrix((np.ones(3 * len(F)), (F.ravel(), np.roll(F, 1, axis=1).ravel())), shape=(n, n))
+        _, label = csgraph.connected_components(adjacency, directed=False)
+        pinned = np.zeros(label.max() + 1, dtype=bool)
+        pinned[label[F[self.faces, 0]]] = True
+        #: Vertices of the parts without a pin: they hold.
+        self.held = np.flatnonzero(~pinned[label])
+        stiffness = None
+        if rigid is not None:
+            if mode != "rigid":
+                raise OptionError("rigid parts need mode='rigid'")
+            R = np.asarray(rigid, dtype=bool)
+            if R.shape != self.mesh.mask.shape:
+                raise ArapError(f"rigid must be an (h, w) mask of the picture, shape {self.mesh.mask.shape}, got "
+                                f"{R.shape}")
+            w, h = self.mesh.size
+            c = np.clip(V[:, 0].astype(np.int64), 0, w - 1)
+            r = np.clip(V[:, 1].astype(np.int64), 0, h - 1)
+            stiffness = np.where(R[r, c], np.inf, 1.0)
+        if mode == "rigid":
+            from arap.solve.solver import ArapSolver
+
+            self._solver: ArapSolver | None = ArapSolver(V, F, self.held, points=(self.faces, self.barycentric),
+                                                         stiffness=stiffness)
+        else:
+            self._solver = None
+            self._prepare_distort()
+
+    def _prepare_distort(self) -> None:
+        V, F = self.mesh.vertices, self.mesh.triangles
+        n, k = len(V), len(self.pins)
+        M = _similarity_matrix(V, F)
+        Q = (M.T @ M).tocsr()
+        eps = 1e-9 * float(Q.diagonal().mean())  # picks, among equally similar shapes, the one nearest the rest
+        rows = np.concatenate([np.repeat(np.arange(k), 3), np.repeat(np.arange(k), 3) + k])
+        corners = self.mesh.triangles[self.faces]
+        cols = np.concatenate([corners.ravel(), corners.ravel() + n])
+        vals = np.concatenate([self.barycentric.ravel(), self.barycentric.ravel()])
+        C = sp.csr_matrix((vals, (rows, cols)), shape=(2 * k, 2 * n))
+        H = self.held
+        if len(H):
+            Ch = sp.csr_matrix((np.ones(2 * len(H)), (np.arange(2 * len(H)), np.concatenate([H, H + n]))),
+                               shape=(2 * len(H), 2 * n))
+            C = sp.vstack([C, Ch]).tocsr()
+        K = sp.bmat([[Q + eps * sp.identity(2 * n), C.T], [C, None]], format="csc")
+        self._kkt = spla.splu(K)
+        self._eps = eps
+        self._n_constraints = C.shape[0]
+
+    def deform(self, targets: object = None) -> NDArray[np.float64]:
+        """Where the mesh's vertices go when the pins move to ``targets``.
+
+        Parameters
+        ----------
+        targets : see :func:`pin_targets`
+            A pin without a target holds.
+
+        Returns
+        -------
+        (n, 2) float64 array
+            In pixel coordinates; every pin's point (its barycentric coordinates in its triangle) is on its target.
+        """
+        _, T = pin_targets(self.pins, targets)
+        V = self.mesh.vertices
+        if self._solver is not None:
+            result = self._solver.solve(V[self.held], point_targets=T)
+            return np.asarray(result.vertices, dtype=np.float64)
+        n = len(V)
+        z0 = np.concatenate([V[:, 0], V[:, 1]])
+        rhs = np.concatenate([self._eps * z0, T[:, 0], T[:, 1], V[self.held, 0], V[self.held, 1]])
+        z = self._kkt.solve(rhs)
+        return np.column_stack([z[:n], z[n:2 * n]])
+
+    def canvas(self, vertices: NDArray[np.float64], fit: bool = False) -> tuple[tuple[int, int], tuple[int, int]]:
+        """The result's top-left corner in the picture's coordinates and its (width, height): the picture's frame,
+        or with ``fit`` the frame enlarged to hold the deformed shape."""
+        w, h = self.mesh.size
+        if not fit:
+            return (0, 0), (w, h)
+        lo = np.floor(np.minimum(vertices.min(axis=0), 0.0)).astype(np.int64)
+        hi = np.ceil(np.maximum(vertices.max(axis=0), [w, h])).astype(np.int64)
+        size = hi - lo
+        if int(size[0]) * int(size[1]) > 4 * 64_000_000:
+            raise ArapError(f"the warped picture would be {int(size[0])}x{int(size[1])} pixels; move the pins less "
+                            "far or leave out fit")
+        return (int(lo[0]), int(lo[1])), (int(size[0]), int(size[1]))
+
+    def draw_order(self, depth: ArrayLike | None) -> NDArray[np.int64] | None:
+        """The triangles' drawing order for a depth (None: the mesh's own order).
+
+        ``depth`` is an (h, w) map of the picture (read at each triangle's rest centroid), one value per triangle
+        or one per vertex (a triangle takes its corners' mean); triangles of larger depth are drawn over those of
+        smaller depth, equal depths in the mesh's order.
+        """
+        if depth is None:
+            return None
+        D = np.asarray(depth, dtype=np.float64)
+        V, F = self.mesh.vertices, self.mesh.triangles
+        if D.shape == self.mesh.mask.shape:
+            centroid = V[F].mean(axis=1)
+            w, h = self.mesh.size
+            value = D[np.clip(centroid[:, 1].astype(np.int64), 0, h - 1),
+                      np.clip(centroid[:, 0].astype(np.int64), 0, w - 1)]
+        elif D.shape == (len(F),):
+            value = D
+        elif D.shape == (len(V),):
+            value = D[F].mean(axis=1)
+        else:
+            raise ArapError(f"depth must be an (h, w) map {self.mesh.mask.shape}, one value per triangle "
+                            f"({len(F)}) or one per vertex ({len(V)}), got shape {D.shape}")
+        if not np.isfinite(value).all():
+            raise ArapError("depth values must be finite")
+        return np.argsort(value, kind="stable")
+
+    def render(self, vertices: NDArray[np.float64], *, fit: bool = False,
+               depth: ArrayLike | None = None) -> NDArray[np.uint8]:
+        """The picture drawn on the mesh at ``vertices`` (see :meth:`canvas` and :meth:`draw_order`); (h', w', 4)
+        uint8 RGBA."""
+        origin, size = self.canvas(vertices, fit)
+        return draw_textured(self.picture, self.mesh.vertices, vertices, self.mesh.triangles, size, origin,
+                             self.draw_order(depth))
+
+    def __call__(self, targets: object = None, *, fit: bool = False,
+                 depth: ArrayLike | None = None) -> NDArray[np.uint8]:
+        """The warped picture for ``targets`` (:meth:`deform`, then :meth:`render`)."""
+        return self.render(self.deform(targets), fit=fit, depth=depth)
+
+
+def warp(image: object, pins: ArrayLike, targets: object = None, spacing: float | None = None,
+         rigid: ArrayLike | None = None, mode: WarpMode = "rigid", *, fit: bool = False,
+         depth: ArrayLike | None = None, density: int = DEFAULT_DENSITY, alpha_threshold: int = 0,
+         background: tuple[int, int, int] | None = None, tolerance: float = 0.0) -> NDArray[np.uint8]:
+    """Puppet-warp a picture: move pins on it and bend the rest as rigidly as it can (see :class:`PuppetWarp`).
+
+    Parameters
+    ----------
+    image : (h, w, 3|4) uint8 array or a path
+    pins : (k, 2) array-like
+        Pixel positions (x right, y down) on the picture's shape.
+    targets : (k, 2) array-like, shorter, with None entries, or None
+        Where the pins go; pins without a target hold.
+    spacing : float or None
+        The mesh's edge length in pixels (None: from ``density``).
+    rigid : (h, w) bool array or None
+        Parts kept rigid.
+    mode : {"rigid", "distort"}
+    fit : bool
+        Enlarge the canvas to hold the warped shape (else: the picture's size).
+    depth : array-like or None
+        Which parts are drawn over which where they overlap (see :meth:`PuppetWarp.draw_order`).
+    density, alpha_threshold, background, tolerance
+        As :func:`arap.image_mesh` takes them.
+
+    Returns
+    -------
+    (h', w', 4) uint8 array
+        Straight RGBA.
+
+    Example
+    -------
+    >>> import numpy as np, arap
+    >>> img = np.zeros((40, 100, 4), dtype=np.uint8); img[15:25, 10:90] = (200, 80, 20, 255)
+    >>> out = arap.warp(img, [[12, 20], [88, 20]], [None, [80, 35]], spacing=5)
+    >>> out.shape, out[20, 12].tolist()
+    ((40, 100, 4), [200, 80, 20, 255])
+    """
+    puppet = PuppetWarp(image, pins, spacing=spacing, density=density, rigid=rigid, mode=mode,
+                        alpha_threshold=alpha_threshold, background=background, tolerance=tolerance)
+    return puppet(targets, fit=fit, depth=depth)
