@@ -103,5 +103,28 @@ def test_an_output_that_is_not_a_png_is_refused(tmp_path: Path, capsys: pytest.C
     image = _png(tmp_path / "bar.png", bar())
     assert main(["warp", str(image), "--pins", str(_pins(tmp_path / "p.json", PINS)), "-o",
                  str(tmp_path / "o.jpg")]) == 1
-    assert "written as PNG" in capsys.readouterr().err
+    assert "written as PNG (OUT.png), its mesh as OUT.glb or OUT.obj" in capsys.readouterr().err
     assert not (tmp_path / "o.jpg").exists()
+
+
+@pytest.mark.parametrize("name", ["mesh.glb", "mesh.obj"])
+def test_the_warped_mesh_is_written_with_its_texture(tmp_path: Path, name: str) -> None:
+    import trimesh
+
+    img = bar()
+    image = _png(tmp_path / "bar.png", img)
+    out = tmp_path / name
+    assert main(["warp", str(image), "--pins", str(_pins(tmp_path / "pins.json", PINS)), "-o", str(out),
+                 "--spacing", "8"]) == 0
+    puppet = arap.PuppetWarp(img, PINS["pins"], spacing=8)
+    U = puppet.deform(PINS["targets"])
+    loaded = trimesh.load(out, force="mesh", process=False)
+    assert len(loaded.vertices) == len(U)
+    assert np.abs(loaded.vertices[:, :2] - np.column_stack([U[:, 0], 200 - U[:, 1]])).max() < 1e-3
+    uv = np.asarray(loaded.visual.uv)
+    assert np.abs(uv - np.column_stack([puppet.mesh.vertices[:, 0] / 200,
+                                        1 - puppet.mesh.vertices[:, 1] / 200])).max() < 1e-5
+    if name.endswith(".obj"):
+        assert sorted(p.name for p in tmp_path.iterdir()) == ["bar.png", "mesh.mtl", "mesh.obj",
+                                                              "mesh.texture.png", "pins.json"]
+        assert (np.asarray(Image.open(tmp_path / "mesh.texture.png")) == img).all()

@@ -17,7 +17,10 @@ from typing import Any
 from arap.cli.common import err
 from arap.errors import ArapError, ConstraintError
 
-__all__ = ["add_parser", "read_pins", "run_warp"]
+__all__ = ["OUTPUTS", "add_parser", "read_pins", "run_warp"]
+
+OUTPUTS = (".png", ".glb", ".obj")
+"""The outputs by extension: the warped picture, or the warped mesh textured with the picture."""
 
 
 def add_parser(commands: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -30,7 +33,9 @@ def add_parser(commands: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     p.add_argument("--pins", required=True, metavar="PINS.json",
                    help='JSON {"pins": [[x, y], ...], "targets": [[x, y] or null, ...]} in pixels (x right, y '
                         "down); pins without a target hold")
-    p.add_argument("-o", "--output", required=True, metavar="OUT.png", help="the warped picture (PNG with alpha)")
+    p.add_argument("-o", "--output", required=True, metavar="OUT.png",
+                   help="the warped picture (PNG with alpha); or OUT.glb, the warped mesh textured with the picture; "
+                        "or OUT.obj, the same with OUT.mtl and the picture as OUT.texture.png beside it")
     p.add_argument("--spacing", type=float, default=None, metavar="PX",
                    help="mesh edge length in pixels (default: about 5,000 vertices over the whole picture)")
     p.add_argument("--mode", choices=("rigid", "distort"), default="rigid",
@@ -72,8 +77,8 @@ def _check_destination(path: str) -> None:
     """Refuse an output that is not a PNG or cannot be written, before any work."""
     from arap.io.paths import write_destination
 
-    if Path(path).suffix.lower() != ".png":
-        raise ArapError(f"{path}: the warped picture is written as PNG; name the output OUT.png")
+    if Path(path).suffix.lower() not in OUTPUTS:
+        raise ArapError(f"{path}: the warped picture is written as PNG (OUT.png), its mesh as OUT.glb or OUT.obj")
     try:
         folder = write_destination(path).parent
     except OSError as exc:
@@ -82,24 +87,54 @@ def _check_destination(path: str) -> None:
         raise ArapError(f"cannot write {path}: the folder {folder} is not writable")
 
 
+def _write_mesh(path: str, mesh: Any) -> list[str]:
+    """Write the textured mesh as GLB, or as OBJ with its MTL file and texture beside it; the files written."""
+    from arap.io.atomic import write_atomic
+
+    out = Path(path)
+    if out.suffix.lower() == ".glb":
+        write_atomic(out, mesh.export(file_type="glb"))
+        return [str(out)]
+    import trimesh.exchange.obj
+
+    mtl = f"{out.stem}.mtl"
+    texture = f"{out.stem}.texture.png"
+    text, extra = trimesh.exchange.obj.export_obj(mesh, include_texture=True, return_texture=True, mtl_name=mtl)
+    images = [name for name in extra if name != mtl]
+    material = extra[mtl]
+    for name in images:
+        material = material.replace(name.encode(), texture.encode())
+    written = []
+    for name, data in [(texture, extra[images[0]]), (mtl, material)]:
+        write_atomic(out.with_name(name), data)
+        written.append(str(out.with_name(name)))
+    write_atomic(out, text)
+    return [str(out), *written]
+
+
 def run_warp(args: argparse.Namespace) -> int:
     """``arap warp``: read, warp, write; the exit status."""
     from arap.io.atomic import write_atomic
     from arap.puppet.picture import read_picture
-    from arap.puppet.warp import warp
+    from arap.puppet.warp import PuppetWarp
 
     _check_destination(args.output)
     if args.spacing is not None and not (args.spacing > 0 and math.isfinite(args.spacing)):
         raise ArapError(f"--spacing must be a positive number of pixels, got {args.spacing}")
     pins, targets = read_pins(args.pins)
     picture = read_picture(args.image)
-    out = warp(picture, pins, targets, spacing=args.spacing, mode=args.mode, fit=args.fit,
-               alpha_threshold=args.alpha_threshold)
-    from PIL import Image
-
-    buffer = io.BytesIO()
-    Image.fromarray(out, "RGBA").save(buffer, format="PNG")
+    puppet = PuppetWarp(picture, pins, spacing=args.spacing, mode=args.mode, alpha_threshold=args.alpha_threshold)
+    vertices = puppet.deform(targets)
     try:
+        if Path(args.output).suffix.lower() != ".png":
+            written = _write_mesh(args.output, puppet.textured_mesh(vertices))
+            err(f"arap: wrote {', '.join(written)} ({len(vertices):,} vertices)")
+            return 0
+        out = puppet.render(vertices, fit=args.fit)
+        from PIL import Image
+
+        buffer = io.BytesIO()
+        Image.fromarray(out, "RGBA").save(buffer, format="PNG")
         write_atomic(args.output, buffer.getvalue())
     except OSError as exc:
         raise ArapError(f"cannot write {args.output}: {exc.strerror or exc}") from None

@@ -19,7 +19,7 @@ A part of the shape (an island of the picture) without any pin stays where it is
 
 from __future__ import annotations
 
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
 import scipy.sparse as sp
@@ -322,6 +322,26 @@ class PuppetWarp:
         origin, size = self.canvas(vertices, fit)
         return draw_textured(self.picture, self.mesh.vertices, vertices, self.mesh.triangles, size, origin,
                              self.draw_order(depth))
+
+    def textured_mesh(self, vertices: NDArray[np.float64]) -> Any:
+        """A ``trimesh.Trimesh`` of the mesh at ``vertices``, textured with the picture: positions ``(x, h − y, 0)``
+        in pixels (y up, as mesh files have it; triangles facing +z), texture coordinates ``(x / w, 1 − y / h)`` of
+        the rest positions."""
+        import trimesh
+        from PIL import Image
+
+        w, h = self.mesh.size
+        V = np.column_stack([vertices[:, 0], h - vertices[:, 1], np.zeros(len(vertices))])
+        rest = self.mesh.vertices
+        uv = np.column_stack([rest[:, 0] / w, 1.0 - rest[:, 1] / h])
+        F = self.mesh.triangles
+        up = np.column_stack([rest[:, 0], h - rest[:, 1]])  # the rest positions, y up: all one way round
+        e1, e2 = up[F[:, 1]] - up[F[:, 0]], up[F[:, 2]] - up[F[:, 0]]
+        if np.sum(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]) < 0:
+            F = F[:, ::-1]
+        mode = "RGBA" if self.picture.shape[2] == 4 else "RGB"
+        visual = trimesh.visual.TextureVisuals(uv=uv, image=Image.fromarray(self.picture, mode))
+        return trimesh.Trimesh(V, F, visual=visual, process=False)
 
     def __call__(self, targets: object = None, *, fit: bool = False,
                  depth: ArrayLike | None = None) -> NDArray[np.uint8]:
