@@ -138,3 +138,21 @@ def test_bad_pins_are_refused() -> None:
         arap.warp(img, [[30, 100], [170, 100]], [None, None, None])
     with pytest.raises(arap.ArapError, match="unknown warp mode"):
         arap.warp(img, [[30, 100]], None, mode="normal")  # type: ignore[arg-type]
+
+
+@pytest.mark.parametrize("mode", ["rigid", "distort"])
+def test_one_pin_drags_the_picture_along(mode: str) -> None:
+    puppet = arap.PuppetWarp(bar(), [[40.0, 95.0]], spacing=8, mode=mode)
+    U = puppet.deform([[55.0, 105.0]])
+    assert np.abs(U - puppet.mesh.vertices - [15.0, 10.0]).max() < 1e-5
+
+
+def test_a_part_without_a_pin_stays_where_it_is() -> None:
+    img = bar()
+    img[20:50, 60:140] = (0, 200, 0, 255)  # an island above the bar
+    for mode in ("rigid", "distort"):
+        puppet = arap.PuppetWarp(img, [[30.0, 100.0], [170.0, 100.0]], spacing=6, mode=mode)  # type: ignore[arg-type]
+        U = puppet.deform([None, [150.0, 160.0]])
+        island = puppet.mesh.vertices[:, 1] < 60
+        assert island.any() and np.abs(U[island] - puppet.mesh.vertices[island]).max() < 1e-9
+        assert np.abs(U[~island] - puppet.mesh.vertices[~island]).max() > 20

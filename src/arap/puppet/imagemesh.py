@@ -149,7 +149,8 @@ def mesh_of_mask(mask: NDArray[np.bool_], spacing: float) -> ImageMesh:
     c = np.clip(np.floor(centroid[:, 0]).astype(np.int64), 0, w - 1)
     e1, e2 = V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]]
     signed = e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]
-    F = F[mask[r, c] & (np.abs(signed) > 1e-9 * spacing * spacing)]
+    sliver = max(1e-6 * spacing * spacing, 1e-11 * float(h * h + w * w))  # far above the solver's zero area
+    F = F[mask[r, c] & (np.abs(signed) > sliver)]
     if len(F) == 0:
         raise PictureError("the picture's shape is too thin to mesh at this spacing; give a smaller spacing")
     used = np.unique(F)

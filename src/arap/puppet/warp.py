@@ -234,7 +234,13 @@ class PuppetWarp:
         n, k = len(V), len(self.pins)
         M = _similarity_matrix(V, F)
         Q = (M.T @ M).tocsr()
-        eps = 1e-9 * float(Q.diagonal().mean())  # picks, among equally similar shapes, the one nearest the rest
+        # Among equally similar shapes (a part held by one pin may turn and scale about it freely), the one whose
+        # displacement varies least: a tiny graph Laplacian of the displacement, zero for a translation.
+        edges = np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]])
+        A = sp.coo_matrix((np.ones(len(edges)), (edges[:, 0], edges[:, 1])), shape=(n, n)).tocsr()
+        A = ((A + A.T) > 0).astype(np.float64)
+        L = sp.diags(np.asarray(A.sum(axis=1)).ravel()) - A
+        self._smooth = sp.block_diag([L, L], format="csr") * (1e-6 * float(Q.diagonal().mean()))
         rows = np.concatenate([np.repeat(np.arange(k), 3), np.repeat(np.arange(k), 3) + k])
         corners = self.mesh.triangles[self.faces]
         cols = np.concatenate([corners.ravel(), corners.ravel() + n])
@@ -245,10 +251,8 @@ class PuppetWarp:
             Ch = sp.csr_matrix((np.ones(2 * len(H)), (np.arange(2 * len(H)), np.concatenate([H, H + n]))),
                                shape=(2 * len(H), 2 * n))
             C = sp.vstack([C, Ch]).tocsr()
-        K = sp.bmat([[Q + eps * sp.identity(2 * n), C.T], [C, None]], format="csc")
+        K = sp.bmat([[Q + self._smooth, C.T], [C, None]], format="csc")
         self._kkt = spla.splu(K)
-        self._eps = eps
-        self._n_constraints = C.shape[0]
 
     def deform(self, targets: object = None) -> NDArray[np.float64]:
         """Where the mesh's vertices go when the pins move to ``targets``.
@@ -270,7 +274,7 @@ class PuppetWarp:
             return np.asarray(result.vertices, dtype=np.float64)
         n = len(V)
         z0 = np.concatenate([V[:, 0], V[:, 1]])
-        rhs = np.concatenate([self._eps * z0, T[:, 0], T[:, 1], V[self.held, 0], V[self.held, 1]])
+        rhs = np.concatenate([self._smooth @ z0, T[:, 0], T[:, 1], V[self.held, 0], V[self.held, 1]])
         z = self._kkt.solve(rhs)
         return np.column_stack([z[:n], z[n:2 * n]])
 
