@@ -132,12 +132,16 @@ def mesh_of_mask(mask: NDArray[np.bool_], spacing: float) -> ImageMesh:
     first = np.repeat(np.cumsum(counts) - counts, counts)
     index = np.arange(len(boundary))
     nxt = np.where(index + 1 - first < np.repeat(counts, counts), index + 1, first)
-    edges = np.column_stack([index, nxt]).astype(np.uint32)
+    edges = np.column_stack([index, nxt])
     interior = _lattice(mask, spacing)
-    points = np.ascontiguousarray(np.concatenate([boundary, interior]), dtype=np.float64)
+    # Outlines of parts one pixel apart may meet once simplified: a point is inserted once, an edge that would join
+    # a point to itself is left out.
+    points, first_of = np.unique(np.concatenate([boundary, interior]), axis=0, return_inverse=True)
+    edges = first_of.reshape(-1)[edges]
+    edges = edges[edges[:, 0] != edges[:, 1]]
     cdt = _cdt()
     t = cdt.Triangulation(cdt.VertexInsertionOrder.AUTO, cdt.IntersectingConstraintEdges.TRY_RESOLVE, 0.0)
-    t.insert_vertices(points)
+    t.insert_vertices(np.ascontiguousarray(points, dtype=np.float64))
     t.insert_edges(np.ascontiguousarray(edges, dtype=np.uintc))
     t.erase_outer_triangles_and_holes()
     vv = t.vertices_array()

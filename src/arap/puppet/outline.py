@@ -15,9 +15,14 @@ Positions are in pixel coordinates: x to the right, y down, the pixel ``(row, co
 
 from __future__ import annotations
 
+import itertools
+import math
+
+import numba as nb
 import numpy as np
 from numpy.typing import NDArray
 
+import arap.method._numba_cache  # noqa: F401  (a writable kernel cache before the kernels are defined)
 from arap.errors import ArapError
 
 __all__ = ["loop_area", "outline_loops", "shape_mask", "simplify_loop"]
@@ -117,27 +122,16 @@ def outline_loops(mask: NDArray[np.bool_]) -> list[NDArray[np.float64]]:
     end = np.concatenate(ends)
     order = np.argsort(start)
     start, end = start[order], end[order]
-    position = {int(s): i for i, s in enumerate(start)}
-    follow = np.array([position[int(e)] for e in end], dtype=np.int64)
-    seen = np.zeros(len(start), dtype=bool)
-    loops = []
-    for first in range(len(start)):
-        if seen[first]:
-            continue
-        chain = []
-        i = first
-        while not seen[i]:
-            seen[i] = True
-            chain.append(i)
-            i = int(follow[i])
-        ids = start[np.array(chain)]
-        vertical = ids >= horizontal
-        local = np.where(vertical, ids - horizontal, ids)
-        r, c = local // W2, local % W2
-        x = np.where(vertical, c, c + 0.5) - 0.5  # padded sample (r, c) is pixel (r - 1, c - 1), centre c - 0.5
-        y = np.where(vertical, r + 0.5, r) - 0.5
-        loops.append(np.column_stack([x, y]).astype(np.float64))
-    return loops
+    follow = np.searchsorted(start, end)  # every crossing point starts one segment and ends one
+    order, bounds = _chains(follow)
+    ids = start[order]
+    vertical = ids >= horizontal
+    local = np.where(vertical, ids - horizontal, ids)
+    r, c = local // W2, local % W2
+    x = np.where(vertical, c, c + 0.5) - 0.5  # padded sample (r, c) is pixel (r - 1, c - 1), centre c - 0.5
+    y = np.where(vertical, r + 0.5, r) - 0.5
+    points = np.column_stack([x, y]).astype(np.float64)
+    return [points[a:b] for a, b in itertools.pairwise(bounds)]
 
 
 def loop_area(loop: NDArray[np.float64]) -> float:
@@ -152,30 +146,59 @@ def loop_area(loop: NDArray[np.float64]) -> float:
     return float(0.5 * (np.dot(x, np.roll(y, -1)) - np.dot(np.roll(x, -1), y)))
 
 
-def _douglas_peucker(points: NDArray[np.float64], tolerance: float) -> NDArray[np.int64]:
-    """Indices of the points an open polyline keeps (ends included) within ``tolerance``."""
-    keep = np.zeros(len(points), dtype=bool)
-    keep[0] = keep[-1] = True
-    stack = [(0, len(points) - 1)]
-    while stack:
-        a, b = stack.pop()
+@nb.njit(cache=True, nogil=True)
+def _douglas_peucker(points: NDArray[np.float64], tolerance: float) -> NDArray[np.bool_]:  # pragma: no cover
+    """Which points an open polyline keeps (ends included) within ``tolerance``."""
+    n = len(points)
+    keep = np.zeros(n, dtype=np.bool_)
+    keep[0] = True
+    keep[n - 1] = True
+    stack = np.empty((n + 1, 2), dtype=np.int64)
+    stack[0, 0], stack[0, 1] = 0, n - 1
+    top = 1
+    while top > 0:
+        top -= 1
+        a, b = stack[top, 0], stack[top, 1]
         if b - a < 2:
             continue
-        p, q = points[a], points[b]
-        d = q - p
-        length = float(np.hypot(d[0], d[1]))
-        inner = points[a + 1:b] - p
-        if length > 0:
-            dist = np.abs(inner[:, 0] * d[1] - inner[:, 1] * d[0]) / length
-        else:
-            dist = np.hypot(inner[:, 0], inner[:, 1])
-        k = int(np.argmax(dist))
-        if dist[k] > tolerance:
-            mid = a + 1 + k
-            keep[mid] = True
-            stack.append((a, mid))
-            stack.append((mid, b))
-    return np.flatnonzero(keep)
+        px, py = points[a, 0], points[a, 1]
+        dx, dy = points[b, 0] - px, points[b, 1] - py
+        length = math.hypot(dx, dy)
+        best, far = -1.0, a + 1
+        for i in range(a + 1, b):
+            ix, iy = points[i, 0] - px, points[i, 1] - py
+            d = abs(ix * dy - iy * dx) / length if length > 0 else math.hypot(ix, iy)
+            if d > best:
+                best, far = d, i
+        if best > tolerance:
+            keep[far] = True
+            stack[top, 0], stack[top, 1] = a, far
+            stack[top + 1, 0], stack[top + 1, 1] = far, b
+            top += 2
+    return keep
+
+
+@nb.njit(cache=True, nogil=True)
+def _chains(follow: NDArray[np.int64]) -> tuple[NDArray[np.int64], NDArray[np.int64]]:  # pragma: no cover
+    """The segments in the order the loops walk them, and where each loop starts in that order (and the end)."""
+    n = len(follow)
+    seen = np.zeros(n, dtype=np.bool_)
+    order = np.empty(n, dtype=np.int64)
+    starts = np.empty(n + 1, dtype=np.int64)
+    count, loops = 0, 0
+    for first in range(n):
+        if seen[first]:
+            continue
+        starts[loops] = count
+        loops += 1
+        i = first
+        while not seen[i]:
+            seen[i] = True
+            order[count] = i
+            count += 1
+            i = follow[i]
+    starts[loops] = count
+    return order, starts[:loops + 1]
 
 
 def simplify_loop(loop: NDArray[np.float64], spacing: float, tolerance: float) -> NDArray[np.float64]:
@@ -207,8 +230,8 @@ def simplify_loop(loop: NDArray[np.float64], spacing: float, tolerance: float) -
     if far == 0:
         return loop[:1]
     closed = np.concatenate([loop, loop[:1]])
-    first = _douglas_peucker(closed[:far + 1], tolerance)
-    second = far + _douglas_peucker(closed[far:], tolerance)
+    first = np.flatnonzero(_douglas_peucker(closed[:far + 1], float(tolerance)))
+    second = far + np.flatnonzero(_douglas_peucker(closed[far:], float(tolerance)))
     kept = closed[np.concatenate([first, second[1:-1]])]
     if len(kept) < 3:
         return kept
