@@ -237,8 +237,9 @@ class PuppetWarp:
         # Among equally similar shapes (a part held by one pin may turn and scale about it freely), the one whose
         # displacement varies least: a tiny graph Laplacian of the displacement, zero for a translation.
         edges = np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]])
-        A = sp.coo_matrix((np.ones(len(edges)), (edges[:, 0], edges[:, 1])), shape=(n, n)).tocsr()
-        A = ((A + A.T) > 0).astype(np.float64)
+        both = np.concatenate([edges, edges[:, ::-1]])
+        A = sp.csr_matrix((np.ones(len(both)), (both[:, 0], both[:, 1])), shape=(n, n))
+        A.data[:] = 1.0  # an edge of two triangles counted once
         L = sp.diags(np.asarray(A.sum(axis=1)).ravel()) - A
         self._smooth = sp.block_diag([L, L], format="csr") * (1e-6 * float(Q.diagonal().mean()))
         rows = np.concatenate([np.repeat(np.arange(k), 3), np.repeat(np.arange(k), 3) + k])
