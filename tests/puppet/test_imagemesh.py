@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import sys
+
 import numpy as np
 import pytest
 import scipy.ndimage as ndi
@@ -80,3 +82,13 @@ def test_pictures_of_the_wrong_kind_are_refused() -> None:
         arap.image_mesh(np.zeros((50, 50, 4)))
     with pytest.raises(arap.ArapError, match=r"shape \(h, w, 3\)"):
         arap.image_mesh(np.zeros((50, 50, 2), dtype=np.uint8))
+
+
+def test_a_missing_optional_package_is_named_with_its_install_line(monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setitem(sys.modules, "pythoncdt", None)
+    with pytest.raises(arap.ArapError, match=r"needs PythonCDT: pip install 'arap\[image\]'"):
+        arap.image_mesh(ring(60, 5, 25), spacing=5)
+    monkeypatch.setitem(sys.modules, "PIL", None)
+    with pytest.raises(arap.ArapError, match=r"needs Pillow: pip install 'arap\[image\]'"):
+        arap.image_mesh(__file__)

@@ -9,6 +9,7 @@ import scipy.ndimage as ndi
 
 import arap
 from arap.puppet.raster import premultiplied
+from arap.puppet.warp import pin_targets
 from tests.puppet.pictures import bar, centres, dot, find, ring, textured
 
 
@@ -156,3 +157,8 @@ def test_a_part_without_a_pin_stays_where_it_is() -> None:
         island = puppet.mesh.vertices[:, 1] < 60
         assert island.any() and np.abs(U[island] - puppet.mesh.vertices[island]).max() < 1e-9
         assert np.abs(U[~island] - puppet.mesh.vertices[~island]).max() > 20
+
+
+def test_a_malformed_target_is_named() -> None:
+    with pytest.raises(arap.ArapError, match=r"the target of pin 1 must be an \(x, y\) pair or None"):
+        pin_targets([[1, 2], [3, 4]], [None, [5]])

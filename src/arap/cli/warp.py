@@ -38,6 +38,8 @@ def add_parser(commands: argparse._SubParsersAction[argparse.ArgumentParser]) ->
                         "or OUT.obj, the same with OUT.mtl and the picture as OUT.texture.png beside it")
     p.add_argument("--spacing", type=float, default=None, metavar="PX",
                    help="mesh edge length in pixels (default: about 5,000 vertices over the whole picture)")
+    p.add_argument("--density", type=int, default=None, metavar="N",
+                   help="without --spacing: about N mesh vertices when the shape fills the picture (default: 5000)")
     p.add_argument("--mode", choices=("rigid", "distort"), default="rigid",
                    help="rigid: as rigid as possible (default); distort: as similar as possible, parts may grow "
                         "and shrink")
@@ -115,6 +117,7 @@ def _write_mesh(path: str, mesh: Any) -> list[str]:
 def run_warp(args: argparse.Namespace) -> int:
     """``arap warp``: read, warp, write; the exit status."""
     from arap.io.atomic import write_atomic
+    from arap.puppet.imagemesh import DEFAULT_DENSITY
     from arap.puppet.picture import read_picture
     from arap.puppet.warp import PuppetWarp
 
@@ -123,7 +126,9 @@ def run_warp(args: argparse.Namespace) -> int:
         raise ArapError(f"--spacing must be a positive number of pixels, got {args.spacing}")
     pins, targets = read_pins(args.pins)
     picture = read_picture(args.image)
-    puppet = PuppetWarp(picture, pins, spacing=args.spacing, mode=args.mode, alpha_threshold=args.alpha_threshold)
+    density = DEFAULT_DENSITY if args.density is None else args.density
+    puppet = PuppetWarp(picture, pins, spacing=args.spacing, density=density, mode=args.mode,
+                        alpha_threshold=args.alpha_threshold)
     vertices = puppet.deform(targets)
     try:
         if Path(args.output).suffix.lower() != ".png":

@@ -93,6 +93,8 @@ def pin_targets(pins: ArrayLike, targets: object = None) -> tuple[NDArray[np.flo
         for k, entry in enumerate(entries):
             if entry is None:
                 continue
+            if np.asarray(entry, dtype=object).shape != (2,):
+                raise ConstraintError(f"the target of pin {k} must be an (x, y) pair or None, got {entry!r}")
             T[k] = _points([entry], f"the target of pin {k}")[0]
     order = np.lexsort((P[:, 1], P[:, 0]))
     same = np.flatnonzero(np.all(P[order[1:]] == P[order[:-1]], axis=1))
