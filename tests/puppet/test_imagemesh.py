@@ -26,7 +26,7 @@ def test_a_ring_is_meshed_without_its_hole_and_without_folds() -> None:
     V, F = mesh.vertices, mesh.triangles
     centroid = V[F].mean(axis=1)
     d = np.hypot(centroid[:, 0] - 100, centroid[:, 1] - 100)
-    assert (d > 30).all() and (d < 80).all()  # none in the hole, none outside
+    assert (d > 29).all() and (d < 81).all()  # none in the hole, none outside (to within a pixel)
     assert mask[centroid[:, 1].astype(int), centroid[:, 0].astype(int)].all()
     area = _signed_areas(V, F)
     assert (area > 0).all() or (area < 0).all()

@@ -162,3 +162,13 @@ def test_a_part_without_a_pin_stays_where_it_is() -> None:
 def test_a_malformed_target_is_named() -> None:
     with pytest.raises(arap.ArapError, match=r"the target of pin 1 must be an \(x, y\) pair or None"):
         pin_targets([[1, 2], [3, 4]], [None, [5]])
+
+
+def test_transparent_pixels_lend_no_colour_to_their_neighbours() -> None:
+    img = np.zeros((60, 60, 4), dtype=np.uint8)
+    img[:, :, 1] = 255                        # transparent green
+    img[10:50, 10:30] = (255, 0, 0, 255)     # an opaque red square, its right edge at x = 30
+    out = arap.warp(img, [[20.0, 30.0]], [[20.7, 30.0]], spacing=4)  # moved 0.7 px to the right
+    edge = out[20:40, 30]                     # centres at x = 30.5: 0.7 red and 0.3 transparent in the source
+    assert (edge[:, 0] == 255).all() and (edge[:, 1] == 0).all()
+    assert np.abs(edge[:, 3].astype(int) - round(0.7 * 255)).max() <= 1

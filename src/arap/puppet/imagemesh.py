@@ -117,7 +117,7 @@ def mesh_of_mask(mask: NDArray[np.bool_], spacing: float) -> ImageMesh:
     if not mask.any():
         raise PictureError("the picture's shape is empty: no pixel is opaque (alpha above the threshold) or "
                            "differs from the background")
-    tolerance = min(0.75, spacing / 4)
+    tolerance = min(0.4, spacing / 4)  # under half a pixel: a straight edge keeps its line, not its corners' one
     loops = []
     for loop in outline_loops(mask):
         if abs(loop_area(loop)) < _SPECK:
