@@ -128,3 +128,13 @@ def test_the_warped_mesh_is_written_with_its_texture(tmp_path: Path, name: str) 
         assert sorted(p.name for p in tmp_path.iterdir()) == ["bar.png", "mesh.mtl", "mesh.obj",
                                                               "mesh.texture.png", "pins.json"]
         assert (np.asarray(Image.open(tmp_path / "mesh.texture.png")) == img).all()
+
+
+def test_the_modes_offered_are_the_librarys() -> None:
+    from arap.cli import build_parser
+    from arap.puppet.warp import MODES
+
+    commands = next(a for a in build_parser()._actions if a.dest == "command")
+    warp = commands.choices["warp"]  # type: ignore[index]
+    mode = next(a for a in warp._actions if a.dest == "mode")
+    assert tuple(mode.choices) == MODES  # type: ignore[arg-type]
