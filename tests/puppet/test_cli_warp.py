@@ -41,6 +41,7 @@ def test_the_png_written_is_the_librarys_warp(tmp_path: Path, capsys: pytest.Cap
     expected = arap.warp(img, PINS["pins"], PINS["targets"], spacing=6)
     assert np.abs(written.astype(float) - expected).mean() <= 1.0
     assert np.abs(written.astype(float) - img).mean() > 1.0  # it did warp
+    assert (arap.warp(image, PINS["pins"], PINS["targets"], spacing=6) == expected).all()  # a path reads the same
     assert "wrote" in capsys.readouterr().err
 
 
