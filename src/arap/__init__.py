@@ -55,6 +55,14 @@ _LAZY: dict[str, str] = {
     "save_mesh": "arap.io",
     "save_mesh_bytes": "arap.io",
     "MESH_FORMATS": "arap.io",
+    "VOLUME_FORMATS": "arap.io",
+    "load_volume_mesh": "arap.io",
+    "save_volume_mesh": "arap.io",
+    "boundary_faces": "arap.io",
+    "boundary_surface": "arap.io",
+    "tetrahedralize": "arap.meshes.tetrahedralize",
+    "embed_points": "arap.meshes.tetrahedralize",
+    "interpolate_points": "arap.meshes.tetrahedralize",
     "MeshAsset": "arap.io",
     "load_asset": "arap.io",
     "save_asset": "arap.io",
@@ -85,6 +93,7 @@ _LAZY: dict[str, str] = {
 __all__ = [
     "BUILTIN_MESHES",
     "MESH_FORMATS",
+    "VOLUME_FORMATS",
     "Animation",
     "ArapError",
     "ArapResult",
@@ -109,6 +118,8 @@ __all__ = [
     "animate",
     "arap_energy",
     "batch",
+    "boundary_faces",
+    "boundary_surface",
     "box_tetrahedra",
     "builtin_mesh",
     "cell_distortion",
@@ -116,15 +127,18 @@ __all__ = [
     "check_domain",
     "check_mesh",
     "cotangent_laplacian",
+    "embed_points",
     "fit_rotations",
     "image_mesh",
     "inspect_mesh",
+    "interpolate_points",
     "load_asset",
     "load_constraints",
     "load_keyframes",
     "load_mesh",
     "load_mesh_bytes",
     "load_mesh_with_report",
+    "load_volume_mesh",
     "mesh_arrays",
     "rectangle_triangles",
     "repair_mesh",
@@ -132,9 +146,11 @@ __all__ = [
     "save_constraints",
     "save_mesh",
     "save_mesh_bytes",
+    "save_volume_mesh",
     "show",
     "sphere",
     "studio",
+    "tetrahedralize",
     "warp",
     "widget",
 ]
@@ -145,14 +161,19 @@ if TYPE_CHECKING:
     from arap.constraints import Constraints, load_constraints, save_constraints
     from arap.io import (
         MESH_FORMATS,
+        VOLUME_FORMATS,
         MeshAsset,
+        boundary_faces,
+        boundary_surface,
         load_asset,
         load_mesh,
         load_mesh_bytes,
         load_mesh_with_report,
+        load_volume_mesh,
         save_asset,
         save_mesh,
         save_mesh_bytes,
+        save_volume_mesh,
     )
     from arap.jupyter_widget import StudioWidget, widget
     from arap.meshes.diagnose import MeshInfo, inspect_mesh
@@ -161,6 +182,7 @@ if TYPE_CHECKING:
     from arap.meshes.mesh import MeshLike, check_mesh, mesh_arrays
     from arap.meshes.repair import RepairResult, repair_mesh
     from arap.meshes.shapes import BUILTIN_MESHES, builtin_mesh, sphere
+    from arap.meshes.tetrahedralize import embed_points, interpolate_points, tetrahedralize
     from arap.method.energy import arap_energy, cell_energies
     from arap.method.rotations import fit_rotations
     from arap.method.weights import cotangent_laplacian

@@ -20,6 +20,7 @@ from arap.errors import ArapError, MeshFormatError, OptionError
 from arap.meshes.repair import RepairResult
 from arap.options import (
     DEFAULT_ALPHA,
+    DEFAULT_ELEMENT_ENERGY,
     DEFAULT_ENERGY,
     DEFAULT_TOLERANCE,
     DEFAULT_WEIGHTS,
@@ -115,10 +116,19 @@ def selector_constraints(args: argparse.Namespace, V: np.ndarray) -> Any:
     return constraints_from_selectors(V, fixed=args.fix, handles=handles, roi=args.roi)
 
 
-def add_energy_options(p: argparse.ArgumentParser) -> None:
-    """``--energy``, ``--weights`` and ``--alpha``, as :class:`arap.ArapSolver` takes them."""
-    p.add_argument("--energy", choices=ENERGY_TYPES, default=DEFAULT_ENERGY,
-                   help=f"cell definition (default: {DEFAULT_ENERGY}; spokes is the 2007 paper's)")
+def add_energy_options(p: argparse.ArgumentParser, *, elements_default: bool = False) -> None:
+    """``--energy``, ``--weights`` and ``--alpha``, as :class:`arap.ArapSolver` takes them.
+
+    ``elements_default``: the command also takes solids and planar meshes, whose default is ``elements``; the
+    energy is then None when not given (the command picks the default for its input).
+    """
+    if elements_default:
+        p.add_argument("--energy", choices=ENERGY_TYPES, default=None,
+                       help=f"cell definition (default: {DEFAULT_ENERGY} for surfaces, {DEFAULT_ELEMENT_ENERGY} for "
+                            "solids and planar meshes from volume files; spokes is the 2007 paper's)")
+    else:
+        p.add_argument("--energy", choices=ENERGY_TYPES, default=DEFAULT_ENERGY,
+                       help=f"cell definition (default: {DEFAULT_ENERGY}; spokes is the 2007 paper's)")
     p.add_argument("--weights", choices=WEIGHT_TYPES, default=DEFAULT_WEIGHTS,
                    help=f"edge weights (default: {DEFAULT_WEIGHTS})")
     p.add_argument("--alpha", type=alpha_value, default=DEFAULT_ALPHA,

@@ -7,6 +7,7 @@ import argparse
 import os
 import sys
 import time
+from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -42,14 +43,24 @@ __all__ = ["add_parser", "run_deform"]
 def add_parser(commands: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     """Add ``arap deform`` and its options to the subcommands of ``arap``."""
     p = commands.add_parser("deform", help="deform a mesh with a constraints file",
-                            description="Deform MESH so the handles reach their targets and the fixed vertices stay.")
+                            description="Deform MESH so the handles reach their targets and the fixed vertices stay. "
+                                        "MESH is a surface, or a volume file (.mesh .msh .vtu .vtk .node/.ele) of "
+                                        "tetrahedra or of planar triangles.")
     p.add_argument("mesh", metavar="MESH")
+    p.add_argument("--solid", action="store_true",
+                   help="MESH is a closed surface: fill it with tetrahedra (fTetWild; pip install 'arap[solid]'), "
+                        "deform the solid and write the surface following it (or the solid, to a volume format); "
+                        "constraints by position, picked among the solid's vertices")
+    p.add_argument("--edge-length", type=float, default=0.05, metavar="SHARE",
+                   help="with --solid: target edge length of the tetrahedra, a share of the bounding-box diagonal "
+                        "(default: 0.05)")
     p.add_argument("-c", "--constraints", default=None, metavar="FILE.json",
                    help='JSON with "fixed", "handles", "targets" and optionally "roi" (file vertex indices); or give '
                         "the constraints by position with --fix, --handle, --move, --rotate and --roi")
     p.add_argument("-o", "--output", required=True, metavar="OUT",
                    help="output mesh file (.obj .off .ply .stl .glb .gltf; a textured input keeps its UVs and "
-                        "materials in its own format)")
+                        "materials in its own format), or a volume file (.mesh .msh .vtu .vtk .node .ele); a solid "
+                        "written to a surface format is its boundary surface")
     add_iteration_options(p)
     p.add_argument("--start", default="auto", metavar="{" + ",".join(START_NAMES) + "} or SHAPE",
                    help="starting pose: the rest pose, its best-fit rigid motion onto the targets, whichever has the "
@@ -59,7 +70,7 @@ def add_parser(commands: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     p.add_argument("--acceleration", choices=ACCELERATIONS, default="lbfgs",
                    help="L-BFGS preconditioned by the global step (Liu et al. 2017), Anderson acceleration (Peng et "
                         "al. 2018) or the plain iteration (default: lbfgs)")
-    add_energy_options(p)
+    add_energy_options(p, elements_default=True)
     p.add_argument("-q", "--quiet", action="store_true", help="print nothing but errors")
     add_selector_options(p)
     p.set_defaults(func=run_deform)
@@ -201,17 +212,102 @@ def _textured_input(mesh: str, output: str, quiet: bool, asset: Any = None) -> A
     return asset
 
 
+@dataclass(frozen=True)
+class _Elements:
+    """What ``arap deform`` solves on when it is not the input surface: a volume file's tetrahedra or triangles, or
+    the tetrahedra filling the input surface (``--solid``) with the surface's vertices embedded in them."""
+
+    V: np.ndarray  # (n, 3): a planar mesh read with two coordinates gets z = 0
+    T: np.ndarray  # (m, 4) tetrahedra or (m, 3) triangles
+    columns: int  # coordinates per vertex in the file
+    tets: np.ndarray | None = None  # --solid: the tetrahedron of each surface vertex
+    barycentric: np.ndarray | None = None  # --solid: its barycentric coordinates there
+
+    @property
+    def word(self) -> str:
+        return "tetrahedra" if self.T.shape[1] == 4 else "triangles"
+
+    def follow(self, U: np.ndarray) -> np.ndarray:
+        """``--solid``: the surface's vertices in the deformed solid ``U``."""
+        from arap.meshes.tetrahedralize import interpolate_points
+
+        assert self.tets is not None and self.barycentric is not None
+        return interpolate_points(U, self.T, self.tets, self.barycentric)
+
+    def planar(self) -> bool:
+        from arap.meshes.domain import PLANAR_TOLERANCE
+
+        spread = np.ptp(self.V, axis=0)
+        return self.T.shape[1] == 3 and bool(spread.min() <= PLANAR_TOLERANCE * max(float(np.linalg.norm(spread)),
+                                                                                   1e-300))
+
+
+def _read_volume(spec: str) -> _Elements:
+    """A volume file given as MESH (tetrahedra, or triangles: planar ones are deformed in their plane)."""
+    from arap.io.volume import load_volume_mesh
+
+    V, T = load_volume_mesh(spec)
+    columns = V.shape[1]
+    if columns == 2:
+        V = np.column_stack([V, np.zeros(len(V))])
+    return _Elements(V=V, T=T, columns=columns)
+
+
+def _fill(V: np.ndarray, F: np.ndarray, label: str, args: argparse.Namespace) -> _Elements:
+    """``--solid``: the tetrahedra filling the surface, with the surface's vertices embedded in them."""
+    from arap.meshes.tetrahedralize import embed_points, tetrahedralize
+
+    t0 = time.perf_counter()
+    V_tet, T = tetrahedralize(V, F, edge_length=args.edge_length)
+    tets, barycentric = embed_points(V_tet, T, V)
+    if not args.quiet:
+        err(f"arap: filled {label} with {len(T):,} tetrahedra ({len(V_tet):,} vertices) in "
+            f"{time.perf_counter() - t0:.1f} s; its {len(V):,} vertices follow the solid")
+    return _Elements(V=V_tet, T=T, columns=3, tets=tets, barycentric=barycentric)
+
+
+def _check_output_type(output: str) -> bool:
+    """Whether the output is a volume file; refuses a type that is neither a volume nor a surface format."""
+    from arap.io import format_of
+    from arap.io.volume import is_volume_file
+
+    if is_volume_file(output):
+        return True
+    format_of(output)
+    return False
+
+
+def _write_elements(output: str, elements: _Elements, U: np.ndarray, volume_out: bool) -> np.ndarray:
+    """Write the deformed volume mesh (tetrahedra or triangles) ``U``: as a volume file, or as its (boundary)
+    surface; the positions written."""
+    from arap.io import save_mesh
+    from arap.io.volume import boundary_surface, save_volume_mesh
+
+    if volume_out:
+        out = U[:, :elements.columns] if elements.columns == 2 else U
+        save_volume_mesh(output, out, elements.T)
+        return out
+    if elements.T.shape[1] == 4:
+        surface, faces, _ = boundary_surface(U, elements.T)
+        save_mesh(output, surface, faces)
+        return surface
+    save_mesh(output, U, elements.T)
+    return U
+
+
 def run_deform(args: argparse.Namespace) -> int:
     """``arap deform``: solve the constraints file's problem on the mesh and write the result; the exit status."""
     from arap.constraints import load_constraints
     from arap.io import format_of, save_mesh
     from arap.io.assets import save_asset
     from arap.io.paths import write_destination
+    from arap.io.volume import is_volume_file, save_volume_mesh
+    from arap.options import DEFAULT_ELEMENT_ENERGY, DEFAULT_ENERGY
     from arap.solve.solver import ArapSolver
 
     # Fail before any work on an unsupported output type, a missing folder (or a file where a folder should be), or
     # an output that is not a regular file (a folder, a FIFO, a device, or a symbolic link to one).
-    format_of(args.output)
+    volume_out = _check_output_type(args.output)
     try:
         destination = write_destination(args.output)
     except OSError as exc:
@@ -220,10 +316,27 @@ def run_deform(args: argparse.Namespace) -> int:
     if not os.access(folder, os.W_OK):
         raise MeshFormatError(f"cannot write {args.output}: the folder {folder} is not writable")
     check_iterations_and_tolerance(args.iterations, args.tolerance)
-    V, F, repair, label, read_asset = _read_input(args.mesh)
-    asset = _textured_input(args.mesh, args.output, args.quiet, read_asset)
+    if args.solid and args.constraints is not None:
+        raise ConstraintError("with --solid give the constraints by position (--fix, --handle ...): they pick the "
+                              "solid's vertices, which a constraints file cannot name")
+    elements: _Elements | None = None
+    asset = None
+    if not args.solid and is_volume_file(args.mesh):
+        elements = _read_volume(args.mesh)
+        V, F, label = elements.V, elements.T, args.mesh
+        repair = RepairResult.identity(V)
+    else:
+        V, F, repair, label, read_asset = _read_input(args.mesh)
+        if not (args.solid and volume_out):
+            asset = _textured_input(args.mesh, args.output, args.quiet, read_asset)
+        if args.solid:
+            elements = _fill(V, F, label, args)
+    solve_V, solve_F = (V, F) if elements is None else (elements.V, elements.T)
+    if args.energy is None:
+        args.energy = DEFAULT_ENERGY if elements is None or not (elements.T.shape[1] == 4 or elements.planar()) \
+            else DEFAULT_ELEMENT_ENERGY
     n_file = len(repair.vertex_map)
-    picked = selector_constraints(args, V)  # by position, on the loaded mesh: in its numbering already
+    picked = selector_constraints(args, solve_V)  # by position, on the loaded mesh: in its numbering already
     if (picked is None) == (args.constraints is None):
         raise ConstraintError("give the constraints either as a file (-c FILE.json) or by position (--fix, --handle "
                               "...), not both" if picked is not None else "give the constraints as a file "
@@ -239,21 +352,27 @@ def run_deform(args: argparse.Namespace) -> int:
         constraints = constraints.remapped(repair.vertex_map)
         if not args.quiet:
             err("arap: vertex indices changed by the repair; constraints were renumbered to match")
-    indices, targets = constraints.indices_and_targets(V)
+    indices, targets = constraints.indices_and_targets(solve_V)
+    if elements is not None and args.start not in START_NAMES:
+        raise ArapError(f"--start takes {', '.join(START_NAMES)} for solids and volume files; a start shape file is "
+                        "for surfaces")
     start = args.start if args.start in START_NAMES else _start_shape(args.start, repair, F, label)
 
     warm_up_kernels(args.quiet)
     try:
-        solver = ArapSolver(V, F, indices, energy=args.energy, weights=args.weights, roi=constraints.roi,
+        solver = ArapSolver(solve_V, solve_F, indices, energy=args.energy, weights=args.weights, roi=constraints.roi,
                             stiffness=constraints.stiffness, alpha=args.alpha, points=constraints.points)
     except UnconstrainedRegionError as exc:
-        if not renumbered:
+        if not renumbered or elements is not None:
             raise
         raise _in_file_numbering(exc, repair) from None
     if not args.quiet:
-        err(f"arap: {label}: {len(V):,} vertices, {len(F):,} faces; {len(constraints.fixed):,} fixed, "
+        counts = f"{len(V):,} vertices, {len(F):,} faces" if elements is None else \
+            f"{len(solve_V):,} vertices, {len(solve_F):,} {elements.word}"
+        err(f"arap: {label}: {counts}; {len(constraints.fixed):,} fixed, "
              f"{len(constraints.handles):,} handles; precompute {1e3 * solver.factor_seconds:.0f} ms")
-        _note_flat_faces(V, F, args.energy, args.weights)
+        if elements is None:
+            _note_flat_faces(V, F, args.energy, args.weights)
     if solver.n_free == 0:  # even with -q: the result is the constraints alone, which is rarely what was meant
         where = "of the region of interest " if constraints.roi is not None else ""
         err(f"arap: warning: no vertex {where}is free to move (every one is fixed or a handle): the handles jump to "
@@ -283,16 +402,23 @@ def run_deform(args: argparse.Namespace) -> int:
         seconds = time.perf_counter() - t0
         if not np.isfinite(result.vertices).all():
             raise ArapError("the solve produced non-finite positions; nothing was written")
-        U_out, F_out = result.vertices, F
-        # The output keeps the file's vertex order and count, as its constraints do (an STL has no vertex identity:
-        # its welded vertices are the mesh).
-        back = repair.in_input_order(result.vertices) if renumbered and format_of(args.mesh) != "stl" else None
-        if back is not None:
-            U_out, F_out = back
-        if asset is not None and len(U_out) == len(asset.vertices):
-            save_asset(args.output, asset, U_out)
+        back = None
+        if elements is not None and (volume_out or elements.tets is None):  # the volume mesh, or its surface
+            U_out = _write_elements(args.output, elements, result.vertices, volume_out)
         else:
-            save_mesh(args.output, U_out, F_out)
+            U_surface = result.vertices if elements is None else elements.follow(result.vertices)
+            U_out, F_out = U_surface, F
+            # The output keeps the file's vertex order and count, as its constraints do (an STL has no vertex
+            # identity: its welded vertices are the mesh).
+            back = repair.in_input_order(U_surface) if renumbered and format_of(args.mesh) != "stl" else None
+            if back is not None:
+                U_out, F_out = back
+            if asset is not None and len(U_out) == len(asset.vertices):
+                save_asset(args.output, asset, U_out)
+            elif volume_out:
+                save_volume_mesh(args.output, U_out, F_out)
+            else:
+                save_mesh(args.output, U_out, F_out)
     # The solve was cut short only when Ctrl-C stopped it before it converged or ran its last iteration: a Ctrl-C
     # during the last iteration, after it, or while the output was written leaves the complete result written.
     cap = args.iterations if args.iterations is not None else arap.options.MAX_ITERATIONS
@@ -331,7 +457,7 @@ def _report(args: argparse.Namespace, result: ArapResult, seconds: float, label:
                      "negative terms on obtuse triangles (see 'Energy and weights' in docs/solver.md); "
                      "spokes_and_rims is never negative")
         in_file_order = (f" in the vertex order of {label} ({len(U_out):,} vertices)"
-                         if back is not None and format_of(args.output) != "stl" else "")  # an STL has no vertices
+                         if back is not None and Path(args.output).suffix.lower() != ".stl" else "")  # no STL vertices
         err(f"arap: wrote {args.output}{in_file_order}")
         if back is None and renumbered and format_of(args.mesh) != "stl" and repair.input_V is not None:
             nan = int(np.argmax(~np.isfinite(repair.input_V).all(axis=1)))

@@ -16,7 +16,7 @@ from arap.errors import ArapError, MeshError
 if TYPE_CHECKING:
     from arap.meshes.diagnose import MeshInfo
 
-__all__ = ["add_parser", "info_report", "run_info"]
+__all__ = ["add_parser", "info_report", "run_info", "volume_report"]
 
 
 def add_parser(commands: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -70,6 +70,61 @@ def info_report(V: np.ndarray, F: np.ndarray, label: str) -> tuple[MeshInfo, dic
     return info, report
 
 
+def volume_report(V: np.ndarray, T: np.ndarray, label: str) -> dict[str, Any]:
+    """What ``arap info`` reports on a volume file: counts, boundary faces, element measures, and whether the solver
+    takes it (tetrahedra, or planar triangles, with ``energy="elements"``)."""
+    from arap.io.volume import boundary_faces
+    from arap.meshes.domain import check_domain, signed_measures
+
+    report: dict[str, Any] = {"mesh": label, "n_vertices": len(V), "dimension": int(V.shape[1])}
+    if T.shape[1] == 4:
+        report["n_tetrahedra"] = len(T)
+        in_range = bool(len(T)) and int(T.min()) >= 0 and int(T.max()) < len(V)
+        report["n_boundary_faces"] = len(boundary_faces(T)) if in_range else None
+        volumes = signed_measures(V, T) / 6.0 if in_range else np.zeros(0)
+        report.update(min_volume=float(volumes.min()) if len(volumes) else None,
+                      max_volume=float(volumes.max()) if len(volumes) else None,
+                      total_volume=float(np.abs(volumes).sum()))
+    else:
+        report["n_triangles"] = len(T)
+    try:
+        domain = check_domain(V, T, elements=True)
+        report["kind"], report["ready"], report["not_ready_reason"] = domain.kind, True, None
+    except MeshError as exc:
+        report["kind"], report["ready"], report["not_ready_reason"] = None, False, str(exc)
+    return report
+
+
+def _run_volume_info(args: argparse.Namespace) -> int:
+    """``arap info`` on a volume file: counts and measures (text or JSON)."""
+    from arap.io.volume import load_volume_mesh
+
+    if args.png is not None or args.constraints is not None:
+        raise ArapError("--png and -c draw surfaces; for a volume file write its boundary surface first (arap "
+                        "deform ... -o surface.obj)")
+    V, T = load_volume_mesh(args.mesh)
+    report = volume_report(V, T, args.mesh)
+    if args.json:
+        out(json.dumps(report, indent=2))
+        return 0
+    out(args.mesh)
+    out(f"  {report['n_vertices']:,} vertices ({report['dimension']}-d)")
+    if T.shape[1] == 4:
+        out(f"  {report['n_tetrahedra']:,} tetrahedra, {report['n_boundary_faces'] or 0:,} boundary faces")
+        if report["min_volume"] is not None:
+            out(f"  tetrahedron volume: min {report['min_volume']:.6g}, max {report['max_volume']:.6g} "
+                f"(total {report['total_volume']:.6g})")
+    else:
+        out(f"  {report['n_triangles']:,} triangles")
+    if report["ready"]:
+        what = {"solid": "a solid", "planar": "a planar mesh, deformed in its plane",
+                "surface": "a surface in space"}[report["kind"]]
+        out(f"  ready for ARAP: yes ({what}, energy elements)")
+    else:
+        out(f"  ready for ARAP: no ({report['not_ready_reason']})")
+    return 0
+
+
 def _check_destination(path: str) -> None:
     """Refuse a PNG destination that cannot be written (a folder, a FIFO, a missing folder) before any work."""
     import os
@@ -97,6 +152,10 @@ def _picture(args: argparse.Namespace, V: np.ndarray, F: np.ndarray) -> Any:
 
 def run_info(args: argparse.Namespace) -> int:
     """``arap info``: print the description of the mesh (text or JSON); the exit status."""
+    from arap.io.volume import is_volume_file
+
+    if is_volume_file(args.mesh):
+        return _run_volume_info(args)
     if args.png is None and args.constraints is not None:
         raise ArapError("-c/--constraints marks the constraints in the picture: give --png OUT.png too")
     if args.png is not None:

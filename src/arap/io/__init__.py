@@ -1,5 +1,6 @@
 """Mesh files: OBJ, OFF, PLY, STL, GLB and glTF from paths or bytes, in file vertex order; textured models (their
-UVs, normals, colours, materials, textures and scenes kept) through :mod:`arap.io.assets`."""
+UVs, normals, colours, materials, textures and scenes kept) through :mod:`arap.io.assets`; tetrahedral and planar
+meshes in Medit, gmsh, VTK and TetGen files through :mod:`arap.io.volume`."""
 
 from arap.io.assets import (
     ASSET_FORMATS,
@@ -18,12 +19,22 @@ from arap.io.meshfile import (
     load_mesh_bytes_with_report,
     load_mesh_with_report,
 )
+from arap.io.volume import (
+    VOLUME_FORMATS,
+    boundary_faces,
+    boundary_surface,
+    load_volume_mesh,
+    save_volume_mesh,
+)
 
 __all__ = [
     "ASSET_FORMATS",
     "MESH_FORMATS",
+    "VOLUME_FORMATS",
     "MeshAsset",
     "SolveMesh",
+    "boundary_faces",
+    "boundary_surface",
     "format_of",
     "load_asset",
     "load_asset_bytes",
@@ -31,7 +42,9 @@ __all__ = [
     "load_mesh_bytes",
     "load_mesh_bytes_with_report",
     "load_mesh_with_report",
+    "load_volume_mesh",
     "save_asset",
     "save_mesh",
     "save_mesh_bytes",
+    "save_volume_mesh",
 ]

@@ -69,8 +69,11 @@ def format_of(name: str | os.PathLike[str]) -> str:
     base = text.replace("\\", "/").rsplit("/", 1)[-1]
     ext = base.rsplit(".", 1)[-1].lower()
     if ext not in MESH_FORMATS:
+        from arap.io.volume import VOLUME_FORMATS
+
+        volume = " (a volume mesh: read it with arap.load_volume_mesh)" if ext in VOLUME_FORMATS else ""
         raise MeshFormatError(
-            f"unsupported mesh format {ext!r} (from {text!r}); supported: {', '.join(MESH_FORMATS)}"
+            f"unsupported mesh format {ext!r} (from {text!r}){volume}; supported: {', '.join(MESH_FORMATS)}"
         )
     return ext
 
