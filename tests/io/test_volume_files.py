@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import importlib.util
+import json
 import os
 from pathlib import Path
 
@@ -25,9 +26,13 @@ def _needs_meshio(ext: str) -> None:
         pytest.importorskip("meshio")
 
 
+def _has(module: str) -> bool:
+    return importlib.util.find_spec(module) is not None
+
+
 def _needs_pytetwild() -> None:
     """pytetwild's package imports PyVista, which arap does not need: look for it without importing it."""
-    if importlib.util.find_spec("pytetwild") is None:
+    if not _has("pytetwild"):
         pytest.skip("pytetwild is not installed (pip install 'arap[solid]')")
 
 
@@ -247,13 +252,19 @@ def test_the_boundary_surface_leaves_interior_vertices_out() -> None:
 
 # ---------------------------------------------------------------------------------------------- tetrahedralize
 @pytest.fixture(scope="module")
-def sphere_solid() -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+def sphere_solid(tmp_path_factory: pytest.TempPathFactory) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     _needs_pytetwild()
     import trimesh
 
     m = trimesh.creation.icosphere(1)
     V, F = np.asarray(m.vertices), np.asarray(m.faces, dtype=np.int64)
-    V_tet, T = arap.tetrahedralize(V, F, edge_length=0.2)
+    here, folder = os.getcwd(), tmp_path_factory.mktemp("cwd")
+    os.chdir(folder)
+    try:
+        V_tet, T = arap.tetrahedralize(V, F, edge_length=0.2)
+    finally:
+        os.chdir(here)
+    assert os.listdir(folder) == []  # fTetWild's own file stays in its temporary folder
     return V, F, V_tet, T
 
 
@@ -383,8 +394,32 @@ def test_info_on_a_volume_file_prints_counts_and_volumes(tmp_path: Path, capsys:
     assert "27 vertices" in text and "48 tetrahedra, 48 boundary faces" in text
     assert "min 0.166667, max 0.166667" in text and "ready for ARAP: yes (a solid" in text
     assert main(["info", "--json", str(tmp_path / "box.node")]) == 0
-    import json
-
     report = json.loads(capsys.readouterr().out)
     assert report["n_tetrahedra"] == 48 and report["n_boundary_faces"] == 48 and report["kind"] == "solid"
     assert report["min_volume"] == pytest.approx(1 / 6) and report["total_volume"] == pytest.approx(8.0)
+
+
+def test_deform_a_solid_with_a_constraints_file_and_refuse_surface_energies(tmp_path: Path,
+                                                                            capsys: pytest.CaptureFixture[str]) -> None:
+    V, T = tet_box(1, 4, 1)
+    save_volume_mesh(tmp_path / "bar.node", V, T)
+    fixed, handles = np.flatnonzero(V[:, 1] == 0), np.flatnonzero(V[:, 1] == 4)
+    (tmp_path / "c.json").write_text(json.dumps({"fixed": fixed.tolist(), "handles": handles.tolist(),
+                                                 "targets": (V[handles] + [0.5, 0, 0]).tolist()}))
+    code = main(["deform", str(tmp_path / "bar.ele"), "-c", str(tmp_path / "c.json"), "-o", str(tmp_path / "o.node"),
+                 "-q"])
+    assert code == 0, capsys.readouterr().err
+    U, S = load_volume_mesh(tmp_path / "o.node")
+    assert np.array_equal(S, T)
+    np.testing.assert_allclose(U[handles], V[handles] + [0.5, 0, 0], atol=1e-9)
+    np.testing.assert_allclose(U[fixed], V[fixed], atol=1e-9)
+    code = main(["deform", str(tmp_path / "bar.ele"), "-c", str(tmp_path / "c.json"), "--energy", "spokes", "-o",
+                 str(tmp_path / "spokes.node")])
+    err = capsys.readouterr().err
+    assert code == 1 and err.count("\n") == 1 and "tetrahedra take energy='elements'" in err
+    assert not (tmp_path / "spokes.node").exists()
+
+
+def test_load_mesh_points_volume_files_to_load_volume_mesh(tmp_path: Path) -> None:
+    with pytest.raises(MeshFormatError, match=r"a volume mesh: read it with arap\.load_volume_mesh"):
+        arap.load_mesh(tmp_path / "bar.msh")

@@ -3,8 +3,11 @@
 :func:`tetrahedralize` calls fTetWild (Hu et al. 2020, "Fast Tetrahedral Meshing in the Wild") through its Python
 bindings, `pytetwild <https://github.com/pyvista/pytetwild>`_ (``pip install 'arap[solid]'``), imported only when it
 is called. fTetWild remeshes: the solid's boundary follows the surface within ``epsilon`` but does not keep its
-vertices. :func:`embed_points` places any points (the surface's vertices) in the solid's tetrahedra by their
-barycentric coordinates, and :func:`interpolate_points` carries them along with a deformation of the solid, a linear
+vertices. fTetWild runs in a process of its own, in a temporary folder: it writes a file of its own in its working
+folder (``__tracked_surface.stl``), and a crash in it cannot take the caller down.
+
+:func:`embed_points` places any points (the surface's vertices) in the solid's tetrahedra by their barycentric
+coordinates, and :func:`interpolate_points` carries them along with a deformation of the solid, a linear
 interpolation that gives the points back exactly at rest.
 """
 
@@ -13,6 +16,10 @@ from __future__ import annotations
 import importlib.machinery
 import importlib.util
 import logging
+import os
+import subprocess
+import sys
+import tempfile
 import time
 from pathlib import Path
 from typing import Any
@@ -29,6 +36,12 @@ __all__ = ["embed_points", "interpolate_points", "tetrahedralize"]
 logger = logging.getLogger(__name__)
 
 _HINT = "pip install 'arap[solid]'"
+
+
+def _check_tetwild() -> None:
+    """Refuse at once when pytetwild is not installed (before a process is started for it)."""
+    if importlib.util.find_spec("pytetwild") is None:
+        raise ArapError(f"tetrahedralize needs fTetWild's Python bindings, pytetwild: {_HINT}")
 
 
 def _tetwild() -> Any:
@@ -120,14 +133,9 @@ def tetrahedralize(V: ArrayLike, F: ArrayLike, *, edge_length: float = 0.05, eps
     if open_edges or non_manifold:
         raise MeshError(f"tetrahedralize fills a closed surface; this one has {open_edges:,} boundary edges and "
                         f"{non_manifold:,} non-manifold edges (close its holes first)")
-    module = _tetwild()
+    _check_tetwild()
     t0 = time.perf_counter()
-    V_tet, T = module.tetrahedralize_mesh(
-        np.ascontiguousarray(V, dtype=np.float64), np.ascontiguousarray(F, dtype=np.uint32),
-        bool(optimize), False, float(edge_length), 0.0, float(epsilon), 10.0, False, int(threads), 80, 6, True,
-        False, False, np.empty((0, 3)), np.empty((0, 4), dtype=np.int32), np.empty(0))
-    V_tet = np.ascontiguousarray(V_tet, dtype=np.float64)
-    T = np.ascontiguousarray(T, dtype=np.int64)
+    V_tet, T = _run_tetwild(V, F, np.array([edge_length, epsilon, float(bool(optimize)), threads], dtype=np.float64))
     logger.info("tetrahedralize: %d vertices, %d tetrahedra in %.2f s", len(V_tet), len(T),
                 time.perf_counter() - t0)
     if T.ndim != 2 or T.shape[1] != 4 or not len(T):
@@ -147,6 +155,39 @@ def tetrahedralize(V: ArrayLike, F: ArrayLike, *, edge_length: float = 0.05, eps
         raise MeshError(f"fTetWild returned {int(bad.sum()):,} inverted or flat tetrahedra of {len(T):,} (first: "
                         f"{int(np.argmax(bad))}); try another edge_length or optimize=True")
     return V_tet, np.ascontiguousarray(T)
+
+
+def _run_tetwild(V: NDArray[np.float64], F: NDArray[np.int64], options: NDArray[np.float64]) -> tuple[
+        NDArray[np.float64], NDArray[np.int64]]:
+    """fTetWild's tetrahedra, computed in a child process working in a temporary folder."""
+    import arap
+
+    package_root = str(Path(arap.__file__).resolve().parents[1])
+    env = dict(os.environ)
+    env["PYTHONPATH"] = os.pathsep.join([package_root, *filter(None, [env.get("PYTHONPATH")])])
+    with tempfile.TemporaryDirectory(prefix="arap-tetwild-") as folder:
+        np.savez(Path(folder) / "surface.npz", V=V, F=F, options=options)
+        run = subprocess.run([sys.executable, "-c", "from arap.meshes.tetrahedralize import _child; _child()"],
+                             cwd=folder, env=env, capture_output=True, text=True, check=False)
+        result = Path(folder) / "solid.npz"
+        if run.returncode != 0 or not result.exists():
+            said = [line for line in (run.stderr or "").splitlines() if line.strip()]
+            raise MeshError(f"fTetWild failed on this surface (exit status {run.returncode}"
+                            f"{': ' + said[-1].strip() if said else ''})")
+        with np.load(result) as data:
+            return np.ascontiguousarray(data["V"], dtype=np.float64), np.ascontiguousarray(data["T"], dtype=np.int64)
+
+
+def _child() -> None:
+    """The child process of :func:`_run_tetwild`: reads ``surface.npz`` in its working folder, writes ``solid.npz``."""
+    with np.load("surface.npz") as data:
+        V, F, options = data["V"], data["F"], data["options"]
+    edge_length, epsilon, optimize, threads = options.tolist()
+    V_tet, T = _tetwild().tetrahedralize_mesh(
+        np.ascontiguousarray(V, dtype=np.float64), np.ascontiguousarray(F, dtype=np.uint32),
+        bool(optimize), False, float(edge_length), 0.0, float(epsilon), 10.0, False, int(threads), 80, 6, True,
+        False, False, np.empty((0, 3)), np.empty((0, 4), dtype=np.int32), np.empty(0))
+    np.savez("solid.npz", V=np.asarray(V_tet, dtype=np.float64), T=np.asarray(T, dtype=np.int64))
 
 
 def _barycentric(V: NDArray[np.float64], T: NDArray[np.int64], tets: NDArray[np.int64],
