@@ -423,3 +423,28 @@ def test_deform_a_solid_with_a_constraints_file_and_refuse_surface_energies(tmp_
 def test_load_mesh_points_volume_files_to_load_volume_mesh(tmp_path: Path) -> None:
     with pytest.raises(MeshFormatError, match=r"a volume mesh: read it with arap\.load_volume_mesh"):
         arap.load_mesh(tmp_path / "bar.msh")
+
+
+def test_missing_optional_packages_are_named_with_the_extra(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    import arap.io.volume as volume
+    import arap.meshes.tetrahedralize as tetrahedralize
+
+    real_import, real_find = importlib.import_module, importlib.util.find_spec
+
+    def no_meshio(name: str, package: str | None = None) -> object:
+        if name == "meshio":
+            raise ImportError("No module named 'meshio'", name="meshio")
+        return real_import(name, package)
+
+    def no_pytetwild(name: str, package: str | None = None) -> object:
+        return None if name == "pytetwild" else real_find(name, package)
+
+    monkeypatch.setattr(volume.importlib, "import_module", no_meshio)
+    V, T = tet_box()
+    with pytest.raises(MeshFormatError, match=r"through meshio, which is not installed: pip install 'arap\[solid\]'"):
+        save_volume_mesh(tmp_path / "box.vtu", V, T)
+    assert os.listdir(tmp_path) == []
+    monkeypatch.setattr(tetrahedralize.importlib.util, "find_spec", no_pytetwild)
+    surface, F, _ = boundary_surface(V, T)
+    with pytest.raises(arap.ArapError, match=r"pytetwild: pip install 'arap\[solid\]'"):
+        arap.tetrahedralize(surface, F)
