@@ -58,7 +58,7 @@ _LAZY: dict[str, str] = {
     "VOLUME_FORMATS": "arap.io",
     "load_volume_mesh": "arap.io",
     "save_volume_mesh": "arap.io",
-    "boundary_faces": "arap.io",
+    "boundary_faces": "arap.meshes.domain",
     "boundary_surface": "arap.io",
     "tetrahedralize": "arap.meshes.tetrahedralize",
     "embed_points": "arap.meshes.tetrahedralize",
@@ -163,7 +163,6 @@ if TYPE_CHECKING:
         MESH_FORMATS,
         VOLUME_FORMATS,
         MeshAsset,
-        boundary_faces,
         boundary_surface,
         load_asset,
         load_mesh,
@@ -177,7 +176,7 @@ if TYPE_CHECKING:
     )
     from arap.jupyter_widget import StudioWidget, widget
     from arap.meshes.diagnose import MeshInfo, inspect_mesh
-    from arap.meshes.domain import check_domain
+    from arap.meshes.domain import boundary_faces, check_domain
     from arap.meshes.grids import box_tetrahedra, rectangle_triangles
     from arap.meshes.mesh import MeshLike, check_mesh, mesh_arrays
     from arap.meshes.repair import RepairResult, repair_mesh

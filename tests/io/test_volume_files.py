@@ -16,7 +16,7 @@ from arap.cli import main
 from arap.errors import MeshError, MeshFormatError, MeshTooLargeError
 from arap.io.volume import boundary_faces, boundary_surface, load_volume_mesh, save_volume_mesh
 from arap.meshes.domain import signed_measures
-from tests.solid_meshes import tet_box
+from arap.meshes.grids import box_tetrahedra
 
 MESHIO_FORMATS = ["mesh", "msh", "vtu", "vtk"]
 
@@ -40,7 +40,7 @@ def _needs_pytetwild() -> None:
 @pytest.mark.parametrize("ext", [*MESHIO_FORMATS, "node", "ele"])
 def test_a_tetrahedral_mesh_round_trips_exactly(tmp_path: Path, ext: str) -> None:
     _needs_meshio(ext)
-    V, T = tet_box(2, 3, 2, size=(1.0, 5.0, 1.0))
+    V, T = box_tetrahedra(2, 3, 2, size=(1.0, 5.0, 1.0))
     V = V + np.random.default_rng(1).normal(scale=1e-3, size=V.shape)  # digits that a short format would lose
     save_volume_mesh(tmp_path / f"bar.{ext}", V, T)
     W, S = load_volume_mesh(tmp_path / f"bar.{ext}")
@@ -158,7 +158,7 @@ def test_a_volume_file_that_is_a_fifo_or_a_folder_is_refused_before_it_is_opened
 # ---------------------------------------------------------------------------------------------- meshio formats
 def test_gmsh_boundary_triangles_are_left_aside_and_other_cells_refused(tmp_path: Path) -> None:
     meshio = pytest.importorskip("meshio")
-    V, T = tet_box(1, 2, 1)
+    V, T = box_tetrahedra(1, 2, 1)
     F = boundary_faces(T)
     meshio.write(tmp_path / "with_faces.msh", meshio.Mesh(V, [("triangle", F), ("tetra", T), ("line", F[:, :2])]),
                  file_format="gmsh22", binary=False)
@@ -166,7 +166,7 @@ def test_gmsh_boundary_triangles_are_left_aside_and_other_cells_refused(tmp_path
     np.testing.assert_array_equal(W, V)
     np.testing.assert_array_equal(S, T)
     hexahedron = np.arange(8)[None, [0, 1, 3, 2, 4, 5, 7, 6]]
-    meshio.write(tmp_path / "hex.vtu", meshio.Mesh(tet_box()[0], [("hexahedron", hexahedron)]))
+    meshio.write(tmp_path / "hex.vtu", meshio.Mesh(box_tetrahedra(1, 1, 1)[0], [("hexahedron", hexahedron)]))
     with pytest.raises(MeshFormatError, match=r"holds hexahedron cells; ARAP takes linear tetrahedra"):
         load_volume_mesh(tmp_path / "hex.vtu")
     (tmp_path / "junk.msh").write_text("$MeshFormat\nnot a mesh\n")
@@ -186,7 +186,7 @@ def test_a_planar_gmsh_mesh_is_read_as_stored(tmp_path: Path) -> None:
 
 # ---------------------------------------------------------------------------------------------- writing errors
 def test_nothing_is_written_for_unusable_arrays_or_destinations(tmp_path: Path) -> None:
-    V, T = tet_box()
+    V, T = box_tetrahedra(1, 1, 1)
     bad = V.copy()
     bad[3, 1] = np.nan
     with pytest.raises(MeshError, match="NaN"):
@@ -206,7 +206,7 @@ def test_nothing_is_written_for_unusable_arrays_or_destinations(tmp_path: Path) 
 
 
 def test_a_failed_write_leaves_the_earlier_file(tmp_path: Path) -> None:
-    V, T = tet_box()
+    V, T = box_tetrahedra(1, 1, 1)
     save_volume_mesh(tmp_path / "keep.node", V, T)
     before = (tmp_path / "keep.node").read_bytes()
     with pytest.raises(MeshError):
@@ -223,7 +223,7 @@ def _outward(V: np.ndarray, F: np.ndarray) -> np.ndarray:
 
 
 def test_the_boundary_of_a_cube_of_six_tetrahedra_is_twelve_outward_triangles() -> None:
-    V, T = tet_box()
+    V, T = box_tetrahedra(1, 1, 1)
     assert len(T) == 6 and (signed_measures(V, T) > 0).all()
     F = boundary_faces(T)
     assert F.shape == (12, 3)
@@ -241,7 +241,7 @@ def test_the_boundary_of_a_cube_of_six_tetrahedra_is_twelve_outward_triangles() 
 
 
 def test_the_boundary_surface_leaves_interior_vertices_out() -> None:
-    V, T = tet_box(3, 3, 3)
+    V, T = box_tetrahedra(3, 3, 3)
     surface, F, kept = boundary_surface(V, T)
     interior = np.all((V > 0) & (V < 3), axis=1)
     assert kept.tolist() == np.flatnonzero(~interior).tolist()
@@ -296,7 +296,7 @@ def test_the_surface_embedded_in_its_solid_is_reproduced_exactly_at_rest(
 
 
 def test_embedding_points_inside_gives_containing_tetrahedra() -> None:
-    V, T = tet_box(2, 2, 2)
+    V, T = box_tetrahedra(2, 2, 2)
     P = np.random.default_rng(3).uniform(0.01, 1.99, size=(200, 3))
     tets, bary = arap.embed_points(V, T, P)
     assert bary.min() >= -1e-12
@@ -312,7 +312,7 @@ def test_tetrahedralize_refuses_an_open_surface() -> None:
 # ---------------------------------------------------------------------------------------------- command line
 def test_deform_a_tetrahedral_bar_by_position(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     pytest.importorskip("meshio")
-    V, T = tet_box(2, 10, 2, size=(1.0, 5.0, 1.0))
+    V, T = box_tetrahedra(2, 10, 2, size=(1.0, 5.0, 1.0))
     save_volume_mesh(tmp_path / "bar.msh", V, T)
     out = tmp_path / "out.vtu"
     code = main(["deform", str(tmp_path / "bar.msh"), "--fix", "y<0.05", "--handle", "y>0.95", "--rotate", "x:90",
@@ -387,7 +387,7 @@ def test_a_bad_volume_file_is_one_line_and_exit_1(tmp_path: Path, capsys: pytest
 
 
 def test_info_on_a_volume_file_prints_counts_and_volumes(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    V, T = tet_box(2, 2, 2)
+    V, T = box_tetrahedra(2, 2, 2)
     save_volume_mesh(tmp_path / "box.ele", V, T)
     assert main(["info", str(tmp_path / "box.ele")]) == 0
     text = capsys.readouterr().out
@@ -401,7 +401,7 @@ def test_info_on_a_volume_file_prints_counts_and_volumes(tmp_path: Path, capsys:
 
 def test_deform_a_solid_with_a_constraints_file_and_refuse_surface_energies(tmp_path: Path,
                                                                             capsys: pytest.CaptureFixture[str]) -> None:
-    V, T = tet_box(1, 4, 1)
+    V, T = box_tetrahedra(1, 4, 1)
     save_volume_mesh(tmp_path / "bar.node", V, T)
     fixed, handles = np.flatnonzero(V[:, 1] == 0), np.flatnonzero(V[:, 1] == 4)
     (tmp_path / "c.json").write_text(json.dumps({"fixed": fixed.tolist(), "handles": handles.tolist(),
@@ -440,7 +440,7 @@ def test_missing_optional_packages_are_named_with_the_extra(tmp_path: Path, monk
         return None if name == "pytetwild" else real_find(name, package)
 
     monkeypatch.setattr(volume.importlib, "import_module", no_meshio)
-    V, T = tet_box()
+    V, T = box_tetrahedra(1, 1, 1)
     with pytest.raises(MeshFormatError, match=r"through meshio, which is not installed: pip install 'arap\[solid\]'"):
         save_volume_mesh(tmp_path / "box.vtu", V, T)
     assert os.listdir(tmp_path) == []

@@ -15,8 +15,9 @@ coordinate (``z = 0`` as gmsh and VTK store 2-d meshes), which the solver's ``en
 Other cells (hexahedra, wedges, pyramids, quadratic tetrahedra, quads) are refused: ARAP solids take linear
 tetrahedra.
 
-:func:`boundary_faces` gives the outward boundary triangles of a tetrahedral mesh and :func:`boundary_surface` that
-surface with its own vertices, so that a solid can be written as a surface (:func:`arap.save_mesh`).
+:func:`boundary_surface` gives the outward boundary triangles of a tetrahedral mesh
+(:func:`arap.meshes.domain.boundary_faces`) with their own vertices, so that a solid can be written as a surface
+(:func:`arap.save_mesh`).
 """
 
 from __future__ import annotations
@@ -36,7 +37,7 @@ from numpy.typing import NDArray
 from arap.errors import MeshError, MeshFormatError, MeshTooLargeError
 from arap.io.atomic import write_atomic
 from arap.io.paths import read_regular_file, write_destination
-from arap.meshes.domain import signed_measures, tetrahedron_faces
+from arap.meshes.domain import boundary_faces
 
 __all__ = [
     "SOLID_EXTRA_HINT",
@@ -481,49 +482,6 @@ def save_volume_mesh(path: str | os.PathLike[str], V: NDArray[np.floating], T: N
 
 
 # ---------------------------------------------------------------------------------------------- boundary
-def boundary_faces(T: NDArray[np.integer], V: NDArray[np.floating] | None = None) -> NDArray[np.int64]:
-    """The boundary triangles of a tetrahedral mesh (the faces that belong to one tetrahedron only), outward.
-
-    Parameters
-    ----------
-    T : (m, 4) int array
-        Tetrahedra, all oriented the same way round.
-    V : (n, 3) float array or None
-        Positions. Without them the tetrahedra are taken to be positively oriented (positive signed volume, as the
-        solver's checks and :func:`arap.tetrahedralize` give them); with them, negatively oriented meshes get their
-        faces turned outward too.
-
-    Returns
-    -------
-    (k, 3) int64 array
-        Triangles into the same vertex list, counter-clockwise seen from outside, in the order of their tetrahedra.
-
-    Example
-    -------
-    >>> boundary_faces(np.array([[0, 1, 2, 3]])).tolist()
-    [[1, 2, 3], [0, 3, 2], [0, 1, 3], [0, 2, 1]]
-    """
-    T = np.asarray(T)
-    if T.ndim != 2 or T.shape[1] != 4 or not np.issubdtype(T.dtype, np.integer):
-        raise MeshError(f"tetrahedra must be an integer array of shape (m, 4), got {T.shape} of {T.dtype}")
-    faces = tetrahedron_faces(T)
-    if not len(faces):
-        return faces
-    key = np.sort(faces, axis=1)
-    order = np.lexsort(key.T[::-1])
-    sorted_keys = key[order]
-    same = np.all(sorted_keys[1:] == sorted_keys[:-1], axis=1)
-    shared = np.zeros(len(faces), dtype=bool)
-    shared[order[1:][same]] = True
-    shared[order[:-1][same]] = True
-    out = faces[~shared]
-    if V is not None:
-        signed = signed_measures(np.asarray(V, dtype=np.float64), np.asarray(T, dtype=np.int64))
-        if (signed < 0).sum() * 2 > len(signed):
-            out = out[:, ::-1]
-    return np.ascontiguousarray(out)
-
-
 def boundary_surface(V: NDArray[np.floating], T: NDArray[np.integer]) -> tuple[
         NDArray[np.float64], NDArray[np.int64], NDArray[np.int64]]:
     """The boundary surface of a tetrahedral mesh with its own vertices: the boundary vertices only, in their order in
@@ -533,7 +491,7 @@ def boundary_surface(V: NDArray[np.floating], T: NDArray[np.integer]) -> tuple[
     -------
     V_surface : (k, 3) float64 array
     F : (f, 3) int64 array
-        Outward triangles (:func:`boundary_faces`) into ``V_surface``.
+        Outward triangles (:func:`arap.meshes.domain.boundary_faces`) into ``V_surface``.
     vertices : (k,) int64 array
         The index in ``V`` of every surface vertex (increasing): ``V_surface = V[vertices]``.
 
