@@ -421,7 +421,7 @@ def test_deform_a_solid_with_a_constraints_file_and_refuse_surface_energies(tmp_
 
 
 def test_load_mesh_points_volume_files_to_load_volume_mesh(tmp_path: Path) -> None:
-    with pytest.raises(MeshFormatError, match=r"a volume mesh: read it with arap\.load_volume_mesh"):
+    with pytest.raises(MeshFormatError, match=r"a volume mesh: arap\.load_volume_mesh reads it"):
         arap.load_mesh(tmp_path / "bar.msh")
 
 

@@ -71,7 +71,8 @@ def format_of(name: str | os.PathLike[str]) -> str:
     if ext not in MESH_FORMATS:
         from arap.io.volume import VOLUME_FORMATS
 
-        volume = " (a volume mesh: read it with arap.load_volume_mesh)" if ext in VOLUME_FORMATS else ""
+        volume = (" (a volume mesh: arap.load_volume_mesh reads it; arap deform and arap info take it)"
+                  if ext in VOLUME_FORMATS else "")
         raise MeshFormatError(
             f"unsupported mesh format {ext!r} (from {text!r}){volume}; supported: {', '.join(MESH_FORMATS)}"
         )
