@@ -25,6 +25,7 @@ __all__ = [
     "DEFAULT_TOLERANCE",
     "DEFAULT_WEIGHTS",
     "DEFAULT_WINDOW",
+    "ITERATION_LIMIT",
     "ENERGY_TYPES",
     "LOOSE_PARTS",
     "MAX_ALPHA",
@@ -126,6 +127,9 @@ START_NAMES: tuple[str, ...] = ("auto", "rest", "rigid")
 DEFAULT_TOLERANCE = 1e-10
 #: Hard cap on iterations when ``max_iterations`` is None.
 MAX_ITERATIONS = 10_000
+#: Largest ``max_iterations`` a solve takes: ten million iterations of a 40k-vertex scan take about a day, so a larger
+#: cap (with ``tolerance=0``, which runs them all) is a mistake that would never return, not a request.
+ITERATION_LIMIT = 10_000_000
 #: Default Anderson window (iterates used).
 DEFAULT_WINDOW = 5
 #: Default L-BFGS memory (curvature pairs kept): with 8 pairs it needed as few iterations as Anderson on the meshes
@@ -145,6 +149,9 @@ def check_solve_options(max_iterations: object, tolerance: object, acceleration:
     cap = _number(max_iterations)
     if not (max_iterations is None or (cap is not None and cap.is_integer() and cap >= 0)):
         raise OptionError(f"max_iterations must be a non-negative integer or None, got {max_iterations!r}")
+    if cap is not None and cap > ITERATION_LIMIT:
+        raise OptionError(f"max_iterations must be at most {ITERATION_LIMIT:,} (a solve that long would not return), "
+                          f"got {max_iterations!r}; None iterates until converged")
     tol = _number(tolerance)
     if not (tol is not None and tol >= 0):
         raise OptionError(f"tolerance must be a number >= 0, got {tolerance!r}")

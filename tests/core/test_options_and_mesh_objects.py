@@ -29,6 +29,8 @@ def box() -> trimesh.Trimesh:
         (lambda V, F: arap.ArapSolver(V, F, [0]).solve(V[[0]], acceleration="fast"), "unknown acceleration"),
         (lambda V, F: arap.ArapSolver(V, F, [0]).solve(V[[0]], window=0), "window"),
         (lambda V, F: arap.ArapSolver(V, F, [0]).solve(V[[0]], tolerance=-1.0), "tolerance"),
+        (lambda V, F: arap.ArapSolver(V, F, [0]).solve(V[[0]], tolerance=0, max_iterations=10**12),
+         "would not return"),
         (lambda V, F: arap.arap_energy(V, F, V, energy="rims"), "unknown energy"),
         (lambda V, F: arap.cell_energies(V, F, V, weights="mean"), "unknown weights"),
         (lambda V, F: factorize(arap.cotangent_laplacian(V, F), backend="mumps"), "unknown backend"),
