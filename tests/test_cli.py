@@ -825,3 +825,13 @@ def test_deform_reads_a_glb_once(tmp_path: Path, monkeypatch: pytest.MonkeyPatch
     monkeypatch.setattr(arap.io.assets, "read_gltf_asset", counting)
     assert main(["deform", str(mesh), "-c", str(cons), "-o", str(tmp_path / "out.glb"), "-q"]) == 0
     assert reads == [str(mesh)]
+
+
+@pytest.mark.parametrize("suffix", ["", "/"])
+def test_an_output_folder_is_named_as_one(tmp_path: Path, capsys: pytest.CaptureFixture[str], suffix: str) -> None:
+    code = main(["deform", "bar", "--fix", "y<0.1", "--handle", "y>4.9", "--move", "0.5,0,0",
+                 "-o", str(tmp_path) + suffix])
+    assert code == 1
+    err = capsys.readouterr().err
+    assert "is a folder: give the output file's name" in err and err.count("\n") == 1
+    assert list(tmp_path.iterdir()) == []
