@@ -833,5 +833,5 @@ def test_an_output_folder_is_named_as_one(tmp_path: Path, capsys: pytest.Capture
                  "-o", str(tmp_path) + suffix])
     assert code == 1
     err = capsys.readouterr().err
-    assert "is a folder: give the output file's name" in err and err.count("\n") == 1
+    assert "is a folder; give the output file's name" in err and err.count("\n") == 1
     assert list(tmp_path.iterdir()) == []

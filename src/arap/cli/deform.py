@@ -272,7 +272,7 @@ def _check_output_type(output: str) -> bool:
     from arap.io.volume import is_volume_file
 
     if output.endswith(("/", os.sep)) or os.path.isdir(output):
-        raise MeshFormatError(f"-o {output} is a folder: give the output file's name, such as "
+        raise MeshFormatError(f"cannot write {output}: it is a folder; give the output file's name, such as "
                               f"{os.path.join(output, 'deformed.obj')}")
 
     if is_volume_file(output):
