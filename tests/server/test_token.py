@@ -170,3 +170,26 @@ def test_cli_loopback_message_is_unchanged(monkeypatch: pytest.MonkeyPatch, caps
     assert capsys.readouterr().out.strip() == "ARAP Studio running at http://127.0.0.1:8000/  (Ctrl-C to stop)"
     assert main(["studio", "--token", "abc"]) == 0
     assert "http://127.0.0.1:8000/?token=abc" in capsys.readouterr().out
+
+
+def test_ten_wrong_tokens_shut_the_address_out_for_a_minute(tokened: TestClient,
+                                                            monkeypatch: pytest.MonkeyPatch) -> None:
+    import arap.server.guard as guard
+
+    now = [1000.0]
+    monkeypatch.setattr(guard.time, "monotonic", lambda: now[0])
+    for k in range(guard.WRONG_TOKENS):
+        assert "wrong token" in tokened.get("/", params={"token": f"guess-{k}"}).text
+    refused = tokened.get("/", params={"token": TOKEN})
+    assert refused.status_code == 403 and "too many wrong tokens" in refused.text
+    now[0] += guard.WRONG_TOKEN_WINDOW + 1
+    assert tokened.get("/", params={"token": TOKEN}).status_code == 200
+
+
+def test_a_short_token_on_a_network_is_warned_about(monkeypatch: pytest.MonkeyPatch,
+                                                    capsys: pytest.CaptureFixture[str]) -> None:
+    monkeypatch.setattr(arap.server, "serve", lambda *a, **k: None)
+    main(["studio", "bar", "--host", "0.0.0.0", "--port", "0", "--token", "abc"])
+    assert "a token of 3 characters is easy to guess" in capsys.readouterr().err
+    main(["studio", "bar", "--host", "0.0.0.0", "--port", "0", "--token", TOKEN])
+    assert "easy to guess" not in capsys.readouterr().err

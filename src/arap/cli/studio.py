@@ -17,6 +17,10 @@ STUDIO_EXTRA_HINT = "pip install 'arap[studio]'"
 """How to install the studio's server stack (starlette, uvicorn, websockets)."""
 
 
+SHORT_TOKEN = 16
+"""Tokens shorter than this are warned about when the studio serves a network."""
+
+
 def add_parser(commands: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     """Add ``arap studio`` and its options to the subcommands of ``arap``."""
     p = commands.add_parser("studio", help="start the browser modeler",
@@ -56,6 +60,10 @@ def run_studio(args: argparse.Namespace) -> int:
         return EXIT_USAGE
     from arap.server.guard import is_loopback_host
 
+    if args.token is not None and len(args.token) < SHORT_TOKEN and not is_loopback_host(args.host):
+        err(f"arap: warning: a token of {len(args.token)} characters is easy to guess on a network; leave --token out "
+            f"for a random one, or give at least {SHORT_TOKEN} characters (wrong tokens are refused for a minute "
+            "after ten from one address)")
     _warm_up_behind()  # the page is served at once; the kernels compile (first run) or load meanwhile
 
     def announce(url: str) -> None:

@@ -18,6 +18,8 @@ from __future__ import annotations
 import hmac
 import ipaddress
 import logging
+import time
+from collections import deque
 from collections.abc import Iterable
 from contextvars import ContextVar
 from urllib.parse import parse_qsl, urlsplit
@@ -35,6 +37,12 @@ WILDCARD_ADDRESSES = frozenset({"", "0.0.0.0", "::"})
 
 _DEFAULT_PORTS = {"http": 80, "https": 443, "ws": 80, "wss": 443}
 
+WRONG_TOKENS = 10
+"""Wrong tokens from one address within :data:`WRONG_TOKEN_WINDOW` seconds after which its requests are refused
+until the window has passed (guessing a token then takes forever)."""
+WRONG_TOKEN_WINDOW = 60.0
+MAX_TRACKED_ADDRESSES = 10_000
+"""Addresses whose wrong tokens are remembered at most."""
 TOKEN_PARAM = "token"
 """Query parameter carrying the studio's token (``http://host:port/?token=...``)."""
 
@@ -192,6 +200,7 @@ class RequestGuard:
         if token is not None and not token:
             raise ValueError("the token must not be empty")
         self.token = token
+        self._failures: dict[str, deque[float]] = {}
         self.origins = frozenset(normalize_origin(o) for o in allow_origins)
         _install_refusal_filter()
         names = set(LOOPBACK_NAMES) | {split_host(h)[0] for h in allowed_hosts}
@@ -252,9 +261,32 @@ class RequestGuard:
         token = presented_token(scope)
         if token is None:
             return "this studio needs its token: open the URL it printed when it started (with its ?token=...)"
+        client = scope.get("client")
+        address = str(client[0]) if client else ""
+        if self._locked_out(address):
+            return (f"too many wrong tokens from this address: wait {WRONG_TOKEN_WINDOW:.0f} seconds, then open the "
+                    "URL the studio printed when it started")
         if not token_matches(token, self.token):
+            self._wrong_token(address)
             return "wrong token: open the URL the studio printed when it started"
         return None
+
+    def _locked_out(self, address: str) -> bool:
+        """Whether ``address`` presented :data:`WRONG_TOKENS` wrong tokens within the last window."""
+        times = self._failures.get(address)
+        if not times:
+            return False
+        now = time.monotonic()
+        while times and now - times[0] > WRONG_TOKEN_WINDOW:
+            times.popleft()
+        if not times:
+            del self._failures[address]
+        return len(times) >= WRONG_TOKENS
+
+    def _wrong_token(self, address: str) -> None:
+        if len(self._failures) >= MAX_TRACKED_ADDRESSES and address not in self._failures:
+            self._failures.clear()  # a flood of addresses: start afresh rather than grow without bound
+        self._failures.setdefault(address, deque()).append(time.monotonic())
 
     @staticmethod
     def _public(scope: Scope) -> bool:
