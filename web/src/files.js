@@ -26,7 +26,7 @@ export function formatBytes(n) {
 export function checkMeshFile(file, maxBytes) {
   const ext = extensionOf(file.name);
   if (!MESH_EXTENSIONS.includes(ext)) {
-    return `"${file.name}" is not a supported mesh file (use ${MESH_EXTENSIONS.map((e) => e.toUpperCase()).join(', ')}).`;
+    return `"${file.name}" is neither a mesh file nor a picture the studio opens (use ${MESH_EXTENSIONS.map((e) => e.toUpperCase()).join(', ')}).`;
   }
   if (maxBytes && file.size > maxBytes) {
     return `"${file.name}" is too large: ${formatBytes(file.size)}, the limit is ${formatBytes(maxBytes)}.`;

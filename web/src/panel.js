@@ -2,7 +2,7 @@
 // options, each bound to a studio action (main.js supplies them), and the panel's answers to what happens to the
 // connection. What the panel only displays (status bar, connection, statistics, settling) is in readouts.js,
 // whose class this one extends, so that the studio still talks to one panel object.
-import { EXPORT_FORMATS, PARAMS } from './protocol.js';
+import { EXPORT_FORMATS, PARAMS, UPLOAD_EXTENSIONS } from './protocol.js';
 import { fmtInt, PanelReadouts } from './readouts.js';
 import { cssColor, FIXED_COLOR, groupColor } from './rolecolors.js';
 
@@ -72,6 +72,7 @@ export class Panel extends PanelReadouts {
     this.enabled = true; // the controls take input (not while the server is away)
 
     $('builtin-select').addEventListener('change', (/** @type {Event} */ e) => actions.loadBuiltin(source(e).value));
+    /** @type {HTMLInputElement} */ ($('file-input')).accept = UPLOAD_EXTENSIONS.join(',');
     $('btn-open').addEventListener('click', () => $('file-input').click());
     $('file-input').addEventListener('change', (/** @type {Event} */ e) => {
       const f = source(e).files?.[0];

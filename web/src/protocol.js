@@ -106,7 +106,8 @@ export const PARAMS = Object.freeze({
 export const EXPORT_FORMATS = Object.freeze([
   "obj",
   "ply",
-  "glb"
+  "glb",
+  "png"
 ]);
 
 /** File extensions `upload` accepts. */
@@ -115,7 +116,11 @@ export const UPLOAD_EXTENSIONS = Object.freeze([
   ".off",
   ".ply",
   ".stl",
-  ".glb"
+  ".glb",
+  ".png",
+  ".jpg",
+  ".jpeg",
+  ".webp"
 ]);
 
 /**
@@ -197,7 +202,7 @@ export const UPLOAD_EXTENSIONS = Object.freeze([
  * ask for the deformed mesh as a file (GLB keeps a textured or coloured source's UVs, textures and colours)
  * @typedef {object} ExportClientMessage
  * @property {"export"} type
- * @property {"obj"|"ply"|"glb"} format file format
+ * @property {"obj"|"ply"|"glb"|"png"} format file format
  */
 
 /**

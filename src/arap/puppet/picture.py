@@ -16,7 +16,7 @@ from numpy.typing import NDArray
 
 from arap.errors import ArapError
 
-__all__ = ["MAX_PIXELS", "PictureError", "as_picture", "read_picture"]
+__all__ = ["MAX_PIXELS", "PictureError", "as_picture", "decode_picture", "read_picture"]
 
 MAX_PIXELS = 64_000_000
 """Largest picture (width × height) the puppet warp takes: 64 megapixels."""
@@ -42,14 +42,25 @@ def read_picture(path: str | os.PathLike[str]) -> NDArray[np.uint8]:
     PictureError
         No such file, not a picture Pillow can read, corrupt or truncated, or over :data:`MAX_PIXELS`.
     """
-    Image = _pillow()
     name = str(path)
     if not Path(path).is_file():
         raise PictureError(f"{name}: no such file" if not Path(path).exists() else f"{name}: not a file")
+    return _decode(path, name)
+
+
+def decode_picture(data: bytes, name: str) -> NDArray[np.uint8]:
+    """The pixels of a picture file's bytes (see :func:`read_picture`; ``name`` is for the messages)."""
+    import io
+
+    return _decode(io.BytesIO(data), name)
+
+
+def _decode(source: Any, name: str) -> NDArray[np.uint8]:
+    Image = _pillow()
     try:
         with warnings.catch_warnings():  # Pillow warns of pictures over 89 megapixels on opening; refused below
             warnings.simplefilter("ignore", Image.DecompressionBombWarning)
-            im = Image.open(path)
+            im = Image.open(source)
         with im:
             w, h = im.size
             if w * h > MAX_PIXELS:

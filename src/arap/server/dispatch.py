@@ -43,6 +43,7 @@ from arap.server.heatmap import distortion_frame
 from arap.server.liveframes import VertexPayload, VertexStream, still_frame_header
 from arap.server.meshdata import MeshData, load_builtin, load_upload, mesh_frame
 from arap.server.messages import ClientMessage
+from arap.server.pictures import is_picture, load_picture
 from arap.server.protocol import check_against_mesh, error_message, validate
 from arap.server.render_mesh import Look, look_from_upload
 from arap.server.replies import (
@@ -356,8 +357,11 @@ class Dispatcher:
         (INFO, one JSON line)."""
         arrived, decoded = self.arrived.pop(id(msg), (float("nan"), float("nan")))
         started = time.time()
-        mesh, cpu = _timed(load_upload, msg.payload, msg.filename, self.config.max_vertices)
-        look = look_from_upload(msg.payload, msg.filename, mesh, self.config.max_vertices)
+        if is_picture(msg.filename):
+            (mesh, look), cpu = _timed(load_picture, msg.payload, msg.filename, self.config.max_vertices)
+        else:
+            mesh, cpu = _timed(load_upload, msg.payload, msg.filename, self.config.max_vertices)
+            look = look_from_upload(msg.payload, msg.filename, mesh, self.config.max_vertices)
         parsed = time.time()
         self.session.load(mesh, look)
         self.take_skipped()

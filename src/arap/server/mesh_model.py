@@ -41,6 +41,9 @@ class MeshData:
         The tetrahedra of a solid, which the solver deforms (``F`` is then their boundary); None for a surface.
     face_owner : (m,) int64 array or None
         For a solid: the tetrahedron behind each boundary triangle.
+    picture : (h, w, 3|4) uint8 array or None
+        For a picture opened for the puppet warp (:mod:`arap.server.pictures`): its pixels; the mesh then lies in
+        ``z = 0`` at ``(x, h − y)`` pixels and bends in its plane.
     """
 
     name: str
@@ -50,6 +53,7 @@ class MeshData:
     vertex_map: np.ndarray | None = None
     elements: np.ndarray | None = None
     face_owner: np.ndarray | None = None
+    picture: np.ndarray | None = None
 
     @classmethod
     def solid(cls, name: str, V: np.ndarray, T: np.ndarray, report: list[str] | None = None) -> MeshData:

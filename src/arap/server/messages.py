@@ -67,8 +67,10 @@ MAX_SEQ = 2**53 - 1
 
 ENERGIES = SURFACE_ENERGY_TYPES
 WEIGHTS = WEIGHT_TYPES
-EXPORT_FORMATS = ("obj", "ply", "glb")
-UPLOAD_EXTENSIONS = (".obj", ".off", ".ply", ".stl", ".glb")
+EXPORT_FORMATS = ("obj", "ply", "glb", "png")
+"""Formats of ``export``: the mesh files, and PNG (the warped picture of a picture, else a picture of the shape)."""
+UPLOAD_EXTENSIONS = (".obj", ".off", ".ply", ".stl", ".glb", ".png", ".jpg", ".jpeg", ".webp")
+"""Files ``upload`` takes: meshes, and pictures for the puppet warp (:mod:`arap.server.pictures`)."""
 
 PARAMS: dict[str, dict[str, Any]] = {
     "iterations": {"min": 1, "max": 100, "default": 2},

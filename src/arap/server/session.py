@@ -343,9 +343,20 @@ class Session(SessionState):
         UVs, textures and colours (:func:`arap.server.render_mesh.export_asset`)."""
         mesh = self._require_mesh()
         try:
+            if fmt == "png":
+                return f"{mesh.name}-deformed.png", "image/png", self._picture()
             return export_asset(mesh.name, self.U, mesh.F, self.look, fmt)
         except ArapError as exc:
             raise UnusableMesh(f"cannot export: {exc}") from exc
+
+    def _picture(self) -> bytes:
+        """PNG: a picture's warp at its resolution, else a picture of the deformed shape (:func:`arap.show`)."""
+        mesh = self._require_mesh()
+        if mesh.picture is not None:
+            from arap.server.pictures import warped_picture_png
+
+            return warped_picture_png(mesh, self.U)
+        return bytes(arap.show(self.U, mesh.F, width=1024, height=768).png())
 
     def constraints_document(self) -> dict[str, Any]:
         """The current constraints in the command-line format, in the mesh file's vertex numbering (as ``arap

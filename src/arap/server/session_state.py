@@ -105,7 +105,7 @@ class SessionState:
         try:
             mesh = self._require_mesh()
             solid = None if mesh.elements is None or mesh.face_owner is None else (mesh.elements, mesh.face_owner)
-            return self._solvers.get(rest_id, V, mesh.F, cs, params, solid)
+            return self._solvers.get(rest_id, V, mesh.F, cs, params, solid, planar=mesh.picture is not None)
         except ConstraintsRejected as exc:
             raise self._in_file_numbering(exc) from exc.__cause__
 

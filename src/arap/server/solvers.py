@@ -12,11 +12,12 @@ import numpy as np
 import arap
 from arap.errors import ArapError
 from arap.method.points import PointConstraints
+from arap.options import DEFAULT_TOLERANCE
 from arap.server.constraints import ConstraintSet
 from arap.server.records import Params
 from arap.server.session_errors import ConstraintsRejected
 
-__all__ = ["SOLVER_CACHE_VERTICES", "SolverCache", "points_in_tetrahedra"]
+__all__ = ["SOLVER_CACHE_VERTICES", "PlaneSolver", "SolverCache", "points_in_tetrahedra"]
 
 logger = logging.getLogger(__name__)
 
@@ -36,13 +37,14 @@ class SolverCache:
         self._solvers.clear()
 
     def get(self, rest_id: int, V: np.ndarray, F: np.ndarray, cs: ConstraintSet, params: Params,
-            solid: tuple[np.ndarray, np.ndarray] | None = None) -> arap.ArapSolver | None:
+            solid: tuple[np.ndarray, np.ndarray] | None = None, planar: bool = False) -> arap.ArapSolver | None:
         """A factorised solver for the constraint set on the rest pose ``V`` (numbered ``rest_id``), or None when
         nothing is constrained.
 
         ``solid``: the tetrahedra of a solid and the tetrahedron behind each of its boundary triangles ``F``; the
         solver then deforms the tetrahedra (the element energy), with the point handles on the boundary taken
-        into their tetrahedra.
+        into their tetrahedra. ``planar``: a flat mesh in ``z = 0`` (a picture) that bends in its plane, with the
+        element energy, its targets put back on the plane (:class:`PlaneSolver`).
 
         Raises
         ------
@@ -51,9 +53,9 @@ class SolverCache:
         """
         if cs.is_empty:
             return None
-        energy = "elements" if solid is not None else params.energy  # the only energy tetrahedra have
+        energy = "elements" if solid is not None or planar else params.energy  # the only energy tetrahedra have
         alpha = params.alpha if energy == "smooth_rotations" else None  # other energies ignore it
-        key = (rest_id, energy, params.weights, alpha, params.loose, cs.solver_digest())
+        key = (rest_id, energy, params.weights, alpha, params.loose, planar, cs.solver_digest())
         solver = self._solvers.get(key)
         if solver is not None:
             self._solvers.move_to_end(key)
@@ -63,9 +65,9 @@ class SolverCache:
             elements = solid[0]
             points = None if points is None else points_in_tetrahedra(points, F, solid[0], solid[1])
         try:
-            solver = arap.ArapSolver(V, elements, cs.constrained, energy=energy, weights=params.weights,
-                                     roi=cs.roi, alpha=params.alpha, stiffness=cs.stiffness, points=points,
-                                     loose=params.loose)
+            kind = PlaneSolver if planar else arap.ArapSolver
+            solver = kind(V, elements, cs.constrained, energy=energy, weights=params.weights, roi=cs.roi,
+                          alpha=params.alpha, stiffness=cs.stiffness, points=points, loose=params.loose)
         except ArapError as exc:
             raise ConstraintsRejected(str(exc)) from exc
         logger.debug("factorised %d free vertices in %.1f ms", solver.n_free, 1000 * solver.factor_seconds)
@@ -92,3 +94,21 @@ def points_in_tetrahedra(points: PointConstraints, F: np.ndarray, T: np.ndarray,
     match = tets[:, :, None] == corners[:, None, :]
     barycentric = (match * points.barycentric[:, None, :]).sum(axis=2)
     return PointConstraints(owner[points.faces], barycentric, points.weights)
+
+
+class PlaneSolver(arap.ArapSolver):
+    """An :class:`arap.ArapSolver` of a flat mesh in ``z = 0`` whose targets are put back on the plane (the studio's
+    handles can be dragged in any direction)."""
+
+    def solve(self, targets: Any, initial: Any = None, max_iterations: int | None = None,
+              tolerance: float = DEFAULT_TOLERANCE, callback: Any = None, acceleration: Any = "lbfgs",
+              window: int | None = None, point_targets: Any = None) -> arap.ArapResult:
+        flat = np.array(targets, dtype=np.float64)
+        if flat.ndim == 2 and flat.shape[1:] == (3,):
+            flat[:, 2] = 0.0
+        if point_targets is not None:
+            point_targets = np.array(point_targets, dtype=np.float64)
+            if point_targets.ndim == 2 and point_targets.shape[1:] == (3,):
+                point_targets[:, 2] = 0.0
+        return super().solve(flat, initial=initial, max_iterations=max_iterations, tolerance=tolerance,
+                             callback=callback, acceleration=acceleration, window=window, point_targets=point_targets)

@@ -1,0 +1,89 @@
+"""Pictures in the studio: opened as flat textured meshes, pinned with point handles and bent in their plane, and
+exported as the warped picture."""
+
+from __future__ import annotations
+
+import io
+
+import numpy as np
+import pytest
+from PIL import Image
+
+from arap.server.pictures import is_picture, load_picture
+from arap.server.session import Session
+from tests.server.helpers import translation
+
+
+def _disc_png(size: int = 120) -> bytes:
+    """A red disc with a green dot, on a transparent background."""
+    y, x = np.mgrid[:size, :size]
+    rgba = np.zeros((size, size, 4), dtype=np.uint8)
+    inside = (x - size / 2) ** 2 + (y - size / 2) ** 2 < (0.4 * size) ** 2
+    rgba[inside] = [220, 40, 40, 255]
+    rgba[(np.abs(x - 0.8 * size) < 3) & (np.abs(y - size / 2) < 3)] = [0, 200, 0, 255]
+    out = io.BytesIO()
+    Image.fromarray(rgba, "RGBA").save(out, format="PNG")
+    return out.getvalue()
+
+
+def _loaded() -> Session:
+    mesh, look = load_picture(_disc_png(), "disc.png", 100_000)
+    s = Session()
+    s.load(mesh, look)
+    return s
+
+
+def test_a_picture_becomes_a_flat_textured_mesh() -> None:
+    assert is_picture("Cat.PNG") and is_picture("a.webp") and not is_picture("a.obj")
+    s = _loaded()
+    mesh = s.mesh
+    assert mesh is not None and mesh.picture is not None and mesh.picture.shape == (120, 120, 4)
+    assert np.all(mesh.V[:, 2] == 0.0) and 200 < mesh.n_vertices < 20_000
+    assert s.look is not None and s.look.textured
+    assert any("picture" in line for line in mesh.report)
+
+
+def test_pins_bend_the_picture_in_its_plane_and_the_png_shows_it() -> None:
+    s = _loaded()
+    mesh = s.mesh
+    assert mesh is not None
+    centre = mesh.V[mesh.F].mean(axis=1)
+    left = int(np.argmin(centre[:, 0]))
+    right = int(np.argmax(centre[:, 0]))
+    third = [1 / 3, 1 / 3, 1 / 3]
+    target = (np.array(third) @ mesh.V[mesh.F[right]] + [0.0, 30.0, 25.0]).tolist()  # also off the plane
+    s.set_constraints(None, [], [], points=[{"face": left, "barycentric": third},
+                                             {"face": right, "barycentric": third, "target": target}])
+    s.drag([translation(0.0), translation(0.0)])
+    s.end_drag()
+    s.settle(lambda: False)
+    assert s.solver is not None and s.solver.energy_type == "elements"
+    assert np.all(s.U[:, 2] == 0.0)  # put back on the plane
+    np.testing.assert_allclose(np.array(third) @ s.U[mesh.F[right]], [*target[:2], 0.0], atol=1e-6)
+    name, mime, data = s.export("png")
+    assert name == "disc-deformed.png" and mime == "image/png"
+    picture = np.asarray(Image.open(io.BytesIO(data)))
+    assert picture.shape == (120, 120, 4)
+    green = np.argwhere((picture[:, :, 1] > 150) & (picture[:, :, 0] < 80) & (picture[:, :, 3] > 0))
+    assert len(green) and green[:, 0].mean() < 60 - 20  # the dot went up with its pin (rows run down)
+    opaque = (picture[:, :, 3] > 0).sum()
+    assert abs(opaque - np.pi * 48 ** 2) < 0.1 * np.pi * 48 ** 2
+    glb = s.export("glb")[2]
+    assert glb[:4] == b"glTF"
+
+
+def test_a_surface_exports_a_picture_of_its_shape() -> None:
+    from arap.server.meshdata import load_builtin
+
+    s = Session()
+    s.load(load_builtin("bar"))
+    name, mime, data = s.export("png")
+    assert name.endswith(".png") and mime == "image/png" and data[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+@pytest.mark.parametrize(("data", "match"), [(b"not a picture", "not a picture"), (_disc_png()[:60], "corrupt")])
+def test_bad_pictures_are_refused_with_their_reason(data: bytes, match: str) -> None:
+    from arap.server.protocol import RequestError
+
+    with pytest.raises(RequestError, match=match):
+        load_picture(data, "x.png", 100_000)
