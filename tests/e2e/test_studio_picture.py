@@ -1,0 +1,51 @@
+"""The puppet warp in the studio: a picture opened in the page is drawn textured on its flat mesh, bends in its
+plane when a handle is dragged, and exports as the warped picture."""
+
+from __future__ import annotations
+
+import io
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+from PIL import Image
+from playwright.sync_api import Page
+
+from tests.e2e.conftest import positions, wait_settled
+from tests.e2e.test_studio import drag_gizmo_x, select_anchor_and_handle
+from tests.e2e.test_studio_texture import colour_counts, upload
+
+
+def _picture(path: Path, size: int = 160) -> Path:
+    """An upright red bar on a transparent background, its top blue."""
+    rgba = np.zeros((size, size, 4), dtype=np.uint8)
+    rgba[10:150, 60:100] = [230, 40, 40, 255]
+    rgba[10:40, 60:100] = [40, 60, 230, 255]
+    Image.fromarray(rgba, "RGBA").save(path)
+    return path
+
+
+def test_a_picture_bends_in_its_plane_and_exports_as_a_picture(page: Page, tmp_path: Path,
+                                                              shoot: Callable[[str], Path]) -> None:
+    upload(page, _picture(tmp_path / "bar-picture.png"), "texture")
+    shoot("picture-01-opened")
+    red, blue = colour_counts(page)
+    assert red > 500 and blue > 100, f"the picture is not drawn ({red} red, {blue} blue pixels)"
+    rest = positions(page)
+    assert np.all(rest[:, 2] == 0.0)
+    select_anchor_and_handle(page)
+    drag_gizmo_x(page, 80)
+    wait_settled(page)
+    moved = positions(page)
+    assert np.abs(moved - rest).max() > 1.0, "the drag did not bend the picture"
+    assert np.abs(moved[:, 2]).max() < 1e-6, "the picture left its plane"
+    shoot("picture-02-bent")
+    with page.expect_download() as info:
+        page.get_by_test_id("export-png").click()
+    download = info.value
+    assert download.suggested_filename == "bar-picture-deformed.png"
+    out = tmp_path / "out.png"
+    download.save_as(out)
+    warped = np.asarray(Image.open(io.BytesIO(out.read_bytes())))
+    assert warped.shape == (160, 160, 4) and (warped[:, :, 3] > 0).sum() > 0.8 * 40 * 140
+    assert not page.evaluate("() => window.__arap.errors")
