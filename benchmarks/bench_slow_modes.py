@@ -661,7 +661,9 @@ def figures_of(r: dict[str, Any]) -> list[dict[str, Any]]:
         return figures
     c = r["ceiling"]
     for th in THRESHOLDS:
-        figures.append(figure(f"{name} {scenario}: eigenvalues of T above {th}", c["above"][f"{th}"], "eigenvalues"))
+        bound = f" (at least: all {c['computed']} computed)" if c["above_is_lower_bound"][f"{th}"] else ""
+        figures.append(figure(f"{name} {scenario}: eigenvalues of T above {th}{bound}", c["above"][f"{th}"],
+                              "eigenvalues"))
     base = c["pcg"][0]
     for row in c["pcg"][1:]:
         if row["k"] in (8, 64, 256):
