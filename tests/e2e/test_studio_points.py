@@ -331,10 +331,13 @@ def _two_spheres(tmp_path: Path) -> Path:
 
 
 def test_a_refused_selection_is_explained_where_it_matters_and_the_error_clears(page: Page, tmp_path: Path) -> None:
-    """On two separate spheres a handle on one alone leaves the other free and unpinned: the server refuses the
-    set. A drag then says why on its own; anchoring the other sphere is accepted and takes the error away."""
+    """On two separate spheres a handle on one alone leaves the other free and unpinned: with loose parts set to
+    refuse, the server refuses the set. A drag then says why on its own; anchoring the other sphere is accepted and
+    takes the error away."""
     page.get_by_test_id("file-input").set_input_files(str(_two_spheres(tmp_path)))
     page.wait_for_function("() => window.__arap.meshName === 'pair'")
+    wait_idle(page)
+    page.get_by_test_id("loose").select_option("error")  # loose parts follow by default: ask to be told instead
     wait_idle(page)
     pts = screen_points(page)
     n = len(pts) // 2

@@ -109,7 +109,7 @@ def test_per_vertex_and_single_colours() -> None:
     (lambda: arap.show(V, np.zeros((0, 3), int)), MeshError, "the mesh is empty"),
     (lambda: arap.show(V), MeshError, "F (the triangles) is missing"),
     (lambda: arap.show(V, F[:, :2]), MeshError, "faces must be triangles"),
-    (lambda: arap.show(V[:, :2], F), MeshError, "vertices must be an (n, 3) array"),
+    (lambda: arap.show(np.column_stack([V, V[:, :1]]), F), MeshError, "vertices must be an (n, 3) array"),
     (lambda: arap.show(np.where(np.arange(len(V))[:, None] == 7, np.nan, V), F), MeshError, "NaN"),
     (lambda: arap.show("no-such-mesh"), MeshError, "neither a built-in mesh"),
     (lambda: arap.show(V, F, width=0), OptionError, "width must be from 1 to 4096 pixels, got 0"),

@@ -92,11 +92,13 @@ export const PARAMS = Object.freeze({
   "loose": {
     "choices": [
       "follow",
-      "hold"
+      "hold",
+      "error"
     ],
     "labels": {
-      "follow": "follow the nearest constrained part",
-      "hold": "stay where they are"
+      "follow": "follow nearest part",
+      "hold": "stay put",
+      "error": "refuse selection"
     },
     "default": "follow"
   }
@@ -171,7 +173,7 @@ export const UPLOAD_EXTENSIONS = Object.freeze([
  * @property {"spokes"|"spokes_and_rims"|"smooth_rotations"} [energy] ARAP energy
  * @property {"cotangent"|"clamped"|"uniform"} [weights] edge weights
  * @property {number} [alpha] weight of the rotation term of smooth_rotations (SR-ARAP)
- * @property {"follow"|"hold"} [loose] what parts no constraint reaches do
+ * @property {"follow"|"hold"|"error"} [loose] what parts no constraint reaches do
  */
 
 /**
@@ -238,7 +240,7 @@ export const UPLOAD_EXTENSIONS = Object.freeze([
  * @property {number} protocol PROTOCOL_VERSION
  * @property {string[]} builtin_meshes names accepted by load_builtin
  * @property {{max_upload_bytes: number, max_vertices: number, max_frame_bytes: number, max_handle_groups: number}} limits max_upload_bytes, max_vertices, max_frame_bytes, max_handle_groups
- * @property {{iterations: number, energy: "spokes"|"spokes_and_rims"|"smooth_rotations", weights: "cotangent"|"clamped"|"uniform", alpha: number, loose: "follow"|"hold"}} params current solver parameters
+ * @property {{iterations: number, energy: "spokes"|"spokes_and_rims"|"smooth_rotations", weights: "cotangent"|"clamped"|"uniform", alpha: number, loose: "follow"|"hold"|"error"}} params current solver parameters
  */
 
 /**
@@ -294,7 +296,7 @@ export const UPLOAD_EXTENSIONS = Object.freeze([
  * @property {"state"} type
  * @property {boolean} can_undo
  * @property {boolean} can_redo
- * @property {{iterations: number, energy: "spokes"|"spokes_and_rims"|"smooth_rotations", weights: "cotangent"|"clamped"|"uniform", alpha: number, loose: "follow"|"hold"}} params solver parameters
+ * @property {{iterations: number, energy: "spokes"|"spokes_and_rims"|"smooth_rotations", weights: "cotangent"|"clamped"|"uniform", alpha: number, loose: "follow"|"hold"|"error"}} params solver parameters
  * @property {{roi: number[]|null, fixed: number[], handle_groups: number[][], stiffness: Array<{vertices: number[], value: number|"rigid"}>|null, points: Array<{face: number, barycentric: number[], weight?: number}>}} constraints roi, fixed, handle_groups, stiffness, points as last accepted
  * @property {number[][]} transforms current transform of each handle group
  * @property {number} rest_id the rest pose: a new value after apply, the earlier one again when an undo or redo goes back to it

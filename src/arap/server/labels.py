@@ -9,5 +9,5 @@ ENERGY_LABELS: dict[str, str] = {"spokes": "spokes (2007 paper)", "spokes_and_ri
 """How the studio names each energy."""
 WEIGHT_LABELS: dict[str, str] = {"cotangent": "cotangent", "clamped": "cotangent, clamped at 0", "uniform": "uniform"}
 """How the studio names each weighting."""
-LOOSE_LABELS: dict[str, str] = {"follow": "follow the nearest constrained part", "hold": "stay where they are"}
+LOOSE_LABELS: dict[str, str] = {"follow": "follow nearest part", "hold": "stay put", "error": "refuse selection"}
 """How the studio names what loose parts (parts no constraint reaches) do."""
