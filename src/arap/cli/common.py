@@ -52,6 +52,7 @@ __all__ = [
     "selector_constraints",
     "token_value",
     "warm_up_kernels",
+    "writable_destination",
 ]
 
 #: Exit statuses: success, bad input (files or values), bad usage (reported by argparse), interrupted.
@@ -247,6 +248,23 @@ def origin_value(text: str) -> str:
 
 
 # Checks once the arguments are parsed: what they refuse is bad input (exit status 1).
+def writable_destination(path: str | Path, error: type[ArapError] = MeshFormatError) -> Path:
+    """Where an output will be written, refused before any work (``error`` naming ``path``) when it cannot be: a
+    missing folder, a file where a folder should be, a folder, a FIFO or a device as the output, an unwritable
+    folder."""
+    import os
+
+    from arap.io.paths import write_destination
+
+    try:
+        destination = write_destination(path)
+    except OSError as exc:
+        raise error(f"cannot write {path}: {exc.strerror or exc}") from None
+    if not os.access(destination.parent, os.W_OK):
+        raise error(f"cannot write {path}: the folder {destination.parent} is not writable")
+    return destination
+
+
 def check_iterations_and_tolerance(iterations: int | None, tolerance: float) -> None:
     """``arap deform -n/--iterations`` (None: until converged) and ``-t/--tolerance``."""
     if iterations is not None and iterations < 0:

@@ -26,6 +26,7 @@ from arap.cli.common import (
     load_mesh_argument,
     selector_constraints,
     warm_up_kernels,
+    writable_destination,
 )
 from arap.errors import ArapError, ConstraintError, MeshError, MeshFormatError, UnconstrainedRegionError
 from arap.meshes.repair import RepairResult
@@ -304,7 +305,6 @@ def run_deform(args: argparse.Namespace) -> int:
     from arap.constraints import load_constraints
     from arap.io import format_of, save_mesh
     from arap.io.assets import save_asset
-    from arap.io.paths import write_destination
     from arap.io.volume import is_volume_file, save_volume_mesh
     from arap.options import DEFAULT_ELEMENT_ENERGY, DEFAULT_ENERGY
     from arap.solve.solver import ArapSolver
@@ -312,13 +312,7 @@ def run_deform(args: argparse.Namespace) -> int:
     # Fail before any work on an unsupported output type, a missing folder (or a file where a folder should be), or
     # an output that is not a regular file (a folder, a FIFO, a device, or a symbolic link to one).
     volume_out = _check_output_type(args.output)
-    try:
-        destination = write_destination(args.output)
-    except OSError as exc:
-        raise MeshFormatError(f"cannot write {args.output}: {exc.strerror or exc}") from None
-    folder = destination.parent
-    if not os.access(folder, os.W_OK):
-        raise MeshFormatError(f"cannot write {args.output}: the folder {folder} is not writable")
+    writable_destination(args.output)
     check_iterations_and_tolerance(args.iterations, args.tolerance)
     if args.solid and args.constraints is not None:
         raise ConstraintError("with --solid give the constraints by position (--fix, --handle ...): they pick the "

@@ -10,7 +10,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from arap.cli.common import err, load_mesh_argument, out, positive_int
+from arap.cli.common import err, load_mesh_argument, out, positive_int, writable_destination
 from arap.errors import ArapError, MeshError
 
 if TYPE_CHECKING:
@@ -127,16 +127,7 @@ def _run_volume_info(args: argparse.Namespace) -> int:
 
 def _check_destination(path: str) -> None:
     """Refuse a PNG destination that cannot be written (a folder, a FIFO, a missing folder) before any work."""
-    import os
-
-    from arap.io.paths import write_destination
-
-    try:
-        folder = write_destination(path).parent
-    except OSError as exc:
-        raise ArapError(f"cannot write {path}: {exc.strerror or exc}") from None
-    if not os.access(folder, os.W_OK):
-        raise ArapError(f"cannot write {path}: the folder {folder} is not writable")
+    writable_destination(path, ArapError)
 
 
 def _picture(args: argparse.Namespace, V: np.ndarray, F: np.ndarray) -> Any:

@@ -14,7 +14,7 @@ import os
 from pathlib import Path
 from typing import Any
 
-from arap.cli.common import err
+from arap.cli.common import err, writable_destination
 from arap.errors import ArapError, ConstraintError
 
 __all__ = ["OUTPUTS", "add_parser", "read_pins", "run_warp"]
@@ -77,16 +77,9 @@ def read_pins(path: str | os.PathLike[str]) -> tuple[list[Any], list[Any] | None
 
 def _check_destination(path: str) -> None:
     """Refuse an output that is not a PNG or cannot be written, before any work."""
-    from arap.io.paths import write_destination
-
     if Path(path).suffix.lower() not in OUTPUTS:
         raise ArapError(f"{path}: the warped picture is written as PNG (OUT.png), its mesh as OUT.glb or OUT.obj")
-    try:
-        folder = write_destination(path).parent
-    except OSError as exc:
-        raise ArapError(f"cannot write {path}: {exc.strerror or exc}") from None
-    if not os.access(folder, os.W_OK):
-        raise ArapError(f"cannot write {path}: the folder {folder} is not writable")
+    writable_destination(path, ArapError)
 
 
 def _write_mesh(path: str, mesh: Any) -> list[str]:

@@ -28,8 +28,8 @@ from arap.errors import ArapError, MeshError
 from arap.meshes.mesh import (
     DEGENERATE_TOLERANCE,
     bounding_box,
-    check_coordinates,
     check_mesh,
+    check_vertices_and_indices,
     is_mesh_like,
     mesh_arrays,
 )
@@ -237,17 +237,8 @@ def _as_elements(F: object) -> NDArray[np.int64]:
 
 def _check_elements(V: NDArray[np.float64], T: NDArray[np.int64], what: str) -> None:
     """Indices in range, no repeated vertex, no zero measure, one orientation (signed measures of one sign)."""
-    n, m = len(V), len(T)
-    if n == 0 or m == 0:
-        raise MeshError(f"the mesh is empty ({n} vertices, {m} {what})")
-    if not np.isfinite(V).all():
-        bad = np.flatnonzero(~np.all(np.isfinite(V), axis=1))
-        raise MeshError(f"{len(bad)} vertices have NaN or infinite coordinates (first: vertex {bad[0]})")
-    check_coordinates(V)
-    if int(T.min()) < 0 or int(T.max()) >= n:
-        bad = np.flatnonzero(np.any((T < 0) | (T >= n), axis=1))
-        raise MeshError(f"{len(bad)} {what} have vertex indices out of range [0, {n}) (first: {bad[0]} = "
-                        f"{T[bad[0]].tolist()})")
+    m = len(T)
+    check_vertices_and_indices(V, T, what, "tetrahedron" if T.shape[1] == 4 else "triangle")
     S = np.sort(T, axis=1)
     repeated = np.any(S[:, 1:] == S[:, :-1], axis=1)
     if repeated.any():

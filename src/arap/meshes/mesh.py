@@ -25,6 +25,7 @@ __all__ = [
     "bounding_box",
     "check_coordinates",
     "check_mesh",
+    "check_vertices_and_indices",
     "degenerate_faces",
     "mesh_arrays",
     "triangulate_polygons",
@@ -192,6 +193,29 @@ def triangulate_polygons(faces: np.ndarray | list[list[int]]) -> np.ndarray:
     return np.asarray(out, dtype=np.int64).reshape(-1, 3)
 
 
+def check_vertices_and_indices(V: np.ndarray, E: np.ndarray, what: str, one: str) -> None:
+    """What every mesh check starts with: vertices and elements present, finite coordinates of a usable scale
+    (:func:`check_coordinates`), element indices in range (``what``/``one``: the elements' name, plural and
+    singular, for the messages).
+
+    Raises
+    ------
+    MeshError
+    """
+    n, m = len(V), len(E)
+    if n == 0 or m == 0:
+        raise MeshError(f"the mesh is empty ({n} vertices, {m} {what})")
+    if not np.isfinite(V).all():
+        bad = np.flatnonzero(~np.all(np.isfinite(V), axis=1))
+        raise MeshError(f"{len(bad)} vertices have NaN or infinite coordinates (first: vertex {bad[0]})")
+    check_coordinates(V)
+    if int(E.min()) < 0 or int(E.max()) >= n:
+        bad = np.flatnonzero(np.any((E < 0) | (E >= n), axis=1))
+        f0 = int(bad[0])
+        raise MeshError(f"{len(bad)} {what} have vertex indices out of range [0, {n}) (first: {one} {f0} = "
+                        f"{E[f0].tolist()})")
+
+
 def degenerate_faces(V: np.ndarray, F: np.ndarray, tolerance: float = DEGENERATE_TOLERANCE) -> np.ndarray:
     """Mask of zero-area faces (a repeated vertex, or area below ``tolerance`` relative to the bounding box).
 
@@ -353,21 +377,7 @@ def check_mesh(V: np.ndarray, F: np.ndarray) -> tuple[NDArray[np.float64], NDArr
     """
     V = _as_vertices(V)
     F = _as_faces(F)
-    n, m = len(V), len(F)
-    if n == 0 or m == 0:
-        raise MeshError(f"the mesh is empty ({n} vertices, {m} faces)")
-    if not np.isfinite(V).all():
-        bad = np.flatnonzero(~np.all(np.isfinite(V), axis=1))
-        raise MeshError(f"{len(bad)} vertices have NaN or infinite coordinates (first: vertex {bad[0]})")
-    check_coordinates(V)
-    lo, hi = int(F.min()), int(F.max())
-    if lo < 0 or hi >= n:
-        bad = np.flatnonzero(np.any((F < 0) | (F >= n), axis=1))
-        f0 = int(bad[0])
-        raise MeshError(
-            f"{len(bad)} faces have vertex indices out of range [0, {n}) "
-            f"(first: face {f0} = {F[f0].tolist()})"
-        )
+    check_vertices_and_indices(V, F, "faces", "face")
     rep = _repeated_vertex_faces(F)
     if rep.any():
         bad = np.flatnonzero(rep)
