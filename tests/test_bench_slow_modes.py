@@ -13,7 +13,7 @@ import scipy.sparse as sp
 from arap import ArapSolver
 from arap.constraints.scenarios import make_scenario
 from arap.meshes.shapes import builtin_mesh
-from tool_modules import ROOT, load_tool
+from tests.tool_modules import ROOT, load_tool
 
 
 @pytest.fixture(scope="module")
