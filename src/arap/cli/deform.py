@@ -272,7 +272,7 @@ def _check_output_type(output: str) -> bool:
     from arap.io import format_of
     from arap.io.volume import is_volume_file
 
-    if output.endswith(("/", os.sep)) or os.path.isdir(output):
+    if output.endswith(("/", os.sep)) or (os.path.isdir(output) and not os.path.islink(output)):
         raise MeshFormatError(f"cannot write {output}: it is a folder; give the output file's name, such as "
                               f"{os.path.join(output, 'deformed.obj')}")
 
