@@ -28,6 +28,7 @@ from arap.errors import ArapError, MeshError
 from arap.meshes.mesh import (
     DEGENERATE_TOLERANCE,
     bounding_box,
+    check_integer_indices,
     check_mesh,
     check_vertices_and_indices,
     is_mesh_like,
@@ -227,11 +228,7 @@ def _as_elements(F: object) -> NDArray[np.int64]:
     A = np.asarray(F)
     if A.ndim != 2 or A.shape[1] not in (3, 4):
         raise MeshError(f"elements must be triangles (m, 3) or tetrahedra (m, 4), got shape {A.shape}")
-    if np.issubdtype(A.dtype, np.floating):
-        if not np.all(np.isfinite(A)) or not np.array_equal(A, np.round(A)):
-            raise MeshError("element indices must be integers")
-    elif not np.issubdtype(A.dtype, np.integer) or A.dtype == np.bool_:
-        raise MeshError(f"element indices must be integers, got dtype {A.dtype}")
+    check_integer_indices(A, "element")
     return np.ascontiguousarray(A, dtype=np.int64)
 
 

@@ -24,6 +24,7 @@ __all__ = [
     "MeshLike",
     "bounding_box",
     "check_coordinates",
+    "check_integer_indices",
     "check_mesh",
     "check_vertices_and_indices",
     "degenerate_faces",
@@ -56,17 +57,22 @@ def _as_vertices(V: np.ndarray) -> np.ndarray:
     return np.ascontiguousarray(V, dtype=np.float64)
 
 
+def check_integer_indices(A: np.ndarray, what: str) -> None:
+    """Refuse indices that are not integers (floats holding whole numbers are taken); ``what`` names them."""
+    if np.issubdtype(A.dtype, np.floating):
+        if not np.all(np.isfinite(A)) or not np.array_equal(A, np.round(A)):
+            raise MeshError(f"{what} indices must be integers")
+    elif not np.issubdtype(A.dtype, np.integer) or A.dtype == np.bool_:
+        raise MeshError(f"{what} indices must be integers, got dtype {A.dtype}")
+
+
 def _as_faces(F: np.ndarray, allow_polygons: bool = False) -> np.ndarray:
     F = np.asarray(F)
     if F.size == 0 and F.ndim <= 2:
         return np.zeros((0, 3), dtype=np.int64)
     if F.ndim != 2:
         raise MeshError(f"faces must be a 2-d array of vertex indices, got shape {F.shape}")
-    if np.issubdtype(F.dtype, np.floating):
-        if not np.all(np.isfinite(F)) or not np.array_equal(F, np.round(F)):
-            raise MeshError("face indices must be integers")
-    elif not np.issubdtype(F.dtype, np.integer) or F.dtype == np.bool_:
-        raise MeshError(f"face indices must be integers, got dtype {F.dtype}")
+    check_integer_indices(F, "face")
     if F.shape[1] != 3:
         if allow_polygons and F.shape[1] > 3:
             return triangulate_polygons(F.astype(np.int64))
