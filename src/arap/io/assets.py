@@ -35,6 +35,12 @@ per vertex (OBJ ``vn`` lines are then written once per group).
 from __future__ import annotations
 
 import os
+import posixpath
+import stat
+import tempfile
+import zipfile
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -46,8 +52,14 @@ from arap.io.obj_write import write_obj_asset
 from arap.io.paths import read_regular_file
 from arap.io.ply_asset import read_ply_asset, write_ply_asset
 
-__all__ = ["ASSET_FORMATS", "MeshAsset", "SolveMesh", "asset_format", "load_asset", "load_asset_bytes",
-           "result_trimesh", "save_asset"]
+__all__ = ["ASSET_FORMATS", "MAX_BUNDLE_FILES", "MeshAsset", "SolveMesh", "asset_format", "bundle_mesh_name",
+           "load_asset", "load_asset_bytes", "read_bundle", "result_trimesh", "save_asset", "unpacked_bundle"]
+
+#: Most files a bundle (a zip of a mesh file with the files it names) may hold.
+MAX_BUNDLE_FILES = 256
+
+#: Extensions of the mesh file of a bundle; the other files are what it names.
+BUNDLE_MESH_EXTENSIONS = (".obj", ".ply", ".glb", ".gltf", ".off", ".stl")
 
 
 # ---------------------------------------------------------------------------------------------- entry points
@@ -155,3 +167,120 @@ def save_asset(path: str | os.PathLike[str], asset: MeshAsset, vertices: Any = N
         return write_gltf_asset(path, asset, V, binary=ft == "glb")
     except OSError as exc:
         raise MeshFormatError(f"cannot write {path}: {exc.strerror or exc}") from exc
+
+
+# ---------------------------------------------------------------------------------------------- bundles
+def _bundle_name(raw: str, label: str) -> str:
+    """The relative name of a zip member (``/`` between folders), or a :class:`MeshFormatError` for one that could
+    lead anywhere else: absolute, with a drive, with ``..``, or with a NUL character."""
+    name = raw.replace("\\", "/")
+    parts = [p for p in name.split("/") if p not in ("", ".")]
+    if (name.startswith("/") or (len(name) > 1 and name[1] == ":") or ".." in parts or "\0" in name
+            or not parts):
+        raise MeshFormatError(f"{label}: the file name {raw[:200]!r} leads outside the archive (absolute or with "
+                              "'..'); nothing was extracted")
+    return "/".join(parts)
+
+
+def read_bundle(data: bytes, *, max_bytes: int, max_files: int = MAX_BUNDLE_FILES,
+                label: str = "the zip file") -> dict[str, bytes]:
+    """The files of a zip archive holding a mesh file and the files it names (MTL files, textures, glTF buffers).
+
+    Everything is checked from the archive's directory before a byte is extracted: at most ``max_files`` files
+    and ``max_bytes`` bytes once uncompressed in all (a zip bomb is refused without being inflated), only regular
+    files (no symbolic links), names relative to the archive (no absolute path, no ``..``), none twice, none
+    encrypted. Each file is then read no further than its announced size. Folders and the metadata folders of
+    archivers (``__MACOSX/``, ``._`` files) are left out.
+
+    Parameters
+    ----------
+    data : bytes
+        The archive.
+    max_bytes : int
+        Largest total size of the files once uncompressed.
+    max_files : int
+        Most files.
+
+    Returns
+    -------
+    dict of str to bytes
+        Each file's content by its name in the archive (``/`` between folders).
+
+    Raises
+    ------
+    MeshFormatError
+        Not a zip archive, or one that breaks a rule above (the message says which).
+    """
+    import io
+
+    try:
+        archive = zipfile.ZipFile(io.BytesIO(bytes(data)))
+    except (zipfile.BadZipFile, OSError, ValueError) as exc:
+        raise MeshFormatError(f"{label} is not a readable zip archive ({exc})") from exc
+    with archive:
+        members = [m for m in archive.infolist() if not m.is_dir()]
+        members = [m for m in members if not (m.filename.startswith("__MACOSX/")
+                                              or posixpath.basename(m.filename).startswith("._"))]
+        if len(members) > max_files:
+            raise MeshFormatError(f"{label} holds {len(members):,} files, more than the {max_files:,} accepted; "
+                                  "nothing was extracted")
+        total = sum(m.file_size for m in members)
+        if total > max_bytes:
+            raise MeshFormatError(f"{label} holds {total:,} bytes once uncompressed, more than the {max_bytes:,} "
+                                  "accepted; nothing was extracted")
+        names: dict[str, zipfile.ZipInfo] = {}
+        for m in members:
+            name = _bundle_name(m.filename, label)
+            mode = m.external_attr >> 16
+            if m.create_system == 3 and stat.S_IFMT(mode) and not stat.S_ISREG(mode):  # made on Unix: typed
+                raise MeshFormatError(f"{label}: {name!r} is a symbolic link or a special file, not a regular file; "
+                                      "nothing was extracted")
+            if m.flag_bits & 0x1:
+                raise MeshFormatError(f"{label}: {name!r} is encrypted; nothing was extracted")
+            if name in names:
+                raise MeshFormatError(f"{label} holds {name!r} twice; nothing was extracted")
+            names[name] = m
+        files: dict[str, bytes] = {}
+        for name, m in names.items():
+            try:
+                with archive.open(m) as stream:
+                    content = stream.read(m.file_size + 1)
+            except (zipfile.BadZipFile, OSError, ValueError, NotImplementedError, EOFError) as exc:
+                raise MeshFormatError(f"{label}: {name!r} cannot be extracted ({exc})") from exc
+            if len(content) != m.file_size:
+                raise MeshFormatError(f"{label}: {name!r} does not hold the {m.file_size:,} bytes its archive "
+                                      "announces; nothing was extracted")
+            files[name] = content
+    return files
+
+
+def bundle_mesh_name(files: dict[str, bytes] | list[str], label: str = "the zip file") -> str:
+    """The mesh file among the files of a bundle: the one file with a mesh extension (OBJ, PLY, glTF, GLB, OFF,
+    STL).
+
+    Raises
+    ------
+    MeshFormatError
+        None or several.
+    """
+    meshes = [n for n in files if n.lower().endswith(BUNDLE_MESH_EXTENSIONS)]
+    if len(meshes) != 1:
+        found = f"{len(meshes)}: {', '.join(meshes[:5])}" if meshes else "none"
+        raise MeshFormatError(f"{label} must hold one mesh file ({', '.join(BUNDLE_MESH_EXTENSIONS)}) with the files "
+                              f"it names; it holds {found}")
+    return meshes[0]
+
+
+@contextmanager
+def unpacked_bundle(files: dict[str, bytes]) -> Iterator[Path]:
+    """A new temporary folder holding ``files`` (names from :func:`read_bundle`), removed afterwards: a mesh file
+    read from there finds the files of its bundle, and nothing else (:func:`arap.io.paths.read_reference`)."""
+    from arap.io.atomic import write_atomic
+
+    with tempfile.TemporaryDirectory(prefix="arap-bundle-") as folder:
+        root = Path(folder)
+        for name, content in files.items():
+            dest = root / _bundle_name(name, "the bundle")
+            dest.parent.mkdir(parents=True, exist_ok=True)
+            write_atomic(dest, content)
+        yield root

@@ -45,7 +45,7 @@ from arap.server.meshdata import MeshData, load_builtin, load_upload, mesh_frame
 from arap.server.messages import ClientMessage
 from arap.server.pictures import is_picture, load_picture
 from arap.server.protocol import check_against_mesh, error_message, validate
-from arap.server.render_mesh import Look, look_from_upload
+from arap.server.render_mesh import BUNDLE_EXPANSION, Look, is_bundle, load_bundle_upload, look_from_upload
 from arap.server.replies import (
     SETTLE,
     Reply,
@@ -359,6 +359,9 @@ class Dispatcher:
         started = time.time()
         if is_picture(msg.filename):
             (mesh, look), cpu = _timed(load_picture, msg.payload, msg.filename, self.config.max_vertices)
+        elif is_bundle(msg.filename):
+            (mesh, look), cpu = _timed(load_bundle_upload, msg.payload, msg.filename, self.config.max_vertices,
+                                       BUNDLE_EXPANSION * self.config.max_upload_bytes)
         else:
             mesh, cpu = _timed(load_upload, msg.payload, msg.filename, self.config.max_vertices)
             look = look_from_upload(msg.payload, msg.filename, mesh, self.config.max_vertices)

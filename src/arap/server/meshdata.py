@@ -91,7 +91,8 @@ def _display_name(filename: str) -> str:
     return stem or "upload"
 
 
-def load_upload(data: bytes | memoryview, filename: str, max_vertices: int) -> MeshData:
+def load_upload(data: bytes | memoryview, filename: str, max_vertices: int,
+                folder: str | os.PathLike[str] | None = None) -> MeshData:
     """Parse an uploaded mesh file from memory.
 
     Parameters
@@ -103,6 +104,8 @@ def load_upload(data: bytes | memoryview, filename: str, max_vertices: int) -> M
     max_vertices : int
         Largest accepted mesh; checked against the file's header or lines before the slow parse (see
         :func:`arap.io.load_mesh_bytes_with_report`).
+    folder : path-like or None
+        Where the files it names are (a glTF's buffers): the folder of an unpacked bundle; None: nowhere.
 
     Returns
     -------
@@ -121,7 +124,7 @@ def load_upload(data: bytes | memoryview, filename: str, max_vertices: int) -> M
     name = _display_name(filename)
     try:
         V, F, repair = load_mesh_bytes_with_report(bytes(data), ext[1:], name=f"{name}{ext}",
-                                                   max_vertices=max_vertices)
+                                                   max_vertices=max_vertices, folder=folder)
     except MeshTooLargeError as exc:
         raise RequestError("too_large", str(exc)) from exc
     except ArapError as exc:

@@ -69,8 +69,9 @@ ENERGIES = SURFACE_ENERGY_TYPES
 WEIGHTS = WEIGHT_TYPES
 EXPORT_FORMATS = ("obj", "ply", "glb", "png")
 """Formats of ``export``: the mesh files, and PNG (the warped picture of a picture, else a picture of the shape)."""
-UPLOAD_EXTENSIONS = (".obj", ".off", ".ply", ".stl", ".glb", ".png", ".jpg", ".jpeg", ".webp")
-"""Files ``upload`` takes: meshes, and pictures for the puppet warp (:mod:`arap.server.pictures`)."""
+UPLOAD_EXTENSIONS = (".obj", ".off", ".ply", ".stl", ".glb", ".gltf", ".zip", ".png", ".jpg", ".jpeg", ".webp")
+"""Files ``upload`` takes: meshes, a zip of a mesh file with the files it names (MTL files, textures, glTF buffers;
+:func:`arap.server.render_mesh.load_bundle_upload`), and pictures for the puppet warp (:mod:`arap.server.pictures`)."""
 
 PARAMS: dict[str, dict[str, Any]] = {
     "iterations": {"min": 1, "max": 100, "default": 2},

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import logging
 import os
+import posixpath
 import re
 import tempfile
 import warnings
@@ -32,11 +33,11 @@ import numpy as np
 from arap.errors import ArapError
 from arap.io import load_asset, load_asset_bytes, save_asset, save_mesh_bytes
 from arap.io.asset_model import MeshAsset, result_trimesh, weld_rows
-from arap.io.obj_write import obj_text
+from arap.io.obj_write import obj_files, obj_text
 from arap.server.mesh_model import EXPORT_MIME, MeshData, export_mesh
 
-__all__ = ["MAX_TEXTURE_BYTES", "Look", "build_look", "export_asset", "export_glb", "look_from_path",
-           "look_from_upload"]
+__all__ = ["BUNDLE_EXPANSION", "MAX_TEXTURE_BYTES", "Look", "build_look", "export_asset", "export_glb", "is_bundle",
+           "load_bundle_upload", "look_from_path", "look_from_upload"]
 
 logger = logging.getLogger(__name__)
 
@@ -44,10 +45,16 @@ MAX_TEXTURE_BYTES = 16 * 2**20
 """Largest texture image sent to the page; a larger one is left out (the mesh is drawn without it, and a note in
 the ``appearance`` message says why)."""
 
+BUNDLE_EXPANSION = 4
+"""The files of an uploaded zip may hold this many times the upload limit once uncompressed (mesh text compresses
+well; images hardly)."""
+
 GLB_MIME = "model/gltf-binary"
+ZIP_MIME = "application/zip"
 _ASSET_EXTENSIONS = (".obj", ".ply", ".glb", ".gltf")
 _IMAGE_MIME = ((b"\x89PNG\r\n\x1a\n", "image/png"), (b"\xff\xd8\xff", "image/jpeg"))
 _OBJ_COLOUR_LINE = re.compile(rb"^v[ \t]+(?:\S+[ \t]+){5}\S+", re.M)
+_OBJ_MTLLIB_LINE = re.compile(rb"^[ \t]*mtllib[ \t]+\S", re.M)
 _PLY_HINTS = (b"red", b"texture", b" s\n", b" u\n", b" s\r\n", b" u\r\n")
 
 
@@ -166,11 +173,18 @@ def _pick_texture(asset: MeshAsset, max_bytes: int, notes: list[str]) -> tuple[b
     return blob, _image_mime(blob)
 
 
-def build_look(asset: MeshAsset, mesh: MeshData, max_texture_bytes: int = MAX_TEXTURE_BYTES) -> Look | None:
-    """The look of ``mesh`` read from ``asset`` (the same file), or None when it has neither colours nor a texture.
+def build_look(asset: MeshAsset, mesh: MeshData, max_texture_bytes: int = MAX_TEXTURE_BYTES,
+               notes: list[str] | None = None) -> Look | None:
+    """The look of ``mesh`` read from ``asset`` (the same file), or None when it has neither colours nor a texture
+    nor anything to say.
 
     The file's vertices are numbered as :attr:`MeshData.vertex_map` numbers them (both read the file's vertices in
     order); a file whose vertex count does not match is shown plain.
+
+    Parameters
+    ----------
+    notes : list of str or None
+        What loading already has to say (files named but missing); what is not shown is added.
     """
     n_file = len(asset.vertices)
     if mesh.vertex_map is not None:
@@ -181,7 +195,7 @@ def build_look(asset: MeshAsset, mesh: MeshData, max_texture_bytes: int = MAX_TE
         logger.warning("%s: the textured reading has %d vertices, the mesh %d; shown without its texture",
                        mesh.name, n_file, len(file_map))
         return None
-    notes: list[str] = []
+    notes = list(notes or [])
     colors = None
     if asset.vertex_colors is not None and asset.vertex_colors.ndim == 2 and asset.vertex_colors.shape[1] >= 3:
         colors = np.full((mesh.n_vertices, 3), 200, dtype=np.uint8)
@@ -204,6 +218,8 @@ def build_look(asset: MeshAsset, mesh: MeshData, max_texture_bytes: int = MAX_TE
             render_faces = inverse.reshape(-1, 3).astype(np.uint32)
     elif asset.textures:
         notes.append("the model has a texture but no texture coordinates; it is shown without it")
+    if texture:
+        notes.extend(n for n in _material_notes(asset) if n not in notes)
     look = Look(asset, file_map, mesh.n_vertices, colors, render_map, render_uv, render_faces, texture, mime, notes)
     return look if look.worth_sending else None
 
@@ -215,6 +231,57 @@ def _quietly(fn: Any, *args: Any, **kwargs: Any) -> Any:
         return fn(*args, **kwargs)
 
 
+def _noted(notes: list[str], label: str, fn: Any, *args: Any, **kwargs: Any) -> Any:
+    """``fn(...)``, the readers' warnings (a file named but missing or refused, instances made separate parts) added
+    to ``notes``, one line each, without the file's name in front (the page names the mesh)."""
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", UserWarning)
+        try:
+            return fn(*args, **kwargs)
+        finally:
+            for w in caught:
+                text = str(w.message)
+                for prefix in (f"{label}: ", f"cannot read {label} as glTF: "):
+                    text = text.removeprefix(prefix)
+                if issubclass(w.category, UserWarning) and text not in notes:
+                    notes.append(text)
+
+
+def _material_notes(asset: MeshAsset) -> list[str]:
+    """What the page does not show of the materials: glTF material extensions and textures beside the base colour
+    (normal, emissive, occlusion maps), MTL texture maps beside ``map_Kd``."""
+    notes: list[str] = []
+    if asset.format in ("glb", "gltf") and asset.data is not None:
+        document = getattr(asset.data, "document", {})
+        used = [str(e) for e in document.get("extensionsUsed", []) if str(e).startswith(("KHR_materials",
+                                                                                              "KHR_texture"))]
+        maps = sorted({key for m in document.get("materials", []) if isinstance(m, dict)
+                       for key in ("normalTexture", "occlusionTexture", "emissiveTexture") if key in m})
+        if used:
+            notes.append(f"the material features {', '.join(used)} are not shown")
+        if maps:
+            notes.append(f"only the base colour is drawn ({', '.join(maps)} not shown)")
+    elif asset.format == "obj" and asset.data is not None:
+        from arap.io.obj_asset import mtl_texture_references
+
+        other = [ref for mtl in asset.data.mtl_files.values() for ref in mtl_texture_references(mtl)
+                 if ref in asset.textures and not _is_diffuse_map(mtl, ref)]
+        if other:
+            notes.append(f"only the diffuse texture (map_Kd) is drawn ({', '.join(dict.fromkeys(other))} not shown)")
+    return notes
+
+
+def _is_diffuse_map(mtl: bytes, ref: str) -> bool:
+    """Whether an MTL file names ``ref`` in a ``map_Kd`` statement."""
+    from arap.io.obj_asset import map_file_name
+
+    for raw in mtl.decode("utf-8", errors="replace").splitlines():
+        words = raw.strip().split(None, 1)
+        if len(words) == 2 and words[0].lower() == "map_kd" and map_file_name(words[1]) == ref:
+            return True
+    return False
+
+
 def look_from_path(spec: str | os.PathLike[str] | MeshData | None, mesh: MeshData,
                    max_texture_bytes: int = MAX_TEXTURE_BYTES) -> Look | None:
     """The look of the default mesh when it is an OBJ, PLY, glTF or GLB file with colours or a texture."""
@@ -223,41 +290,97 @@ def look_from_path(spec: str | os.PathLike[str] | MeshData | None, mesh: MeshDat
     path = Path(spec)
     if path.suffix.lower() not in _ASSET_EXTENSIONS or not path.is_file():
         return None
+    notes: list[str] = []
     try:
-        asset = _quietly(load_asset, path)
+        asset = _noted(notes, str(path), load_asset, path)
     except (ArapError, OSError, ValueError) as exc:
         logger.warning("%s: shown without its texture or colours: %s", path, exc)
         return None
-    return build_look(asset, mesh, max_texture_bytes)
+    return build_look(asset, mesh, max_texture_bytes, notes)
 
 
 def _may_have_look(data: bytes, ext: str) -> bool:
-    """Cheap test for attributes worth a second, attribute-keeping read of an upload."""
+    """Cheap test for attributes worth a second, attribute-keeping read of an upload (or a note on what it names
+    but does not bring)."""
     if ext in (".glb", ".gltf"):
         return True
     if ext == ".ply":
         end = data.find(b"end_header")
         return any(h in data[: end if end > 0 else 4096] for h in _PLY_HINTS)
-    if ext == ".obj":  # an upload has no MTL file or texture beside it: only vertex colours can show
-        return _OBJ_COLOUR_LINE.search(data) is not None
+    if ext == ".obj":  # vertex colours, or an MTL file that was or was not uploaded with it
+        return _OBJ_COLOUR_LINE.search(data) is not None or _OBJ_MTLLIB_LINE.search(data) is not None
     return False
 
 
 def look_from_upload(data: bytes | memoryview, filename: str, mesh: MeshData, max_vertices: int | None = None,
-                     max_texture_bytes: int = MAX_TEXTURE_BYTES) -> Look | None:
-    """The look of an uploaded file already loaded as ``mesh`` (None for a plain one)."""
+                     max_texture_bytes: int = MAX_TEXTURE_BYTES, folder: Path | None = None) -> Look | None:
+    """The look of an uploaded file already loaded as ``mesh`` (None for a plain one with nothing to say).
+
+    Parameters
+    ----------
+    folder : Path or None
+        The folder of its unpacked bundle (:func:`load_bundle_upload`), where the files it names are read; None for
+        a file uploaded alone: a note then says what it names and how to bring it.
+    """
     ext = ("." + filename.rsplit(".", 1)[-1].lower()) if "." in filename else ""
     if ext not in _ASSET_EXTENSIONS:
         return None
     blob = bytes(data)
-    if not _may_have_look(blob, ext):
+    if folder is None and not _may_have_look(blob, ext):
         return None
+    notes: list[str] = []
+    label = f"{mesh.name}{ext}"
     try:
-        asset = _quietly(load_asset_bytes, blob, ext[1:], name=f"{mesh.name}{ext}", max_vertices=max_vertices)
+        asset = _noted(notes, label, load_asset_bytes, blob, ext[1:], name=label, folder=folder,
+                       max_vertices=max_vertices)
     except (ArapError, OSError, ValueError) as exc:
-        logger.info("%s%s: shown without its texture or colours: %s", mesh.name, ext, exc)
+        logger.info("%s: shown without its texture or colours: %s", label, exc)
         return None
-    return build_look(asset, mesh, max_texture_bytes)
+    if notes and folder is None:
+        notes.append("open the mesh file together with the files it names (select them all, drop them together, or "
+                     "open a zip of them)")
+    return build_look(asset, mesh, max_texture_bytes, notes)
+
+
+def is_bundle(filename: str) -> bool:
+    """Whether an uploaded file name is a zip of a mesh file and the files it names."""
+    return filename.lower().endswith(".zip")
+
+
+def load_bundle_upload(data: bytes | memoryview, filename: str, max_vertices: int, max_bytes: int,
+                       max_texture_bytes: int = MAX_TEXTURE_BYTES) -> tuple[MeshData, Look | None]:
+    """The mesh and look of an uploaded zip holding a mesh file and the files it names (MTL files, textures, glTF
+    buffers and images): what the mesh file names is read among the files of the zip only, by the rules of
+    :func:`arap.io.paths.read_reference` (a name outside it is missing: a note names it).
+
+    Parameters
+    ----------
+    max_bytes : int
+        Largest total size of the zip's files once uncompressed (:func:`arap.io.assets.read_bundle`).
+
+    Raises
+    ------
+    RequestError
+        ``bad_mesh`` for a zip that is refused (:func:`arap.io.assets.read_bundle`), that holds no mesh file or
+        several, or whose mesh file cannot be read; ``too_large`` for too many vertices.
+    """
+    from arap.io.assets import bundle_mesh_name, read_bundle, unpacked_bundle
+    from arap.server.errors import RequestError
+    from arap.server.meshdata import load_upload
+
+    try:
+        files = read_bundle(bytes(data), max_bytes=max_bytes, label=filename)
+        main = bundle_mesh_name(files, filename)
+    except ArapError as exc:
+        raise RequestError("bad_mesh", str(exc)) from exc
+    with unpacked_bundle(files) as folder:
+        base = posixpath.basename(main)
+        mesh = load_upload(files[main], base, max_vertices, folder=folder / posixpath.dirname(main))
+        look = look_from_upload(files[main], base, mesh, max_vertices, max_texture_bytes,
+                                folder=folder / posixpath.dirname(main))
+    if look is not None:
+        look.asset.source = None
+    return mesh, look
 
 
 # ---------------------------------------------------------------------------------------------- export
@@ -284,11 +407,25 @@ def export_glb(name: str, U: np.ndarray, F: np.ndarray, look: Look | None) -> tu
     return filename, GLB_MIME, data
 
 
+def _zip(files: dict[str, bytes]) -> bytes:
+    """A zip archive of ``files`` (by name, in order)."""
+    import io
+    import zipfile
+
+    out = io.BytesIO()
+    with zipfile.ZipFile(out, "w", compression=zipfile.ZIP_DEFLATED) as archive:
+        for name, content in files.items():
+            archive.writestr(name, content)
+    return out.getvalue()
+
+
 def export_asset(name: str, U: np.ndarray, F: np.ndarray, look: Look | None, fmt: str) -> tuple[str, str, bytes]:
     """The deformed mesh as a file of format ``fmt``: GLB as :func:`export_glb`; a PLY source as PLY keeps its
-    colours and UVs, an OBJ source as OBJ its texture coordinates, normals (recomputed), groups, materials and its
-    ``mtllib`` references as they were (the MTL file and textures beside the original file serve the download too);
-    anything else is the geometry (:func:`arap.server.meshdata.export_mesh`).
+    colours and UVs; an OBJ source read from disk as OBJ its texture coordinates, normals (recomputed), groups,
+    materials and its ``mtllib`` references as they were (the MTL file and textures beside the original file serve
+    the download too); an uploaded OBJ source, or a glTF, GLB or PLY source, as OBJ with its MTL file and texture
+    images (:func:`arap.io.obj_write.obj_files`), all in a zip (``NAME-deformed.zip``) when there is more than the
+    OBJ; anything else is the geometry (:func:`arap.server.meshdata.export_mesh`).
 
     Returns
     -------
@@ -296,9 +433,14 @@ def export_asset(name: str, U: np.ndarray, F: np.ndarray, look: Look | None, fmt
     """
     if fmt == "glb":
         return export_glb(name, U, F, look)
-    if look is None or look.asset.format != fmt:
+    if look is None or (look.asset.format != fmt and fmt != "obj"):
         return export_mesh(name, U, F, fmt)
     positions = look.file_positions(U)
+    if fmt == "obj" and (look.asset.format != "obj" or look.asset.source is None):
+        files = obj_files(look.asset, positions, f"{name}-deformed")
+        if len(files) == 1:
+            return f"{name}-deformed.obj", EXPORT_MIME["obj"], next(iter(files.values()))
+        return f"{name}-deformed.zip", ZIP_MIME, _zip(files)
     if fmt == "obj":
         data = obj_text(look.asset, positions, list(look.asset.data.mtllibs)).encode("utf-8")
     else:
