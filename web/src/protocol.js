@@ -119,6 +119,8 @@ export const UPLOAD_EXTENSIONS = Object.freeze([
   ".ply",
   ".stl",
   ".glb",
+  ".gltf",
+  ".zip",
   ".png",
   ".jpg",
   ".jpeg",
