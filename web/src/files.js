@@ -34,6 +34,103 @@ export function checkMeshFile(file, maxBytes) {
   return null;
 }
 
+/** Extensions of the mesh file among several files opened together (the others are what it names). */
+const BUNDLE_MESH_EXTENSIONS = ['obj', 'ply', 'gltf', 'glb', 'off', 'stl'];
+
+/** Extensions of the files a mesh file names, offered by the file picker beside the meshes. */
+export const REFERENCED_EXTENSIONS = ['.mtl', '.bin', '.png', '.jpg', '.jpeg', '.webp', '.tga', '.bmp'];
+
+const CRC_TABLE = (() => {
+  const t = new Uint32Array(256);
+  for (let n = 0; n < 256; n++) {
+    let c = n;
+    for (let k = 0; k < 8; k++) c = c & 1 ? 0xedb88320 ^ (c >>> 1) : c >>> 1;
+    t[n] = c >>> 0;
+  }
+  return t;
+})();
+
+/** @param {Uint8Array} bytes */
+function crc32(bytes) {
+  let c = 0xffffffff;
+  for (let k = 0; k < bytes.length; k++) c = CRC_TABLE[(c ^ bytes[k]) & 0xff] ^ (c >>> 8);
+  return (c ^ 0xffffffff) >>> 0;
+}
+
+/**
+ * A zip archive (stored, not compressed) of files given by name and bytes.
+ * @param {{name: string, bytes: Uint8Array}[]} files
+ * @returns {Uint8Array<ArrayBuffer>}
+ */
+export function zipFiles(files) {
+  const enc = new TextEncoder();
+  /** @type {Uint8Array[]} */
+  const parts = [];
+  /** @type {Uint8Array[]} */
+  const central = [];
+  let offset = 0;
+  for (const f of files) {
+    const name = enc.encode(f.name);
+    const crc = crc32(f.bytes);
+    const head = new DataView(new ArrayBuffer(30));
+    head.setUint32(0, 0x04034b50, true);
+    head.setUint16(4, 20, true);
+    head.setUint16(6, 0x0800, true); // UTF-8 names
+    head.setUint32(14, crc, true);
+    head.setUint32(18, f.bytes.length, true);
+    head.setUint32(22, f.bytes.length, true);
+    head.setUint16(26, name.length, true);
+    const dir = new DataView(new ArrayBuffer(46));
+    dir.setUint32(0, 0x02014b50, true);
+    dir.setUint16(4, 20, true);
+    dir.setUint16(6, 20, true);
+    dir.setUint16(8, 0x0800, true);
+    dir.setUint32(16, crc, true);
+    dir.setUint32(20, f.bytes.length, true);
+    dir.setUint32(24, f.bytes.length, true);
+    dir.setUint16(28, name.length, true);
+    dir.setUint32(42, offset, true);
+    parts.push(new Uint8Array(head.buffer), name, f.bytes);
+    central.push(new Uint8Array(dir.buffer), name);
+    offset += 30 + name.length + f.bytes.length;
+  }
+  const size = central.reduce((n, c) => n + c.length, 0);
+  const end = new DataView(new ArrayBuffer(22));
+  end.setUint32(0, 0x06054b50, true);
+  end.setUint16(8, files.length, true);
+  end.setUint16(10, files.length, true);
+  end.setUint32(12, size, true);
+  end.setUint32(16, offset, true);
+  const all = [...parts, ...central, new Uint8Array(end.buffer)];
+  const out = new Uint8Array(all.reduce((n, c) => n + c.length, 0));
+  let at = 0;
+  for (const c of all) {
+    out.set(c, at);
+    at += c.length;
+  }
+  return out;
+}
+
+/**
+ * Several files opened together (a mesh file and the MTL files, textures and buffers it names) as one zip named
+ * after the mesh file, which the server reads as a bundle; one file as it is. Throws an Error (its message for the
+ * status line) when the files hold no mesh file or several.
+ * @param {File[]} files
+ * @returns {Promise<File>}
+ */
+export async function bundleFiles(files) {
+  if (files.length === 1) return files[0];
+  const meshes = files.filter((f) => BUNDLE_MESH_EXTENSIONS.includes(extensionOf(f.name)));
+  if (meshes.length !== 1) {
+    throw new Error(meshes.length
+      ? `Open one mesh file at a time with the files it names (${meshes.map((f) => f.name).join(', ')} were chosen together).`
+      : `None of ${files.map((f) => f.name).join(', ')} is a mesh file (${BUNDLE_MESH_EXTENSIONS.map((e) => e.toUpperCase()).join(', ')}).`);
+  }
+  const entries = await Promise.all(files.map(async (f) => ({ name: f.name, bytes: new Uint8Array(await f.arrayBuffer()) })));
+  const stem = meshes[0].name.replace(/\.[^.]+$/, '');
+  return new File([zipFiles(entries)], `${stem}.zip`, { type: 'application/zip' });
+}
+
 /**
  * Save bytes (or a string) under a file name.
  * @param {Blob|BlobPart} data
@@ -76,10 +173,11 @@ export function downloadExport(msg) {
 }
 
 /**
- * Route files dropped on `target` to onFile(file); shows `overlay` while dragging files over it.
+ * Route files dropped on `target` to onFile(files) (all of them: a mesh file may come with the files it names);
+ * shows `overlay` while dragging files over it.
  * @param {HTMLElement} target
  * @param {HTMLElement} overlay
- * @param {(file: File) => void} onFile
+ * @param {(files: File[]) => void} onFile
  */
 export function installDropTarget(target, overlay, onFile) {
   let depth = 0;
@@ -103,8 +201,8 @@ export function installDropTarget(target, overlay, onFile) {
     e.preventDefault();
     depth = 0;
     overlay.hidden = true;
-    const file = e.dataTransfer?.files?.[0];
-    if (file) onFile(file);
+    const files = Array.from(e.dataTransfer?.files || []);
+    if (files.length) onFile(files);
   });
   // a file dropped elsewhere must not navigate away from the studio
   window.addEventListener('dragover', (e) => e.preventDefault());

@@ -1,7 +1,7 @@
 // Loading a mesh into the session: a built-in model by name, a mesh file the user chose or dropped (checked
 // against the server's upload limit first), or a saved session's source; each asks before throwing edits away
 // (SessionKeeper.confirmReplace) and records the steps of an upload's timing.
-import { checkMeshFile } from './files.js';
+import { bundleFiles, checkMeshFile } from './files.js';
 import { CLIENT, SERVER } from './protocol.js';
 import { builtinSource, fileSource } from './snapshot.js';
 
@@ -45,10 +45,27 @@ export class MeshLoading {
   }
 
   /**
-   * Upload a mesh file the user chose.
+   * Upload a mesh file the user chose, or several chosen or dropped together: a mesh file with the MTL files,
+   * textures and buffers it names, sent as one zip (files.js bundleFiles).
+   * @param {File|File[]} chosen
+   */
+  upload(chosen) {
+    const { d } = this;
+    if (!Array.isArray(chosen) || chosen.length === 1) {
+      this.uploadOne(Array.isArray(chosen) ? chosen[0] : chosen);
+      return;
+    }
+    bundleFiles(chosen).then((file) => this.uploadOne(file), (/** @type {Error} */ err) => {
+      d.diagnostics.error('client_check', err.message, CLIENT.UPLOAD);
+      d.panel().showStatus(err.message, 'error');
+    });
+  }
+
+  /**
+   * Upload one file.
    * @param {File} file
    */
-  upload(file) {
+  uploadOne(file) {
     const { d } = this;
     const problem = checkMeshFile(file, d.mesh.limits.max_upload_bytes);
     if (problem) {

@@ -131,6 +131,7 @@ export class ServerMessages {
     d.diagnostics.uploadAt.received = performance.timeOrigin + t0;
     const { positions, faces, vertexMap } = meshArrays(msg.frame);
     d.viewer.setMesh(positions, faces);
+    showLoadNote(null, []); // an appearance right after says what this mesh's file could not show
     d.panel.setSurfaces(d.viewer.surfaces, d.viewer.surface); // plain until an appearance says otherwise
     d.livePose.reset();
     d.selection.reset(msg.n_vertices);
@@ -165,6 +166,7 @@ export class ServerMessages {
     d.panel.setSurfaces(d.viewer.surfaces, d.viewer.surface);
     d.refreshSelection(false);
     if (msg.notes?.length) d.panel.showStatus(`${d.mesh.name}: ${msg.notes.join('; ')}.`, 'info', 10000);
+    showLoadNote(d.mesh.name, msg.notes || []);
   }
 
   /**
@@ -257,4 +259,20 @@ export class ServerMessages {
       + `${one ? 'it' : 'them'}. Place point handles on triangles with a free corner.`);
     return true;
   }
+}
+
+/**
+ * The note below the view naming what the loaded file could not show (files it names that were not opened with it
+ * or were refused, material features, textures left out); it stays until dismissed or another mesh is loaded.
+ * @param {string|null} meshName
+ * @param {string[]} notes
+ */
+export function showLoadNote(meshName, notes) {
+  const box = document.getElementById('load-note');
+  const text = document.getElementById('load-note-text');
+  if (!box || !text) return;
+  text.textContent = notes.length ? `${meshName ? `${meshName}: ` : ''}${notes.join('; ')}.` : '';
+  box.hidden = !notes.length;
+  const close = document.getElementById('load-note-close');
+  if (close) close.onclick = () => { box.hidden = true; };
 }

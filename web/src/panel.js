@@ -2,6 +2,7 @@
 // options, each bound to a studio action (main.js supplies them), and the panel's answers to what happens to the
 // connection. What the panel only displays (status bar, connection, statistics, settling) is in readouts.js,
 // whose class this one extends, so that the studio still talks to one panel object.
+import { REFERENCED_EXTENSIONS } from './files.js';
 import { EXPORT_FORMATS, PARAMS, UPLOAD_EXTENSIONS } from './protocol.js';
 import { fmtInt, PanelReadouts } from './readouts.js';
 import { cssColor, FIXED_COLOR, groupColor } from './rolecolors.js';
@@ -39,7 +40,7 @@ function fillChoices(select, param) {
  * @typedef {object} PanelActions
  * @property {(msg: import('./protocol.js').ClientMessage) => boolean} send
  * @property {(name: string) => void} loadBuiltin
- * @property {(file: File) => void} uploadFile
+ * @property {(files: File[]) => void} uploadFile a mesh file, or one with the files it names
  * @property {(file: File) => void} loadConstraintsFile
  * @property {(tool: string) => void} setTool
  * @property {(role: string) => void} setRole
@@ -72,12 +73,14 @@ export class Panel extends PanelReadouts {
     this.enabled = true; // the controls take input (not while the server is away)
 
     $('builtin-select').addEventListener('change', (/** @type {Event} */ e) => actions.loadBuiltin(source(e).value));
-    /** @type {HTMLInputElement} */ ($('file-input')).accept = UPLOAD_EXTENSIONS.join(',');
+    const fileInput = /** @type {HTMLInputElement} */ ($('file-input'));
+    fileInput.accept = [...UPLOAD_EXTENSIONS, ...REFERENCED_EXTENSIONS].join(',');
+    fileInput.multiple = true; // a mesh file with its MTL file, textures and buffers
     $('btn-open').addEventListener('click', () => $('file-input').click());
     $('file-input').addEventListener('change', (/** @type {Event} */ e) => {
-      const f = source(e).files?.[0];
+      const files = Array.from(source(e).files || []);
       source(e).value = '';
-      if (f) actions.uploadFile(f);
+      if (files.length) actions.uploadFile(files);
     });
     this._segment('tool-seg', 'tool', (v) => actions.setTool(v));
     this._segment('role-seg', 'role', (v) => actions.setRole(v));
