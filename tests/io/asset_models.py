@@ -200,3 +200,15 @@ def coloured_ply(path: Path, axis: int = 2, subdivisions: int = 1) -> Path:
     mesh.visual = trimesh.visual.ColorVisuals(mesh, vertex_colors=colors)
     path.write_bytes(mesh.export(file_type="ply"))
     return path
+
+
+def instanced_glb(folder: Path, name: str = "instanced") -> Path:
+    """The glTF cube with its first mesh shown by one more node (moved and turned), as a truck's two wheels share
+    one mesh: 24 vertices in the file's accessors, 36 drawn."""
+    document, blob = cube_gltf_document(png(8, 8, 4))
+    document["nodes"].append({"name": "second", "mesh": 0, "translation": [5.0, 0.0, 0.0],
+                              "rotation": [0.0, 0.0, 0.6, 0.8]})
+    document["nodes"][0]["children"].append(len(document["nodes"]) - 1)
+    path = folder / f"{name}.glb"
+    path.write_bytes(glb_bytes(document, blob))
+    return path

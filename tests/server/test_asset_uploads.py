@@ -157,3 +157,12 @@ def test_a_gltf_with_its_buffer_and_image_in_a_zip(studio: StudioClient, tmp_pat
     assert replies[1].data["texture_bytes"] > 0
     np.testing.assert_allclose(np.ptp(studio.V, axis=0).max(), np.ptp(load_asset(tmp_path / "cube.gltf").vertices,
                                                                        axis=0).max(), rtol=1e-6)
+
+
+def test_a_mesh_shown_by_two_nodes_is_drawn_twice_with_a_note(studio: StudioClient, tmp_path: Path) -> None:
+    from tests.io.asset_models import instanced_glb
+
+    replies = upload(studio, "instanced.glb", instanced_glb(tmp_path).read_bytes())
+    notes = replies[1].data["notes"]
+    assert any("2 instances were made separate parts" in n for n in notes)
+    assert studio.V[:, 0].max() > 4.0, "the second instance is drawn where its node puts it"

@@ -379,8 +379,7 @@ def write_beside(folder: Path, reference: str, data: bytes, written: list[Path])
 # ---------------------------------------------------------------------------------------------- trimesh
 def result_trimesh(vertices: Any, mesh: Any) -> trimesh.Trimesh:
     """A ``trimesh.Trimesh`` of positions on a mesh: ``mesh`` is the faces array, or a :class:`MeshAsset` (its
-    texture or vertex colours kept where simple: the first UV set, the first texture image, and the name of the
-    material most triangles use).
+    texture or vertex colours kept where simple: the first UV set and the first texture image).
 
     ``vertices`` are for the asset's file vertices or for its welded ones (:meth:`MeshAsset.solve_mesh`).
     """
@@ -420,11 +419,7 @@ def result_trimesh(vertices: Any, mesh: Any) -> trimesh.Trimesh:
                     break
                 except Exception:  # noqa: BLE001 - an unreadable image only costs the picture, not the mesh
                     image = None
-        used = np.asarray(asset.face_materials)
-        used = used[(used >= 0) & (used < len(asset.materials))] if len(used) == len(F) else used[:0]
-        name = asset.materials[int(np.bincount(used).argmax())] if len(used) else None
-        material = trimesh.visual.material.PBRMaterial(name=name, baseColorTexture=image)
-        visual = trimesh.visual.TextureVisuals(uv=uv, material=material)
+        visual = trimesh.visual.TextureVisuals(uv=uv, image=image)
         return trimesh.Trimesh(vertices=V[corner_v[first]], faces=inverse.reshape(-1, 3), visual=visual,
                                process=False)
     if asset.vertex_colors is not None and asset.vertex_colors.shape[1] in (3, 4):

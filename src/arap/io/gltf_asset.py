@@ -33,13 +33,14 @@ from arap.io.gltf_container import (
     MODES,
     UINT,
     GltfData,
+    Instance,
     accessor_array,
     accessor_count,
     check_compression,
     format_error,
     glb_bytes,
     item,
-    mesh_transforms,
+    mesh_instances,
     parse_json,
     read_uri,
     split_glb,
@@ -108,7 +109,9 @@ def _read_gltf_asset(data: bytes, label: str, folder: Path | None, max_vertices:
                                "(truncated?)")
         buffers.append(content)
     gltf = GltfData(document=document, buffers=buffers, binary=binary)
-    transforms = mesh_transforms(document, label)
+    instances = mesh_instances(document, label)
+    transforms = {m: nodes[0][1] for m, nodes in instances.items()}
+    recorded: dict[int, list[tuple[int, NDArray[np.int64], int, int | None]]] = {}  # triangles of each mesh
     blocks: list[NDArray[np.float64]] = []
     faces: list[NDArray[np.int64]] = []
     face_materials: list[NDArray[np.int64]] = []
@@ -200,8 +203,44 @@ def _read_gltf_asset(data: bytes, label: str, folder: Path | None, max_vertices:
             T = triangles(indices, mode) + where[pos]
             faces.append(T)
             material = prim.get("material", -1)
-            face_materials.append(np.full(len(T), material if isinstance(material, int) else -1, dtype=np.int64))
+            material = material if isinstance(material, int) else -1
+            face_materials.append(np.full(len(T), material, dtype=np.int64))
             face_groups.append(np.full(len(T), m, dtype=np.int64))
+            normal = int(attributes["NORMAL"]) if "NORMAL" in attributes else None
+            recorded.setdefault(m, []).append((pos, T - where[pos], material, normal))
+    # A mesh shown by several nodes: one copy of its vertices per further node, placed by that node's transform.
+    separated: list[str] = []
+    for m, prims in recorded.items():
+        for node, M in instances.get(m, [])[1:]:
+            copies: dict[int, int] = {}
+            for pos, T_local, material, normal in prims:
+                if pos not in copies:
+                    total = n_vertices + counts[pos]
+                    if max_vertices is not None and total > max_vertices:
+                        raise MeshTooLargeError(f"{label} has more than {max_vertices:,} vertices ({total:,} so far, "
+                                                "instances made separate parts); at most "
+                                                f"{max_vertices:,} vertices are accepted", total, max_vertices)
+                    local = accessor_array(document, buffers, pos, label).astype(np.float64)
+                    copies[pos] = n_vertices
+                    gltf.instances.append(Instance(node, m, pos, normal, n_vertices, M))
+                    blocks.append(local @ M[:3, :3].T + M[:3, 3])
+                    n_vertices += counts[pos]
+                n_triangles += len(T_local)
+                if n_triangles > TRIANGLES_PER_VERTEX * n_vertices:
+                    raise format_error(label, f"its triangle primitives make {n_triangles:,} triangles on "
+                                       f"{n_vertices:,} vertices, more than {TRIANGLES_PER_VERTEX} per vertex")
+                faces.append(T_local + copies[pos])
+                face_materials.append(np.full(len(T_local), material, dtype=np.int64))
+                face_groups.append(np.full(len(T_local), m, dtype=np.int64))
+        if len(instances.get(m, [])) > 1:
+            mesh = meshes[m]
+            separated.append(f"mesh {mesh.get('name') or m!r} is shown by {len(instances[m])} nodes: its "
+                             f"{len(instances[m])} instances were made separate parts")
+    if separated:
+        import warnings
+
+        warnings.warn(f"{label}: {'; '.join(separated)} (each deforms on its own and is written as its own mesh)",
+                      UserWarning, stacklevel=4)
     if skipped:
         logger.info("%s: %s kept as they are (not part of the surface)", label,
                     ", ".join(f"{k} primitives: {v}" for k, v in skipped.items()))
@@ -215,15 +254,18 @@ def _read_gltf_asset(data: bytes, label: str, folder: Path | None, max_vertices:
     uvs = None
     if uv_blocks:
         uv = np.full((len(V), 2), np.nan)
-        for pos, block in uv_blocks.items():
+        placed = [(where[pos], pos) for pos in uv_blocks] + [(i.offset, i.position) for i in gltf.instances
+                                                            if i.position in uv_blocks]
+        for start, pos in placed:
+            block = uv_blocks[pos]
             values = block[:, :2].astype(np.float64)
             if block.dtype.kind in "iu":  # normalized integers (KHR_mesh_quantization)
                 values = values / float(2 ** (8 * block.dtype.itemsize - (block.dtype.kind == "i")) - 1)
-            uv[where[pos]:where[pos] + len(block)] = values
+            uv[start:start + len(block)] = values
         uvs = uv[F]
     colors = None
     if len(color_blocks) == len(gltf.positions):
-        parts = [color_blocks[pos] for pos in gltf.positions]
+        parts = [color_blocks[pos] for pos in [*gltf.positions, *(i.position for i in gltf.instances)]]
         if len({(p.dtype, p.shape[1]) for p in parts}) == 1:
             colors = np.concatenate(parts)
     textures: dict[str, bytes] = {}
@@ -269,19 +311,30 @@ def _read_image(uri: str, folder: Path | None, label: str) -> bytes | None:
 
 # ---------------------------------------------------------------------------------------------- writing
 def _new_normals(asset: MeshAsset, gltf: GltfData, V: NDArray[np.float64],
-                 buffers: list[bytearray]) -> None:
-    """Recompute the NORMAL accessors for the positions ``V`` (file numbering, scene coordinates), in place."""
+                 buffers: list[bytearray]) -> tuple[NDArray[np.int64], NDArray[np.float64], NDArray[np.bool_]] | None:
+    """Recompute the NORMAL accessors for the positions ``V`` (file numbering, scene coordinates), in place.
+
+    Returns
+    -------
+    group : (n,) int64 array
+        The normal group of each vertex (-1: none).
+    normals : (g, 3) float64 array
+        Each group's new normal in scene coordinates, where ``valid``.
+    valid : (g,) bool array
+    None
+        Without NORMAL accessors.
+    """
     if not gltf.normals:
-        return
+        return None
     n = len(asset.vertices)
     slot = {pos: k for k, pos in enumerate(gltf.positions)}
     old = np.full((n, 3), np.nan, dtype=np.float32)
-    for pos, normal in gltf.normals:
-        k = slot[pos]
+    placed = [(normal, gltf.offsets[slot[pos]]) for pos, normal in gltf.normals]
+    placed += [(i.normal, i.offset) for i in gltf.instances if i.normal is not None]
+    for normal, start in placed:
         values = accessor_array(gltf.document, gltf.buffers, normal, "the asset")
         if values.dtype != np.float32 or values.shape[1] != 3:
             continue
-        start = gltf.offsets[k]
         count = min(len(values), n - start)
         block = old[start:start + count]
         empty = np.isnan(block[:, 0])
@@ -305,6 +358,81 @@ def _new_normals(asset: MeshAsset, gltf: GltfData, V: NDArray[np.float64],
         ok &= length > 0
         local = local / np.where(length > 0, length, 1.0)[:, None]
         target[ok] = local[ok].astype(np.float32)
+    return group, normals, valid
+
+
+def _local(world: NDArray[np.float64], M: NDArray[np.float64], what: str) -> NDArray[np.float32]:
+    """Scene positions put back into the coordinates of a node of transform ``M``, as float32."""
+    if not np.array_equal(M, np.eye(4)):
+        try:
+            inverse = np.linalg.inv(M)
+        except np.linalg.LinAlgError as exc:
+            raise MeshError(f"the transform of {what} cannot be inverted (a zero scale?)") from exc
+        world = world @ inverse[:3, :3].T + inverse[:3, 3]
+    local = world.astype(np.float32)
+    if not np.isfinite(local).all():
+        raise MeshError("positions beyond the range of single precision (glTF stores float32); not written")
+    return local
+
+
+def _separate_instances(document: dict[str, Any], buffers: list[bytearray], gltf: GltfData,
+                        V: NDArray[np.float64],
+                        normals: tuple[NDArray[np.int64], NDArray[np.float64], NDArray[np.bool_]] | None) -> None:
+    """Give every further node showing a mesh its own copy of the mesh, with its own POSITION (and NORMAL)
+    accessors holding its positions (in a new buffer), so that each instance keeps its own deformed shape.
+
+    The copies are appended to ``meshes`` in the order of :attr:`GltfData.instances`: read again, the file numbers
+    its vertices as the asset does.
+    """
+    blob = bytearray()
+    b = len(buffers)
+    views, accessors = document.setdefault("bufferViews", []), document.setdefault("accessors", [])
+
+    def add(values: NDArray[np.float32], bounds: bool) -> int:
+        blob.extend(b"\0" * (-len(blob) % 4))
+        views.append({"buffer": b, "byteOffset": len(blob), "byteLength": values.nbytes, "target": 34962})
+        blob.extend(np.ascontiguousarray(values, dtype="<f4").tobytes())
+        acc: dict[str, Any] = {"bufferView": len(views) - 1, "componentType": FLOAT, "count": len(values),
+                               "type": "VEC3"}
+        if bounds:
+            acc["min"] = [float(x) for x in values.min(axis=0)]
+            acc["max"] = [float(x) for x in values.max(axis=0)]
+        accessors.append(acc)
+        return len(accessors) - 1
+
+    copies: dict[tuple[int, int], dict[int, tuple[int, int | None]]] = {}
+    for inst in gltf.instances:
+        count = int(document["accessors"][inst.position]["count"])
+        rows = slice(inst.offset, inst.offset + count)
+        position = add(_local(V[rows], inst.transform, f"node {inst.node}"), True)
+        normal = None
+        if inst.normal is not None:
+            old = accessor_array(gltf.document, gltf.buffers, inst.normal, "the asset")
+            values = np.asarray(old[:count, :3], dtype=np.float64).copy() if old.shape[1] >= 3 \
+                else np.zeros((count, 3))
+            if normals is not None and len(old) >= count:
+                group, world, valid = normals
+                g = group[rows]
+                local = world[np.maximum(g, 0)] @ inst.transform[:3, :3]
+                length = np.linalg.norm(local, axis=1)
+                ok = (g >= 0) & valid[np.maximum(g, 0)] & (length > 0)
+                values[ok] = local[ok] / length[ok, None]
+            normal = add(values.astype(np.float32), False)
+        copies.setdefault((inst.node, inst.mesh), {})[inst.position] = (position, normal)
+    meshes = document["meshes"]
+    for (node, m), mapping in copies.items():
+        mesh = copy.deepcopy(meshes[m])
+        for prim in mesh.get("primitives", []):
+            attributes = prim.get("attributes", {})
+            if attributes.get("POSITION") in mapping:
+                position, normal = mapping[attributes["POSITION"]]
+                attributes["POSITION"] = position
+                if normal is not None and "NORMAL" in attributes:
+                    attributes["NORMAL"] = normal
+        meshes.append(mesh)
+        document["nodes"][node]["mesh"] = len(meshes) - 1
+    document.setdefault("buffers", []).append({"byteLength": len(blob)})
+    buffers.append(blob)
 
 
 def _updated(asset: MeshAsset, V: NDArray[np.float64] | None) -> tuple[dict[str, Any], list[bytes]]:
@@ -316,23 +444,15 @@ def _updated(asset: MeshAsset, V: NDArray[np.float64] | None) -> tuple[dict[str,
     buffers = [bytearray(b) for b in gltf.buffers]
     for k, pos in enumerate(gltf.positions):
         target = accessor_array(document, buffers, pos, "the asset")
-        world = V[gltf.offsets[k]:gltf.offsets[k] + len(target)]
-        M = gltf.transforms[k]
-        if not np.array_equal(M, np.eye(4)):
-            try:
-                inverse = np.linalg.inv(M)
-            except np.linalg.LinAlgError as exc:
-                raise MeshError(f"the transform of POSITION accessor {pos} cannot be inverted (a zero scale?)") \
-                    from exc
-            world = world @ inverse[:3, :3].T + inverse[:3, 3]
-        local = world.astype(np.float32)
-        if not np.isfinite(local).all():
-            raise MeshError("positions beyond the range of single precision (glTF stores float32); not written")
+        local = _local(V[gltf.offsets[k]:gltf.offsets[k] + len(target)], gltf.transforms[k],
+                       f"POSITION accessor {pos}")
         target[...] = local
         acc = document["accessors"][pos]
         acc["min"] = [float(x) for x in local.min(axis=0)]
         acc["max"] = [float(x) for x in local.max(axis=0)]
-    _new_normals(asset, gltf, V, buffers)
+    normals = _new_normals(asset, gltf, V, buffers)
+    if gltf.instances:
+        _separate_instances(document, buffers, gltf, V, normals)
     return document, [bytes(b) for b in buffers]
 
 def write_gltf_asset(path: Path, asset: MeshAsset, V: NDArray[np.float64] | None, *, binary: bool) -> list[Path]:

@@ -22,9 +22,9 @@ from numpy.typing import NDArray
 
 from arap.errors import MeshFormatError
 
-__all__ = ["MAX_JSON_DEPTH", "MAX_NODE_DEPTH", "GltfData", "accessor_array", "accessor_count", "check_compression",
-           "data_uri", "format_error", "glb_bytes", "item", "mesh_transforms", "node_matrix", "pad4", "parse_json",
-           "percent_decoded", "read_uri", "split_glb", "triangles"]
+__all__ = ["MAX_JSON_DEPTH", "MAX_NODE_DEPTH", "GltfData", "Instance", "accessor_array", "accessor_count",
+           "check_compression", "data_uri", "format_error", "glb_bytes", "item", "mesh_instances", "mesh_transforms",
+           "node_matrix", "pad4", "parse_json", "percent_decoded", "read_uri", "split_glb", "triangles"]
 
 logger = logging.getLogger(__name__)
 
@@ -45,6 +45,32 @@ _SCHEME = re.compile(r"^[A-Za-z][A-Za-z0-9+.-]+:")
 _HEX = np.full(256, -1, dtype=np.int16)
 for _digits, _first in ((b"0123456789", 0), (b"abcdef", 10), (b"ABCDEF", 10)):
     _HEX[np.frombuffer(_digits, dtype=np.uint8)] = np.arange(_first, _first + len(_digits))
+
+
+@dataclass(eq=False)
+class Instance:
+    """One more copy of a POSITION accessor, for a further node showing its mesh (see :class:`GltfData`).
+
+    Attributes
+    ----------
+    node, mesh : int
+        The node and the mesh it shows.
+    position : int
+        The POSITION accessor copied.
+    normal : int or None
+        The NORMAL accessor beside it (None: none).
+    offset : int
+        The first vertex of the copy in the asset's numbering.
+    transform : (4, 4) float64 array
+        The node's scene transform applied to the copy.
+    """
+
+    node: int
+    mesh: int
+    position: int
+    normal: int | None
+    offset: int
+    transform: NDArray[np.float64]
 
 
 @dataclass(eq=False)
@@ -69,6 +95,9 @@ class GltfData:
         The NORMAL accessors of triangle primitives, with the POSITION accessor beside them.
     images : dict of int to bytes
         The content of images stored in files beside the document, by image index.
+    instances : list of Instance
+        The copies of the POSITION accessors of meshes shown by more than one node, one per further node and
+        accessor (the first node's are ``positions``), after every first copy in the vertex numbering.
     """
 
     document: dict[str, Any]
@@ -79,6 +108,7 @@ class GltfData:
     transforms: list[NDArray[np.float64]] = field(default_factory=list)
     normals: list[tuple[int, int]] = field(default_factory=list)
     images: dict[int, bytes] = field(default_factory=dict)
+    instances: list[Instance] = field(default_factory=list)
 
 
 def format_error(label: str, message: str) -> MeshFormatError:
@@ -315,8 +345,10 @@ def node_matrix(node: dict[str, Any]) -> NDArray[np.float64]:
     return M
 
 
-def mesh_transforms(document: dict[str, Any], label: str = "the document") -> dict[int, NDArray[np.float64]]:
-    """The transform of the first node (depth first through the scene) showing each mesh.
+def mesh_instances(document: dict[str, Any],
+                   label: str = "the document") -> dict[int, list[tuple[int, NDArray[np.float64]]]]:
+    """The nodes showing each mesh, depth first through the scene, with their scene transforms: for each mesh, a
+    list of ``(node, transform)``, each node once.
 
     Raises
     ------
@@ -331,7 +363,7 @@ def mesh_transforms(document: dict[str, Any], label: str = "the document") -> di
     else:
         children = {c for node in nodes for c in node.get("children", [])}
         roots = [i for i in range(len(nodes)) if i not in children]
-    out: dict[int, NDArray[np.float64]] = {}
+    out: dict[int, list[tuple[int, NDArray[np.float64]]]] = {}
     identity = np.eye(4)
     stack = [(int(i), identity, 1) for i in reversed(roots)]
     seen: set[int] = set()
@@ -345,13 +377,15 @@ def mesh_transforms(document: dict[str, Any], label: str = "the document") -> di
         node = nodes[i]
         M = parent @ node_matrix(node) if _TRANSFORM_KEYS.intersection(node) else parent
         if "mesh" in node:
-            mesh = int(node["mesh"])
-            if mesh in out and not np.array_equal(out[mesh], M):
-                logger.info("mesh %d is shown by several nodes; its vertices are placed by the first, and every "
-                            "instance shows the deformed mesh", mesh)
-            out.setdefault(mesh, M)
+            out.setdefault(int(node["mesh"]), []).append((i, M))
         stack.extend((int(c), M, depth + 1) for c in reversed(node.get("children", [])))
     return out
+
+
+def mesh_transforms(document: dict[str, Any], label: str = "the document") -> dict[int, NDArray[np.float64]]:
+    """The transform of the first node (depth first through the scene) showing each mesh (see
+    :func:`mesh_instances`)."""
+    return {m: instances[0][1] for m, instances in mesh_instances(document, label).items()}
 
 
 def triangles(indices: NDArray[np.int64], mode: int) -> NDArray[np.int64]:

@@ -6,6 +6,7 @@ they name are written beside it."""
 from __future__ import annotations
 
 from pathlib import Path
+from typing import cast
 
 import numpy as np
 from numpy.typing import NDArray
@@ -204,7 +205,9 @@ def obj_files(asset: MeshAsset, V: NDArray[np.float64] | None, stem: str) -> dic
     groups = np.asarray(asset.face_groups, dtype=np.int64) if len(asset.face_groups) == len(asset.faces) \
         else np.full(len(asset.faces), -1, dtype=np.int64)
     group, material = -1, -1
-    for f, (corners, vts) in enumerate(zip(asset.faces.tolist(), corner_vt.tolist(), strict=True)):
+    face_rows = cast(list[list[int]], asset.faces.tolist())
+    vt_rows = cast(list[list[int]], corner_vt.tolist())
+    for f, (corners, vts) in enumerate(zip(face_rows, vt_rows, strict=True)):
         if groups[f] != group and groups[f] >= 0:
             group = int(groups[f])
             lines.append(f"g {asset.groups[group]}")

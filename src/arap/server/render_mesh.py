@@ -384,10 +384,25 @@ def load_bundle_upload(data: bytes | memoryview, filename: str, max_vertices: in
 
 
 # ---------------------------------------------------------------------------------------------- export
+def _name_material(mesh: Any, asset: MeshAsset) -> None:
+    """Give a textured ``trimesh`` mesh of ``asset`` the name of the material most of its triangles use (a PBR
+    material: its name is written in GLB)."""
+    import trimesh
+
+    used = np.asarray(asset.face_materials)
+    used = used[(used >= 0) & (used < len(asset.materials))] if len(used) == len(asset.faces) else used[:0]
+    if not len(used) or not isinstance(mesh.visual, trimesh.visual.TextureVisuals):
+        return
+    image = getattr(mesh.visual.material, "image", None)
+    mesh.visual.material = trimesh.visual.material.PBRMaterial(
+        name=asset.materials[int(np.bincount(used).argmax())], baseColorTexture=image)
+
+
 def export_glb(name: str, U: np.ndarray, F: np.ndarray, look: Look | None) -> tuple[str, str, bytes]:
     """The deformed mesh as GLB: a glTF or GLB source written back with everything it holds
-    (:func:`arap.io.save_asset`), an OBJ or PLY source with its first texture and UVs or its vertex colours
-    (:func:`arap.io.asset_model.result_trimesh`), a plain mesh as geometry.
+    (:func:`arap.io.save_asset`), an OBJ or PLY source with its first texture and UVs (and the name of the material
+    most triangles use) or its vertex colours (:func:`arap.io.asset_model.result_trimesh`), a plain mesh as
+    geometry.
 
     Returns
     -------
@@ -402,7 +417,9 @@ def export_glb(name: str, U: np.ndarray, F: np.ndarray, look: Look | None) -> tu
             path = Path(folder) / "export.glb"
             _quietly(save_asset, path, look.asset, positions)
             return filename, GLB_MIME, path.read_bytes()
-    data = result_trimesh(positions, look.asset).export(file_type="glb")
+    mesh = result_trimesh(positions, look.asset)
+    _name_material(mesh, look.asset)
+    data = mesh.export(file_type="glb")
     assert isinstance(data, bytes)
     return filename, GLB_MIME, data
 
