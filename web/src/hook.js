@@ -105,6 +105,10 @@ export function installTestHook({
     get nVertices() {
       return viewer.nVertices;
     },
+    /** The axis the view draws up: 'y' or 'z'. */
+    get upAxis() {
+      return viewer.upAxis;
+    },
     /** The surface view: 'texture', 'colours' or 'plain'; `surfaces` lists those the mesh offers. */
     get surface() {
       return viewer.surface;

@@ -143,6 +143,12 @@ addSnapshotPart('timeline', () => timeline.snapshot());
 /** @type {TimelineSnapshot} the keyframes when the connection went away, put back with the session */
 let lostTimeline = null;
 onSessionRestored((snap) => timeline.restore(/** @type {TimelineSnapshot|undefined} */ (snap.timeline) ?? lostTimeline));
+// the up axis of the view is kept with the session
+addSnapshotPart('view', () => ({ upAxis: viewer.upAxis }));
+onSessionRestored((snap) => {
+  const view = /** @type {{upAxis?: unknown}|undefined} */ (snap.view);
+  if (view?.upAxis === 'z' || view?.upAxis === 'y') setUpAxis(view.upAxis, false);
+});
 
 /** Why the timeline cannot pose the handles now (null: it can). */
 function timelineBlocked() {
@@ -226,6 +232,17 @@ function commitConstraints(targets = null, force = false, pointTargets = null) {
 }
 
 // ------------------------------------------------------------------ actions
+
+/**
+ * Draw the Y or the Z axis up (the view turns; the data keep their coordinates).
+ * @param {'y'|'z'} axis
+ * @param {boolean} [touch] a change of the user's, to be saved with the session
+ */
+function setUpAxis(axis, touch = true) {
+  viewer.setUpAxis(axis);
+  /** @type {HTMLSelectElement} */ (byId('up-axis')).value = viewer.upAxis;
+  if (touch) keeper.touch();
+}
 
 /**
  * Draw the surface with its texture, its vertex colours or plain (the panel's Surface control).
@@ -326,6 +343,7 @@ function setGizmoMode(/** @type {'translate'|'rotate'} */ mode) {
   saveConstraints: () => send({ type: CLIENT.GET_CONSTRAINTS, ...(timeline.messageFields() ?? {}) }),
   setFlatShading: (on) => viewer.setFlatShading(on),
   setWireframe: (on) => viewer.setWireframe(on),
+  setUpAxis,
   setSurface,
   fit: () => viewer.fit(),
   reconnect: () => {

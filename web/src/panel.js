@@ -61,6 +61,7 @@ function fillChoices(select, param) {
  * @property {() => void} saveConstraints
  * @property {(on: boolean) => void} setFlatShading
  * @property {(on: boolean) => void} setWireframe
+ * @property {(axis: 'y'|'z') => void} setUpAxis
  * @property {() => void} fit
  * @property {() => void} reconnect
  */
@@ -142,6 +143,8 @@ export class Panel extends PanelReadouts {
 
     $('flat-shading').addEventListener('change', (/** @type {Event} */ e) => actions.setFlatShading(source(e).checked));
     $('wireframe').addEventListener('change', (/** @type {Event} */ e) => actions.setWireframe(source(e).checked));
+    $('up-axis').addEventListener('change', (/** @type {Event} */ e) => actions.setUpAxis(
+      source(e).value === 'z' ? 'z' : 'y'));
     $('btn-fit').addEventListener('click', () => actions.fit());
     $('btn-reconnect').addEventListener('click', () => actions.reconnect());
     $('status-close').addEventListener('click', () => this.hideStatus());

@@ -26,10 +26,12 @@ export function addLights(scene, camera) {
 }
 
 /**
- * A faint grid on the floor under a mesh of bounds `box`, a little wider than the mesh; rays pass through it.
+ * A faint grid on the floor under a mesh of bounds `box`, a little wider than the mesh; rays pass through it. The
+ * floor is across the up axis: the xz plane for Y up, the xy plane for Z up.
  * @param {THREE.Box3} box
+ * @param {'y'|'z'} [up]
  */
-export function floorGrid(box) {
+export function floorGrid(box, up = 'y') {
   const size = box.getSize(new THREE.Vector3());
   const center = box.getCenter(new THREE.Vector3());
   const extent = Math.max(size.x, size.z, size.y) * 2.2;
@@ -37,7 +39,12 @@ export function floorGrid(box) {
   grid.material.transparent = true;
   grid.material.opacity = 0.45;
   grid.material.depthWrite = false;
-  grid.position.set(center.x, box.min.y - 0.002 * extent, center.z);
+  if (up === 'z') {
+    grid.rotation.x = Math.PI / 2;
+    grid.position.set(center.x, center.y, box.min.z - 0.002 * extent);
+  } else {
+    grid.position.set(center.x, box.min.y - 0.002 * extent, center.z);
+  }
   grid.raycast = () => {};
   return grid;
 }
@@ -55,7 +62,8 @@ export function frameSphere(camera, controls, sphere) {
   const fitH = radius / Math.sin(fov / 2);
   const fitW = radius / Math.sin(Math.atan(Math.tan(fov / 2) * camera.aspect));
   const dist = Math.max(fitH, fitW) * 1.3;
-  const dir = new THREE.Vector3(0.35, 0.28, 1).normalize();
+  // from the front (+z for Y up, -y for Z up), a little above and to the right
+  const dir = (camera.up.z > 0.5 ? new THREE.Vector3(0.35, -1, 0.28) : new THREE.Vector3(0.35, 0.28, 1)).normalize();
   camera.position.copy(sphere.center).addScaledVector(dir, dist);
   camera.near = dist / 100;
   camera.far = dist * 100;

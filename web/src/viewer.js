@@ -32,6 +32,8 @@ export class Viewer {
     this.canvas = canvas;
     this.frame = frame;
     this.wireOverlay = false;
+    /** @type {'y'|'z'} the axis drawn up: the view turns, the mesh's coordinates stay as they are */
+    this.upAxis = 'y';
     this.renderer = new THREE.WebGLRenderer({ canvas, antialias: true, preserveDrawingBuffer: true });
     this.renderer.setPixelRatio(Math.min(window.devicePixelRatio, 2));
     this.renderer.setClearColor(0x000000, 0);
@@ -331,6 +333,26 @@ export class Viewer {
     this.requestRender();
   }
 
+  /**
+   * Draw the Y axis or the Z axis up (a Z-up model, as CAD and scanning tools write them, stands on the floor):
+   * the camera turns and its orbit follows; the mesh and everything sent to the server keep their coordinates.
+   * @param {'y'|'z'} axis
+   */
+  setUpAxis(axis) {
+    const up = axis === 'z' ? 'z' : 'y';
+    if (up === this.upAxis) return;
+    this.upAxis = up;
+    this.camera.up.set(0, up === 'y' ? 1 : 0, up === 'z' ? 1 : 0);
+    if (this.controls) {
+      // OrbitControls measures its angles about the up axis it was made with: aim them at the new one
+      const c = /** @type {any} its private frame of the orbit */ (this.controls);
+      c._quat.setFromUnitVectors(this.camera.up, new THREE.Vector3(0, 1, 0));
+      c._quatInverse.copy(c._quat).invert();
+    }
+    if (this.geometry) this._placeGrid(partsOf(this.geometry).box);
+    this.fit();
+  }
+
   /** @param {boolean} on */
   setWireframe(on) {
     this.wireOverlay = on;
@@ -344,7 +366,7 @@ export class Viewer {
       this.scene.remove(this.grid);
       this.grid.geometry.dispose();
     }
-    this.grid = floorGrid(box);
+    this.grid = floorGrid(box, this.upAxis);
     this.scene.add(this.grid);
   }
 
