@@ -6,6 +6,7 @@ import base64
 import io
 import json
 import struct
+import zipfile
 from pathlib import Path
 from typing import Any
 
@@ -212,3 +213,14 @@ def instanced_glb(folder: Path, name: str = "instanced") -> Path:
     path = folder / f"{name}.glb"
     path.write_bytes(glb_bytes(document, blob))
     return path
+
+
+def zip_of(folder: Path, names: list[str] | None = None, compression: int = zipfile.ZIP_DEFLATED) -> bytes:
+    """The files under ``folder`` (or those named) in a zip, by their relative names."""
+    out = io.BytesIO()
+    with zipfile.ZipFile(out, "w", compression=compression) as archive:
+        for path in sorted(folder.rglob("*")):
+            name = path.relative_to(folder).as_posix()
+            if path.is_file() and (names is None or name in names):
+                archive.writestr(name, path.read_bytes())
+    return out.getvalue()

@@ -15,18 +15,7 @@ from arap.errors import MeshFormatError
 from arap.io import load_asset
 from arap.io.assets import bundle_mesh_name, read_bundle, unpacked_bundle
 from arap.io.obj_write import obj_files
-from tests.io.asset_models import cube_glb, cube_gltf, cube_obj
-
-
-def zip_of(folder: Path, names: list[str] | None = None, compression: int = zipfile.ZIP_DEFLATED) -> bytes:
-    """The files under ``folder`` (or those named) in a zip, by their relative names."""
-    out = io.BytesIO()
-    with zipfile.ZipFile(out, "w", compression=compression) as archive:
-        for path in sorted(folder.rglob("*")):
-            name = path.relative_to(folder).as_posix()
-            if path.is_file() and (names is None or name in names):
-                archive.writestr(name, path.read_bytes())
-    return out.getvalue()
+from tests.io.asset_models import cube_glb, cube_gltf, cube_obj, zip_of
 
 
 def test_an_obj_bundle_brings_its_mtl_and_textures(tmp_path: Path) -> None:
