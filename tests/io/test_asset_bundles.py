@@ -70,6 +70,10 @@ def test_links_bombs_and_crowds_are_refused_before_extracting() -> None:
     crowd = _zip([(f"f{i}.png", b"x") for i in range(20)])
     with pytest.raises(MeshFormatError, match="20 files, more than the 10"):
         read_bundle(crowd, max_bytes=1 << 20, max_files=10)
+    with pytest.raises(MeshFormatError, match="both as a file and as a folder"):
+        read_bundle(_zip([("a", b"1"), ("a/b.png", b"2")]), max_bytes=1 << 20)
+    with pytest.raises(MeshFormatError, match="cannot be extracted"), unpacked_bundle({"x" * 300 + ".png": b""}):
+        pass
     with pytest.raises(MeshFormatError, match="twice"):
         read_bundle(_zip([("a.obj", b"1"), ("./a.obj", b"2")]), max_bytes=1 << 20)
     with pytest.raises(MeshFormatError, match="not a readable zip"):

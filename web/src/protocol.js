@@ -135,7 +135,7 @@ export const UPLOAD_EXTENSIONS = Object.freeze([
  */
 
 /**
- * load an uploaded OBJ/OFF/PLY/STL/GLB file (payload: the file's bytes)
+ * load an uploaded OBJ/OFF/PLY/STL/GLB/glTF file, or a zip of one with the files it names (payload: the file's bytes)
  * @typedef {object} UploadClientMessage
  * @property {"upload"} type
  * @property {string} filename original file name; only its extension is used

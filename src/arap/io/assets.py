@@ -240,6 +240,10 @@ def read_bundle(data: bytes, *, max_bytes: int, max_files: int = MAX_BUNDLE_FILE
             if name in names:
                 raise MeshFormatError(f"{label} holds {name!r} twice; nothing was extracted")
             names[name] = m
+        folders = {"/".join(name.split("/")[:k]) for name in names for k in range(1, name.count("/") + 1)}
+        both = sorted(folders.intersection(names))
+        if both:
+            raise MeshFormatError(f"{label} holds {both[0]!r} both as a file and as a folder; nothing was extracted")
         files: dict[str, bytes] = {}
         for name, m in names.items():
             try:
@@ -274,13 +278,22 @@ def bundle_mesh_name(files: dict[str, bytes] | list[str], label: str = "the zip 
 @contextmanager
 def unpacked_bundle(files: dict[str, bytes]) -> Iterator[Path]:
     """A new temporary folder holding ``files`` (names from :func:`read_bundle`), removed afterwards: a mesh file
-    read from there finds the files of its bundle, and nothing else (:func:`arap.io.paths.read_reference`)."""
+    read from there finds the files of its bundle, and nothing else (:func:`arap.io.paths.read_reference`).
+
+    Raises
+    ------
+    MeshFormatError
+        A file cannot be written there (a name too long for the file system).
+    """
     from arap.io.atomic import write_atomic
 
     with tempfile.TemporaryDirectory(prefix="arap-bundle-") as folder:
         root = Path(folder)
         for name, content in files.items():
             dest = root / _bundle_name(name, "the bundle")
-            dest.parent.mkdir(parents=True, exist_ok=True)
-            write_atomic(dest, content)
+            try:
+                dest.parent.mkdir(parents=True, exist_ok=True)
+                write_atomic(dest, content)
+            except OSError as exc:
+                raise MeshFormatError(f"{name[:200]!r} cannot be extracted: {exc.strerror or exc}") from exc
         yield root

@@ -60,7 +60,8 @@ class LoadBuiltin(ClientMessage):
 @dataclass(frozen=True)
 class Upload(ClientMessage):
     type: ClassVar[str] = "upload"
-    doc: ClassVar[str] = "load an uploaded OBJ/OFF/PLY/STL/GLB file (payload: the file's bytes)"
+    doc: ClassVar[str] = ("load an uploaded OBJ/OFF/PLY/STL/GLB/glTF file, or a zip of one with the files it names "
+                          "(payload: the file's bytes)")
     binary: ClassVar[bool] = True
     filename: str = field(metadata=wire("string", "original file name; only its extension is used", max_length=255))
     payload: memoryview = field(repr=False, compare=False)

@@ -371,13 +371,13 @@ def load_bundle_upload(data: bytes | memoryview, filename: str, max_vertices: in
     try:
         files = read_bundle(bytes(data), max_bytes=max_bytes, label=filename)
         main = bundle_mesh_name(files, filename)
+        with unpacked_bundle(files) as folder:
+            base = posixpath.basename(main)
+            mesh = load_upload(files[main], base, max_vertices, folder=folder / posixpath.dirname(main))
+            look = look_from_upload(files[main], base, mesh, max_vertices, max_texture_bytes,
+                                    folder=folder / posixpath.dirname(main))
     except ArapError as exc:
         raise RequestError("bad_mesh", str(exc)) from exc
-    with unpacked_bundle(files) as folder:
-        base = posixpath.basename(main)
-        mesh = load_upload(files[main], base, max_vertices, folder=folder / posixpath.dirname(main))
-        look = look_from_upload(files[main], base, mesh, max_vertices, max_texture_bytes,
-                                folder=folder / posixpath.dirname(main))
     if look is not None:
         look.asset.source = None
     return mesh, look
