@@ -13,7 +13,9 @@ import pytest
 import trimesh
 from playwright.sync_api import Page, expect
 
-from tests.e2e.conftest import positions, wait_idle
+from tests.e2e.conftest import positions, screen_points, wait_idle, wait_ready
+from tests.e2e.test_session_safety import Dialogs
+from tests.e2e.test_studio import box_select
 from tests.e2e.test_studio_texture import checker_image, colour_counts
 
 pytestmark = pytest.mark.e2e
@@ -50,7 +52,14 @@ def test_an_obj_with_its_mtl_and_texture_and_the_up_axis(page: Page, tmp_path: P
     red, blue = colour_counts(page)
     assert red > 2000 and blue > 2000, f"the checker is not drawn ({red} red, {blue} blue pixels)"
 
+    pts = screen_points(page)  # an edit, so that the session is offered back after a reload
+    page.get_by_test_id("role-fixed").click()
+    box_select(page, pts[:, 0].min() - 10, pts[:, 1].max() - 20, pts[:, 0].max() + 10, pts[:, 1].max() + 10)
+    wait_idle(page)
+    assert page.evaluate("() => window.__arap.counts().fixed") > 0
+
     rest = positions(page)
+    saves = page.evaluate("() => window.__arap.autosave.saves")
     page.get_by_test_id("up-axis").select_option("z")
     page.wait_for_function("() => window.__arap.upAxis === 'z'")
     wait_idle(page)
@@ -70,3 +79,15 @@ def test_an_obj_with_its_mtl_and_texture_and_the_up_axis(page: Page, tmp_path: P
     source = trimesh.load(obj, process=False)
     np.testing.assert_allclose(V, source.vertices, atol=1e-9)
     assert not page.evaluate("() => window.__arap.errors")
+
+    # the up axis is kept with the session, and the session's mesh comes back with its texture
+    page.wait_for_function(f"() => window.__arap.autosave.idle && window.__arap.autosave.saves > {saves}")
+    Dialogs(page, accept=True)
+    page.reload()
+    wait_ready(page)
+    assert page.evaluate("() => window.__arap.upAxis") == "y"
+    expect(page.get_by_test_id("restore-offer")).to_be_visible()
+    page.get_by_test_id("restore-accept").click()
+    page.wait_for_function("() => window.__arap.meshName === 'grid' && !window.__arap.restoring")
+    page.wait_for_function("() => window.__arap.upAxis === 'z' && window.__arap.surface === 'texture'")
+    expect(page.get_by_test_id("up-axis")).to_have_value("z")
