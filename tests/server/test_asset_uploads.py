@@ -165,3 +165,12 @@ def test_a_mesh_shown_by_two_nodes_is_drawn_twice_with_a_note(studio: StudioClie
     notes = replies[1].data["notes"]
     assert any("2 instances were made separate parts" in n for n in notes)
     assert studio.V[:, 0].max() > 4.0, "the second instance is drawn where its node puts it"
+
+
+def test_the_diffuse_texture_is_shown_when_a_bump_map_comes_first(studio: StudioClient, tmp_path: Path) -> None:
+    cube_obj(tmp_path)
+    mtl = (tmp_path / "cube.mtl").read_text()
+    (tmp_path / "cube.mtl").write_text("newmtl first\nbump tex/bump.png\n\n" + mtl)
+    replies = upload(studio, "cube.zip", zip_of(tmp_path))
+    texture = appearance_arrays(replies[1], len(studio.V))["texture"]
+    assert texture == (tmp_path / "tex" / "checker.png").read_bytes()

@@ -161,7 +161,7 @@ def _pick_texture(asset: MeshAsset, max_bytes: int, notes: list[str]) -> tuple[b
         if asset.textures:
             notes.append("the texture is not a PNG or JPEG image; the model is shown without it")
         return b"", ""
-    wanted = _base_color_name(asset)
+    wanted = _base_color_name(asset) if asset.format != "obj" else _diffuse_name(asset, names)
     name = wanted if wanted in names else names[0]
     blob = asset.textures[name]
     if len(blob) > max_bytes:
@@ -269,6 +269,12 @@ def _material_notes(asset: MeshAsset) -> list[str]:
         if other:
             notes.append(f"only the diffuse texture (map_Kd) is drawn ({', '.join(dict.fromkeys(other))} not shown)")
     return notes
+
+
+def _diffuse_name(asset: MeshAsset, names: list[str]) -> str | None:
+    """For OBJ, the first of the texture images ``names`` that an MTL file names in a ``map_Kd`` statement."""
+    mtls = list(getattr(asset.data, "mtl_files", {}).values())
+    return next((n for n in names if any(_is_diffuse_map(mtl, n) for mtl in mtls)), None)
 
 
 def _is_diffuse_map(mtl: bytes, ref: str) -> bool:
