@@ -313,8 +313,10 @@ def _may_have_look(data: bytes, ext: str) -> bool:
     if ext == ".ply":
         end = data.find(b"end_header")
         return any(h in data[: end if end > 0 else 4096] for h in _PLY_HINTS)
-    if ext == ".obj":  # vertex colours, or an MTL file that was or was not uploaded with it
-        return _OBJ_COLOUR_LINE.search(data) is not None or _OBJ_MTLLIB_LINE.search(data) is not None
+    if ext == ".obj":  # vertex colours, or texture coordinates and an MTL file (brought with it or not)
+        texcoords = b"\nvt " in data or b"\nvt\t" in data or data.startswith((b"vt ", b"vt\t"))
+        mtllib = texcoords and b"mtllib" in data and _OBJ_MTLLIB_LINE.search(data) is not None
+        return mtllib or _OBJ_COLOUR_LINE.search(data) is not None
     return False
 
 
