@@ -49,6 +49,10 @@ def test_an_obj_uploaded_with_its_mtl_and_texture_is_drawn_textured(studio: Stud
     notes = alone[1].data["notes"]
     assert alone[1].data["render_vertices"] == 0
     assert any("'cube.mtl'" in n for n in notes) and any("zip" in n for n in notes)
+    exported = _export(studio, "obj")
+    assert exported.data["filename"] == "cube-deformed.obj", "nothing to bring beside it"
+    source_vt = (tmp_path / "cube.obj").read_text().count("\nvt ")
+    assert exported.payload.decode().count("\nvt ") == source_vt == 14, "its texture coordinates are kept"
 
     replies = upload(studio, "cube.zip", zip_of(tmp_path))
     assert [r.type for r in replies] == ["mesh", "appearance"]
