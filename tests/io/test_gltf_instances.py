@@ -7,6 +7,7 @@ from __future__ import annotations
 import json
 import struct
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -40,6 +41,15 @@ def test_each_node_showing_a_mesh_gets_its_own_vertices(tmp_path: Path) -> None:
     assert asset.vertex_colors is not None and len(asset.vertex_colors) == 36
     V, F = load_mesh(tmp_path / "instanced.glb", repair=False)
     assert len(V) == 36 and len(F) == len(asset.faces), "the solver's reading draws both instances too"
+
+
+def test_a_mesh_shown_by_very_many_nodes_is_refused_before_copying(tmp_path: Path, monkeypatch: Any) -> None:
+    import arap.io.gltf_asset as gltf_asset
+    from arap.errors import MeshFormatError
+
+    monkeypatch.setattr(gltf_asset, "MAX_INSTANCED_VERTICES", 30)
+    with pytest.raises(MeshFormatError, match="more than 30 vertices once each instance is a part of its own"):
+        load_asset(instanced_glb(tmp_path))
 
 
 def test_each_instance_is_written_with_its_own_shape(tmp_path: Path) -> None:

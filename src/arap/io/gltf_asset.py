@@ -54,6 +54,9 @@ logger = logging.getLogger(__name__)
 
 _IDENTITY = np.eye(4)
 _IDENTITY.setflags(write=False)
+MAX_INSTANCED_VERTICES = 1 << 25
+"""Most vertices a glTF file's meshes shown by several nodes may make once each instance has its own copy: many
+nodes showing one large mesh would cost memory out of all proportion to the file."""
 TRIANGLES_PER_VERTEX = 4
 """Most triangles accepted per vertex of a glTF file's triangle primitives: a surface has about two; many more can
 only be primitives repeating the same indices, refused before they are read (they would cost memory out of all
@@ -216,6 +219,10 @@ def _read_gltf_asset(data: bytes, label: str, folder: Path | None, max_vertices:
             for pos, T_local, material, normal in prims:
                 if pos not in copies:
                     total = n_vertices + counts[pos]
+                    if total > MAX_INSTANCED_VERTICES:
+                        raise format_error(label, f"its meshes shown by several nodes make more than "
+                                           f"{MAX_INSTANCED_VERTICES:,} vertices once each instance is a part of "
+                                           "its own")
                     if max_vertices is not None and total > max_vertices:
                         raise MeshTooLargeError(f"{label} has more than {max_vertices:,} vertices ({total:,} so far, "
                                                 "instances made separate parts); at most "
