@@ -178,3 +178,15 @@ def test_the_diffuse_texture_is_shown_when_a_bump_map_comes_first(studio: Studio
     replies = upload(studio, "cube.zip", zip_of(tmp_path))
     texture = appearance_arrays(replies[1], len(studio.V))["texture"]
     assert texture == (tmp_path / "tex" / "checker.png").read_bytes()
+
+
+def test_material_features_the_page_does_not_draw_are_noted(studio: StudioClient) -> None:
+    from tests.io.asset_models import cube_gltf_document, glb_bytes, png
+
+    document, blob = cube_gltf_document(png(8, 8, 4))
+    document["materials"][1]["normalTexture"] = {"index": 0}
+    document["materials"][1]["extensions"] = {"KHR_materials_clearcoat": {"clearcoatFactor": 1.0}}
+    document["extensionsUsed"] = ["KHR_materials_clearcoat"]
+    notes = upload(studio, "coat.glb", glb_bytes(document, blob))[1].data["notes"]
+    assert any("KHR_materials_clearcoat" in n for n in notes)
+    assert any("normalTexture not shown" in n for n in notes)
