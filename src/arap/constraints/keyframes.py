@@ -212,6 +212,8 @@ def _polar(A: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.floa
 
 
 def _check_transforms(raw: Any, n_groups: int, where: str) -> NDArray[np.float64]:
+    if n_groups == 0 and isinstance(raw, list) and not raw:  # only point handles move
+        return np.zeros((0, 4, 4))
     try:
         T = np.asarray(raw, dtype=np.float64)
     except (TypeError, ValueError):
