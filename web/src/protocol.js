@@ -238,7 +238,7 @@ export const UPLOAD_EXTENSIONS = Object.freeze([
  */
 
 /**
- * keep the current shape as a keyframe's (a drag or an export at that keyframe gives it back); no answer
+ * keep the current shape, settled first, as a keyframe's (a drag or an export at that keyframe gives it back); no answer
  * @typedef {object} KeepShapeClientMessage
  * @property {"keep_shape"} type
  * @property {number} key the keyframe's number, chosen by the client

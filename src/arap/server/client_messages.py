@@ -138,7 +138,8 @@ class Drag(ClientMessage):
 class KeepShape(ClientMessage):
     type: ClassVar[str] = "keep_shape"
     doc: ClassVar[str] = (
-        "keep the current shape as a keyframe's (a drag or an export at that keyframe gives it back); no answer"
+        "keep the current shape, settled first, as a keyframe's (a drag or an export at that keyframe gives it "
+        "back); no answer"
     )
     key: int = field(metadata=wire("int", "the keyframe's number, chosen by the client", minimum=0, maximum=MAX_SEQ))
 

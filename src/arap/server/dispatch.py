@@ -298,8 +298,9 @@ class Dispatcher:
         yield self.vertices(msg.seq, outcome)
 
     def _keep_shape(self, msg: KeepShape) -> Answers:
+        # the converged shape is kept: an unsettled one settles first (as for an export)
+        yield SETTLE
         self.session.keep_shape(msg.key)
-        yield from ()
 
     def _end_drag(self, msg: EndDrag) -> Answers:
         self.session.end_drag()
