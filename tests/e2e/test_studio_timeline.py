@@ -318,3 +318,39 @@ def test_the_timeline_in_sight_typed_times_ends_keyed_shapes_and_easing(page: Pa
     assert len(frames) == 7
     assert np.abs(frames[-1] - keyed).max() <= 1e-5 * diag
     assert not page.evaluate("() => window.__arap.errors"), "the server reported errors"
+
+
+def test_a_point_handle_is_animated_like_a_handle_group(page: Page, tmp_path: Path) -> None:
+    from tests.e2e.test_studio_points import _anchor_bottom, _faces, _on_surface, _place_point
+
+    rest = positions(page)
+    F = _faces(page)
+    diag = float(np.linalg.norm(rest.max(axis=0) - rest.min(axis=0)))
+    point = _place_point(page, _anchor_bottom(page))["point"]
+    wait_settled(page)
+    page.get_by_test_id("tl-add").click()  # a point handle alone is enough for keyframes
+    expect(page.get_by_test_id("tl-count")).to_have_text("1 keyframe")
+    seek(page, 1000)
+    drag_gizmo_x(page, 90)
+    wait_settled(page)
+    page.get_by_test_id("tl-add").click()
+    expect(page.get_by_test_id("tl-count")).to_have_text("2 keyframes")
+    wait_idle(page)
+    wait_settled(page)
+    start, end = _on_surface(rest, F, point), _on_surface(positions(page), F, point)
+    assert np.linalg.norm(end - start) > 0.02 * diag
+    seek(page, 500)  # the point halfway, on a straight line
+    np.testing.assert_allclose(_on_surface(positions(page), F, point), (start + end) / 2, atol=1e-4 * diag)
+
+    page.get_by_test_id("tl-fps").fill("4")
+    page.get_by_test_id("tl-fps").press("Enter")
+    with page.expect_download(timeout=scaled_ms(120)) as info:
+        page.get_by_test_id("tl-export").click()
+    glb = tmp_path / info.value.suggested_filename
+    info.value.save_as(glb)
+    _, frames = glb_frames(glb.read_bytes())
+    assert len(frames) == 5
+    where = np.array([_on_surface(U, F, point) for U in frames])
+    expected = start + np.linspace(0.0, 1.0, 5)[:, None] * (end - start)
+    np.testing.assert_allclose(where, expected, atol=1e-4 * diag)
+    assert not page.evaluate("() => window.__arap.errors"), "the server reported errors"
