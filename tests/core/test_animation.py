@@ -351,3 +351,33 @@ def test_the_glb_has_the_normals_of_every_frame() -> None:
         np.testing.assert_allclose(base + vec3(target["NORMAL"]), vertex_normals(anim.vertices[k], F), atol=1e-5)
     bent = base + vec3(primitive["targets"][-1]["NORMAL"])
     assert np.abs(bent - base).max() > 0.1  # the bend turns the normals
+
+
+def test_arap_animate_reads_shapes_easings_and_point_targets(tmp_path: Path,
+                                                             capsys: pytest.CaptureFixture[str]) -> None:
+    from arap.cli import main
+    from tests.animated_glb import glb_frames
+
+    V, F, fixed, top = _bar()
+    diag = float(np.linalg.norm(V.max(0) - V.min(0)))
+    shape, turn = _turned_shape(V, F, fixed, top, 0.75 * np.pi)
+    face = int(np.flatnonzero(V[F].mean(axis=1)[:, 1] > 3.0)[0])
+    third = np.full(3, 1 / 3)
+    start = third @ V[F[face]]
+    doc = {"version": 2, "fixed": fixed.tolist(), "handles": top.tolist(),
+           "points": [{"face": face, "barycentric": third.tolist(), "target": start.tolist(), "weight": 10.0}],
+           "keyframes": [{"time": 0.0, "transforms": [np.eye(4).tolist()], "easing": "ease-in-out"},
+                         {"time": 0.4, "transforms": [turn], "shape": shape.tolist(),
+                          "point_targets": [(shape[F[face]].T @ third).tolist()]}]}
+    keys = tmp_path / "keys.json"
+    keys.write_text(json.dumps(doc))
+    assert main(["animate", "bar", "-k", str(keys), "-o", str(tmp_path / "a.glb"), "--fps", "10", "-q"]) == 0
+    _, frames = glb_frames((tmp_path / "a.glb").read_bytes())
+    expected = animate(V, F, doc, fps=10, exact=False)
+    np.testing.assert_allclose(frames, expected.vertices, atol=1e-5 * diag)
+    assert np.abs(frames[-1] - shape).max() <= 1e-6 * diag  # the keyed shape (float32 in the file)
+    doc["keyframes"][0]["easing"] = "smooth"  # type: ignore[index]
+    keys.write_text(json.dumps(doc))
+    assert main(["animate", "bar", "-k", str(keys), "-o", str(tmp_path / "b.glb")]) == 1
+    err = capsys.readouterr().err
+    assert "easing must be one of" in err and len(err.strip().splitlines()) == 1 and not (tmp_path / "b.glb").exists()
