@@ -354,3 +354,35 @@ def test_a_point_handle_is_animated_like_a_handle_group(page: Page, tmp_path: Pa
     expected = start + np.linspace(0.0, 1.0, 5)[:, None] * (end - start)
     np.testing.assert_allclose(where, expected, atol=1e-4 * diag)
     assert not page.evaluate("() => window.__arap.errors"), "the server reported errors"
+
+
+def test_a_picture_animation_exports_as_an_animated_gif(page: Page, tmp_path: Path) -> None:
+    import io
+
+    from PIL import Image
+
+    from tests.e2e.test_studio_picture import _picture
+    from tests.e2e.test_studio_texture import upload
+
+    upload(page, _picture(tmp_path / "bar-picture.png"), "texture")
+    select_anchor_and_handle(page)
+    wait_settled(page)
+    page.get_by_test_id("tl-add").click()
+    seek(page, 500)
+    drag_gizmo_x(page, 80)
+    wait_settled(page)
+    page.get_by_test_id("tl-add").click()
+    expect(page.get_by_test_id("tl-count")).to_have_text("2 keyframes")
+    wait_idle(page)
+    wait_settled(page)
+    page.get_by_test_id("tl-fps").fill("8")
+    page.get_by_test_id("tl-fps").press("Enter")
+    page.get_by_test_id("tl-format").select_option("gif")
+    with page.expect_download(timeout=scaled_ms(120)) as info:
+        page.get_by_test_id("tl-export").click()
+    assert info.value.suggested_filename == "bar-picture_animation.gif"
+    out = tmp_path / "out.gif"
+    info.value.save_as(out)
+    gif = Image.open(io.BytesIO(out.read_bytes()))
+    assert gif.format == "GIF" and gif.size == (160, 160) and gif.n_frames == 5
+    assert not page.evaluate("() => window.__arap.errors")
