@@ -3,7 +3,9 @@ and written as numbered meshes or one animated GLB.
 
 The keyframes (a constraints file with ``"keyframes"``, and how poses are interpolated between them) are described
 in :mod:`arap.constraints.keyframes`. The frames at the keyframe times are always solved to convergence
-(``tolerance``), so they are the shapes :func:`arap.ArapSolver.solve` gives for those targets. By default
+(``tolerance``), so they are the shapes :func:`arap.ArapSolver.solve` gives for those targets, except at keyframes
+that carry their ``"shape"``: that shape is the frame, exactly, and the next frame starts from it. Point handles
+follow the keyframes' ``"point_targets"``, and each keyframe's ``"easing"`` sets the pace to the next one. By default
 (``exact=True``) so is every other frame. With ``exact=False`` (the default of ``arap animate``), the frames between
 keyframes stop at the looser :data:`FRAME_TOLERANCE`: a few times fewer iterations, and shapes within about 1e-3 of
 the bounding-box diagonal of the converged ones (``benchmarks/bench_animation.py`` measures both).
@@ -32,7 +34,7 @@ import math
 import re
 import time
 from collections.abc import Iterator, Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -157,8 +159,25 @@ def iter_frames(solver: Any, keyframes: Keyframes, V: NDArray[np.float64], times
     between = tolerance if exact or tolerance == 0 else max(float(frame_tolerance), float(tolerance))
     for t, key in zip(times, at_key, strict=True):
         targets = np.concatenate([fixed, keyframes.handle_targets(float(t))])
-        yield float(t), solver.solve(targets, point_targets=c.point_targets, tolerance=tolerance if key else between,
+        points = keyframes.point_targets(float(t))
+        if points is None:
+            points = c.point_targets
+        keyed = keyframes.key_at(float(t)) if key else None
+        shape = None if keyed is None else keyed.shape
+        if shape is not None:
+            yield float(t), _keyed(solver, targets, points, shape)
+            continue
+        yield float(t), solver.solve(targets, point_targets=points, tolerance=tolerance if key else between,
                                      **solve_options)
+
+
+def _keyed(solver: Any, targets: NDArray[np.float64], points: NDArray[np.float64] | None,
+           shape: NDArray[np.float64]) -> ArapResult:
+    """The frame of a keyframe with a shape: that shape, which the solver's next solve starts from."""
+    t0 = time.perf_counter()
+    result = solver.solve(targets, initial=shape, max_iterations=0, point_targets=points)
+    return replace(result, vertices=np.array(shape, dtype=np.float64), iterations=0, converged=True,
+                   timings={**result.timings, "total": time.perf_counter() - t0})
 
 
 def animate(V: NDArray[np.float64], F: NDArray[np.integer], keyframes: Keyframes | str | Path | Mapping[str, Any],

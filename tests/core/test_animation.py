@@ -241,3 +241,143 @@ def test_arap_animate_estimates_its_time_and_exact_converges_every_frame(
     exact = np.array([arap.load_mesh(tmp_path / f"e_{k:02d}.ply")[0] for k in range(9)])
     np.testing.assert_allclose(exact, converged, atol=1e-9 * diag)
     assert np.linalg.norm(fast - converged, axis=2).max() <= 1e-3 * diag
+
+
+def _turned_shape(V: np.ndarray, F: np.ndarray, fixed: np.ndarray, top: np.ndarray,
+                  angle: float) -> tuple[np.ndarray, list[list[float]]]:
+    """The shape reached by turning the top of the bar about z in ten steps (as a drag does), and the last turn."""
+    pivot = V[top].mean(axis=0)
+    solver = arap.ArapSolver(V, F, np.concatenate([fixed, top]))
+    for a in np.linspace(0.0, angle, 10)[1:]:
+        R = np.array(_rotation_z(a, pivot))
+        shape = solver.solve(np.concatenate([V[fixed], V[top] @ R[:3, :3].T + R[:3, 3]])).vertices
+    return shape, _rotation_z(angle, pivot)
+
+
+def test_a_keyed_shape_is_the_frame_at_its_key_and_the_start_of_the_next() -> None:
+    V, F, fixed, top = _bar()
+    diag = float(np.linalg.norm(V.max(0) - V.min(0)))
+    shape, turn = _turned_shape(V, F, fixed, top, 0.75 * np.pi)
+    pivot = V[top].mean(axis=0)
+    doc = {"fixed": fixed.tolist(), "handles": top.tolist(),
+           "keyframes": [{"time": 0.0, "transforms": [np.eye(4).tolist()]}, {"time": 1.0, "transforms": [turn]},
+                         {"time": 1.2, "transforms": [_rotation_z(0.8 * np.pi, pivot)]}]}
+    again = animate(V, F, doc, fps=5)  # the pose solved again from another path: another minimum
+    assert np.abs(again.vertices[5] - shape).max() > 0.01 * diag
+    doc["keyframes"][1]["shape"] = shape.tolist()  # type: ignore[index]
+    anim = animate(V, F, doc, fps=5)
+    assert np.abs(anim.vertices[5] - shape).max() <= 1e-9 * diag
+    assert anim.at_key is not None and anim.at_key[5] and anim.converged.all()
+    # the frame after the key starts from the keyed shape
+    keys = load_keyframes(doc, V)
+    from_shape = arap.ArapSolver(V, F, np.concatenate([fixed, top])).solve(
+        np.concatenate([V[fixed], keys.handle_targets(1.2)]), initial=shape).vertices
+    assert np.abs(anim.vertices[6] - from_shape).max() <= 1e-5 * diag
+    doc["keyframes"][1]["shape"] = (shape + np.array([0.0, 0.0, 0.01])).tolist()  # type: ignore[index]
+    with pytest.raises(ConstraintError, match="shape puts a handle"):
+        load_keyframes(doc, V)
+    doc["keyframes"][1]["shape"] = shape[:-1].tolist()  # type: ignore[index]
+    with pytest.raises(ConstraintError, match="one \\[x, y, z\\] per vertex"):
+        load_keyframes(doc, V)
+
+
+def test_easing_changes_the_pace_between_keys_not_the_path() -> None:
+    V, _F, fixed, top = _bar()
+    shift = np.array([0.8, 0.0, 0.0])
+    doc = {"fixed": fixed.tolist(), "handles": top.tolist(),
+           "keyframes": [{"time": 0.0, "targets": V[top].tolist(), "easing": "ease-in-out"},
+                         {"time": 1.0, "targets": (V[top] + shift).tolist(), "easing": "linear"},
+                         {"time": 2.0, "targets": V[top].tolist()}]}
+    keys = load_keyframes(doc, V)
+    np.testing.assert_allclose(keys.handle_targets(0.25), V[top] + 0.15625 * shift, atol=1e-12)  # s² (3 - 2 s)
+    np.testing.assert_allclose(keys.handle_targets(0.5), V[top] + 0.5 * shift, atol=1e-12)
+    np.testing.assert_allclose(keys.handle_targets(1.25), V[top] + 0.75 * shift, atol=1e-12)  # linear after key 2
+    assert keys.keys[0].easing == "ease-in-out" and keys.keys[2].easing == "linear"
+    doc["keyframes"][0]["easing"] = "bounce"  # type: ignore[index]
+    with pytest.raises(ConstraintError, match="easing must be one of"):
+        load_keyframes(doc, V)
+
+
+def test_point_handles_move_with_the_keyframes() -> None:
+    V, F, fixed, top = _bar()
+    face = int(np.flatnonzero(V[F].mean(axis=1)[:, 1] > 4.0)[0])  # a triangle near the top
+    bary = [0.2, 0.3, 0.5]
+    start = np.asarray(bary) @ V[F[face]]
+    right = np.array([1.0, 0.0, 0.0])
+    doc = {"version": 2, "fixed": fixed.tolist(), "handles": top.tolist(),
+           "points": [{"face": face, "barycentric": bary, "target": start.tolist()}],
+           "keyframes": [{"time": 0.0, "targets": V[top].tolist()},
+                         {"time": 0.4, "targets": V[top].tolist(), "point_targets": [(start + 0.5 * right).tolist()]},
+                         {"time": 0.6, "targets": V[top].tolist()}]}
+    keys = load_keyframes(doc, V, len(F))
+    np.testing.assert_allclose(keys.point_targets(0.0), [start])  # the point's own target before any keyframe
+    np.testing.assert_allclose(keys.point_targets(0.2), [start + 0.25 * right], atol=1e-12)
+    np.testing.assert_allclose(keys.point_targets(0.6), [start + 0.5 * right], atol=1e-12)  # held after
+    anim = animate(V, F, doc, fps=10)
+    moved = np.asarray(bary) @ anim.vertices[:, F[face]]  # (frames, 3): where the point is in each frame
+    np.testing.assert_allclose(moved[2], start + 0.25 * right, atol=1e-6)
+    np.testing.assert_allclose(moved[4], start + 0.5 * right, atol=1e-6)
+    del doc["points"]
+    with pytest.raises(ConstraintError, match="no point handles"):
+        load_keyframes(doc, V, len(F))
+
+
+def test_the_glb_has_the_normals_of_every_frame() -> None:
+    from arap.io.animated_gltf import animation_glb
+    from arap.render.raster import vertex_normals
+
+    V, F, fixed, top = _bar()
+    doc = {"fixed": fixed.tolist(), "handles": top.tolist(),
+           "keyframes": [{"time": 0.0, "targets": V[top].tolist()},
+                         {"time": 0.2, "targets": (V[top] + [2.0, 0.0, 0.0]).tolist()}]}
+    anim = animate(V, F, doc, fps=10)
+    data = animation_glb(F, anim.times, anim.vertices)
+    n_json = struct.unpack("<I", data[12:16])[0]
+    gltf = json.loads(data[20:20 + n_json])
+    binary = data[20 + n_json + 8:]
+    primitive = gltf["meshes"][0]["primitives"][0]
+
+    def vec3(i: int) -> np.ndarray:
+        a = gltf["accessors"][i]
+        assert (a["type"], a["componentType"], a["count"]) == ("VEC3", 5126, len(V))
+        view = gltf["bufferViews"][a["bufferView"]]
+        assert view["byteOffset"] % 4 == 0 and view["byteLength"] == 12 * len(V) and view["target"] == 34962
+        return np.frombuffer(binary, dtype="<f4", count=3 * len(V), offset=view["byteOffset"]).reshape(-1, 3)
+
+    base = vec3(primitive["attributes"]["NORMAL"])
+    np.testing.assert_allclose(np.linalg.norm(base, axis=1), 1.0, atol=1e-6)
+    assert all(set(t) == {"POSITION", "NORMAL"} for t in primitive["targets"])
+    for k, target in enumerate(primitive["targets"]):
+        np.testing.assert_allclose(base + vec3(target["NORMAL"]), vertex_normals(anim.vertices[k], F), atol=1e-5)
+    bent = base + vec3(primitive["targets"][-1]["NORMAL"])
+    assert np.abs(bent - base).max() > 0.1  # the bend turns the normals
+
+
+def test_arap_animate_reads_shapes_easings_and_point_targets(tmp_path: Path,
+                                                             capsys: pytest.CaptureFixture[str]) -> None:
+    from arap.cli import main
+    from tests.animated_glb import glb_frames
+
+    V, F, fixed, top = _bar()
+    diag = float(np.linalg.norm(V.max(0) - V.min(0)))
+    shape, turn = _turned_shape(V, F, fixed, top, 0.75 * np.pi)
+    face = int(np.flatnonzero(V[F].mean(axis=1)[:, 1] > 3.0)[0])
+    third = np.full(3, 1 / 3)
+    start = third @ V[F[face]]
+    doc = {"version": 2, "fixed": fixed.tolist(), "handles": top.tolist(),
+           "points": [{"face": face, "barycentric": third.tolist(), "target": start.tolist(), "weight": 10.0}],
+           "keyframes": [{"time": 0.0, "transforms": [np.eye(4).tolist()], "easing": "ease-in-out"},
+                         {"time": 0.4, "transforms": [turn], "shape": shape.tolist(),
+                          "point_targets": [(shape[F[face]].T @ third).tolist()]}]}
+    keys = tmp_path / "keys.json"
+    keys.write_text(json.dumps(doc))
+    assert main(["animate", "bar", "-k", str(keys), "-o", str(tmp_path / "a.glb"), "--fps", "10", "-q"]) == 0
+    _, frames = glb_frames((tmp_path / "a.glb").read_bytes())
+    expected = animate(V, F, doc, fps=10, exact=False)
+    np.testing.assert_allclose(frames, expected.vertices, atol=1e-5 * diag)
+    assert np.abs(frames[-1] - shape).max() <= 1e-6 * diag  # the keyed shape (float32 in the file)
+    doc["keyframes"][0]["easing"] = "smooth"  # type: ignore[index]
+    keys.write_text(json.dumps(doc))
+    assert main(["animate", "bar", "-k", str(keys), "-o", str(tmp_path / "b.glb")]) == 1
+    err = capsys.readouterr().err
+    assert "easing must be one of" in err and len(err.strip().splitlines()) == 1 and not (tmp_path / "b.glb").exists()

@@ -140,3 +140,175 @@ def test_export_over_the_socket_with_progress_and_cancel(studio: StudioClient) -
         reply = studio.recv()
     assert statuses and statuses[-1] == "cancelled", (statuses, reply.data)
     assert reply.type == "constraints" and len(reply.data["document"]["keyframes"]) == 2
+
+
+def _turned_in_steps(s: Session, top: list[int], angle: float, steps: int = 10) -> list[float]:
+    """Turn the handle group about z by ``angle`` in drags of equal steps, settle; the last transform."""
+    pivot = s.V[top].mean(axis=0)
+    for a in np.linspace(0.0, angle, steps + 1)[1:]:
+        s.drag([column_major(rotation_z(float(a), pivot))])
+    s.end_drag()
+    s.settle(lambda: False)
+    return column_major(rotation_z(angle, pivot))
+
+
+def test_a_keyframe_gives_back_the_shape_that_was_keyed(bar_session: Session, bar: MeshData) -> None:
+    s = bar_session
+    diag = float(np.linalg.norm(np.ptp(bar.V, axis=0)))
+    y = s.V[:, 1]
+    fixed, top = np.flatnonzero(y < 0.2).tolist(), np.flatnonzero(y > 4.8).tolist()
+    s.set_constraints(None, fixed, [top])
+    s.keep_shape(7)
+    turned = _turned_in_steps(s, top, 0.75 * np.pi)
+    s.keep_shape(8)
+    keyed = s.U.copy()
+    rest = translation(0.0)
+    # scrubbing back to the start and onto the key: the kept shape, exactly
+    s.drag([rest], key=7)
+    np.testing.assert_array_equal(s.U, bar.V)
+    s.drag([turned], key=8)
+    np.testing.assert_array_equal(s.U, keyed)
+    s.drag([translation(0.1)], key=8)  # not the key's pose: solved
+    assert np.abs(s.U[top] - (keyed[top] + [0.1, 0, 0])).max() > 0.1
+    s.end_drag()
+
+    _, _, again, _, _ = export_animation(s, [0, 1000], [rest, turned], 5.0, lambda: False)
+    assert np.abs(glb_frames(again)[1][-1] - keyed).max() > 0.01 * diag  # solved again: another shape
+    _, _, data, _, _ = export_animation(s, [0, 1000], [rest, turned], 5.0, lambda: False, keys=[7, 8])
+    frames = glb_frames(data)[1]
+    assert np.abs(frames[-1] - keyed).max() <= 1e-6 * diag  # (float32 positions)
+    document = keyframes_document(s, [0, 1000], [rest, turned], keys=[7, 8])
+    np.testing.assert_array_equal(document["keyframes"][1]["shape"], keyed)
+    reference = animate(bar.V, bar.F, document, fps=5.0, energy=s.params.energy, weights=s.params.weights,
+                        alpha=s.params.alpha)
+    assert np.abs(reference.vertices[-1] - keyed).max() <= 1e-9 * diag
+    with pytest.raises(RequestError, match="keys"):
+        export_animation(s, [0, 1000], [rest, turned], 5.0, lambda: False, keys=[7])
+
+
+def test_point_handles_and_easing_in_the_export(bar_session: Session, bar: MeshData) -> None:
+    s = bar_session
+    y = s.V[:, 1]
+    fixed, top = np.flatnonzero(y < 0.2).tolist(), np.flatnonzero(y > 4.8).tolist()
+    face = int(np.flatnonzero(bar.V[bar.F].mean(axis=1)[:, 1] > 3.5)[0])
+    third = np.full(3, 1 / 3)
+    s.set_constraints(None, fixed, [top], points=[{"face": face, "barycentric": third.tolist()}])
+    start = third @ bar.V[bar.F[face]]
+    rest, moved = translation(0.0), translation(0.6)
+    transforms = [rest, rest, rest, moved]  # per keyframe: the handle group, then the point handle
+    _, _, data, count, _ = export_animation(s, [0, 400], transforms, 10.0, lambda: False, easings=[1, 0])
+    frames = glb_frames(data)[1]
+    assert count == 5
+    where = np.einsum("j,fjk->fk", third, frames[:, bar.F[face]])
+    eased = np.array([0.0, 0.15625, 0.5, 0.84375, 1.0]) * 0.6  # s² (3 - 2 s) at 0, 1/4, ... of the way
+    np.testing.assert_allclose(where[:, 0] - start[0], eased, atol=2e-5)
+    document = keyframes_document(s, [0, 400], transforms, easings=[1, 0])
+    assert document["keyframes"][0]["easing"] == "ease-in-out" and "easing" not in document["keyframes"][1]
+    lifted = start + np.array([0.6, 0.0, 0.0])
+    np.testing.assert_allclose(document["keyframes"][1]["point_targets"], [lifted], atol=1e-12)
+    with pytest.raises(RequestError, match="easings"):
+        export_animation(s, [0, 400], transforms, 10.0, lambda: False, easings=[9, 0])
+
+
+def test_a_picture_animation_as_gif_webp_and_png_frames() -> None:
+    import io
+    import zipfile
+
+    from PIL import Image
+
+    from arap.server.pictures import warped_picture_png
+    from tests.server.test_pictures import _loaded
+
+    s = _loaded()
+    mesh = s.mesh
+    assert mesh is not None
+    centre = mesh.V[mesh.F].mean(axis=1)
+    left, right = int(np.argmin(centre[:, 0])), int(np.argmax(centre[:, 0]))
+    third = [1 / 3, 1 / 3, 1 / 3]
+    s.set_constraints(None, [], [], points=[{"face": left, "barycentric": third},
+                                             {"face": right, "barycentric": third}])
+    rest, lifted = translation(0.0), translation(0.0, 25.0)
+    s.keep_shape(1)
+    shown = [np.asarray(Image.open(io.BytesIO(warped_picture_png(mesh, s.U))).convert("RGBA"))]
+    s.drag([rest, lifted])
+    s.end_drag()
+    s.settle(lambda: False)
+    s.keep_shape(2)
+    shown.append(np.asarray(Image.open(io.BytesIO(warped_picture_png(mesh, s.U))).convert("RGBA")))
+    assert np.abs(shown[0].astype(int) - shown[1]).max() > 100  # the picture moved
+    keys = {"times_ms": [0, 500], "transforms": [rest, rest, rest, lifted], "keys": [1, 2]}
+
+    def export(fmt: str) -> tuple[str, list[np.ndarray]]:
+        name, mime, data, count, _ = export_animation(s, keys["times_ms"], keys["transforms"], 10.0, lambda: False,
+                                                      keys=keys["keys"], fmt=fmt)
+        assert count == 6 and name.endswith(f".{fmt}") and mime.endswith(fmt)
+        if fmt == "zip":
+            with zipfile.ZipFile(io.BytesIO(data)) as z:
+                names = sorted(z.namelist())
+                return name, [np.asarray(Image.open(io.BytesIO(z.read(n))).convert("RGBA")) for n in names]
+        image = Image.open(io.BytesIO(data))
+        assert image.format == fmt.upper() and image.n_frames == 6
+        pictures = []
+        for k in range(image.n_frames):
+            image.seek(k)
+            pictures.append(np.asarray(image.convert("RGBA")))
+        return name, pictures
+
+    for fmt in ("webp", "zip"):  # lossless: the keyed poses' pictures exactly
+        _, pictures = export(fmt)
+        assert len(pictures) == 6
+        np.testing.assert_array_equal(pictures[0], shown[0])
+        np.testing.assert_array_equal(pictures[-1], shown[1])
+    _, pictures = export("gif")  # a palette and one level of transparency: close
+    for got, want in ((pictures[0], shown[0]), (pictures[-1], shown[1])):
+        drawn, opaque = want[..., 3] > 0, want[..., 3] == 255
+        assert ((got[..., 3] > 0) == drawn).mean() > 0.99
+        assert np.abs(got[opaque][:, :3].astype(int) - want[opaque][:, :3]).mean() < 8
+    with pytest.raises(RequestError, match="picture"):
+        export_animation(bar_like(), [0, 500], [translation(0.0), translation(0.5)], 10.0, lambda: False, fmt="gif")
+
+
+def bar_like() -> Session:
+    from arap.server.meshdata import load_builtin
+
+    s = Session()
+    s.load(load_builtin("bar"))
+    y = s.V[:, 1]
+    s.set_constraints(None, np.flatnonzero(y < 0.2).tolist(), [np.flatnonzero(y > 4.8).tolist()])
+    return s
+
+
+def test_a_picture_animation_without_pillow_says_what_to_install(monkeypatch: pytest.MonkeyPatch) -> None:
+    import sys
+
+    s = bar_like()
+    s.mesh = dataclasses_replace_picture(s)
+    monkeypatch.setitem(sys.modules, "PIL", None)
+    for fmt in ("gif", "webp", "zip"):
+        with pytest.raises(RequestError, match=r"needs Pillow.*arap\[image\]"):
+            export_animation(s, [0, 500], [translation(0.0), translation(0.5)], 10.0, lambda: False, fmt=fmt)
+
+
+def dataclasses_replace_picture(s: Session) -> MeshData:
+    """The session's mesh with a picture (what the export checks before it draws)."""
+    import dataclasses
+
+    assert s.mesh is not None
+    return dataclasses.replace(s.mesh, picture=np.zeros((4, 4, 4), dtype=np.uint8))
+
+
+def test_keep_shape_over_the_socket_is_not_answered_and_a_drag_gives_the_shape_back(studio: StudioClient) -> None:
+    fixed, top = studio.bottom_top()
+    studio.set_constraints(fixed, [top])
+
+    def dragged(seq: int, dx: float) -> dict:
+        studio.send({"type": "drag", "seq": seq, "transforms": [translation(dx)], "key": 5})
+        reply = studio.recv()
+        while reply.type != "vertices" or reply.data.get("seq") != seq:
+            assert reply.type in ("settle", "state", "vertices"), reply.data  # nothing answers keep_shape
+            reply = studio.recv()
+        return reply.data
+
+    studio.send({"type": "keep_shape", "key": 5})
+    assert dragged(1, 0.3)["iterations"] > 0  # not the pose of keyframe 5: solved
+    assert dragged(2, 0.0)["iterations"] == 0  # keyframe 5's pose: its kept shape

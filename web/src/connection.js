@@ -56,6 +56,8 @@ export class Connection {
     this.seq = 0;
     this.inFlight = null; // {seq, sentAt}
     this.pending = null; // latest unsent transforms
+    /** @type {number|undefined} the keyframe whose pose the pending transforms are */
+    this.pendingKey = undefined;
     this.endDragQueued = false;
     this.lastLatencyMs = null;
     this.attempt = 0; // failed connection attempts in a row
@@ -161,20 +163,22 @@ export class Connection {
   /**
    * Queue a drag; at most one drag is unanswered, later ones collapse into the newest.
    * @param {number[][]} transforms one 4x4 matrix per handle group, then per point handle (see DragClientMessage)
+   * @param {number} [key] the keyframe whose pose these are (DragClientMessage.key)
    */
-  drag(transforms) {
+  drag(transforms, key) {
     if (this.inFlight && performance.now() - this.inFlight.sentAt > DRAG_REPLY_TIMEOUT_MS) this.inFlight = null;
     if (this.inFlight) {
       this.pending = transforms;
+      this.pendingKey = key;
       return;
     }
-    this._sendDrag(transforms);
+    this._sendDrag(transforms, key);
   }
 
   /** Finish a drag: the newest transforms go out first, then end_drag. */
   endDrag() {
     if (this.pending) {
-      this._sendDrag(this.pending);
+      this._sendDrag(this.pending, this.pendingKey);
       this.pending = null;
     }
     this.send({ type: CLIENT.END_DRAG });
@@ -184,10 +188,10 @@ export class Connection {
     return this.inFlight !== null;
   }
 
-  /** @param {number[][]} transforms */
-  _sendDrag(transforms) {
+  /** @param {number[][]} transforms @param {number} [key] */
+  _sendDrag(transforms, key) {
     this.seq += 1;
-    if (this.send({ type: CLIENT.DRAG, seq: this.seq, transforms })) {
+    if (this.send({ type: CLIENT.DRAG, seq: this.seq, transforms, ...(key === undefined ? {} : { key }) })) {
       this.inFlight = { seq: this.seq, sentAt: performance.now() };
     }
   }
@@ -200,7 +204,7 @@ export class Connection {
     if (this.pending) {
       const t = this.pending;
       this.pending = null;
-      this._sendDrag(t);
+      this._sendDrag(t, this.pendingKey);
     }
   }
 

@@ -267,7 +267,7 @@ export function installTestHook({
      */
     get timeline() {
       return {
-        keys: timeline.keys.map((k) => ({ ms: k.ms, transforms: k.transforms.map((m) => m.slice()) })),
+        keys: timeline.keys.map((k) => ({ ...k, transforms: k.transforms.map((m) => m.slice()) })),
         pivots: timeline.pivots?.map((p) => p.slice()) ?? null,
         timeMs: timeline.timeMs,
         durationMs: timeline.durationMs,

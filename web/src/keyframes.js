@@ -8,9 +8,26 @@
 import * as THREE from 'three';
 
 /**
- * @typedef {{ms: number, transforms: number[][]}} Keyframe
- *   time in milliseconds and one column-major 4×4 (16 numbers) per handle group
+ * @typedef {{ms: number, transforms: number[][], easing?: string, id?: number}} Keyframe
+ *   time in milliseconds, one column-major 4×4 (16 numbers) per group of the server's constraint set (handle groups,
+ *   then point handles), how the groups move to the next keyframe (one of EASINGS; absent: linear), and the number
+ *   under which the server kept the shape shown when the keyframe was made (keep_shape)
  */
+
+/** The easings of a keyframe, in the order of export_animation's `easings` numbers (as arap.constraints.keyframes). */
+export const EASINGS = ['linear', 'ease-in-out', 'ease-in', 'ease-out'];
+
+/**
+ * The fraction of the way at the fraction `s` of the time between two keyframes (arap.constraints.keyframes.ease).
+ * @param {string|undefined} easing
+ * @param {number} s
+ */
+export function ease(easing, s) {
+  if (easing === 'ease-in-out') return s * s * (3 - 2 * s);
+  if (easing === 'ease-in') return s * s;
+  if (easing === 'ease-out') return 1 - (1 - s) * (1 - s);
+  return s;
+}
 
 // ------------------------------------------------------------------ 3×3 algebra (row-major arrays of 9)
 
@@ -129,8 +146,9 @@ export function turn(a, b, s, pivot) {
 }
 
 /**
- * The handle groups' transforms at `seconds`: the first keyframe's before it, the last's after it, in between the
- * turn of each group about its pivot (see `turn`).
+ * The groups' transforms at `seconds`: the first keyframe's before it, the last's after it, in between the turn of
+ * each group about its pivot (see `turn`; a point handle's pivot is the point, which so moves on a straight line), at
+ * the pace of the earlier keyframe's easing.
  * @param {Keyframe[]} keys in increasing time
  * @param {number[][]} pivots per group
  * @param {number} seconds
@@ -146,7 +164,7 @@ export function interpolate(keys, pivots, seconds) {
   const ka = keys[b - 1];
   const kb = keys[b];
   const ta = ka.ms / 1000;
-  const s = (seconds - ta) / (kb.ms / 1000 - ta);
+  const s = ease(ka.easing, (seconds - ta) / (kb.ms / 1000 - ta));
   return ka.transforms.map((m, g) => turn(m, kb.transforms[g], s, pivots[g]));
 }
 

@@ -2,6 +2,7 @@
 // the handles there, and its keyframes (when it has them) go on the timeline, relative to the positions their
 // transforms apply to.
 import { readConstraintsFile } from './files.js';
+import { EASINGS } from './keyframes.js';
 import { CLIENT } from './protocol.js';
 
 /**
@@ -12,7 +13,7 @@ import { CLIENT } from './protocol.js';
  * @param {string} text
  * @param {ArrayLike<number>|null} rest (null: not known)
  * @param {Int32Array|null} vertexMap
- * @returns {{text: string, keys: {ms: number, transforms: number[][]}[]}|null}
+ * @returns {{text: string, keys: {ms: number, transforms: number[][], easing: string}[]}|null}
  */
 export function keyframedDocument(text, rest, vertexMap) {
   let doc;
@@ -35,6 +36,7 @@ export function keyframedDocument(text, rest, vertexMap) {
     ms: Math.round(1000 * k.time),
     transforms: k.transforms.map((/** @type {any} */ m) => [0, 1, 2, 3].flatMap((c) => [0, 1, 2, 3]
       .map((r) => Number(m[r][c])))),
+    easing: EASINGS.includes(k.easing) ? k.easing : 'linear',
   }));
   return { text: JSON.stringify({ ...doc, targets: base }), keys };
 }

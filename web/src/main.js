@@ -125,9 +125,11 @@ const timeline = new Timeline({
   transforms: () => gizmo.transformsFor(sync.groupMap),
   matrixOf: (g) => gizmo.transformsFor(sync.groupMap)[g],
   positions: () => viewer.positions,
-  drag: (transforms) => {
+  anchor: (g) => (g < sync.serverGroups.length ? { indices: sync.serverGroups[g], weights: null }
+    : points.anchor(sync.groupMap[g])),
+  drag: (transforms, key) => {
     gizmo.setTransforms(transforms, sync.groupMap);
-    conn.drag(transforms);
+    conn.drag(transforms, key);
   },
   endDrag: () => {
     conn.endDrag();
@@ -156,7 +158,7 @@ function timelineBlocked() {
   if (gizmo.dragging) return 'a drag is under way';
   if (sync.pending) return 'the new selection is still being set up';
   if (sync.refusal) return 'the server refused the current selection';
-  if (!sync.serverGroups.length) return 'paint a handle group first (keyframes pose handle groups)';
+  if (!sync.groupMap.length) return 'paint a handle group or place a point handle first (keyframes pose them)';
   return null;
 }
 

@@ -20,7 +20,8 @@ export const CLIENT = Object.freeze(/** @type {const} */ ({
   "EXPORT": "export",
   "GET_CONSTRAINTS": "get_constraints",
   "EXPORT_ANIMATION": "export_animation",
-  "GET_DISTORTION": "get_distortion"
+  "GET_DISTORTION": "get_distortion",
+  "KEEP_SHAPE": "keep_shape"
 }));
 
 /** Types of the messages the server sends. */
@@ -159,6 +160,7 @@ export const UPLOAD_EXTENSIONS = Object.freeze([
  * @property {"drag"} type
  * @property {number} seq sequence number echoed by the answering vertices frame
  * @property {number[][]} transforms one affine 4x4 matrix per handle group, then per point handle, column-major
+ * @property {number} [key] the keyframe (keep_shape's key) these transforms are the pose of: its kept shape is shown, unsolved, while its handles are where these transforms put them
  */
 
 /**
@@ -214,16 +216,21 @@ export const UPLOAD_EXTENSIONS = Object.freeze([
  * @typedef {object} GetConstraintsClientMessage
  * @property {"get_constraints"} type
  * @property {number[]} [times_ms] keyframe times in milliseconds, increasing (absent or empty: no keyframes)
- * @property {number[][]} [transforms] per keyframe, one column-major 4x4 matrix per handle group (point handles excluded), keyframe after keyframe
+ * @property {number[][]} [transforms] per keyframe, one column-major 4x4 matrix per handle group (then, optionally, per point handle), keyframe after keyframe
+ * @property {number[]|null} [easings] per keyframe, how the handles move to the next one: 0 linear, 1 ease-in-out, 2 ease-in, 3 ease-out (absent: all linear)
+ * @property {number[]|null} [keys] per keyframe, its number for keep_shape: a shape kept under it is the keyframe's shape
  */
 
 /**
- * solve the keyframed animation at fps, every frame to convergence from the previous one with the session's solver and parameters (point handles hold still), and answer with an animated GLB (morph targets); animation_progress messages report the frames solved, and any new request cancels it
+ * solve the keyframed animation at fps, every frame to convergence from the previous one with the session's solver and parameters (a keyframe with a kept shape gives that shape), and answer with an animated GLB (morph targets) or, for a picture, an animated GIF or WebP or a zip of PNG frames; animation_progress messages report the frames solved, and any new request cancels it
  * @typedef {object} ExportAnimationClientMessage
  * @property {"export_animation"} type
  * @property {number[]} times_ms keyframe times in milliseconds, increasing
- * @property {number[][]} transforms per keyframe, one column-major 4x4 matrix per handle group (point handles excluded), keyframe after keyframe
+ * @property {number[][]} transforms per keyframe, one column-major 4x4 matrix per handle group (then, optionally, per point handle), keyframe after keyframe
  * @property {number} fps frames per second
+ * @property {number[]|null} [easings] per keyframe, how the handles move to the next one: 0 linear, 1 ease-in-out, 2 ease-in, 3 ease-out (absent: all linear)
+ * @property {number[]|null} [keys] per keyframe, its number for keep_shape: a shape kept under it is the keyframe's shape
+ * @property {"glb"|"gif"|"webp"|"zip"} [format] file format (gif, webp, zip: pictures only)
  */
 
 /**
@@ -232,7 +239,14 @@ export const UPLOAD_EXTENSIONS = Object.freeze([
  * @property {"get_distortion"} type
  */
 
-/** Any message a client sends. @typedef {LoadBuiltinClientMessage|UploadClientMessage|SetConstraintsClientMessage|DragClientMessage|EndDragClientMessage|SetParamsClientMessage|UndoClientMessage|RedoClientMessage|ResetClientMessage|ApplyClientMessage|ExportClientMessage|GetConstraintsClientMessage|ExportAnimationClientMessage|GetDistortionClientMessage} ClientMessage */
+/**
+ * keep the current shape, settled first, as a keyframe's (a drag or an export at that keyframe gives it back); no answer
+ * @typedef {object} KeepShapeClientMessage
+ * @property {"keep_shape"} type
+ * @property {number} key the keyframe's number, chosen by the client
+ */
+
+/** Any message a client sends. @typedef {LoadBuiltinClientMessage|UploadClientMessage|SetConstraintsClientMessage|DragClientMessage|EndDragClientMessage|SetParamsClientMessage|UndoClientMessage|RedoClientMessage|ResetClientMessage|ApplyClientMessage|ExportClientMessage|GetConstraintsClientMessage|ExportAnimationClientMessage|GetDistortionClientMessage|KeepShapeClientMessage} ClientMessage */
 
 /**
  * sent once on connect, followed by a mesh frame
@@ -331,7 +345,7 @@ export const UPLOAD_EXTENSIONS = Object.freeze([
  */
 
 /**
- * answer to export_animation (payload: the GLB file's bytes: the first frame as the mesh, every frame a morph target, and an animation of the morph weights)
+ * answer to export_animation (payload: the file's bytes: a GLB with the first frame as the mesh, every frame a morph target, and an animation of the morph weights; or a picture's animated GIF or WebP, or zip of PNG frames)
  * @typedef {object} AnimationServerMessage
  * @property {"animation"} type
  * @property {string} filename suggested file name

@@ -1,15 +1,19 @@
-// Keyframe timeline: the handle groups' transforms stored at a few times, a time bar with a marker per keyframe, a
-// playhead to scrub, playback at the animation's frame rate, and the export of the solved animation as a GLB.
-// A keyframe holds one column-major 4×4 per handle group of the server's constraint set (point handles are not
-// animated: they keep their current transform); how the groups move between keyframes is keyframes.js's.
+// Keyframe timeline: the handle groups' and point handles' transforms stored at a few times, a time bar with a marker
+// per keyframe, a playhead to scrub (or a time typed), playback at the animation's frame rate, and the export of the
+// solved animation as a GLB (for a picture also as an animated GIF or WebP, or PNG frames).
+// A keyframe holds one column-major 4×4 per group of the server's constraint set (handle groups, then point handles)
+// and the easing of the motion to the next keyframe; how the groups move between keyframes is keyframes.js's. When a
+// keyframe is made the server keeps the shape shown (keep_shape, under the keyframe's number): a drag at that
+// keyframe's pose, and the export's frame at its time, give that shape back instead of solving the pose again (which
+// could end in another shape).
 // Scrubbing and playback send the interpolated transforms as drags, so the shape follows live; the connection keeps
 // at most one drag unanswered, so a slow server drops frames instead of queueing them.
 import * as THREE from 'three';
 import { byId, byIdAs } from './dom.js';
-import { frameCount, interpolate, rebased } from './keyframes.js';
+import { EASINGS, frameCount, interpolate, rebased } from './keyframes.js';
 import { CLIENT, SERVER } from './protocol.js';
 
-export { frameCount, interpolate, polar, turn } from './keyframes.js';
+export { ease, EASINGS, frameCount, interpolate, polar, turn } from './keyframes.js';
 
 /** @typedef {import('./keyframes.js').Keyframe} Keyframe */
 /** @typedef {import('./protocol.js').ExportAnimationClientMessage} ExportAnimationClientMessage */
@@ -21,7 +25,7 @@ export const MAX_EXPORT_FRAMES = 600;
 export class Timeline {
   /**
    * @param {import('./types.js').TimelineDeps} deps what it reads (blocked, handleGroups, transforms, matrixOf,
-   *   positions) and calls (drag, endDrag, send, download, changed, say)
+   *   positions, anchor) and calls (drag, endDrag, send, download, changed, say)
    */
   constructor(deps) {
     this.deps = deps;
@@ -41,6 +45,11 @@ export class Timeline {
     this._frame = -1;
     this._raf = 0;
     this._moved = false; // drags sent since the last end_drag
+    this._nextId = 1; // the number of the next keyframe (keep_shape's key)
+    /** @type {ExportAnimationClientMessage['format']} */
+    this.format = 'glb';
+    /** @type {number|null} where a press on a marker started (a scrub begins once the pointer leaves it) */
+    this._pressX = null;
 
     this.bar = byId('tl-bar');
     this.markers = byId('tl-markers');
@@ -57,28 +66,80 @@ export class Timeline {
     const fps = byIdAs('tl-fps', HTMLInputElement);
     duration.addEventListener('change', () => this.setDuration(Number(duration.value)));
     fps.addEventListener('change', () => this.setFps(Number(fps.value)));
+    const at = byIdAs('tl-time-input', HTMLInputElement);
+    at.addEventListener('change', () => this.typedTime(Number(at.value)));
+    const keyTime = byIdAs('tl-key-time', HTMLInputElement);
+    keyTime.addEventListener('change', () => this.moveKeyframe(Number(keyTime.value)));
+    const easing = byIdAs('tl-easing', HTMLSelectElement);
+    easing.addEventListener('change', () => this.setEasing(easing.value));
+    const format = byIdAs('tl-format', HTMLSelectElement);
+    format.addEventListener('change', () => {
+      this.format = /** @type {ExportAnimationClientMessage['format']} */ (format.value);
+    });
     this.render();
   }
 
   // ------------------------------------------------------------------ keyframes
 
-  /** Store the handle groups' current transforms at the playhead (replacing a keyframe at that time). */
+  /** Store the groups' current transforms at the playhead (replacing a keyframe at that time, keeping its
+   * easing), and have the server keep the shape shown as this keyframe's. */
   addKeyframe() {
     const why = this.deps.blocked();
     if (why) return this.deps.say(`Cannot add a keyframe: ${why}.`, 'error');
     this.pause();
-    const groups = this.deps.handleGroups();
-    if (this.keys.length && this.keys[0].transforms.length !== groups.length) {
-      this.keys = []; // made for other handle groups
+    const all = this.deps.transforms();
+    if (this.keys.length && this.keys[0].transforms.length !== all.length) {
+      this.keys = []; // made for other groups
       this.pivots = null;
     }
-    if (!this.pivots) this.pivots = groups.map((idx, g) => this._pivot(idx, g));
-    const all = this.deps.transforms();
-    const key = { ms: this.timeMs, transforms: all.slice(0, groups.length).map((m) => m.slice()) };
-    const at = this.keys.findIndex((k) => k.ms >= key.ms);
-    if (at >= 0 && this.keys[at].ms === key.ms) this.keys[at] = key;
+    if (!this.pivots) this.pivots = all.map((_, g) => this._pivot(g));
+    const at = this.keys.findIndex((k) => k.ms >= this.timeMs);
+    const replaced = at >= 0 && this.keys[at].ms === this.timeMs ? this.keys[at] : null;
+    const key = { ms: this.timeMs, transforms: all.map((m) => m.slice()), easing: replaced?.easing ?? 'linear',
+      id: this._nextId++ };
+    if (replaced) this.keys[at] = key;
     else if (at >= 0) this.keys.splice(at, 0, key);
     else this.keys.push(key);
+    this.deps.send({ type: CLIENT.KEEP_SHAPE, key: key.id });
+    this._changed();
+    return undefined;
+  }
+
+  /** The keyframe at the playhead, or null. */
+  current() {
+    return this.keys.find((k) => k.ms === this.timeMs) ?? null;
+  }
+
+  /** The easing of the keyframe at the playhead (how the handles move from it to the next). @param {string} easing */
+  setEasing(easing) {
+    const key = this.current();
+    if (!key || !EASINGS.includes(easing)) return this.render();
+    key.easing = easing;
+    this._changed();
+    return undefined;
+  }
+
+  /** A time typed for the playhead, in seconds. @param {number} seconds */
+  typedTime(seconds) {
+    if (!Number.isFinite(seconds) || seconds < 0) return this.render();
+    if (seconds * 1000 > this.durationMs) this.setDuration(seconds);
+    this.goTo(seconds * 1000);
+    return undefined;
+  }
+
+  /** Move the keyframe at the playhead to a typed time (seconds); the playhead follows it. @param {number} seconds */
+  moveKeyframe(seconds) {
+    const key = this.current();
+    const ms = Math.round(seconds * 1000);
+    if (!key || !Number.isFinite(seconds) || ms < 0) return this.render();
+    if (this.keys.some((k) => k !== key && k.ms === ms)) {
+      this.deps.say(`There is a keyframe at ${(ms / 1000).toFixed(3)} s already.`, 'error');
+      return this.render();
+    }
+    key.ms = ms;
+    this.keys.sort((a, b) => a.ms - b.ms);
+    if (ms > this.durationMs) this.durationMs = ms;
+    this.timeMs = ms;
     this._changed();
     return undefined;
   }
@@ -93,13 +154,20 @@ export class Timeline {
     return undefined;
   }
 
-  /** Centroid of a handle group's vertices in the pose its transform applies to.
-   * @param {number[]} indices @param {number} g */
-  _pivot(indices, g) {
+  /** Server group g's pivot in the pose its transform applies to: the centroid of a handle group's vertices, or a
+   * point handle's point (which then moves on a straight line between keyframes, as the server's point targets do).
+   * @param {number} g */
+  _pivot(g) {
     const P = this.deps.positions();
+    const { indices, weights } = this.deps.anchor(g);
     const c = [0, 0, 0];
-    for (const i of indices) for (let d = 0; d < 3; d++) c[d] += P[3 * i + d];
-    const v = new THREE.Vector3(c[0], c[1], c[2]).divideScalar(Math.max(indices.length, 1));
+    let total = 0;
+    indices.forEach((i, k) => {
+      const w = weights ? weights[k] : 1;
+      total += w;
+      for (let d = 0; d < 3; d++) c[d] += w * P[3 * i + d];
+    });
+    const v = new THREE.Vector3(c[0], c[1], c[2]).divideScalar(total || 1);
     return v.applyMatrix4(new THREE.Matrix4().fromArray(this.deps.matrixOf(g)).invert()).toArray();
   }
 
@@ -114,7 +182,7 @@ export class Timeline {
       this.deps.say('The keyframes were cleared: the handle groups changed.', 'info');
       return;
     }
-    this.keys = this.keys.map((k) => ({ ms: k.ms, transforms: k.transforms.map((m, g) => rebased(m, current[g])) }));
+    this.keys = this.keys.map((k) => ({ ...k, transforms: k.transforms.map((m, g) => rebased(m, current[g])) }));
     this.pivots = this.pivots?.map((p, g) => new THREE.Vector3(...p).applyMatrix4(new THREE.Matrix4()
       .fromArray(current[g])).toArray()) ?? null;
     this._changed();
@@ -132,7 +200,7 @@ export class Timeline {
         + 'they are not loaded.', 'error');
       return;
     }
-    this.keys = keys;
+    this.keys = keys.map((k) => ({ ...k, id: this._nextId++ })); // no shape kept for them yet
     this.pivots = pivots;
     this.durationMs = Math.max(this.durationMs, keys[keys.length - 1].ms);
     this.timeMs = keys[0].ms;
@@ -154,7 +222,7 @@ export class Timeline {
     if (!this.keys.length) return null;
     const n = this.keys[0].transforms.length;
     return {
-      keys: this.keys.map((k) => ({ ms: k.ms, transforms: k.transforms.map((m) => m.slice()) })),
+      keys: this.keys.map((k) => ({ ...k, transforms: k.transforms.map((m) => m.slice()) })),
       pivots: this.pivots?.map((p) => p.slice()) ?? null,
       base: this.deps.transforms().slice(0, n).map((m) => m.slice()),
       timeMs: this.timeMs,
@@ -173,6 +241,7 @@ export class Timeline {
     this.fps = saved.fps ?? this.fps;
     this.timeMs = Math.min(saved.timeMs ?? 0, this.durationMs);
     this.keys = saved.keys;
+    this._nextId = Math.max(this._nextId, ...this.keys.map((k) => (k.id ?? 0) + 1));
     this.pivots = saved.pivots;
     if (saved.base) this.rebase(saved.base, saved.base.length);
     this._changed();
@@ -194,22 +263,21 @@ export class Timeline {
     this._changed();
   }
 
-  /** The interpolated transforms of every server group at `ms` (point handles keep theirs), or null.
+  /** The interpolated transforms of every server group at `ms`, or null.
    * @param {number} ms */
   transformsAt(ms) {
     if (!this.keys.length || this.deps.blocked()) return null;
-    const n = this.keys[0].transforms.length;
-    const all = this.deps.transforms();
-    if (all.length < n || this.deps.handleGroups().length !== n) return null;
-    return [...interpolate(this.keys, this.pivots || [], ms / 1000), ...all.slice(n)];
+    if (this.deps.transforms().length !== this.keys[0].transforms.length) return null;
+    return interpolate(this.keys, this.pivots || [], ms / 1000);
   }
 
-  /** Move the playhead to `ms`; with keyframes, the handles go to their pose there (a drag). @param {number} ms */
+  /** Move the playhead to `ms`; with keyframes, the handles go to their pose there (a drag; at a keyframe, one that
+   * names it, so that the server shows the shape it kept). @param {number} ms */
   seek(ms) {
     this.timeMs = Math.max(0, Math.min(Math.round(ms), this.durationMs));
     const t = this.transformsAt(this.timeMs);
     if (t) {
-      this.deps.drag(t);
+      this.deps.drag(t, this.current()?.id);
       this.dragsSent++;
       this._moved = true;
     }
@@ -262,32 +330,43 @@ export class Timeline {
 
   // ------------------------------------------------------------------ pointer on the bar
 
+  /** The time under the pointer: within a pixel of either end of the bar, that end (the last pixel column of the
+   * bar is 1 px short of its width, so a click there would miss the end by one pixel's time). */
   _msAt(/** @type {PointerEvent} */ e) {
     const r = this.bar.getBoundingClientRect();
     const x = Math.max(0, Math.min(e.clientX - r.left, r.width));
+    if (x >= r.width - 1.5) return this.durationMs;
+    if (x <= 1) return 0;
     return (x / Math.max(r.width, 1)) * this.durationMs;
   }
 
   _pointerDown(/** @type {PointerEvent} */ e) {
     if (e.button !== 0 || /** @type {any} */ (this.bar).disabled) return;
     this.pause();
-    const marker = /** @type {HTMLElement} */ (e.target).closest?.('.tl-marker');
-    if (marker) {
-      this.goTo(Number(/** @type {HTMLElement} */ (marker).dataset.ms));
-      return;
-    }
     this.scrubbing = true;
     this.bar.setPointerCapture(e.pointerId);
+    const marker = /** @type {HTMLElement} */ (e.target).closest?.('.tl-marker');
+    if (marker) {
+      // a click goes to the keyframe; moving off the marker with the button held scrubs from there
+      this._pressX = e.clientX;
+      this.seek(Number(/** @type {HTMLElement} */ (marker).dataset.ms));
+      return;
+    }
+    this._pressX = null;
     this.seek(this._msAt(e));
   }
 
   _pointerMove(/** @type {PointerEvent} */ e) {
-    if (this.scrubbing) this.seek(this._msAt(e));
+    if (!this.scrubbing) return;
+    if (this._pressX !== null && Math.abs(e.clientX - this._pressX) < 4) return; // still on the marker
+    this._pressX = null;
+    this.seek(this._msAt(e));
   }
 
   _pointerUp(/** @type {PointerEvent} */ e) {
     if (!this.scrubbing) return;
     this.scrubbing = false;
+    this._pressX = null;
     if (this.bar.hasPointerCapture(e.pointerId)) this.bar.releasePointerCapture(e.pointerId);
     this._endMove();
   }
@@ -303,11 +382,16 @@ export class Timeline {
 
   /**
    * Fields of get_constraints / export_animation for the keyframes, or null without any (or when stale).
-   * @returns {{times_ms: number[], transforms: number[][]}|null}
+   * @returns {{times_ms: number[], transforms: number[][], easings: number[], keys: number[]}|null}
    */
   messageFields() {
-    if (!this.keys.length || this.keys[0].transforms.length !== this.deps.handleGroups().length) return null;
-    return { times_ms: this.keys.map((k) => k.ms), transforms: this.keys.flatMap((k) => k.transforms) };
+    if (!this.keys.length || this.keys[0].transforms.length !== this.deps.transforms().length) return null;
+    return {
+      times_ms: this.keys.map((k) => k.ms),
+      transforms: this.keys.flatMap((k) => k.transforms),
+      easings: this.keys.map((k) => Math.max(EASINGS.indexOf(k.easing ?? 'linear'), 0)),
+      keys: this.keys.map((k) => k.id ?? 0),
+    };
   }
 
   exportAnimation() {
@@ -323,7 +407,7 @@ export class Timeline {
     const fields = this.messageFields();
     if (!fields) return undefined;
     /** @type {ExportAnimationClientMessage} */
-    const msg = { type: CLIENT.EXPORT_ANIMATION, fps: this.fps, ...fields };
+    const msg = { type: CLIENT.EXPORT_ANIMATION, fps: this.fps, format: this.format, ...fields };
     if (!this.deps.send(msg)) return undefined;
     this.exporting = true;
     this.exportNote = `Solving ${frames} frames…`;
@@ -385,6 +469,16 @@ export class Timeline {
       return m;
     }));
     byId('tl-time').textContent = `${(this.timeMs / 1000).toFixed(3)} s`;
+    const key = this.current();
+    const at = byIdAs('tl-time-input', HTMLInputElement);
+    const keyTime = byIdAs('tl-key-time', HTMLInputElement);
+    const easing = byIdAs('tl-easing', HTMLSelectElement);
+    if (document.activeElement !== at) at.value = String(this.timeMs / 1000);
+    keyTime.disabled = !key;
+    easing.disabled = !key;
+    if (document.activeElement !== keyTime) keyTime.value = key ? String(key.ms / 1000) : '';
+    easing.value = key?.easing ?? 'linear';
+    byIdAs('tl-format', HTMLSelectElement).value = this.format ?? 'glb';
     const n = this.keys.length;
     byId('tl-count').textContent = n ? `${n} keyframe${n > 1 ? 's' : ''}` : 'no keyframes';
     byId('btn-tl-play').textContent = this.playing ? 'Pause' : 'Play';

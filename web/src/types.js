@@ -10,7 +10,10 @@
  *   handles), column-major 4×4 each
  * @property {(g: number) => number[]} matrixOf the current transform of server group g
  * @property {() => ArrayLike<number>} positions the shown positions
- * @property {(transforms: number[][]) => void} drag drag every server group to these transforms
+ * @property {(g: number) => {indices: number[], weights: number[]|null}} anchor where server group g is: its
+ *   vertices (a handle group), or a point handle's triangle corners and barycentric weights
+ * @property {(transforms: number[][], key?: number) => void} drag drag every server group to these transforms (`key`:
+ *   the keyframe whose pose they are, whose kept shape the server then shows)
  * @property {() => void} endDrag
  * @property {(msg: import('./protocol.js').ClientMessage) => boolean} send false when not sent
  * @property {(msg: import('./protocol.js').AnimationServerMessage & {frame?: {payload: Uint8Array}}) => string} download

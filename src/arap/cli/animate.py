@@ -35,7 +35,9 @@ def add_parser(commands: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     p.add_argument("mesh", metavar="MESH")
     p.add_argument("-k", "--keyframes", required=True, metavar="KEYS.json",
                    help='a constraints file with "keyframes": [{"time": seconds, "targets": [...]} or '
-                        '{"time": seconds, "transforms": [4x4 per handle group]}, ...]')
+                        '{"time": seconds, "transforms": [4x4 per handle group]}, ...]; a keyframe may add '
+                        '"easing" (linear, ease-in-out, ease-in, ease-out), "point_targets" (one per point handle) '
+                        'and "shape" (the whole shape at that time, one [x, y, z] per vertex)')
     p.add_argument("-o", "--output", required=True, metavar="OUT",
                    help="frame_####.obj (numbered files in that mesh format) or OUT.glb (one animated glTF)")
     p.add_argument("--fps", type=float, default=DEFAULT_FPS, help=f"frames per second (default: {DEFAULT_FPS:g})")

@@ -11,6 +11,21 @@ A keyframes file is a constraints file (:mod:`arap.constraints`) with one more k
       ]
     }
 
+Each keyframe may also give:
+
+- ``"easing"``: how the handles move from this keyframe to the next: ``"linear"`` (the default, at a constant pace),
+  ``"ease-in-out"`` (starting and stopping smoothly: the fraction of the way ``s`` becomes ``s² (3 - 2 s)``),
+  ``"ease-in"`` (``s²``) or ``"ease-out"`` (``1 - (1 - s)²``). The pace changes; the path does not.
+- ``"point_targets"``: one ``[x, y, z]`` per point handle (``"points"``, in their order): where the point handles
+  are at that time. They move linearly between keyframes (with the keyframe's easing), as vertex handles do. A
+  keyframe without them holds the point handles at the targets of the previous keyframe that has them (or at the
+  ``"target"`` of each point before any).
+- ``"shape"``: one ``[x, y, z]`` per mesh vertex: the whole shape at that time, as it was when the keyframe was made.
+  An ARAP pose is not always unique (a large turn can end in one of several shapes, depending on the way there), so
+  an animation that solves the keyframe again from another path can reach another shape. With ``"shape"``,
+  :func:`arap.animation.iter_frames` gives that shape as the frame at the keyframe's time and starts the next frame
+  from it. The handles of the shape must be at the keyframe's targets.
+
 Transforms apply to the handles' rest positions, or, when the document has ``"keyframe_base"`` (one ``[x, y, z]`` per
 handle, in the order of ``"handles"``), to those positions: the studio writes it when its handles' poses are not
 their rest positions (a selection made on a deformed shape). Pivots are then the centroids of those positions.
@@ -29,7 +44,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -44,21 +59,49 @@ from arap.errors import ConstraintError
 from arap.meshes.mesh import bounding_box
 from arap.solve.partition import check_reach
 
-__all__ = ["MAX_KEYFRAMES", "Keyframe", "Keyframes", "load_keyframes"]
+__all__ = ["EASINGS", "MAX_KEYFRAMES", "Keyframe", "Keyframes", "ease", "load_keyframes"]
 
 MAX_KEYFRAMES = 10_000
 """Most keyframes a file may hold."""
-_KEYFRAME_KEYS = ("time", "targets", "transforms")
+_KEYFRAME_KEYS = ("time", "targets", "transforms", "easing", "point_targets", "shape")
+EASINGS = ("linear", "ease-in-out", "ease-in", "ease-out")
+"""Names of the easings a keyframe may give (how the handles move from it to the next keyframe)."""
+_SHAPE_AT_TARGETS = 1e-6
+"""How far (per bounding-box diagonal) a keyframe's shape may put a handle from the keyframe's target."""
 _BASE_KEY = "keyframe_base"
 
 
 @dataclass(frozen=True)
 class Keyframe:
-    """The handles' pose at one time: ``targets`` (h, 3), or ``transforms`` (g, 4, 4) per handle group."""
+    """The handles' pose at one time: ``targets`` (h, 3), or ``transforms`` (g, 4, 4) per handle group; the point
+    handles' targets ``point_targets`` (p, 3) or None (held); the whole ``shape`` (n, 3) or None; the ``easing`` of
+    the motion to the next keyframe (one of :data:`EASINGS`)."""
 
     time: float
     targets: NDArray[np.float64] | None = None
     transforms: NDArray[np.float64] | None = None
+    easing: str = "linear"
+    point_targets: NDArray[np.float64] | None = None
+    shape: NDArray[np.float64] | None = None
+
+
+def ease(easing: str, s: float) -> float:
+    """The fraction of the way at the fraction ``s`` of the time between two keyframes under ``easing``.
+
+    Raises
+    ------
+    ConstraintError
+        ``easing`` is not one of :data:`EASINGS`.
+    """
+    if easing == "linear":
+        return s
+    if easing == "ease-in-out":
+        return s * s * (3.0 - 2.0 * s)
+    if easing == "ease-in":
+        return s * s
+    if easing == "ease-out":
+        return 1.0 - (1.0 - s) * (1.0 - s)
+    raise ConstraintError(f"unknown easing {easing!r}; expected one of {list(EASINGS)}"[:200])
 
 
 @dataclass
@@ -96,16 +139,48 @@ class Keyframes:
     def end(self) -> float:
         return self.keys[-1].time
 
-    def handle_targets(self, t: float) -> NDArray[np.float64]:
-        """Targets of the handles at time ``t``, shape (h, 3), in the order of ``constraints.handles``."""
+    def _segment(self, t: float) -> tuple[Keyframe, Keyframe, float] | Keyframe:
+        """The keyframe whose pose holds at ``t``, or the two keyframes about ``t`` and the eased fraction between."""
         keys = self.keys
         if t <= keys[0].time:
-            return self._pose(keys[0])
+            return keys[0]
         if t >= keys[-1].time:
-            return self._pose(keys[-1])
+            return keys[-1]
         b = int(np.searchsorted([k.time for k in keys], t, side="right"))
         ka, kb = keys[b - 1], keys[b]
-        s = (t - ka.time) / (kb.time - ka.time)
+        return ka, kb, ease(ka.easing, (t - ka.time) / (kb.time - ka.time))
+
+    def key_at(self, t: float) -> Keyframe | None:
+        """The keyframe at time ``t`` (to a nanosecond), or None."""
+        for key in self.keys:
+            if abs(key.time - t) <= 1e-9 * max(1.0, abs(t)):
+                return key
+        return None
+
+    def point_targets(self, t: float) -> NDArray[np.float64] | None:
+        """Targets of the point handles at time ``t``, shape (p, 3), or None without point handles."""
+        base = self.constraints.point_targets
+        if base is None or self.constraints.points is None or not len(self.constraints.points):
+            return None
+        seg = self._segment(t)
+        if isinstance(seg, Keyframe):
+            return self._point_pose(seg)
+        ka, kb, s = seg
+        return (1.0 - s) * self._point_pose(ka) + s * self._point_pose(kb)
+
+    def _point_pose(self, key: Keyframe) -> NDArray[np.float64]:
+        if key.point_targets is not None:  # always so for parsed keyframes with point handles
+            return key.point_targets
+        held = self.constraints.point_targets
+        assert held is not None
+        return held
+
+    def handle_targets(self, t: float) -> NDArray[np.float64]:
+        """Targets of the handles at time ``t``, shape (h, 3), in the order of ``constraints.handles``."""
+        seg = self._segment(t)
+        if isinstance(seg, Keyframe):
+            return self._pose(seg)
+        ka, kb, s = seg
         if ka.transforms is not None and kb.transforms is not None:
             return self._turn(ka.transforms, kb.transforms, s)
         return (1.0 - s) * self._pose(ka) + s * self._pose(kb)
@@ -137,6 +212,8 @@ def _polar(A: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.floa
 
 
 def _check_transforms(raw: Any, n_groups: int, where: str) -> NDArray[np.float64]:
+    if n_groups == 0 and isinstance(raw, list) and not raw:  # only point handles move
+        return np.zeros((0, 4, 4))
     try:
         T = np.asarray(raw, dtype=np.float64)
     except (TypeError, ValueError):
@@ -189,8 +266,11 @@ def _parse(data: Mapping[str, Any], V: NDArray[np.float64], n_faces: int | None)
             pass  # load_constraints says what is wrong with the handles
     constraints = load_constraints(rest_of, len(V), n_faces)
     h = len(constraints.handles)
-    if h == 0:
-        raise ConstraintError('keyframes pose the handles: give "handles" (the vertices the keyframes move)')
+    p = 0 if constraints.points is None else len(constraints.points)
+    if h == 0 and p == 0:
+        raise ConstraintError('keyframes pose the handles: give "handles" (the vertices the keyframes move) or '
+                              '"points" (point handles)')
+    held = constraints.point_targets if p else None
     groups = _groups(constraints)
     box = bounding_box(V)
     keys: list[Keyframe] = []
@@ -217,11 +297,23 @@ def _parse(data: Mapping[str, Any], V: NDArray[np.float64], n_faces: int | None)
             except ConstraintError as exc:
                 raise ConstraintError(f"{where}: {exc}") from None
             check_reach(box, T, f"{where}.targets")
-            keys.append(Keyframe(time=t, targets=T))
+            key = Keyframe(time=t, targets=T)
         else:
-            M = _check_transforms(raw["transforms"], len(groups), where)
-            key = Keyframe(time=t, transforms=M)
-            keys.append(key)
+            key = Keyframe(time=t, transforms=_check_transforms(raw["transforms"], len(groups), where))
+        easing = raw.get("easing", "linear")
+        if easing not in EASINGS:
+            raise ConstraintError(f"{where}.easing must be one of {list(EASINGS)}, got {easing!r}"[:200])
+        if "point_targets" in raw:
+            if p == 0:
+                raise ConstraintError(f'{where}.point_targets: the constraints have no point handles ("points")')
+            try:
+                P = check_listed_targets(raw["point_targets"], p)
+            except ConstraintError as exc:
+                raise ConstraintError(f"{where}.point_targets: {exc}") from None
+            check_reach(box, P, f"{where}.point_targets")
+            held = P
+        shape = None if raw.get("shape") is None else _check_shape(raw["shape"], V, box, where)
+        keys.append(replace(key, easing=str(easing), point_targets=held, shape=shape))
     rest = V[constraints.handles].copy()
     if data.get(_BASE_KEY) is not None:
         try:
@@ -230,10 +322,32 @@ def _parse(data: Mapping[str, Any], V: NDArray[np.float64], n_faces: int | None)
             raise ConstraintError(f"{_BASE_KEY}: {exc}") from None
         check_reach(box, rest, _BASE_KEY)
     frames = Keyframes(constraints=constraints, keys=keys, groups=groups, rest=rest)
-    for key in keys:
+    diagonal = float(np.linalg.norm(box[1] - box[0]))
+    for k, key in enumerate(keys):
         if key.transforms is not None:
             check_reach(box, frames._pose(key), f"keyframes at {key.time:g} s")
+        if key.shape is not None:
+            off = float(np.abs(key.shape[constraints.handles] - frames._pose(key)).max(initial=0.0))
+            if off > _SHAPE_AT_TARGETS * max(diagonal, 1e-300):
+                raise ConstraintError(f"keyframes[{k}].shape puts a handle {off:.3g} away from the keyframe's target "
+                                      "(the shape of a keyframe is the pose of its handles)")
     return frames
+
+
+def _check_shape(raw: Any, V: NDArray[np.float64], box: NDArray[np.float64], where: str) -> NDArray[np.float64]:
+    """A keyframe's ``shape``: one finite ``[x, y, z]`` per vertex."""
+    try:
+        X = np.array(raw, dtype=np.float64)
+    except (TypeError, ValueError, OverflowError):
+        raise ConstraintError(f"{where}.shape must be a list of [x, y, z] points, one per vertex") from None
+    if X.shape != V.shape:
+        raise ConstraintError(f"{where}.shape must hold one [x, y, z] per vertex ({len(V)}), got shape "
+                              f"{list(X.shape)}")
+    if not np.isfinite(X).all():
+        raise ConstraintError(f"{where}.shape must hold finite numbers")
+    check_reach(box, X, f"{where}.shape")
+    X.setflags(write=False)
+    return X
 
 
 def load_keyframes(source: str | Path | Mapping[str, Any], V: NDArray[np.float64],

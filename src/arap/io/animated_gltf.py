@@ -5,10 +5,12 @@ Morph targets are the glTF way to store per-vertex animation (glTF 2.0, "Morph T
 other glTF viewer play them): the mesh's positions are the first frame, target ``k`` holds frame ``k`` minus the
 first, and the animation's sampler sets weight ``k`` to 1 at the time of frame ``k`` and 0 at the other frames'
 times. With linear interpolation, a viewer shows between two frames the linear blend of the two, which is what a
-frame rate between the solved frames can show. Normals are left out, so viewers shade each triangle flat from the
-blended positions rather than with the first frame's normals.
+frame rate between the solved frames can show. The mesh has the first frame's vertex normals (area-weighted, unit
+length) and every target the change of the normals from the first frame to its own (glTF's ``NORMAL`` morph target),
+so viewers shade each frame smoothly with its own normals (between frames, with the blend of the two, which they
+renormalise).
 
-Positions are stored as float32 (glTF has no float64 vertex attribute); indices as uint32.
+Positions and normals are stored as float32 (glTF has no float64 vertex attribute); indices as uint32.
 """
 
 from __future__ import annotations
@@ -31,6 +33,16 @@ _ARRAY_BUFFER, _ELEMENT_ARRAY_BUFFER = 34962, 34963
 
 def _pad(data: bytes, fill: bytes = b"\0") -> bytes:
     return data + fill * (-len(data) % 4)
+
+
+def _unit_normals(X: NDArray[np.floating], F: NDArray[np.int64]) -> NDArray[np.float32]:
+    """Area-weighted unit vertex normals as float32; +z for a vertex of no (non-degenerate) triangle (glTF's normals
+    are unit vectors)."""
+    from arap.render.raster import vertex_normals
+
+    N = vertex_normals(np.asarray(X, dtype=np.float64), F)
+    N[~(np.abs(N).sum(axis=1) > 0)] = (0.0, 0.0, 1.0)
+    return N.astype(np.float32)
 
 
 def animation_glb(F: NDArray[np.integer], times: NDArray[np.floating], frames: NDArray[np.floating],
@@ -72,15 +84,19 @@ def animation_glb(F: NDArray[np.integer], times: NDArray[np.floating], frames: N
         accessors.append({"bufferView": len(views) - 1, **accessor})
         return len(accessors) - 1
 
-    def vec3(values: NDArray[np.float32]) -> int:
+    def vec3(values: NDArray[np.float32], bounds: bool = True) -> int:
+        extent = {"min": values.min(axis=0).tolist(), "max": values.max(axis=0).tolist()} if bounds else {}
         return add(np.ascontiguousarray(values, dtype="<f4").tobytes(), _ARRAY_BUFFER,
-                   {"componentType": _FLOAT, "count": len(values), "type": "VEC3",
-                    "min": values.min(axis=0).tolist(), "max": values.max(axis=0).tolist()})
+                   {"componentType": _FLOAT, "count": len(values), "type": "VEC3", **extent})
 
     indices = add(np.ascontiguousarray(F, dtype="<u4").tobytes(), _ELEMENT_ARRAY_BUFFER,
                   {"componentType": _UINT, "count": int(F.size), "type": "SCALAR"})
     position = vec3(base)
-    targets = [{"POSITION": vec3(frame.astype(np.float32) - base)} for frame in frames]
+    F64 = F.astype(np.int64)
+    base_normals = _unit_normals(frames[0], F64)
+    normal = vec3(base_normals, bounds=False)
+    targets = [{"POSITION": vec3(frame.astype(np.float32) - base),
+                "NORMAL": vec3(_unit_normals(frame, F64) - base_normals, bounds=False)} for frame in frames]
     t32 = (times - times[0]).astype(np.float32)
     key_times = add(t32.astype("<f4").tobytes(), None, {"componentType": _FLOAT, "count": len(t32),
                                                         "type": "SCALAR", "min": [float(t32[0])],
@@ -93,8 +109,8 @@ def animation_glb(F: NDArray[np.integer], times: NDArray[np.floating], frames: N
         "scenes": [{"nodes": [0]}],
         "nodes": [{"mesh": 0, "name": name}],
         "meshes": [{"name": name, "weights": [0.0] * len(frames),
-                    "primitives": [{"attributes": {"POSITION": position}, "indices": indices, "mode": 4,
-                                    "targets": targets}],
+                    "primitives": [{"attributes": {"POSITION": position, "NORMAL": normal}, "indices": indices,
+                                    "mode": 4, "targets": targets}],
                     "extras": {"targetNames": [f"frame_{k:04d}" for k in range(len(frames))]}}],
         "animations": [{"name": name, "samplers": [{"input": key_times, "output": weights,
                                                     "interpolation": "LINEAR"}],

@@ -11,6 +11,8 @@ from typing import Any, ClassVar
 
 from arap.options import EnergyType, LoosePartsMode, WeightType
 from arap.server.messages import (
+    ANIMATION_FORMATS,
+    EASINGS,
     ENERGIES,
     EXPORT_FORMATS,
     MAX_FPS,
@@ -37,6 +39,7 @@ __all__ = [
     "ExportAnimation",
     "GetConstraints",
     "GetDistortion",
+    "KeepShape",
     "LoadBuiltin",
     "Redo",
     "Reset",
@@ -120,6 +123,26 @@ class Drag(ClientMessage):
             max_length=MAX_HANDLE_GROUPS,
         )
     )
+    key: int | None = field(
+        default=None,
+        metadata=wire(
+            "int",
+            "the keyframe (keep_shape's key) these transforms are the pose of: its kept shape is shown, unsolved, "
+            "while its handles are where these transforms put them",
+            minimum=0,
+            maximum=MAX_SEQ,
+        ),
+    )
+
+
+@dataclass(frozen=True)
+class KeepShape(ClientMessage):
+    type: ClassVar[str] = "keep_shape"
+    doc: ClassVar[str] = (
+        "keep the current shape, settled first, as a keyframe's (a drag or an export at that keyframe gives it "
+        "back); no answer"
+    )
+    key: int = field(metadata=wire("int", "the keyframe's number, chosen by the client", minimum=0, maximum=MAX_SEQ))
 
 
 @dataclass(frozen=True)
@@ -209,9 +232,26 @@ class GetConstraints(ClientMessage):
         default=None,
         metadata=wire(
             "matrices",
-            "per keyframe, one column-major 4x4 matrix per handle group (point handles excluded), keyframe "
-            "after keyframe",
+            "per keyframe, one column-major 4x4 matrix per handle group (then, optionally, per point handle), "
+            "keyframe after keyframe",
             max_length=MAX_KEYFRAME_MATRICES,
+        ),
+    )
+    easings: IndexList | None = field(
+        default=None,
+        metadata=wire(
+            "indices_or_null",
+            "per keyframe, how the handles move to the next one: " + ", ".join(
+                f"{k} {name}" for k, name in enumerate(EASINGS)) + " (absent: all linear)",
+            max_length=MAX_KEYFRAMES,
+        ),
+    )
+    keys: IndexList | None = field(
+        default=None,
+        metadata=wire(
+            "indices_or_null",
+            "per keyframe, its number for keep_shape: a shape kept under it is the keyframe's shape",
+            max_length=MAX_KEYFRAMES,
         ),
     )
 
@@ -221,8 +261,9 @@ class ExportAnimation(ClientMessage):
     type: ClassVar[str] = "export_animation"
     doc: ClassVar[str] = (
         "solve the keyframed animation at fps, every frame to convergence from the previous one with the session's "
-        "solver and parameters (point handles hold still), and answer with an animated GLB (morph targets); "
-        "animation_progress messages report the frames solved, and any new request cancels it"
+        "solver and parameters (a keyframe with a kept shape gives that shape), and answer with an animated GLB "
+        "(morph targets) or, for a picture, an animated GIF or WebP or a zip of PNG frames; animation_progress "
+        "messages report the frames solved, and any new request cancels it"
     )
     times_ms: IndexList = field(
         metadata=wire("indices", "keyframe times in milliseconds, increasing", max_length=MAX_KEYFRAMES)
@@ -231,11 +272,30 @@ class ExportAnimation(ClientMessage):
         metadata=wire(
             "matrices",
             "per keyframe, one column-major 4x4 matrix per handle group "
-            "(point handles excluded), keyframe after keyframe",
+            "(then, optionally, per point handle), keyframe after keyframe",
             max_length=MAX_KEYFRAME_MATRICES,
         )
     )
     fps: float = field(metadata=wire("number", "frames per second", minimum=1, maximum=MAX_FPS))
+    easings: IndexList | None = field(
+        default=None,
+        metadata=wire(
+            "indices_or_null",
+            "per keyframe, how the handles move to the next one: " + ", ".join(
+                f"{k} {name}" for k, name in enumerate(EASINGS)) + " (absent: all linear)",
+            max_length=MAX_KEYFRAMES,
+        ),
+    )
+    keys: IndexList | None = field(
+        default=None,
+        metadata=wire(
+            "indices_or_null",
+            "per keyframe, its number for keep_shape: a shape kept under it is the keyframe's shape",
+            max_length=MAX_KEYFRAMES,
+        ),
+    )
+    format: str = field(default="glb", metadata=wire("enum", "file format (gif, webp, zip: pictures only)",
+                                                     choices=ANIMATION_FORMATS))
 
 
 @dataclass(frozen=True)
@@ -261,6 +321,7 @@ CLIENT_MESSAGE_CLASSES: dict[str, type[ClientMessage]] = {
         GetConstraints,
         ExportAnimation,
         GetDistortion,
+        KeepShape,
     )
 }
 """The class of each message a client may send, by type."""

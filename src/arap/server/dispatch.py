@@ -30,6 +30,7 @@ from arap.server.client_messages import (
     ExportAnimation,
     GetConstraints,
     GetDistortion,
+    KeepShape,
     LoadBuiltin,
     Redo,
     Reset,
@@ -124,6 +125,7 @@ class Dispatcher:
             Export: self._export,
             GetDistortion: self._get_distortion,
             GetConstraints: self._get_constraints,
+            KeepShape: self._keep_shape,
         }
         """The handler of each message class (``export_animation`` is run by the transports, which stream its
         progress: :meth:`export_animation`)."""
@@ -280,7 +282,8 @@ class Dispatcher:
 
         try:
             filename, mime, data, frames, seconds = export_animation(
-                self.session, msg.times_ms, msg.transforms, msg.fps, interrupted, progress)
+                self.session, msg.times_ms, msg.transforms, msg.fps, interrupted, progress, msg.easings, msg.keys,
+                msg.format)
         except AnimationCancelled:
             return AnimationProgress(status="cancelled", frame=0, frames=0,
                                      seconds=round(time.perf_counter() - t0, 3)).to_wire()
@@ -291,8 +294,13 @@ class Dispatcher:
         raise error
 
     def _drag(self, msg: Drag) -> Answers:
-        outcome = self.session.drag(msg.transforms)
+        outcome = self.session.drag(msg.transforms, msg.key)
         yield self.vertices(msg.seq, outcome)
+
+    def _keep_shape(self, msg: KeepShape) -> Answers:
+        # the converged shape is kept: an unsettled one settles first (as for an export)
+        yield SETTLE
+        self.session.keep_shape(msg.key)
 
     def _end_drag(self, msg: EndDrag) -> Answers:
         self.session.end_drag()
@@ -349,7 +357,8 @@ class Dispatcher:
         # with the timeline's keyframes when the message carries them
         s = self.session
         times = msg.times_ms
-        document = keyframes_document(s, times, msg.transforms or []) if times else s.constraints_document()
+        document = (keyframes_document(s, times, msg.transforms or [], msg.easings, msg.keys) if times
+                    else s.constraints_document())
         yield Constraints(document=document).to_wire()
 
     def _upload(self, msg: Upload) -> Answers:

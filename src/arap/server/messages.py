@@ -62,6 +62,13 @@ MAX_FPS = 120
 ANIMATION_STATUSES: tuple[str, ...] = ("solving", "cancelled")
 """Values of the ``status`` field of ``animation_progress`` messages."""
 
+EASINGS: tuple[str, ...] = ("linear", "ease-in-out", "ease-in", "ease-out")
+"""Easings of keyframes, by their number in ``easings`` of get_constraints and export_animation (as
+:data:`arap.constraints.keyframes.EASINGS`)."""
+
+ANIMATION_FORMATS: tuple[str, ...] = ("glb", "gif", "webp", "zip")
+"""Formats of export_animation: an animated GLB; for a picture, an animated GIF or WebP or a zip of PNG frames."""
+
 MAX_SEQ = 2**53 - 1
 """Largest ``seq`` of a drag (the largest integer a JavaScript number holds exactly)."""
 

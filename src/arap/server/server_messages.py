@@ -241,8 +241,9 @@ class AnimationProgress(ServerMessage):
 class Animation(ServerMessage):
     type: ClassVar[str] = "animation"
     doc: ClassVar[str] = (
-        "answer to export_animation (payload: the GLB file's bytes: the first frame as the mesh, "
-        "every frame a morph target, and an animation of the morph weights)"
+        "answer to export_animation (payload: the file's bytes: a GLB with the first frame as the mesh, "
+        "every frame a morph target, and an animation of the morph weights; or a picture's animated GIF or WebP, "
+        "or zip of PNG frames)"
     )
     binary: ClassVar[bool] = True
     filename: str = field(metadata=wire("string", "suggested file name"))

@@ -31,7 +31,12 @@ from arap.server.session_state import SessionState
 from arap.server.settling import FrameCallback
 from arap.server.solve_calls import check_target_range, checked_settle, solve_for_targets
 
-__all__ = ["DragOutcome", "Params", "Session", "SettleOutcome"]
+__all__ = ["MAX_KEPT_SHAPES", "DragOutcome", "Params", "Session", "SettleOutcome"]
+
+MAX_KEPT_SHAPES = 64
+"""Most keyframe shapes a session keeps (:meth:`Session.keep_shape`); the oldest goes first."""
+_KEPT_AT_TARGETS = 1e-9
+"""How far (per bounding-box diagonal) a kept shape's constrained vertices may be from the targets it is given for."""
 
 
 class Session(SessionState):
@@ -61,6 +66,7 @@ class Session(SessionState):
         self._dirty = False
         self.settled = True
         self.energy = 0.0
+        self.kept_shapes.clear()
         self.history.clear(self._snapshot())
 
     def set_constraints(self, roi: list[int] | None, fixed: list[int], groups: list[list[int]],
@@ -148,8 +154,42 @@ class Session(SessionState):
         self.solves += 1
         return U, outcome
 
-    def drag(self, transforms: list[list[float]]) -> DragOutcome:
-        """Move the handle groups by ``transforms`` (column-major 4×4 each) and solve.
+    @property
+    def kept_shapes(self) -> dict[int, np.ndarray]:
+        """The shapes kept as keyframes' (:meth:`keep_shape`), by the keyframe's number, oldest first."""
+        shapes: dict[int, np.ndarray] | None = getattr(self, "_kept_shapes", None)
+        if shapes is None:
+            shapes = {}
+            self._kept_shapes = shapes
+        return shapes
+
+    def keep_shape(self, key: int) -> None:
+        """Keep the shape shown as keyframe ``key``'s: a drag or an animation export at that keyframe gives it back
+        (:meth:`kept_shape`) instead of solving the pose again, which could end in another shape. At most
+        :data:`MAX_KEPT_SHAPES` are kept."""
+        self._require_mesh()
+        shapes = self.kept_shapes
+        shapes.pop(key, None)
+        shape = np.array(self.U, dtype=np.float64)
+        shape.setflags(write=False)
+        shapes[key] = shape
+        while len(shapes) > MAX_KEPT_SHAPES:
+            shapes.pop(next(iter(shapes)))
+
+    def kept_shape(self, key: int | None, targets: np.ndarray) -> np.ndarray | None:
+        """Keyframe ``key``'s kept shape when its constrained vertices are at ``targets`` (in the order of the
+        constraint set's ``constrained``), else None (none kept, another mesh, or the pose is not that keyframe's)."""
+        shape = None if key is None else self.kept_shapes.get(int(key))
+        if shape is None or shape.shape != self.V.shape:
+            return None
+        constrained = self.constraints.constrained
+        off = float(np.abs(shape[constrained] - targets).max(initial=0.0))
+        return shape if off <= _KEPT_AT_TARGETS * self.diagonal + 1e-12 * self.scale else None
+
+    def drag(self, transforms: list[list[float]], key: int | None = None) -> DragOutcome:
+        """Move the handle groups by ``transforms`` (column-major 4×4 each) and solve; or, when ``key`` names a
+        keyframe whose kept shape (:meth:`keep_shape`) has its handles where ``transforms`` put them, show that shape
+        (the next solve starts from it).
 
         Raises
         ------
@@ -172,6 +212,13 @@ class Session(SessionState):
         self._check_range(targets)
         if point_targets is not None:
             self._check_range(point_targets)
+        kept = self.kept_shape(key, targets)
+        if kept is not None:
+            self.U, self.energy, self.transforms = kept, None, T
+            self._warm = False  # the next solve starts from the kept shape
+            self._dirty = True
+            self.settled = True  # what was kept is not solved again
+            return DragOutcome(0, [], 0.0)
         U, outcome = self._solve(self.solver, targets, None if self._warm else self.U, point_targets=point_targets)
         self.U = U
         self.energy = outcome.energies[-1] if outcome.energies else None
