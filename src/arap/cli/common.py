@@ -17,6 +17,7 @@ from typing import Any, TextIO
 import numpy as np
 
 from arap.errors import ArapError, MeshFormatError, OptionError
+from arap.io import formats
 from arap.meshes.repair import RepairResult
 from arap.options import (
     DEFAULT_ALPHA,
@@ -44,6 +45,7 @@ __all__ = [
     "check_bench_runs",
     "check_iterations_and_tolerance",
     "err",
+    "format_list",
     "load_mesh_argument",
     "one_line",
     "origin_value",
@@ -167,6 +169,11 @@ def warm_up_kernels(quiet: bool) -> dict[str, object]:
 
 
 # ---------------------------------------------------------------------------------------------- meshes
+def format_list(kind: formats.Kind) -> str:
+    """The extensions of the formats of ``kind`` for help texts (``.obj .off .ply ...``), from
+    :mod:`arap.io.formats`."""
+    return " ".join(formats.suffixes(kind))
+
 
 
 def load_mesh_argument(spec: str, *, repair: bool = True) -> tuple[np.ndarray, np.ndarray, RepairResult, str]:

@@ -24,6 +24,7 @@ import numpy as np
 
 from arap.constraints.keyframes import Keyframes
 from arap.errors import ArapError
+from arap.io import formats
 from arap.io.animated_gltf import animation_glb
 from arap.options import DEFAULT_TOLERANCE
 from arap.server.constraints import identity_transforms, matrices_from_json
@@ -38,7 +39,7 @@ __all__ = ["EXPORT_MIME", "MAX_EXPORT_FRAMES", "MAX_FPS", "AnimationCancelled", 
 
 MAX_EXPORT_FRAMES = 600
 """Most frames an animation export solves (20 s at 30 frames per second)."""
-EXPORT_MIME = "model/gltf-binary"
+EXPORT_MIME = formats.get("glb").mime
 
 ProgressCallback = Callable[[int, int], None]
 """``progress(frames_done, frames)``."""

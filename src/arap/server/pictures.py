@@ -15,6 +15,7 @@ from typing import Any
 import numpy as np
 
 from arap.errors import ArapError
+from arap.io import formats
 from arap.server.mesh_model import MeshData
 from arap.server.meshdata import load_upload
 from arap.server.protocol import RequestError
@@ -22,7 +23,7 @@ from arap.server.render_mesh import Look, look_from_upload
 
 __all__ = ["PICTURE_EXTENSIONS", "is_picture", "load_picture", "warped_picture_png"]
 
-PICTURE_EXTENSIONS: tuple[str, ...] = (".png", ".jpg", ".jpeg", ".webp")
+PICTURE_EXTENSIONS: tuple[str, ...] = formats.suffixes("picture")
 """Pictures the studio opens for the puppet warp."""
 
 

@@ -30,7 +30,7 @@ from typing import Any
 import numpy as np
 
 from arap.errors import ArapError
-from arap.io import load_asset, load_asset_bytes, save_asset, save_mesh_bytes
+from arap.io import formats, load_asset, load_asset_bytes, save_asset, save_mesh_bytes
 from arap.io.asset_model import MeshAsset, result_trimesh, weld_rows
 from arap.io.obj_write import obj_text
 from arap.server.mesh_model import EXPORT_MIME, MeshData, export_mesh
@@ -44,8 +44,9 @@ MAX_TEXTURE_BYTES = 16 * 2**20
 """Largest texture image sent to the page; a larger one is left out (the mesh is drawn without it, and a note in
 the ``appearance`` message says why)."""
 
-GLB_MIME = "model/gltf-binary"
-_ASSET_EXTENSIONS = (".obj", ".ply", ".glb", ".gltf")
+GLB_MIME = formats.get("glb").mime
+_ASSET_EXTENSIONS = tuple(formats.get(name).suffix for name in formats.names("surface", asset=True))
+"""Uploads read as textured models too (their colours and textures drawn)."""
 _IMAGE_MIME = ((b"\x89PNG\r\n\x1a\n", "image/png"), (b"\xff\xd8\xff", "image/jpeg"))
 _OBJ_COLOUR_LINE = re.compile(rb"^v[ \t]+(?:\S+[ \t]+){5}\S+", re.M)
 _PLY_HINTS = (b"red", b"texture", b" s\n", b" u\n", b" s\r\n", b" u\r\n")
