@@ -459,7 +459,7 @@ def _tet_bar(tmp_path: Path, name: str = "bar.node") -> tuple[np.ndarray, np.nda
 
 def test_constraints_picks_the_vertices_of_a_volume_file_by_position(tmp_path: Path,
                                                                     capsys: pytest.CaptureFixture[str]) -> None:
-    V, T, path = _tet_bar(tmp_path)
+    V, _, path = _tet_bar(tmp_path)
     out = tmp_path / "c.json"
     code = main(["constraints", str(path), "--fix", "y<0.1", "--handle", "y>0.9", "--move", "0.5,0,0", "-o", str(out)])
     assert code == 0, capsys.readouterr().err
@@ -520,6 +520,6 @@ def test_batch_deforms_volume_files(tmp_path: Path, capsys: pytest.CaptureFixtur
     assert np.array_equal(S, T)
     np.testing.assert_allclose(U[top], V[top] + [0.5, 0, 0], atol=1e-6)
     surface, F = arap.load_mesh(tmp_path / "out" / "bar.obj")
-    rest, faces, kept = boundary_surface(V, T)
+    _, faces, kept = boundary_surface(V, T)
     assert np.array_equal(F, faces)
     np.testing.assert_allclose(surface, U[kept], atol=1e-6)

@@ -16,8 +16,8 @@ from typing import Any, TextIO
 
 import numpy as np
 
+import arap.io.formats as formats
 from arap.errors import ArapError, MeshFormatError, OptionError
-from arap.io import formats
 from arap.meshes.repair import RepairResult
 from arap.options import (
     DEFAULT_ALPHA,

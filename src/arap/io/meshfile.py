@@ -34,8 +34,8 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import NDArray
 
+import arap.io.formats as formats
 from arap.errors import MeshError, MeshFormatError, MeshTooLargeError
-from arap.io import formats
 from arap.io.atomic import write_atomic
 from arap.io.fastobj import parse_plain_obj
 from arap.io.paths import read_regular_file

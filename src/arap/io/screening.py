@@ -15,8 +15,8 @@ import re
 
 import numpy as np
 
+import arap.io.formats as formats
 from arap.errors import MeshFormatError, MeshTooLargeError
-from arap.io import formats
 
 __all__ = ["announced_faces", "check_obj_short_faces", "check_obj_zero_index", "check_size", "obj_vertex_count",
            "off_face_count", "off_vertex_count", "plain_obj_lines", "ply_face_count", "ply_vertex_count", "screen",
@@ -274,7 +274,7 @@ def vertex_count(data: bytes, ft: str) -> tuple[int, str] | None:
     has no such count.
     """
     count = formats.get(ft).function("vertex_count")
-    return None if count is None else count(data)  # type: ignore[no-any-return]
+    return None if count is None else count(data)
 
 
 def announced_faces(data: bytes, ft: str) -> int | None:
@@ -286,7 +286,7 @@ def announced_faces(data: bytes, ft: str) -> int | None:
     2
     """
     count = formats.get(ft).function("face_count")
-    return None if count is None else count(data)  # type: ignore[no-any-return]
+    return None if count is None else count(data)
 
 
 def check_size(data: bytes, ft: str, label: str, max_vertices: int | None) -> None:

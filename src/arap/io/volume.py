@@ -34,8 +34,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+import arap.io.formats as formats
 from arap.errors import MeshError, MeshFormatError, MeshTooLargeError
-from arap.io import formats
 from arap.io.atomic import write_atomic
 from arap.io.paths import read_regular_file, write_destination
 from arap.meshes.domain import boundary_faces
@@ -589,14 +589,14 @@ def save_deformed_volume(path: str | os.PathLike[str], U: NDArray[np.floating], 
     """
     from arap.io.meshfile import save_mesh
 
-    U = np.asarray(U, dtype=np.float64)
+    P = np.asarray(U, dtype=np.float64)
     if is_volume_file(path):
-        out = U[:, :columns] if columns == 2 else U
+        out = P[:, :columns] if columns == 2 else P
         save_volume_mesh(path, out, T)
         return out
     if np.shape(T)[1] == 4:
-        surface, faces, _ = boundary_surface(U, T)
+        surface, faces, _ = boundary_surface(P, T)
         save_mesh(path, surface, faces)
         return surface
-    save_mesh(path, U, T)
-    return U
+    save_mesh(path, P, T)
+    return P

@@ -22,9 +22,9 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+import arap.io.formats as formats
 from arap.constraints.keyframes import Keyframes
 from arap.errors import ArapError
-from arap.io import formats
 from arap.io.animated_gltf import animation_glb
 from arap.options import DEFAULT_TOLERANCE
 from arap.server.constraints import identity_transforms, matrices_from_json

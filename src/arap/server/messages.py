@@ -14,7 +14,7 @@ import dataclasses
 from dataclasses import dataclass, field
 from typing import Any, ClassVar
 
-from arap.io import formats
+import arap.io.formats as formats
 from arap.options import DEFAULT_ALPHA, DEFAULT_ENERGY, DEFAULT_WEIGHTS, SURFACE_ENERGY_TYPES, WEIGHT_TYPES
 from arap.server.labels import ENERGY_LABELS, LOOSE_LABELS, WEIGHT_LABELS
 

@@ -14,8 +14,8 @@ from typing import Any
 
 import numpy as np
 
+import arap.io.formats as formats
 from arap.errors import ArapError
-from arap.io import formats
 from arap.server.mesh_model import MeshData
 from arap.server.meshdata import load_upload
 from arap.server.protocol import RequestError
