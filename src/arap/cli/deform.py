@@ -191,6 +191,7 @@ def _textured_input(mesh: str, output: str, quiet: bool, asset: Any = None) -> A
     coordinates, colours, materials, groups, a glTF scene) and the output is of its format family, so that the output
     keeps them; else None (the geometry alone is written, with a note when attributes are left behind). ``asset``:
     the input's asset when it was read already."""
+    import arap.io.formats as formats
     from arap.io.assets import asset_format, load_asset
 
     try:
@@ -201,7 +202,7 @@ def _textured_input(mesh: str, output: str, quiet: bool, asset: Any = None) -> A
         if not Path(mesh).is_file():
             return None
         asset = load_asset(mesh)
-    family = {"obj": "obj", "ply": "ply", "glb": "gltf", "gltf": "gltf"}
+    family = {name: formats.family(name) for name in formats.names("surface", asset=True)}
     kept = asset.format in ("glb", "gltf") or asset.uvs is not None or asset.vertex_colors is not None \
         or bool(asset.materials) or bool(asset.groups)
     if not kept:

@@ -41,6 +41,7 @@ __all__ = [
     "FileFormat",
     "Kind",
     "export_names",
+    "family",
     "find",
     "get",
     "mime_types",
@@ -182,6 +183,19 @@ def get(name: str | os.PathLike[str], kind: Kind | None = None) -> FileFormat:
         raise MeshFormatError(f"unsupported {what}format {suffix_of(name)[1:]!r} (from {str(name).strip()!r}); "
                               f"supported: {', '.join(names(kind))}")
     return found
+
+
+def family(name: str | os.PathLike[str]) -> str:
+    """The family of a format (``"gltf"`` for GLB and glTF; else the format's own name): a textured model keeps its
+    attributes when written in its family.
+
+    Raises
+    ------
+    MeshFormatError
+        No such format.
+    """
+    found = get(name)
+    return found.family or found.name
 
 
 def names(kind: Kind | None = None, *, asset: bool | None = None) -> tuple[str, ...]:

@@ -522,8 +522,8 @@ def save_mesh(path: str | os.PathLike[str], V: NDArray[np.floating] | MeshLike,
     from arap.io.assets import MeshAsset, save_asset
 
     if isinstance(V, MeshAsset) and F is None:
-        fmt, own = formats.get(format_of(path.name)), formats.get(V.format)
-        if fmt.asset and (fmt.family or fmt.name) == (own.family or own.name):
+        fmt = formats.get(format_of(path.name))
+        if fmt.asset and formats.family(fmt.name) == formats.family(V.format):
             save_asset(path, V)
             return
     V, F = mesh_arrays(V, F)
