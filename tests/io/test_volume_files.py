@@ -523,3 +523,25 @@ def test_batch_deforms_volume_files(tmp_path: Path, capsys: pytest.CaptureFixtur
     _, faces, kept = boundary_surface(V, T)
     assert np.array_equal(F, faces)
     np.testing.assert_allclose(surface, U[kept], atol=1e-6)
+
+
+def test_animate_a_planar_tetgen_mesh_keeps_its_two_columns(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    x, y = np.meshgrid(np.linspace(0, 4, 9), np.linspace(0, 1, 3), indexing="ij")
+    V = np.column_stack([x.ravel(), y.ravel()])
+    idx = np.arange(len(V)).reshape(9, 3)
+    a, b, c, d = idx[:-1, :-1].ravel(), idx[1:, :-1].ravel(), idx[1:, 1:].ravel(), idx[:-1, 1:].ravel()
+    F = np.concatenate([np.column_stack([a, b, c]), np.column_stack([a, c, d])])
+    save_volume_mesh(tmp_path / "strip.node", V, F)
+    fixed, end = np.flatnonzero(V[:, 0] == 0), np.flatnonzero(V[:, 0] == 4)
+    P = np.column_stack([V, np.zeros(len(V))])
+    (tmp_path / "keys.json").write_text(json.dumps({
+        "fixed": fixed.tolist(), "handles": end.tolist(),
+        "keyframes": [{"time": 0.0, "targets": P[end].tolist()},
+                      {"time": 0.5, "targets": (P[end] + [0, 1, 0]).tolist()}]}))
+    code = main(["animate", str(tmp_path / "strip.ele"), "-k", str(tmp_path / "keys.json"), "--fps", "2", "-o",
+                 str(tmp_path / "bent_#.node"), "-q"])
+    assert code == 0, capsys.readouterr().err
+    U, G = load_volume_mesh(tmp_path / "bent_1.ele")
+    assert U.shape == V.shape and np.array_equal(G, F)
+    np.testing.assert_allclose(U[end], V[end] + [0, 1], atol=1e-6)
+    assert (signed_measures(np.column_stack([U, np.zeros(len(U))]), G) > 0).all()  # bent in its plane, not folded

@@ -17,6 +17,7 @@ from arap.cli.common import (
     check_iterations_and_tolerance,
     err,
     load_mesh_argument,
+    planar_triangles,
     warm_up_kernels,
 )
 from arap.errors import ConstraintError, MeshFormatError, OptionError
@@ -92,15 +93,12 @@ def _read_volume(args: argparse.Namespace) -> tuple[np.ndarray, np.ndarray, int]
     """A volume file given as MESH, as :func:`arap.io.volume.volume_for_solving` gives it (and the element energy
     when none was given, as ``arap deform`` picks it for solids and planar meshes); None for other meshes."""
     from arap.io.volume import is_volume_file, volume_for_solving
-    from arap.meshes.domain import PLANAR_TOLERANCE
 
     if not is_volume_file(args.mesh):
         return None
     V, T, columns = volume_for_solving(args.mesh)
-    spread = np.ptp(V, axis=0) if len(V) else np.zeros(3)
-    planar = bool(spread.min() <= PLANAR_TOLERANCE * max(float(np.linalg.norm(spread)), 1e-300))
     if args.energy is None:
-        args.energy = DEFAULT_ELEMENT_ENERGY if T.shape[1] == 4 or planar else DEFAULT_ENERGY
+        args.energy = DEFAULT_ELEMENT_ENERGY if T.shape[1] == 4 or planar_triangles(V, T) else DEFAULT_ENERGY
     return V, T, columns
 
 

@@ -50,6 +50,7 @@ __all__ = [
     "one_line",
     "origin_value",
     "out",
+    "planar_triangles",
     "positive_int",
     "selector_constraints",
     "token_value",
@@ -169,6 +170,15 @@ def warm_up_kernels(quiet: bool) -> dict[str, object]:
 
 
 # ---------------------------------------------------------------------------------------------- meshes
+def planar_triangles(V: np.ndarray, T: np.ndarray) -> bool:
+    """Whether elements ``T`` of a volume file are triangles in a plane of constant coordinate (deformed in their plane
+    with the element energy, as tetrahedra are)."""
+    from arap.meshes.domain import PLANAR_TOLERANCE
+
+    spread = np.ptp(V, axis=0) if len(V) else np.zeros(3)
+    return T.shape[1] == 3 and bool(spread.min() <= PLANAR_TOLERANCE * max(float(np.linalg.norm(spread)), 1e-300))
+
+
 def format_list(kind: formats.Kind) -> str:
     """The extensions of the formats of ``kind`` for help texts (``.obj .off .ply ...``), from
     :mod:`arap.io.formats`."""

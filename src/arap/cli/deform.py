@@ -25,6 +25,7 @@ from arap.cli.common import (
     err,
     format_list,
     load_mesh_argument,
+    planar_triangles,
     selector_constraints,
     warm_up_kernels,
     writable_destination,
@@ -238,11 +239,7 @@ class _Elements:
         return interpolate_points(U, self.T, self.tets, self.barycentric)
 
     def planar(self) -> bool:
-        from arap.meshes.domain import PLANAR_TOLERANCE
-
-        spread = np.ptp(self.V, axis=0)
-        return self.T.shape[1] == 3 and bool(spread.min() <= PLANAR_TOLERANCE * max(float(np.linalg.norm(spread)),
-                                                                                   1e-300))
+        return planar_triangles(self.V, self.T)
 
 
 def _read_volume(spec: str) -> _Elements:
