@@ -265,7 +265,7 @@ def save_animation(output: str | Path, F: NDArray[np.integer], animation: Animat
         ``output`` is neither.
     """
     from arap.io.animated_gltf import save_animation_glb
-    from arap.io.mesh_save import save_mesh
+    from arap.io.meshfile import save_mesh
 
     path = Path(output)
     if path.suffix.lower() == ".glb":

@@ -278,3 +278,64 @@ def test_binary_ply_with_polygons_of_several_sizes() -> None:
     assert sorted(map(tuple, F2.tolist())) == [(0, 1, 2), (2, 3, 0), (3, 2, 4)]
     with pytest.raises(MeshFormatError, match="PLY"):
         load_mesh_bytes(header + body[:-3], "ply")
+
+
+# ---------------------------------------------------------------------------------------------- the format registry
+def test_every_format_list_comes_from_the_registry() -> None:
+    from arap.cli import build_parser
+    from arap.io import ASSET_FORMATS, VOLUME_FORMATS, formats
+    from arap.server import protocol
+    from arap.server.mesh_model import EXPORT_MIME
+    from arap.server.pictures import PICTURE_EXTENSIONS
+
+    assert MESH_FORMATS == formats.names("surface") == ("obj", "off", "ply", "stl", "glb", "gltf")
+    assert ASSET_FORMATS == formats.names("surface", asset=True)
+    assert VOLUME_FORMATS == tuple(s[1:] for s in formats.suffixes("volume"))
+    assert protocol.UPLOAD_EXTENSIONS == formats.upload_suffixes()
+    assert protocol.EXPORT_FORMATS == formats.export_names()
+    assert PICTURE_EXTENSIONS == formats.suffixes("picture")
+    assert EXPORT_MIME == {"obj": "model/obj", "ply": "application/octet-stream", "glb": "model/gltf-binary"}
+    assert {formats.get(name).mime for name in EXPORT_MIME} <= set(formats.mime_types().values())
+    # The command line's help names every surface and volume extension, once each list.
+    help_text = " ".join(build_parser().format_help().split())
+    assert " ".join(formats.suffixes("surface")) in help_text and " ".join(formats.suffixes("volume")) in help_text
+    # Every function a record names exists.
+    for fmt in formats.FORMATS:
+        for role in ("reader", "writer", "screen", "vertex_count", "face_count"):
+            if getattr(fmt, role):
+                assert callable(fmt.function(role)), (fmt.name, role)
+
+
+def test_the_registry_finds_a_format_by_name_suffix_or_file_name() -> None:
+    from arap.io import formats
+
+    assert formats.get("Model.OBJ").name == formats.get(".obj").name == formats.get("obj").name == "obj"
+    assert formats.get("bar.ELE").name == formats.get("bar.node").name == "tetgen"
+    assert formats.get("photo.jpeg").kind == "picture" and formats.get("photo.jpeg").mime == "image/jpeg"
+    assert formats.find("bar.msh", "surface") is None
+    with pytest.raises(MeshFormatError, match="unsupported surface format 'msh'"):
+        formats.get("bar.msh", "surface")
+
+
+def _marked_off(V: np.ndarray, F: np.ndarray) -> bytes:
+    """An OFF writer that marks its files (for the registry test)."""
+    from arap.io.meshfile import off_bytes
+
+    return b"# marked\n" + off_bytes(V, F)
+
+
+def test_readers_and_writers_are_the_registrys(monkeypatch: pytest.MonkeyPatch) -> None:
+    """save_mesh_bytes and load_mesh_bytes pick a format's writer and reader through its record: a record naming
+    other functions is what they call."""
+    import dataclasses
+
+    from arap.io import formats
+
+    off = formats.get("off")
+    V, F = builtin_mesh("bar")
+    plain = save_mesh_bytes(V, F, "off")
+    monkeypatch.setitem(formats._BY_NAME, "off", dataclasses.replace(off, writer=f"{__name__}:_marked_off",
+                                                                     reader="arap.io.meshfile:read_stl"))
+    assert save_mesh_bytes(V, F, "off") == b"# marked\n" + plain
+    with pytest.raises(MeshFormatError, match="not an STL file"):  # the STL reader given OFF text
+        load_mesh_bytes(plain, "off")

@@ -448,3 +448,100 @@ def test_missing_optional_packages_are_named_with_the_extra(tmp_path: Path, monk
     surface, F, _ = boundary_surface(V, T)
     with pytest.raises(arap.ArapError, match=r"pytetwild: pip install 'arap\[solid\]'"):
         arap.tetrahedralize(surface, F)
+
+
+# ---------------------------------------------------------------------------------------------- other commands
+def _tet_bar(tmp_path: Path, name: str = "bar.node") -> tuple[np.ndarray, np.ndarray, Path]:
+    V, T = box_tetrahedra(1, 4, 1)
+    save_volume_mesh(tmp_path / name, V, T)
+    return V, T, tmp_path / name
+
+
+def test_constraints_picks_the_vertices_of_a_volume_file_by_position(tmp_path: Path,
+                                                                    capsys: pytest.CaptureFixture[str]) -> None:
+    V, _, path = _tet_bar(tmp_path)
+    out = tmp_path / "c.json"
+    code = main(["constraints", str(path), "--fix", "y<0.1", "--handle", "y>0.9", "--move", "0.5,0,0", "-o", str(out)])
+    assert code == 0, capsys.readouterr().err
+    assert f"{len(V):,} vertices" in capsys.readouterr().out
+    doc = json.loads(out.read_text())
+    assert sorted(doc["fixed"]) == np.flatnonzero(V[:, 1] == 0).tolist()
+    assert sorted(doc["handles"]) == np.flatnonzero(V[:, 1] == 4).tolist()
+    # The file drives arap deform on the same volume file.
+    assert main(["deform", str(path), "-c", str(out), "-o", str(tmp_path / "o.ele"), "-q"]) == 0
+    U, _ = load_volume_mesh(tmp_path / "o.ele")
+    top = V[:, 1] == 4
+    np.testing.assert_allclose(U[top], V[top] + [0.5, 0, 0], atol=1e-9)
+
+
+def _keys(tmp_path: Path, V: np.ndarray) -> Path:
+    fixed, top = np.flatnonzero(V[:, 1] == 0), np.flatnonzero(V[:, 1] == 4)
+    doc = {"fixed": fixed.tolist(), "handles": top.tolist(),
+           "keyframes": [{"time": 0.0, "targets": V[top].tolist()},
+                         {"time": 0.5, "targets": (V[top] + [0.6, 0, 0]).tolist()}]}
+    (tmp_path / "keys.json").write_text(json.dumps(doc))
+    return tmp_path / "keys.json"
+
+
+def test_animate_a_solid_from_a_volume_file(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    V, T, path = _tet_bar(tmp_path)
+    keys = _keys(tmp_path, V)
+    top = V[:, 1] == 4
+    # Numbered volume files: the tetrahedra, solved with the element energy.
+    code = main(["animate", str(path), "-k", str(keys), "--fps", "4", "-o", str(tmp_path / "f_#.ele")])
+    assert code == 0, capsys.readouterr().err
+    frames = sorted(tmp_path.glob("f_*.ele"))
+    assert [p.name for p in frames] == ["f_0.ele", "f_1.ele", "f_2.ele"]
+    U, S = load_volume_mesh(frames[-1])
+    assert np.array_equal(S, T)
+    np.testing.assert_allclose(U[top], V[top] + [0.6, 0, 0], atol=1e-6)
+    assert (signed_measures(U, T) > 0).all()
+    # Numbered surface files and an animated GLB: the boundary surface of the solid, as arap deform writes it.
+    assert main(["animate", str(path), "-k", str(keys), "--fps", "4", "-o", str(tmp_path / "s_#.obj"), "-q"]) == 0
+    surface, F = arap.load_mesh(tmp_path / "s_2.obj")
+    rest, faces, kept = boundary_surface(V, T)
+    assert len(surface) == len(rest) and np.array_equal(F, faces)
+    np.testing.assert_allclose(surface, U[kept], atol=1e-6)
+    assert main(["animate", str(path), "-k", str(keys), "--fps", "4", "-o", str(tmp_path / "a.glb"), "-q"]) == 0
+    assert (tmp_path / "a.glb").stat().st_size > 0
+
+
+def test_batch_deforms_volume_files(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    V, T, _ = _tet_bar(tmp_path, "bar.node")
+    top, fixed = np.flatnonzero(V[:, 1] == 4), np.flatnonzero(V[:, 1] == 0)
+    (tmp_path / "c.json").write_text(json.dumps({"fixed": fixed.tolist(), "handles": top.tolist(),
+                                                 "targets": (V[top] + [0.5, 0, 0]).tolist()}))
+    lines = [{"mesh": "bar.node", "constraints": "c.json", "output": "out/bar.ele"},
+             {"mesh": "bar.ele", "constraints": "c.json", "output": "out/bar.obj"}]
+    (tmp_path / "jobs.jsonl").write_text("\n".join(json.dumps(line) for line in lines) + "\n")
+    code = main(["batch", str(tmp_path / "jobs.jsonl"), "--workers", "1", "-q"])
+    assert code == 0, capsys.readouterr().err
+    U, S = load_volume_mesh(tmp_path / "out" / "bar.ele")
+    assert np.array_equal(S, T)
+    np.testing.assert_allclose(U[top], V[top] + [0.5, 0, 0], atol=1e-6)
+    surface, F = arap.load_mesh(tmp_path / "out" / "bar.obj")
+    _, faces, kept = boundary_surface(V, T)
+    assert np.array_equal(F, faces)
+    np.testing.assert_allclose(surface, U[kept], atol=1e-6)
+
+
+def test_animate_a_planar_tetgen_mesh_keeps_its_two_columns(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    x, y = np.meshgrid(np.linspace(0, 4, 9), np.linspace(0, 1, 3), indexing="ij")
+    V = np.column_stack([x.ravel(), y.ravel()])
+    idx = np.arange(len(V)).reshape(9, 3)
+    a, b, c, d = idx[:-1, :-1].ravel(), idx[1:, :-1].ravel(), idx[1:, 1:].ravel(), idx[:-1, 1:].ravel()
+    F = np.concatenate([np.column_stack([a, b, c]), np.column_stack([a, c, d])])
+    save_volume_mesh(tmp_path / "strip.node", V, F)
+    fixed, end = np.flatnonzero(V[:, 0] == 0), np.flatnonzero(V[:, 0] == 4)
+    P = np.column_stack([V, np.zeros(len(V))])
+    (tmp_path / "keys.json").write_text(json.dumps({
+        "fixed": fixed.tolist(), "handles": end.tolist(),
+        "keyframes": [{"time": 0.0, "targets": P[end].tolist()},
+                      {"time": 0.5, "targets": (P[end] + [0, 1, 0]).tolist()}]}))
+    code = main(["animate", str(tmp_path / "strip.ele"), "-k", str(tmp_path / "keys.json"), "--fps", "2", "-o",
+                 str(tmp_path / "bent_#.node"), "-q"])
+    assert code == 0, capsys.readouterr().err
+    U, G = load_volume_mesh(tmp_path / "bent_1.ele")
+    assert U.shape == V.shape and np.array_equal(G, F)
+    np.testing.assert_allclose(U[end], V[end] + [0, 1], atol=1e-6)
+    assert (signed_measures(np.column_stack([U, np.zeros(len(U))]), G) > 0).all()  # bent in its plane, not folded

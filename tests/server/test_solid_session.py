@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -9,7 +11,7 @@ import arap
 from arap.server.heatmap import distortion_frame
 from arap.server.meshdata import builtin_names, load_builtin
 from arap.server.session import Session
-from tests.server.helpers import rotation_z, translation
+from tests.server.helpers import StudioClient, rotation_z, translation
 
 
 @pytest.fixture
@@ -70,3 +72,38 @@ def test_a_point_handle_on_the_boundary_lands_on_its_target(session: Session) ->
     session.settle(lambda: False)
     np.testing.assert_allclose(np.array(beta) @ session.U[mesh.F[face]], target, atol=1e-8)
     session.drag([translation(0.0)])
+
+
+# ---------------------------------------------------------------------------------------------- uploaded volume files
+@pytest.mark.parametrize("ext", ["msh", "mesh", "vtu", "vtk"])
+def test_an_uploaded_volume_file_opens_as_a_solid(studio: StudioClient, tmp_path: Path, ext: str) -> None:
+    """A volume file uploaded to the studio: drawn by its boundary, solved on its tetrahedra, their count in the
+    mesh message; a drag moves the handles and the inside follows."""
+    pytest.importorskip("meshio")
+    V, T = arap.box_tetrahedra(2, 6, 2, size=(1.0, 3.0, 1.0))
+    arap.save_volume_mesh(tmp_path / f"bar.{ext}", V, T)
+    studio.send_binary({"type": "upload", "filename": f"bar.{ext}"}, (tmp_path / f"bar.{ext}").read_bytes())
+    mesh = studio.read_mesh().data
+    assert mesh["name"] == "bar" and mesh["n_vertices"] == len(V) and mesh["n_tetrahedra"] == len(T)
+    assert mesh["n_faces"] == len(arap.boundary_faces(T))
+    assert any(f"{len(T):,} tetrahedra" in line for line in mesh["report"])
+    studio.expect("state")
+    lo, hi = studio.bottom_top(0.05)
+    assert set(lo + hi) <= set(np.unique(studio.F).tolist())  # picked on the boundary drawn
+    studio.set_constraints(lo, [hi])
+    U = studio.drag(1, [translation(0.4)]).floats()
+    np.testing.assert_allclose(U[hi], studio.V[hi] + [0.4, 0, 0], atol=1e-5)
+    inside = np.setdiff1d(np.arange(len(V)), np.unique(studio.F))
+    assert len(inside) and np.abs(U[inside, 0] - studio.V[inside, 0]).max() > 0.05  # the interior follows
+
+
+def test_a_surface_upload_has_no_tetrahedra_and_a_bad_volume_file_is_refused(studio: StudioClient) -> None:
+    pytest.importorskip("meshio")
+    V, F = arap.builtin_mesh("bar")
+    studio.send_binary({"type": "upload", "filename": "bar.obj"}, arap.save_mesh_bytes(V, F, "obj"))
+    assert studio.read_mesh().data["n_tetrahedra"] == 0
+    studio.expect("state")
+    studio.send_binary({"type": "upload", "filename": "junk.msh"}, b"$MeshFormat\nnot a mesh\n")
+    assert "cannot parse junk.msh as a gmsh file" in studio.error("bad_mesh")["message"]
+    studio.send_binary({"type": "upload", "filename": "bar.node"}, b"4 3 0 0\n")
+    assert "unsupported" in studio.error("bad_mesh")["message"]

@@ -238,8 +238,10 @@ export class Panel extends PanelReadouts {
   meshLoaded(msg) {
     const n = (/** @type {number} */ x) => x.toLocaleString('en-US');
     this.setCurrentModel(msg.name);
-    this.setMeshInfo(`${msg.name}: ${n(msg.n_vertices)} vertices, ${n(msg.n_faces)} faces`);
-    this.setStats({ n_vertices: msg.n_vertices, n_faces: msg.n_faces, ups: NaN, latency_ms: null, ms_per_iteration: null });
+    const tets = msg.n_tetrahedra ? `, ${n(msg.n_tetrahedra)} tetrahedra` : '';
+    this.setMeshInfo(`${msg.name}: ${n(msg.n_vertices)} vertices, ${n(msg.n_faces)} faces${tets}`);
+    this.setStats({ n_vertices: msg.n_vertices, n_faces: msg.n_faces, n_tetrahedra: msg.n_tetrahedra || 0, ups: NaN,
+      latency_ms: null, ms_per_iteration: null });
     this.resetSettle(); // the server says how the new mesh's shape settles
     const report = Array.isArray(msg.report) ? msg.report : msg.report ? [String(msg.report)] : [];
     if (report.length) this.showStatus(`Loaded ${msg.name}. Repairs: ${report.join('; ')}`, 'info', 8000);

@@ -121,11 +121,15 @@ export const UPLOAD_EXTENSIONS = Object.freeze([
   ".stl",
   ".glb",
   ".gltf",
-  ".zip",
+  ".mesh",
+  ".msh",
+  ".vtu",
+  ".vtk",
   ".png",
   ".jpg",
   ".jpeg",
-  ".webp"
+  ".webp",
+  ".zip"
 ]);
 
 /**
@@ -268,6 +272,7 @@ export const UPLOAD_EXTENSIONS = Object.freeze([
  * @property {number} n_faces number of triangles
  * @property {string[]} report repairs made while loading, one line each
  * @property {number} file_vertices vertices of the mesh file when repair renumbered them (the payload then ends with the mesh vertex each file vertex became, -1 for one dropped), else 0: constraints documents use the file's numbering
+ * @property {number} n_tetrahedra tetrahedra of a solid, which the solver deforms (0 for a surface)
  */
 
 /**

@@ -83,13 +83,17 @@ export class PanelReadouts {
 
   /**
    * The statistics table: the fields of `s` that are given (counts, timings, updates per second, latency).
-   * @param {{n_vertices?: number, n_faces?: number, roi_size?: number, n_free?: number, factor_ms?: number|null,
+   * @param {{n_vertices?: number, n_faces?: number, n_tetrahedra?: number, roi_size?: number, n_free?: number, factor_ms?: number|null,
    *   ms_per_iteration?: number|null, ups?: number, latency_ms?: number|null}} s
    */
   setStats(s) {
     const set = (/** @type {string} */ id, /** @type {string} */ v) => ($(id).textContent = v);
     if ('n_vertices' in s) set('st-vertices', fmtInt(s.n_vertices));
     if ('n_faces' in s) set('st-faces', fmtInt(s.n_faces));
+    if ('n_tetrahedra' in s) {
+      set('st-tetrahedra', fmtInt(s.n_tetrahedra));
+      $('st-tetrahedra-row').hidden = !s.n_tetrahedra; // a solid's; a surface has none
+    }
     if ('roi_size' in s) set('st-roi', fmtInt(s.roi_size));
     if ('n_free' in s) set('st-free', fmtInt(s.n_free));
     if ('factor_ms' in s) set('st-factor', fmtMs(s.factor_ms));

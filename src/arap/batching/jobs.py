@@ -26,6 +26,7 @@ from arap.errors import ArapError
 from arap.meshes.shapes import BUILTIN_MESHES
 from arap.options import (
     DEFAULT_ALPHA,
+    DEFAULT_ELEMENT_ENERGY,
     DEFAULT_ENERGY,
     DEFAULT_TOLERANCE,
     DEFAULT_WEIGHTS,
@@ -53,11 +54,13 @@ class Job:
     line : int
         Its line in the manifest (1-based), or its position in the list given to :func:`arap.batch`.
     mesh : str
-        A mesh file (absolute path) or a built-in mesh name.
+        A mesh file (absolute path; a surface, or a volume file of tetrahedra or planar triangles) or a built-in mesh
+        name.
     constraints : str
         A constraints file (absolute path).
     output : str
-        Where the deformed mesh is written (absolute path; the format by its extension).
+        Where the deformed mesh is written (absolute path; the format by its extension): a solid written to a
+        surface format is its boundary surface, as ``arap deform`` writes it.
     energy, weights : str
     alpha, tolerance : float
     max_iterations : int or None
@@ -98,6 +101,14 @@ def _is_builtin(name: str) -> bool:
     return name in BUILTIN_MESHES or name == "sphere" or name.startswith("sphere:")
 
 
+def _default_energy(mesh: str) -> str:
+    """The energy ``arap deform`` takes when none is given: the element energy for a volume file (a solid, or a planar
+    mesh), else the surface default."""
+    from arap.io.volume import is_volume_file
+
+    return DEFAULT_ELEMENT_ENERGY if os.path.isabs(mesh) and is_volume_file(mesh) else DEFAULT_ENERGY
+
+
 def job_from_json(data: object, line: int, base: Path) -> Job:
     """A job from one parsed manifest line; paths relative to ``base``.
 
@@ -117,7 +128,7 @@ def job_from_json(data: object, line: int, base: Path) -> Job:
         if not isinstance(value, str) or not value:
             raise ArapError(f'"{key}" must be a path (a non-empty string)')
         paths[key] = value if key == "mesh" and _is_builtin(value) else str((base / value).resolve())
-    energy = data.get("energy", DEFAULT_ENERGY)
+    energy = data.get("energy", _default_energy(paths["mesh"]))
     weights = data.get("weights", DEFAULT_WEIGHTS)
     if not isinstance(energy, str) or not isinstance(weights, str):
         raise ArapError('"energy" and "weights" must be names')

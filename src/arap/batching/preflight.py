@@ -38,11 +38,12 @@ def _readable(path: str, what: str) -> str | None:
 
 def _mesh_problem(mesh: str) -> str | None:
     from arap.io import format_of
+    from arap.io.volume import is_volume_file
 
     if not os.path.isabs(mesh):  # a built-in mesh
         return None
     problem = _readable(mesh, "mesh")
-    if problem is None:
+    if problem is None and not is_volume_file(mesh):
         try:
             format_of(mesh)
         except ArapError as exc:
@@ -64,9 +65,11 @@ def _folder_problem(folder: Path) -> str | None:
 def _output_problem(output: str, folder_done: Callable[[Path], str | None]) -> str | None:
     from arap.io import format_of
     from arap.io.paths import write_destination
+    from arap.io.volume import is_volume_file
 
     try:
-        format_of(output)
+        if not is_volume_file(output):
+            format_of(output)
     except ArapError as exc:
         return str(exc)
     problem = folder_done(Path(output).parent)

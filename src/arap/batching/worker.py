@@ -46,15 +46,21 @@ def environment(values: dict[str, str]) -> Iterator[None]:
                 os.environ[k] = v
 
 
-def _load(mesh: str) -> tuple[np.ndarray, np.ndarray, Any]:
+def _load(mesh: str) -> tuple[np.ndarray, np.ndarray, Any, int]:
+    """The mesh to solve: its vertices, its triangles (or a volume file's tetrahedra or triangles), what repair did,
+    and a volume file's coordinates per vertex (0 for a surface)."""
     from arap.io import load_mesh_with_report
+    from arap.io.volume import is_volume_file, volume_for_solving
     from arap.meshes.repair import RepairResult
     from arap.meshes.shapes import builtin_mesh
 
+    if os.path.isabs(mesh) and is_volume_file(mesh):
+        V, T, columns = volume_for_solving(mesh)
+        return V, T, RepairResult.identity(V), columns
     if os.path.isabs(mesh):
-        return load_mesh_with_report(mesh)
+        return (*load_mesh_with_report(mesh), 0)
     V, F = builtin_mesh(mesh)
-    return V, F, RepairResult.identity(V, F)
+    return V, F, RepairResult.identity(V, F), 0
 
 
 def _structure(c: Any) -> tuple[bytes, ...]:
@@ -70,7 +76,7 @@ def _structure(c: Any) -> tuple[bytes, ...]:
 class _Chunk:
     """What the jobs of a chunk share: the mesh (or why it could not be loaded) and the last solver."""
 
-    mesh: tuple[np.ndarray, np.ndarray, Any] | None = None
+    mesh: tuple[np.ndarray, np.ndarray, Any, int] | None = None
     load_error: str = ""
     solver: Any = None
     built_for: tuple[bytes, ...] | None = None
@@ -81,6 +87,7 @@ def _solve_and_write(job: Job, state: _Chunk) -> JobOutcome:
     from arap.constraints import load_constraints
     from arap.errors import ArapError
     from arap.io import format_of, save_mesh
+    from arap.io.volume import is_volume_file, save_deformed_volume, save_volume_mesh
     from arap.solve.solver import ArapSolver
 
     t0 = time.perf_counter()
@@ -92,7 +99,7 @@ def _solve_and_write(job: Job, state: _Chunk) -> JobOutcome:
                 state.load_error = f"{job.mesh}: {exc}"
         if state.mesh is None:
             raise ArapError(state.load_error)
-        V, F, repair = state.mesh
+        V, F, repair, columns = state.mesh
         constraints = load_constraints(job.constraints, len(repair.vertex_map), len(F))
         if repair.renumbers:
             constraints = constraints.remapped(repair.vertex_map)
@@ -114,7 +121,12 @@ def _solve_and_write(job: Job, state: _Chunk) -> JobOutcome:
             back = repair.in_input_order(result.vertices)
             if back is not None:
                 U, F_out = back
-        save_mesh(job.output, U, F_out)
+        if columns:  # a volume file: a volume file again, or its (boundary) surface
+            save_deformed_volume(job.output, U, F_out, columns)
+        elif is_volume_file(job.output):
+            save_volume_mesh(job.output, U, F_out)
+        else:
+            save_mesh(job.output, U, F_out)
         return JobOutcome(line=job.line, output=job.output, status="done", iterations=result.iterations,
                           converged=result.converged, seconds=time.perf_counter() - t0, factorised=factorised)
     except (ArapError, OSError, ValueError, MemoryError) as exc:

@@ -1,7 +1,8 @@
 """The ``arap`` command line: deform a mesh file, animate one, run batches, inspect a mesh, time the solver, start the
 studio.
 
-Every command takes a mesh file (OBJ, OFF, PLY, STL, GLB, glTF) or a built-in name (``cactus``, ``bar``, ``cylinder``,
+Every command takes a mesh file (the surface formats of :mod:`arap.io.formats`: OBJ, OFF, PLY, STL, GLB, glTF; and
+volume meshes of tetrahedra: Medit, gmsh, VTK, TetGen) or a built-in name (``cactus``, ``bar``, ``cylinder``,
 ``sphere`` or ``sphere:N`` for a geodesic sphere of about N vertices). Bad input (unreadable, malformed or unusable
 files and values) is reported as one line on stderr with exit status 1, bad usage by argparse with exit status 2;
 never with a traceback.
@@ -23,7 +24,7 @@ from collections.abc import Sequence
 
 from arap import __version__
 from arap.cli import animate, batch, bench, constraints, deform, info, studio, warmup, warp
-from arap.cli.common import EXIT_BAD_INPUT, EXIT_INTERRUPTED, EXIT_USAGE, err, one_line
+from arap.cli.common import EXIT_BAD_INPUT, EXIT_INTERRUPTED, EXIT_USAGE, err, format_list, one_line
 from arap.errors import ArapError
 
 __all__ = ["build_parser", "main"]
@@ -36,8 +37,8 @@ def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="arap",
         description="As-Rigid-As-Possible surface deformation (Sorkine & Alexa 2007).",
-        epilog="MESH is a file (.obj .off .ply .stl .glb .gltf) or a built-in name: cactus, bar, cylinder, sphere, "
-               "sphere:N.",
+        epilog=f"MESH is a surface file ({format_list('surface')}), a volume file of tetrahedra or of planar "
+               f"triangles ({format_list('volume')}), or a built-in name: cactus, bar, cylinder, sphere, sphere:N.",
     )
     parser.add_argument("--version", action="version", version=f"arap {__version__}")
     parser.add_argument("-v", "--verbose", action="store_true", help="log what the library does")

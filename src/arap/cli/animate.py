@@ -5,7 +5,9 @@ from __future__ import annotations
 
 import argparse
 import time
+from dataclasses import replace
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -15,9 +17,11 @@ from arap.cli.common import (
     check_iterations_and_tolerance,
     err,
     load_mesh_argument,
+    planar_triangles,
     warm_up_kernels,
 )
 from arap.errors import ConstraintError, MeshFormatError, OptionError
+from arap.options import DEFAULT_ELEMENT_ENERGY, DEFAULT_ENERGY
 
 __all__ = ["add_parser", "run_animate"]
 
@@ -32,19 +36,22 @@ def add_parser(commands: argparse._SubParsersAction[argparse.ArgumentParser]) ->
                                         f"others to tolerance {FRAME_TOLERANCE:g} (within about 1e-3 of the mesh's "
                                         "size of converged frames, a few times faster; --exact solves every frame to "
                                         "convergence).")
-    p.add_argument("mesh", metavar="MESH")
+    p.add_argument("mesh", metavar="MESH", help="a surface, or a volume file of tetrahedra (solved on them) or of "
+                                               "planar triangles")
     p.add_argument("-k", "--keyframes", required=True, metavar="KEYS.json",
                    help='a constraints file with "keyframes": [{"time": seconds, "targets": [...]} or '
                         '{"time": seconds, "transforms": [4x4 per handle group]}, ...]; a keyframe may add '
                         '"easing" (linear, ease-in-out, ease-in, ease-out), "point_targets" (one per point handle) '
                         'and "shape" (the whole shape at that time, one [x, y, z] per vertex)')
     p.add_argument("-o", "--output", required=True, metavar="OUT",
-                   help="frame_####.obj (numbered files in that mesh format) or OUT.glb (one animated glTF)")
+                   help="frame_####.obj (numbered files in that mesh format; a volume format such as frame_####.msh "
+                        "for a volume MESH) or OUT.glb (one animated glTF); a solid written to a surface format is "
+                        "its boundary surface")
     p.add_argument("--fps", type=float, default=DEFAULT_FPS, help=f"frames per second (default: {DEFAULT_FPS:g})")
     add_iteration_options(p)
     p.add_argument("--exact", action="store_true",
                    help="solve every frame to convergence (-t/--tolerance), not only the frames at the keyframes")
-    add_energy_options(p)
+    add_energy_options(p, elements_default=True)
     p.add_argument("-q", "--quiet", action="store_true", help="print nothing but errors")
     p.set_defaults(func=run_animate)
 
@@ -69,17 +76,49 @@ def _check_output(output: str) -> None:
     from arap.animation import frame_paths
     from arap.io import format_of
     from arap.io.paths import write_destination
+    from arap.io.volume import is_volume_file
 
     path = Path(output)
     if path.suffix.lower() != ".glb":
         if "#" not in path.name:
             raise OptionError(f"{output}: write an animation to a .glb file or to numbered files (frame_####.obj)")
-        format_of(path.name)
+        if not is_volume_file(path.name):
+            format_of(path.name)
         path = frame_paths(path, 1)[0]
     try:
         write_destination(path)
     except OSError as exc:
         raise MeshFormatError(f"cannot write {output}: {exc.strerror or exc}") from None
+
+
+def _read_volume(args: argparse.Namespace) -> tuple[np.ndarray, np.ndarray, int] | None:
+    """A volume file given as MESH, as :func:`arap.io.volume.volume_for_solving` gives it (and the element energy
+    when none was given, as ``arap deform`` picks it for solids and planar meshes); None for other meshes."""
+    from arap.io.volume import is_volume_file, volume_for_solving
+
+    if not is_volume_file(args.mesh):
+        return None
+    V, T, columns = volume_for_solving(args.mesh)
+    if args.energy is None:
+        args.energy = DEFAULT_ELEMENT_ENERGY if T.shape[1] == 4 or planar_triangles(V, T) else DEFAULT_ENERGY
+    return V, T, columns
+
+
+def _save_volume_animation(output: str, T: np.ndarray, columns: int, animation: Any) -> list[Path]:
+    """The frames of a volume mesh written as ``arap deform`` writes one: numbered volume files, or the boundary
+    surface of a solid (numbered surface files or an animated GLB)."""
+    from arap.animation import frame_paths, save_animation
+    from arap.io.volume import boundary_surface, is_volume_file, save_deformed_volume
+
+    if is_volume_file(output):
+        paths = frame_paths(output, len(animation.times))
+        for path, frame in zip(paths, animation.vertices, strict=True):
+            save_deformed_volume(path, frame, T, columns)
+        return paths
+    if T.shape[1] == 4:
+        _, faces, kept = boundary_surface(animation.vertices[0], T)
+        return save_animation(output, faces, replace(animation, vertices=animation.vertices[:, kept]))
+    return save_animation(output, T, animation)
 
 
 def run_animate(args: argparse.Namespace) -> int:
@@ -97,10 +136,15 @@ def run_animate(args: argparse.Namespace) -> int:
 
     _check_output(args.output)
     check_iterations_and_tolerance(args.iterations, args.tolerance)
-    V, F, repair, label = load_mesh_argument(args.mesh)
-    if repair.renumbers:
-        raise ConstraintError(f"the keyframes name vertices of {label}, which mesh repair renumbered; repair the mesh "
-                              "file first (arap info shows what repair changes)")
+    volume = _read_volume(args)
+    if volume is not None:
+        V, F, label = volume[0], volume[1], args.mesh
+    else:
+        V, F, repair, label = load_mesh_argument(args.mesh)
+        if repair.renumbers:
+            raise ConstraintError(f"the keyframes name vertices of {label}, which mesh repair renumbered; repair the "
+                                  "mesh file first (arap info shows what repair changes)")
+        args.energy = args.energy or DEFAULT_ENERGY
     keys = load_keyframes(args.keyframes, V, len(F))
     times = frame_times(keys, args.fps)
     warm_up_kernels(args.quiet)
@@ -137,7 +181,8 @@ def run_animate(args: argparse.Namespace) -> int:
     total = time.perf_counter() - t0
     animation = Animation(times=times, vertices=frames, iterations=iterations, converged=converged, seconds=seconds,
                           setup_seconds=solver.factor_seconds, at_key=at_key)
-    paths = save_animation(args.output, F, animation)
+    paths = save_animation(args.output, F, animation) if volume is None else \
+        _save_volume_animation(args.output, F, volume[2], animation)
     if not args.quiet:
         rest = f", the others {1e3 * seconds[1:].mean():.0f} ms on average" if len(times) > 1 else ""
         err(f"arap: {len(times)} frames solved in {total:.2f} s ({len(times) / max(total, 1e-9):.1f} frames/s; "

@@ -16,6 +16,7 @@ from typing import Any, TextIO
 
 import numpy as np
 
+import arap.io.formats as formats
 from arap.errors import ArapError, MeshFormatError, OptionError
 from arap.meshes.repair import RepairResult
 from arap.options import (
@@ -44,10 +45,12 @@ __all__ = [
     "check_bench_runs",
     "check_iterations_and_tolerance",
     "err",
+    "format_list",
     "load_mesh_argument",
     "one_line",
     "origin_value",
     "out",
+    "planar_triangles",
     "positive_int",
     "selector_constraints",
     "token_value",
@@ -167,6 +170,20 @@ def warm_up_kernels(quiet: bool) -> dict[str, object]:
 
 
 # ---------------------------------------------------------------------------------------------- meshes
+def planar_triangles(V: np.ndarray, T: np.ndarray) -> bool:
+    """Whether elements ``T`` of a volume file are triangles in a plane of constant coordinate (deformed in their plane
+    with the element energy, as tetrahedra are)."""
+    from arap.meshes.domain import PLANAR_TOLERANCE
+
+    spread = np.ptp(V, axis=0) if len(V) else np.zeros(3)
+    return T.shape[1] == 3 and bool(spread.min() <= PLANAR_TOLERANCE * max(float(np.linalg.norm(spread)), 1e-300))
+
+
+def format_list(kind: formats.Kind) -> str:
+    """The extensions of the formats of ``kind`` for help texts (``.obj .off .ply ...``), from
+    :mod:`arap.io.formats`."""
+    return " ".join(formats.suffixes(kind))
+
 
 
 def load_mesh_argument(spec: str, *, repair: bool = True) -> tuple[np.ndarray, np.ndarray, RepairResult, str]:

@@ -17,7 +17,8 @@ def add_parser(commands: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         "constraints", help="write a constraints file from vertices picked by position",
         description="Write a constraints file (the format of arap deform and the studio) from selectors: "
                     "arap constraints armadillo.obj --fix 'y<0.1' --handle 'y>0.9' --move 0.2,0,0 -o c.json")
-    p.add_argument("mesh", metavar="MESH")
+    p.add_argument("mesh", metavar="MESH", help="a surface, or a volume file (its vertices are picked, tetrahedra's "
+                                               "interior ones too)")
     p.add_argument("-o", "--output", required=True, metavar="FILE.json", help="the constraints file to write")
     add_selector_options(p)
     p.set_defaults(func=run_constraints)
@@ -26,11 +27,15 @@ def add_parser(commands: argparse._SubParsersAction[argparse.ArgumentParser]) ->
 def run_constraints(args: argparse.Namespace) -> int:
     """``arap constraints``: 0 when written."""
     from arap.constraints import save_constraints
+    from arap.io.volume import is_volume_file, volume_for_solving
 
-    V, _, repair, label = load_mesh_argument(args.mesh)
-    if repair.renumbers:
-        raise ConstraintError(f"mesh repair renumbers the vertices of {label}, and a constraints file names the "
-                              "file's: repair the mesh file first (arap info shows what repair changes)")
+    if is_volume_file(args.mesh):  # numbered as in the file: nothing is repaired
+        V, label = volume_for_solving(args.mesh)[0], args.mesh
+    else:
+        V, _, repair, label = load_mesh_argument(args.mesh)
+        if repair.renumbers:
+            raise ConstraintError(f"mesh repair renumbers the vertices of {label}, and a constraints file names the "
+                                  "file's: repair the mesh file first (arap info shows what repair changes)")
     constraints = selector_constraints(args, V)
     if constraints is None:
         raise ConstraintError("nothing to write: give --fix, --handle (with --move or --rotate) and/or --roi")

@@ -23,7 +23,9 @@ from arap.cli.common import (
     add_selector_options,
     check_iterations_and_tolerance,
     err,
+    format_list,
     load_mesh_argument,
+    planar_triangles,
     selector_constraints,
     warm_up_kernels,
     writable_destination,
@@ -45,7 +47,7 @@ def add_parser(commands: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     """Add ``arap deform`` and its options to the subcommands of ``arap``."""
     p = commands.add_parser("deform", help="deform a mesh with a constraints file",
                             description="Deform MESH so the handles reach their targets and the fixed vertices stay. "
-                                        "MESH is a surface, or a volume file (.mesh .msh .vtu .vtk .node/.ele) of "
+                                        f"MESH is a surface, or a volume file ({format_list('volume')}) of "
                                         "tetrahedra or of planar triangles.")
     p.add_argument("mesh", metavar="MESH")
     p.add_argument("--solid", action="store_true",
@@ -59,8 +61,8 @@ def add_parser(commands: argparse._SubParsersAction[argparse.ArgumentParser]) ->
                    help='JSON with "fixed", "handles", "targets" and optionally "roi" (file vertex indices); or give '
                         "the constraints by position with --fix, --handle, --move, --rotate and --roi")
     p.add_argument("-o", "--output", required=True, metavar="OUT",
-                   help="output mesh file (.obj .off .ply .stl .glb .gltf; a textured input keeps its UVs and "
-                        "materials in its own format), or a volume file (.mesh .msh .vtu .vtk .node .ele); a solid "
+                   help=f"output mesh file ({format_list('surface')}; a textured input keeps its UVs and "
+                        f"materials in its own format), or a volume file ({format_list('volume')}); a solid "
                         "written to a surface format is its boundary surface")
     add_iteration_options(p)
     p.add_argument("--start", default="auto", metavar="{" + ",".join(START_NAMES) + "} or SHAPE",
@@ -190,6 +192,7 @@ def _textured_input(mesh: str, output: str, quiet: bool, asset: Any = None) -> A
     coordinates, colours, materials, groups, a glTF scene) and the output is of its format family, so that the output
     keeps them; else None (the geometry alone is written, with a note when attributes are left behind). ``asset``:
     the input's asset when it was read already."""
+    import arap.io.formats as formats
     from arap.io.assets import asset_format, load_asset
 
     try:
@@ -200,7 +203,7 @@ def _textured_input(mesh: str, output: str, quiet: bool, asset: Any = None) -> A
         if not Path(mesh).is_file():
             return None
         asset = load_asset(mesh)
-    family = {"obj": "obj", "ply": "ply", "glb": "gltf", "gltf": "gltf"}
+    family = {name: formats.family(name) for name in formats.names("surface", asset=True)}
     kept = asset.format in ("glb", "gltf") or asset.uvs is not None or asset.vertex_colors is not None \
         or bool(asset.materials) or bool(asset.groups)
     if not kept:
@@ -236,21 +239,14 @@ class _Elements:
         return interpolate_points(U, self.T, self.tets, self.barycentric)
 
     def planar(self) -> bool:
-        from arap.meshes.domain import PLANAR_TOLERANCE
-
-        spread = np.ptp(self.V, axis=0)
-        return self.T.shape[1] == 3 and bool(spread.min() <= PLANAR_TOLERANCE * max(float(np.linalg.norm(spread)),
-                                                                                   1e-300))
+        return planar_triangles(self.V, self.T)
 
 
 def _read_volume(spec: str) -> _Elements:
     """A volume file given as MESH (tetrahedra, or triangles: planar ones are deformed in their plane)."""
-    from arap.io.volume import load_volume_mesh
+    from arap.io.volume import volume_for_solving
 
-    V, T = load_volume_mesh(spec)
-    columns = V.shape[1]
-    if columns == 2:
-        V = np.column_stack([V, np.zeros(len(V))])
+    V, T, columns = volume_for_solving(spec)
     return _Elements(V=V, T=T, columns=columns)
 
 
@@ -282,22 +278,12 @@ def _check_output_type(output: str) -> bool:
     return False
 
 
-def _write_elements(output: str, elements: _Elements, U: np.ndarray, volume_out: bool) -> np.ndarray:
+def _write_elements(output: str, elements: _Elements, U: np.ndarray) -> np.ndarray:
     """Write the deformed volume mesh (tetrahedra or triangles) ``U``: as a volume file, or as its (boundary)
     surface; the positions written."""
-    from arap.io import save_mesh
-    from arap.io.volume import boundary_surface, save_volume_mesh
+    from arap.io.volume import save_deformed_volume
 
-    if volume_out:
-        out = U[:, :elements.columns] if elements.columns == 2 else U
-        save_volume_mesh(output, out, elements.T)
-        return out
-    if elements.T.shape[1] == 4:
-        surface, faces, _ = boundary_surface(U, elements.T)
-        save_mesh(output, surface, faces)
-        return surface
-    save_mesh(output, U, elements.T)
-    return U
+    return save_deformed_volume(output, U, elements.T, elements.columns)
 
 
 def run_deform(args: argparse.Namespace) -> int:
@@ -402,7 +388,7 @@ def run_deform(args: argparse.Namespace) -> int:
             raise ArapError("the solve produced non-finite positions; nothing was written")
         back = None
         if elements is not None and (volume_out or elements.tets is None):  # the volume mesh, or its surface
-            U_out = _write_elements(args.output, elements, result.vertices, volume_out)
+            U_out = _write_elements(args.output, elements, result.vertices)
         else:
             U_surface = result.vertices if elements is None else elements.follow(result.vertices)
             U_out, F_out = U_surface, F

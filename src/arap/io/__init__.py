@@ -10,7 +10,6 @@ from arap.io.assets import (
     load_asset_bytes,
     save_asset,
 )
-from arap.io.mesh_save import save_mesh, save_mesh_bytes
 from arap.io.meshfile import (
     MESH_FORMATS,
     format_of,
@@ -18,6 +17,8 @@ from arap.io.meshfile import (
     load_mesh_bytes,
     load_mesh_bytes_with_report,
     load_mesh_with_report,
+    save_mesh,
+    save_mesh_bytes,
 )
 from arap.io.volume import (
     VOLUME_FORMATS,

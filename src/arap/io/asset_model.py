@@ -14,6 +14,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import NDArray
 
+import arap.io.formats as formats
 from arap.errors import ConstraintError, MeshError, MeshFormatError
 
 if TYPE_CHECKING:
@@ -28,8 +29,9 @@ logger = logging.getLogger("arap.io.assets")
 #: Most pixels of a texture image decoded (for :func:`result_trimesh`); a larger one is left out.
 MAX_TEXTURE_PIXELS = 1 << 27
 
-#: File types :func:`load_asset` reads and :func:`save_asset` writes with their attributes.
-ASSET_FORMATS = ("obj", "ply", "glb", "gltf")
+#: File types :func:`load_asset` reads and :func:`save_asset` writes with their attributes (the surface formats of
+#: :mod:`arap.io.formats` marked ``asset``).
+ASSET_FORMATS = formats.names("surface", asset=True)
 
 
 def asset_format(name: str | os.PathLike[str]) -> str:

@@ -44,6 +44,7 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
+import arap.io.formats as formats
 from arap.errors import MeshFormatError
 from arap.io.asset_model import ASSET_FORMATS, MeshAsset, SolveMesh, asset_format, result_trimesh
 from arap.io.gltf_asset import read_gltf_asset, write_gltf_asset
@@ -153,7 +154,7 @@ def save_asset(path: str | os.PathLike[str], asset: MeshAsset, vertices: Any = N
     """
     path = Path(path)
     ft = asset_format(path.name)
-    family = {"obj": "obj", "ply": "ply", "glb": "gltf", "gltf": "gltf"}
+    family = {name: formats.family(name) for name in ASSET_FORMATS}
     if family[ft] != family[asset.format]:
         raise MeshFormatError(f"{path}: a textured {asset.format.upper()} mesh is written as "
                               f"{'GLB or glTF' if family[asset.format] == 'gltf' else asset.format.upper()} "

@@ -6,13 +6,20 @@ coordinates, normals, groups and materials do not change the ``v`` numbering), g
 :mod:`arap.io.gltf_asset` (the POSITION accessors of the triangle primitives in order, node transforms applied),
 OFF, PLY and STL through trimesh's parsers. Polygons are fan-triangulated. Attributes other than positions are
 read and written by :mod:`arap.io.assets` (:func:`~arap.io.assets.load_asset`, :func:`~arap.io.assets.save_asset`,
-or :func:`~arap.io.mesh_save.save_mesh` given a :class:`~arap.io.assets.MeshAsset`). By default the loaded mesh goes
+or :func:`save_mesh` given a :class:`~arap.io.assets.MeshAsset`). By default the loaded mesh goes
 through :func:`arap.meshes.repair.repair_mesh`, which welds STL triangle soups and drops degenerate faces; a clean mesh
 comes back unchanged.
 
 Before parsing, :mod:`arap.io.screening` decodes text robustly, refuses binary junk and OBJ faces naming vertex
 0, and reads the vertex count from the header or the lines, so that a caller's ``max_vertices`` refuses a huge file
-before the slow parse. Writing is :mod:`arap.io.mesh_save`.
+before the slow parse.
+
+Writing gives exact round trips where the format allows (OBJ and OFF with 17 significant digits, PLY as binary
+doubles), atomically (:mod:`arap.io.atomic`); a textured :class:`~arap.io.assets.MeshAsset` is written with its
+attributes in its own format.
+
+Each format's reader and writer here is named by its record in :mod:`arap.io.formats`, which the functions of this
+module read to pick them.
 """
 
 from __future__ import annotations
@@ -25,8 +32,11 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
+from numpy.typing import NDArray
 
+import arap.io.formats as formats
 from arap.errors import MeshError, MeshFormatError, MeshTooLargeError
+from arap.io.atomic import write_atomic
 from arap.io.fastobj import parse_plain_obj
 from arap.io.paths import read_regular_file
 from arap.io.screening import (
@@ -34,7 +44,7 @@ from arap.io.screening import (
     check_size,
     screen,
 )
-from arap.meshes.mesh import triangulate_polygons
+from arap.meshes.mesh import MeshLike, mesh_arrays, triangulate_polygons
 from arap.meshes.repair import RepairResult, repair_mesh
 
 if TYPE_CHECKING:
@@ -48,12 +58,14 @@ __all__ = [
     "load_mesh_bytes_with_report",
     "load_mesh_with_report",
     "mesh_of_asset",
+    "save_mesh",
+    "save_mesh_bytes",
 ]
 
 logger = logging.getLogger(__name__)
 
-#: File types read and written, named by their usual extension.
-MESH_FORMATS = ("obj", "off", "ply", "stl", "glb", "gltf")
+#: File types read and written, named by their usual extension (the surface formats of :mod:`arap.io.formats`).
+MESH_FORMATS = formats.names("surface")
 
 
 def format_of(name: str | os.PathLike[str]) -> str:
@@ -69,10 +81,8 @@ def format_of(name: str | os.PathLike[str]) -> str:
     base = text.replace("\\", "/").rsplit("/", 1)[-1]
     ext = base.rsplit(".", 1)[-1].lower()
     if ext not in MESH_FORMATS:
-        from arap.io.volume import VOLUME_FORMATS
-
-        volume = (" (a volume mesh: arap.load_volume_mesh reads it; arap deform and arap info take it)"
-                  if ext in VOLUME_FORMATS else "")
+        volume = (" (a volume mesh: arap.load_volume_mesh reads it; arap deform, animate, batch, constraints and info "
+                  "take it)" if formats.find(f".{ext}", "volume") is not None else "")
         raise MeshFormatError(
             f"unsupported mesh format {ext!r} (from {text!r}){volume}; supported: {', '.join(MESH_FORMATS)}"
         )
@@ -209,6 +219,42 @@ def _finish(
     return V, F, RepairResult.identity(V, F)
 
 
+def read_obj(data: bytes, name: str, folder: Path | None, max_vertices: int | None) -> tuple[
+        np.ndarray, np.ndarray]:
+    """Vertices and triangles of screened OBJ bytes, as stored: the fast reader for plain files (faces numbered from
+    1 up), else the full one, which refuses vertex 0 and short faces naming the line."""
+    plain = parse_plain_obj(data)
+    return plain if plain is not None else _parse_obj(data, name)
+
+
+def read_off(data: bytes, name: str, folder: Path | None, max_vertices: int | None) -> tuple[
+        np.ndarray, np.ndarray]:
+    """Vertices and triangles of screened OFF bytes, as stored."""
+    return _parse(io.BytesIO(data), "off", name)
+
+
+def read_ply(data: bytes, name: str, folder: Path | None, max_vertices: int | None) -> tuple[
+        np.ndarray, np.ndarray]:
+    """Vertices and triangles of screened PLY bytes, as stored."""
+    return _parse(io.BytesIO(data), "ply", name)
+
+
+def read_stl(data: bytes, name: str, folder: Path | None, max_vertices: int | None) -> tuple[
+        np.ndarray, np.ndarray]:
+    """Vertices and triangles of screened STL bytes: the triangle soup as stored (welded by repair)."""
+    return _parse(io.BytesIO(data), "stl", name)
+
+
+def read_gltf(data: bytes, name: str, folder: Path | None, max_vertices: int | None) -> tuple[
+        np.ndarray, np.ndarray]:
+    """Vertices and triangles of a glTF or GLB file: the POSITION accessors of its triangle primitives in order,
+    node transforms applied (:func:`arap.io.gltf_asset.read_gltf_asset`); its buffers looked for in ``folder``."""
+    from arap.io.gltf_asset import read_gltf_asset
+
+    asset = read_gltf_asset(data, name, folder, max_vertices)
+    return asset.vertices, asset.faces
+
+
 def mesh_of_asset(asset: MeshAsset, *, repair: bool = True, name: str = "mesh") -> tuple[
         np.ndarray, np.ndarray, RepairResult]:
     """The mesh to solve of an asset read from a glTF or GLB file, as :func:`load_mesh_with_report` gives it for
@@ -270,24 +316,15 @@ def load_mesh_bytes_with_report(
         The content cannot be repaired (faces using NaN vertices or out-of-range indices, coordinates of an
         unsupported scale).
     """
-    ft = format_of(file_type)
+    fmt = formats.get(format_of(file_type))
     data = bytes(data)
-    if ft in ("glb", "gltf"):
-        from arap.io.gltf_asset import read_gltf_asset
-
-        asset = read_gltf_asset(data, name, Path(folder) if folder is not None else None, max_vertices)
-        V, F, result = mesh_of_asset(asset, repair=repair, name=name)
-        if max_vertices is not None and len(V) > max_vertices:
-            raise MeshTooLargeError(f"{name} has {len(V):,} vertices; at most {max_vertices:,} vertices are "
-                                    "accepted", len(V), max_vertices)
-        return V, F, result
-    check_size(data, ft, name, max_vertices)
-    screened = screen(data, ft, name, obj_zero_index=False)
-    plain = parse_plain_obj(screened) if ft == "obj" else None  # takes only face indices from 1 up
-    if plain is None and ft == "obj":  # refuses vertex 0 and short faces, naming the line
-        plain = _parse_obj(screened, name)
-    V, F = plain if plain is not None else _parse(io.BytesIO(screened), ft, name)
-    announced = announced_faces(screened, ft)
+    if fmt.screen:  # text decoded, junk refused, a huge file refused from its header before the slow parse
+        check_size(data, fmt.name, name, max_vertices)
+        data = screen(data, fmt.name, name, obj_zero_index=False)
+    read = fmt.function("reader")
+    assert read is not None
+    V, F = read(data, name, Path(folder) if folder is not None else None, max_vertices)
+    announced = announced_faces(data, fmt.name)
     if announced is not None and len(F) < announced:  # polygons are triangulated: never fewer triangles than faces
         raise MeshFormatError(f"{name} ends early: its header announces {announced:,} faces, but only {len(F):,} "
                               "could be read (a truncated file?)")
@@ -350,3 +387,149 @@ def load_mesh(path: str | os.PathLike[str], *, repair: bool = True) -> tuple[np.
     """
     V, F, _ = load_mesh_with_report(path, repair=repair)
     return V, F
+
+
+# ---------------------------------------------------------------------------------------------- writing
+def _check_for_saving(V: np.ndarray, F: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    V = np.ascontiguousarray(V, dtype=np.float64)
+    F = np.ascontiguousarray(F, dtype=np.int64)
+    if V.ndim != 2 or V.shape[1] != 3:
+        raise MeshError(f"vertices must have shape (n, 3), got {V.shape}")
+    if F.ndim != 2 or F.shape[1] != 3:
+        raise MeshError(f"faces must have shape (m, 3), got {F.shape}")
+    if len(F) and (F.min() < 0 or F.max() >= len(V)):
+        raise MeshError(f"face indices out of range [0, {len(V)})")
+    bad = ~np.isfinite(V).all(axis=1)
+    if bad.any():  # such a file would not load again
+        raise MeshError(f"{int(bad.sum())} vertices have NaN or infinite coordinates (vertex {int(np.argmax(bad))} "
+                        "first); the file is not written")
+    return V, F
+
+
+def ply_bytes(V: np.ndarray, F: np.ndarray) -> bytes:
+    """Binary little-endian PLY with double-precision coordinates (exact round trip)."""
+    header = (
+        "ply\nformat binary_little_endian 1.0\n"
+        f"element vertex {len(V)}\nproperty double x\nproperty double y\nproperty double z\n"
+        f"element face {len(F)}\nproperty list uchar int vertex_indices\nend_header\n"
+    ).encode("ascii")
+    faces = np.zeros(len(F), dtype=[("n", "u1"), ("idx", "<i4", (3,))])
+    faces["n"] = 3
+    faces["idx"] = F
+    return header + V.astype("<f8").tobytes() + faces.tobytes()
+
+
+def _text_bytes(V: np.ndarray, F: np.ndarray, header: str, vkey: str, fkey: str, base: int) -> bytes:
+    """OBJ or OFF text: coordinates with 17 significant digits (``%.17g``, exact for every double, tiny and huge
+    ones included), faces counted from ``base``."""
+    vertices = (f"{vkey}%.17g %.17g %.17g\n" * len(V)) % tuple(V.ravel().tolist())
+    faces = (f"{fkey}%d %d %d\n" * len(F)) % tuple((F + base).ravel().tolist())
+    return (header + vertices + faces).encode("ascii")
+
+
+def save_mesh_bytes(V: np.ndarray, F: np.ndarray, file_type: str) -> bytes:
+    """Encode a triangle mesh as the bytes of a file.
+
+    OBJ and OFF are written as text with 17 significant digits and PLY as binary doubles, so they round-trip
+    exactly; STL is binary single precision (a triangle soup, by the format's definition); GLB and glTF (its buffer
+    in a data URI) hold single precision positions and 32-bit indices.
+
+    Parameters
+    ----------
+    V : (n, 3) float array
+    F : (m, 3) int array
+    file_type : str
+        ``"obj"``, ``"off"``, ``"ply"``, ``"stl"``, ``"glb"`` or ``"gltf"`` (or a file name with that extension).
+
+    Returns
+    -------
+    bytes
+    """
+    V, F = _check_for_saving(V, F)
+    write = formats.get(format_of(file_type)).function("writer")
+    assert write is not None
+    return bytes(write(V, F))
+
+
+def obj_bytes(V: np.ndarray, F: np.ndarray) -> bytes:
+    """OBJ text, exact (17 significant digits)."""
+    return _text_bytes(V, F, "", "v ", "f ", 1)
+
+
+def off_bytes(V: np.ndarray, F: np.ndarray) -> bytes:
+    """OFF text, exact (17 significant digits)."""
+    return _text_bytes(V, F, f"OFF\n{len(V)} {len(F)} 0\n", "", "3 ", 0)
+
+
+def _gltf_geometry(V: np.ndarray, F: np.ndarray, binary: bool) -> bytes:
+    from arap.io.gltf_asset import geometry_glb
+
+    if np.abs(V).max(initial=0.0) > np.finfo(np.float32).max:
+        raise MeshError("coordinates beyond the range of single precision, which glTF stores; not written")
+    return geometry_glb(V, F, binary=binary)
+
+
+def glb_bytes(V: np.ndarray, F: np.ndarray) -> bytes:
+    """GLB: single precision positions and 32-bit indices."""
+    return _gltf_geometry(V, F, True)
+
+
+def gltf_bytes(V: np.ndarray, F: np.ndarray) -> bytes:
+    """glTF with its buffer in a data URI: single precision positions and 32-bit indices."""
+    return _gltf_geometry(V, F, False)
+
+
+def stl_bytes(V: np.ndarray, F: np.ndarray) -> bytes:
+    """Binary STL, single precision (a triangle soup, by the format's definition)."""
+    import trimesh
+
+    mesh = trimesh.Trimesh(vertices=V, faces=F, process=False, validate=False)
+    return bytes(trimesh.exchange.stl.export_stl(mesh))
+
+
+def save_mesh(path: str | os.PathLike[str], V: NDArray[np.floating] | MeshLike,
+              F: NDArray[np.integer] | None = None) -> None:
+    """Write a triangle mesh; the format follows the extension (see :func:`save_mesh_bytes`).
+
+    Given a :class:`~arap.io.assets.MeshAsset` (``save_mesh(path, asset)``) in its own format (OBJ, PLY, or GLB and
+    glTF), its texture coordinates, normals, colours, materials and groups are written too
+    (:func:`~arap.io.assets.save_asset`); in another format, its geometry.
+
+    The write is atomic (:func:`arap.io.atomic.write_atomic`): an earlier file at ``path`` stays intact until the
+    complete new one replaces it, even when the writer is killed.
+
+    A symbolic link is kept and the regular file it points to is replaced. A destination that is not a regular
+    file, such as a folder, a FIFO, a device, a socket or a link to one, is refused and left as it is.
+
+    Parameters
+    ----------
+    path : path-like
+        ``.obj``, ``.off``, ``.ply``, ``.stl``, ``.glb`` or ``.gltf``.
+    V : (n, 3) float array or MeshLike
+        Vertex positions, or a mesh object with ``vertices`` and ``faces`` (``save_mesh(path, mesh)``).
+    F : (m, 3) int array or None
+        Triangles; None with a mesh object.
+
+    Raises
+    ------
+    MeshFormatError
+        Unknown extension, a destination that is not a regular file, or the file cannot be written (``path`` is
+        then unchanged).
+    MeshError
+        Unusable arrays.
+    """
+    path = Path(path)
+    from arap.io.assets import MeshAsset, save_asset
+
+    if isinstance(V, MeshAsset) and F is None:
+        fmt = formats.get(format_of(path.name))
+        if fmt.asset and formats.family(fmt.name) == formats.family(V.format):
+            save_asset(path, V)
+            return
+    V, F = mesh_arrays(V, F)
+    data = save_mesh_bytes(V, F, path.name)
+    try:
+        write_atomic(path, data)
+    except OSError as exc:
+        raise MeshFormatError(f"cannot write {path}: {exc.strerror or exc}") from exc
+    logger.debug("wrote %s (%d vertices, %d faces)", path, len(V), len(F))

@@ -15,10 +15,12 @@ import re
 
 import numpy as np
 
+import arap.io.formats as formats
 from arap.errors import MeshFormatError, MeshTooLargeError
 
-__all__ = ["announced_faces", "check_obj_short_faces", "check_obj_zero_index", "check_size", "plain_obj_lines",
-           "screen", "vertex_count"]
+__all__ = ["announced_faces", "check_obj_short_faces", "check_obj_zero_index", "check_size", "obj_vertex_count",
+           "off_face_count", "off_vertex_count", "plain_obj_lines", "ply_face_count", "ply_vertex_count", "screen",
+           "screen_obj", "screen_off", "screen_ply", "screen_stl", "stl_vertex_count", "vertex_count"]
 
 logger = logging.getLogger(__name__)
 
@@ -149,8 +151,44 @@ def check_obj_zero_index(data: bytes, label: str) -> None:
                               "at 1 (or count back from -1 for the last vertex)")
 
 
+def screen_obj(data: bytes, label: str, obj_zero_index: bool = True) -> bytes:
+    """An OBJ file's bytes as UTF-8 text, binary junk refused, and faces naming vertex 0 refused unless
+    ``obj_zero_index`` is False (:func:`check_obj_zero_index`)."""
+    data = _as_text(data, "an OBJ", label)
+    if obj_zero_index:
+        check_obj_zero_index(data, label)
+    return data
+
+
+def screen_off(data: bytes, label: str) -> bytes:
+    """An OFF file's bytes as UTF-8 text, binary junk refused."""
+    return _as_text(data, "an OFF", label)
+
+
+def screen_stl(data: bytes, label: str) -> bytes:
+    """An STL file's bytes: a binary STL as it is, an ASCII one as UTF-8 text; anything else refused."""
+    if _binary_stl_triangles(data) is None:
+        if not data.lstrip()[:5].lower() == b"solid":
+            raise MeshFormatError(
+                f"{label} is not an STL file: neither binary (its {len(data):,} bytes do not match the triangle "
+                "count in its header) nor ASCII (which starts with 'solid')")
+        data = _as_text(data, "an ASCII STL", label)
+    return data
+
+
+def screen_ply(data: bytes, label: str) -> bytes:
+    """A PLY file's bytes with its header as UTF-8 text; a file without a ``ply`` ... ``end_header`` header
+    refused."""
+    end = data.find(b"end_header", 0, 1 << 20)
+    if not data.startswith(b"ply") or end < 0:
+        raise MeshFormatError(f"{label} is not a PLY file: it does not start with a 'ply' header ending in "
+                              "'end_header'")
+    return _as_text(data[:end], "a PLY", label) + data[end:]
+
+
 def screen(data: bytes, ft: str, label: str, obj_zero_index: bool = True) -> bytes:
-    """Bytes the parsers can take: text as UTF-8, binary junk and OBJ faces naming vertex 0 refused.
+    """Bytes the parsers can take: text as UTF-8, binary junk and OBJ faces naming vertex 0 refused (the screening
+    function of the format's record in :mod:`arap.io.formats`).
 
     Parameters
     ----------
@@ -166,24 +204,10 @@ def screen(data: bytes, ft: str, label: str, obj_zero_index: bool = True) -> byt
     """
     if not data or data.isspace():
         raise MeshFormatError(f"{label} contains no vertices (the file is empty)")
-    if ft in ("obj", "off"):
-        data = _as_text(data, f"an {ft.upper()}", label)
-        if ft == "obj" and obj_zero_index:
-            check_obj_zero_index(data, label)
-    elif ft == "stl":
-        if _binary_stl_triangles(data) is None:
-            if not data.lstrip()[:5].lower() == b"solid":
-                raise MeshFormatError(
-                    f"{label} is not an STL file: neither binary (its {len(data):,} bytes do not match the triangle "
-                    "count in its header) nor ASCII (which starts with 'solid')")
-            data = _as_text(data, "an ASCII STL", label)
-    elif ft == "ply":
-        end = data.find(b"end_header", 0, 1 << 20)
-        if not data.startswith(b"ply") or end < 0:
-            raise MeshFormatError(f"{label} is not a PLY file: it does not start with a 'ply' header ending in "
-                                  "'end_header'")
-        data = _as_text(data[:end], "a PLY", label) + data[end:]
-    return data
+    if ft == "obj":  # the one screening with an option
+        return screen_obj(data, label, obj_zero_index)
+    check = formats.get(ft).function("screen")
+    return data if check is None else bytes(check(data, label))
 
 
 def _off_count(data: bytes, position: int) -> int | None:
@@ -201,28 +225,56 @@ def _off_count(data: bytes, position: int) -> int | None:
         return None
 
 
-def vertex_count(data: bytes, ft: str) -> tuple[int, str] | None:
-    """The vertices a file holds, read cheaply from its header or its lines before parsing, with what was counted.
+def obj_vertex_count(data: bytes) -> tuple[int, str]:
+    """The ``v`` lines of an OBJ file."""
+    count = data.count(b"\nv ") + data.count(b"\nv\t") + int(data.startswith((b"v ", b"v\t")))
+    return count, f"{count:,} vertices"
 
-    For STL (a triangle soup welded after loading) the count is half the triangles: a closed surface has about
-    that many vertices. None when the header cannot be read (the parser then reports what is wrong).
-    """
-    if ft == "obj":
-        count = data.count(b"\nv ") + data.count(b"\nv\t") + int(data.startswith((b"v ", b"v\t")))
-        return count, f"{count:,} vertices"
-    if ft == "off":
-        vertices = _off_count(data, 1)
-        return None if vertices is None else (vertices, f"{vertices:,} vertices")
-    if ft == "ply":
-        header = data[:data.find(b"end_header", 0, 1 << 20)]
-        counts = {name: int(n) for name, n in _PLY_ELEMENT.findall(header)}
-        if b"vertex" not in counts:
-            return None
-        return counts[b"vertex"], f"{counts[b'vertex']:,} vertices"
+
+def off_vertex_count(data: bytes) -> tuple[int, str] | None:
+    """The vertex count of an OFF header."""
+    vertices = _off_count(data, 1)
+    return None if vertices is None else (vertices, f"{vertices:,} vertices")
+
+
+def _ply_counts(data: bytes) -> dict[bytes, int]:
+    header = data[:data.find(b"end_header", 0, 1 << 20)]
+    return {name: int(n) for name, n in _PLY_ELEMENT.findall(header)}
+
+
+def ply_vertex_count(data: bytes) -> tuple[int, str] | None:
+    """The vertex count of a PLY header."""
+    vertices = _ply_counts(data).get(b"vertex")
+    return None if vertices is None else (vertices, f"{vertices:,} vertices")
+
+
+def stl_vertex_count(data: bytes) -> tuple[int, str]:
+    """Half the triangles of an STL (a closed surface has about that many vertices once welded)."""
     triangles = _binary_stl_triangles(data)
     if triangles is None:
         triangles = (data.count(b"vertex") + data.count(b"VERTEX") + data.count(b"Vertex")) // 3
     return triangles // 2, f"{triangles:,} triangles (about {triangles // 2:,} vertices once welded)"
+
+
+def off_face_count(data: bytes) -> int | None:
+    """The face count of an OFF header."""
+    return _off_count(data, 2)
+
+
+def ply_face_count(data: bytes) -> int | None:
+    """The face count of a PLY header."""
+    return _ply_counts(data).get(b"face")
+
+
+def vertex_count(data: bytes, ft: str) -> tuple[int, str] | None:
+    """The vertices a file holds, read cheaply from its header or its lines before parsing, with what was counted.
+
+    For STL (a triangle soup welded after loading) the count is half the triangles: a closed surface has about
+    that many vertices. None when the header cannot be read (the parser then reports what is wrong) or the format
+    has no such count.
+    """
+    count = formats.get(ft).function("vertex_count")
+    return None if count is None else count(data)
 
 
 def announced_faces(data: bytes, ft: str) -> int | None:
@@ -233,12 +285,8 @@ def announced_faces(data: bytes, ft: str) -> int | None:
     >>> announced_faces(b"OFF\\n# a comment\\n4 2 0\\n", "off")
     2
     """
-    if ft == "off":
-        return _off_count(data, 2)
-    if ft == "ply":
-        header = data[:data.find(b"end_header", 0, 1 << 20)]
-        return {name: int(n) for name, n in _PLY_ELEMENT.findall(header)}.get(b"face")
-    return None
+    count = formats.get(ft).function("face_count")
+    return None if count is None else count(data)
 
 
 def check_size(data: bytes, ft: str, label: str, max_vertices: int | None) -> None:

@@ -34,6 +34,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+import arap.io.formats as formats
 from arap.errors import MeshError, MeshFormatError, MeshTooLargeError
 from arap.io.atomic import write_atomic
 from arap.io.paths import read_regular_file, write_destination
@@ -46,21 +47,26 @@ __all__ = [
     "boundary_surface",
     "is_volume_file",
     "load_volume_mesh",
+    "load_volume_mesh_bytes",
+    "read_meshio_bytes",
+    "save_deformed_volume",
     "save_volume_mesh",
     "tetgen_pair",
+    "volume_for_solving",
     "volume_format_of",
 ]
 
 logger = logging.getLogger(__name__)
 
-#: Volume file types, named by their extension (``node`` and ``ele`` are the two files of a TetGen mesh).
-VOLUME_FORMATS = ("mesh", "msh", "vtu", "vtk", "node", "ele")
+#: Volume file types, named by their extension (``node`` and ``ele`` are the two files of a TetGen mesh): the volume
+#: formats of :mod:`arap.io.formats`.
+VOLUME_FORMATS = tuple(suffix[1:] for suffix in formats.suffixes("volume"))
 
 #: How to install what the Medit, gmsh and VTK files need (meshio).
 SOLID_EXTRA_HINT = "pip install 'arap[solid]'"
 
 _MESHIO_NAMES = {"mesh": "medit", "msh": "gmsh", "vtu": "vtu", "vtk": "vtk"}
-_TITLES = {"mesh": "Medit", "msh": "gmsh", "vtu": "VTK (.vtu)", "vtk": "VTK (.vtk)", "tetgen": "TetGen"}
+_TITLES = {f.name: f.title for f in formats.FORMATS if f.kind == "volume"}
 #: Cells left aside beside tetrahedra or triangles: lower-dimensional parts gmsh and Medit store with them.
 _IGNORED_CELLS = ("line", "vertex")
 
@@ -82,10 +88,11 @@ def volume_format_of(name: str | os.PathLike[str]) -> str:
     text = str(name).strip()
     base = text.replace("\\", "/").rsplit("/", 1)[-1]
     ext = base.rsplit(".", 1)[-1].lower() if "." in base else ""
-    if ext not in VOLUME_FORMATS:
+    found = formats.find(f".{ext}", "volume") if ext else None
+    if found is None:
         raise MeshFormatError(f"unsupported volume mesh format {ext!r} (from {text!r}); supported: "
                               f"{', '.join(VOLUME_FORMATS)}")
-    return "tetgen" if ext in ("node", "ele") else ext
+    return found.name
 
 
 def is_volume_file(name: str | os.PathLike[str]) -> bool:
@@ -190,7 +197,42 @@ def load_volume_mesh(path: str | os.PathLike[str], *,
 
 
 def _load_meshio(path: Path, ft: str) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
-    data = _read(path)
+    return read_meshio_bytes(_read(path), str(path), ft)
+
+
+def load_volume_mesh_bytes(data: bytes, file_type: str, *, name: str = "uploaded mesh",
+                           max_vertices: int | None = None) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+    """Read a tetrahedral (or triangle) mesh from the bytes of a Medit, gmsh or VTK file; see
+    :func:`load_volume_mesh`. A TetGen mesh, two files, is read from its path only.
+
+    Parameters
+    ----------
+    data : bytes
+    file_type : str
+        ``"mesh"``, ``"msh"``, ``"vtu"`` or ``"vtk"`` (or a file name with that extension).
+    name : str
+        Label for messages.
+    max_vertices : int or None
+
+    Raises
+    ------
+    MeshFormatError
+    MeshTooLargeError
+    """
+    ft = volume_format_of(file_type if "." in str(file_type) else f".{file_type}")
+    if ft == "tetgen":
+        raise MeshFormatError(f"{name}: a TetGen mesh is two files (.node and .ele), read from its path")
+    if not bytes(data).strip():
+        raise MeshFormatError(f"{name} is empty")
+    V, T = read_meshio_bytes(bytes(data), name, ft)
+    if max_vertices is not None and len(V) > max_vertices:
+        raise MeshTooLargeError(f"{name} has {len(V):,} vertices; at most {max_vertices:,} vertices are accepted",
+                                len(V), max_vertices)
+    return V, T
+
+
+def read_meshio_bytes(data: bytes, name: str, ft: str) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+    """Tetrahedra (or triangles) of a Medit, gmsh or VTK file's bytes, parsed by meshio from a private copy."""
     meshio = _meshio(ft)
     with tempfile.TemporaryDirectory(prefix="arap-") as folder:
         copy = Path(folder) / f"mesh.{ft}"
@@ -205,34 +247,34 @@ def _load_meshio(path: Path, ft: str) -> tuple[NDArray[np.float64], NDArray[np.i
                 text = " ".join(str(exc).split()) if isinstance(exc, Exception) else ""
                 if not text and printed:
                     text = " ".join(printed[0].split())
-                raise MeshFormatError(f"cannot parse {path} as a {_TITLES[ft]} file: "
+                raise MeshFormatError(f"cannot parse {name} as a {_TITLES[ft]} file: "
                                       f"{text or type(exc).__name__}") from exc
     kinds = [str(block.type) for block in mesh.cells]
     other = sorted({k for k in kinds if k not in ("tetra", "triangle", *_IGNORED_CELLS)})
     if other:
-        raise MeshFormatError(f"{path} holds {', '.join(other)} cells; ARAP takes linear tetrahedra ('tetra') or "
+        raise MeshFormatError(f"{name} holds {', '.join(other)} cells; ARAP takes linear tetrahedra ('tetra') or "
                               "triangles: convert the other cells first (split hexahedra and wedges into "
                               "tetrahedra, use linear elements)")
     kind = "tetra" if "tetra" in kinds else "triangle"
     blocks = [np.asarray(block.data) for block in mesh.cells if block.type == kind]
     if not blocks:
-        raise MeshFormatError(f"{path} holds no tetrahedra and no triangles "
+        raise MeshFormatError(f"{name} holds no tetrahedra and no triangles "
                               f"({'cells: ' + ', '.join(sorted(set(kinds))) if kinds else 'no cells'})")
     V = np.asarray(mesh.points)
     if V.ndim != 2 or V.shape[1] not in (2, 3) or not np.issubdtype(V.dtype, np.number):
-        raise MeshFormatError(f"{path}: its points have shape {V.shape}; 2 or 3 coordinates are needed")
+        raise MeshFormatError(f"{name}: its points have shape {V.shape}; 2 or 3 coordinates are needed")
     V = np.ascontiguousarray(V, dtype=np.float64)
     if kind == "tetra" and V.shape[1] != 3:
-        raise MeshFormatError(f"{path} holds tetrahedra with {V.shape[1]}-d points; tetrahedra need 3 coordinates")
+        raise MeshFormatError(f"{name} holds tetrahedra with {V.shape[1]}-d points; tetrahedra need 3 coordinates")
     T = np.ascontiguousarray(np.concatenate(blocks), dtype=np.int64)
     bad = ~np.isfinite(V).all(axis=1)
     if bad.any():
-        raise MeshFormatError(f"{path}: {int(bad.sum()):,} points have NaN or infinite coordinates (first: point "
+        raise MeshFormatError(f"{name}: {int(bad.sum()):,} points have NaN or infinite coordinates (first: point "
                               f"{int(np.argmax(bad))})")
     if len(T) and (T.min() < 0 or T.max() >= len(V)):
         row = int(np.argmax(((T < 0) | (T >= len(V))).any(axis=1)))
         what = "tetrahedron" if kind == "tetra" else "triangle"
-        raise MeshFormatError(f"{path}: {what} {row} names point {T[row].tolist()}, but the file has {len(V):,} "
+        raise MeshFormatError(f"{name}: {what} {row} names point {T[row].tolist()}, but the file has {len(V):,} "
                               "points (indices 0 to n-1)")
     return V, T
 
@@ -508,3 +550,53 @@ def boundary_surface(V: NDArray[np.floating], T: NDArray[np.integer]) -> tuple[
     index = np.full(len(P), -1, dtype=np.int64)
     index[vertices] = np.arange(len(vertices))
     return P[vertices], index[F], vertices
+
+
+# ---------------------------------------------------------------------------------------------- deforming
+def volume_for_solving(path: str | os.PathLike[str], *, max_vertices: int | None = None) -> tuple[
+        NDArray[np.float64], NDArray[np.int64], int]:
+    """A volume file as a solver takes it (:func:`load_volume_mesh`, with ``z = 0`` added to a planar mesh stored with
+    two coordinates).
+
+    Returns
+    -------
+    V : (n, 3) float64 array
+    T : (m, 4) or (m, 3) int64 array
+    columns : int
+        Coordinates per vertex in the file (2 or 3), for :func:`save_deformed_volume`.
+    """
+    V, T = load_volume_mesh(path, max_vertices=max_vertices)
+    columns = V.shape[1]
+    if columns == 2:
+        V = np.column_stack([V, np.zeros(len(V))])
+    return V, T, columns
+
+
+def save_deformed_volume(path: str | os.PathLike[str], U: NDArray[np.floating], T: NDArray[np.integer],
+                         columns: int = 3) -> NDArray[np.float64]:
+    """Write a deformed volume mesh: to a volume format as it is (with its file's ``columns``), to a surface format
+    (:func:`arap.io.save_mesh`) as its boundary surface (tetrahedra) or its triangles.
+
+    Returns
+    -------
+    (k, 2 or 3) float64 array
+        The positions written (the boundary vertices, in their order, for a solid written as a surface).
+
+    Raises
+    ------
+    MeshFormatError
+        An extension of no mesh format, a destination that cannot be written.
+    """
+    from arap.io.meshfile import save_mesh
+
+    P = np.asarray(U, dtype=np.float64)
+    if is_volume_file(path):
+        out = P[:, :columns] if columns == 2 else P
+        save_volume_mesh(path, out, T)
+        return out
+    if np.shape(T)[1] == 4:
+        surface, faces, _ = boundary_surface(P, T)
+        save_mesh(path, surface, faces)
+        return surface
+    save_mesh(path, P, T)
+    return P

@@ -34,6 +34,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+import arap.io.formats as formats
 from arap.constraints.keyframes import Keyframes
 from arap.errors import ArapError
 from arap.io.animated_gltf import animation_glb
@@ -51,8 +52,9 @@ __all__ = ["ANIMATION_MIMES", "EXPORT_MIME", "MAX_EXPORT_FRAMES", "MAX_FPS", "An
 
 MAX_EXPORT_FRAMES = 600
 """Most frames an animation export solves (20 s at 30 frames per second)."""
-EXPORT_MIME = "model/gltf-binary"
-ANIMATION_MIMES = {"glb": EXPORT_MIME, "gif": "image/gif", "webp": "image/webp", "zip": "application/zip"}
+EXPORT_MIME = formats.get("glb").mime
+ANIMATION_MIMES = {"glb": EXPORT_MIME, "gif": "image/gif", "webp": formats.get("webp").mime,
+                   "zip": formats.get("zip").mime}
 """The file type of each export format."""
 
 ProgressCallback = Callable[[int, int], None]

@@ -11,12 +11,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from arap.io import save_mesh_bytes
+from arap.io import formats, save_mesh_bytes
 
 __all__ = ["EXPORT_MIME", "MeshData", "export_mesh"]
 
-EXPORT_MIME = {"obj": "model/obj", "ply": "application/octet-stream"}
-"""Media type of each mesh export format (GLB: :data:`arap.server.render_mesh.GLB_MIME`)."""
+EXPORT_MIME = {name: formats.get(name).mime for name in formats.export_names() if formats.get(name).kind == "surface"}
+"""Media type of each mesh export format (from :mod:`arap.io.formats`)."""
 
 
 @dataclass(frozen=True, eq=False)

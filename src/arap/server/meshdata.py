@@ -16,7 +16,7 @@ import numpy as np
 
 import arap
 from arap.errors import ArapError, MeshFormatError, MeshTooLargeError
-from arap.io import load_mesh_bytes_with_report, load_mesh_with_report
+from arap.io import formats, load_mesh_bytes_with_report, load_mesh_with_report
 from arap.server.errors import RequestError
 from arap.server.frames import encode_binary
 from arap.server.mesh_model import EXPORT_MIME, MeshData, export_mesh
@@ -122,6 +122,8 @@ def load_upload(data: bytes | memoryview, filename: str, max_vertices: int,
         raise RequestError("bad_mesh",
                            f"unsupported file type {ext or '(none)'!r}; expected one of {list(UPLOAD_EXTENSIONS)}")
     name = _display_name(filename)
+    if formats.find(ext, "volume") is not None:
+        return _load_volume_upload(data, name, ext, max_vertices)
     try:
         V, F, repair = load_mesh_bytes_with_report(bytes(data), ext[1:], name=f"{name}{ext}",
                                                    max_vertices=max_vertices, folder=folder)
@@ -133,12 +135,35 @@ def load_upload(data: bytes | memoryview, filename: str, max_vertices: int,
     return MeshData.make(name, V, F, repair.report, repair.vertex_map if repair.renumbers else None)
 
 
+def _load_volume_upload(data: bytes | memoryview, name: str, ext: str, max_vertices: int) -> MeshData:
+    """An uploaded Medit, gmsh or VTK file: a solid of tetrahedra, drawn by its boundary and solved on its tetrahedra
+    (as the built-in solids), or a mesh of triangles (a planar one gets ``z = 0``), in the file's numbering."""
+    from arap.io.volume import load_volume_mesh_bytes
+
+    try:
+        V, T = load_volume_mesh_bytes(bytes(data), ext, name=f"{name}{ext}", max_vertices=max_vertices)
+        if T.shape[1] == 3:
+            V = V if V.shape[1] == 3 else np.column_stack([V, np.zeros(len(V))])
+            mesh = MeshData.make(name, V, T)
+            arap.check_mesh(mesh.V, mesh.F)
+        else:
+            mesh = MeshData.solid(name, V, T)
+    except MeshTooLargeError as exc:
+        raise RequestError("too_large", str(exc)) from exc
+    except ArapError as exc:
+        raise RequestError("bad_mesh", str(exc)) from exc
+    logger.info("loaded upload %s%s: %d vertices, %s", name, ext, len(V),
+                f"{len(T)} tetrahedra" if T.shape[1] == 4 else f"{len(T)} triangles")
+    return mesh
+
+
 def mesh_frame(mesh: MeshData) -> bytes:
     """The ``mesh`` message of ``mesh``: rest positions (float32), faces (uint32) and, for a repaired file, each
     vertex's number in the file (int32)."""
     vmap = mesh.vertex_map
     header = Mesh(name=mesh.name, n_vertices=mesh.n_vertices, n_faces=mesh.n_faces, report=mesh.report,
-                  file_vertices=0 if vmap is None else len(vmap)).to_wire()
+                  file_vertices=0 if vmap is None else len(vmap),
+                  n_tetrahedra=0 if mesh.elements is None else len(mesh.elements)).to_wire()
     parts = [np.ascontiguousarray(mesh.V, dtype="<f4").tobytes(), np.ascontiguousarray(mesh.F, dtype="<u4").tobytes()]
     if vmap is not None:
         parts.append(np.ascontiguousarray(vmap, dtype="<i4").tobytes())

@@ -14,6 +14,7 @@ import dataclasses
 from dataclasses import dataclass, field
 from typing import Any, ClassVar
 
+import arap.io.formats as formats
 from arap.options import DEFAULT_ALPHA, DEFAULT_ENERGY, DEFAULT_WEIGHTS, SURFACE_ENERGY_TYPES, WEIGHT_TYPES
 from arap.server.labels import ENERGY_LABELS, LOOSE_LABELS, WEIGHT_LABELS
 
@@ -74,11 +75,13 @@ MAX_SEQ = 2**53 - 1
 
 ENERGIES = SURFACE_ENERGY_TYPES
 WEIGHTS = WEIGHT_TYPES
-EXPORT_FORMATS = ("obj", "ply", "glb", "png")
-"""Formats of ``export``: the mesh files, and PNG (the warped picture of a picture, else a picture of the shape)."""
-UPLOAD_EXTENSIONS = (".obj", ".off", ".ply", ".stl", ".glb", ".gltf", ".zip", ".png", ".jpg", ".jpeg", ".webp")
-"""Files ``upload`` takes: meshes, a zip of a mesh file with the files it names (MTL files, textures, glTF buffers;
-:func:`arap.server.render_mesh.load_bundle_upload`), and pictures for the puppet warp (:mod:`arap.server.pictures`)."""
+EXPORT_FORMATS = formats.export_names()
+"""Formats of ``export`` (those :mod:`arap.io.formats` marks for export): the mesh files, and PNG (the warped picture
+of a picture, else a picture of the shape)."""
+UPLOAD_EXTENSIONS = formats.upload_suffixes()
+"""Files ``upload`` takes (those :mod:`arap.io.formats` marks for upload): surfaces, volume meshes (opened as solids
+when they hold tetrahedra), pictures for the puppet warp (:mod:`arap.server.pictures`), and a zip of a model file with
+the files it names (MTL files, textures, glTF buffers; :func:`arap.server.render_mesh.load_bundle_upload`)."""
 
 PARAMS: dict[str, dict[str, Any]] = {
     "iterations": {"min": 1, "max": 100, "default": 2},

@@ -14,6 +14,7 @@ from typing import Any
 
 import numpy as np
 
+import arap.io.formats as formats
 from arap.errors import ArapError
 from arap.server.mesh_model import MeshData
 from arap.server.meshdata import load_upload
@@ -22,7 +23,7 @@ from arap.server.render_mesh import Look, look_from_upload
 
 __all__ = ["PICTURE_EXTENSIONS", "is_picture", "load_picture", "warped_picture_png"]
 
-PICTURE_EXTENSIONS: tuple[str, ...] = (".png", ".jpg", ".jpeg", ".webp")
+PICTURE_EXTENSIONS: tuple[str, ...] = formats.suffixes("picture")
 """Pictures the studio opens for the puppet warp."""
 
 

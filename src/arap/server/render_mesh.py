@@ -31,7 +31,7 @@ from typing import Any
 import numpy as np
 
 from arap.errors import ArapError
-from arap.io import load_asset, load_asset_bytes, save_asset, save_mesh_bytes
+from arap.io import formats, load_asset, load_asset_bytes, save_asset, save_mesh_bytes
 from arap.io.asset_model import MeshAsset, result_trimesh, weld_rows
 from arap.io.obj_write import obj_files, obj_text
 from arap.server.mesh_model import EXPORT_MIME, MeshData, export_mesh
@@ -49,9 +49,10 @@ BUNDLE_EXPANSION = 4
 """The files of an uploaded zip may hold this many times the upload limit once uncompressed (mesh text compresses
 well; images hardly)."""
 
-GLB_MIME = "model/gltf-binary"
-ZIP_MIME = "application/zip"
-_ASSET_EXTENSIONS = (".obj", ".ply", ".glb", ".gltf")
+GLB_MIME = formats.get("glb").mime
+ZIP_MIME = formats.get("zip").mime
+_ASSET_EXTENSIONS = tuple(formats.get(name).suffix for name in formats.names("surface", asset=True))
+"""Uploads read as textured models too (their colours and textures drawn)."""
 _IMAGE_MIME = ((b"\x89PNG\r\n\x1a\n", "image/png"), (b"\xff\xd8\xff", "image/jpeg"))
 _OBJ_COLOUR_LINE = re.compile(rb"^v[ \t]+(?:\S+[ \t]+){5}\S+", re.M)
 _OBJ_MTLLIB_LINE = re.compile(rb"^[ \t]*mtllib[ \t]+\S", re.M)
@@ -352,7 +353,7 @@ def look_from_upload(data: bytes | memoryview, filename: str, mesh: MeshData, ma
 
 def is_bundle(filename: str) -> bool:
     """Whether an uploaded file name is a zip of a mesh file and the files it names."""
-    return filename.lower().endswith(".zip")
+    return formats.find(filename, "bundle") is not None
 
 
 def load_bundle_upload(data: bytes | memoryview, filename: str, max_vertices: int, max_bytes: int,

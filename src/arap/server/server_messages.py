@@ -88,6 +88,7 @@ class Mesh(ServerMessage):
             "constraints documents use the file's numbering",
         )
     )
+    n_tetrahedra: int = field(metadata=wire("int", "tetrahedra of a solid, which the solver deforms (0 for a surface)"))
 
 
 @dataclass(frozen=True)
