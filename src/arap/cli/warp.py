@@ -40,9 +40,10 @@ def add_parser(commands: argparse._SubParsersAction[argparse.ArgumentParser]) ->
                    help="mesh edge length in pixels (default: about 5,000 vertices over the whole picture)")
     p.add_argument("--density", type=int, default=None, metavar="N",
                    help="without --spacing: about N mesh vertices when the shape fills the picture (default: 5000)")
-    p.add_argument("--mode", choices=("rigid", "distort"), default="rigid",
-                   help="rigid: as rigid as possible (default); distort: as similar as possible, parts may grow "
-                        "and shrink")
+    p.add_argument("--mode", choices=("rigid", "normal", "distort"), default="rigid",
+                   help="rigid: as rigid as possible (default); normal: parts may grow and shrink a little (a "
+                        "stretch by c keeps about its cube root); distort: as similar as possible, parts grow and "
+                        "shrink freely")
     p.add_argument("--fit", action="store_true", help="enlarge the canvas to hold the warped shape")
     p.add_argument("--alpha-threshold", type=int, default=0, metavar="A",
                    help="the shape is the pixels whose alpha is above A, 0 to 254 (default: 0)")

@@ -13,6 +13,10 @@ Modes:
   (the first, linear step of Igarashi et al.; the conformal energy of least-squares conformal maps): parts may grow
   and shrink, so a pin pulled away stretches the picture instead of dragging it along. It is one sparse linear
   solve.
+- ``"normal"``: between the two, the ARAP/ASAP hybrid of Liu et al. 2008 (:mod:`arap.puppet.blend`) with λ = 1:
+  every triangle is fitted a rotation and a scale, and a scale costs as much as its squared change of area, so a
+  part the pins stretch by a factor ``c`` keeps about ``∛c`` of it: parts give a little where pins pull, and bend
+  as in ``"rigid"`` elsewhere.
 
 A part of the shape (an island of the picture) without any pin stays where it is.
 """
@@ -34,8 +38,9 @@ from arap.puppet.raster import draw_textured
 
 __all__ = ["MODES", "PuppetWarp", "WarpMode", "pin_targets", "warp"]
 
-WarpMode = Literal["rigid", "distort"]
-MODES: tuple[str, ...] = ("rigid", "distort")
+WarpMode = Literal["rigid", "normal", "distort"]
+MODES: tuple[str, ...] = ("rigid", "normal", "distort")
+"""The warp's modes, from the stiffest: Photoshop's Puppet Warp offers the same three."""
 
 
 def _points(value: object, what: str) -> NDArray[np.float64]:
@@ -175,7 +180,7 @@ class PuppetWarp:
     rigid : (h, w) bool array or None
         Parts of the picture kept rigid (``mode="rigid"`` only): the triangles whose corners all lie on these
         pixels move as one piece.
-    mode : {"rigid", "distort"}
+    mode : {"rigid", "normal", "distort"}
         The energy (see :mod:`arap.puppet.warp`).
     mesh : ImageMesh or None
         A mesh of this picture made earlier (None: made here).
@@ -222,13 +227,16 @@ class PuppetWarp:
             c = np.clip(V[:, 0].astype(np.int64), 0, w - 1)
             r = np.clip(V[:, 1].astype(np.int64), 0, h - 1)
             stiffness = np.where(R[r, c], np.inf, 1.0)
-        if mode == "rigid":
+        self._solver: Any = None
+        if mode in ("rigid", "normal"):
             from arap.solve.solver import ArapSolver
 
-            self._solver: ArapSolver | None = ArapSolver(V, F, self.held, points=(self.faces, self.barycentric),
-                                                         stiffness=stiffness)
+            self._solver = ArapSolver(V, F, self.held, points=(self.faces, self.barycentric), stiffness=stiffness)
+            if mode == "normal":
+                from arap.puppet.blend import NORMAL_LAMBDA, BlendSolver
+
+                self._solver = BlendSolver(self._solver, NORMAL_LAMBDA)
         else:
-            self._solver = None
             self._prepare_distort()
 
     def _prepare_distort(self) -> None:
@@ -373,7 +381,8 @@ def warp(image: object, pins: ArrayLike, targets: object = None, spacing: float 
         The mesh's edge length in pixels (None: from ``density``).
     rigid : (h, w) bool array or None
         Parts kept rigid.
-    mode : {"rigid", "distort"}
+    mode : {"rigid", "normal", "distort"}
+        The energy, from the stiffest (see :mod:`arap.puppet.warp`).
     fit : bool
         Enlarge the canvas to hold the warped shape (else: the picture's size).
     depth : array-like or None
