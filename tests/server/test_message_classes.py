@@ -38,7 +38,7 @@ def test_specifications_are_derived_from_the_classes() -> None:
 def test_absent_optional_fields_are_none() -> None:
     msg = P.parse_text('{"type": "set_params", "energy": "spokes"}')
     assert msg == SetParams(energy="spokes") and msg.iterations is None and msg.alpha is None
-    assert [f.required for f in P.CLIENT_MESSAGES["set_params"].fields] == [False] * 5
+    assert [f.required for f in P.CLIENT_MESSAGES["set_params"].fields] == [False] * 6
     assert [(f.name, f.required) for f in P.CLIENT_MESSAGES["drag"].fields] == [
         ("seq", True), ("transforms", True), ("key", False)]
 

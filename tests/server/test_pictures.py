@@ -87,3 +87,63 @@ def test_bad_pictures_are_refused_with_their_reason(data: bytes, match: str) -> 
 
     with pytest.raises(RequestError, match=match):
         load_picture(data, "x.png", 100_000)
+
+
+def _stretched_area(warp: str) -> tuple[float, Session]:
+    """The picture's area after its two ends are pulled apart, in the warp mode ``warp``."""
+    s = _loaded()
+    s.set_params(warp=warp)
+    mesh = s.mesh
+    assert mesh is not None
+    centre = mesh.V[mesh.F].mean(axis=1)
+    left, right = int(np.argmin(centre[:, 0])), int(np.argmax(centre[:, 0]))
+    third = [1 / 3, 1 / 3, 1 / 3]
+    target = (np.array(third) @ mesh.V[mesh.F[right]] + [40.0, 0.0, 0.0]).tolist()
+    s.set_constraints(None, [], [], points=[{"face": left, "barycentric": third},
+                                             {"face": right, "barycentric": third, "target": target}])
+    s.settle(lambda: False)
+    assert np.all(s.U[:, 2] == 0.0)
+    np.testing.assert_allclose(np.array(third) @ s.U[mesh.F[right]], target, atol=1e-6)
+
+    def area(P: np.ndarray) -> float:
+        e1, e2 = P[mesh.F[:, 1]] - P[mesh.F[:, 0]], P[mesh.F[:, 2]] - P[mesh.F[:, 0]]
+        return float(0.5 * np.abs(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]).sum())
+
+    return area(s.U) / area(mesh.V), s
+
+
+def test_the_warp_mode_chooses_how_much_the_picture_may_grow() -> None:
+    rigid, s = _stretched_area("rigid")
+    normal, _ = _stretched_area("normal")
+    distort, _ = _stretched_area("distort")
+    assert s.params.warp == "rigid"
+    assert rigid + 0.02 < normal < distort - 0.1
+    assert distort > 1.3  # a disc pulled wider by 40 of its 96 pixels grows as a whole
+
+
+def test_changing_the_warp_mode_solves_again() -> None:
+    s = _loaded()
+    mesh = s.mesh
+    assert mesh is not None
+    third = [1 / 3, 1 / 3, 1 / 3]
+    centre = mesh.V[mesh.F].mean(axis=1)
+    left, right = int(np.argmin(centre[:, 0])), int(np.argmax(centre[:, 0]))
+    target = (np.array(third) @ mesh.V[mesh.F[right]] + [40.0, 0.0, 0.0]).tolist()
+    s.set_constraints(None, [], [], points=[{"face": left, "barycentric": third},
+                                             {"face": right, "barycentric": third, "target": target}])
+    s.settle(lambda: False)
+    before = s.U.copy()
+    s.set_params(warp="distort")
+    assert not s.settled
+    s.settle(lambda: False)
+    assert np.abs(s.U - before).max() > 1.0
+
+
+def test_the_mesh_frame_says_it_is_a_picture_and_its_size() -> None:
+    from arap.server.frames import decode_binary
+    from arap.server.meshdata import load_builtin, mesh_frame
+
+    s = _loaded()
+    assert s.mesh is not None
+    assert decode_binary(mesh_frame(s.mesh))[0]["picture"] == [120, 120]
+    assert decode_binary(mesh_frame(load_builtin("bar")))[0]["picture"] is None

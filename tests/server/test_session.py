@@ -206,7 +206,7 @@ def test_params_change_refactors_and_validates(session: Session) -> None:
     session.set_params(energy="spokes_and_rims", weights="uniform")
     assert session.solver is not first and session.solver.energy_type == "spokes_and_rims"
     assert state_message(session)["params"] == {"iterations": 7, "energy": "spokes_and_rims", "weights": "uniform",
-                                         "alpha": 0.02, "loose": "follow"}
+                                         "alpha": 0.02, "loose": "follow", "warp": "rigid"}
 
 
 def test_export_round_trips(session: Session) -> None:

@@ -102,6 +102,19 @@ export const PARAMS = Object.freeze({
       "error": "refuse selection"
     },
     "default": "follow"
+  },
+  "warp": {
+    "choices": [
+      "rigid",
+      "normal",
+      "distort"
+    ],
+    "labels": {
+      "rigid": "rigid",
+      "normal": "normal",
+      "distort": "distort"
+    },
+    "default": "rigid"
   }
 });
 
@@ -182,6 +195,7 @@ export const UPLOAD_EXTENSIONS = Object.freeze([
  * @property {"cotangent"|"clamped"|"uniform"} [weights] edge weights
  * @property {number} [alpha] weight of the rotation term of smooth_rotations (SR-ARAP)
  * @property {"follow"|"hold"|"error"} [loose] what parts no constraint reaches do
+ * @property {"rigid"|"normal"|"distort"} [warp] how a picture bends (the puppet warp's mode): rigid, normal or distort
  */
 
 /**
@@ -260,7 +274,7 @@ export const UPLOAD_EXTENSIONS = Object.freeze([
  * @property {number} protocol PROTOCOL_VERSION
  * @property {string[]} builtin_meshes names accepted by load_builtin
  * @property {{max_upload_bytes: number, max_vertices: number, max_frame_bytes: number, max_handle_groups: number}} limits max_upload_bytes, max_vertices, max_frame_bytes, max_handle_groups
- * @property {{iterations: number, energy: "spokes"|"spokes_and_rims"|"smooth_rotations", weights: "cotangent"|"clamped"|"uniform", alpha: number, loose: "follow"|"hold"|"error"}} params current solver parameters
+ * @property {{iterations: number, energy: "spokes"|"spokes_and_rims"|"smooth_rotations", weights: "cotangent"|"clamped"|"uniform", alpha: number, loose: "follow"|"hold"|"error", warp: "rigid"|"normal"|"distort"}} params current solver parameters
  */
 
 /**
@@ -273,6 +287,7 @@ export const UPLOAD_EXTENSIONS = Object.freeze([
  * @property {string[]} report repairs made while loading, one line each
  * @property {number} file_vertices vertices of the mesh file when repair renumbered them (the payload then ends with the mesh vertex each file vertex became, -1 for one dropped), else 0: constraints documents use the file's numbering
  * @property {number} n_tetrahedra tetrahedra of a solid, which the solver deforms (0 for a surface)
+ * @property {number[]|null|null} [picture] [width, height] of the picture this mesh is (the puppet warp), else null
  */
 
 /**
@@ -317,7 +332,7 @@ export const UPLOAD_EXTENSIONS = Object.freeze([
  * @property {"state"} type
  * @property {boolean} can_undo
  * @property {boolean} can_redo
- * @property {{iterations: number, energy: "spokes"|"spokes_and_rims"|"smooth_rotations", weights: "cotangent"|"clamped"|"uniform", alpha: number, loose: "follow"|"hold"|"error"}} params solver parameters
+ * @property {{iterations: number, energy: "spokes"|"spokes_and_rims"|"smooth_rotations", weights: "cotangent"|"clamped"|"uniform", alpha: number, loose: "follow"|"hold"|"error", warp: "rigid"|"normal"|"distort"}} params solver parameters
  * @property {{roi: number[]|null, fixed: number[], handle_groups: number[][], stiffness: Array<{vertices: number[], value: number|"rigid"}>|null, points: Array<{face: number, barycentric: number[], weight?: number}>}} constraints roi, fixed, handle_groups, stiffness, points as last accepted
  * @property {number[][]} transforms current transform of each handle group
  * @property {number} rest_id the rest pose: a new value after apply, the earlier one again when an undo or redo goes back to it

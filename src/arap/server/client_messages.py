@@ -178,6 +178,9 @@ class SetParams(ClientMessage):
     )
     loose: LoosePartsMode | None = field(default=None, metadata=wire(
         "enum", "what parts no constraint reaches do", choices=tuple(PARAMS["loose"]["choices"])))
+    warp: str | None = field(default=None, metadata=wire(
+        "enum", "how a picture bends (the puppet warp's mode): rigid, normal or distort",
+        choices=tuple(PARAMS["warp"]["choices"])))
 
 
 @dataclass(frozen=True)

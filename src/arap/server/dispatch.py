@@ -322,7 +322,7 @@ class Dispatcher:
         yield self.state()
 
     def _set_params(self, msg: SetParams) -> Answers:
-        self.session.set_params(msg.iterations, msg.energy, msg.weights, msg.alpha, msg.loose)
+        self.session.set_params(msg.iterations, msg.energy, msg.weights, msg.alpha, msg.loose, msg.warp)
         yield self.state()
 
     def _history_step(self, msg: Undo | Redo | Reset | Apply) -> Answers:

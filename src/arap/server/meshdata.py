@@ -163,7 +163,8 @@ def mesh_frame(mesh: MeshData) -> bytes:
     vmap = mesh.vertex_map
     header = Mesh(name=mesh.name, n_vertices=mesh.n_vertices, n_faces=mesh.n_faces, report=mesh.report,
                   file_vertices=0 if vmap is None else len(vmap),
-                  n_tetrahedra=0 if mesh.elements is None else len(mesh.elements)).to_wire()
+                  n_tetrahedra=0 if mesh.elements is None else len(mesh.elements),
+                  picture=None if mesh.picture is None else [mesh.picture.shape[1], mesh.picture.shape[0]]).to_wire()
     parts = [np.ascontiguousarray(mesh.V, dtype="<f4").tobytes(), np.ascontiguousarray(mesh.F, dtype="<u4").tobytes()]
     if vmap is not None:
         parts.append(np.ascontiguousarray(vmap, dtype="<i4").tobytes())

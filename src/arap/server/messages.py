@@ -16,7 +16,7 @@ from typing import Any, ClassVar
 
 import arap.io.formats as formats
 from arap.options import DEFAULT_ALPHA, DEFAULT_ENERGY, DEFAULT_WEIGHTS, SURFACE_ENERGY_TYPES, WEIGHT_TYPES
-from arap.server.labels import ENERGY_LABELS, LOOSE_LABELS, WEIGHT_LABELS
+from arap.server.labels import ENERGY_LABELS, LOOSE_LABELS, WARP_LABELS, WEIGHT_LABELS
 
 __all__ = [
     "ANIMATION_STATUSES",
@@ -89,6 +89,7 @@ PARAMS: dict[str, dict[str, Any]] = {
     "weights": {"choices": list(WEIGHTS), "labels": dict(WEIGHT_LABELS), "default": DEFAULT_WEIGHTS},
     "alpha": {"min": 0, "max": 1, "step": 0.005, "default": DEFAULT_ALPHA},
     "loose": {"choices": list(LOOSE_LABELS), "labels": dict(LOOSE_LABELS), "default": "follow"},
+    "warp": {"choices": list(WARP_LABELS), "labels": dict(WARP_LABELS), "default": "rigid"},
 }
 """Solver parameters a client may set, with their ranges, display labels and defaults."""
 

@@ -40,6 +40,8 @@ class Params:
     weights: WeightType = PARAMS["weights"]["default"]
     alpha: float = PARAMS["alpha"]["default"]
     loose: LoosePartsMode = PARAMS["loose"]["default"]
+    warp: str = PARAMS["warp"]["default"]
+    """The puppet warp's mode for pictures (:data:`arap.puppet.warp.MODES`); surfaces and solids ignore it."""
 
 
 @dataclass

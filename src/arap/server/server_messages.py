@@ -46,7 +46,7 @@ def _union(values: tuple[str, ...] | list[str]) -> str:
 
 
 _PARAMS_JS = (f"{{iterations: number, energy: {_union(ENERGIES)}, weights: {_union(WEIGHTS)}, alpha: number, "
-              f"loose: {_union(tuple(PARAMS['loose']['choices']))}}}")
+              f"loose: {_union(tuple(PARAMS['loose']['choices']))}, warp: {_union(tuple(PARAMS['warp']['choices']))}}}")
 _STIFFNESS_JS = 'Array<{vertices: number[], value: number|"rigid"}>'
 _POINTS_JS = "Array<{face: number, barycentric: number[], weight?: number}>"
 
@@ -89,6 +89,9 @@ class Mesh(ServerMessage):
         )
     )
     n_tetrahedra: int = field(metadata=wire("int", "tetrahedra of a solid, which the solver deforms (0 for a surface)"))
+    picture: list[int] | None = field(default=None, metadata=wire(
+        "list", "[width, height] of the picture this mesh is (the puppet warp), else null", nullable=True,
+        js_type="number[]|null"))
 
 
 @dataclass(frozen=True)

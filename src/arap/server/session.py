@@ -290,8 +290,9 @@ class Session(SessionState):
 
     def set_params(self, iterations: int | None = None, energy: EnergyType | None = None,
                    weights: WeightType | None = None, alpha: float | None = None,
-                   loose: LoosePartsMode | None = None) -> None:
-        """Change solver parameters; a new energy, weighting or loose-parts mode refactorises.
+                   loose: LoosePartsMode | None = None, warp: str | None = None) -> None:
+        """Change solver parameters; a new energy, weighting or loose-parts mode refactorises, and so does a new
+        warp mode for a picture.
 
         Raises
         ------
@@ -309,9 +310,12 @@ class Session(SessionState):
             new.alpha = float(alpha)
         if loose is not None:
             new.loose = loose
+        if warp is not None:
+            new.warp = warp
         changed = (new.energy, new.weights, new.loose) != (self.params.energy, self.params.weights,
                                                            self.params.loose) or (
-            new.energy == "smooth_rotations" and new.alpha != self.params.alpha)
+            new.energy == "smooth_rotations" and new.alpha != self.params.alpha) or (
+            new.warp != self.params.warp and self.mesh is not None and self.mesh.picture is not None)
         if changed and self.mesh is not None:
             self.solver = self._solver_for(self.rest_id, self.V, self.constraints, new)
             self._warm = False

@@ -17,7 +17,7 @@ from arap.server.constraints import ConstraintSet
 from arap.server.records import Params
 from arap.server.session_errors import ConstraintsRejected
 
-__all__ = ["SOLVER_CACHE_VERTICES", "PlaneSolver", "SolverCache", "points_in_tetrahedra"]
+__all__ = ["SOLVER_CACHE_VERTICES", "PlaneSolver", "SolverCache", "plane_solver", "points_in_tetrahedra"]
 
 logger = logging.getLogger(__name__)
 
@@ -30,21 +30,23 @@ class SolverCache:
     first."""
 
     def __init__(self) -> None:
-        self._solvers: OrderedDict[tuple[Any, ...], arap.ArapSolver] = OrderedDict()
+        self._solvers: OrderedDict[tuple[Any, ...], arap.ArapSolver | PlaneSolver] = OrderedDict()
 
     def clear(self) -> None:
         """Drop every solver (a new mesh)."""
         self._solvers.clear()
 
     def get(self, rest_id: int, V: np.ndarray, F: np.ndarray, cs: ConstraintSet, params: Params,
-            solid: tuple[np.ndarray, np.ndarray] | None = None, planar: bool = False) -> arap.ArapSolver | None:
+            solid: tuple[np.ndarray, np.ndarray] | None = None,
+            planar: bool = False) -> arap.ArapSolver | PlaneSolver | None:
         """A factorised solver for the constraint set on the rest pose ``V`` (numbered ``rest_id``), or None when
         nothing is constrained.
 
         ``solid``: the tetrahedra of a solid and the tetrahedron behind each of its boundary triangles ``F``; the
         solver then deforms the tetrahedra (the element energy), with the point handles on the boundary taken
         into their tetrahedra. ``planar``: a flat mesh in ``z = 0`` (a picture) that bends in its plane, with the
-        element energy, its targets put back on the plane (:class:`PlaneSolver`).
+        element energy, its targets put back on the plane (:class:`PlaneSolver`), in the puppet warp's mode
+        ``params.warp`` (:func:`plane_solver`).
 
         Raises
         ------
@@ -55,7 +57,8 @@ class SolverCache:
             return None
         energy = "elements" if solid is not None or planar else params.energy  # the only energy tetrahedra have
         alpha = params.alpha if energy == "smooth_rotations" else None  # other energies ignore it
-        key = (rest_id, energy, params.weights, alpha, params.loose, planar, cs.solver_digest())
+        warp = params.warp if planar else None
+        key = (rest_id, energy, params.weights, alpha, params.loose, planar, warp, cs.solver_digest())
         solver = self._solvers.get(key)
         if solver is not None:
             self._solvers.move_to_end(key)
@@ -65,9 +68,9 @@ class SolverCache:
             elements = solid[0]
             points = None if points is None else points_in_tetrahedra(points, F, solid[0], solid[1])
         try:
-            kind = PlaneSolver if planar else arap.ArapSolver
-            solver = kind(V, elements, cs.constrained, energy=energy, weights=params.weights, roi=cs.roi,
-                          alpha=params.alpha, stiffness=cs.stiffness, points=points, loose=params.loose)
+            made = arap.ArapSolver(V, elements, cs.constrained, energy=energy, weights=params.weights, roi=cs.roi,
+                                   alpha=params.alpha, stiffness=cs.stiffness, points=points, loose=params.loose)
+            solver = plane_solver(made, params.warp) if planar else made
         except ArapError as exc:
             raise ConstraintsRejected(str(exc)) from exc
         logger.debug("factorised %d free vertices in %.1f ms", solver.n_free, 1000 * solver.factor_seconds)
@@ -96,19 +99,66 @@ def points_in_tetrahedra(points: PointConstraints, F: np.ndarray, T: np.ndarray,
     return PointConstraints(owner[points.faces], barycentric, points.weights)
 
 
-class PlaneSolver(arap.ArapSolver):
-    """An :class:`arap.ArapSolver` of a flat mesh in ``z = 0`` whose targets are put back on the plane (the studio's
-    handles can be dragged in any direction)."""
+def _on_plane(points: Any) -> Any:
+    """``points`` (k, 3) with z = 0 (other shapes as given)."""
+    if points is None:
+        return None
+    flat = np.array(points, dtype=np.float64)
+    if flat.ndim == 2 and flat.shape[1:] == (3,):
+        flat[:, 2] = 0.0
+    return flat
+
+
+class PlaneSolver:
+    """A solver of a flat mesh in ``z = 0`` (a picture) whose targets are put back on the plane (the studio's handles
+    can be dragged in any direction), in one of the puppet warp's modes (:data:`arap.puppet.warp.MODES`):
+    ``rigid`` is the element ARAP energy itself, ``normal`` and ``distort`` the hybrid energy of
+    :mod:`arap.puppet.blend` (λ = 1 and λ = 0) on ARAP's factorisation.
+
+    Parameters
+    ----------
+    solver : ArapSolver
+        Of the flat mesh with the element energy, factorised for the constraints.
+    mode : str
+        The warp's mode.
+    """
+
+    def __init__(self, solver: arap.ArapSolver, mode: str = "rigid") -> None:
+        from arap.puppet.blend import NORMAL_LAMBDA, BlendSolver
+
+        self.mode = mode
+        self.inner = solver
+        self._blend = None if mode == "rigid" else BlendSolver(solver, NORMAL_LAMBDA if mode == "normal" else 0.0)
+        self.n_free = solver.n_free
+        self.factor_seconds = solver.factor_seconds
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self.inner, name)  # the rest of the ArapSolver's attributes (V, F, energy_type, ...)
 
     def solve(self, targets: Any, initial: Any = None, max_iterations: int | None = None,
               tolerance: float = DEFAULT_TOLERANCE, callback: Any = None, acceleration: Any = "lbfgs",
               window: int | None = None, point_targets: Any = None) -> arap.ArapResult:
-        flat = np.array(targets, dtype=np.float64)
-        if flat.ndim == 2 and flat.shape[1:] == (3,):
-            flat[:, 2] = 0.0
-        if point_targets is not None:
-            point_targets = np.array(point_targets, dtype=np.float64)
-            if point_targets.ndim == 2 and point_targets.shape[1:] == (3,):
-                point_targets[:, 2] = 0.0
-        return super().solve(flat, initial=initial, max_iterations=max_iterations, tolerance=tolerance,
-                             callback=callback, acceleration=acceleration, window=window, point_targets=point_targets)
+        """:meth:`arap.ArapSolver.solve` with the targets on the plane, in the solver's mode."""
+        kind: Any = self.inner if self._blend is None else self._blend
+        return kind.solve(_on_plane(targets), initial=initial, max_iterations=max_iterations, tolerance=tolerance,
+                          callback=callback, acceleration=acceleration, window=window,
+                          point_targets=_on_plane(point_targets))
+
+    def current_vertices(self) -> np.ndarray:
+        """The current iterate during :meth:`solve`, else the last solution."""
+        return (self.inner if self._blend is None else self._blend).current_vertices()
+
+
+def plane_solver(solver: arap.ArapSolver, mode: str) -> PlaneSolver:
+    """The studio's solver of a picture (see :class:`PlaneSolver`).
+
+    Raises
+    ------
+    ArapError
+        An unknown mode.
+    """
+    from arap.puppet.warp import MODES
+
+    if mode not in MODES:
+        raise ArapError(f"unknown warp mode {mode!r}; expected one of {', '.join(MODES)}")
+    return PlaneSolver(solver, mode)
