@@ -43,7 +43,7 @@ from numpy.typing import NDArray
 from arap.constraints import Constraints
 from arap.errors import ArapError
 from arap.meshes.mesh import MeshLike, check_mesh, mesh_arrays
-from arap.studio_handle import Selection, initial_constraints, session_selection
+from arap.studio_handle import Selection, initial_constraints, picture_input, session_selection
 
 if TYPE_CHECKING:
     from arap.render.picture import Picture
@@ -154,7 +154,7 @@ class StudioWidget:
     url: str | None = None
 
     def _setup(self, *, V: NDArray[np.float64], F: NDArray[np.int64], name: str, prepare: Any = None,
-               picture: bool = True) -> None:
+               picture: bool = True, opened: Any = None) -> None:
         from arap.method.kernel_cache import KERNELS_READY
         from arap.server.channel import ChannelWorker
         from arap.server.dispatch import Dispatcher, StudioConfig
@@ -177,12 +177,12 @@ class StudioWidget:
         self._stopped = False
         self._ready = threading.Event()
         self._preview: bytes | None = None
-        mesh = MeshData.make(name, V, F)
+        mesh, look = opened if opened is not None else (MeshData.make(name, V, F), None)
 
         def load() -> Any:
             try:
                 KERNELS_READY.wait(600.0)
-                self.session.load(mesh, None)
+                self.session.load(mesh, look)
                 if prepare is not None:
                     prepare(self.session)
             finally:
@@ -368,8 +368,9 @@ def widget(
 
     Parameters
     ----------
-    V : (n, 3) float array or MeshLike
-        Rest positions, or a mesh object with ``vertices`` and ``faces`` (then leave out ``F``).
+    V : (n, 3) float array, MeshLike, picture path or (h, w, 3|4) uint8 array
+        Rest positions, or a mesh object with ``vertices`` and ``faces`` (then leave out ``F``); or a picture,
+        opened for the puppet warp (as :func:`arap.studio` opens one).
     F : (m, 3) int array or None
     name : str
         Name shown in the page and used for exports.
@@ -396,8 +397,15 @@ def widget(
     ArapError
         anywidget is not installed (``pip install "arap[notebook]"``) or the widget's module is not built.
     """
-    V, F = check_mesh(*mesh_arrays(V, F))
-    prepare = None if constraints is None else initial_constraints(constraints, len(V))
+    rest: NDArray[np.float64]
+    faces: NDArray[np.int64]
+    opened = picture_input(V, F, name)
+    if opened is not None:
+        rest, faces = opened[0].V, opened[0].F
+    else:
+        rest, faces = check_mesh(*mesh_arrays(V, F))
+    prepare = None if constraints is None else initial_constraints(constraints, len(rest))
     cls = _widget_class()
-    w: StudioWidget = cls(V=V, F=F, name=name, prepare=prepare, picture=picture, height=int(height))
+    w: StudioWidget = cls(V=rest, F=faces, name=name, prepare=prepare, picture=picture, height=int(height),
+                          opened=opened)
     return w

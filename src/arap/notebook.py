@@ -29,7 +29,7 @@ from numpy.typing import NDArray
 from arap.constraints import Constraints
 from arap.errors import ArapError
 from arap.meshes.mesh import MeshLike, check_mesh, mesh_arrays
-from arap.studio_handle import Selection, initial_constraints, session_selection
+from arap.studio_handle import Selection, initial_constraints, picture_input, session_selection
 
 if TYPE_CHECKING:
     import socket
@@ -172,11 +172,14 @@ def studio(
 
     Parameters
     ----------
-    V : (n, 3) float array or MeshLike
-        Rest positions, or a mesh object with ``vertices`` and ``faces`` (then leave out ``F``).
+    V : (n, 3) float array, MeshLike, picture path or (h, w, 3|4) uint8 array
+        Rest positions, or a mesh object with ``vertices`` and ``faces`` (then leave out ``F``); or a picture (a
+        PNG, JPEG or WebP file, or its pixels), which opens for the puppet warp as the page's **Open file…** opens
+        one: meshed, textured with itself and bent in its plane (Rigid, Normal or Distort; see
+        :mod:`arap.server.pictures`). Its ``vertices`` are then ``(x, h − y, 0)`` in pixels.
     F : (m, 3) int array or None
     name : str
-        Name shown in the page and used for exports.
+        Name shown in the page and used for exports (a picture file's own name by default).
     port : int
         TCP port on 127.0.0.1; 0 picks a free one.
     show : bool
@@ -205,7 +208,8 @@ def studio(
     ConstraintError
         ``constraints`` is invalid for this mesh, or holds stiffness (not edited in the studio).
     ArapError
-        The studio's server stack is not installed (``pip install "arap[studio]"``), or the server did not start.
+        The studio's server stack is not installed (``pip install "arap[studio]"``), or the server did not start;
+        an unusable picture.
     OSError
         The port cannot be bound.
 
@@ -224,20 +228,29 @@ def studio(
         if show:
             _display(w)
         return w
-    V, F = check_mesh(*mesh_arrays(V, F))
-    prepare = None if constraints is None else initial_constraints(constraints, len(V))
     try:
         from arap.server.meshdata import MeshData
         from arap.server.runner import make_server, new_token
     except ImportError as exc:
         raise ArapError(f'the studio needs its server stack: pip install "arap[studio]" ({exc.name} is missing)'
                         ) from exc
+    picture = picture_input(V, F, name)
+    rest: NDArray[np.float64]
+    faces: NDArray[np.int64]
+    if picture is not None:
+        mesh, look = picture
+        rest, faces = mesh.V, mesh.F
+    else:
+        rest, faces = check_mesh(*mesh_arrays(V, F))
+        mesh, look = MeshData.make(name, rest, faces), None
+    prepare = None if constraints is None else initial_constraints(constraints, len(rest))
     token = new_token()
-    server, sock, url = make_server(MeshData.make(name, V, F), "127.0.0.1", port, log_level="warning", token=token)
+    server, sock, url = make_server(mesh, "127.0.0.1", port, log_level="warning", token=token)
+    app: Any = server.config.app
+    app.state.studio.default_look = look
     if prepare is not None:
-        app: Any = server.config.app
         app.state.studio.prepare_session = prepare
-    handle = Studio(server, sock, url, token, V, F, height)
+    handle = Studio(server, sock, url, token, rest, faces, height)
     handle._start()
     if show:
         _display(handle)

@@ -17,7 +17,7 @@ from arap.errors import ConstraintError
 if TYPE_CHECKING:
     from arap.server.session import Session
 
-__all__ = ["Selection", "initial_constraints", "session_selection"]
+__all__ = ["Selection", "initial_constraints", "picture_input", "session_selection"]
 
 
 @dataclass(frozen=True)
@@ -81,3 +81,34 @@ def initial_constraints(source: Constraints | Mapping[str, Any] | str | os.PathL
         return session.set_constraints(roi, fixed, groups, targets)
 
     return prepare
+
+
+def picture_input(V: object, F: object, name: str) -> tuple[Any, Any] | None:
+    """The studio's mesh and look of a picture given to :func:`arap.studio` or :func:`arap.widget` in place of a
+    mesh (a path to a PNG, JPEG or WebP file, or an (h, w, 3|4) uint8 array, with no ``F``); None for a mesh.
+
+    The picture opens as **Open file…** opens one: meshed, drawn textured with itself and bent in its plane with the
+    puppet warp's modes (:mod:`arap.server.pictures`).
+
+    Raises
+    ------
+    ArapError
+        An unusable picture (:func:`arap.puppet.picture.as_picture`), one without an opaque part, or one whose mesh
+        is over the studio's vertex limit.
+    """
+    is_path = isinstance(V, (str, os.PathLike)) and str(V).lower().endswith((".png", ".jpg", ".jpeg", ".webp"))
+    is_array = isinstance(V, np.ndarray) and V.ndim == 3 and V.dtype == np.uint8
+    if F is not None or not (is_path or is_array):
+        return None
+    from arap.errors import ArapError
+    from arap.puppet.picture import as_picture
+    from arap.server.pictures import picture_mesh
+    from arap.server.protocol import RequestError
+    from arap.server.studio_config import StudioConfig
+
+    pixels = as_picture(V)
+    stem = os.path.splitext(os.path.basename(str(V)))[0] if is_path and name == "mesh" else name
+    try:
+        return picture_mesh(pixels, stem, StudioConfig().max_vertices)
+    except RequestError as exc:
+        raise ArapError(exc.message) from exc

@@ -147,3 +147,36 @@ def test_studio_refuses_bad_initial_constraints_before_starting() -> None:
     with pytest.raises(arap.ConstraintError, match="handle_groups"):
         arap.studio(V, F, show=False, constraints={"fixed": [0], "handles": [1, 2], "targets": [[0, 0, 0]] * 2,
                                                    "handle_groups": [[1]]})
+
+
+@pytest.mark.parametrize("as_file", [True, False])
+def test_a_picture_opens_for_the_puppet_warp(tmp_path: Any, as_file: bool) -> None:
+    from PIL import Image
+
+    rgba = np.zeros((60, 90, 4), dtype=np.uint8)
+    rgba[10:50, 10:80] = (200, 60, 30, 255)
+    path = tmp_path / "sprite.png"
+    Image.fromarray(rgba, "RGBA").save(path)
+    s = arap.studio(str(path) if as_file else rgba, show=False, transport="server")
+    try:
+        V = s.vertices
+        assert V.shape[1] == 3 and np.all(V[:, 2] == 0.0) and len(V) > 50
+        assert V[:, 0].min() >= 9.0 and V[:, 0].max() <= 81.0 and V[:, 1].min() >= 9.0 and V[:, 1].max() <= 51.0
+        with connect(_ws_url(s.url), origin=_origin(s.url), max_size=None) as ws:
+            _expect(ws, "welcome")
+            header, _ = _expect(ws, "mesh")
+            assert header["picture"] == [90, 60] and header["n_vertices"] == len(V)
+            assert header["name"] == ("sprite" if as_file else "mesh")
+            look, _ = _expect(ws, "appearance")
+            assert look["texture_bytes"] > 0
+    finally:
+        s.stop()
+
+
+def test_an_unusable_picture_is_refused(tmp_path: Any) -> None:
+    bad = tmp_path / "broken.png"
+    bad.write_bytes(b"not a picture")
+    with pytest.raises(arap.ArapError, match=r"broken\.png"):
+        arap.studio(str(bad), show=False, transport="server")
+    with pytest.raises(arap.ArapError, match=r"no opaque|empty|transparent"):
+        arap.studio(np.zeros((20, 20, 4), dtype=np.uint8), show=False, transport="server")

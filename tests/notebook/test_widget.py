@@ -115,6 +115,22 @@ def test_a_view_opening_gets_the_mesh(cactus: tuple[np.ndarray, np.ndarray]) -> 
         w.stop()
 
 
+
+def test_a_picture_opens_in_the_widget_for_the_puppet_warp() -> None:
+    rgba = np.zeros((40, 70, 4), dtype=np.uint8)
+    rgba[5:35, 5:65] = (30, 90, 220, 255)
+    w = arap.widget(rgba, name="sprite")
+    try:
+        comm = Comm(w)
+        comm.request(OPEN_MESSAGE, [])
+        _, mesh, _ = comm.wait_for(lambda m: m["type"] == "mesh")
+        assert mesh["picture"] == [70, 40] and mesh["name"] == "sprite"
+        _, look, _ = comm.wait_for(lambda m: m["type"] == "appearance")
+        assert look["texture_bytes"] > 0
+        assert np.all(w.vertices[:, 2] == 0.0) and len(w.vertices) == mesh["n_vertices"]
+    finally:
+        w.stop()
+
 def test_a_drag_is_answered_with_the_solved_positions(opened: tuple[StudioWidget, Comm],
                                                       cactus: tuple[np.ndarray, np.ndarray]) -> None:
     w, comm = opened

@@ -21,7 +21,7 @@ from arap.server.meshdata import load_upload
 from arap.server.protocol import RequestError
 from arap.server.render_mesh import Look, look_from_upload
 
-__all__ = ["PICTURE_EXTENSIONS", "is_picture", "load_picture", "warped_picture_png"]
+__all__ = ["PICTURE_EXTENSIONS", "is_picture", "load_picture", "picture_mesh", "warped_picture_png"]
 
 PICTURE_EXTENSIONS: tuple[str, ...] = formats.suffixes("picture")
 """Pictures the studio opens for the puppet warp."""
@@ -41,13 +41,28 @@ def load_picture(data: bytes | memoryview, filename: str, max_vertices: int) -> 
         ``bad_mesh`` for a picture that cannot be read or has no opaque part; ``too_large`` beyond the picture limit
         (:data:`arap.puppet.picture.MAX_PIXELS`) or ``max_vertices``.
     """
-    from arap.puppet.imagemesh import image_mesh
     from arap.puppet.picture import decode_picture
-    from arap.puppet.warp import PuppetWarp
 
     stem = filename.rsplit(".", 1)[0] or "picture"
     try:
         picture = decode_picture(bytes(data), filename)
+    except ArapError as exc:
+        raise RequestError("bad_mesh", str(exc)) from exc
+    return picture_mesh(picture, stem, max_vertices)
+
+
+def picture_mesh(picture: np.ndarray, stem: str, max_vertices: int) -> tuple[MeshData, Look | None]:
+    """The mesh and look of a picture's pixels ((h, w, 3|4) uint8), named ``stem``.
+
+    Raises
+    ------
+    RequestError
+        As :func:`load_picture`.
+    """
+    from arap.puppet.imagemesh import image_mesh
+    from arap.puppet.warp import PuppetWarp
+
+    try:
         mesh = image_mesh(picture)
         if len(mesh.vertices) > max_vertices:
             raise RequestError("too_large", f"the picture's mesh has {len(mesh.vertices):,} vertices, more than this "
