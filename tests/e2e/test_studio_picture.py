@@ -49,3 +49,26 @@ def test_a_picture_bends_in_its_plane_and_exports_as_a_picture(page: Page, tmp_p
     warped = np.asarray(Image.open(io.BytesIO(out.read_bytes())))
     assert warped.shape == (160, 160, 4) and (warped[:, :, 3] > 0).sum() > 0.8 * 40 * 140
     assert not page.evaluate("() => window.__arap.errors")
+
+
+def test_a_picture_offers_the_warp_modes_and_delete_removes_a_pin(page: Page, tmp_path: Path) -> None:
+    from playwright.sync_api import expect
+
+    from tests.e2e.conftest import screen_points, wait_idle
+
+    expect(page.get_by_test_id("picture-rows")).to_be_hidden()  # a built-in model is no picture
+    upload(page, _picture(tmp_path / "pinned.png"), "texture")
+    expect(page.get_by_test_id("picture-rows")).to_be_visible()
+    page.get_by_test_id("warp").select_option("distort")
+    page.wait_for_function("() => window.__arap.params.warp === 'distort'")
+    pts = screen_points(page)
+    x, y = np.median(pts, axis=0)
+    page.keyboard.press("5")
+    page.mouse.click(x, y)
+    wait_idle(page)
+    page.wait_for_function("() => window.__arap.constraints().points.length === 1")
+    page.keyboard.press("Delete")
+    page.wait_for_function("() => window.__arap.constraints().points.length === 0")
+    page.get_by_test_id("picture-mesh").check()
+    expect(page.get_by_test_id("wireframe")).to_be_checked()
+    assert not page.evaluate("() => window.__arap.errors")

@@ -28,6 +28,7 @@ export const SHORTCUTS = [
   { key: 'h', label: 'H', does: 'Show or hide the distortion heat map' },
   { key: 'm', label: 'M', does: 'Mirror editing on or off (selections and drags act on both sides)' },
   { key: 'k', label: 'K', does: 'Add a keyframe: the handle groups\' current transforms at the timeline\'s playhead' },
+  { key: 'delete', label: 'Delete', does: 'Remove the active point handle (a picture\'s pin)' },
   { key: '?', label: '?', does: 'Show or hide this help' },
   { key: 'escape', label: 'Esc', does: 'Close the help or the message' },
   { key: null, label: 'Ctrl+Z', does: 'Undo' },

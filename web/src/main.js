@@ -380,6 +380,7 @@ installShortcuts({
     h: () => heat.setOn(!heat.on),
     m: () => mirror.setOn(!mirror.on),
     k: () => timeline.addKeyframe(),
+    delete: () => selection.groups[selection.activeGroup]?.point && panel.actions.removeGroup(selection.activeGroup),
     '?': () => help.toggle(),
     escape: () => (help.shown ? help.hide() : panel.hideStatus()),
     ...transformUi.keys,

@@ -3,6 +3,7 @@
 // connection. What the panel only displays (status bar, connection, statistics, settling) is in readouts.js,
 // whose class this one extends, so that the studio still talks to one panel object.
 import { REFERENCED_EXTENSIONS } from './files.js';
+import { installPictureControls, pictureShown, warpShown } from './picturemode.js';
 import { EXPORT_FORMATS, PARAMS, UPLOAD_EXTENSIONS } from './protocol.js';
 import { fmtInt, PanelReadouts } from './readouts.js';
 import { cssColor, FIXED_COLOR, groupColor } from './rolecolors.js';
@@ -123,6 +124,7 @@ export class Panel extends PanelReadouts {
     $('energy').addEventListener('change', (/** @type {Event} */ e) => actions.setParams({ energy: source(e).value }));
     $('weights').addEventListener('change', (/** @type {Event} */ e) => actions.setParams({ weights: source(e).value }));
     $('loose').addEventListener('change', (/** @type {Event} */ e) => actions.setParams({ loose: source(e).value }));
+    installPictureControls(actions);
 
     for (const format of EXPORT_FORMATS) {
       const b = document.createElement('button');
@@ -243,6 +245,7 @@ export class Panel extends PanelReadouts {
     this.setStats({ n_vertices: msg.n_vertices, n_faces: msg.n_faces, n_tetrahedra: msg.n_tetrahedra || 0, ups: NaN,
       latency_ms: null, ms_per_iteration: null });
     this.resetSettle(); // the server says how the new mesh's shape settles
+    pictureShown(msg);
     const report = Array.isArray(msg.report) ? msg.report : msg.report ? [String(msg.report)] : [];
     if (report.length) this.showStatus(`Loaded ${msg.name}. Repairs: ${report.join('; ')}`, 'info', 8000);
     else this.hideStatus();
@@ -278,6 +281,7 @@ export class Panel extends PanelReadouts {
     }
     if (p.weights) $('weights').value = p.weights;
     if (p.loose) $('loose').value = p.loose;
+    warpShown(p);
   }
 
   /**
