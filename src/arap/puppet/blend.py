@@ -95,10 +95,12 @@ class BlendSolver:
         V = np.asarray(solver.V, dtype=np.float64)[:, :2]
         F = np.asarray(solver.F, dtype=np.int64)
         E = np.stack([V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]]], axis=2)  # (m, 2, 2): edges as columns
-        inv = np.linalg.inv(E)
+        inv = np.linalg.inv(E)  # J = [u1 − u0, u2 − u0] @ inv
         self._F = F
-        self._grad = inv  # J = [u1 − u0, u2 − u0] @ inv
+        self._corners = (np.ascontiguousarray(F[:, 0]), np.ascontiguousarray(F[:, 1]), np.ascontiguousarray(F[:, 2]))
+        self._grad = tuple(np.ascontiguousarray(inv[:, i, j]) for i in (0, 1) for j in (0, 1))
         self._area = 0.5 * np.abs(np.linalg.det(E))
+        self._similarities = np.zeros((len(F), 3, 3))
         lo, hi = V.min(axis=0), V.max(axis=0)
         self._diagonal = float(np.linalg.norm(hi - lo))
         self._last: NDArray[np.float64] | None = None
@@ -120,31 +122,52 @@ class BlendSolver:
         """Triangles."""
         return self._F
 
+    def _gradients(self, U: NDArray[np.float64]) -> tuple[NDArray[np.float64], ...]:
+        """The deformation gradients' entries ``(J00, J01, J10, J11)`` at positions ``U``, each (m,)."""
+        x, y = U[:, 0], U[:, 1]
+        f0, f1, f2 = self._corners
+        g00, g01, g10, g11 = self._grad
+        x0, y0 = x[f0], y[f0]
+        dx1, dx2, dy1, dy2 = x[f1] - x0, x[f2] - x0, y[f1] - y0, y[f2] - y0
+        return dx1 * g00 + dx2 * g10, dx1 * g01 + dx2 * g11, dy1 * g00 + dy2 * g10, dy1 * g01 + dy2 * g11
+
     def jacobians(self, U: NDArray[np.float64]) -> NDArray[np.float64]:
         """The deformation gradient of every triangle at positions ``U``, shape (m, 2, 2)."""
-        P = np.asarray(U, dtype=np.float64)[:, :2]
-        F = self._F
-        D = np.stack([P[F[:, 1]] - P[F[:, 0]], P[F[:, 2]] - P[F[:, 0]]], axis=2)
-        return np.matmul(D, self._grad)
+        J = self._gradients(np.asarray(U, dtype=np.float64))
+        return np.stack(J, axis=1).reshape(-1, 2, 2)
 
-    def _local(self, U: NDArray[np.float64], J: NDArray[np.float64]) -> tuple[NDArray[np.float64],
-                                                                           NDArray[np.float64]]:
-        """The cells' similarities for positions ``U`` (whose gradients are ``J``): (m, 3, 3) as the global step takes
-        them, and their scales (m,)."""
-        R = self.inner.fit_rotations(U)
-        c = 0.5 * np.einsum("mij,mij->m", R[:, :2, :2], J)
+    def _local(self, J: tuple[NDArray[np.float64], ...]) -> tuple[NDArray[np.float64], ...]:
+        """The cells' similarities ``r R`` for gradients ``J``: their entries ``(L00, L01, L10, L11)`` and scales ``r``.
+
+        The rotation is the nearest to ``J`` (in the plane, of angle ``atan2(J10 − J01, J00 + J11)``; the local step of
+        planar ARAP) and ``c = ½ tr(Rᵀ J) = ½ |(J00 + J11, J10 − J01)|``.
+        """
+        p = 0.5 * (J[0] + J[3])
+        q = 0.5 * (J[2] - J[1])
+        c = np.hypot(p, q)
         r = cell_scales(c, self.lam)
-        return R * r[:, None, None], r
+        turned = c > 0.0
+        scale = np.divide(r, c, out=np.zeros_like(r), where=turned)
+        cos = np.where(turned, p * scale, r)  # no preferred angle for a collapsed triangle: none
+        sin = q * scale
+        return cos, -sin, sin, cos, r
 
-    def _energy(self, J: NDArray[np.float64], L: NDArray[np.float64], r: NDArray[np.float64]) -> float:
-        residual = J - L[:, :2, :2]
-        return float(np.dot(self._area, np.einsum("mij,mij->m", residual, residual) + self.lam * (r * r - 1.0) ** 2))
+    def _energy(self, J: tuple[NDArray[np.float64], ...], L: tuple[NDArray[np.float64], ...]) -> float:
+        a, b, c, d = J[0] - L[0], J[1] - L[1], J[2] - L[2], J[3] - L[3]
+        r = L[4]
+        # Not np.dot: the threaded BLAS's start-up costs more than this short product on busy cores.
+        return float(np.einsum("m,m->", self._area, a * a + b * b + c * c + d * d + self.lam * (r * r - 1.0) ** 2))
+
+    def _as_matrices(self, L: tuple[NDArray[np.float64], ...]) -> NDArray[np.float64]:
+        """The similarities as the global step takes rotations: (m, 3, 3)."""
+        M = self._similarities
+        M[:, 0, 0], M[:, 0, 1], M[:, 1, 0], M[:, 1, 1], M[:, 2, 2] = L
+        return M
 
     def energy(self, U: NDArray[np.float64]) -> float:
         """The hybrid energy of positions ``U`` with their best similarities."""
-        U = np.asarray(U, dtype=np.float64)
-        J = self.jacobians(U)
-        return self._energy(J, *self._local(U, J))
+        J = self._gradients(np.asarray(U, dtype=np.float64))
+        return self._energy(J, self._local(J))
 
     def solve(self, targets: Any, initial: Any = None, max_iterations: int | None = None,
               tolerance: float = DEFAULT_TOLERANCE, callback: Callable[[int, float], Any] | None = None,
@@ -177,29 +200,29 @@ class BlendSolver:
         step = float("nan")
         accelerator = None if acceleration == "none" else AndersonAccelerator(
             DEFAULT_WINDOW if window is None else int(window), U.size)
-        J = self.jacobians(U)
-        L, r = self._local(U, J)
+        J = self._gradients(U)
+        L = self._local(J)
         best = float("inf")
         for iteration in range(1, cap + 1):
-            plain = self.inner.global_step(L, targets, point_targets)
+            plain = self.inner.global_step(self._as_matrices(L), targets, point_targets)
             step = float(np.sqrt(np.mean(np.sum((plain - U) ** 2, axis=1))))
             guess = None if accelerator is None else accelerator.step(U.ravel(), plain.ravel())
             if guess is not None:  # Anderson's extrapolation, kept only if it lowers the energy (Peng et al. 2018)
                 U_try = guess.reshape(U.shape)
-                J_try = self.jacobians(U_try)
-                L_try, r_try = self._local(U_try, J_try)
-                energy = self._energy(J_try, L_try, r_try)
+                J_try = self._gradients(U_try)
+                L_try = self._local(J_try)
+                energy = self._energy(J_try, L_try)
                 if energy <= best:
-                    U, J, L, r = U_try, J_try, L_try, r_try
+                    U, J, L = U_try, J_try, L_try
                 else:
                     guess = None
                     assert accelerator is not None
                     accelerator.reset()
             if guess is None:
                 U = plain
-                J = self.jacobians(U)
-                L, r = self._local(U, J)
-                energy = self._energy(J, L, r)
+                J = self._gradients(U)
+                L = self._local(J)
+                energy = self._energy(J, L)
             best = min(best, energy)
             energies.append(energy)
             self._live = U

@@ -51,8 +51,10 @@ def load_picture(data: bytes | memoryview, filename: str, max_vertices: int) -> 
     return picture_mesh(picture, stem, max_vertices)
 
 
-def picture_mesh(picture: np.ndarray, stem: str, max_vertices: int) -> tuple[MeshData, Look | None]:
-    """The mesh and look of a picture's pixels ((h, w, 3|4) uint8), named ``stem``.
+def picture_mesh(picture: np.ndarray, stem: str, max_vertices: int,
+                 spacing: float | None = None) -> tuple[MeshData, Look | None]:
+    """The mesh and look of a picture's pixels ((h, w, 3|4) uint8), named ``stem``; ``spacing``: the mesh's edge
+    length in pixels (None: :func:`arap.image_mesh`'s default density).
 
     Raises
     ------
@@ -63,7 +65,7 @@ def picture_mesh(picture: np.ndarray, stem: str, max_vertices: int) -> tuple[Mes
     from arap.puppet.warp import PuppetWarp
 
     try:
-        mesh = image_mesh(picture)
+        mesh = image_mesh(picture, spacing)
         if len(mesh.vertices) > max_vertices:
             raise RequestError("too_large", f"the picture's mesh has {len(mesh.vertices):,} vertices, more than this "
                                             f"studio's {max_vertices:,}")
