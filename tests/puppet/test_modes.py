@@ -71,3 +71,32 @@ def test_cell_scales_solve_the_cubic() -> None:
 def test_an_unknown_mode_is_refused() -> None:
     with pytest.raises(arap.ArapError, match="normal"):
         arap.PuppetWarp(bar(), PINS, spacing=8, mode="bendy")  # type: ignore[arg-type]
+
+
+def _turn_of_part(puppet: arap.PuppetWarp, U: np.ndarray, centre: np.ndarray, radius: float) -> float:
+    """The mean turn (degrees, counter-clockwise as seen with y down) of the triangles within ``radius`` of
+    ``centre`` at rest."""
+    V, F = puppet.mesh.vertices, puppet.mesh.triangles
+    near = np.hypot(*(V[F].mean(axis=1) - centre).T) < radius
+    E = np.stack([V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]]], axis=2)[near]
+    D = np.stack([U[F[:, 1]] - U[F[:, 0]], U[F[:, 2]] - U[F[:, 0]]], axis=2)[near]
+    G = D @ np.linalg.inv(E)
+    return float(np.degrees(np.mean(np.arctan2(-(G[:, 1, 0] - G[:, 0, 1]), G[:, 0, 0] + G[:, 1, 1]))))
+
+
+@pytest.mark.parametrize("mode", ["rigid", "normal", "distort"])
+def test_a_pin_with_an_angle_turns_its_surroundings(mode: str) -> None:
+    pins = np.array([[40.0, 100.0], [160.0, 100.0]])
+    free = arap.PuppetWarp(bar(), pins, spacing=6, mode=mode)
+    assert abs(_turn_of_part(free, free.deform(), pins[1], 12)) < 0.5  # nothing moved
+    held = arap.PuppetWarp(bar(), pins, spacing=6, mode=mode, angles=[None, 30.0])
+    U = held.deform()
+    assert abs(_turn_of_part(held, U, pins[1], 12) - 30.0) < 3.0
+    pin_at = np.einsum("pc,pcx->px", held.barycentric, U[held.mesh.triangles[held.faces]])
+    assert np.abs(pin_at - pins).max() < 1e-6  # the pins stay where they are
+    U = held.deform(angles=[None, -45.0])
+    assert abs(_turn_of_part(held, U, pins[1], 12) + 45.0) < 4.0
+    with pytest.raises(arap.ArapError, match="pin 0 was made without an angle"):
+        held.deform(angles=[10.0, None])
+    with pytest.raises(arap.ArapError, match="one angle"):
+        arap.PuppetWarp(bar(), pins, spacing=6, angles=[1.0])

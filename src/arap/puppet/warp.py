@@ -19,6 +19,11 @@ Modes:
   as in ``"rigid"`` elsewhere.
 
 A part of the shape (an island of the picture) without any pin stays where it is.
+
+A pin may hold an angle (Photoshop's fixed pin rotation, set there by Alt-dragging around a pin): its neighbourhood
+then turns by that angle about the pin instead of turning freely with the bend. Such a pin carries a hidden ring of
+:data:`RING_POINTS` hard point handles at :data:`RING_SPACINGS` mesh spacings around it, which move with the pin
+turned by its angle.
 """
 
 from __future__ import annotations
@@ -36,11 +41,15 @@ from arap.puppet.imagemesh import DEFAULT_DENSITY, ImageMesh, image_mesh
 from arap.puppet.picture import as_picture
 from arap.puppet.raster import draw_textured
 
-__all__ = ["MODES", "PuppetWarp", "WarpMode", "pin_targets", "warp"]
+__all__ = ["MODES", "RING_POINTS", "RING_SPACINGS", "PuppetWarp", "WarpMode", "pin_targets", "warp"]
 
 WarpMode = Literal["rigid", "normal", "distort"]
 MODES: tuple[str, ...] = ("rigid", "normal", "distort")
 """The warp's modes, from the stiffest: Photoshop's Puppet Warp offers the same three."""
+RING_POINTS = 6
+"""Hidden points around a pin that holds an angle (those on the shape are kept)."""
+RING_SPACINGS = 2.0
+"""Radius of that ring, in mesh spacings."""
 
 
 def _points(value: object, what: str) -> NDArray[np.float64]:
@@ -144,6 +153,38 @@ def _locate(mesh: ImageMesh, pins: NDArray[np.float64]) -> tuple[NDArray[np.int6
     return faces, bary
 
 
+def _angles(value: object, k: int, what: str) -> list[float | None]:
+    """One angle in degrees or None per pin (None: all None)."""
+    if value is None:
+        return [None] * k
+    entries = list(value) if isinstance(value, (list, tuple, np.ndarray)) else None
+    if entries is None or len(entries) != k:
+        raise ConstraintError(f"{what} must be a list of one angle (degrees) or None per pin, {k} in all")
+    out: list[float | None] = []
+    for j, a in enumerate(entries):
+        if a is None:
+            out.append(None)
+            continue
+        try:
+            angle = float(a)
+        except (TypeError, ValueError):
+            raise ConstraintError(f"the angle of pin {j} must be a number of degrees or None, got {a!r}") from None
+        if not np.isfinite(angle):
+            raise ConstraintError(f"the angle of pin {j} must be finite, got {a!r}")
+        out.append(angle)
+    return out
+
+
+def _ring(mesh: ImageMesh, pin: NDArray[np.float64]) -> NDArray[np.float64]:
+    """The hidden ring of a pin that holds an angle: the points of a circle around it that lie on the shape."""
+    radius = RING_SPACINGS * mesh.spacing
+    turn = 2.0 * np.pi * np.arange(RING_POINTS) / RING_POINTS
+    ring = pin + radius * np.column_stack([np.cos(turn), np.sin(turn)])
+    w, h = mesh.size
+    inside = [(0 <= x < w and 0 <= y < h and bool(mesh.mask[int(y), int(x)])) for x, y in ring]
+    return ring[np.asarray(inside, dtype=bool)]
+
+
 def _similarity_matrix(V: NDArray[np.float64], F: NDArray[np.int64]) -> sp.csr_matrix:
     """The rows whose squares sum to the as-similar-as-possible energy ``Σ_t |t| ‖J_t − S_t‖²`` (``S_t`` the
     similarity nearest the deformation gradient ``J_t``), over the unknowns ``[x; y]``."""
@@ -184,17 +225,22 @@ class PuppetWarp:
         The energy (see :mod:`arap.puppet.warp`).
     mesh : ImageMesh or None
         A mesh of this picture made earlier (None: made here).
+    angles : list of float or None, or None
+        Per pin, None for a pin whose neighbourhood turns freely with the bend (Photoshop's "auto"), or the angle in
+        degrees (counter-clockwise as seen, y down: a positive angle turns x towards −y) by which it holds its
+        neighbourhood turned about it; :meth:`deform` may give such a pin another angle.
 
     Raises
     ------
     ArapError
-        An unusable picture, a pin outside the shape (named), two pins at one place, an unknown mode.
+        An unusable picture, a pin outside the shape (named), two pins at one place, an unknown mode, a pin that
+        holds an angle but has none of its ring on the shape.
     """
 
     def __init__(self, image: object, pins: ArrayLike, *, spacing: float | None = None,
                  density: int = DEFAULT_DENSITY, rigid: ArrayLike | None = None, mode: WarpMode = "rigid",
                  alpha_threshold: int = 0, background: tuple[int, int, int] | None = None, tolerance: float = 0.0,
-                 mesh: ImageMesh | None = None) -> None:
+                 mesh: ImageMesh | None = None, angles: object = None) -> None:
         if mode not in MODES:
             raise OptionError(f"unknown warp mode {mode!r}; expected one of {', '.join(MODES)}")
         self.picture = as_picture(image)
@@ -206,7 +252,20 @@ class PuppetWarp:
                             f"{self.picture.shape[1]}x{self.picture.shape[0]} one")
         self.mode = mode
         self.pins, _ = pin_targets(pins)
-        self.faces, self.barycentric = _locate(self.mesh, self.pins)
+        #: Per pin, the angle (degrees) it holds, or None (turns freely).
+        self.angles = _angles(angles, len(self.pins), "angles")
+        rings = [np.zeros((0, 2)) if a is None else _ring(self.mesh, p) for a, p in zip(self.angles, self.pins,
+                                                                                     strict=True)]
+        for j, (a, ring) in enumerate(zip(self.angles, rings, strict=True)):
+            if a is not None and not len(ring):
+                raise ConstraintError(f"pin {j} holds an angle but its surroundings are not on the picture's shape "
+                                      "(too near its edge for the mesh's spacing)")
+        #: For every hidden ring point: its pin, and its place relative to the pin at rest.
+        self._ring_pin = np.concatenate([np.full(len(r), j, dtype=np.int64) for j, r in enumerate(rings)])
+        self._ring_offset = np.concatenate([r - p for r, p in zip(rings, self.pins, strict=True)])
+        handles = np.concatenate([self.pins, *rings])
+        self._faces_all, self._bary_all = _locate(self.mesh, handles)
+        self.faces, self.barycentric = self._faces_all[:len(self.pins)], self._bary_all[:len(self.pins)]
         V, F = self.mesh.vertices, self.mesh.triangles
         n = len(V)
         adjacency = sp.coo_matrix((np.ones(3 * len(F)), (F.ravel(), np.roll(F, 1, axis=1).ravel())), shape=(n, n))
@@ -231,7 +290,7 @@ class PuppetWarp:
         if mode in ("rigid", "normal"):
             from arap.solve.solver import ArapSolver
 
-            self._solver = ArapSolver(V, F, self.held, points=(self.faces, self.barycentric), stiffness=stiffness)
+            self._solver = ArapSolver(V, F, self.held, points=(self._faces_all, self._bary_all), stiffness=stiffness)
             if mode == "normal":
                 from arap.puppet.blend import NORMAL_LAMBDA, BlendSolver
 
@@ -241,7 +300,7 @@ class PuppetWarp:
 
     def _prepare_distort(self) -> None:
         V, F = self.mesh.vertices, self.mesh.triangles
-        n, k = len(V), len(self.pins)
+        n, k = len(V), len(self._faces_all)
         M = _similarity_matrix(V, F)
         Q = (M.T @ M).tocsr()
         # Among equally similar shapes (a part held by one pin may turn and scale about it freely), the one whose
@@ -253,9 +312,9 @@ class PuppetWarp:
         L = sp.diags(np.asarray(A.sum(axis=1)).ravel()) - A
         self._smooth = sp.block_diag([L, L], format="csr") * (1e-6 * float(Q.diagonal().mean()))
         rows = np.concatenate([np.repeat(np.arange(k), 3), np.repeat(np.arange(k), 3) + k])
-        corners = self.mesh.triangles[self.faces]
+        corners = self.mesh.triangles[self._faces_all]
         cols = np.concatenate([corners.ravel(), corners.ravel() + n])
-        vals = np.concatenate([self.barycentric.ravel(), self.barycentric.ravel()])
+        vals = np.concatenate([self._bary_all.ravel(), self._bary_all.ravel()])
         C = sp.csr_matrix((vals, (rows, cols)), shape=(2 * k, 2 * n))
         H = self.held
         if len(H):
@@ -265,20 +324,39 @@ class PuppetWarp:
         K = sp.bmat([[Q + self._smooth, C.T], [C, None]], format="csc")
         self._kkt = spla.splu(K)
 
-    def deform(self, targets: object = None) -> NDArray[np.float64]:
+    def deform(self, targets: object = None, angles: object = None) -> NDArray[np.float64]:
         """Where the mesh's vertices go when the pins move to ``targets``.
 
         Parameters
         ----------
         targets : see :func:`pin_targets`
             A pin without a target holds.
+        angles : list of float or None, or None
+            New angles (degrees) of pins that hold one (None entries, or None: the angles they were made with).
 
         Returns
         -------
         (n, 2) float64 array
             In pixel coordinates; every pin's point (its barycentric coordinates in its triangle) is on its target.
+
+        Raises
+        ------
+        ConstraintError
+            Malformed targets, or an angle for a pin made without one.
         """
         _, T = pin_targets(self.pins, targets)
+        given = _angles(angles, len(self.pins), "angles")
+        for j, a in enumerate(given):
+            if a is not None and self.angles[j] is None:
+                raise ConstraintError(f"pin {j} was made without an angle: give it one (angles=) when making the "
+                                      "PuppetWarp")
+        if len(self._ring_pin):
+            turn = np.radians([given[j] if given[j] is not None else self.angles[j] for j in self._ring_pin])
+            c, s = np.cos(turn), np.sin(turn)
+            o = self._ring_offset
+            # Counter-clockwise as seen with y down: x turns towards −y.
+            turned = np.column_stack([c * o[:, 0] + s * o[:, 1], -s * o[:, 0] + c * o[:, 1]])
+            T = np.concatenate([T, T[self._ring_pin] + turned])
         V = self.mesh.vertices
         if self._solver is not None:
             result = self._solver.solve(V[self.held], point_targets=T)
@@ -367,7 +445,8 @@ class PuppetWarp:
 def warp(image: object, pins: ArrayLike, targets: object = None, spacing: float | None = None,
          rigid: ArrayLike | None = None, mode: WarpMode = "rigid", *, fit: bool = False,
          depth: ArrayLike | None = None, density: int = DEFAULT_DENSITY, alpha_threshold: int = 0,
-         background: tuple[int, int, int] | None = None, tolerance: float = 0.0) -> NDArray[np.uint8]:
+         background: tuple[int, int, int] | None = None, tolerance: float = 0.0,
+         angles: object = None) -> NDArray[np.uint8]:
     """Puppet-warp a picture: move pins on it and bend the rest as rigidly as it can (see :class:`PuppetWarp`).
 
     Parameters
@@ -389,6 +468,9 @@ def warp(image: object, pins: ArrayLike, targets: object = None, spacing: float 
         Which parts are drawn over which where they overlap (see :meth:`PuppetWarp.draw_order`).
     density, alpha_threshold, background, tolerance
         As :func:`arap.image_mesh` takes them.
+    angles : list of float or None, or None
+        Per pin, None (its surroundings turn freely) or the angle in degrees by which the pin holds them turned
+        (see :class:`PuppetWarp`).
 
     Returns
     -------
@@ -404,5 +486,6 @@ def warp(image: object, pins: ArrayLike, targets: object = None, spacing: float 
     ((40, 100, 4), [200, 80, 20, 255])
     """
     puppet = PuppetWarp(image, pins, spacing=spacing, density=density, rigid=rigid, mode=mode,
-                        alpha_threshold=alpha_threshold, background=background, tolerance=tolerance)
+                        alpha_threshold=alpha_threshold, background=background, tolerance=tolerance,
+                        angles=angles)
     return puppet(targets, fit=fit, depth=depth)
