@@ -172,3 +172,24 @@ def test_transparent_pixels_lend_no_colour_to_their_neighbours() -> None:
     edge = out[20:40, 30]                     # centres at x = 30.5: 0.7 red and 0.3 transparent in the source
     assert (edge[:, 0] == 255).all() and (edge[:, 1] == 0).all()
     assert np.abs(edge[:, 3].astype(int) - round(0.7 * 255)).max() <= 1
+
+
+def test_pin_depth_brings_a_pins_part_forward() -> None:
+    img = np.zeros((100, 200, 4), dtype=np.uint8)
+    img[40:60, 10:90] = (255, 0, 0, 255)    # a red arm on the left
+    img[40:60, 90:190] = (0, 0, 255, 255)   # a blue arm on the right
+    island = np.zeros((100, 200, 4), dtype=np.uint8)
+    island[80:95, 10:20] = (0, 255, 0, 255)  # an island without a pin
+    img = np.where(island[:, :, 3:] > 0, island, img)
+    puppet = arap.PuppetWarp(img, [[30.0, 50.0], [170.0, 50.0]], spacing=5)
+    parts = puppet.pin_parts()
+    centroid = puppet.mesh.vertices[puppet.mesh.triangles].mean(axis=1)
+    assert np.all(parts[centroid[:, 1] > 75] == -1)
+    arm = centroid[:, 1] < 75
+    assert np.all(parts[arm & (centroid[:, 0] < 80)] == 0) and np.all(parts[arm & (centroid[:, 0] > 100)] == 1)
+    U = puppet.mesh.vertices.copy()
+    U[(U[:, 0] < 89) & (U[:, 1] < 75), 0] += 100  # the red arm laid over the blue one
+    for front, colour in ((0, 0), (1, 2)):
+        depth = np.where(np.arange(2) == front, 1.0, 0.0)
+        out = puppet.render(U, depth=np.append(depth, 0.0)[parts])  # the island (-1) at the back
+        assert out[50, 140, colour] == 255 and out[50, 140, 2 - colour] == 0

@@ -381,6 +381,27 @@ class PuppetWarp:
                             "far or leave out fit")
         return (int(lo[0]), int(lo[1])), (int(size[0]), int(size[1]))
 
+    def pin_parts(self) -> NDArray[np.int64]:
+        """The pin each triangle belongs to: the nearest pin to its rest centroid, within its part of the shape
+        (an island without a pin: -1).
+
+        Photoshop's pin depth brings a pin's part forward or back; here ``depth=np.asarray(pin_depth)[parts]`` (a
+        depth per pin) draws the parts in that order where they overlap (see :meth:`draw_order`), e.g.
+        ``puppet(targets, depth=np.array([0, 1, 0])[puppet.pin_parts()])`` draws pin 1's part over the others.
+        """
+        V, F = self.mesh.vertices, self.mesh.triangles
+        centroid = V[F].mean(axis=1)
+        n = len(V)
+        adjacency = sp.coo_matrix((np.ones(3 * len(F)), (F.ravel(), np.roll(F, 1, axis=1).ravel())), shape=(n, n))
+        _, label = csgraph.connected_components(adjacency, directed=False)
+        island = label[F[:, 0]]
+        pin_island = label[F[self.faces, 0]]
+        d = np.hypot(centroid[:, None, 0] - self.pins[None, :, 0], centroid[:, None, 1] - self.pins[None, :, 1])
+        d[island[:, None] != pin_island[None, :]] = np.inf
+        parts = np.argmin(d, axis=1)
+        parts[~np.isfinite(d.min(axis=1))] = -1
+        return parts.astype(np.int64)
+
     def draw_order(self, depth: ArrayLike | None) -> NDArray[np.int64] | None:
         """The triangles' drawing order for a depth (None: the mesh's own order).
 
