@@ -284,7 +284,8 @@ def test_set_params(studio: StudioClient) -> None:
     studio.set_constraints(fixed, [top])
     studio.send({"type": "set_params", "iterations": 5, "energy": "spokes_and_rims"})
     assert studio.expect("state").data["params"] == {"iterations": 5, "energy": "spokes_and_rims",
-                                                     "weights": "cotangent", "alpha": 0.02, "loose": "follow"}
+                                                     "weights": "cotangent", "alpha": 0.02, "loose": "follow",
+                                                     "warp": "rigid"}
     assert studio.drag(1, [translation(0.1)]).data["iterations"] == 5
 
 
@@ -296,7 +297,8 @@ def test_smooth_rotations_and_alpha(studio: StudioClient) -> None:
     first = studio.drag(1, [translation(0.3)]).floats()
     studio.send({"type": "set_params", "alpha": 0.5})
     assert studio.expect("state").data["params"] == {"iterations": 2, "energy": "smooth_rotations",
-                                                     "weights": "cotangent", "alpha": 0.5, "loose": "follow"}
+                                                     "weights": "cotangent", "alpha": 0.5, "loose": "follow",
+                                                     "warp": "rigid"}
     studio.send({"type": "drag", "seq": 2, "transforms": [translation(0.3)]})
     second = studio.expect("vertices").floats()
     assert abs(second - first).max() > 1e-6  # a stiffer rotation term gives another shape
