@@ -205,7 +205,8 @@ class BlendSolver:
         best = float("inf")
         for iteration in range(1, cap + 1):
             plain = self.inner.global_step(self._as_matrices(L), targets, point_targets)
-            step = float(np.sqrt(np.mean(np.sum((plain - U) ** 2, axis=1))))
+            moved = plain - U
+            step = float(np.sqrt(np.einsum("ij,ij->", moved, moved) / len(U)))
             guess = None if accelerator is None else accelerator.step(U.ravel(), plain.ravel())
             if guess is not None:  # Anderson's extrapolation, kept only if it lowers the energy (Peng et al. 2018)
                 U_try = guess.reshape(U.shape)
