@@ -61,9 +61,9 @@ def test_a_picture_offers_the_warp_modes_and_delete_removes_a_pin(page: Page, tm
     expect(page.get_by_test_id("picture-rows")).to_be_visible()
     page.get_by_test_id("warp").select_option("distort")
     page.wait_for_function("() => window.__arap.params.warp === 'distort'")
+    assert page.evaluate("() => window.__arap.role") == "point"  # a picture opens ready to take pins
     pts = screen_points(page)
     x, y = np.median(pts, axis=0)
-    page.keyboard.press("5")
     page.mouse.click(x, y)
     wait_idle(page)
     page.wait_for_function("() => window.__arap.constraints().points.length === 1")

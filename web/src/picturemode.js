@@ -1,14 +1,20 @@
 // The controls of a picture opened for the puppet warp (the mesh message's `picture` is its [width, height]): the
 // warp's mode, Rigid, Normal or Distort, as Photoshop's Puppet Warp offers them (set_params `warp`), and whether the
-// mesh is drawn over the picture. They are hidden for a surface or a solid, which the mode does not concern.
+// mesh is drawn over the picture. They are hidden for a surface or a solid, which the mode does not concern. A picture
+// opens in point handle mode, as Puppet Warp does: a click on the picture places a pin, the gizmo then moves it.
 import { byId, byIdAs } from './dom.js';
 import { PARAMS } from './protocol.js';
 
+/** @type {((role: string) => void)|null} */
+let chooseRole = null;
+
 /**
  * Fill the Warp choice and wire the controls.
- * @param {{setParams: (p: {warp: "rigid"|"normal"|"distort"}) => void, setWireframe: (on: boolean) => void}} actions
+ * @param {{setParams: (p: {warp: "rigid"|"normal"|"distort"}) => void, setWireframe: (on: boolean) => void,
+ *   setRole: (role: string) => void}} actions
  */
 export function installPictureControls(actions) {
+  chooseRole = actions.setRole;
   const select = byIdAs('warp', HTMLSelectElement);
   select.innerHTML = '';
   for (const value of PARAMS.warp.choices) {
@@ -36,6 +42,7 @@ export function pictureShown(msg) {
   byId('picture-rows').hidden = !picture;
   byId('picture-size').textContent = picture ? `${msg.picture?.[0]} × ${msg.picture?.[1]} px` : '';
   byIdAs('picture-mesh', HTMLInputElement).checked = byIdAs('wireframe', HTMLInputElement).checked;
+  if (picture) chooseRole?.('point'); // a click places a pin
 }
 
 /**
