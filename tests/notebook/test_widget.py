@@ -219,10 +219,10 @@ def test_drags_waiting_in_the_queue_coalesce(opened: tuple[StudioWidget, Comm],
     drag = Session.drag
     gate, solving = threading.Event(), threading.Event()
 
-    def held_drag(self: Session, transforms: Any) -> Any:
+    def held_drag(self: Session, transforms: Any, key: int | None = None) -> Any:
         solving.set()
         gate.wait(10)
-        return drag(self, transforms)
+        return drag(self, transforms, key)
 
     monkeypatch.setattr(Session, "drag", held_drag)
     start = len(comm.sent)
