@@ -222,7 +222,7 @@ class Connection:
             size = len(text) if text is not None else len(data or b"")
             if (text is not None and self.decoder is not None
                     and PROCESS_BYTES <= size <= self.config.max_frame_bytes):
-                item = await self._decode_in_process(self.decoder, text)
+                item = await self._decode_in_process(self.decoder, text, self.config.max_vertices)
             elif size >= OFF_LOOP_BYTES:
                 item = await self._off_loop(self._decode, text, data, True)
             else:
@@ -234,10 +234,11 @@ class Connection:
             await self._enqueue(item, cost)
 
     @staticmethod
-    async def _decode_in_process(decoder: FrameDecoder, text: str) -> ClientMessage | RequestError:
+    async def _decode_in_process(decoder: FrameDecoder, text: str,
+                                 max_indices: int) -> ClientMessage | RequestError:
         """Decode a large text frame in the decoder process; never raises (a failure becomes the ``error``)."""
         try:
-            return await decoder.decode(text)
+            return await decoder.decode(text, max_indices)
         except RequestError as exc:
             return exc
         except MemoryError:
@@ -254,7 +255,7 @@ class Connection:
                 raise RequestError("too_large", f"frame of {size:,} bytes exceeds the limit of "
                                    f"{self.config.max_frame_bytes:,}")
             if text is not None:
-                return parse_text(text, cooperative=large)
+                return parse_text(text, cooperative=large, max_indices=self.config.max_vertices)
             if data is None:
                 raise RequestError("bad_message", "empty frame")
             return check_upload_size(self.config, parse_binary(data))
