@@ -90,16 +90,18 @@ def _warm_up_behind() -> threading.Thread:
     """Compile (first run) or load the kernels on a thread of their own while the server starts and serves the page;
     a session that needs them first waits for the compilation (numba compiles one kernel at a time). Says so when it
     compiles."""
+    from arap.method.jit import FIRST_KERNELS, LATER_KERNELS
     from arap.method.kernel_cache import KERNELS_READY, first_compile_pending
 
     if first_compile_pending():
-        err("arap: compiling the solver's kernels in the background (first run only, about 10-30 s); the page is "
-            "served meanwhile and can edit once they are ready")
-    KERNELS_READY.clear()  # the server greets connections once the kernels are ready
+        err(f"arap: compiling the solver's {len(FIRST_KERNELS) + len(LATER_KERNELS)} kernels in the background (first "
+            "run only: from ten seconds to a few minutes on a busy machine; progress follows); the page is served "
+            f"meanwhile, shows the progress, and can edit once the first {len(FIRST_KERNELS)} are ready")
+    KERNELS_READY.clear()  # the server greets connections once the kernels a session needs first are ready
 
     def run() -> None:
         try:
-            warm_up_kernels(quiet=False)
+            warm_up_kernels(quiet=False, first_ready=KERNELS_READY.set)
         except Exception as exc:  # noqa: BLE001 - a failed warm-up only delays the first solve, which compiles itself
             err(f"arap: the kernels were not compiled ahead ({type(exc).__name__}: {exc}); the first solve will")
         finally:
