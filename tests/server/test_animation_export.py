@@ -21,7 +21,7 @@ from arap.server.animation_export import (
     keyframes_document,
 )
 from arap.server.budget import MemoryBudget
-from arap.server.meshdata import MeshData
+from arap.server.meshdata import MeshData, load_builtin
 from arap.server.protocol import RequestError
 from arap.server.session import Session
 from tests.animated_glb import glb_frames
@@ -390,3 +390,31 @@ def test_the_servers_export_budget_is_configurable(static_dir: Path) -> None:
         error = studio.error("too_large")
         assert "more than the server's limit of 1 MB for animation exports" in error["message"], error
         assert error["request"] == "export_animation"
+
+
+def test_concurrent_exports_of_two_sessions_stay_within_the_servers_budget(static_dir: Path) -> None:
+    """Two sessions export at once under a budget that holds one export: one waits, both are answered, and the
+    memory held at once never exceeded the budget."""
+    from starlette.testclient import TestClient
+
+    keys = {"fps": 10, "times_ms": [0, 900], "transforms": [translation(0.0), translation(0.4)]}
+    cactus = load_builtin("cactus")
+    one = export_bytes(10, cactus.n_vertices, cactus.n_faces)
+    app = create_app(cactus, static_dir=static_dir, allowed_hosts=["testserver"], max_export_bytes=one + one // 2)
+    with TestClient(app) as http:
+        budget = http.app.state.studio.config.exports  # type: ignore[attr-defined]
+        with http.websocket_connect("/ws") as ws_a, http.websocket_connect("/ws") as ws_b:
+            a, b = StudioClient(ws_a), StudioClient(ws_b)
+            a.greet()
+            b.greet()
+            for client in (a, b):
+                fixed, top = client.bottom_top()
+                client.set_constraints(fixed, [top])
+            a.send({"type": "export_animation", **keys})
+            b.send({"type": "export_animation", **keys})
+            for client in (a, b):
+                reply = client.recv()
+                while reply.type in ("animation_progress", "settle", "vertices"):
+                    reply = client.recv()
+                assert reply.type == "animation" and reply.data["frames"] == 10, reply.data
+    assert budget.used == 0 and budget.peak == one

@@ -193,3 +193,17 @@ def test_a_short_token_on_a_network_is_warned_about(monkeypatch: pytest.MonkeyPa
     assert "a token of 3 characters is easy to guess" in capsys.readouterr().err
     main(["studio", "bar", "--host", "0.0.0.0", "--port", "0", "--token", TOKEN])
     assert "easy to guess" not in capsys.readouterr().err
+
+
+def test_cli_passes_the_export_budget(monkeypatch: pytest.MonkeyPatch) -> None:
+    seen: dict[str, Any] = {}
+
+    def fake_serve(mesh: Any, **options: Any) -> None:
+        seen.update(options)
+
+    monkeypatch.setattr(arap.server, "serve", fake_serve)
+    monkeypatch.setattr("arap.cli.studio.warm_up_kernels", lambda quiet, first_ready=None: None)
+    assert main(["studio", "--max-export-mb", "300"]) == 0
+    assert seen["max_export_bytes"] == 300 * 2**20
+    assert main(["studio"]) == 0
+    assert seen["max_export_bytes"] == 2**30

@@ -19,6 +19,8 @@ STUDIO_EXTRA_HINT = "pip install 'arap[studio]'"
 
 SHORT_TOKEN = 16
 """Tokens shorter than this are warned about when the studio serves a network."""
+DEFAULT_MAX_EXPORT_MB = 1024
+"""Default of ``--max-export-mb`` (``arap.server.app.DEFAULT_MAX_EXPORT_BYTES``, in MiB)."""
 
 
 def add_parser(commands: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -34,6 +36,9 @@ def add_parser(commands: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     p.add_argument("--open", action="store_true", help="open the studio in the default browser")
     p.add_argument("--max-sessions", type=positive_int, default=32, metavar="N",
                    help="most sessions (browser tabs) at once; more are refused (default: 32)")
+    p.add_argument("--max-export-mb", type=positive_int, default=DEFAULT_MAX_EXPORT_MB, metavar="MB",
+                   help="memory the animation exports of all sessions may take at once: a larger export is refused, "
+                        f"one that does not fit beside those running waits (default: {DEFAULT_MAX_EXPORT_MB})")
     p.add_argument("--allow-origin", action="append", default=[], type=origin_value, metavar="ORIGIN",
                    help="let pages from ORIGIN (http(s)://host[:port]) use the studio; repeatable (default: only "
                         "the studio's own pages)")
@@ -80,7 +85,8 @@ def run_studio(args: argparse.Namespace) -> int:
 
     try:
         serve(args.mesh, host=args.host, port=args.port, open_browser=args.open, max_sessions=args.max_sessions,
-              allow_origins=args.allow_origin, on_ready=announce, token=args.token)
+              allow_origins=args.allow_origin, on_ready=announce, token=args.token,
+              max_export_bytes=args.max_export_mb * 2**20)
     except KeyboardInterrupt:
         err("stopped")
     return 0
