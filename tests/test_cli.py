@@ -596,7 +596,7 @@ def test_studio_calls_the_server(monkeypatch: pytest.MonkeyPatch, capsys: pytest
     assert main(["studio", "cactus", "--port", "8765", "--max-sessions", "4",
                  "--allow-origin", "http://localhost:5173"]) == 0
     assert calls == [("cactus", {"host": "127.0.0.1", "port": 8765, "open_browser": False, "max_sessions": 4,
-                                 "allow_origins": ["http://localhost:5173"], "max_export_bytes": 2**30})]
+                                 "allow_origins": ["http://localhost:5173"], "max_export_bytes": 2**31})]
     assert "http://127.0.0.1:8765/" in capsys.readouterr().out
 
 

@@ -206,4 +206,4 @@ def test_cli_passes_the_export_budget(monkeypatch: pytest.MonkeyPatch) -> None:
     assert main(["studio", "--max-export-mb", "300"]) == 0
     assert seen["max_export_bytes"] == 300 * 2**20
     assert main(["studio"]) == 0
-    assert seen["max_export_bytes"] == 2**30
+    assert seen["max_export_bytes"] == 2**31

@@ -19,7 +19,7 @@ STUDIO_EXTRA_HINT = "pip install 'arap[studio]'"
 
 SHORT_TOKEN = 16
 """Tokens shorter than this are warned about when the studio serves a network."""
-DEFAULT_MAX_EXPORT_MB = 1024
+DEFAULT_MAX_EXPORT_MB = 2048
 """Default of ``--max-export-mb`` (``arap.server.app.DEFAULT_MAX_EXPORT_BYTES``, in MiB)."""
 
 

@@ -320,7 +320,7 @@ def _export(session: Session, times_ms: Sequence[int] | np.ndarray, transforms: 
     frame_t = frame_times(frames_keys, fps)
     if len(frame_t) > MAX_EXPORT_FRAMES:
         raise RequestError("bad_message", f"{len(frame_t)} frames; an export holds at most {MAX_EXPORT_FRAMES}")
-    pixels = 0 if encoder is None else int(mesh.picture.shape[0] * mesh.picture.shape[1])
+    pixels = 0 if encoder is None or mesh.picture is None else int(mesh.picture.shape[0] * mesh.picture.shape[1])
     needed = export_bytes(len(frame_t), session.n_vertices, mesh.n_faces, pixels)
     if budget is not None and needed > budget.limit:
         raise RequestError("too_large", f"an export of {len(frame_t)} frames of {session.n_vertices:,} vertices needs "

@@ -59,7 +59,7 @@ class StudioConfig:
     max_queued_bytes: int = 64 * 2**20
     max_unsent_bytes: int = 64 * 2**20
     subset_frames: bool = True
-    max_export_bytes: int = 2**30
+    max_export_bytes: int = 2**31
     exports: MemoryBudget = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
