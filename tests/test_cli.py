@@ -585,9 +585,10 @@ def test_studio_calls_the_server(monkeypatch: pytest.MonkeyPatch, capsys: pytest
 
     def fake_serve(mesh: object = None, host: str = "127.0.0.1", port: int = 8000, open_browser: bool = False,
                    *, max_sessions: int = 0, allow_origins: object = None, on_ready: object = None,
-                   token: object = None) -> None:
+                   token: object = None, max_export_bytes: int = 0) -> None:
         calls.append((mesh, {"host": host, "port": port, "open_browser": open_browser,
-                             "max_sessions": max_sessions, "allow_origins": allow_origins}))
+                             "max_sessions": max_sessions, "allow_origins": allow_origins,
+                             "max_export_bytes": max_export_bytes}))
         assert callable(on_ready)
         on_ready(f"http://{host}:{port}/")
 
@@ -595,7 +596,7 @@ def test_studio_calls_the_server(monkeypatch: pytest.MonkeyPatch, capsys: pytest
     assert main(["studio", "cactus", "--port", "8765", "--max-sessions", "4",
                  "--allow-origin", "http://localhost:5173"]) == 0
     assert calls == [("cactus", {"host": "127.0.0.1", "port": 8765, "open_browser": False, "max_sessions": 4,
-                                 "allow_origins": ["http://localhost:5173"]})]
+                                 "allow_origins": ["http://localhost:5173"], "max_export_bytes": 2**31})]
     assert "http://127.0.0.1:8765/" in capsys.readouterr().out
 
 

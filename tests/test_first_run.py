@@ -41,3 +41,45 @@ def test_arap_warmup(capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["warmup"]) == 0
     printed = capsys.readouterr().out
     assert "kernels ready" in printed or "compiled" in printed
+
+
+def test_the_warm_up_plan_names_the_kernels_it_prepares() -> None:
+    """Every kernel the progress counts is a compiled kernel of arap that the warm-up makes ready."""
+    from numba.core.dispatcher import Dispatcher
+
+    arap.method.jit.warm_up_kernels()
+    kernels = arap.method.jit.FIRST_KERNELS + arap.method.jit.LATER_KERNELS
+    assert len(set(kernels)) == len(kernels)
+    for qualified in kernels:
+        module, _, name = qualified.rpartition(".")
+        assert isinstance(getattr(sys.modules[module], name), Dispatcher), qualified
+    progress = arap.method.jit.compile_progress()
+    assert progress.done == progress.total == len(kernels)
+
+
+def test_compile_progress_names_each_kernel_as_it_is_compiled(capsys: pytest.CaptureFixture[str]) -> None:
+    import numba
+    from numba.core import event
+
+    from arap.cli.common import compile_reporter
+
+    @numba.njit(cache=False)
+    def _tiny_kernel(x: float) -> float:
+        return x + 1.0
+
+    seen: list[arap.method.jit.CompileProgress] = []
+    during: list[arap.method.jit.CompileProgress] = []
+
+    report = compile_reporter(every=0.0)
+
+    def progress(p: arap.method.jit.CompileProgress) -> None:
+        seen.append(p)
+        report(p)
+
+    with event.install_listener("numba:compile", arap.method.jit._compile_listener(progress)):
+        _tiny_kernel(1.0)
+        during.append(arap.method.jit.compile_progress())
+    assert seen and seen[-1].kernel == "_tiny_kernel" and not seen[-1].compiling
+    assert during[0].kernel == "_tiny_kernel"
+    assert "kernels ready (compiled _tiny_kernel)" in seen[-1].describe()
+    assert "arap: compiling the solver's kernels: " in capsys.readouterr().err

@@ -100,7 +100,8 @@ class StudioClient:
 
     def expect(self, type_: str) -> Reply:
         reply = self.recv()
-        while reply.type == "settle" and type_ != "settle":  # settling progress, checked in test_settle.py
+        # settling progress, checked in test_settle.py; compile progress before the welcome, in test_preparing.py
+        while reply.type in ("settle", "preparing") and type_ != reply.type:
             reply = self.recv()
         assert reply.type == type_, f"expected {type_}, got {reply.data}"
         if type_ == "state":

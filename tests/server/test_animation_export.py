@@ -3,19 +3,30 @@
 from __future__ import annotations
 
 import json
+import threading
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
 
 from arap.animation import animate
 from arap.io import load_mesh_bytes
-from arap.server.animation_export import MAX_EXPORT_FRAMES, AnimationCancelled, export_animation, keyframes_document
-from arap.server.meshdata import MeshData
+from arap.server import create_app
+from arap.server.animation_export import (
+    MAX_EXPORT_FRAMES,
+    AnimationCancelled,
+    export_animation,
+    export_bytes,
+    keyframes_document,
+)
+from arap.server.budget import MemoryBudget
+from arap.server.meshdata import MeshData, load_builtin
 from arap.server.protocol import RequestError
 from arap.server.session import Session
 from tests.animated_glb import glb_frames
 from tests.server.helpers import StudioClient, column_major, rotation_z, translation
+from tests.waiting import wait_until
 
 
 def _posed(session: Session) -> tuple[list[int], list[int], list[list[float]]]:
@@ -312,3 +323,98 @@ def test_keep_shape_over_the_socket_is_not_answered_and_a_drag_gives_the_shape_b
     studio.send({"type": "keep_shape", "key": 5})
     assert dragged(1, 0.3)["iterations"] > 0  # not the pose of keyframe 5: solved
     assert dragged(2, 0.0)["iterations"] == 0  # keyframe 5's pose: its kept shape
+
+
+def test_the_estimate_covers_the_file_and_the_solved_frames(bar_session: Session) -> None:
+    s = bar_session
+    _, _, transforms = _posed(s)
+    _, _, data, count, _ = export_animation(s, [0, 500], transforms, 10.0, lambda: False)
+    solved = count * s.n_vertices * 24  # float64 frames
+    estimate = export_bytes(count, s.n_vertices, s.mesh.n_faces)
+    assert solved + len(data) <= estimate <= 1.5 * (solved + len(data)) + 2**16
+
+
+def test_an_export_larger_than_the_servers_budget_is_refused_before_solving(bar_session: Session) -> None:
+    s = bar_session
+    _, _, transforms = _posed(s)
+    budget = MemoryBudget(2**20)
+    seen: list[tuple[int, int]] = []
+    with pytest.raises(RequestError, match=r"needs about \d+ MB, more than the server's limit of 1 MB") as info:
+        export_animation(s, [0, 10_000], transforms, 30.0, lambda: False, lambda *p: seen.append(p), budget=budget)
+    assert info.value.code == "too_large" and seen == [] and budget.used == 0
+
+
+def test_exports_beyond_the_budget_wait_for_room(bar_session: Session) -> None:
+    """Another session's export holds most of the budget: this one waits (solving nothing) until it is done."""
+    s = bar_session
+    _, _, transforms = _posed(s)
+    needed = export_bytes(6, s.n_vertices, s.mesh.n_faces)
+    budget = MemoryBudget(needed + needed // 2)
+    seen: list[tuple[int, int]] = []
+    result: list[Any] = []
+    with budget.reserve(needed) as reserved:
+        assert reserved
+        worker = threading.Thread(target=lambda: result.append(export_animation(
+            s, [0, 500], transforms, 10.0, lambda: False, lambda *p: seen.append(p), budget=budget)))
+        worker.start()
+        wait_until(lambda: budget.waiting == 1, what="the export to wait for room")
+        assert seen == [(0, 6)] and not result and budget.used == needed
+    worker.join(timeout=60)
+    assert result and result[0][3] == 6 and seen[-1] == (6, 6)
+    assert budget.used == 0 and budget.peak == needed
+
+
+def test_a_new_request_cancels_an_export_waiting_for_room(bar_session: Session) -> None:
+    s = bar_session
+    _, _, transforms = _posed(s)
+    budget = MemoryBudget(export_bytes(6, s.n_vertices, s.mesh.n_faces))
+    stop = threading.Event()
+    with budget.reserve(budget.limit):
+        threading.Timer(0.3, stop.set).start()
+        with pytest.raises(AnimationCancelled):
+            export_animation(s, [0, 500], transforms, 10.0, stop.is_set, None, budget=budget)
+    assert budget.used == 0 and budget.waiting == 0
+
+
+def test_the_servers_export_budget_is_configurable(static_dir: Path) -> None:
+    from starlette.testclient import TestClient
+
+    app = create_app("cactus", static_dir=static_dir, allowed_hosts=["testserver"], max_export_bytes=2**20)
+    with TestClient(app) as http, http.websocket_connect("/ws") as ws:
+        studio = StudioClient(ws)
+        studio.greet()
+        fixed, top = studio.bottom_top()
+        studio.set_constraints(fixed, [top])
+        studio.send({"type": "export_animation", "fps": 30, "times_ms": [0, 10_000],
+                     "transforms": [translation(0.0), translation(0.5)]})
+        error = studio.error("too_large")
+        assert "more than the server's limit of 1 MB for animation exports" in error["message"], error
+        assert error["request"] == "export_animation"
+
+
+def test_concurrent_exports_of_two_sessions_stay_within_the_servers_budget(static_dir: Path) -> None:
+    """Two sessions export at once under a budget that holds one export: one waits, both are answered, and the
+    memory held at once never exceeded the budget."""
+    from starlette.testclient import TestClient
+
+    keys = {"fps": 10, "times_ms": [0, 900], "transforms": [translation(0.0), translation(0.4)]}
+    cactus = load_builtin("cactus")
+    one = export_bytes(10, cactus.n_vertices, cactus.n_faces)
+    app = create_app(cactus, static_dir=static_dir, allowed_hosts=["testserver"], max_export_bytes=one + one // 2)
+    with TestClient(app) as http:
+        budget = http.app.state.studio.config.exports  # type: ignore[attr-defined]
+        with http.websocket_connect("/ws") as ws_a, http.websocket_connect("/ws") as ws_b:
+            a, b = StudioClient(ws_a), StudioClient(ws_b)
+            a.greet()
+            b.greet()
+            for client in (a, b):
+                fixed, top = client.bottom_top()
+                client.set_constraints(fixed, [top])
+            a.send({"type": "export_animation", **keys})
+            b.send({"type": "export_animation", **keys})
+            for client in (a, b):
+                reply = client.recv()
+                while reply.type in ("animation_progress", "settle", "vertices"):
+                    reply = client.recv()
+                assert reply.type == "animation" and reply.data["frames"] == 10, reply.data
+    assert budget.used == 0 and budget.peak == one

@@ -119,7 +119,7 @@ def test_a_worker_dying_mid_frame_costs_no_answer(studio: StudioClient, http: Te
     assert _decoder(http).started
 
 
-def _exit_worker(data: bytes) -> Any:
+def _exit_worker(data: bytes, *limits: Any) -> Any:
     import os
 
     os._exit(3)

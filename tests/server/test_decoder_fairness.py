@@ -35,14 +35,14 @@ def _padded(message: dict[str, Any], size: int) -> str:
     return text[:-1] + " " * (size - len(text)) + "}"
 
 
-def _slow_when_asked(data: bytes | str) -> Any:
+def _slow_when_asked(data: bytes | str, max_indices: int | None = None) -> Any:
     """Runs in the decoder process: a frame with a ``slow`` field takes SLOW_SECONDS to decode; it first creates the
     file the field names (decoding has started)."""
     text = data if isinstance(data, str) else data.decode()
     if '"slow"' in text:
         Path(json.loads(text)["slow"]).touch()
         time.sleep(SLOW_SECONDS)  # the scenario: a large frame that takes long to decode
-    return decode_text_frame(data)
+    return decode_text_frame(data, max_indices)
 
 
 def test_lanes() -> None:

@@ -72,7 +72,7 @@ def test_huge_integer_in_binary_header(studio: StudioClient) -> None:
 def test_unexpected_decoding_failure_becomes_an_internal_error(
     studio: StudioClient, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    def broken(text: str, *, cooperative: bool = False) -> Any:
+    def broken(text: str, *, cooperative: bool = False, **options: Any) -> Any:
         raise KeyError("boom")
 
     monkeypatch.setattr(connection_module, "parse_text", broken)
@@ -86,9 +86,9 @@ def test_large_frames_are_decoded_off_the_event_loop(studio: StudioClient, monke
     threads: list[tuple[int, bool]] = []
     original = connection_module.parse_text
 
-    def spy(text: str, *, cooperative: bool = False) -> Any:
+    def spy(text: str, *, cooperative: bool = False, **options: Any) -> Any:
         threads.append((threading.get_ident(), cooperative))
-        return original(text, cooperative=cooperative)
+        return original(text, cooperative=cooperative, **options)
 
     monkeypatch.setattr(connection_module, "parse_text", spy)
     fixed, top = studio.bottom_top()

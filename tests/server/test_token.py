@@ -150,7 +150,7 @@ def test_cli_prints_the_network_url_with_its_token_and_says_so(monkeypatch: pyte
         options["on_ready"](studio_url(options["host"], 8123, "tok123"))
 
     monkeypatch.setattr(arap.server, "serve", fake_serve)
-    monkeypatch.setattr("arap.cli.studio.warm_up_kernels", lambda quiet: None)
+    monkeypatch.setattr("arap.cli.studio.warm_up_kernels", lambda quiet, first_ready=None: None)
     assert main(["studio", "--host", host, "--port", "8123"]) == 0
     out = capsys.readouterr().out
     assert seen["host"] == host and seen["token"] is None  # the server makes one for a network address
@@ -165,7 +165,7 @@ def test_cli_loopback_message_is_unchanged(monkeypatch: pytest.MonkeyPatch, caps
         options["on_ready"](studio_url(options["host"], 8000, options["token"]))
 
     monkeypatch.setattr(arap.server, "serve", fake_serve)
-    monkeypatch.setattr("arap.cli.studio.warm_up_kernels", lambda quiet: None)
+    monkeypatch.setattr("arap.cli.studio.warm_up_kernels", lambda quiet, first_ready=None: None)
     assert main(["studio"]) == 0
     assert capsys.readouterr().out.strip() == "ARAP Studio running at http://127.0.0.1:8000/  (Ctrl-C to stop)"
     assert main(["studio", "--token", "abc"]) == 0
@@ -193,3 +193,17 @@ def test_a_short_token_on_a_network_is_warned_about(monkeypatch: pytest.MonkeyPa
     assert "a token of 3 characters is easy to guess" in capsys.readouterr().err
     main(["studio", "bar", "--host", "0.0.0.0", "--port", "0", "--token", TOKEN])
     assert "easy to guess" not in capsys.readouterr().err
+
+
+def test_cli_passes_the_export_budget(monkeypatch: pytest.MonkeyPatch) -> None:
+    seen: dict[str, Any] = {}
+
+    def fake_serve(mesh: Any, **options: Any) -> None:
+        seen.update(options)
+
+    monkeypatch.setattr(arap.server, "serve", fake_serve)
+    monkeypatch.setattr("arap.cli.studio.warm_up_kernels", lambda quiet, first_ready=None: None)
+    assert main(["studio", "--max-export-mb", "300"]) == 0
+    assert seen["max_export_bytes"] == 300 * 2**20
+    assert main(["studio"]) == 0
+    assert seen["max_export_bytes"] == 2**31

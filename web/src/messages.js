@@ -102,6 +102,8 @@ export class ServerMessages {
         return d.timeline.received(msg);
       case SERVER.DISTORTION:
         return d.heat.received(/** @type {typeof msg & WithFrame} */ (msg)); // a binary message
+      case SERVER.PREPARING: // first run: the kernels compile before the welcome
+        return d.panel.preparingSolver(msg);
       case SERVER.ERROR:
         return this.error(msg);
       default:

@@ -1,79 +1,162 @@
-// Nearest-point queries on a mesh, for the mirror symmetry search (symmetry.js): a uniform grid hash of vertices
-// that finds the vertex nearest to a point within a radius, and a surface that finds the closest point of the
-// triangles around that vertex. Every candidate plane asks these thousands of times, so they are kept apart from
-// the search itself, in flat typed arrays that make each query cost O(1). No DOM, no Three.js.
+// Nearest-point queries on a mesh, for the mirror symmetry search (symmetry.js): a k-d tree of vertices that finds
+// the vertex nearest to a point within a radius, and a surface that finds the closest point of the triangles around
+// that vertex. Every candidate plane asks these thousands of times, so they are kept apart from the search itself,
+// in flat typed arrays; a query costs O(log n) whatever its radius. No DOM, no Three.js.
+
+/** Points a leaf of a PointTree holds at most (scanned one by one). */
+const LEAF = 8;
 
 /**
- * Hash of integer cell coordinates into a power-of-two table.
- * @param {number} ix @param {number} iy @param {number} iz @param {number} mask
+ * The vertices `which` (all when null) in a k-d tree (a median split along the widest side of each node's box),
+ * for "the vertex nearest to a point, within a radius": a query visits O(log n) nodes whatever the radius and the
+ * density of the points, where a grid of cells of about the radius scans every vertex of the cells around the point.
+ * `closest` leaves the vertex's position in `point`; `visits` counts the distances computed (the work done).
  */
-function cellHash(ix, iy, iz, mask) {
-  return (Math.imul(ix, 73856093) ^ Math.imul(iy, 19349663) ^ Math.imul(iz, 83492791)) & mask;
-}
-
-/**
- * The vertices `which` (all when null) in a uniform grid of cell size `cell`, hashed into buckets: the nearest one
- * within `cell` / 2 of a point lies in the point's cell or in its neighbour on the nearer side along each axis (8
- * cells). `closest` leaves the vertex's position in `point`.
- */
-export class VertexGrid {
+export class PointTree {
   /**
    * @param {ArrayLike<number>} pos positions, 3 per vertex
-   * @param {number} cell
    * @param {ArrayLike<number>|null} [which]
    */
-  constructor(pos, cell, which = null) {
+  constructor(pos, which = null) {
     const n = which ? which.length : pos.length / 3;
     this.pos = pos;
-    this.inv = 1 / cell;
-    let size = 1;
-    while (size < 2 * n) size <<= 1;
-    this.mask = size - 1;
-    this.head = new Int32Array(size).fill(-1);
-    this.next = new Int32Array(n);
-    this.vertex = new Int32Array(n);
-    for (let k = 0; k < n; k++) {
-      const i = which ? which[k] : k;
-      const h = cellHash(Math.floor(pos[3 * i] * this.inv), Math.floor(pos[3 * i + 1] * this.inv),
-        Math.floor(pos[3 * i + 2] * this.inv), this.mask);
-      this.vertex[k] = i;
-      this.next[k] = this.head[h];
-      this.head[h] = k;
-    }
+    /** the vertices, ordered so that each node's are a range, its splitting vertex in the middle */
+    this.order = new Int32Array(n);
+    for (let k = 0; k < n; k++) this.order[k] = which ? which[k] : k;
+    /** the axis each node splits along, by the position of its splitting vertex in `order` */
+    this.axis = new Uint8Array(n);
     this.point = [0, 0, 0];
+    this.visits = 0;
+    /** @type {number[]} ranges [lo, hi) still to split */
+    const todo = [0, n];
+    while (todo.length) {
+      const hi = /** @type {number} */ (todo.pop());
+      const lo = /** @type {number} */ (todo.pop());
+      if (hi - lo <= LEAF) continue;
+      const axis = this._widest(lo, hi);
+      const mid = (lo + hi) >> 1;
+      this._select(lo, hi, mid, axis);
+      this.axis[mid] = axis;
+      todo.push(lo, mid, mid + 1, hi);
+    }
+    // the search's pending nodes: at most one per level of the tree
+    let depth = 1;
+    for (let size = n; size > LEAF; size >>= 1) depth++;
+    this.stackLo = new Int32Array(2 * depth + 2);
+    this.stackHi = new Int32Array(2 * depth + 2);
+    this.stackD = new Float64Array(2 * depth + 2);
+  }
+
+  /** The axis along which the vertices order[lo..hi) spread widest. @param {number} lo @param {number} hi */
+  _widest(lo, hi) {
+    const { pos, order } = this;
+    let axis = 0;
+    let widest = -1;
+    for (let t = 0; t < 3; t++) {
+      let min = Infinity;
+      let max = -Infinity;
+      for (let k = lo; k < hi; k++) {
+        const v = pos[3 * order[k] + t];
+        if (v < min) min = v;
+        if (v > max) max = v;
+      }
+      if (max - min > widest) {
+        widest = max - min;
+        axis = t;
+      }
+    }
+    return axis;
   }
 
   /**
-   * The vertex nearest to (x, y, z) within distance `r` (at most half the cell size), or -1.
+   * Reorder order[lo..hi) so that order[mid] has the mid-th smallest coordinate along `axis`, with none larger
+   * before it and none smaller after it (quickselect).
+   * @param {number} lo @param {number} hi @param {number} mid @param {number} axis
+   */
+  _select(lo, hi, mid, axis) {
+    const { pos, order } = this;
+    let left = lo;
+    let right = hi - 1;
+    while (right > left) {
+      const pivot = pos[3 * order[(left + right) >> 1] + axis];
+      let i = left;
+      let j = right;
+      while (i <= j) {
+        while (pos[3 * order[i] + axis] < pivot) i++;
+        while (pos[3 * order[j] + axis] > pivot) j--;
+        if (i <= j) {
+          const t = order[i];
+          order[i] = order[j];
+          order[j] = t;
+          i++;
+          j--;
+        }
+      }
+      if (mid <= j) right = j;
+      else if (mid >= i) left = i;
+      else return;
+    }
+  }
+
+  /**
+   * The vertex nearest to (x, y, z) within distance `r`, or -1 (of two as near, the lower index).
    * @param {number} x @param {number} y @param {number} z @param {number} r
    */
   nearest(x, y, z, r) {
-    const { pos, head, next, vertex } = this;
-    const fx = x * this.inv;
-    const fy = y * this.inv;
-    const fz = z * this.inv;
-    const cx = Math.floor(fx);
-    const cy = Math.floor(fy);
-    const cz = Math.floor(fz);
-    const sx = fx - cx < 0.5 ? -1 : 1;
-    const sy = fy - cy < 0.5 ? -1 : 1;
-    const sz = fz - cz < 0.5 ? -1 : 1;
+    const { pos, order, axis, stackLo, stackHi, stackD } = this;
     let best = -1;
     let bestD = r * r;
-    for (let c = 0; c < 8; c++) {
-      const h = cellHash(cx + (c & 1 ? sx : 0), cy + (c & 2 ? sy : 0), cz + (c & 4 ? sz : 0), this.mask);
-      for (let k = head[h]; k >= 0; k = next[k]) {
-        const j = vertex[k];
+    let visits = 0;
+    let top = 0;
+    stackLo[0] = 0;
+    stackHi[0] = order.length;
+    stackD[0] = 0;
+    top = 1;
+    while (top > 0) {
+      top--;
+      if (stackD[top] > bestD) continue; // the splitting plane is farther than the best: nothing nearer beyond it
+      let lo = stackLo[top];
+      let hi = stackHi[top];
+      while (hi - lo > LEAF) {
+        const mid = (lo + hi) >> 1;
+        const j = order[mid];
         const ex = pos[3 * j] - x;
         const ey = pos[3 * j + 1] - y;
         const ez = pos[3 * j + 2] - z;
         const d = ex * ex + ey * ey + ez * ez;
-        if (d <= bestD) {
+        visits++;
+        if (d < bestD || (d === bestD && (best < 0 || j < best))) {
+          bestD = d;
+          best = j;
+        }
+        const a = axis[mid];
+        const side = a === 0 ? -ex : a === 1 ? -ey : -ez; // the point's offset from the splitting plane
+        // the point's side first; the other side waits on the stack with its distance from the point
+        if (side < 0) {
+          stackLo[top] = mid + 1;
+          stackHi[top] = hi;
+          hi = mid;
+        } else {
+          stackLo[top] = lo;
+          stackHi[top] = mid;
+          lo = mid + 1;
+        }
+        stackD[top++] = side * side;
+      }
+      for (let k = lo; k < hi; k++) {
+        const j = order[k];
+        const ex = pos[3 * j] - x;
+        const ey = pos[3 * j + 1] - y;
+        const ez = pos[3 * j + 2] - z;
+        const d = ex * ex + ey * ey + ez * ez;
+        if (d < bestD || (d === bestD && (best < 0 || j < best))) {
           bestD = d;
           best = j;
         }
       }
+      visits += hi - lo;
     }
+    this.visits += visits;
     return best;
   }
 
@@ -105,10 +188,7 @@ export class Surface {
     const n = pos.length / 3;
     const edge = this.faces ? meanEdge(pos, this.faces) : 0;
     this.reach = tol + 1.5 * edge;
-    this.grid = new VertexGrid(pos, 2 * this.reach);
-    // most points asked about are within about an edge of a vertex: a finer grid finds it among fewer
-    this.step = Math.min(this.reach, Math.max(1.5 * edge, tol / 4));
-    this.fine = this.step < this.reach / 2 ? new VertexGrid(pos, 2 * this.step) : null;
+    this.tree = new PointTree(pos);
     this.point = [0, 0, 0];
     this.distance = Infinity;
     /** @type {{faces: ArrayLike<number>, start: Int32Array, around: Int32Array}|null} the triangles at each vertex */
@@ -131,8 +211,7 @@ export class Surface {
    */
   closest(x, y, z, tol) {
     const { pos, incident } = this;
-    let v = this.fine ? this.fine.nearest(x, y, z, this.step) : -1;
-    if (v < 0) v = this.grid.nearest(x, y, z, this.reach);
+    const v = this.tree.nearest(x, y, z, this.reach);
     if (v < 0) return -1;
     const best = this.point;
     let bestD = (pos[3 * v] - x) ** 2 + (pos[3 * v + 1] - y) ** 2 + (pos[3 * v + 2] - z) ** 2;

@@ -73,6 +73,8 @@ export class Panel extends PanelReadouts {
     super();
     this.actions = actions;
     this.enabled = true; // the controls take input (not while the server is away)
+    /** @type {import('./protocol.js').PreparingServerMessage|undefined} the server's last word on its compilation */
+    this.lastPreparing = undefined;
 
     $('builtin-select').addEventListener('change', (/** @type {Event} */ e) => actions.loadBuiltin(source(e).value));
     const fileInput = /** @type {HTMLInputElement} */ ($('file-input'));
@@ -331,11 +333,23 @@ export class Panel extends PanelReadouts {
     'connection');
   }
 
-  /** Connected, but the server has not greeted this tab yet: it is preparing the solver (compiling, first run). */
-  preparingSolver() {
+  /**
+   * Connected, but the server has not greeted this tab yet: it is preparing the solver (compiling, first run).
+   * @param {import('./protocol.js').PreparingServerMessage} [progress] how far the compilation is, when the server
+   *   said so
+   */
+  preparingSolver(progress) {
     this.setConnection('preparing');
-    this.showStatus('Connected. The server is preparing the solver: the first run after an install compiles it, '
-      + 'which takes up to a minute. Editing starts as soon as it is ready.', 'info', 0, 'preparing');
+    if (progress) this.lastPreparing = progress;
+    else progress = this.lastPreparing; // the late-welcome notice keeps the progress already shown
+    let how = 'the first run after an install compiles it.';
+    if (progress) {
+      const now = progress.kernel ? ` (${progress.compiling ? 'compiling' : 'compiled'} ${progress.kernel})` : '';
+      how = `the first run after an install compiles it: ${progress.done} of ${progress.total} kernels ready${now}, `
+        + `${Math.round(progress.seconds)} s so far.`;
+    }
+    this.showStatus(`Connected. The server is preparing the solver: ${how} Editing starts as soon as the kernels `
+      + 'it needs first are ready.', 'info', 0, 'preparing');
   }
 
   /**

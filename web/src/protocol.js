@@ -37,6 +37,7 @@ export const SERVER = Object.freeze(/** @type {const} */ ({
   "ANIMATION_PROGRESS": "animation_progress",
   "ANIMATION": "animation",
   "DISTORTION": "distortion",
+  "PREPARING": "preparing",
   "ERROR": "error"
 }));
 
@@ -383,6 +384,17 @@ export const UPLOAD_EXTENSIONS = Object.freeze([
  */
 
 /**
+ * sent before the welcome, about once a second, while the server compiles the solver's kernels (the first run in a new environment); the welcome follows once the kernels a session needs first are ready
+ * @typedef {object} PreparingServerMessage
+ * @property {"preparing"} type
+ * @property {number} done kernels ready (compiled or loaded from the cache)
+ * @property {number} total kernels to prepare
+ * @property {string|null} kernel the kernel being compiled now (compiling), else the one compiled last, or null
+ * @property {boolean} compiling whether kernel is being compiled now
+ * @property {number} seconds time since the compilation started
+ */
+
+/**
  * a request was rejected; the session continues unchanged
  * @typedef {object} ErrorServerMessage
  * @property {"error"} type
@@ -391,4 +403,4 @@ export const UPLOAD_EXTENSIONS = Object.freeze([
  * @property {string|null} request type of the rejected message, or null
  */
 
-/** Any message the server sends (of a binary one: its header). @typedef {WelcomeServerMessage|MeshServerMessage|AppearanceServerMessage|VerticesServerMessage|SettleServerMessage|StateServerMessage|ConstraintsServerMessage|ExportServerMessage|AnimationProgressServerMessage|AnimationServerMessage|DistortionServerMessage|ErrorServerMessage} ServerMessage */
+/** Any message the server sends (of a binary one: its header). @typedef {WelcomeServerMessage|MeshServerMessage|AppearanceServerMessage|VerticesServerMessage|SettleServerMessage|StateServerMessage|ConstraintsServerMessage|ExportServerMessage|AnimationProgressServerMessage|AnimationServerMessage|DistortionServerMessage|PreparingServerMessage|ErrorServerMessage} ServerMessage */

@@ -2,9 +2,9 @@
 // the mirrored surface lies closest to the surface; or an axis plane through the bounding-box centre) and the vertex
 // correspondence across it: each vertex's partner is the vertex nearest to where its reflection meets the surface,
 // when the reflection lies within a tolerance of the surface. Scans that are only nearly symmetric, with triangles
-// that do not mirror each other, pair as well as exact models. Uniform grid hashes keep it O(n). No DOM, no
+// that do not mirror each other, pair as well as exact models. k-d trees keep it O(n log n). No DOM, no
 // Three.js: usable from Node as well. The nearest-point queries it is built on are in nearest.js.
-import { Surface, VertexGrid } from './nearest.js';
+import { PointTree, Surface } from './nearest.js';
 
 /** Share of the vertices that must have a mirror partner for the shape to count as symmetric. */
 export const MIN_MATCHED = 0.8;
@@ -18,6 +18,8 @@ const SAMPLE = 2000;
 const REFINE_STEPS = 12;
 /** Vertices the coarse refinement steps pair the sample with. */
 const FAR_TARGETS = 4000;
+/** Candidate planes whose normals' cosine is above this (about 1.5°) are one candidate. */
+const SAME_NORMAL = 0.9997;
 export const AXES = ['x', 'y', 'z'];
 
 /** A plane: a unit normal whose largest component is positive, and a point on it. @typedef {{normal: number[], point: number[]}} Plane */
@@ -167,7 +169,7 @@ function reflectPoint(pl, x, y, z, out) {
  * Pair the vertices `which` (all when null) across a plane: for each, the vertex nearest to where the surface comes
  * closest to its reflection, when that is within `tol` (else -1); and the closest points themselves (3 per vertex).
  * @param {ArrayLike<number>} pos
- * @param {Surface|VertexGrid} surface what the reflections are measured to
+ * @param {Surface|PointTree} surface what the reflections are measured to
  * @param {Plane} pl
  * @param {number} tol
  * @param {number[]|null} [which]
@@ -239,7 +241,7 @@ function fitPlane(pos, pl, which, partner, points) {
  * Move plane `pl` until the sample's reflections lie closest to the surface: pair, fit the plane to the pairs, and
  * again, with a search radius shrinking from `far` to `tol`.
  * @param {ArrayLike<number>} pos
- * @param {{grid: VertexGrid, radius: number}} far
+ * @param {{grid: PointTree, radius: number}} far
  * @param {Surface} near
  * @param {Plane} pl
  * @param {number[]} sample
@@ -270,15 +272,16 @@ function refine(pos, far, near, pl, sample, tol) {
  * @param {number} tolerance how far (a fraction of the bounding-box diagonal) a vertex's reflection may lie from
  *   the surface for the vertex to have a partner
  * @returns {{plane: {normal: number[], point: number[]}|null, mirrorOf: Int32Array|null, matched: number,
- *   tolerance: number, ms: number}} `plane` null when no plane pairs MIN_MATCHED of the vertices (auto); `mirrorOf`
- *   each vertex's partner (-1: none; not always mutual where the two sides' triangles differ), `matched` the share
- *   of vertices with a partner, `tolerance` that distance in model units
+ *   tolerance: number, work: number, ms: number}} `plane` null when no plane pairs MIN_MATCHED of the vertices
+ *   (auto); `mirrorOf` each vertex's partner (-1: none; not always mutual where the two sides' triangles differ),
+ *   `matched` the share of vertices with a partner, `tolerance` that distance in model units, `work` the distances
+ *   computed by the nearest-point queries (a measure of the time that does not depend on the machine)
  */
 export function detectSymmetry(pos, faces, axis = 'auto', tolerance = DEFAULT_TOLERANCE) {
   const t0 = performance.now();
   const mo = moments(pos);
   const { n, diag } = mo;
-  const none = { plane: null, mirrorOf: null, matched: 0, tolerance: 0, ms: 0 };
+  const none = { plane: null, mirrorOf: null, matched: 0, tolerance: 0, work: 0, ms: 0 };
   if (n === 0 || !(diag > 0)) return { ...none, ms: performance.now() - t0 };
   const frac = Math.min(TOLERANCE_RANGE.max, Math.max(TOLERANCE_RANGE.min, Number(tolerance) || DEFAULT_TOLERANCE));
   const tol = frac * diag;
@@ -286,13 +289,24 @@ export function detectSymmetry(pos, faces, axis = 'auto', tolerance = DEFAULT_TO
   const unit = (/** @type {number} */ k) => [0, 1, 2].map((t) => (t === k ? 1 : 0));
   const fixedAxis = AXES.indexOf(axis);
   let pl;
+  /** @type {PointTree|null} */
+  let farTree = null;
   if (fixedAxis >= 0) pl = plane(unit(fixedAxis), mo.centre);
   else {
     const sample = spread(n, SAMPLE);
     // the coarse steps search further, among fewer vertices (a plane off by a few degrees misses the surface)
     const radius = Math.max(2 * tol, 0.08 * diag);
-    const far = { grid: new VertexGrid(pos, 2 * radius, spread(n, FAR_TARGETS)), radius };
-    const candidates = [...[0, 1, 2].map(unit), ...eigenvectors3(mo.cov)].map((nrm) => plane(nrm, mo.mean));
+    farTree = new PointTree(pos, spread(n, FAR_TARGETS));
+    const far = { grid: farTree, radius };
+    /** @type {Plane[]} */
+    const candidates = [];
+    for (const nrm of [...[0, 1, 2].map(unit), ...eigenvectors3(mo.cov)]) {
+      // a principal axis within a degree or so of a coordinate axis refines to the same plane: refined once
+      const cand = plane(nrm, mo.mean);
+      if (!candidates.some((c) => Math.abs(c.normal.reduce((sum, v, k) => sum + v * cand.normal[k], 0)) > SAME_NORMAL)) {
+        candidates.push(cand);
+      }
+    }
     const score = (/** @type {Plane} */ cand) => pairAcross(pos, near, cand, tol, sample).matched;
     // every candidate refined (six short runs on the sample), the one that pairs most of the sample kept
     let bestScore = -1;
@@ -311,8 +325,9 @@ export function detectSymmetry(pos, faces, axis = 'auto', tolerance = DEFAULT_TO
     pl = best;
   }
   const { partner: mirrorOf, matched } = pairAcross(pos, near, pl, tol);
-  const found = { plane: pl, mirrorOf, matched: matched / n, tolerance: tol, ms: 0 };
-  if (fixedAxis < 0 && found.matched < MIN_MATCHED) return { ...none, matched: found.matched, tolerance: tol,
+  const work = near.tree.visits + (farTree ? farTree.visits : 0);
+  const found = { plane: pl, mirrorOf, matched: matched / n, tolerance: tol, work, ms: 0 };
+  if (fixedAxis < 0 && found.matched < MIN_MATCHED) return { ...none, matched: found.matched, tolerance: tol, work,
     ms: performance.now() - t0 };
   return { ...found, ms: performance.now() - t0 };
 }

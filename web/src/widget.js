@@ -100,7 +100,7 @@ function showPreparing(el, message, png) {
   }
   const text = document.createElement('div');
   const why = message.first_run
-    ? 'The first run in this environment compiles the solver (about 10–30 s, once).'
+    ? 'The first run in this environment compiles the solver (from ten seconds to a few minutes, once).'
     : 'The kernel is loading the mesh.';
   const started = Date.now();
   const tick = () => {

@@ -19,6 +19,8 @@ STUDIO_EXTRA_HINT = "pip install 'arap[studio]'"
 
 SHORT_TOKEN = 16
 """Tokens shorter than this are warned about when the studio serves a network."""
+DEFAULT_MAX_EXPORT_MB = 2048
+"""Default of ``--max-export-mb`` (``arap.server.app.DEFAULT_MAX_EXPORT_BYTES``, in MiB)."""
 
 
 def add_parser(commands: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -34,6 +36,9 @@ def add_parser(commands: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     p.add_argument("--open", action="store_true", help="open the studio in the default browser")
     p.add_argument("--max-sessions", type=positive_int, default=32, metavar="N",
                    help="most sessions (browser tabs) at once; more are refused (default: 32)")
+    p.add_argument("--max-export-mb", type=positive_int, default=DEFAULT_MAX_EXPORT_MB, metavar="MB",
+                   help="memory the animation exports of all sessions may take at once: a larger export is refused, "
+                        f"one that does not fit beside those running waits (default: {DEFAULT_MAX_EXPORT_MB})")
     p.add_argument("--allow-origin", action="append", default=[], type=origin_value, metavar="ORIGIN",
                    help="let pages from ORIGIN (http(s)://host[:port]) use the studio; repeatable (default: only "
                         "the studio's own pages)")
@@ -80,7 +85,8 @@ def run_studio(args: argparse.Namespace) -> int:
 
     try:
         serve(args.mesh, host=args.host, port=args.port, open_browser=args.open, max_sessions=args.max_sessions,
-              allow_origins=args.allow_origin, on_ready=announce, token=args.token)
+              allow_origins=args.allow_origin, on_ready=announce, token=args.token,
+              max_export_bytes=args.max_export_mb * 2**20)
     except KeyboardInterrupt:
         err("stopped")
     return 0
@@ -90,16 +96,18 @@ def _warm_up_behind() -> threading.Thread:
     """Compile (first run) or load the kernels on a thread of their own while the server starts and serves the page;
     a session that needs them first waits for the compilation (numba compiles one kernel at a time). Says so when it
     compiles."""
+    from arap.method.jit import FIRST_KERNELS, LATER_KERNELS
     from arap.method.kernel_cache import KERNELS_READY, first_compile_pending
 
     if first_compile_pending():
-        err("arap: compiling the solver's kernels in the background (first run only, about 10-30 s); the page is "
-            "served meanwhile and can edit once they are ready")
-    KERNELS_READY.clear()  # the server greets connections once the kernels are ready
+        err(f"arap: compiling the solver's {len(FIRST_KERNELS) + len(LATER_KERNELS)} kernels in the background (first "
+            "run only: from ten seconds to a few minutes on a busy machine; progress follows); the page is served "
+            f"meanwhile, shows the progress, and can edit once the first {len(FIRST_KERNELS)} are ready")
+    KERNELS_READY.clear()  # the server greets connections once the kernels a session needs first are ready
 
     def run() -> None:
         try:
-            warm_up_kernels(quiet=False)
+            warm_up_kernels(quiet=False, first_ready=KERNELS_READY.set)
         except Exception as exc:  # noqa: BLE001 - a failed warm-up only delays the first solve, which compiles itself
             err(f"arap: the kernels were not compiled ahead ({type(exc).__name__}: {exc}); the first solve will")
         finally:

@@ -13,15 +13,17 @@ def add_parser(commands: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     """Add ``arap warmup`` to the subcommands of ``arap``."""
     p = commands.add_parser("warmup", help="compile the solver's kernels ahead of the first use",
                             description="Compile the solver's kernels for this environment (the first run of arap "
-                                        "does it otherwise, for tens of seconds), or load them from the cache.")
+                                        "does it otherwise, for tens of seconds to minutes), or load them from the "
+                                        "cache; says how many are ready, by name, while it compiles.")
     p.set_defaults(func=run_warmup)
 
 
 def run_warmup(args: argparse.Namespace) -> int:
     """``arap warmup``: 0."""
+    from arap.cli.common import compile_reporter
     from arap.method.jit import warm_up_kernels
 
-    warm = warm_up_kernels()
+    warm = warm_up_kernels(progress=compile_reporter())
     where = f" (cached in {warm.cache_dir})" if warm.cache_dir else " (caching is off: NUMBA_DISABLE_JIT or no cache)"
     if warm.compiled:
         out(f"arap: compiled {warm.compiled} kernels in {warm.seconds:.1f} s{where}")

@@ -13,13 +13,115 @@ the first run in a new environment (or after an update of arap or numba) pays fo
 from __future__ import annotations
 
 import sys
+import threading
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
-__all__ = ["KernelWarmUp", "warm_up_kernels"]
+__all__ = ["FIRST_KERNELS", "LATER_KERNELS", "CompileProgress", "KernelWarmUp", "compile_progress", "warm_up_kernels"]
+
+FIRST_KERNELS = (
+    "arap.meshes._geometry._double_areas",
+    "arap.meshes.topology._face_adjacency",
+    "arap.meshes.topology._free_components",
+    "arap.meshes._geometry._barycentric_areas",
+    "arap.method.weights._cotangent_kernel",
+    "arap.method.cells._rim_cells_kernel",
+    "arap.method.cells._rest_edges",
+    "arap.sparse._csr._terms_to_csr",
+    "arap.sparse._csr._leading_blocks",
+    "arap.method.cells._gather_kernel",
+    "arap.method.covariance._local_serial",
+    "arap.solve.indexing._with_rows",
+    "arap.method.inactive._changed_rows",
+    "arap.method.inactive._rigid_fit_miss",
+    "arap.sparse._csr._rows_product",
+    "arap.method.covariance._rhs_gradient_serial",
+    "arap.solve.lbfgs._subtract_sq_place",
+    "arap.solve.indexing._rows_of",
+)
+"""The kernels a session needs first (loading a mesh, solving it on one thread), in the order the warm-up's first
+solve compiles them (the kernels they call are compiled with them)."""
+LATER_KERNELS = (
+    "arap.method.covariance._local_parallel",
+    "arap.method.covariance._rhs_gradient_parallel",
+)
+"""The threaded variants that only large meshes run, compiled after :data:`FIRST_KERNELS`."""
+
+
+@dataclass(frozen=True)
+class CompileProgress:
+    """Where a warm-up (:func:`warm_up_kernels`) stands.
+
+    Attributes
+    ----------
+    done, total : int
+        Kernels of :data:`FIRST_KERNELS` and :data:`LATER_KERNELS` ready (compiled or loaded from the cache), of all.
+    kernel : str or None
+        Name of the kernel being compiled now (``compiling``), else of the one compiled last (None before any).
+    compiling : bool
+        Whether ``kernel`` is being compiled now.
+    seconds : float
+        Time since the warm-up started (0 when none has).
+    """
+
+    done: int
+    total: int
+    kernel: str | None
+    compiling: bool
+    seconds: float
+
+    def describe(self) -> str:
+        """One line: ``"5 of 20 kernels ready (compiling _free_components), 14 s"``."""
+        now = f" ({'compiling' if self.compiling else 'compiled'} {self.kernel})" if self.kernel else ""
+        return f"{self.done} of {self.total} kernels ready{now}, {self.seconds:.0f} s"
+
+
+_started: float | None = None
+_compiling: list[str] = []  # names of the kernels being compiled, outermost first
+_last: list[str] = []  # the kernel compiled last
+_state_lock = threading.Lock()
+
+
+def _kernel_ready(qualified: str) -> bool:
+    module, _, name = qualified.rpartition(".")
+    dispatcher = getattr(sys.modules.get(module), name, None)
+    return bool(getattr(dispatcher, "overloads", None))
+
+
+def compile_progress() -> CompileProgress:
+    """Where the warm-up stands now (:class:`CompileProgress`); callable from any thread."""
+    kernels = FIRST_KERNELS + LATER_KERNELS
+    with _state_lock:
+        kernel = _compiling[0] if _compiling else (_last[0] if _last else None)
+        compiling = bool(_compiling)
+        seconds = 0.0 if _started is None else time.perf_counter() - _started
+    return CompileProgress(done=sum(_kernel_ready(k) for k in kernels), total=len(kernels), kernel=kernel,
+                           compiling=compiling, seconds=seconds)
+
+
+def _compile_listener(progress: Callable[[CompileProgress], None] | None) -> Any:
+    """A numba event listener that keeps the name of the kernel being compiled, and calls ``progress`` when one of
+    those a solve calls (not one they call) is compiled."""
+    from numba.core import event
+
+    class Listener(event.Listener):
+        def on_start(self, ev: Any) -> None:
+            with _state_lock:
+                _compiling.append(ev.data["dispatcher"].py_func.__name__)
+
+        def on_end(self, ev: Any) -> None:
+            with _state_lock:
+                if _compiling:
+                    _last[:] = [_compiling.pop()]
+                outermost = not _compiling
+            if outermost and progress is not None:
+                progress(compile_progress())
+
+    return Listener()
 
 
 @dataclass(frozen=True)
@@ -67,7 +169,8 @@ def _counts() -> tuple[int, int]:
     return hits, misses
 
 
-def warm_up_kernels() -> KernelWarmUp:
+def warm_up_kernels(progress: Callable[[CompileProgress], None] | None = None,
+                    first_ready: Callable[[], None] | None = None) -> KernelWarmUp:
     """Compile (or load from the cache) every kernel a solve uses, with tiny solves on a 42-vertex sphere (serial,
     then with the threaded variants that large meshes use).
 
@@ -75,10 +178,29 @@ def warm_up_kernels() -> KernelWarmUp:
     compiles anything and its timings are those of the iterations alone. The lower half of the sphere is fixed,
     so that some cells see only constrained vertices (their energy is computed once, with the same kernel).
 
+    Parameters
+    ----------
+    progress : callable or None
+        ``progress(CompileProgress)`` each time a kernel has been compiled (never when all come from the cache);
+        :func:`compile_progress` tells the same from any thread.
+    first_ready : callable or None
+        Called once the kernels a session needs first (:data:`FIRST_KERNELS`) are ready, before the threaded
+        variants (:data:`LATER_KERNELS`) are compiled.
+
     Returns
     -------
     KernelWarmUp
     """
+    from numba.core import event
+
+    global _started
+    with _state_lock:
+        _started = time.perf_counter()
+    with event.install_listener("numba:compile", _compile_listener(progress)):
+        return _warm_up(first_ready)
+
+
+def _warm_up(first_ready: Callable[[], None] | None) -> KernelWarmUp:
     from arap.meshes.shapes import sphere
     from arap.method._parallel import policy
     from arap.solve.solver import ArapSolver
@@ -91,6 +213,8 @@ def warm_up_kernels() -> KernelWarmUp:
     constrained = np.concatenate([fixed, handle])
     targets = np.concatenate([V[fixed], V[handle] + [0.1, 0.0, 0.0]])
     ArapSolver(V, F, constrained).solve(targets, max_iterations=2)
+    if first_ready is not None:
+        first_ready()
     # Large meshes run the threaded variants: make the size rule pick them for this tiny solve too.
     saved = policy.min_work, policy.work_per_thread
     try:

@@ -27,7 +27,7 @@ _announced = False
 
 def first_compile_pending() -> bool:
     """True when this environment has no cached machine code for the solver's kernels yet, so that the first solve
-    compiles them (seconds to tens of seconds); False when they are cached, or when that cannot be told."""
+    compiles them (ten seconds to minutes); False when they are cached, or when that cannot be told."""
     try:
         from arap.method.covariance import _local_serial
 
@@ -46,5 +46,5 @@ def announce_first_compile() -> None:
         return
     _announced = True
     if first_compile_pending():
-        logger.warning("compiling the solver's kernels for this environment (first run only, about 10-30 s; "
-                       "'arap warmup' does it ahead)")
+        logger.warning("compiling the solver's kernels for this environment (first run only: from ten seconds to "
+                       "a few minutes on a busy machine; 'arap warmup' does it ahead and shows its progress)")

@@ -39,6 +39,7 @@ from arap.constraints.keyframes import Keyframes
 from arap.errors import ArapError
 from arap.io.animated_gltf import animation_glb
 from arap.options import DEFAULT_TOLERANCE
+from arap.server.budget import MemoryBudget
 from arap.server.constraints import identity_transforms, matrices_from_json
 from arap.server.messages import ANIMATION_FORMATS, EASINGS
 from arap.server.numbering import document_in_file_numbering
@@ -48,7 +49,7 @@ if TYPE_CHECKING:
     from arap.server.session import Session
 
 __all__ = ["ANIMATION_MIMES", "EXPORT_MIME", "MAX_EXPORT_FRAMES", "MAX_FPS", "AnimationCancelled", "ProgressCallback",
-           "export_animation", "keyframes_document"]
+           "export_animation", "export_bytes", "keyframes_document"]
 
 MAX_EXPORT_FRAMES = 600
 """Most frames an animation export solves (20 s at 30 frames per second)."""
@@ -59,6 +60,39 @@ ANIMATION_MIMES = {"glb": EXPORT_MIME, "gif": "image/gif", "webp": formats.get("
 
 ProgressCallback = Callable[[int, int], None]
 """``progress(frames_done, frames)``."""
+
+SOLVED_BYTES_PER_VERTEX = 24
+"""Bytes per vertex of a solved frame held until the file is written (three float64)."""
+ENCODED_BYTES_PER_VERTEX = 24
+"""Bytes per vertex of a frame in the GLB file (a morph target: position and normal, three float32 each)."""
+
+
+def export_bytes(frames: int, n_vertices: int, n_faces: int, picture_pixels: int = 0) -> int:
+    """Estimated memory of an animation export: its solved frames, and the file's bytes (a GLB: the frames, the
+    mesh, a weight per frame and keyframe; a picture's animation: the frames drawn, RGBA, and as much again for their
+    encoding), which are held together while the file is encoded.
+
+    Parameters
+    ----------
+    frames, n_vertices, n_faces : int
+    picture_pixels : int
+        Pixels of the picture each frame is drawn as (0 for a GLB).
+
+    Returns
+    -------
+    int
+        Bytes.
+    """
+    solved = frames * n_vertices * SOLVED_BYTES_PER_VERTEX
+    if picture_pixels:
+        encoded = 2 * frames * picture_pixels * 4
+    else:
+        encoded = (frames + 1) * n_vertices * ENCODED_BYTES_PER_VERTEX + 12 * n_faces + 4 * frames * (frames + 1)
+    return solved + encoded + 2**16  # and the file's JSON part
+
+
+def _megabytes(nbytes: int) -> str:
+    return f"{nbytes / 2**20:,.0f} MB"
 
 
 class AnimationCancelled(Exception):
@@ -223,7 +257,7 @@ def _pictures(mesh: Any, frames: np.ndarray) -> np.ndarray:
 def _export(session: Session, times_ms: Sequence[int] | np.ndarray, transforms: Sequence[Sequence[float]],
             fps: float, interrupted: Callable[[], bool], progress: ProgressCallback | None = None,
             easings: Sequence[int] | np.ndarray | None = None, keys: Sequence[int] | np.ndarray | None = None,
-            fmt: str = "glb") -> tuple[str, str, bytes, int, float]:
+            fmt: str = "glb", budget: MemoryBudget | None = None) -> tuple[str, str, bytes, int, float]:
     """Solve the keyframed animation at ``fps`` with the session's solver and return it as a file.
 
     Every frame is solved to convergence (the solver's default tolerance), the first from the ``"auto"`` start and
@@ -241,9 +275,14 @@ def _export(session: Session, times_ms: Sequence[int] | np.ndarray, transforms: 
     interrupted : callable
         Polled after every iteration; True cancels the export (raises :class:`AnimationCancelled`).
     progress : callable or None
-        ``progress(done, frames)`` after every frame (and with 0 before the first).
+        ``progress(done, frames)`` after every frame (and with 0 before the first, or before waiting for room in
+        ``budget``).
     fmt : {"glb", "gif", "webp", "zip"}
         An animated GLB, or for a picture an animated GIF or WebP or a zip of PNG frames.
+    budget : MemoryBudget or None
+        The server's budget of the memory exports take at once: the export's estimate (:func:`export_bytes`) is
+        held in it from the first frame until the file is encoded, after waiting for the other exports to leave
+        room. None: no limit.
 
     Returns
     -------
@@ -253,7 +292,8 @@ def _export(session: Session, times_ms: Sequence[int] | np.ndarray, transforms: 
     ------
     RequestError
         ``bad_message`` for bad keyframes, more than :data:`MAX_EXPORT_FRAMES` frames, an fps out of range, a
-        picture format for a mesh or without Pillow; ``bad_constraints`` when nothing can be solved.
+        picture format for a mesh or without Pillow; ``bad_constraints`` when nothing can be solved; ``too_large``
+        for an export whose estimate exceeds the whole of ``budget``.
     AnimationCancelled
         ``interrupted`` said so.
     """
@@ -280,6 +320,31 @@ def _export(session: Session, times_ms: Sequence[int] | np.ndarray, transforms: 
     frame_t = frame_times(frames_keys, fps)
     if len(frame_t) > MAX_EXPORT_FRAMES:
         raise RequestError("bad_message", f"{len(frame_t)} frames; an export holds at most {MAX_EXPORT_FRAMES}")
+    pixels = 0 if encoder is None or mesh.picture is None else int(mesh.picture.shape[0] * mesh.picture.shape[1])
+    needed = export_bytes(len(frame_t), session.n_vertices, mesh.n_faces, pixels)
+    if budget is not None and needed > budget.limit:
+        raise RequestError("too_large", f"an export of {len(frame_t)} frames of {session.n_vertices:,} vertices needs "
+                           f"about {_megabytes(needed)}, more than the server's limit of {_megabytes(budget.limit)} "
+                           "for animation exports (arap studio --max-export-mb): lower the frame rate or shorten the "
+                           "animation")
+    if budget is None:
+        return _solve_and_encode(session, mine, frames_keys, frame_t, fps, interrupted, progress, encoder, fmt)
+    if progress is not None:
+        progress(0, len(frame_t))  # while waiting for room
+    with budget.reserve(needed, interrupted) as reserved:
+        if not reserved:
+            raise AnimationCancelled
+        return _solve_and_encode(session, mine, frames_keys, frame_t, fps, interrupted, progress, encoder, fmt)
+
+
+def _solve_and_encode(session: Session, mine: dict[str, Any], frames_keys: Keyframes, frame_t: np.ndarray, fps: float,
+                      interrupted: Callable[[], bool], progress: ProgressCallback | None,
+                      encoder: Callable[[np.ndarray, float], bytes] | None,
+                      fmt: str) -> tuple[str, str, bytes, int, float]:
+    """Solve the frames at times ``frame_t`` and encode them (see :func:`_export`)."""
+    mesh = session._require_mesh()
+    solver = session.solver
+    assert solver is not None
     cs = session.constraints
     handles = np.asarray(mine["handles"], dtype=np.int64)
     X = np.array(session.V, dtype=np.float64)
@@ -327,10 +392,10 @@ def _export(session: Session, times_ms: Sequence[int] | np.ndarray, transforms: 
 def export_animation(session: Session, times_ms: Sequence[int] | np.ndarray, transforms: Sequence[Sequence[float]],
                      fps: float, interrupted: Callable[[], bool], progress: ProgressCallback | None = None,
                      easings: Sequence[int] | np.ndarray | None = None, keys: Sequence[int] | np.ndarray | None = None,
-                     fmt: str = "glb") -> tuple[str, str, bytes, int, float]:
+                     fmt: str = "glb", budget: MemoryBudget | None = None) -> tuple[str, str, bytes, int, float]:
     """:func:`_export`, after which the session's next solve starts from the shape shown (its solver's last
     solution is an animation frame)."""
     try:
-        return _export(session, times_ms, transforms, fps, interrupted, progress, easings, keys, fmt)
+        return _export(session, times_ms, transforms, fps, interrupted, progress, easings, keys, fmt, budget)
     finally:
         session.solver_moved_on()

@@ -35,14 +35,17 @@ from arap.server.protocol import error_message
 from arap.server.render_mesh import Look, look_from_path
 from arap.server.session import Session
 
-__all__ = ["DEFAULT_MAX_SESSIONS", "DEFAULT_MAX_UPLOAD_BYTES", "DEFAULT_MAX_VERTICES", "STATIC_DIR",
-           "client_missing_advice", "create_app", "frame_limit"]
+__all__ = ["DEFAULT_MAX_EXPORT_BYTES", "DEFAULT_MAX_SESSIONS", "DEFAULT_MAX_UPLOAD_BYTES", "DEFAULT_MAX_VERTICES",
+           "STATIC_DIR", "client_missing_advice", "create_app", "frame_limit"]
 
 logger = logging.getLogger(__name__)
 
 DEFAULT_MAX_UPLOAD_BYTES = 50 * 2**20
 DEFAULT_MAX_VERTICES = 2_000_000
 DEFAULT_MAX_SESSIONS = 32
+DEFAULT_MAX_EXPORT_BYTES = 2**31
+"""Estimated memory the animation exports of all sessions may take at once (one 600-frame export of a 43k-vertex
+scan is estimated at 1.2 GB: its solved frames, and the GLB's positions and normals)."""
 
 RELEASE_WAIT_SECONDS = 5.0
 """How long a finished session's memory is waited for (a settling iteration in progress) before trimming."""
@@ -132,6 +135,7 @@ def create_app(
     max_sessions: int = DEFAULT_MAX_SESSIONS,
     max_queued_bytes: int = 64 * 2**20,
     max_unsent_bytes: int = 64 * 2**20,
+    max_export_bytes: int = DEFAULT_MAX_EXPORT_BYTES,
     subset_frames: bool = True,
     allow_origins: Iterable[str] = (),
     bind_host: str | None = None,
@@ -160,6 +164,9 @@ def create_app(
     max_queued_bytes, max_unsent_bytes : int
         Byte budgets of one session (requests waiting, answers not yet sent): past them its frames are not read
         until the worker catches up (see :class:`arap.server.connection.StudioConfig`).
+    max_export_bytes : int
+        Estimated memory the animation exports of all sessions may take at once: a larger export is refused, one
+        that does not fit beside those running waits (see :func:`arap.server.animation_export.export_bytes`).
     subset_frames : bool
         While a constraint set with a region of interest is dragged, send only the movable vertices' positions
         (see :mod:`arap.server.liveframes`); False sends every frame in full.
@@ -193,7 +200,7 @@ def create_app(
     for name, value in (("max_upload_bytes", max_upload_bytes), ("max_vertices", max_vertices),
                         ("max_history_steps", max_history_steps), ("max_pending", max_pending),
                         ("max_sessions", max_sessions), ("max_queued_bytes", max_queued_bytes),
-                        ("max_unsent_bytes", max_unsent_bytes)):
+                        ("max_unsent_bytes", max_unsent_bytes), ("max_export_bytes", max_export_bytes)):
         if int(value) < 1:
             raise ValueError(f"{name} must be positive, got {value}")
     config = StudioConfig(
@@ -205,6 +212,7 @@ def create_app(
         max_history_bytes=int(max_history_bytes),
         max_queued_bytes=int(max_queued_bytes),
         max_unsent_bytes=int(max_unsent_bytes),
+        max_export_bytes=int(max_export_bytes),
         subset_frames=bool(subset_frames),
     )
     origins = tuple(allow_origins)

@@ -1,4 +1,5 @@
-"""Byte budgets of one connection: requests waiting for the worker and answers not yet handed to the socket.
+"""Byte budgets of one connection: requests waiting for the worker and answers not yet handed to the socket; and
+the server-wide budget of the memory that large pieces of work of all sessions (animation exports) may take at once.
 
 The reader stops reading frames while either budget is exhausted; the WebSocket server then stops reading the
 socket (it buffers at most one frame), so a client that floods the server or never reads its answers is held
@@ -8,10 +9,13 @@ back by TCP instead of growing the server's memory.
 from __future__ import annotations
 
 import asyncio
+import threading
 from collections import deque
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from typing import Generic, TypeVar
 
-__all__ = ["TEXT_MEMORY_FACTOR", "ByteBudget", "RequestQueue", "request_cost"]
+__all__ = ["TEXT_MEMORY_FACTOR", "ByteBudget", "MemoryBudget", "RequestQueue", "request_cost"]
 
 T = TypeVar("T")
 
@@ -103,3 +107,63 @@ class RequestQueue(Generic[T]):
     def clear(self) -> None:
         while self._items:
             self.popleft()
+
+
+class MemoryBudget:
+    """Estimated bytes of the work in progress in all sessions of a server (animation exports), against one limit.
+
+    Thread-safe: the work runs on worker threads. A piece of work larger than the whole limit is refused; one that
+    fits waits until the others leave it room (first come, first served is not promised: whichever fits when room
+    is made goes on).
+
+    Parameters
+    ----------
+    limit : int
+        Most bytes reserved at once.
+    """
+
+    POLL_SECONDS = 0.1
+    """How often a waiting reservation asks whether it should give up."""
+
+    def __init__(self, limit: int) -> None:
+        if limit < 1:
+            raise ValueError(f"the memory limit must be positive, got {limit}")
+        self.limit = limit
+        self.used = 0
+        self.peak = 0
+        self.waiting = 0
+        self._room = threading.Condition()
+
+    @contextmanager
+    def reserve(self, nbytes: int, interrupted: Callable[[], bool] = lambda: False) -> Iterator[bool]:
+        """Hold ``nbytes`` of the budget for the ``with`` block, once they fit; yields whether they were reserved
+        (False: ``interrupted()`` turned true while waiting, and the block should give up).
+
+        Raises
+        ------
+        ValueError
+            ``nbytes`` is more than the whole limit: it would never fit.
+        """
+        if nbytes > self.limit:
+            raise ValueError(f"{nbytes} bytes are more than the limit of {self.limit}")
+        reserved = False
+        with self._room:
+            self.waiting += 1
+            try:
+                while self.used + nbytes > self.limit and not interrupted():
+                    self._room.wait(self.POLL_SECONDS)
+                if self.used + nbytes <= self.limit:
+                    self.used += nbytes
+                    self.peak = max(self.peak, self.used)
+                    reserved = True
+            finally:
+                self.waiting -= 1
+        if not reserved:
+            yield False
+            return
+        try:
+            yield True
+        finally:
+            with self._room:
+                self.used -= nbytes
+                self._room.notify_all()

@@ -43,6 +43,7 @@ from arap.server.protocol import (
 )
 from arap.server.records import DragOutcome
 from arap.server.render_mesh import Look
+from arap.server.server_messages import Preparing
 from arap.server.session import Session
 from arap.server.studio_config import check_upload_size
 
@@ -56,6 +57,8 @@ OFF_LOOP_BYTES = 256 * 1024
 """Frames at least this large are decoded and validated on a thread, not on the event loop."""
 KERNEL_WAIT_SECONDS = 600.0
 """Longest a new connection waits for a background warm-up of the kernels before it is greeted anyway."""
+PREPARING_SECONDS = 1.0
+"""Time between two ``preparing`` messages while a new connection waits for the kernels."""
 SEND_QUEUE_EXTENSION = "arap.send_queue"
 """ASGI scope extension of the studio's WebSocket protocol (:func:`arap.server.runner.websocket_protocol`):
 ``{"bytes": callable}``, the bytes written to the connection that its client has not taken yet. Without it (another
@@ -184,8 +187,8 @@ class Connection:
         """Accept the connection and serve it until the client goes away."""
         await self.ws.accept()
         try:
-            if not KERNELS_READY.is_set():  # first run: the page says that the solver is being prepared meanwhile
-                await self._off_loop(KERNELS_READY.wait, KERNEL_WAIT_SECONDS)
+            if not KERNELS_READY.is_set():  # first run: the page shows how far the compilation is meanwhile
+                await self._wait_for_kernels()
             await self._answer(self.dispatch.greeting(self.default_mesh, self.default_look, self.prepare))
         except (WebSocketDisconnect, RuntimeError, OSError) as exc:
             logger.debug("connection closed during the greeting: %r", exc)
@@ -203,6 +206,19 @@ class Connection:
                 with contextlib.suppress(asyncio.CancelledError):
                     await task
             self._queue.clear()
+
+    async def _wait_for_kernels(self) -> None:
+        """Send ``preparing`` about every :data:`PREPARING_SECONDS` until the kernels a session needs are ready (at
+        most :data:`KERNEL_WAIT_SECONDS`)."""
+        from arap.method.jit import compile_progress
+
+        deadline = time.monotonic() + KERNEL_WAIT_SECONDS
+        while time.monotonic() < deadline:
+            p = compile_progress()
+            await self._send_json(Preparing(done=p.done, total=p.total, kernel=p.kernel, compiling=p.compiling,
+                                            seconds=round(p.seconds, 1)).to_wire())
+            if await self._off_loop(KERNELS_READY.wait, PREPARING_SECONDS):
+                return
 
     async def _read_all(self) -> None:
         try:
@@ -222,7 +238,7 @@ class Connection:
             size = len(text) if text is not None else len(data or b"")
             if (text is not None and self.decoder is not None
                     and PROCESS_BYTES <= size <= self.config.max_frame_bytes):
-                item = await self._decode_in_process(self.decoder, text)
+                item = await self._decode_in_process(self.decoder, text, self.config.max_vertices)
             elif size >= OFF_LOOP_BYTES:
                 item = await self._off_loop(self._decode, text, data, True)
             else:
@@ -234,10 +250,11 @@ class Connection:
             await self._enqueue(item, cost)
 
     @staticmethod
-    async def _decode_in_process(decoder: FrameDecoder, text: str) -> ClientMessage | RequestError:
+    async def _decode_in_process(decoder: FrameDecoder, text: str,
+                                 max_indices: int) -> ClientMessage | RequestError:
         """Decode a large text frame in the decoder process; never raises (a failure becomes the ``error``)."""
         try:
-            return await decoder.decode(text)
+            return await decoder.decode(text, max_indices)
         except RequestError as exc:
             return exc
         except MemoryError:
@@ -254,7 +271,7 @@ class Connection:
                 raise RequestError("too_large", f"frame of {size:,} bytes exceeds the limit of "
                                    f"{self.config.max_frame_bytes:,}")
             if text is not None:
-                return parse_text(text, cooperative=large)
+                return parse_text(text, cooperative=large, max_indices=self.config.max_vertices)
             if data is None:
                 raise RequestError("bad_message", "empty frame")
             return check_upload_size(self.config, parse_binary(data))

@@ -91,8 +91,11 @@ def arrays_from_lists(msg: ClientMessage) -> ClientMessage:
                                handle_groups=[_int_array(g) for g in msg.handle_groups], targets=targets)
 
 
-def decode_text_frame(data: bytes | str) -> ClientMessage:
+def decode_text_frame(data: bytes | str, max_indices: int | None = None) -> ClientMessage:
     """Decode and validate a UTF-8 text frame with arrays for its long lists (runs in a worker process).
+
+    A list of vertex indices longer than ``max_indices`` is refused when counted, before it is decoded (see
+    :func:`arap.server.protocol.parse_large_text`): neither this process nor the server ever holds it as an array.
 
     Raises
     ------
@@ -103,7 +106,7 @@ def decode_text_frame(data: bytes | str) -> ClientMessage:
     if isinstance(data, str):
         data = data.encode("utf-8")
     try:
-        return arrays_from_lists(parse_large_text(data))
+        return arrays_from_lists(parse_large_text(data, max_indices))
     finally:
         if size >= TRIM_BYTES:
             del data
@@ -132,8 +135,8 @@ def _exit_with_parent(parent: int) -> None:
     threading.Thread(target=watch, name="arap-decoder-watchdog", daemon=True).start()
 
 
-def _decode_on_thread(text: str) -> ClientMessage:
-    return arrays_from_lists(parse_large_text(text.encode("utf-8")))
+def _decode_on_thread(text: str, max_indices: int | None) -> ClientMessage:
+    return arrays_from_lists(parse_large_text(text.encode("utf-8"), max_indices))
 
 
 class FrameDecoder:
@@ -169,8 +172,10 @@ class FrameDecoder:
                     del self._pools[lane]
         pool.shutdown(wait=False, cancel_futures=True)
 
-    async def decode(self, text: str) -> ClientMessage:
+    async def decode(self, text: str, max_indices: int | None = None) -> ClientMessage:
         """Decode and validate a text frame in its lane's worker process (on a thread if the process is unusable).
+
+        ``max_indices``: see :func:`decode_text_frame`.
 
         Raises
         ------
@@ -181,7 +186,7 @@ class FrameDecoder:
         try:
             pool = self._executor(lane_of(len(text)))
             # the text itself goes to the worker (pickled once as UTF-8): no encoded copy waits here meanwhile
-            return await asyncio.get_running_loop().run_in_executor(pool, decode_text_frame, text)
+            return await asyncio.get_running_loop().run_in_executor(pool, decode_text_frame, text, max_indices)
         except BrokenProcessPool as exc:
             # raised by submit or by the result: the worker died (killed, out of memory); start a new one next time
             logger.warning("the decoder process ended (%r); decoding on a thread", exc)
@@ -189,7 +194,7 @@ class FrameDecoder:
                 self._discard(pool)
         except (RuntimeError, OSError) as exc:
             logger.warning("cannot use the decoder process (%r); decoding on a thread", exc)
-        return await anyio.to_thread.run_sync(_decode_on_thread, text)
+        return await anyio.to_thread.run_sync(_decode_on_thread, text, max_indices)
 
     def close(self, wait: bool = True) -> None:
         """Stop the worker processes; frames waiting to be decoded are dropped.

@@ -283,7 +283,7 @@ class Dispatcher:
         try:
             filename, mime, data, frames, seconds = export_animation(
                 self.session, msg.times_ms, msg.transforms, msg.fps, interrupted, progress, msg.easings, msg.keys,
-                msg.format)
+                msg.format, self.config.exports)
         except AnimationCancelled:
             return AnimationProgress(status="cancelled", frame=0, frames=0,
                                      seconds=round(time.perf_counter() - t0, 3)).to_wire()

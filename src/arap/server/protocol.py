@@ -171,19 +171,20 @@ def validate(obj: Any, binary: bool, payload: memoryview | None = None) -> Clien
     return cls(**fields)
 
 
-def parse_text(text: str, *, cooperative: bool = False) -> ClientMessage:
+def parse_text(text: str, *, cooperative: bool = False, max_indices: int | None = None) -> ClientMessage:
     """Decode and validate a text frame. Raises :class:`RequestError`.
 
     ``cooperative`` is for a large frame decoded on a thread: it is decoded as by :func:`parse_large_text`, in
     memory proportional to its size and without building a Python object per number (which would also hold the
-    interpreter lock from the other threads for as long); its long lists come back as NumPy arrays.
+    interpreter lock from the other threads for as long); its long lists come back as NumPy arrays, and those of
+    vertex indices are counted against ``max_indices`` first.
     """
     if cooperative:
-        return parse_large_text(text.encode("utf-8"))
+        return parse_large_text(text.encode("utf-8"), max_indices)
     return validate(loads_json(text), binary=False)
 
 
-def parse_large_text(data: bytes) -> ClientMessage:
+def parse_large_text(data: bytes, max_indices: int | None = None) -> ClientMessage:
     """Decode and validate a large UTF-8 text frame in memory proportional to its size. Raises
     :class:`RequestError`.
 
@@ -191,8 +192,43 @@ def parse_large_text(data: bytes) -> ClientMessage:
     NumPy arrays: index lists as (k,) int32 arrays (int64 when an index exceeds int32, a list when one exceeds
     int64), handle groups as a list
     of them, targets as a (t, 3) float64 array (see :mod:`arap.server.bulkjson`); short ones as Python lists.
+
+    ``max_indices`` (the largest mesh the server accepts, in vertices) refuses a list of vertex indices longer than
+    that (``too_large``) when it has been counted, before any of its numbers is decoded: no mesh could use it, and
+    decoding it would take memory out of proportion to any valid message.
     """
-    return validate(loads_bulk(data), binary=False)
+    obj = loads_bulk(data)
+    if max_indices is not None:
+        _refuse_long_index_lists(obj, max_indices)
+    return validate(obj, binary=False)
+
+
+def _refuse_long_index_lists(obj: Any, max_indices: int) -> None:
+    """Refuse (``too_large``) a ``set_constraints`` whose long lists of vertex indices (not decoded yet: counted by
+    :class:`~arap.server.bulkjson.NumberList`) hold more than ``max_indices`` each; anything else is left to
+    :func:`validate`."""
+    if not isinstance(obj, dict) or obj.get("type") != "set_constraints":
+        return
+    lists: list[tuple[str, Any]] = [("fixed", obj.get("fixed")), ("roi", obj.get("roi"))]
+    groups = obj.get("handle_groups")
+    if isinstance(groups, NumberList) and groups.nested and len(groups) <= MAX_HANDLE_GROUPS:
+        for i, count in enumerate(groups.inner_lengths()):
+            if count > max_indices:
+                _too_many(f"handle_groups[{i}]", count, max_indices)
+    elif isinstance(groups, list):
+        lists += [(f"handle_groups[{i}]", g) for i, g in enumerate(groups[:MAX_HANDLE_GROUPS])]
+    stiffness = obj.get("stiffness")
+    if isinstance(stiffness, list):
+        lists += [(f"stiffness[{i}].vertices", s.get("vertices"))
+                  for i, s in enumerate(stiffness[:MAX_STIFFNESS_GROUPS]) if isinstance(s, dict)]
+    for name, value in lists:
+        if isinstance(value, NumberList) and not value.nested and len(value) > max_indices:
+            _too_many(name, len(value), max_indices)
+
+
+def _too_many(name: str, count: int, max_indices: int) -> None:
+    raise RequestError("too_large", f"set_constraints.{name} lists {count:,} vertex indices, more than the "
+                       f"{max_indices:,} vertices of the largest mesh this server accepts", "set_constraints")
 
 
 def parse_binary(data: bytes | bytearray | memoryview) -> ClientMessage:

@@ -17,6 +17,7 @@ from urllib.parse import quote
 import uvicorn
 
 from arap.server.app import (
+    DEFAULT_MAX_EXPORT_BYTES,
     DEFAULT_MAX_SESSIONS,
     DEFAULT_MAX_UPLOAD_BYTES,
     DEFAULT_MAX_VERTICES,
@@ -146,6 +147,7 @@ def make_server(
     log_level: str = "warning",
     token: str | None = None,
     head_timeout: float = DEFAULT_HEAD_TIMEOUT,
+    max_export_bytes: int = DEFAULT_MAX_EXPORT_BYTES,
 ) -> tuple[uvicorn.Server, socket.socket, str]:
     """Build the studio's uvicorn server and bind its socket, without serving yet.
 
@@ -163,7 +165,7 @@ def make_server(
     if token is None and not is_loopback_host(host):
         token = new_token()
     app = create_app(mesh, max_upload_bytes=max_upload_bytes, max_vertices=max_vertices, max_sessions=max_sessions,
-                     allow_origins=allow_origins, bind_host=host, token=token)
+                     allow_origins=allow_origins, bind_host=host, token=token, max_export_bytes=max_export_bytes)
     config = uvicorn.Config(
         app,
         http=head_timeout_protocol(head_timeout),
@@ -191,6 +193,7 @@ def serve(
     on_ready: Callable[[str], None] | None = None,
     token: str | None = None,
     head_timeout: float = DEFAULT_HEAD_TIMEOUT,
+    max_export_bytes: int = DEFAULT_MAX_EXPORT_BYTES,
 ) -> None:
     """Run the studio until interrupted (Ctrl-C).
 
@@ -225,6 +228,9 @@ def serve(
     head_timeout : float
         Seconds a client has to send a request's line and headers before its connection is closed
         (see :mod:`arap.server.headtimeout`).
+    max_export_bytes : int
+        Estimated memory the animation exports of all sessions may take at once (see
+        :func:`arap.server.create_app`).
 
     Raises
     ------
@@ -236,7 +242,7 @@ def serve(
     server, sock, url = make_server(mesh, host, port, max_upload_bytes=max_upload_bytes,
                                     max_vertices=max_vertices, max_sessions=max_sessions,
                                     allow_origins=allow_origins, log_level=log_level, token=token,
-                                    head_timeout=head_timeout)
+                                    head_timeout=head_timeout, max_export_bytes=max_export_bytes)
     logger.info("ARAP Studio listening on %s", url.split("?")[0])
     if on_ready is not None:
         on_ready(url)

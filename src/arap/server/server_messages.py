@@ -34,6 +34,7 @@ __all__ = [
     "Error",
     "Export",
     "Mesh",
+    "Preparing",
     "Settle",
     "State",
     "Vertices",
@@ -269,6 +270,23 @@ class Distortion(ServerMessage):
 
 
 @dataclass(frozen=True)
+class Preparing(ServerMessage):
+    type: ClassVar[str] = "preparing"
+    doc: ClassVar[str] = (
+        "sent before the welcome, about once a second, while the server compiles the solver's kernels (the first "
+        "run in a new environment); the welcome follows once the kernels a session needs first are ready"
+    )
+    done: int = field(metadata=wire("int", "kernels ready (compiled or loaded from the cache)"))
+    total: int = field(metadata=wire("int", "kernels to prepare"))
+    kernel: str | None = field(
+        metadata=wire("string", "the kernel being compiled now (compiling), else the one compiled last, or null",
+                      nullable=True)
+    )
+    compiling: bool = field(metadata=wire("bool", "whether kernel is being compiled now"))
+    seconds: float = field(metadata=wire("number", "time since the compilation started"))
+
+
+@dataclass(frozen=True)
 class Error(ServerMessage):
     type: ClassVar[str] = "error"
     doc: ClassVar[str] = "a request was rejected; the session continues unchanged"
@@ -291,6 +309,7 @@ SERVER_MESSAGE_CLASSES: dict[str, type[ServerMessage]] = {
         AnimationProgress,
         Animation,
         Distortion,
+        Preparing,
         Error,
     )
 }

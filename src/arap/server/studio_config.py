@@ -7,8 +7,9 @@ messages (a WebSocket, :mod:`arap.server.connection`; a notebook widget's comm, 
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
+from arap.server.budget import MemoryBudget
 from arap.server.client_messages import Upload
 from arap.server.errors import RequestError
 from arap.server.messages import ClientMessage
@@ -41,6 +42,12 @@ class StudioConfig:
     subset_frames : bool
         Send only the movable vertices' positions while a constraint set with a region of interest is dragged
         (see :mod:`arap.server.liveframes`); False sends every ``vertices`` frame in full.
+    max_export_bytes : int
+        Estimated memory that the animation exports of all sessions may take at once (see
+        :func:`arap.server.animation_export.export_bytes`): an export larger than this is refused, one that does not
+        fit beside those running waits for them.
+    exports : MemoryBudget
+        That budget, shared by every session given this configuration.
     """
 
     max_upload_bytes: int = 50 * 2**20
@@ -52,6 +59,11 @@ class StudioConfig:
     max_queued_bytes: int = 64 * 2**20
     max_unsent_bytes: int = 64 * 2**20
     subset_frames: bool = True
+    max_export_bytes: int = 2**31
+    exports: MemoryBudget = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "exports", MemoryBudget(self.max_export_bytes))
 
 
 def check_upload_size(config: StudioConfig, msg: ClientMessage) -> ClientMessage:
