@@ -4,6 +4,7 @@ exported as the warped picture."""
 from __future__ import annotations
 
 import io
+from typing import Any
 
 import numpy as np
 import pytest
@@ -147,3 +148,41 @@ def test_the_mesh_frame_says_it_is_a_picture_and_its_size() -> None:
     assert s.mesh is not None
     assert decode_binary(mesh_frame(s.mesh))[0]["picture"] == [120, 120]
     assert decode_binary(mesh_frame(load_builtin("bar")))[0]["picture"] is None
+
+
+def _two_squares_png() -> bytes:
+    """A red square and a blue one side by side, apart, on a transparent background (120 × 60)."""
+    rgba = np.zeros((60, 120, 4), dtype=np.uint8)
+    rgba[10:50, 10:50] = [220, 40, 40, 255]
+    rgba[10:50, 70:110] = [40, 40, 220, 255]
+    out = io.BytesIO()
+    Image.fromarray(rgba, "RGBA").save(out, format="PNG")
+    return out.getvalue()
+
+
+def _pin_at(mesh: Any, x: float, y: float) -> dict[str, Any]:
+    """A point handle at the triangle whose centroid is nearest to (x, y) (the studio's coordinates)."""
+    centre = mesh.V[mesh.F].mean(axis=1)
+    face = int(np.argmin(np.hypot(centre[:, 0] - x, centre[:, 1] - y)))
+    return {"face": face, "barycentric": [1 / 3, 1 / 3, 1 / 3]}
+
+
+def test_pin_depth_chooses_which_part_covers_the_other_in_the_png() -> None:
+    mesh, look = load_picture(_two_squares_png(), "squares.png", 100_000)
+    s = Session()
+    s.load(mesh, look)
+    red, blue = _pin_at(mesh, 30, 30), _pin_at(mesh, 90, 30)
+    blue["target"] = (np.array(blue["barycentric"]) @ mesh.V[mesh.F[blue["face"]]] + [-40.0, 0.0, 0.0]).tolist()
+    s.set_constraints(None, [], [], points=[red, blue])
+    s.settle(lambda: False)
+
+    def overlap_colour() -> np.ndarray:
+        picture = np.asarray(Image.open(io.BytesIO(s.export("png")[2])))
+        return picture[25:35, 35:45].reshape(-1, 4).mean(axis=0)  # where the blue square now covers the red one
+
+    s.set_pin_depth([0, 1])
+    front_blue = overlap_colour()
+    assert front_blue[2] > 200 and front_blue[0] < 60
+    s.set_pin_depth([1, 0])
+    front_red = overlap_colour()
+    assert front_red[0] > 200 and front_red[2] < 60

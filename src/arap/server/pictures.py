@@ -16,12 +16,14 @@ import numpy as np
 
 import arap.io.formats as formats
 from arap.errors import ArapError
+from arap.method.points import PointConstraints
 from arap.server.mesh_model import MeshData
 from arap.server.meshdata import load_upload
 from arap.server.protocol import RequestError
 from arap.server.render_mesh import Look, look_from_upload
 
-__all__ = ["PICTURE_EXTENSIONS", "is_picture", "load_picture", "picture_mesh", "warped_picture_png"]
+__all__ = ["PICTURE_EXTENSIONS", "draw_order", "is_picture", "load_picture", "picture_mesh", "pin_parts",
+           "warped_picture_png"]
 
 PICTURE_EXTENSIONS: tuple[str, ...] = formats.suffixes("picture")
 """Pictures the studio opens for the puppet warp."""
@@ -96,9 +98,47 @@ def _frozen(a: np.ndarray) -> np.ndarray:
     return out
 
 
-def warped_picture_png(mesh: MeshData, U: np.ndarray) -> bytes:
+def pin_parts(mesh: MeshData, points: PointConstraints | None) -> np.ndarray:
+    """The pin each triangle of a picture's ``mesh`` belongs to (:meth:`arap.puppet.PuppetWarp.pin_parts`: the
+    nearest pin to its rest centroid within its island, -1 for an island without a pin), for the point handles
+    ``points`` (all -1 without any)."""
+    from types import SimpleNamespace
+
+    from arap.puppet.warp import PuppetWarp
+
+    F = np.asarray(mesh.F, dtype=np.int64)
+    if points is None or len(points.faces) == 0:
+        return np.full(len(F), -1, dtype=np.int64)
+    pins = np.einsum("kc,kcd->kd", points.barycentric, mesh.V[F[points.faces]])[:, :2]
+    warp: Any = SimpleNamespace(mesh=SimpleNamespace(vertices=mesh.V[:, :2], triangles=F), faces=points.faces,
+                                pins=pins)
+    return PuppetWarp.pin_parts(warp)  # the same parts whatever the y axis' direction
+
+
+def draw_order(parts: np.ndarray, depth: list[int] | np.ndarray | None) -> np.ndarray | None:
+    """The triangles' drawing order for a depth per pin (later drawn over earlier; None: the mesh's order): a
+    triangle takes its pin's depth (:func:`pin_parts`), 0 for a pin beyond ``depth`` or no pin, ties in the mesh's
+    order.
+
+    Example
+    -------
+    >>> draw_order(np.array([0, 1, -1, 0]), [2, 1]).tolist()
+    [2, 1, 0, 3]
+    """
+    if depth is None or len(depth) == 0:
+        return None
+    d = np.zeros(len(parts) and int(parts.max()) + 2, dtype=np.float64)
+    given = np.asarray(depth, dtype=np.float64)[: len(d) - 1]
+    d[: len(given)] = given
+    per_triangle = d[parts]  # -1 (no pin) reads the last entry, 0
+    return np.argsort(per_triangle, kind="stable").astype(np.int64)
+
+
+def warped_picture_png(mesh: MeshData, U: np.ndarray, points: PointConstraints | None = None,
+                       depth: list[int] | None = None) -> bytes:
     """The picture of ``mesh`` drawn on its deformed positions ``U`` (the studio's ``(x, h − y, 0)``), at the picture's
-    size, as PNG bytes."""
+    size, as PNG bytes; ``depth``: a depth per pin of ``points`` (the point handles), whose parts are drawn in that
+    order where they overlap (:func:`draw_order`)."""
     import io
 
     from PIL import Image
@@ -109,7 +149,8 @@ def warped_picture_png(mesh: MeshData, U: np.ndarray) -> bytes:
     h, w = mesh.picture.shape[:2]
     rest = np.column_stack([mesh.V[:, 0], h - mesh.V[:, 1]])
     now = np.column_stack([U[:, 0], h - U[:, 1]])
-    pixels = draw_textured(mesh.picture, rest, now, np.asarray(mesh.F, dtype=np.int64), (w, h), (0, 0), None)
+    order = draw_order(pin_parts(mesh, points), depth) if depth else None
+    pixels = draw_textured(mesh.picture, rest, now, np.asarray(mesh.F, dtype=np.int64), (w, h), (0, 0), order)
     out = io.BytesIO()
     Image.fromarray(pixels, "RGBA").save(out, format="PNG")
     return out.getvalue()

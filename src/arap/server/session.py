@@ -67,6 +67,7 @@ class Session(SessionState):
         self.settled = True
         self.energy = 0.0
         self.kept_shapes.clear()
+        self.pin_depth = []
         self.history.clear(self._snapshot())
 
     def set_constraints(self, roi: list[int] | None, fixed: list[int], groups: list[list[int]],
@@ -406,8 +407,14 @@ class Session(SessionState):
         if mesh.picture is not None:
             from arap.server.pictures import warped_picture_png
 
-            return warped_picture_png(mesh, self.U)
+            return warped_picture_png(mesh, self.U, self.constraints.points, self.pin_depth)
         return bytes(arap.show(self.U, mesh.F, width=1024, height=768).png())
+
+    def set_pin_depth(self, depth: list[int]) -> None:
+        """A picture's depth per pin (point handle, in their order): where parts overlap, the part of the pin of
+        larger depth is drawn over the other (Export PNG); pins beyond the list have depth 0."""
+        self._require_mesh()
+        self.pin_depth = [int(d) for d in depth]
 
     def constraints_document(self) -> dict[str, Any]:
         """The current constraints in the command-line format, in the mesh file's vertex numbering (as ``arap

@@ -62,6 +62,8 @@ class SessionState:
         self.energy: float | None = 0.0
         """Energy of the shape ``U`` when known (0 at a rest pose)."""
         self._diagonal = (-1, 0.0)  # (rest_id, the rest pose's bounding-box diagonal)
+        self.pin_depth: list[int] = []
+        """A picture's depth per point handle (pin): larger ones' parts are drawn over smaller ones' (none: 0)."""
 
     def _require_mesh(self) -> MeshData:
         if self.mesh is None:
