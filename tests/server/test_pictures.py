@@ -186,3 +186,41 @@ def test_pin_depth_chooses_which_part_covers_the_other_in_the_png() -> None:
     s.set_pin_depth([1, 0])
     front_red = overlap_colour()
     assert front_red[0] > 200 and front_red[2] < 60
+
+
+def test_meshing_again_keeps_the_pins_places_and_targets() -> None:
+    s = _loaded()
+    mesh = s.mesh
+    assert mesh is not None
+    left, right = _pin_at(mesh, 25, 60), _pin_at(mesh, 95, 60)
+    right["weight"] = 50.0
+    right["target"] = (np.array(right["barycentric"]) @ mesh.V[mesh.F[right["face"]]] + [10.0, 20.0, 0.0]).tolist()
+    s.set_constraints(None, [], [], points=[left, right])
+    s.settle(lambda: False)
+    s.set_pin_depth([0, 1])
+    old = s.constraints.points
+    assert old is not None
+    rest = np.einsum("kc,kcd->kd", old.barycentric, mesh.V[mesh.F[old.faces]])
+    now = np.einsum("kc,kcd->kd", old.barycentric, s.U[mesh.F[old.faces]])
+    for density, more in (("coarse", False), ("fine", True)):
+        before = s.n_vertices
+        new = s.remesh(density, 100_000)
+        assert s.mesh is new and new.picture is not None and (new.n_vertices > before) == more
+        pts = s.constraints.points
+        assert pts is not None and len(pts.faces) == 2 and s.pin_depth == [0, 1]
+        np.testing.assert_allclose(np.einsum("kc,kcd->kd", pts.barycentric, new.V[new.F[pts.faces]]), rest, atol=1e-6)
+        np.testing.assert_allclose(pts.weights, old.weights)
+        s.settle(lambda: False)
+        at = np.einsum("kc,kcd->kd", pts.barycentric, s.U[new.F[pts.faces]])
+        np.testing.assert_allclose(at[0], now[0], atol=1e-6)  # the hard pin where it was
+        np.testing.assert_allclose(at[1], now[1], atol=2.0)  # the soft one near it
+
+
+def test_only_a_picture_is_meshed_again() -> None:
+    from arap.server.meshdata import load_builtin
+    from arap.server.session_errors import UnusableMesh
+
+    s = Session()
+    s.load(load_builtin("bar"))
+    with pytest.raises(UnusableMesh, match="picture"):
+        s.remesh("fine", 100_000)

@@ -22,8 +22,17 @@ from arap.server.meshdata import load_upload
 from arap.server.protocol import RequestError
 from arap.server.render_mesh import Look, look_from_upload
 
-__all__ = ["PICTURE_EXTENSIONS", "draw_order", "is_picture", "load_picture", "picture_mesh", "pin_parts",
-           "warped_picture_png"]
+__all__ = [
+    "DENSITIES",
+    "PICTURE_EXTENSIONS",
+    "draw_order",
+    "is_picture",
+    "load_picture",
+    "locate_points",
+    "picture_mesh",
+    "pin_parts",
+    "warped_picture_png",
+]
 
 PICTURE_EXTENSIONS: tuple[str, ...] = formats.suffixes("picture")
 """Pictures the studio opens for the puppet warp."""
@@ -53,10 +62,15 @@ def load_picture(data: bytes | memoryview, filename: str, max_vertices: int) -> 
     return picture_mesh(picture, stem, max_vertices)
 
 
-def picture_mesh(picture: np.ndarray, stem: str, max_vertices: int,
-                 spacing: float | None = None) -> tuple[MeshData, Look | None]:
+DENSITIES: dict[str, int] = {"coarse": 1500, "normal": 5000, "fine": 15000}
+"""The studio's mesh densities of a picture: vertices when the shape fills the picture (:func:`arap.image_mesh`'s
+``density``; ``normal`` is its default)."""
+
+
+def picture_mesh(picture: np.ndarray, stem: str, max_vertices: int, spacing: float | None = None,
+                 density: str = "normal") -> tuple[MeshData, Look | None]:
     """The mesh and look of a picture's pixels ((h, w, 3|4) uint8), named ``stem``; ``spacing``: the mesh's edge
-    length in pixels (None: :func:`arap.image_mesh`'s default density).
+    length in pixels (None: that of ``density``, one of :data:`DENSITIES`).
 
     Raises
     ------
@@ -67,7 +81,7 @@ def picture_mesh(picture: np.ndarray, stem: str, max_vertices: int,
     from arap.puppet.warp import PuppetWarp
 
     try:
-        mesh = image_mesh(picture, spacing)
+        mesh = image_mesh(picture, spacing, density=DENSITIES[density])
         if len(mesh.vertices) > max_vertices:
             raise RequestError("too_large", f"the picture's mesh has {len(mesh.vertices):,} vertices, more than this "
                                             f"studio's {max_vertices:,}")
@@ -113,6 +127,35 @@ def pin_parts(mesh: MeshData, points: PointConstraints | None) -> np.ndarray:
     warp: Any = SimpleNamespace(mesh=SimpleNamespace(vertices=mesh.V[:, :2], triangles=F), faces=points.faces,
                                 pins=pins)
     return PuppetWarp.pin_parts(warp)  # the same parts whatever the y axis' direction
+
+
+def locate_points(mesh: MeshData, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The triangle of a flat ``mesh`` (in ``z = 0``) under each of ``points`` ((k, 2|3), x and y read) and the
+    points' barycentric coordinates in it; a point outside the mesh takes the nearest triangle (the one where its
+    most negative coordinate is least negative), its coordinates clipped to it.
+
+    Example
+    -------
+    >>> m = MeshData("sq", np.array([[0.0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]]), np.array([[0, 1, 2], [0, 2, 3]]))
+    >>> faces, bary = locate_points(m, np.array([[0.25, 0.75]]))
+    >>> faces.tolist(), bary.round(2).tolist()
+    ([1], [[0.25, 0.25, 0.5]])
+    """
+    P = np.asarray(points, dtype=np.float64)[:, :2]
+    F = np.asarray(mesh.F, dtype=np.int64)
+    a, b, c = (mesh.V[F[:, k], :2] for k in range(3))
+    det = (b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (c[:, 0] - a[:, 0]) * (b[:, 1] - a[:, 1])
+    det = np.where(det == 0.0, np.finfo(np.float64).tiny, det)
+    faces = np.empty(len(P), dtype=np.int64)
+    bary = np.empty((len(P), 3))
+    for k, (x, y) in enumerate(P):
+        l1 = ((x - a[:, 0]) * (c[:, 1] - a[:, 1]) - (c[:, 0] - a[:, 0]) * (y - a[:, 1])) / det
+        l2 = ((b[:, 0] - a[:, 0]) * (y - a[:, 1]) - (x - a[:, 0]) * (b[:, 1] - a[:, 1])) / det
+        lam = np.column_stack([1.0 - l1 - l2, l1, l2])
+        best = int(np.argmax(lam.min(axis=1)))
+        inside = np.clip(lam[best], 0.0, None)
+        faces[k], bary[k] = best, inside / inside.sum()
+    return faces, bary
 
 
 def draw_order(parts: np.ndarray, depth: list[int] | np.ndarray | None) -> np.ndarray | None:

@@ -416,6 +416,42 @@ class Session(SessionState):
         self._require_mesh()
         self.pin_depth = [int(d) for d in depth]
 
+    def remesh(self, density: str, max_vertices: int) -> MeshData:
+        """Mesh a picture again at ``density`` (:data:`arap.server.pictures.DENSITIES`), keeping its pins: each stays
+        at its place on the picture and keeps its weight, its target (where it is now) and its depth; the other
+        constraints and the history start afresh (as on :meth:`load`). Returns the new mesh.
+
+        Raises
+        ------
+        UnusableMesh
+            When the mesh is not a picture's.
+        """
+        from arap.server.pictures import locate_points, picture_mesh
+
+        mesh = self._require_mesh()
+        if mesh.picture is None:
+            raise UnusableMesh("only a picture's mesh can be meshed again")
+        new, look = picture_mesh(np.array(mesh.picture), mesh.name, max_vertices, density=density)
+        old = self.constraints.points
+        pins: list[dict[str, Any]] = []
+        if old is not None and len(old.faces):
+            corners = mesh.F[old.faces]
+            rest = np.einsum("kc,kcd->kd", old.barycentric, self.V[corners])
+            now = np.einsum("kc,kcd->kd", old.barycentric, self.U[corners])
+            faces, bary = locate_points(new, rest)
+            for k in range(len(faces)):
+                pin: dict[str, Any] = {"face": int(faces[k]), "barycentric": bary[k].tolist(),
+                                       "target": now[k].tolist()}
+                if np.isfinite(old.weights[k]):
+                    pin["weight"] = float(old.weights[k])
+                pins.append(pin)
+        depth = self.pin_depth
+        self.load(new, look)
+        self.pin_depth = depth
+        if pins:
+            self.set_constraints(None, [], [], points=pins)
+        return new
+
     def constraints_document(self) -> dict[str, Any]:
         """The current constraints in the command-line format, in the mesh file's vertex numbering (as ``arap
         deform`` reads them; :func:`arap.server.numbering.document_in_file_numbering`); with the timeline's keyframes,
