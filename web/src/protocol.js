@@ -21,7 +21,9 @@ export const CLIENT = Object.freeze(/** @type {const} */ ({
   "GET_CONSTRAINTS": "get_constraints",
   "EXPORT_ANIMATION": "export_animation",
   "GET_DISTORTION": "get_distortion",
-  "KEEP_SHAPE": "keep_shape"
+  "KEEP_SHAPE": "keep_shape",
+  "SET_PIN_DEPTH": "set_pin_depth",
+  "REMESH": "remesh"
 }));
 
 /** Types of the messages the server sends. */
@@ -265,7 +267,21 @@ export const UPLOAD_EXTENSIONS = Object.freeze([
  * @property {number} key the keyframe's number, chosen by the client
  */
 
-/** Any message a client sends. @typedef {LoadBuiltinClientMessage|UploadClientMessage|SetConstraintsClientMessage|DragClientMessage|EndDragClientMessage|SetParamsClientMessage|UndoClientMessage|RedoClientMessage|ResetClientMessage|ApplyClientMessage|ExportClientMessage|GetConstraintsClientMessage|ExportAnimationClientMessage|GetDistortionClientMessage|KeepShapeClientMessage} ClientMessage */
+/**
+ * a picture's depth per pin: where parts overlap, the part of the pin of larger depth is drawn over the other (Export PNG)
+ * @typedef {object} SetPinDepthClientMessage
+ * @property {"set_pin_depth"} type
+ * @property {number[]} depth one depth per point handle, in their order (absent: 0)
+ */
+
+/**
+ * mesh a picture again at another density, its pins kept at their places and targets
+ * @typedef {object} RemeshClientMessage
+ * @property {"remesh"} type
+ * @property {"coarse"|"normal"|"fine"} density the mesh's density
+ */
+
+/** Any message a client sends. @typedef {LoadBuiltinClientMessage|UploadClientMessage|SetConstraintsClientMessage|DragClientMessage|EndDragClientMessage|SetParamsClientMessage|UndoClientMessage|RedoClientMessage|ResetClientMessage|ApplyClientMessage|ExportClientMessage|GetConstraintsClientMessage|ExportAnimationClientMessage|GetDistortionClientMessage|KeepShapeClientMessage|SetPinDepthClientMessage|RemeshClientMessage} ClientMessage */
 
 /**
  * sent once on connect, followed by a mesh frame

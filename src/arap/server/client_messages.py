@@ -42,9 +42,11 @@ __all__ = [
     "KeepShape",
     "LoadBuiltin",
     "Redo",
+    "Remesh",
     "Reset",
     "SetConstraints",
     "SetParams",
+    "SetPinDepth",
     "Undo",
     "Upload",
 ]
@@ -208,6 +210,22 @@ class Apply(ClientMessage):
 
 
 @dataclass(frozen=True)
+class SetPinDepth(ClientMessage):
+    type: ClassVar[str] = "set_pin_depth"
+    doc: ClassVar[str] = ("a picture's depth per pin: where parts overlap, the part of the pin of larger depth is "
+                          "drawn over the other (Export PNG)")
+    depth: IndexList = field(metadata=wire("indices", "one depth per point handle, in their order (absent: 0)",
+                                           max_length=MAX_HANDLE_GROUPS))
+
+
+@dataclass(frozen=True)
+class Remesh(ClientMessage):
+    type: ClassVar[str] = "remesh"
+    doc: ClassVar[str] = "mesh a picture again at another density, its pins kept at their places and targets"
+    density: str = field(metadata=wire("enum", "the mesh's density", choices=("coarse", "normal", "fine")))
+
+
+@dataclass(frozen=True)
 class Export(ClientMessage):
     type: ClassVar[str] = "export"
     doc: ClassVar[str] = (
@@ -325,6 +343,8 @@ CLIENT_MESSAGE_CLASSES: dict[str, type[ClientMessage]] = {
         ExportAnimation,
         GetDistortion,
         KeepShape,
+        SetPinDepth,
+        Remesh,
     )
 }
 """The class of each message a client may send, by type."""

@@ -33,9 +33,11 @@ from arap.server.client_messages import (
     KeepShape,
     LoadBuiltin,
     Redo,
+    Remesh,
     Reset,
     SetConstraints,
     SetParams,
+    SetPinDepth,
     Undo,
     Upload,
 )
@@ -126,6 +128,8 @@ class Dispatcher:
             GetDistortion: self._get_distortion,
             GetConstraints: self._get_constraints,
             KeepShape: self._keep_shape,
+            SetPinDepth: self._set_pin_depth,
+            Remesh: self._remesh,
         }
         """The handler of each message class (``export_animation`` is run by the transports, which stream its
         progress: :meth:`export_animation`)."""
@@ -324,6 +328,18 @@ class Dispatcher:
     def _set_params(self, msg: SetParams) -> Answers:
         self.session.set_params(msg.iterations, msg.energy, msg.weights, msg.alpha, msg.loose, msg.warp)
         yield self.state()
+
+    def _set_pin_depth(self, msg: SetPinDepth) -> Answers:
+        self.session.set_pin_depth(list(msg.depth))
+        yield self.state()
+
+    def _remesh(self, msg: Remesh) -> Answers:
+        mesh = self.session.remesh(msg.density, self.config.max_vertices)
+        self.take_skipped()
+        yield from self.mesh(mesh)
+        yield self.vertices(-1, None)
+        yield self.state()
+        yield from self.shape_status()
 
     def _history_step(self, msg: Undo | Redo | Reset | Apply) -> Answers:
         s = self.session
