@@ -12,7 +12,7 @@ from PIL import Image
 
 from arap.server.pictures import is_picture, load_picture
 from arap.server.session import Session
-from tests.server.helpers import translation
+from tests.server.helpers import StudioClient, translation
 
 
 def _disc_png(size: int = 120) -> bytes:
@@ -224,3 +224,21 @@ def test_only_a_picture_is_meshed_again() -> None:
     s.load(load_builtin("bar"))
     with pytest.raises(UnusableMesh, match="picture"):
         s.remesh("fine", 100_000)
+
+
+def test_the_studio_sets_pin_depths_and_meshes_a_picture_again(studio: StudioClient) -> None:
+    studio.send_binary({"type": "upload", "filename": "disc.png"}, _disc_png())
+    normal = studio.read_mesh().data["n_vertices"]
+    while studio.recv().type != "state":  # the picture's appearance first
+        pass
+    studio.send({"type": "set_constraints", "roi": None, "fixed": [], "handle_groups": [],
+                 "points": [{"face": 0, "barycentric": [1 / 3, 1 / 3, 1 / 3]}]})
+    studio.expect("state")
+    studio.send({"type": "set_pin_depth", "depth": [2]})
+    studio.expect("state")
+    studio.send({"type": "remesh", "density": "coarse"})
+    assert studio.read_mesh().data["n_vertices"] < normal
+    replies = []
+    while (reply := studio.recv()).type != "state":
+        replies.append(reply.type)
+    assert "appearance" in replies and "vertices" in replies and len(reply.data["constraints"]["points"]) == 1

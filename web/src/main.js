@@ -342,6 +342,8 @@ function setGizmoMode(/** @type {'translate'|'rotate'} */ mode) {
   undo: () => stepHistory(CLIENT.UNDO),
   redo: () => stepHistory(CLIENT.REDO),
   setParams: (p) => send({ type: CLIENT.SET_PARAMS, ...p }),
+  activePin: () => (selection.groups[selection.activeGroup]?.point
+    ? selection.groups.slice(0, selection.activeGroup).filter((g) => g.point).length : null),
   saveConstraints: () => send({ type: CLIENT.GET_CONSTRAINTS, ...(timeline.messageFields() ?? {}) }),
   setFlatShading: (on) => viewer.setFlatShading(on),
   setWireframe: (on) => viewer.setWireframe(on),

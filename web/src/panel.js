@@ -45,6 +45,7 @@ function fillChoices(select, param) {
  * @property {(file: File) => void} loadConstraintsFile
  * @property {(tool: string) => void} setTool
  * @property {(role: string) => void} setRole
+ * @property {() => number|null} activePin the active pin's number among the point handles (null: none active)
  * @property {(mode: 'translate'|'rotate') => void} setGizmoMode
  * @property {(mode: 'texture'|'colours'|'plain') => void} setSurface
  * @property {(value: number) => void} setBrushRadius

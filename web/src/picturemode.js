@@ -7,11 +7,32 @@ import { PARAMS } from './protocol.js';
 
 /** @type {((role: string) => void)|null} */
 let chooseRole = null;
+/** The depth of each pin (point handle, in their order) as last sent: set_pin_depth. @type {number[]} */
+let depth = [];
+/** Whether the next mesh is the picture meshed again (its pins and their depths kept). */
+let remeshing = false;
+
+/**
+ * The pins' depths with pin `k` moved to the front (`forward`) or the back, as ranks 0, 1, ... (larger: in front).
+ * @param {number[]} given the depths as last sent (pins beyond them: 0)
+ * @param {number} k
+ * @param {boolean} forward
+ * @returns {number[]}
+ */
+export function movedDepth(given, k, forward) {
+  const d = Array.from({ length: Math.max(given.length, k + 1) }, (_, j) => given[j] ?? 0);
+  d[k] = forward ? Math.max(...d) + 1 : Math.min(...d) - 1;
+  const order = d.map((_, j) => j).sort((a, b) => d[a] - d[b] || a - b);
+  const ranks = new Array(d.length).fill(0);
+  order.forEach((j, r) => (ranks[j] = r));
+  return ranks;
+}
 
 /**
  * Fill the Warp choice and wire the controls.
  * @param {{setParams: (p: {warp: "rigid"|"normal"|"distort"}) => void, setWireframe: (on: boolean) => void,
- *   setRole: (role: string) => void}} actions
+ *   setRole: (role: string) => void, activePin: () => number|null,
+ *   send: (m: import('./protocol.js').ClientMessage) => void}} actions
  */
 export function installPictureControls(actions) {
   chooseRole = actions.setRole;
@@ -31,6 +52,19 @@ export function installPictureControls(actions) {
     byIdAs('wireframe', HTMLInputElement).checked = mesh.checked; // the Display section's control says the same
     actions.setWireframe(mesh.checked);
   });
+  for (const [id, forward] of /** @type {[string, boolean][]} */ ([['pin-forward', true], ['pin-backward', false]])) {
+    byId(id).addEventListener('click', () => {
+      const k = actions.activePin();
+      if (k === null) return;
+      depth = movedDepth(depth, k, forward);
+      actions.send({ type: 'set_pin_depth', depth });
+    });
+  }
+  const density = byIdAs('density', HTMLSelectElement);
+  density.addEventListener('change', () => {
+    remeshing = true;
+    actions.send({ type: 'remesh', density: /** @type {"coarse"|"normal"|"fine"} */ (density.value) });
+  });
 }
 
 /**
@@ -43,6 +77,11 @@ export function pictureShown(msg) {
   byId('picture-size').textContent = picture ? `${msg.picture?.[0]} × ${msg.picture?.[1]} px` : '';
   byIdAs('picture-mesh', HTMLInputElement).checked = byIdAs('wireframe', HTMLInputElement).checked;
   if (picture) chooseRole?.('point'); // a click places a pin
+  if (!remeshing) {
+    depth = [];
+    byIdAs('density', HTMLSelectElement).value = 'normal';
+  }
+  remeshing = false;
 }
 
 /**
