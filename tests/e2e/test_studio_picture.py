@@ -72,3 +72,21 @@ def test_a_picture_offers_the_warp_modes_and_delete_removes_a_pin(page: Page, tm
     page.get_by_test_id("picture-mesh").check()
     expect(page.get_by_test_id("wireframe")).to_be_checked()
     assert not page.evaluate("() => window.__arap.errors")
+
+
+def test_a_pin_goes_forward_and_the_picture_is_meshed_again_with_its_pin(page: Page, tmp_path: Path) -> None:
+    from tests.e2e.conftest import screen_points, wait_idle
+
+    upload(page, _picture(tmp_path / "dense.png"), "texture")
+    before = len(positions(page))
+    x, y = np.median(screen_points(page), axis=0)
+    page.mouse.click(x, y)
+    wait_idle(page)
+    page.wait_for_function("() => window.__arap.constraints().points.length === 1")
+    page.get_by_test_id("pin-forward").click()
+    page.get_by_test_id("density").select_option("coarse")
+    page.wait_for_function(f"() => window.__arap.nVertices !== {before}", timeout=30_000)
+    wait_idle(page)
+    page.wait_for_function("() => window.__arap.constraints().points.length === 1")  # the pin is kept
+    assert len(positions(page)) < before
+    assert not page.evaluate("() => window.__arap.errors")
