@@ -141,7 +141,7 @@ def kernel_comparison(V: np.ndarray, F: np.ndarray, b: np.ndarray, bc: np.ndarra
     import numba
     from tests.core.reference_kernels import assemble_rhs_reference, local_step_reference
 
-    from arap.method._parallel import policy
+    from arap.kernels.parallel import policy
     from arap.method.covariance import (
         _local_parallel,
         _local_serial,

@@ -12,23 +12,23 @@ import numpy as np
 import pytest
 
 import arap
-import arap.method.jit
-import arap.method.kernel_cache
+import arap.solve.kernel_cache
+import arap.warmup
 from arap.cli import main
 
 
 def test_an_empty_cache_is_told_apart_from_a_warm_one(tmp_path: Path) -> None:
-    code = "import arap.method.kernel_cache as k; print(k.first_compile_pending())"
+    code = "import arap.solve.kernel_cache as k; print(k.first_compile_pending())"
     cold = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120,
                           env={**os.environ, "NUMBA_CACHE_DIR": str(tmp_path)})
     assert cold.stdout.strip() == "True", cold.stderr
-    arap.method.jit.warm_up_kernels()
-    assert arap.method.kernel_cache.first_compile_pending() is False
+    arap.warmup.warm_up_kernels()
+    assert arap.solve.kernel_cache.first_compile_pending() is False
 
 
 def test_the_first_compile_is_announced_once(monkeypatch: pytest.MonkeyPatch, caplog: pytest.LogCaptureFixture) -> None:
-    monkeypatch.setattr(arap.method.kernel_cache, "_announced", False)
-    monkeypatch.setattr(arap.method.kernel_cache, "first_compile_pending", lambda: True)
+    monkeypatch.setattr(arap.solve.kernel_cache, "_announced", False)
+    monkeypatch.setattr(arap.solve.kernel_cache, "first_compile_pending", lambda: True)
     V, F = arap.builtin_mesh("bar")
     with caplog.at_level(logging.WARNING, logger="arap"):
         arap.ArapSolver(V, F, np.array([0, 1, 2]))

@@ -155,11 +155,11 @@ class StudioWidget:
 
     def _setup(self, *, V: NDArray[np.float64], F: NDArray[np.int64], name: str, prepare: Any = None,
                picture: bool = True, opened: Any = None) -> None:
-        from arap.method.kernel_cache import KERNELS_READY
         from arap.server.channel import ChannelWorker
         from arap.server.dispatch import Dispatcher, StudioConfig
         from arap.server.meshdata import MeshData
         from arap.server.session import Session
+        from arap.warmup import KERNELS_READY
 
         self._V = V
         self._F = F
@@ -236,8 +236,8 @@ class StudioWidget:
     def _send_preparing(self, view: str | None) -> None:
         """Tell a view that its greeting waits for the session to be prepared, with a picture of the mesh to show
         meanwhile (drawn once, without the solver's kernels)."""
-        from arap.method.kernel_cache import first_compile_pending
         from arap.render.show import show
+        from arap.solve.kernel_cache import first_compile_pending
 
         if self._preview is None:
             width, height = PICTURE_SIZE

@@ -12,7 +12,7 @@ from __future__ import annotations
 import numba as nb
 import numpy as np
 
-from arap.method._parallel import kernel_lock
+from arap.kernels.parallel import kernel_lock
 from arap.method.cells import Cells, RhsGather
 from arap.method.horn import best_rotation, rotation_from_covariance
 

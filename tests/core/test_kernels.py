@@ -8,8 +8,9 @@ import numba
 import numpy as np
 import pytest
 
-from arap.method import _parallel, covariance
-from arap.method._parallel import ThreadPolicy
+from arap.kernels import parallel as _parallel
+from arap.kernels.parallel import ThreadPolicy
+from arap.method import covariance
 from arap.method.cells import Cells, RhsGather
 from arap.method.energy import arap_energy
 from arap.solve.solver import ArapSolver

@@ -54,7 +54,6 @@ __all__ = [
     "positive_int",
     "selector_constraints",
     "token_value",
-    "warm_up_kernels",
     "writable_destination",
 ]
 
@@ -157,16 +156,6 @@ def one_line(exc: BaseException) -> str:
     """An exception's message on one line of at most 500 characters."""
     text = " ".join(str(exc).split()) or type(exc).__name__
     return text if len(text) <= 500 else text[:497] + "..."
-
-
-def warm_up_kernels(quiet: bool) -> dict[str, object]:
-    """Compile (first run) or load the kernels before anything is timed; says so when it compiled."""
-    from arap.method.jit import warm_up_kernels as compile_or_load
-
-    warm = compile_or_load()
-    if warm.compiled and not quiet:
-        err(f"arap: compiling kernels (first run only)… {warm.seconds:.1f} s (cached in {warm.cache_dir})")
-    return {"compiled": warm.compiled > 0, "seconds": warm.seconds, "cache_dir": warm.cache_dir}
 
 
 # ---------------------------------------------------------------------------------------------- meshes

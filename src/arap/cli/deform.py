@@ -27,7 +27,6 @@ from arap.cli.common import (
     load_mesh_argument,
     planar_triangles,
     selector_constraints,
-    warm_up_kernels,
     writable_destination,
 )
 from arap.errors import ArapError, ConstraintError, MeshError, MeshFormatError, UnconstrainedRegionError
@@ -36,6 +35,7 @@ from arap.options import (
     ACCELERATIONS,
     START_NAMES,
 )
+from arap.warmup import warm_up_kernels
 
 if TYPE_CHECKING:
     from arap.solve.result import ArapResult

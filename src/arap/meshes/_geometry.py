@@ -8,7 +8,7 @@ import numba as nb
 import numpy as np
 from numpy.typing import NDArray
 
-import arap.method._numba_cache  # noqa: F401  (a writable cache folder before the kernels below are defined)
+import arap.kernels.cache  # noqa: F401  (a writable cache folder before the kernels below are defined)
 
 
 def double_areas(V: NDArray[np.floating], F: NDArray[np.integer]) -> NDArray[np.float64]:

@@ -17,7 +17,7 @@ import numba as nb
 import numpy as np
 
 from arap.errors import ArapError
-from arap.method._parallel import policy
+from arap.kernels.parallel import policy
 from arap.method.horn import _det3, rotation_from_covariance
 
 # Scratch layout of a block of cells for :func:`rotations_block`.

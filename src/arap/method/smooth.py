@@ -51,7 +51,7 @@ import numpy as np
 import scipy.sparse as sp
 from numpy.typing import NDArray
 
-from arap.method._parallel import policy
+from arap.kernels.parallel import policy
 from arap.method.cells import Cells
 from arap.method.colouring import WINDOW, colour_vertices
 from arap.method.covariance import CHUNK, cell_covariance

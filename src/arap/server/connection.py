@@ -28,7 +28,6 @@ import anyio.to_thread
 import numpy as np
 from starlette.websockets import WebSocket, WebSocketDisconnect
 
-from arap.method.kernel_cache import KERNELS_READY
 from arap.server.budget import ByteBudget, RequestQueue, request_cost
 from arap.server.client_messages import Drag, ExportAnimation, Upload
 from arap.server.decoder import PROCESS_BYTES, FrameDecoder
@@ -45,6 +44,7 @@ from arap.server.records import DragOutcome
 from arap.server.render_mesh import Look
 from arap.server.session import Session
 from arap.server.studio_config import check_upload_size
+from arap.warmup import KERNELS_READY
 
 __all__ = ["SEND_QUEUE_EXTENSION", "TAKEN_BYTES", "Connection", "StudioConfig"]
 

@@ -45,7 +45,7 @@ import numba as nb
 import numpy as np
 from numpy.typing import NDArray
 
-import arap.method._numba_cache  # noqa: F401  (a writable cache folder before the kernels below are defined)
+import arap.kernels.cache  # noqa: F401  (a writable cache folder before the kernels below are defined)
 from arap.sparse._etree import postorder
 
 __all__ = ["BackgroundOrdering", "metis_available", "nested_dissection", "permute_rows", "unpermute_rows"]

@@ -1,11 +1,12 @@
-"""The compiled (numba) kernels: warm them up before timing anything, and where their machine code is cached.
+"""The compiled (numba) kernels: warm them up before timing anything, where their machine code is cached, and
+whether a background warm-up still compiles them.
 
 numba compiles a kernel on its first call (seconds for the whole set) and, as every kernel is declared with
 ``cache=True``, stores the machine code for later processes: in ``__pycache__`` next to the modules when that folder
 is writable, else in the user's cache folder (``~/.cache/numba``), or in ``NUMBA_CACHE_DIR`` when it is set. So only
 the first run in a new environment (or after an update of arap or numba) pays for compilation.
 
->>> from arap.method.jit import warm_up_kernels
+>>> from arap.warmup import warm_up_kernels
 >>> warm_up_kernels().compiled     # doctest: +SKIP
 0
 """
@@ -13,13 +14,20 @@ the first run in a new environment (or after an update of arap or numba) pays fo
 from __future__ import annotations
 
 import sys
+import threading
 import time
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
-__all__ = ["KernelWarmUp", "warm_up_kernels"]
+__all__ = ["KERNELS_READY", "KernelWarmUp", "warm_up_kernels"]
+
+KERNELS_READY = threading.Event()
+"""Set unless a warm-up runs in the background (``arap studio`` serves the page while the kernels compile): the studio
+server greets a new connection once it is set, so that the page says the solver is being prepared instead of
+hanging on its first drag."""
+KERNELS_READY.set()
 
 
 @dataclass(frozen=True)
@@ -42,6 +50,10 @@ class KernelWarmUp:
     compiled: int
     loaded: int
     cache_dir: str | None
+
+    def record(self) -> dict[str, object]:
+        """What a JSON report says of the warm-up: whether it compiled, its seconds and the cache folder."""
+        return {"compiled": self.compiled > 0, "seconds": self.seconds, "cache_dir": self.cache_dir}
 
 
 def _dispatchers() -> list[Any]:
@@ -67,7 +79,7 @@ def _counts() -> tuple[int, int]:
     return hits, misses
 
 
-def warm_up_kernels() -> KernelWarmUp:
+def warm_up_kernels(quiet: bool = True) -> KernelWarmUp:
     """Compile (or load from the cache) every kernel a solve uses, with tiny solves on a 42-vertex sphere (serial,
     then with the threaded variants that large meshes use).
 
@@ -75,12 +87,18 @@ def warm_up_kernels() -> KernelWarmUp:
     compiles anything and its timings are those of the iterations alone. The lower half of the sphere is fixed,
     so that some cells see only constrained vertices (their energy is computed once, with the same kernel).
 
+    Parameters
+    ----------
+    quiet : bool
+        False: say on stderr, when kernels were compiled, how long it took and where they are cached (the command
+        line's note before timing anything).
+
     Returns
     -------
     KernelWarmUp
     """
+    from arap.kernels.parallel import policy
     from arap.meshes.shapes import sphere
-    from arap.method._parallel import policy
     from arap.solve.solver import ArapSolver
 
     t0 = time.perf_counter()
@@ -102,5 +120,10 @@ def warm_up_kernels() -> KernelWarmUp:
         policy.reset()
     hits, misses = _counts()
     paths = [d.stats.cache_path for d in _dispatchers() if d.stats.cache_path]
-    return KernelWarmUp(seconds=time.perf_counter() - t0, compiled=misses - misses0, loaded=hits - hits0,
+    warm = KernelWarmUp(seconds=time.perf_counter() - t0, compiled=misses - misses0, loaded=hits - hits0,
                         cache_dir=paths[0] if paths else None)
+    if warm.compiled and not quiet:
+        where = f"cached in {warm.cache_dir}"
+        sys.stderr.write(f"arap: compiling kernels (first run only)… {warm.seconds:.1f} s ({where})\n")
+        sys.stderr.flush()
+    return warm
