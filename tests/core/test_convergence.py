@@ -9,7 +9,7 @@ import pytest
 from arap import ArapSolver, arap_energy
 from arap.constraints.scenarios import bend, pull, rotation
 from arap.errors import ArapError
-from arap.solve.start import best_rigid_transform
+from arap.meshes._geometry import best_rigid_transform
 
 from .scenarios import bend_constraints, random_rigid, rises
 

@@ -33,7 +33,7 @@ from arap.solve.lbfgs import LbfgsHistory
 from arap.solve.loops import PLAIN_START, lbfgs_iterations, plain_iterations
 from arap.solve.prepared import Points, Prepared, prepare
 from arap.solve.result import ArapResult, IterationCallback, rounding_floor
-from arap.solve.solve_start import start_positions
+from arap.solve.start import start_positions
 from arap.sparse.linsolve import Factor
 
 
