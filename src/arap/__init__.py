@@ -48,7 +48,7 @@ _LAZY: dict[str, str] = {
     "mesh_arrays": "arap.meshes.mesh",
     "MeshLike": "arap.meshes.mesh",
     "repair_mesh": "arap.meshes.repair",
-    "inspect_mesh": "arap.meshes.diagnose",
+    "inspect_mesh": "arap.diagnose",
     "load_mesh": "arap.io",
     "load_mesh_with_report": "arap.io",
     "load_mesh_bytes": "arap.io",
@@ -70,7 +70,7 @@ _LAZY: dict[str, str] = {
     "Constraints": "arap.constraints",
     "save_constraints": "arap.constraints",
     "RepairResult": "arap.meshes.repair",
-    "MeshInfo": "arap.meshes.diagnose",
+    "MeshInfo": "arap.diagnose",
     "builtin_mesh": "arap.meshes.shapes",
     "BUILTIN_MESHES": "arap.meshes.shapes",
     "load_constraints": "arap.constraints",
@@ -159,6 +159,7 @@ if TYPE_CHECKING:
     from arap.animation import Animation, animate, load_keyframes
     from arap.batching import batch
     from arap.constraints import Constraints, load_constraints, save_constraints
+    from arap.diagnose import MeshInfo, inspect_mesh
     from arap.io import (
         MESH_FORMATS,
         VOLUME_FORMATS,
@@ -175,7 +176,6 @@ if TYPE_CHECKING:
         save_volume_mesh,
     )
     from arap.jupyter_widget import StudioWidget, widget
-    from arap.meshes.diagnose import MeshInfo, inspect_mesh
     from arap.meshes.domain import boundary_faces, check_domain
     from arap.meshes.grids import box_tetrahedra, rectangle_triangles
     from arap.meshes.mesh import MeshLike, check_mesh, mesh_arrays

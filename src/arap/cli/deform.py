@@ -162,7 +162,7 @@ def _note_flat_faces(V: np.ndarray, F: np.ndarray, energy: str, weights: str) ->
     large and negative); spokes and rims, and clamped or uniform weights, have no negative terms."""
     if energy == "spokes_and_rims" or weights != "cotangent":
         return
-    from arap.meshes.diagnose import FLAT_ANGLE_DEGREES, flat_faces
+    from arap.diagnose import FLAT_ANGLE_DEGREES, flat_faces
 
     count = flat_faces(V, F)
     if count:
