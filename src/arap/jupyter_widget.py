@@ -157,7 +157,7 @@ class StudioWidget:
                picture: bool = True, opened: Any = None) -> None:
         from arap.server.channel import ChannelWorker
         from arap.server.dispatch import Dispatcher, StudioConfig
-        from arap.server.meshdata import MeshData
+        from arap.server.mesh_model import MeshData
         from arap.server.session import Session
         from arap.warmup import KERNELS_READY
 
@@ -299,14 +299,14 @@ class StudioWidget:
     # ------------------------------------------------------------------ the picture kept in the notebook
     def picture(self) -> Picture:
         """A picture of the current shape with its constraints (:func:`arap.show`), as kept in the notebook."""
-        import arap
+        from arap.render.show import show
 
         U, F = self.vertices, self.faces
         width, height = PICTURE_SIZE
         try:
-            return arap.show(U, F, constraints=self.session.constraints_document(), width=width, height=height)
+            return show(U, F, constraints=self.session.constraints_document(), width=width, height=height)
         except (ArapError, ValueError, KeyError, IndexError):  # constraints in another numbering (a repaired file)
-            return arap.show(U, F, width=width, height=height)
+            return show(U, F, width=width, height=height)
 
     def _picture_bundle(self) -> dict[str, Any]:
         return {"image/png": self.picture().png(),

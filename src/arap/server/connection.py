@@ -32,7 +32,7 @@ from arap.server.budget import ByteBudget, RequestQueue, request_cost
 from arap.server.client_messages import Drag, ExportAnimation, Upload
 from arap.server.decoder import PROCESS_BYTES, FrameDecoder
 from arap.server.dispatch import SETTLE, Dispatcher, Reply, StudioConfig
-from arap.server.meshdata import MeshData
+from arap.server.mesh_model import MeshData
 from arap.server.protocol import (
     ClientMessage,
     RequestError,

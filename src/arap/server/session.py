@@ -17,10 +17,11 @@ from typing import Any
 
 import numpy as np
 
-import arap
 from arap.errors import ArapError
+from arap.meshes.domain import check_domain
 from arap.method.weights import WeightType
 from arap.options import EnergyType, LoosePartsMode
+from arap.render.show import show
 from arap.server.constraints import ConstraintSet, identity_transforms, matrices_from_json
 from arap.server.mesh_model import MeshData
 from arap.server.numbering import document_in_file_numbering
@@ -373,7 +374,7 @@ class Session(SessionState):
         V = np.array(self.U, dtype=np.float64)
         V.setflags(write=False)
         try:
-            arap.check_domain(V, mesh.solve_elements)
+            check_domain(V, mesh.solve_elements)
         except ArapError as exc:
             raise UnusableMesh(f"the deformed shape cannot become the rest pose: {exc}") from exc
         old = self.constraints
@@ -407,7 +408,7 @@ class Session(SessionState):
             from arap.server.pictures import warped_picture_png
 
             return warped_picture_png(mesh, self.U)
-        return bytes(arap.show(self.U, mesh.F, width=1024, height=768).png())
+        return bytes(show(self.U, mesh.F, width=1024, height=768).png())
 
     def constraints_document(self) -> dict[str, Any]:
         """The current constraints in the command-line format, in the mesh file's vertex numbering (as ``arap
