@@ -69,11 +69,13 @@ def imports(path: Path, module: str, modules: set[str]) -> list[tuple[str, int]]
             if base == "arap" and {a.name for a in node.names} <= ANY_LAYER_NAMES:
                 continue
             names = [f"{base}.{a.name}" if f"{base}.{a.name}" in modules else base for a in node.names]
+        targets = set()
         for name in names:
             while name and name not in modules:
                 name = name.rpartition(".")[0]
             if name and name != module:
-                found.append((name, node.lineno))
+                targets.add(name)
+        found.extend((name, node.lineno) for name in sorted(targets))
     return found
 
 
