@@ -199,7 +199,7 @@ class StudioWidget:
     def _send_reply(self, reply: Reply, view: str | None = None) -> None:
         """Send one server message: a text message as the content, a binary one as its header and one buffer;
         addressed ``"to"`` ``view`` when it is for that view alone."""
-        from arap.server.protocol import decode_binary
+        from arap.server.frames import decode_binary
 
         def addressed(content: dict[str, Any]) -> dict[str, Any]:
             return content if view is None else {**content, "to": view}

@@ -11,8 +11,8 @@ import pytest
 from arap.animation import animate
 from arap.io import load_mesh_bytes
 from arap.server.animation_export import MAX_EXPORT_FRAMES, AnimationCancelled, export_animation, keyframes_document
+from arap.server.errors import RequestError
 from arap.server.mesh_model import MeshData
-from arap.server.protocol import RequestError
 from arap.server.session import Session
 from tests.animated_glb import glb_frames
 from tests.server.helpers import StudioClient, column_major, rotation_z, translation

@@ -11,7 +11,7 @@ from arap.server.errors import request_error
 from arap.server.history import History, Snapshot
 from arap.server.mesh_model import MeshData
 from arap.server.meshdata import load_builtin
-from arap.server.protocol import ENERGIES, WEIGHTS
+from arap.server.messages import ENERGIES, WEIGHTS
 from arap.server.replies import state_message
 from arap.server.session import Session
 from arap.server.session_errors import ConstraintsRejected

@@ -32,14 +32,11 @@ from arap.server.budget import ByteBudget, RequestQueue, request_cost
 from arap.server.client_messages import Drag, ExportAnimation, Upload
 from arap.server.decoder import PROCESS_BYTES, FrameDecoder
 from arap.server.dispatch import SETTLE, Dispatcher, Reply, StudioConfig
+from arap.server.errors import RequestError
+from arap.server.frames import encode_binary
 from arap.server.mesh_model import MeshData
-from arap.server.protocol import (
-    ClientMessage,
-    RequestError,
-    encode_binary,
-    parse_binary,
-    parse_text,
-)
+from arap.server.messages import ClientMessage
+from arap.server.protocol import parse_binary, parse_text
 from arap.server.records import DragOutcome
 from arap.server.render_mesh import Look
 from arap.server.session import Session
