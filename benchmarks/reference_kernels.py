@@ -1,5 +1,6 @@
 """Cell-by-cell kernels of the local step, the rotation fit and the right-hand side: the reference for the batched
-kernels of the package (tests only; ``benchmarks/bench_armadillo.py`` times one against the other).
+kernels of the package (the tests check that both agree; ``benchmarks/bench_armadillo.py`` times one against the
+other).
 
 These are the straightforward per-cell loops (one covariance, one scalar rotation fit
 (:func:`arap.method.horn.rotation_from_covariance`), one energy per cell; one gathered row per vertex), parallel over

@@ -6,9 +6,10 @@ from __future__ import annotations
 import numba
 import numpy as np
 import pytest
+from benchmarks.scenarios import pull, rigid
 
 import arap
-from arap.constraints.scenarios import bend, pull, rigid
+from arap.constraints.scenarios import bend
 from arap.errors import OptionError
 from arap.meshes._geometry import barycentric_areas as vertex_areas
 from arap.meshes.shapes import obtuse_cylinder
