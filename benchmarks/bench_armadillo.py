@@ -91,8 +91,8 @@ def run_igl(V: np.ndarray, F: np.ndarray, b: np.ndarray, bc: np.ndarray, iterati
 def backend_choices(V: np.ndarray, F: np.ndarray, b: np.ndarray, U: np.ndarray, repeats: int) -> list[str]:
     """Measure what the solver's design chooses between: sparse Cholesky backends and rotation kernels."""
     from arap.method.cells import build_cells
-    from arap.method.covariance import covariances
-    from arap.method.rotations import fit_rotations
+    from arap.method.local_step import covariances
+    from arap.method.rotations import rotations_from_covariances
     from arap.sparse.linsolve import available_backends, factorize
     from reference_kernels import fit_rotations_scalar, fit_rotations_svd
 
@@ -110,13 +110,13 @@ def backend_choices(V: np.ndarray, F: np.ndarray, b: np.ndarray, U: np.ndarray, 
             solves.append(1e3 * (time.perf_counter() - t))
         lines.append(f"  {name:<10} factor {factor_ms:8.1f} ms   solve {statistics.median(solves):6.2f} ms")
     S = covariances(build_cells(V, F), U)
-    fit_rotations(S[:10])
+    rotations_from_covariances(S[:10])
     lines.append(f"batched best-fit rotations of {len(S):,} cell covariances:")
     def scalar(S: np.ndarray) -> None:
         fit_rotations_scalar(S, np.empty_like(S))
 
     scalar(S[:10])
-    for label, fn in (("numba blocks (SIMD)", fit_rotations), ("numba cell by cell", scalar),
+    for label, fn in (("numba blocks (SIMD)", rotations_from_covariances), ("numba cell by cell", scalar),
                       ("numpy SVD + fix", fit_rotations_svd)):
         times = []
         for _ in range(max(repeats, 5)):
@@ -137,7 +137,7 @@ def kernel_comparison(V: np.ndarray, F: np.ndarray, b: np.ndarray, bc: np.ndarra
     import numba
 
     from arap.kernels.parallel import policy
-    from arap.method.covariance import (
+    from arap.method.local_step import (
         _local_parallel,
         _local_serial,
         _rhs_parallel,

@@ -39,7 +39,7 @@ _LAZY: dict[str, str] = {
     "arap_energy": "arap.method.energy",
     "cell_energies": "arap.method.energy",
     "cell_distortion": "arap.method.energy",
-    "fit_rotations": "arap.method.rotations",
+    "rotations_from_covariances": "arap.method.rotations",
     "cotangent_laplacian": "arap.method.weights",
     "check_mesh": "arap.meshes.mesh",
     "check_domain": "arap.meshes.domain",
@@ -128,7 +128,6 @@ __all__ = [
     "check_mesh",
     "cotangent_laplacian",
     "embed_points",
-    "fit_rotations",
     "image_mesh",
     "inspect_mesh",
     "interpolate_points",
@@ -142,6 +141,7 @@ __all__ = [
     "mesh_arrays",
     "rectangle_triangles",
     "repair_mesh",
+    "rotations_from_covariances",
     "save_asset",
     "save_constraints",
     "save_mesh",
@@ -183,7 +183,7 @@ if TYPE_CHECKING:
     from arap.meshes.shapes import BUILTIN_MESHES, builtin_mesh, sphere
     from arap.meshes.tetrahedralize import embed_points, interpolate_points, tetrahedralize
     from arap.method.energy import arap_energy, cell_energies
-    from arap.method.rotations import fit_rotations
+    from arap.method.rotations import rotations_from_covariances
     from arap.method.weights import cotangent_laplacian
     from arap.notebook import Studio, studio
     from arap.puppet.imagemesh import ImageMesh, image_mesh

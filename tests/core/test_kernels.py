@@ -11,7 +11,7 @@ from benchmarks.reference_kernels import assemble_rhs_reference, local_step_refe
 
 from arap.kernels import parallel as _parallel
 from arap.kernels.parallel import ThreadPolicy
-from arap.method import covariance
+from arap.method import local_step as covariance
 from arap.method.cells import Cells, RhsGather
 from arap.method.energy import arap_energy
 from arap.solve.solver import ArapSolver

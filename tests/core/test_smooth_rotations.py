@@ -15,7 +15,7 @@ from arap.meshes._geometry import barycentric_areas as vertex_areas
 from arap.meshes.shapes import obtuse_cylinder
 from arap.method import smooth
 from arap.method.colouring import colour_vertices
-from arap.method.covariance import covariances as covariances_of
+from arap.method.local_step import covariances as covariances_of
 from arap.method.weights import edge_weight_matrix
 
 

@@ -13,7 +13,7 @@ from arap.meshes.domain import Domain, check_domain
 from arap.meshes.mesh import MeshLike
 from arap.method.assembly import assemble, check_energy_for
 from arap.method.cells import Cells
-from arap.method.covariance import local_step
+from arap.method.local_step import local_step
 from arap.method.rigid import RigidRegions
 from arap.method.rotations import identity_rotations
 from arap.method.smooth import SmoothRotations

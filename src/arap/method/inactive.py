@@ -20,8 +20,8 @@ from numpy.typing import NDArray
 import arap.kernels.cache  # noqa: F401  (a writable cache folder before the kernels below are defined)
 from arap.meshes.mesh import bounding_box
 from arap.method.cells import Cells
-from arap.method.covariance import local_step
 from arap.method.horn import best_rotation
+from arap.method.local_step import local_step
 from arap.method.rotations import identity_rotations
 
 __all__ = ["RIGID_TOLERANCE", "InactiveCells"]

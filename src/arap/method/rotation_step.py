@@ -35,7 +35,7 @@ from numpy.typing import NDArray
 
 from arap.kernels.parallel import policy
 from arap.method.cells import Cells
-from arap.method.covariance import CHUNK
+from arap.method.local_step import CHUNK
 from arap.method.rotations import BLOCK
 from arap.sparse.linsolve import Factor, factorize
 

@@ -21,7 +21,7 @@ def first_compile_pending() -> bool:
     """True when this environment has no cached machine code for the solver's kernels yet, so that the first solve
     compiles them (seconds to tens of seconds); False when they are cached, or when that cannot be told."""
     try:
-        from arap.method.covariance import _local_serial
+        from arap.method.local_step import _local_serial
 
         index = _local_serial._cache._cache_file._index_path  # type: ignore[attr-defined]
     except (AttributeError, ImportError):  # caching off, or another numba layout: nothing to say
