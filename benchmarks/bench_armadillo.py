@@ -25,6 +25,10 @@ from arap.io import load_mesh
 from arap.solve.solver import ArapSolver
 from benchjson import add_json_option, figure, write_results
 
+# The reference kernels are imported as benchmarks.reference_kernels, the name the tests import them by: their
+# compiled code, cached by numba, names the module it was compiled in.
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
 DEFAULT_MESH = Path(__file__).resolve().parents[1].parent / "shared" / "meshes" / "armadillo.obj"
 
 
@@ -90,11 +94,12 @@ def run_igl(V: np.ndarray, F: np.ndarray, b: np.ndarray, bc: np.ndarray, iterati
 
 def backend_choices(V: np.ndarray, F: np.ndarray, b: np.ndarray, U: np.ndarray, repeats: int) -> list[str]:
     """Measure what the solver's design chooses between: sparse Cholesky backends and rotation kernels."""
+    from benchmarks.reference_kernels import fit_rotations_scalar, fit_rotations_svd
+
     from arap.method.cells import build_cells
     from arap.method.local_step import covariances
     from arap.method.rotations import rotations_from_covariances
     from arap.sparse.linsolve import available_backends, factorize
-    from reference_kernels import fit_rotations_scalar, fit_rotations_svd
 
     A = ArapSolver(V, F, b).reduced_matrix()
     B = np.random.default_rng(0).normal(size=(A.shape[0], 3))
@@ -135,6 +140,7 @@ def kernel_comparison(V: np.ndarray, F: np.ndarray, b: np.ndarray, bc: np.ndarra
     parallel as the thread policy chooses); "before" is the cell-by-cell kernels on all of numba's threads.
     """
     import numba
+    from benchmarks.reference_kernels import assemble_rhs_reference, local_step_reference
 
     from arap.kernels.parallel import policy
     from arap.method.local_step import (
@@ -145,7 +151,6 @@ def kernel_comparison(V: np.ndarray, F: np.ndarray, b: np.ndarray, bc: np.ndarra
         assemble_rhs,
         local_step,
     )
-    from reference_kernels import assemble_rhs_reference, local_step_reference
 
     solver = ArapSolver(V, F, b)
     solver.solve(bc, max_iterations=10)
