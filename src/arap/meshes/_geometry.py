@@ -1,5 +1,5 @@
-"""Geometry of meshes and point sets: per-face and per-vertex areas, and the rigid motion that best maps one point set
-onto another.
+"""Geometry of meshes and point sets: per-face and per-vertex areas, vertex normals, and the rigid motion that best maps
+one point set onto another.
 
 The areas are compiled for the set-up of large meshes: the same arithmetic as the NumPy expressions they replace
 (cross products, norms, sums in face order), so the results are the same bit for bit, without the temporary (m, 3)
@@ -13,7 +13,7 @@ from numpy.typing import NDArray
 
 import arap.kernels.cache  # noqa: F401  (a writable cache folder before the kernels below are defined)
 
-__all__ = ["barycentric_areas", "best_rigid_transform", "double_areas"]
+__all__ = ["barycentric_areas", "best_rigid_transform", "double_areas", "vertex_normals"]
 
 
 def double_areas(V: NDArray[np.floating], F: NDArray[np.integer]) -> NDArray[np.float64]:
@@ -53,6 +53,24 @@ def barycentric_areas(V: NDArray[np.floating], F: NDArray[np.integer]) -> NDArra
     [0.1667, 0.1667, 0.1667]
     """
     return _barycentric_areas(np.ascontiguousarray(V, dtype=np.float64), np.ascontiguousarray(F))
+
+
+def vertex_normals(V: NDArray[np.float64], F: NDArray[np.int64]) -> NDArray[np.float64]:
+    """Area-weighted unit vertex normals, shape (n, 3); zero for vertices of no (non-degenerate) face.
+
+    Example
+    -------
+    >>> vertex_normals(np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0]]), np.array([[0, 1, 2]])).tolist()
+    [[0.0, 0.0, 1.0], [0.0, 0.0, 1.0], [0.0, 0.0, 1.0]]
+    """
+    P = V[F]
+    face = np.cross(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0])  # twice the area times the unit normal
+    N = np.zeros_like(V)
+    for k in range(3):
+        for j in range(3):
+            N[:, j] += np.bincount(F[:, k], weights=face[:, j], minlength=len(V))
+    length = np.sqrt(np.einsum("ij,ij->i", N, N))
+    return N / np.where(length > 0, length, 1.0)[:, None]
 
 
 def best_rigid_transform(
