@@ -93,7 +93,7 @@ def main(argv: list[str] | None = None) -> None:
     p.add_argument("--quick", action="store_true", help=f"{BUILTIN} alone, 1 s at 10 fps")
     add_json_option(p, "bench_animation")
     args = p.parse_args(argv)
-    from arap.method.jit import warm_up_kernels
+    from arap.warmup import warm_up_kernels
 
     warm_up_kernels()
     if args.quick:

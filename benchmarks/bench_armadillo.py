@@ -25,7 +25,8 @@ from arap.io import load_mesh
 from arap.solve.solver import ArapSolver
 from benchjson import add_json_option, figure, write_results
 
-# The cell-by-cell reference kernels live with the tests (tests/core/reference_kernels.py).
+# The reference kernels are imported as benchmarks.reference_kernels, the name the tests import them by: their
+# compiled code, cached by numba, names the module it was compiled in.
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 DEFAULT_MESH = Path(__file__).resolve().parents[1].parent / "shared" / "meshes" / "armadillo.obj"
@@ -93,11 +94,11 @@ def run_igl(V: np.ndarray, F: np.ndarray, b: np.ndarray, bc: np.ndarray, iterati
 
 def backend_choices(V: np.ndarray, F: np.ndarray, b: np.ndarray, U: np.ndarray, repeats: int) -> list[str]:
     """Measure what the solver's design chooses between: sparse Cholesky backends and rotation kernels."""
-    from tests.core.reference_kernels import fit_rotations_scalar, fit_rotations_svd
+    from benchmarks.reference_kernels import fit_rotations_scalar, fit_rotations_svd
 
     from arap.method.cells import build_cells
-    from arap.method.covariance import covariances
-    from arap.method.rotations import fit_rotations
+    from arap.method.local_step import covariances
+    from arap.method.rotations import rotations_from_covariances
     from arap.sparse.linsolve import available_backends, factorize
 
     A = ArapSolver(V, F, b).reduced_matrix()
@@ -114,13 +115,13 @@ def backend_choices(V: np.ndarray, F: np.ndarray, b: np.ndarray, U: np.ndarray, 
             solves.append(1e3 * (time.perf_counter() - t))
         lines.append(f"  {name:<10} factor {factor_ms:8.1f} ms   solve {statistics.median(solves):6.2f} ms")
     S = covariances(build_cells(V, F), U)
-    fit_rotations(S[:10])
+    rotations_from_covariances(S[:10])
     lines.append(f"batched best-fit rotations of {len(S):,} cell covariances:")
     def scalar(S: np.ndarray) -> None:
         fit_rotations_scalar(S, np.empty_like(S))
 
     scalar(S[:10])
-    for label, fn in (("numba blocks (SIMD)", fit_rotations), ("numba cell by cell", scalar),
+    for label, fn in (("numba blocks (SIMD)", rotations_from_covariances), ("numba cell by cell", scalar),
                       ("numpy SVD + fix", fit_rotations_svd)):
         times = []
         for _ in range(max(repeats, 5)):
@@ -139,10 +140,10 @@ def kernel_comparison(V: np.ndarray, F: np.ndarray, b: np.ndarray, bc: np.ndarra
     parallel as the thread policy chooses); "before" is the cell-by-cell kernels on all of numba's threads.
     """
     import numba
-    from tests.core.reference_kernels import assemble_rhs_reference, local_step_reference
+    from benchmarks.reference_kernels import assemble_rhs_reference, local_step_reference
 
-    from arap.method._parallel import policy
-    from arap.method.covariance import (
+    from arap.kernels.parallel import policy
+    from arap.method.local_step import (
         _local_parallel,
         _local_serial,
         _rhs_parallel,

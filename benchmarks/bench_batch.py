@@ -129,7 +129,7 @@ def main(argv: list[str] | None = None) -> None:
     p.add_argument("--backends", nargs="+", default=["loop", "serial", "serial1", "process", "ray", "dask"])
     add_json_option(p, "bench_batch")
     args = p.parse_args(argv)
-    from arap.method.jit import warm_up_kernels
+    from arap.warmup import warm_up_kernels
 
     warm_up_kernels()
     figures: dict[str, Any] = {"mesh": args.mesh.name, "jobs": args.jobs, "sets": args.sets,

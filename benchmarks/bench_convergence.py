@@ -24,12 +24,12 @@ from typing import Any
 import numpy as np
 
 from arap import ArapSolver, arap_energy
-from arap.constraints.scenarios import make_scenario
 from arap.io import load_mesh
+from arap.meshes._geometry import best_rigid_transform
 from arap.meshes.shapes import builtin_mesh
 from arap.options import ACCELERATIONS, Acceleration
-from arap.solve.start import best_rigid_transform
 from benchjson import add_json_option, figure, write_results
+from scenarios import make_scenario
 
 MESHES = Path(__file__).resolve().parents[1].parent / "shared" / "meshes"
 SCENARIOS = [("armadillo.obj", "bend"), ("armadillo.obj", "twist"), ("camelhead.off", "bend"),

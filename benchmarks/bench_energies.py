@@ -4,7 +4,7 @@
    run, median of ``--repeats``): SR-ARAP (with the solver's rotation steps and sweeps per local step,
    :data:`arap.method.smooth.STEPS` and :data:`arap.method.smooth.SWEEPS`) against spokes.
 2. A single vertex pulled by 20% of the bounding-box diagonal along the longest axis, the lowest 10% anchored
-   (:func:`arap.constraints.scenarios.pull`), solved from the rest pose with the default acceleration until converged
+   (`pull` of `benchmarks/scenarios.py`), solved from the rest pose with the default acceleration until converged
    (at most ``--max-iterations``): folded adjacent-face pairs added to the rest shape's (normals' dot < −0.5), the
    largest change of a dihedral angle, the iterations, whether the solve converged, its seconds (set-up and solve: the
    time to converge, or to reach the cap) and milliseconds per iteration, and the final energy.
@@ -28,12 +28,13 @@ from typing import Any
 
 import numpy as np
 
-from arap.constraints.scenarios import bend, pull
+from arap.constraints.scenarios import bend
 from arap.io import load_mesh, save_mesh
-from arap.method.folds import folded_pairs, max_dihedral_change
 from arap.method.smooth import STEPS, SWEEPS
 from arap.solve.solver import ArapSolver
 from benchjson import add_json_option, figure, write_results
+from folds import folded_pairs, max_dihedral_change
+from scenarios import pull
 
 SHARED = Path(__file__).resolve().parents[1].parent / "shared" / "meshes"
 MESHES = ("decimated-knight.off", "camelhead.off", "armadillo.obj")

@@ -1,7 +1,7 @@
 """Which energy and weights fold meshes with obtuse triangles: folded face pairs after solving to convergence.
 
 For every mesh (the shared scans and generated meshes with many negative cotangent weights) and every scenario
-of :mod:`arap.constraints.scenarios` (bend, twist, pull), each energy/weights variant is solved from the rest pose until
+of ``benchmarks/scenarios.py`` (bend, twist, pull), each energy/weights variant is solved from the rest pose until
 the relative energy change falls below ``--tolerance`` or ``--max-iterations`` is reached. Printed per run: folded
 adjacent-face pairs (unit normals' dot < −0.5) of the result and of the rest shape, the largest change of a dihedral
 angle, the variant's own energy and the paper's energy (spokes, cotangent weights) of the result. libigl's spokes ARAP
@@ -22,14 +22,14 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from arap.constraints.scenarios import make_scenario
 from arap.io import load_mesh
 from arap.meshes.shapes import obtuse_cylinder, scan_blob
 from arap.method.energy import arap_energy
-from arap.method.folds import adjacent_face_pairs, folded_pairs, max_dihedral_change
 from arap.method.weights import edge_weight_matrix
 from arap.solve.solver import ArapSolver
 from benchjson import add_json_option, figure, write_results
+from folds import adjacent_face_pairs, folded_pairs, max_dihedral_change
+from scenarios import make_scenario
 
 SHARED = Path(__file__).resolve().parents[1].parent / "shared" / "meshes"
 SCANS = ("decimated-knight.off", "camelhead.off", "armadillo.obj")

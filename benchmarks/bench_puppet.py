@@ -100,7 +100,7 @@ def main(argv: list[str] | None = None) -> None:
     p.add_argument("--quick", action="store_true", help="a 300 x 300 picture at about 1,000 and 5,000 vertices")
     add_json_option(p, "bench_puppet")
     args = p.parse_args(argv)
-    from arap.method.jit import warm_up_kernels
+    from arap.warmup import warm_up_kernels
 
     warm_up_kernels()
     size, counts = (300, (1000, 5000)) if args.quick else (1000, (5000, 50000))

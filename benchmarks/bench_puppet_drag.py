@@ -34,7 +34,7 @@ import numpy as np
 from numpy.typing import NDArray
 from websockets.asyncio.client import ClientConnection, connect
 
-from arap.server.protocol import decode_binary
+from arap.server.frames import decode_binary
 from bench_puppet import figure_picture
 from benchjson import add_json_option, figure, write_results
 

@@ -55,14 +55,14 @@ from scipy.sparse import csgraph
 from scipy.spatial import cKDTree
 
 from arap import ArapSolver
-from arap.constraints.scenarios import make_scenario
 from arap.io import load_mesh
 from arap.meshes.shapes import builtin_mesh
 from arap.meshes.topology import vertex_adjacency
-from arap.method.covariance import assemble_rhs
+from arap.method.local_step import assemble_rhs
 from arap.solve.iteration import local_energy, rhs_constant
 from arap.sparse.linsolve import NotPositiveDefiniteError, factorize
 from benchjson import add_json_option, figure, write_results
+from scenarios import make_scenario
 
 MESHES = Path(__file__).resolve().parents[1].parent / "shared" / "meshes"
 SCENARIOS = [("armadillo.obj", "bend"), ("camelhead.off", "bend"), ("cactus", "bend")]

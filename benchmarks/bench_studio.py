@@ -46,7 +46,7 @@ from websockets.asyncio.client import ClientConnection, connect
 
 from arap.io import save_mesh_bytes
 from arap.meshes.shapes import sphere, sphere_frequency_for
-from arap.server.protocol import decode_binary, encode_binary
+from arap.server.frames import decode_binary, encode_binary
 from benchjson import add_json_option, figure, write_results
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -9,9 +9,9 @@ from types import ModuleType
 import numpy as np
 import pytest
 import scipy.sparse as sp
+from benchmarks.scenarios import make_scenario
 
 from arap import ArapSolver
-from arap.constraints.scenarios import make_scenario
 from arap.meshes.shapes import builtin_mesh
 from tests.tool_modules import ROOT, load_tool
 

@@ -12,23 +12,23 @@ import numpy as np
 import pytest
 
 import arap
-import arap.method.jit
-import arap.method.kernel_cache
+import arap.solve.kernel_cache
+import arap.warmup
 from arap.cli import main
 
 
 def test_an_empty_cache_is_told_apart_from_a_warm_one(tmp_path: Path) -> None:
-    code = "import arap.method.kernel_cache as k; print(k.first_compile_pending())"
+    code = "import arap.solve.kernel_cache as k; print(k.first_compile_pending())"
     cold = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120,
                           env={**os.environ, "NUMBA_CACHE_DIR": str(tmp_path)})
     assert cold.stdout.strip() == "True", cold.stderr
-    arap.method.jit.warm_up_kernels()
-    assert arap.method.kernel_cache.first_compile_pending() is False
+    arap.warmup.warm_up_kernels()
+    assert arap.solve.kernel_cache.first_compile_pending() is False
 
 
 def test_the_first_compile_is_announced_once(monkeypatch: pytest.MonkeyPatch, caplog: pytest.LogCaptureFixture) -> None:
-    monkeypatch.setattr(arap.method.kernel_cache, "_announced", False)
-    monkeypatch.setattr(arap.method.kernel_cache, "first_compile_pending", lambda: True)
+    monkeypatch.setattr(arap.solve.kernel_cache, "_announced", False)
+    monkeypatch.setattr(arap.solve.kernel_cache, "first_compile_pending", lambda: True)
     V, F = arap.builtin_mesh("bar")
     with caplog.at_level(logging.WARNING, logger="arap"):
         arap.ArapSolver(V, F, np.array([0, 1, 2]))
@@ -47,13 +47,13 @@ def test_the_warm_up_plan_names_the_kernels_it_prepares() -> None:
     """Every kernel the progress counts is a compiled kernel of arap that the warm-up makes ready."""
     from numba.core.dispatcher import Dispatcher
 
-    arap.method.jit.warm_up_kernels()
-    kernels = arap.method.jit.FIRST_KERNELS + arap.method.jit.LATER_KERNELS
+    arap.warmup.warm_up_kernels()
+    kernels = arap.warmup.FIRST_KERNELS + arap.warmup.LATER_KERNELS
     assert len(set(kernels)) == len(kernels)
     for qualified in kernels:
         module, _, name = qualified.rpartition(".")
         assert isinstance(getattr(sys.modules[module], name), Dispatcher), qualified
-    progress = arap.method.jit.compile_progress()
+    progress = arap.warmup.compile_progress()
     assert progress.done == progress.total == len(kernels)
 
 
@@ -61,24 +61,24 @@ def test_compile_progress_names_each_kernel_as_it_is_compiled(capsys: pytest.Cap
     import numba
     from numba.core import event
 
-    from arap.cli.common import compile_reporter
+    from arap.warmup import compile_reporter
 
     @numba.njit(cache=False)
     def _tiny_kernel(x: float) -> float:
         return x + 1.0
 
-    seen: list[arap.method.jit.CompileProgress] = []
-    during: list[arap.method.jit.CompileProgress] = []
+    seen: list[arap.warmup.CompileProgress] = []
+    during: list[arap.warmup.CompileProgress] = []
 
     report = compile_reporter(every=0.0)
 
-    def progress(p: arap.method.jit.CompileProgress) -> None:
+    def progress(p: arap.warmup.CompileProgress) -> None:
         seen.append(p)
         report(p)
 
-    with event.install_listener("numba:compile", arap.method.jit._compile_listener(progress)):
+    with event.install_listener("numba:compile", arap.warmup._compile_listener(progress)):
         _tiny_kernel(1.0)
-        during.append(arap.method.jit.compile_progress())
+        during.append(arap.warmup.compile_progress())
     assert seen and seen[-1].kernel == "_tiny_kernel" and not seen[-1].compiling
     assert during[0].kernel == "_tiny_kernel"
     assert "kernels ready (compiled _tiny_kernel)" in seen[-1].describe()

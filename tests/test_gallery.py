@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from arap.render.png import decode_png
+from tests.png_files import decode_png
 from tests.tool_modules import ROOT, load_tool
 
 gallery = load_tool("gallery")

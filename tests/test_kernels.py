@@ -12,8 +12,8 @@ import pytest
 
 from arap.cli.bench import bench_constraints
 from arap.meshes.shapes import builtin_mesh
-from arap.method.jit import _counts, warm_up_kernels
 from arap.solve.solver import ArapSolver
+from arap.warmup import _counts, warm_up_kernels
 
 
 def test_warm_up_covers_every_solve() -> None:
@@ -39,7 +39,7 @@ def test_cache_falls_back_to_a_temporary_folder(tmp_path: Path, preset: bool) ->
     code = (
         "from pathlib import Path\n"
         "import numba\n"
-        "from arap.method._parallel import ensure_writable_cache\n"
+        "from arap.kernels.cache import ensure_writable_cache\n"
         f"print(ensure_writable_cache((Path({str(blocker)!r}) / 'cache',)), numba.config.CACHE_DIR)\n"
     )
     env = {k: v for k, v in os.environ.items() if k != "NUMBA_CACHE_DIR"}

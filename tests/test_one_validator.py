@@ -31,7 +31,7 @@ from arap.options import (
 )
 from arap.server.constraints import ConstraintSet
 from arap.server.errors import request_error
-from arap.server.meshdata import MeshData
+from arap.server.mesh_model import MeshData
 from arap.server.session import Session
 from arap.server.session_errors import ConstraintsRejected
 from arap.solve.solver import ArapSolver

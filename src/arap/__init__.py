@@ -39,7 +39,7 @@ _LAZY: dict[str, str] = {
     "arap_energy": "arap.method.energy",
     "cell_energies": "arap.method.energy",
     "cell_distortion": "arap.method.energy",
-    "fit_rotations": "arap.method.rotations",
+    "rotations_from_covariances": "arap.method.rotations",
     "cotangent_laplacian": "arap.method.weights",
     "check_mesh": "arap.meshes.mesh",
     "check_domain": "arap.meshes.domain",
@@ -48,7 +48,7 @@ _LAZY: dict[str, str] = {
     "mesh_arrays": "arap.meshes.mesh",
     "MeshLike": "arap.meshes.mesh",
     "repair_mesh": "arap.meshes.repair",
-    "inspect_mesh": "arap.meshes.diagnose",
+    "inspect_mesh": "arap.diagnose",
     "load_mesh": "arap.io",
     "load_mesh_with_report": "arap.io",
     "load_mesh_bytes": "arap.io",
@@ -70,7 +70,7 @@ _LAZY: dict[str, str] = {
     "Constraints": "arap.constraints",
     "save_constraints": "arap.constraints",
     "RepairResult": "arap.meshes.repair",
-    "MeshInfo": "arap.meshes.diagnose",
+    "MeshInfo": "arap.diagnose",
     "builtin_mesh": "arap.meshes.shapes",
     "BUILTIN_MESHES": "arap.meshes.shapes",
     "load_constraints": "arap.constraints",
@@ -128,7 +128,6 @@ __all__ = [
     "check_mesh",
     "cotangent_laplacian",
     "embed_points",
-    "fit_rotations",
     "image_mesh",
     "inspect_mesh",
     "interpolate_points",
@@ -142,6 +141,7 @@ __all__ = [
     "mesh_arrays",
     "rectangle_triangles",
     "repair_mesh",
+    "rotations_from_covariances",
     "save_asset",
     "save_constraints",
     "save_mesh",
@@ -159,6 +159,7 @@ if TYPE_CHECKING:
     from arap.animation import Animation, animate, load_keyframes
     from arap.batching import batch
     from arap.constraints import Constraints, load_constraints, save_constraints
+    from arap.diagnose import MeshInfo, inspect_mesh
     from arap.io import (
         MESH_FORMATS,
         VOLUME_FORMATS,
@@ -175,7 +176,6 @@ if TYPE_CHECKING:
         save_volume_mesh,
     )
     from arap.jupyter_widget import StudioWidget, widget
-    from arap.meshes.diagnose import MeshInfo, inspect_mesh
     from arap.meshes.domain import boundary_faces, check_domain
     from arap.meshes.grids import box_tetrahedra, rectangle_triangles
     from arap.meshes.mesh import MeshLike, check_mesh, mesh_arrays
@@ -183,7 +183,7 @@ if TYPE_CHECKING:
     from arap.meshes.shapes import BUILTIN_MESHES, builtin_mesh, sphere
     from arap.meshes.tetrahedralize import embed_points, interpolate_points, tetrahedralize
     from arap.method.energy import arap_energy, cell_energies
-    from arap.method.rotations import fit_rotations
+    from arap.method.rotations import rotations_from_covariances
     from arap.method.weights import cotangent_laplacian
     from arap.notebook import Studio, studio
     from arap.puppet.imagemesh import ImageMesh, image_mesh

@@ -155,11 +155,11 @@ class StudioWidget:
 
     def _setup(self, *, V: NDArray[np.float64], F: NDArray[np.int64], name: str, prepare: Any = None,
                picture: bool = True, opened: Any = None) -> None:
-        from arap.method.kernel_cache import KERNELS_READY
         from arap.server.channel import ChannelWorker
         from arap.server.dispatch import Dispatcher, StudioConfig
-        from arap.server.meshdata import MeshData
+        from arap.server.mesh_model import MeshData
         from arap.server.session import Session
+        from arap.warmup import KERNELS_READY
 
         self._V = V
         self._F = F
@@ -199,7 +199,7 @@ class StudioWidget:
     def _send_reply(self, reply: Reply, view: str | None = None) -> None:
         """Send one server message: a text message as the content, a binary one as its header and one buffer;
         addressed ``"to"`` ``view`` when it is for that view alone."""
-        from arap.server.protocol import decode_binary
+        from arap.server.frames import decode_binary
 
         def addressed(content: dict[str, Any]) -> dict[str, Any]:
             return content if view is None else {**content, "to": view}
@@ -236,8 +236,8 @@ class StudioWidget:
     def _send_preparing(self, view: str | None) -> None:
         """Tell a view that its greeting waits for the session to be prepared, with a picture of the mesh to show
         meanwhile (drawn once, without the solver's kernels)."""
-        from arap.method.kernel_cache import first_compile_pending
         from arap.render.show import show
+        from arap.solve.kernel_cache import first_compile_pending
 
         if self._preview is None:
             width, height = PICTURE_SIZE
@@ -299,14 +299,14 @@ class StudioWidget:
     # ------------------------------------------------------------------ the picture kept in the notebook
     def picture(self) -> Picture:
         """A picture of the current shape with its constraints (:func:`arap.show`), as kept in the notebook."""
-        import arap
+        from arap.render.show import show
 
         U, F = self.vertices, self.faces
         width, height = PICTURE_SIZE
         try:
-            return arap.show(U, F, constraints=self.session.constraints_document(), width=width, height=height)
+            return show(U, F, constraints=self.session.constraints_document(), width=width, height=height)
         except (ArapError, ValueError, KeyError, IndexError):  # constraints in another numbering (a repaired file)
-            return arap.show(U, F, width=width, height=height)
+            return show(U, F, width=width, height=height)
 
     def _picture_bundle(self) -> dict[str, Any]:
         return {"image/png": self.picture().png(),

@@ -229,7 +229,7 @@ def studio(
             _display(w)
         return w
     try:
-        from arap.server.meshdata import MeshData
+        from arap.server.mesh_model import MeshData
         from arap.server.runner import make_server, new_token
     except ImportError as exc:
         raise ArapError(f'the studio needs its server stack: pip install "arap[studio]" ({exc.name} is missing)'

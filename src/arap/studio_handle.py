@@ -102,8 +102,8 @@ def picture_input(V: object, F: object, name: str) -> tuple[Any, Any] | None:
         return None
     from arap.errors import ArapError
     from arap.puppet.picture import as_picture
+    from arap.server.errors import RequestError
     from arap.server.pictures import picture_mesh
-    from arap.server.protocol import RequestError
     from arap.server.studio_config import StudioConfig
 
     pixels = as_picture(V)

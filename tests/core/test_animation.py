@@ -324,7 +324,7 @@ def test_point_handles_move_with_the_keyframes() -> None:
 
 def test_the_glb_has_the_normals_of_every_frame() -> None:
     from arap.io.animated_gltf import animation_glb
-    from arap.render.raster import vertex_normals
+    from arap.meshes._geometry import vertex_normals
 
     V, F, fixed, top = _bar()
     doc = {"fixed": fixed.tolist(), "handles": top.tolist(),

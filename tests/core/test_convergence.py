@@ -5,11 +5,12 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from benchmarks.scenarios import pull, rotation
 
 from arap import ArapSolver, arap_energy
-from arap.constraints.scenarios import bend, pull, rotation
+from arap.constraints.scenarios import bend
 from arap.errors import ArapError
-from arap.solve.start import best_rigid_transform
+from arap.meshes._geometry import best_rigid_transform
 
 from .scenarios import bend_constraints, random_rigid, rises
 
@@ -245,7 +246,8 @@ def test_lbfgs_starts_with_plain_steps_and_keeps_the_lower_minimum(armadillo: tu
     armadillo bend (spokes, negative cotangent weights, several minima) L-BFGS then settles below the minimum the
     plain iteration reaches (−0.0228249 after 2,554 iterations), where L-BFGS from the first step settled at
     −0.0227986. A warm start keeps L-BFGS from its first step."""
-    from arap.constraints.scenarios import make_scenario
+    from benchmarks.scenarios import make_scenario
+
     from arap.solve.loops import PLAIN_START
 
     V, F = armadillo

@@ -4,10 +4,10 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from benchmarks.reference_kernels import fit_rotations_svd
 
 from arap.method.cells import build_cells
 from arap.method.energy import arap_energy, cell_distortion, cell_energies, distortion_from_cells
-from tests.core.reference_kernels import fit_rotations_svd
 
 
 def _cot(u: np.ndarray, v: np.ndarray) -> float:

@@ -4,12 +4,12 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from benchmarks.folds import adjacent_face_pairs, dihedral_turns, folded_pairs, max_dihedral_change
 
 from arap.constraints.scenarios import bend
 from arap.meshes.shapes import obtuse_cylinder, scan_blob
 from arap.method.cells import build_cells, system_matrix
 from arap.method.energy import arap_energy, cell_energies
-from arap.method.folds import adjacent_face_pairs, dihedral_turns, folded_pairs, max_dihedral_change
 from arap.method.weights import cotangent_laplacian, edge_weight_matrix
 from arap.options import DEFAULT_ENERGY, DEFAULT_WEIGHTS
 from arap.solve.solver import ArapResult, ArapSolver

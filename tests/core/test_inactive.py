@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from arap.method.cells import build_cells
-from arap.method.covariance import local_step
 from arap.method.inactive import InactiveCells
+from arap.method.local_step import local_step
 from arap.solve.solver import ArapSolver
 from tests.core.scenarios import random_rigid
 

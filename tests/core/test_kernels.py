@@ -7,14 +7,15 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 import pytest
+from benchmarks.reference_kernels import assemble_rhs_reference, local_step_reference
 
-from arap.method import _parallel, covariance
-from arap.method._parallel import ThreadPolicy
+from arap.kernels import parallel as _parallel
+from arap.kernels.parallel import ThreadPolicy
+from arap.method import local_step as covariance
 from arap.method.cells import Cells, RhsGather
 from arap.method.energy import arap_energy
 from arap.solve.solver import ArapSolver
 
-from .reference_kernels import assemble_rhs_reference, local_step_reference
 from .scenarios import bend_constraints
 
 

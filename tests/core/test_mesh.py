@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from arap.diagnose import inspect_mesh
 from arap.errors import MeshError
-from arap.meshes.diagnose import inspect_mesh
 from arap.meshes.mesh import (
     check_mesh,
     degenerate_faces,

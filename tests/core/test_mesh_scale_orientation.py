@@ -6,8 +6,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from arap.diagnose import inspect_mesh
 from arap.errors import MeshError
-from arap.meshes.diagnose import inspect_mesh
 from arap.meshes.mesh import SIZE_RANGE, check_mesh
 from arap.meshes.repair import repair_mesh
 from arap.meshes.shapes import builtin_mesh, sphere

@@ -12,11 +12,18 @@ import scipy.sparse as sp
 
 import arap.sparse.ordering as ordering
 from arap.meshes.shapes import sphere, sphere_frequency_for
-from arap.meshes.topology import leading_subgraph, vertex_adjacency
+from arap.meshes.topology import vertex_adjacency
 from arap.solve.solver import ArapSolver
 from arap.sparse._csr_permute import permuted_pattern, permuted_symmetric, with_diagonal
 from arap.sparse.linsolve import background_ordering, factorize
-from arap.sparse.ordering import BackgroundOrdering, metis_available, nested_dissection, permute_rows, unpermute_rows
+from arap.sparse.ordering import (
+    BackgroundOrdering,
+    leading_subgraph,
+    metis_available,
+    nested_dissection,
+    permute_rows,
+    unpermute_rows,
+)
 
 HAVE_SKSPARSE = importlib.util.find_spec("sksparse") is not None
 needs_cholmod = pytest.mark.skipif(not (HAVE_SKSPARSE and metis_available()),

@@ -7,10 +7,10 @@ import numba
 import numpy as np
 import pytest
 import scipy.sparse as sp
+from benchmarks.scenarios import pull
 from scipy.spatial.transform import Rotation
 
 import arap
-from arap.constraints.scenarios import pull
 from arap.method import rotation_step, smooth
 from arap.method.rotation_step import RotationStep, preconditioner
 from arap.method.smooth import SmoothRotations

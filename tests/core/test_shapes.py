@@ -7,8 +7,8 @@ from collections.abc import Callable
 import numpy as np
 import pytest
 
+from arap.diagnose import inspect_mesh
 from arap.errors import OptionError
-from arap.meshes.diagnose import inspect_mesh
 from arap.meshes.mesh import check_mesh
 from arap.meshes.shapes import BUILTIN_MESHES, builtin_mesh, obtuse_cylinder, scan_blob, sphere, sphere_frequency_for
 

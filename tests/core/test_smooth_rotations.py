@@ -6,16 +6,17 @@ from __future__ import annotations
 import numba
 import numpy as np
 import pytest
+from benchmarks.scenarios import pull, rigid
 
 import arap
-from arap.constraints.scenarios import bend, pull, rigid
+from arap.constraints.scenarios import bend
 from arap.errors import OptionError
+from arap.meshes._geometry import barycentric_areas as vertex_areas
 from arap.meshes.shapes import obtuse_cylinder
 from arap.method import smooth
 from arap.method.colouring import colour_vertices
-from arap.method.covariance import covariances as covariances_of
+from arap.method.local_step import covariances as covariances_of
 from arap.method.weights import edge_weight_matrix
-from arap.solve.start import vertex_areas
 
 
 def _reference_energy(V: np.ndarray, F: np.ndarray, U: np.ndarray, R: np.ndarray, alpha: float) -> float:

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from arap.meshes.diagnose import inspect_mesh
+from arap.diagnose import inspect_mesh
 from arap.meshes.shapes import sphere
 from arap.meshes.topology import (
     boundary_edges,

@@ -8,7 +8,7 @@ import json
 import pytest
 from playwright.sync_api import Browser, Page, WebSocketRoute, expect
 
-from arap.server.protocol import EXPORT_FORMATS, PARAMS
+from arap.server.messages import EXPORT_FORMATS, PARAMS
 from tests.e2e.conftest import VIEWPORT, wait_ready
 from tests.waiting import scaled_ms
 

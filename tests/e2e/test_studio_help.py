@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from playwright.sync_api import Browser, Page, expect
 
-from arap.server.protocol import PARAMS
+from arap.server.messages import PARAMS
 from tests.e2e.conftest import screen_points, wait_for_page, wait_idle, wait_ready
 from tests.e2e.test_studio import box_select, drag_gizmo_x, select_anchor_and_handle
 

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from playwright.sync_api import Browser, WebSocketRoute
 
-from arap.server.protocol import decode_binary
+from arap.server.frames import decode_binary
 from tests.e2e.conftest import VIEWPORT, positions, wait_ready
 from tests.server.helpers import translation
 from tests.waiting import page_wait_until, scaled_ms

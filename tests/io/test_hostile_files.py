@@ -9,8 +9,8 @@ import pytest
 from arap.errors import MeshError, MeshFormatError, MeshTooLargeError
 from arap.io import load_mesh_bytes, load_mesh_bytes_with_report, save_mesh_bytes
 from arap.meshes.shapes import sphere
+from arap.server.errors import RequestError
 from arap.server.meshdata import load_upload
-from arap.server.protocol import RequestError
 
 TET_V = np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]])
 TET_F = np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]])

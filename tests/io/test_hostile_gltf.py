@@ -18,8 +18,8 @@ import pytest
 
 from arap.errors import MeshFormatError
 from arap.io import gltf_container, load_asset, load_asset_bytes, load_mesh_bytes, save_asset
+from arap.server.errors import RequestError
 from arap.server.meshdata import load_upload
-from arap.server.protocol import RequestError
 from tests.io.asset_models import glb_bytes
 
 TRI_V = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], dtype="<f4")

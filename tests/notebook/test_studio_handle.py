@@ -14,7 +14,7 @@ import trimesh
 from websockets.sync.client import ClientConnection, connect
 
 import arap
-from arap.server.protocol import decode_binary
+from arap.server.frames import decode_binary
 
 pytestmark = pytest.mark.timeout(120)
 

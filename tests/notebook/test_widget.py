@@ -538,7 +538,7 @@ def test_a_view_opening_while_the_session_is_prepared_gets_a_picture_of_the_mesh
     """On a first run the session waits for the solver's kernels (tens of seconds): a view that opens meanwhile is
     sent a picture of the mesh at once, then its greeting once the session is ready; later views get the greeting
     alone."""
-    from arap.render.png import decode_png
+    from tests.png_files import decode_png
 
     load = Session.load
     gate = threading.Event()

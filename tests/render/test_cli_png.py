@@ -11,7 +11,8 @@ import pytest
 
 from arap.cli import main
 from arap.meshes.shapes import builtin_mesh
-from arap.render.png import SIGNATURE, decode_png
+from arap.render.png import SIGNATURE
+from tests.png_files import decode_png
 from tests.render.pixels import colour_share
 
 V, F = builtin_mesh("bar")

@@ -14,8 +14,9 @@ import arap
 from arap.errors import ConstraintError, MeshError, OptionError
 from arap.io.paths import SpecialFileError
 from arap.render.camera import view_basis
-from arap.render.png import SIGNATURE, decode_png, encode_png
+from arap.render.png import SIGNATURE, encode_png
 from arap.render.show import STUDIO_COLORS
+from tests.png_files import decode_png
 from tests.render.pixels import colour_share
 
 V, F = arap.builtin_mesh("sphere:500")

@@ -10,7 +10,8 @@ import pytest
 from starlette.testclient import TestClient
 
 from arap.server import create_app
-from arap.server.meshdata import MeshData, load_builtin
+from arap.server.mesh_model import MeshData
+from arap.server.meshdata import load_builtin
 from arap.server.session import Session
 from tests.server.helpers import StudioClient
 

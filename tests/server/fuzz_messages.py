@@ -8,7 +8,8 @@ from typing import Any
 
 from hypothesis import strategies as st
 
-from arap.server.protocol import CLIENT_MESSAGES, Field
+from arap.server.client_messages import CLIENT_MESSAGES
+from arap.server.messages import Field
 
 N_VERTICES = 5250  # the cactus of the studio fixture; indices beyond it are generated too
 

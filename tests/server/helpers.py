@@ -12,7 +12,7 @@ from typing import Any
 import numpy as np
 
 from arap.server import make_server
-from arap.server.protocol import decode_binary, encode_binary
+from arap.server.frames import decode_binary, encode_binary
 from tests.waiting import wait_until
 
 

@@ -21,8 +21,9 @@ from arap.server.animation_export import (
     keyframes_document,
 )
 from arap.server.budget import MemoryBudget
-from arap.server.meshdata import MeshData, load_builtin
-from arap.server.protocol import RequestError
+from arap.server.errors import RequestError
+from arap.server.mesh_model import MeshData
+from arap.server.meshdata import load_builtin
 from arap.server.session import Session
 from tests.animated_glb import glb_frames
 from tests.server.helpers import StudioClient, column_major, rotation_z, translation

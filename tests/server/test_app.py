@@ -14,7 +14,7 @@ from starlette.testclient import TestClient
 from arap.io import load_mesh_bytes
 from arap.method.energy import cell_distortion
 from arap.server import create_app
-from arap.server.protocol import PARAMS, PROTOCOL_VERSION
+from arap.server.messages import PARAMS, PROTOCOL_VERSION
 from tests.server.helpers import StudioClient, column_major, rotation_z, translation
 
 pytestmark = pytest.mark.timeout(120)

@@ -16,7 +16,9 @@ from arap.server import bulkjson
 from arap.server.bulkjson import INLINE_BYTES, MAX_PARTS, NumberList, loads_bulk
 from arap.server.client_messages import SetConstraints
 from arap.server.decoder import arrays_from_lists, decode_text_frame
-from arap.server.protocol import ClientMessage, RequestError, check_against_mesh, parse_large_text, parse_text
+from arap.server.errors import RequestError
+from arap.server.messages import ClientMessage
+from arap.server.protocol import check_against_mesh, parse_large_text, parse_text
 from tests.server.fuzz_messages import messages as fuzzed_messages
 
 pytestmark = pytest.mark.timeout(120)

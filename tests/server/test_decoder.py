@@ -15,7 +15,8 @@ from starlette.testclient import TestClient
 from arap.server import create_app
 from arap.server.client_messages import SetConstraints
 from arap.server.decoder import PROCESS_BYTES, FrameDecoder, arrays_from_lists
-from arap.server.protocol import RequestError, parse_text
+from arap.server.errors import RequestError
+from arap.server.protocol import parse_text
 from tests.server.helpers import StudioClient
 
 pytestmark = pytest.mark.timeout(120)

@@ -10,7 +10,7 @@ import pytest
 
 import arap
 from arap.server.errors import request_error
-from arap.server.meshdata import MeshData
+from arap.server.mesh_model import MeshData
 from arap.server.session import Session
 from arap.server.session_errors import ConstraintsRejected
 from tests.server.helpers import StudioClient, renumbered_bar_obj

@@ -19,7 +19,7 @@ from websockets.sync.client import connect
 
 from arap.server import make_server
 from arap.server.memory import release_memory
-from arap.server.protocol import ClientMessage
+from arap.server.messages import ClientMessage
 from arap.server.session import Session
 from tests.server.helpers import StudioClient, translation
 from tests.waiting import poll_until, wait_until

@@ -11,10 +11,10 @@ import sys
 import pytest
 
 from arap.server import protocol as P
-from arap.server.client_messages import CLIENT_MESSAGE_CLASSES, SetParams
+from arap.server.client_messages import CLIENT_MESSAGE_CLASSES, CLIENT_MESSAGES, SetParams
 from arap.server.errors import ERROR_CODES, SESSION_ERROR_CODES, request_error
 from arap.server.messages import message_spec
-from arap.server.server_messages import SERVER_MESSAGE_CLASSES, Error, Settle
+from arap.server.server_messages import SERVER_MESSAGE_CLASSES, SERVER_MESSAGES, Error, Settle
 from arap.server.session_errors import (
     BadValues,
     ConstraintsRejected,
@@ -26,7 +26,7 @@ from arap.server.session_errors import (
 
 
 def test_specifications_are_derived_from_the_classes() -> None:
-    for specs, classes in ((P.CLIENT_MESSAGES, CLIENT_MESSAGE_CLASSES), (P.SERVER_MESSAGES, SERVER_MESSAGE_CLASSES)):
+    for specs, classes in ((CLIENT_MESSAGES, CLIENT_MESSAGE_CLASSES), (SERVER_MESSAGES, SERVER_MESSAGE_CLASSES)):
         assert list(specs) == list(classes)
         for name, cls in classes.items():
             spec = specs[name]
@@ -38,8 +38,8 @@ def test_specifications_are_derived_from_the_classes() -> None:
 def test_absent_optional_fields_are_none() -> None:
     msg = P.parse_text('{"type": "set_params", "energy": "spokes"}')
     assert msg == SetParams(energy="spokes") and msg.iterations is None and msg.alpha is None
-    assert [f.required for f in P.CLIENT_MESSAGES["set_params"].fields] == [False] * 6
-    assert [(f.name, f.required) for f in P.CLIENT_MESSAGES["drag"].fields] == [
+    assert [f.required for f in CLIENT_MESSAGES["set_params"].fields] == [False] * 6
+    assert [(f.name, f.required) for f in CLIENT_MESSAGES["drag"].fields] == [
         ("seq", True), ("transforms", True), ("key", False)]
 
 

@@ -84,7 +84,7 @@ def test_a_surface_exports_a_picture_of_its_shape() -> None:
 
 @pytest.mark.parametrize(("data", "match"), [(b"not a picture", "not a picture"), (_disc_png()[:60], "corrupt")])
 def test_bad_pictures_are_refused_with_their_reason(data: bytes, match: str) -> None:
-    from arap.server.protocol import RequestError
+    from arap.server.errors import RequestError
 
     with pytest.raises(RequestError, match=match):
         load_picture(data, "x.png", 100_000)

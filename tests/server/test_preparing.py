@@ -8,8 +8,8 @@ import threading
 import pytest
 from starlette.testclient import TestClient
 
-from arap.method import jit
-from arap.method.kernel_cache import KERNELS_READY
+import arap.warmup as jit
+from arap.warmup import KERNELS_READY
 from tests.server.helpers import StudioClient
 
 pytestmark = pytest.mark.timeout(120)

@@ -12,8 +12,12 @@ from pathlib import Path
 import pytest
 
 from arap.server import protocol as P
-from arap.server.client_messages import Drag, SetConstraints, SetParams, Upload
+from arap.server.client_messages import CLIENT_MESSAGES, Drag, SetConstraints, SetParams, Upload
+from arap.server.errors import ERROR_CODES, RequestError
+from arap.server.frames import MAX_HEADER_BYTES, decode_binary, encode_binary
 from arap.server.jsgen import generate_js
+from arap.server.messages import PARAMS, PROTOCOL_VERSION
+from arap.server.server_messages import SERVER_MESSAGES
 
 ROOT = Path(__file__).resolve().parents[2]
 JS_PATH = ROOT / "web" / "src" / "protocol.js"
@@ -28,17 +32,17 @@ def _identity() -> list[float]:
 def test_binary_roundtrip_pads_header_to_four_bytes(extra: str) -> None:
     header = {"type": "mesh", "name": "a" + extra}
     payload = bytes(range(12))
-    frame = P.encode_binary(header, payload)
+    frame = encode_binary(header, payload)
     (n,) = struct.unpack_from("<I", frame)
     assert (4 + n) % 4 == 0
     assert frame[4 : 4 + n].decode().rstrip(" ") == json.dumps(header, separators=(",", ":"))
-    got, body = P.decode_binary(frame)
+    got, body = decode_binary(frame)
     assert got == header
     assert bytes(body) == payload
 
 
 def test_encode_binary_concatenates_payload_parts() -> None:
-    _, body = P.decode_binary(P.encode_binary({"type": "x"}, b"ab", b"cd"))
+    _, body = decode_binary(encode_binary({"type": "x"}, b"ab", b"cd"))
     assert bytes(body) == b"abcd"
 
 
@@ -48,15 +52,15 @@ def test_encode_binary_concatenates_payload_parts() -> None:
         b"",
         b"\x01\x02",
         struct.pack("<I", 100) + b"{}",
-        struct.pack("<I", P.MAX_HEADER_BYTES + 1) + b" " * 16,
+        struct.pack("<I", MAX_HEADER_BYTES + 1) + b" " * 16,
         struct.pack("<I", 4) + b"\xff\xfe{}",
         struct.pack("<I", 4) + b"[1] ",
         struct.pack("<I", 4) + b"nope",
     ],
 )
 def test_decode_binary_rejects_garbage(frame: bytes) -> None:
-    with pytest.raises(P.RequestError) as info:
-        P.decode_binary(frame)
+    with pytest.raises(RequestError) as info:
+        decode_binary(frame)
     assert info.value.code == "bad_message"
 
 
@@ -66,7 +70,7 @@ def test_parse_valid_messages() -> None:
     assert isinstance(msg, Drag) and msg.type == "drag" and msg.seq == 3 and not hasattr(msg, "payload")
     msg = P.parse_text('{"type": "set_params", "iterations": 5}')
     assert msg == SetParams(iterations=5)
-    msg = P.parse_binary(P.encode_binary({"type": "upload", "filename": "a.obj"}, b"v 0 0 0"))
+    msg = P.parse_binary(encode_binary({"type": "upload", "filename": "a.obj"}, b"v 0 0 0"))
     assert isinstance(msg, Upload) and msg.type == "upload" and bytes(msg.payload or b"") == b"v 0 0 0"
     msg = P.parse_text('{"type": "set_constraints", "roi": null, "fixed": [1, 2], "handle_groups": [[3]]}')
     assert isinstance(msg, SetConstraints) and msg.roi is None and msg.handle_groups == [[3]]
@@ -109,28 +113,28 @@ BAD_TEXT = {
 
 @pytest.mark.parametrize("text", BAD_TEXT.values(), ids=BAD_TEXT.keys())
 def test_parse_text_rejects(text: str) -> None:
-    with pytest.raises(P.RequestError) as info:
+    with pytest.raises(RequestError) as info:
         P.parse_text(text)
     assert info.value.code == "bad_message"
     assert info.value.message
 
 
 def test_error_names_the_request() -> None:
-    with pytest.raises(P.RequestError) as info:
+    with pytest.raises(RequestError) as info:
         P.parse_text('{"type": "drag", "seq": "x", "transforms": []}')
     assert P.error_message(info.value) == {"type": "error", "code": "bad_message", "message": info.value.message,
                                        "request": "drag"}
-    with pytest.raises(P.RequestError) as info:
+    with pytest.raises(RequestError) as info:
         P.parse_text('{"type": "explode"}')
     assert info.value.request == "explode"
-    with pytest.raises(P.RequestError) as info:
+    with pytest.raises(RequestError) as info:
         P.parse_text("[]")
     assert info.value.request is None
 
 
 def test_binary_frame_of_a_text_type_is_rejected() -> None:
-    with pytest.raises(P.RequestError, match="text frame"):
-        P.parse_binary(P.encode_binary({"type": "drag", "seq": 1, "transforms": []}))
+    with pytest.raises(RequestError, match="text frame"):
+        P.parse_binary(encode_binary({"type": "drag", "seq": 1, "transforms": []}))
 
 
 def test_check_against_mesh() -> None:
@@ -140,19 +144,19 @@ def test_check_against_mesh() -> None:
                    '"roi": null, "fixed": [-1], "handle_groups": []',
                    '"roi": null, "fixed": [], "handle_groups": [[0], [99]]'):
         msg = P.parse_text('{"type": "set_constraints", ' + fields + "}")
-        with pytest.raises(P.RequestError) as info:
+        with pytest.raises(RequestError) as info:
             P.check_against_mesh(msg, n_vertices=10, n_groups=0)
         assert info.value.code == "bad_constraints"
     drag = P.parse_text(json.dumps({"type": "drag", "seq": 0, "transforms": [_identity()]}))
     P.check_against_mesh(drag, n_vertices=10, n_groups=1)
-    with pytest.raises(P.RequestError, match="2 handle groups") as info:
+    with pytest.raises(RequestError, match="2 handle groups") as info:
         P.check_against_mesh(drag, n_vertices=10, n_groups=2)
     assert info.value.code == "bad_message"
 
 
 def test_request_error_rejects_unknown_codes() -> None:
     with pytest.raises(ValueError, match="unknown error code"):
-        P.RequestError("oops", "x")
+        RequestError("oops", "x")
 
 
 # ---------------------------------------------------------------------------------------------- generated client module
@@ -172,14 +176,14 @@ def test_generator_entry_point_prints_the_module() -> None:
 
 def test_generated_js_lists_every_type_and_code() -> None:
     js = generate_js()
-    for name in [*P.CLIENT_MESSAGES, *P.SERVER_MESSAGES, *P.ERROR_CODES]:
+    for name in [*CLIENT_MESSAGES, *SERVER_MESSAGES, *ERROR_CODES]:
         assert f'"{name}"' in js
-    assert f"PROTOCOL_VERSION = {P.PROTOCOL_VERSION};" in js
+    assert f"PROTOCOL_VERSION = {PROTOCOL_VERSION};" in js
 
 
 def test_docs_describe_every_type_and_code() -> None:
     doc = (ROOT / "docs" / "protocol.md").read_text(encoding="utf-8")
-    for name in [*P.CLIENT_MESSAGES, *P.SERVER_MESSAGES, *P.ERROR_CODES]:
+    for name in [*CLIENT_MESSAGES, *SERVER_MESSAGES, *ERROR_CODES]:
         assert f"`{name}`" in doc, name
 
 
@@ -216,16 +220,16 @@ def test_js_helpers_agree_with_python(tmp_path: Path) -> None:
     module.write_text(generate_js(), encoding="utf-8")
     script = tmp_path / "check.mjs"
     script.write_text(NODE_CHECK % ((ROOT / "web" / "src" / "frames.js").as_uri(), module.as_uri()), encoding="utf-8")
-    frame = P.encode_binary({"type": "vertices", "seq": 7}, np.array([0.25, -1.0, 8.0], dtype="<f4").tobytes())
+    frame = encode_binary({"type": "vertices", "seq": 7}, np.array([0.25, -1.0, 8.0], dtype="<f4").tobytes())
     out = subprocess.run(["node", str(script), base64.b64encode(frame).decode()], capture_output=True, text=True,
                          check=True, timeout=60)
     got = json.loads(out.stdout)
     assert got["upload"] == {"header": {"type": "upload", "filename": "a.obj"}, "payload": [1, 2, 3], "aligned": 0}
     js_frame = base64.b64decode(got["uploadFrame"])
-    assert js_frame == P.encode_binary({"type": "upload", "filename": "a.obj"}, b"\x01\x02\x03")
+    assert js_frame == encode_binary({"type": "upload", "filename": "a.obj"}, b"\x01\x02\x03")
     msg = P.parse_binary(js_frame)
     assert isinstance(msg, Upload) and msg == Upload("a.obj", msg.payload)
     assert bytes(msg.payload or b"") == b"\x01\x02\x03"
     assert got["mesh"] == {"positions": [1.5, 2.5, 3.5], "faces": [0, 0, 0]}
     assert got["fromPython"] == {"header": {"type": "vertices", "seq": 7}, "positions": [0.25, -1.0, 8.0]}
-    assert got["iterations"] == P.PARAMS["iterations"]
+    assert got["iterations"] == PARAMS["iterations"]

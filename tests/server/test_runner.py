@@ -10,7 +10,7 @@ import pytest
 from websockets.sync.client import connect
 
 from arap.server import bind_socket, studio_url
-from arap.server.protocol import decode_binary, encode_binary
+from arap.server.frames import decode_binary, encode_binary
 from tests.server.helpers import running_server
 
 pytestmark = pytest.mark.timeout(120)

@@ -9,8 +9,9 @@ from arap.io import load_mesh_bytes
 from arap.server.constraints import matrices_from_json, matrices_to_json
 from arap.server.errors import request_error
 from arap.server.history import History, Snapshot
-from arap.server.meshdata import MeshData, load_builtin
-from arap.server.protocol import ENERGIES, WEIGHTS
+from arap.server.mesh_model import MeshData
+from arap.server.meshdata import load_builtin
+from arap.server.messages import ENERGIES, WEIGHTS
 from arap.server.replies import state_message
 from arap.server.session import Session
 from arap.server.session_errors import ConstraintsRejected

@@ -20,8 +20,8 @@ from websockets.sync.client import connect
 
 import arap
 from arap.server import make_server
-from arap.server.meshdata import MeshData
-from arap.server.protocol import decode_binary
+from arap.server.frames import decode_binary
+from arap.server.mesh_model import MeshData
 from arap.server.runner import kernel_unsent_bytes
 from tests.server.helpers import apply_vertices, translation
 from tests.waiting import scaled, wait_until

@@ -13,9 +13,9 @@ import pytest
 from arap.constraints import load_constraints
 from arap.method.rigid import rigid_regions
 from arap.server.client_messages import SetConstraints
-from arap.server.errors import request_error
+from arap.server.errors import RequestError, request_error
 from arap.server.meshdata import load_upload
-from arap.server.protocol import RequestError, parse_text
+from arap.server.protocol import parse_text
 from arap.server.replies import state_message
 from arap.server.session import Session
 from arap.server.session_errors import ConstraintsRejected

@@ -10,9 +10,8 @@ import pytest
 
 from arap.server import protocol as P
 from arap.server.client_messages import SetConstraints
-from arap.server.errors import request_error
+from arap.server.errors import RequestError, request_error
 from arap.server.meshdata import load_builtin
-from arap.server.protocol import RequestError
 from arap.server.session import Session
 from arap.server.session_errors import BadValues
 from arap.server.solve_calls import LOAD_ITERATIONS

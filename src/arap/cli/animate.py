@@ -18,10 +18,10 @@ from arap.cli.common import (
     err,
     load_mesh_argument,
     planar_triangles,
-    warm_up_kernels,
 )
 from arap.errors import ConstraintError, MeshFormatError, OptionError
 from arap.options import DEFAULT_ELEMENT_ENERGY, DEFAULT_ENERGY
+from arap.warmup import warm_up_kernels
 
 __all__ = ["add_parser", "run_animate"]
 

@@ -5,7 +5,8 @@ from __future__ import annotations
 
 import argparse
 
-from arap.cli.common import EXIT_BAD_INPUT, err, out, positive_int, warm_up_kernels
+from arap.cli.common import EXIT_BAD_INPUT, err, out, positive_int
+from arap.warmup import warm_up_kernels
 
 __all__ = ["add_parser", "run_batch"]
 

@@ -10,8 +10,9 @@ import time
 
 import numpy as np
 
-from arap.cli.common import alpha_value, check_bench_runs, load_mesh_argument, out, warm_up_kernels
+from arap.cli.common import alpha_value, check_bench_runs, load_mesh_argument, out
 from arap.options import DEFAULT_ALPHA, DEFAULT_ENERGY, DEFAULT_WEIGHTS, ENERGY_TYPES, WEIGHT_TYPES
+from arap.warmup import warm_up_kernels
 
 __all__ = ["add_parser", "bench_constraints", "constrained_components", "run_bench"]
 
@@ -77,7 +78,7 @@ def run_bench(args: argparse.Namespace) -> int:
     fixed, handles, targets = bench_constraints(V)
     indices = np.concatenate([fixed, handles])
     all_targets = np.concatenate([V[fixed], targets])
-    kernels = warm_up_kernels(quiet=args.json)
+    kernels = warm_up_kernels(quiet=args.json).record()
     t0 = time.perf_counter()
     roi = constrained_components(F, len(V), indices)
     solver = ArapSolver(V, F, indices, energy=args.energy, weights=args.weights, alpha=args.alpha, roi=roi)

@@ -7,14 +7,12 @@ This module imports no other module of :mod:`arap.cli`, and none of the server s
 from __future__ import annotations
 
 import argparse
-import math
 import signal
 import sys
 import threading
 import time
-from collections.abc import Callable
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, TextIO
+from typing import Any, TextIO
 
 import numpy as np
 
@@ -33,9 +31,6 @@ from arap.options import (
     check_alpha,
 )
 
-if TYPE_CHECKING:
-    from arap.method.jit import CompileProgress
-
 __all__ = [
     "EXIT_BAD_INPUT",
     "EXIT_INTERRUPTED",
@@ -49,7 +44,6 @@ __all__ = [
     "alpha_value",
     "check_bench_runs",
     "check_iterations_and_tolerance",
-    "compile_reporter",
     "err",
     "format_list",
     "load_mesh_argument",
@@ -60,7 +54,6 @@ __all__ = [
     "positive_int",
     "selector_constraints",
     "token_value",
-    "warm_up_kernels",
     "writable_destination",
 ]
 
@@ -162,33 +155,6 @@ def one_line(exc: BaseException) -> str:
     """An exception's message on one line of at most 500 characters."""
     text = " ".join(str(exc).split()) or type(exc).__name__
     return text if len(text) <= 500 else text[:497] + "..."
-
-
-def warm_up_kernels(quiet: bool, first_ready: Callable[[], None] | None = None) -> dict[str, object]:
-    """Compile (first run) or load the kernels before anything is timed; says so when it compiled, and unless
-    ``quiet`` how far it is every few seconds meanwhile (see :func:`compile_reporter`). ``first_ready``: see
-    :func:`arap.method.jit.warm_up_kernels`."""
-    from arap.method.jit import warm_up_kernels as compile_or_load
-
-    warm = compile_or_load(progress=None if quiet else compile_reporter(), first_ready=first_ready)
-    if warm.compiled and not quiet:
-        err(f"arap: compiling kernels (first run only)… {warm.seconds:.1f} s (cached in {warm.cache_dir})")
-    return {"compiled": warm.compiled > 0, "seconds": warm.seconds, "cache_dir": warm.cache_dir}
-
-
-def compile_reporter(every: float = 5.0) -> Callable[[CompileProgress], None]:
-    """A ``progress`` for :func:`arap.method.jit.warm_up_kernels` that writes to stderr how many kernels are ready,
-    by name, at most every ``every`` seconds (and when the last is)."""
-    last = [-math.inf]
-
-    def report(progress: CompileProgress) -> None:
-        now = time.monotonic()
-        if progress.done < progress.total and now - last[0] < every:
-            return
-        last[0] = now
-        err(f"arap: compiling the solver's kernels: {progress.describe()}")
-
-    return report
 
 
 # ---------------------------------------------------------------------------------------------- meshes

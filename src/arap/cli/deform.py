@@ -27,7 +27,6 @@ from arap.cli.common import (
     load_mesh_argument,
     planar_triangles,
     selector_constraints,
-    warm_up_kernels,
     writable_destination,
 )
 from arap.errors import ArapError, ConstraintError, MeshError, MeshFormatError, UnconstrainedRegionError
@@ -36,6 +35,7 @@ from arap.options import (
     ACCELERATIONS,
     START_NAMES,
 )
+from arap.warmup import warm_up_kernels
 
 if TYPE_CHECKING:
     from arap.solve.result import ArapResult
@@ -162,7 +162,7 @@ def _note_flat_faces(V: np.ndarray, F: np.ndarray, energy: str, weights: str) ->
     large and negative); spokes and rims, and clamped or uniform weights, have no negative terms."""
     if energy == "spokes_and_rims" or weights != "cotangent":
         return
-    from arap.meshes.diagnose import FLAT_ANGLE_DEGREES, flat_faces
+    from arap.diagnose import FLAT_ANGLE_DEGREES, flat_faces
 
     count = flat_faces(V, F)
     if count:

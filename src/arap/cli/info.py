@@ -14,7 +14,7 @@ from arap.cli.common import err, load_mesh_argument, out, positive_int, writable
 from arap.errors import ArapError, MeshError
 
 if TYPE_CHECKING:
-    from arap.meshes.diagnose import MeshInfo
+    from arap.diagnose import MeshInfo
 
 __all__ = ["add_parser", "info_report", "run_info", "volume_report"]
 
@@ -43,7 +43,7 @@ def add_parser(commands: argparse._SubParsersAction[argparse.ArgumentParser]) ->
 
 def info_report(V: np.ndarray, F: np.ndarray, label: str) -> tuple[MeshInfo, dict[str, Any]]:
     """What ``arap info`` reports: the mesh description and the JSON-ready report of ``arap info --json``."""
-    from arap.meshes.diagnose import inspect_mesh
+    from arap.diagnose import inspect_mesh
     from arap.meshes.mesh import check_mesh
     from arap.meshes.repair import repair_mesh
 

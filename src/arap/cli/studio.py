@@ -9,7 +9,8 @@ from __future__ import annotations
 import argparse
 import threading
 
-from arap.cli.common import EXIT_USAGE, err, origin_value, out, positive_int, token_value, warm_up_kernels
+from arap.cli.common import EXIT_USAGE, err, origin_value, out, positive_int, token_value
+from arap.warmup import warm_up_kernels
 
 __all__ = ["STUDIO_EXTRA_HINT", "add_parser", "run_studio"]
 
@@ -96,8 +97,8 @@ def _warm_up_behind() -> threading.Thread:
     """Compile (first run) or load the kernels on a thread of their own while the server starts and serves the page;
     a session that needs them first waits for the compilation (numba compiles one kernel at a time). Says so when it
     compiles."""
-    from arap.method.jit import FIRST_KERNELS, LATER_KERNELS
-    from arap.method.kernel_cache import KERNELS_READY, first_compile_pending
+    from arap.solve.kernel_cache import first_compile_pending
+    from arap.warmup import FIRST_KERNELS, KERNELS_READY, LATER_KERNELS
 
     if first_compile_pending():
         err(f"arap: compiling the solver's {len(FIRST_KERNELS) + len(LATER_KERNELS)} kernels in the background (first "

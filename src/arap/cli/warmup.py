@@ -20,8 +20,7 @@ def add_parser(commands: argparse._SubParsersAction[argparse.ArgumentParser]) ->
 
 def run_warmup(args: argparse.Namespace) -> int:
     """``arap warmup``: 0."""
-    from arap.cli.common import compile_reporter
-    from arap.method.jit import warm_up_kernels
+    from arap.warmup import compile_reporter, warm_up_kernels
 
     warm = warm_up_kernels(progress=compile_reporter())
     where = f" (cached in {warm.cache_dir})" if warm.cache_dir else " (caching is off: NUMBA_DISABLE_JIT or no cache)"

@@ -1,24 +1,20 @@
-"""Named constraint scenarios (bend, twist, pull, rigid) used by the tests, the benchmarks and the command line.
+"""The bend scenario of ``arap bench``, and what every constraint scenario is made of.
 
-Each scenario picks constrained vertices of a mesh from its shape alone (quantiles along its longest axis) and
-gives their targets, so the same scenario applies to any mesh.
+A scenario picks constrained vertices of a mesh from its shape alone (quantiles along its longest axis) and gives
+their targets, so the same scenario applies to any mesh. The tests and the benchmarks add more of them (twist, pull,
+rigid: ``benchmarks/scenarios.py``).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Literal
 
 import numpy as np
 from numpy.typing import NDArray
 
-from arap.errors import ArapError
 from arap.meshes.mesh import bounding_box
 
-__all__ = ["SCENARIO_NAMES", "Scenario", "bend", "make_scenario", "pull", "rigid", "rotation", "twist"]
-
-ScenarioName = Literal["bend", "twist", "pull", "rigid"]
-SCENARIO_NAMES: tuple[str, ...] = ("bend", "twist", "pull", "rigid")
+__all__ = ["Scenario", "axis_ends", "bend", "build_scenario", "diagonal", "rotation"]
 
 
 @dataclass(frozen=True)
@@ -44,12 +40,14 @@ class Scenario:
     targets: NDArray[np.float64]
 
 
-def _diagonal(V: NDArray[np.float64]) -> float:
+def diagonal(V: NDArray[np.float64]) -> float:
+    """Length of the bounding-box diagonal of ``V``."""
     box = bounding_box(V)
     return float(np.linalg.norm(box[1] - box[0]))
 
 
-def _ends(V: NDArray[np.float64], axis: int | None, share: float) -> tuple[int, NDArray[np.int64], NDArray[np.int64]]:
+def axis_ends(V: NDArray[np.float64], axis: int | None,
+              share: float) -> tuple[int, NDArray[np.int64], NDArray[np.int64]]:
     """Longest axis (unless given) and the vertices in its lowest and highest ``share``."""
     if axis is None:
         box = bounding_box(V)
@@ -67,8 +65,9 @@ def rotation(axis: NDArray[np.float64] | list[float], angle: float) -> NDArray[n
     return np.eye(3) + np.sin(angle) * K + (1.0 - np.cos(angle)) * (K @ K)
 
 
-def _build(name: str, V: NDArray[np.float64], fixed: NDArray[np.int64], handles: NDArray[np.int64],
-           moved: NDArray[np.float64]) -> Scenario:
+def build_scenario(name: str, V: NDArray[np.float64], fixed: NDArray[np.int64], handles: NDArray[np.int64],
+                   moved: NDArray[np.float64]) -> Scenario:
+    """The scenario ``name`` holding ``fixed`` at rest and moving ``handles`` to ``moved``."""
     return Scenario(name=name, fixed=fixed, handles=handles, constrained=np.concatenate([fixed, handles]),
                     targets=np.concatenate([V[fixed], moved]))
 
@@ -87,46 +86,10 @@ def bend(V: NDArray[np.float64], axis: int | None = None, share: float = 0.1, an
     >>> s.targets.shape == (len(s.constrained), 3), bool(np.all(s.targets[:len(s.fixed)] == V[s.fixed]))
     (True, True)
     """
-    axis, fixed, handles = _ends(V, axis, share)
+    axis, fixed, handles = axis_ends(V, axis, share)
     other = (axis + 1) % 3
     R = rotation(np.eye(3)[3 - axis - other], angle)
     centre = V[handles].mean(axis=0)
     offset = np.zeros(3)
-    offset[other] = shift * _diagonal(V)
-    return _build("bend", V, fixed, handles, (V[handles] - centre) @ R.T + centre + offset)
-
-
-def twist(V: NDArray[np.float64], axis: int | None = None, share: float = 0.1, angle: float = np.pi / 2) -> Scenario:
-    """Fix the lowest ``share`` along ``axis`` and turn the highest ``share`` by ``angle`` about that axis
-    through their centroid."""
-    axis, fixed, handles = _ends(V, axis, share)
-    centre = V[handles].mean(axis=0)
-    R = rotation(np.eye(3)[axis], angle)
-    return _build("twist", V, fixed, handles, (V[handles] - centre) @ R.T + centre)
-
-
-def pull(V: NDArray[np.float64], axis: int | None = None, share: float = 0.1, distance: float = 0.2) -> Scenario:
-    """Fix the lowest ``share`` along ``axis`` and pull the single vertex farthest along it by ``distance``
-    bounding-box diagonals along the axis."""
-    axis, fixed, _ = _ends(V, axis, share)
-    tip = np.array([int(np.argmax(V[:, axis]))], dtype=np.int64)
-    offset = np.zeros(3)
-    offset[axis] = distance * _diagonal(V)
-    return _build("pull", V, fixed, tip, V[tip] + offset)
-
-
-def rigid(V: NDArray[np.float64], angle: float = np.radians(170.0), count: int = 40, seed: int = 0) -> Scenario:
-    """Move ``count`` scattered vertices (no fixed ones) by one rigid motion rotating ``angle`` radians."""
-    rng = np.random.default_rng(seed)
-    handles = np.sort(rng.choice(len(V), size=min(count, len(V)), replace=False)).astype(np.int64)
-    R = rotation([0.3, -1.0, 0.5], angle)
-    t = np.array([0.5, -0.25, 0.1]) * _diagonal(V)
-    return _build("rigid", V, np.zeros(0, dtype=np.int64), handles, V[handles] @ R.T + t)
-
-
-def make_scenario(name: ScenarioName | str, V: NDArray[np.float64]) -> Scenario:
-    """The scenario ``name`` (one of :data:`SCENARIO_NAMES`) with its default parameters."""
-    makers = {"bend": bend, "twist": twist, "pull": pull, "rigid": rigid}
-    if name not in makers:
-        raise ArapError(f"unknown scenario {name!r}; expected one of {SCENARIO_NAMES}")
-    return makers[name](V)
+    offset[other] = shift * diagonal(V)
+    return build_scenario("bend", V, fixed, handles, (V[handles] - centre) @ R.T + centre + offset)

@@ -38,7 +38,7 @@ def _pad(data: bytes, fill: bytes = b"\0") -> bytes:
 def _unit_normals(X: NDArray[np.floating], F: NDArray[np.int64]) -> NDArray[np.float32]:
     """Area-weighted unit vertex normals as float32; +z for a vertex of no (non-degenerate) triangle (glTF's normals
     are unit vectors)."""
-    from arap.render.raster import vertex_normals
+    from arap.meshes._geometry import vertex_normals
 
     N = vertex_normals(np.asarray(X, dtype=np.float64), F)
     N[~(np.abs(N).sum(axis=1) > 0)] = (0.0, 0.0, 1.0)

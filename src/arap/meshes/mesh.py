@@ -3,7 +3,7 @@
 :func:`check_mesh` is the strict gate every solver input goes through: it only converts types and raises
 :class:`~arap.errors.MeshError` with a specific message. :func:`arap.meshes.repair.repair_mesh` fixes what can be fixed
 (duplicate vertices, degenerate and duplicate faces, unreferenced vertices) and reports what it did. Mesh
-description and diagnostics live in :mod:`arap.meshes.diagnose`.
+description and diagnostics live in :mod:`arap.diagnose`.
 """
 
 from __future__ import annotations

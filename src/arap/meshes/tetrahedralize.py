@@ -160,9 +160,7 @@ def tetrahedralize(V: ArrayLike, F: ArrayLike, *, edge_length: float = 0.05, eps
 def _run_tetwild(V: NDArray[np.float64], F: NDArray[np.int64], options: NDArray[np.float64]) -> tuple[
         NDArray[np.float64], NDArray[np.int64]]:
     """fTetWild's tetrahedra, computed in a child process working in a temporary folder."""
-    import arap
-
-    package_root = str(Path(arap.__file__).resolve().parents[1])
+    package_root = str(Path(__file__).resolve().parents[2])  # the folder holding the arap package
     env = dict(os.environ)
     env["PYTHONPATH"] = os.pathsep.join([package_root, *filter(None, [env.get("PYTHONPATH")])])
     with tempfile.TemporaryDirectory(prefix="arap-tetwild-") as folder:

@@ -167,67 +167,6 @@ def locality_order(F: np.ndarray, n: int, adjacency: sp.csr_matrix | None = None
     return np.asarray(reverse_cuthill_mckee(A, symmetric_mode=True), dtype=np.int64)
 
 
-def leading_subgraph(adjacency: sp.csr_matrix, order: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
-    """The graph of the first ``k`` vertices of ``order``, numbered by their position in it.
-
-    The pattern (without the diagonal) of ``M[order][:, order][:k, :k]`` for any matrix ``M`` with the adjacency's
-    pattern, e.g. the solver's reduced matrix over its free vertices, which come first in its internal order.
-
-    Parameters
-    ----------
-    adjacency : (n, n) scipy.sparse.csr_matrix
-        Symmetric adjacency without self loops (:func:`vertex_adjacency`).
-    order : (n,) int array
-        ``order[i]`` is the vertex numbered ``i``.
-    k : int
-        How many leading vertices to keep.
-
-    Returns
-    -------
-    indptr : (k+1,) int64 array
-    indices : (e,) int32 array
-        Neighbours of every kept vertex among the kept ones, in increasing order.
-    """
-    return _leading_subgraph(adjacency.indptr, adjacency.indices, np.asarray(order, dtype=np.int64), int(k))
-
-
-@nb.njit(cache=True, nogil=True)
-def _leading_subgraph(indptr, indices, order, k):  # pragma: no cover - compiled
-    # Rows read in the adjacency's own order (sequentially), written to their new places, then sorted.
-    n = order.shape[0]
-    position = np.empty(n, np.int64)
-    for i in range(n):
-        position[order[i]] = i
-    ptr = np.zeros(k + 1, np.int64)
-    for v in range(n):
-        i = position[v]
-        if i < k:
-            count = 0
-            for p in range(indptr[v], indptr[v + 1]):
-                if position[indices[p]] < k:
-                    count += 1
-            ptr[i + 1] = count
-    for i in range(k):
-        ptr[i + 1] += ptr[i]
-    out = np.empty(ptr[k], np.int32)
-    for v in range(n):
-        i = position[v]
-        if i >= k:
-            continue
-        lo = ptr[i]
-        q = lo
-        for p in range(indptr[v], indptr[v + 1]):
-            j = position[indices[p]]
-            if j < k:
-                r = q - 1  # insertion into the sorted row
-                while r >= lo and out[r] > j:
-                    out[r + 1] = out[r]
-                    r -= 1
-                out[r + 1] = j
-                q += 1
-    return ptr, out
-
-
 def free_components(adjacency: sp.csr_matrix, free: np.ndarray) -> tuple[int, np.ndarray, np.ndarray]:
     """Connected components of the graph of the ``free`` vertices, and which of them touch another vertex.
 

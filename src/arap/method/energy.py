@@ -8,11 +8,12 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from arap.errors import ArapError
+from arap.meshes._geometry import barycentric_areas
 from arap.meshes.domain import Domain, check_domain
 from arap.meshes.mesh import MeshLike
 from arap.method.assembly import assemble, check_energy_for
 from arap.method.cells import Cells
-from arap.method.covariance import local_step
+from arap.method.local_step import local_step
 from arap.method.rigid import RigidRegions
 from arap.method.rotations import identity_rotations
 from arap.method.smooth import SmoothRotations
@@ -27,7 +28,6 @@ from arap.options import (
     check_alpha,
     check_energy_and_weights,
 )
-from arap.solve.start import vertex_areas
 
 __all__ = ["arap_energy", "cell_distortion", "cell_energies", "distortion_from_cells"]
 
@@ -71,7 +71,7 @@ def _settle_rotations(cells: Cells, V: NDArray[np.float64], F: NDArray[np.int64]
     With negative cotangent weights a cell's own best rotation can be far from its neighbours' even at rest (on the
     camel head the per-cell start settled at 20.8 where the identity gives 0): the coupled rotations then stay in a
     much higher state than the solver's."""
-    areas = vertex_areas(V, F)
+    areas = barycentric_areas(V, F)
     smooth = SmoothRotations(cells, float(areas.sum()), check_alpha(alpha), pair_weights)
     best = np.inf
     found = (R.copy(), E.copy())

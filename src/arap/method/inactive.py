@@ -17,11 +17,11 @@ import numba as nb
 import numpy as np
 from numpy.typing import NDArray
 
-import arap.method._numba_cache  # noqa: F401  (a writable cache folder before the kernels below are defined)
+import arap.kernels.cache  # noqa: F401  (a writable cache folder before the kernels below are defined)
 from arap.meshes.mesh import bounding_box
 from arap.method.cells import Cells
-from arap.method.covariance import local_step
 from arap.method.horn import best_rotation
+from arap.method.local_step import local_step
 from arap.method.rotations import identity_rotations
 
 __all__ = ["RIGID_TOLERANCE", "InactiveCells"]

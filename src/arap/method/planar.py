@@ -6,7 +6,7 @@ of the vector ``(S₀₀ + S₁₁, S₀₁ − S₁₀)``, where it equals that
 candidates, so a triangle cannot flip over in the plane (in space, a reflection of the plane is a half turn about an
 axis in it, and the 3×3 fit would take it).
 
-The kernels follow :mod:`arap.method.covariance`'s layout (chunks of cells, energies summed per chunk and then in
+The kernels follow :mod:`arap.method.local_step`'s layout (chunks of cells, energies summed per chunk and then in
 order, so the thread count never changes a result) and write 3×3 rotations (``z`` row and column of the identity)
 so that everything downstream reads them as any other rotation.
 """
@@ -19,7 +19,7 @@ import numba as nb
 import numpy as np
 from numpy.typing import NDArray
 
-import arap.method._numba_cache  # noqa: F401  (a writable cache folder before the kernels below are defined)
+import arap.kernels.cache  # noqa: F401  (a writable cache folder before the kernels below are defined)
 
 __all__ = ["planar_local_parallel", "planar_local_serial", "planar_rotations"]
 

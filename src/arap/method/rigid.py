@@ -18,7 +18,7 @@ from scipy.sparse.csgraph import connected_components
 
 from arap.method.cells import Cells
 from arap.method.planar import planar_rotations
-from arap.method.rotations import fit_rotations
+from arap.method.rotations import rotations_from_covariances
 
 __all__ = ["RIGID_TOLERANCE", "RigidRegions", "rigid_regions"]
 
@@ -140,7 +140,7 @@ class RigidRegions:
             return 0.0
         S = np.zeros((self.n_regions, 3, 3))
         _region_covariances(self._a, self._b, self._we, self._term_region, U, S)
-        shared = planar_rotations(S) if self._planar else fit_rotations(S)
+        shared = planar_rotations(S) if self._planar else rotations_from_covariances(S)
         # Σ w ‖e' − R e‖² term by term: the expanded form the local step uses would lose the small residuals of
         # rigid cells to cancellation between their large weighted terms.
         before = float(E[self.cells].sum())

@@ -33,9 +33,9 @@ import numpy as np
 import scipy.sparse as sp
 from numpy.typing import NDArray
 
-from arap.method._parallel import policy
+from arap.kernels.parallel import policy
 from arap.method.cells import Cells
-from arap.method.covariance import CHUNK
+from arap.method.local_step import CHUNK
 from arap.method.rotations import BLOCK
 from arap.sparse.linsolve import Factor, factorize
 

@@ -17,7 +17,7 @@ import numba as nb
 import numpy as np
 
 from arap.errors import ArapError
-from arap.method._parallel import policy
+from arap.kernels.parallel import policy
 from arap.method.horn import _det3, rotation_from_covariance
 
 # Scratch layout of a block of cells for :func:`rotations_block`.
@@ -292,7 +292,7 @@ def _fit_parallel(S: np.ndarray, R: np.ndarray) -> None:  # pragma: no cover - c
 def identity_rotations(n: int) -> np.ndarray:
     """``n`` identity matrices, shape (n, 3, 3): the start of a rotation fit without previous rotations.
 
-    The fits (:func:`arap.method.covariance.local_step`) start their root search from the previous rotation of each
+    The fits (:func:`arap.method.local_step.local_step`) start their root search from the previous rotation of each
     cell; any start converges, but to last bits that depend on it, so a fixed start keeps results reproducible (an
     uninitialised array would not).
 
@@ -304,8 +304,8 @@ def identity_rotations(n: int) -> np.ndarray:
     return np.broadcast_to(np.eye(3), (n, 3, 3)).copy()
 
 
-def fit_rotations(S: np.ndarray) -> np.ndarray:
-    """Best-fit rotations of a stack of 3×3 matrices.
+def rotations_from_covariances(S: np.ndarray) -> np.ndarray:
+    """Best-fit rotations of a stack of 3×3 (cell covariance) matrices.
 
     Parameters
     ----------

@@ -51,13 +51,13 @@ import numpy as np
 import scipy.sparse as sp
 from numpy.typing import NDArray
 
-from arap.method._parallel import policy
+from arap.kernels.parallel import policy
+from arap.meshes._geometry import best_rigid_transform
 from arap.method.cells import Cells
 from arap.method.colouring import WINDOW, colour_vertices
-from arap.method.covariance import CHUNK, cell_covariance
+from arap.method.local_step import CHUNK, cell_covariance
 from arap.method.rotation_step import ZERO9, RotationStep, add_transposed, plus_scaled, rotation_gap, trace_with
 from arap.method.rotations import BLOCK, SCRATCH_ROWS, put_covariance, rotations_block, take_rotation
-from arap.solve.start import best_rigid_transform
 
 __all__ = ["STEPS", "SWEEPS", "SmoothRotations"]
 

@@ -22,7 +22,7 @@ import numba as nb
 import numpy as np
 from numpy.typing import NDArray
 
-import arap.method._numba_cache  # noqa: F401  (a writable kernel cache before the kernels are defined)
+import arap.kernels.cache  # noqa: F401  (a writable kernel cache before the kernels are defined)
 from arap.errors import ArapError
 
 __all__ = ["loop_area", "outline_loops", "shape_mask", "simplify_loop"]

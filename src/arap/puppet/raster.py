@@ -16,7 +16,7 @@ import numba as nb
 import numpy as np
 from numpy.typing import NDArray
 
-import arap.method._numba_cache  # noqa: F401  (a writable kernel cache before the kernel is defined)
+import arap.kernels.cache  # noqa: F401  (a writable kernel cache before the kernel is defined)
 
 __all__ = ["draw_textured", "premultiplied"]
 

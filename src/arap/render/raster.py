@@ -14,6 +14,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
+from arap.meshes._geometry import vertex_normals
 from arap.render.camera import Camera
 
 __all__ = [
@@ -24,7 +25,6 @@ __all__ = [
     "rasterize",
     "render_mesh",
     "srgb_to_linear",
-    "vertex_normals",
 ]
 
 #: Shares of the light that every face gets (ambient) and that faces turned to the viewer add (diffuse).
@@ -57,24 +57,6 @@ def linear_to_srgb(c: NDArray[np.floating]) -> NDArray[np.float64]:
     """
     c = np.clip(np.asarray(c, dtype=np.float64), 0.0, 1.0)
     return np.where(c <= 0.0031308, 12.92 * c, 1.055 * c ** (1 / 2.4) - 0.055)
-
-
-def vertex_normals(V: NDArray[np.float64], F: NDArray[np.int64]) -> NDArray[np.float64]:
-    """Area-weighted unit vertex normals, shape (n, 3); zero for vertices of no (non-degenerate) face.
-
-    Example
-    -------
-    >>> vertex_normals(np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0]]), np.array([[0, 1, 2]])).tolist()
-    [[0.0, 0.0, 1.0], [0.0, 0.0, 1.0], [0.0, 0.0, 1.0]]
-    """
-    P = V[F]
-    face = np.cross(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0])  # twice the area times the unit normal
-    N = np.zeros_like(V)
-    for k in range(3):
-        for j in range(3):
-            N[:, j] += np.bincount(F[:, k], weights=face[:, j], minlength=len(V))
-    length = np.sqrt(np.einsum("ij,ij->i", N, N))
-    return N / np.where(length > 0, length, 1.0)[:, None]
 
 
 def lit_colors(normals: NDArray[np.float64], toward_viewer: NDArray[np.float64],

@@ -41,9 +41,9 @@ from arap.io.animated_gltf import animation_glb
 from arap.options import DEFAULT_TOLERANCE
 from arap.server.budget import MemoryBudget
 from arap.server.constraints import identity_transforms, matrices_from_json
-from arap.server.messages import ANIMATION_FORMATS, EASINGS
+from arap.server.errors import RequestError
+from arap.server.messages import ANIMATION_FORMATS, EASINGS, MAX_FPS
 from arap.server.numbering import document_in_file_numbering
-from arap.server.protocol import MAX_FPS, RequestError
 
 if TYPE_CHECKING:
     from arap.server.session import Session

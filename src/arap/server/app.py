@@ -23,14 +23,15 @@ from starlette.staticfiles import StaticFiles
 from starlette.types import Receive, Scope, Send
 from starlette.websockets import WebSocket, WebSocketDisconnect
 
-import arap
+from arap import __version__
 from arap.server.client_files import STATIC_DIR, client_missing_advice
 from arap.server.connection import Connection, StudioConfig
 from arap.server.decoder import FrameDecoder
 from arap.server.errors import RequestError
 from arap.server.guard import RequestGuard, normalize_origin, presented_token, token_matches
 from arap.server.memory import release_memory
-from arap.server.meshdata import MeshData, load_default
+from arap.server.mesh_model import MeshData
+from arap.server.meshdata import load_default
 from arap.server.protocol import error_message
 from arap.server.render_mesh import Look, look_from_path
 from arap.server.session import Session
@@ -149,7 +150,7 @@ def create_app(
     ----------
     default_mesh : str, path-like, MeshData or None
         Mesh every new session starts with: a built-in model name (``arap.BUILTIN_MESHES``), a mesh file chosen
-        by whoever runs the server, arrays wrapped in a :class:`~arap.server.meshdata.MeshData`, or None for the
+        by whoever runs the server, arrays wrapped in a :class:`~arap.server.mesh_model.MeshData`, or None for the
         first built-in model. Loaded once, here.
     max_upload_bytes : int
         Largest mesh file a client may upload.
@@ -239,7 +240,7 @@ def create_app(
         return FileResponse(page, headers={"Cache-Control": "no-cache"})
 
     async def healthz(request: Request) -> Response:
-        return JSONResponse({"status": "ok", "version": arap.__version__, "sessions": studio.sessions,
+        return JSONResponse({"status": "ok", "version": __version__, "sessions": studio.sessions,
                              "client_built": (static / "index.html").is_file()})
 
     async def websocket(ws: WebSocket) -> None:

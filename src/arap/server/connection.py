@@ -28,24 +28,21 @@ import anyio.to_thread
 import numpy as np
 from starlette.websockets import WebSocket, WebSocketDisconnect
 
-from arap.method.kernel_cache import KERNELS_READY
 from arap.server.budget import ByteBudget, RequestQueue, request_cost
 from arap.server.client_messages import Drag, ExportAnimation, Upload
 from arap.server.decoder import PROCESS_BYTES, FrameDecoder
 from arap.server.dispatch import SETTLE, Dispatcher, Reply, StudioConfig
-from arap.server.meshdata import MeshData
-from arap.server.protocol import (
-    ClientMessage,
-    RequestError,
-    encode_binary,
-    parse_binary,
-    parse_text,
-)
+from arap.server.errors import RequestError
+from arap.server.frames import encode_binary
+from arap.server.mesh_model import MeshData
+from arap.server.messages import ClientMessage
+from arap.server.protocol import parse_binary, parse_text
 from arap.server.records import DragOutcome
 from arap.server.render_mesh import Look
 from arap.server.server_messages import Preparing
 from arap.server.session import Session
 from arap.server.studio_config import check_upload_size
+from arap.warmup import KERNELS_READY
 
 __all__ = ["SEND_QUEUE_EXTENSION", "TAKEN_BYTES", "Connection", "StudioConfig"]
 
@@ -210,7 +207,7 @@ class Connection:
     async def _wait_for_kernels(self) -> None:
         """Send ``preparing`` about every :data:`PREPARING_SECONDS` until the kernels a session needs are ready (at
         most :data:`KERNEL_WAIT_SECONDS`)."""
-        from arap.method.jit import compile_progress
+        from arap.warmup import compile_progress
 
         deadline = time.monotonic() + KERNEL_WAIT_SECONDS
         while time.monotonic() < deadline:

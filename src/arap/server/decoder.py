@@ -35,7 +35,8 @@ import numpy as np
 
 from arap.server.client_messages import SetConstraints
 from arap.server.memory import release_memory
-from arap.server.protocol import ClientMessage, parse_large_text
+from arap.server.messages import ClientMessage
+from arap.server.protocol import parse_large_text
 
 __all__ = ["LARGE_BYTES", "PROCESS_BYTES", "FrameDecoder", "arrays_from_lists", "decode_text_frame", "lane_of"]
 

@@ -44,7 +44,8 @@ from arap.server.client_messages import (
 from arap.server.errors import RequestError, request_error
 from arap.server.heatmap import distortion_frame
 from arap.server.liveframes import VertexPayload, VertexStream, still_frame_header
-from arap.server.meshdata import MeshData, load_builtin, load_upload, mesh_frame
+from arap.server.mesh_model import MeshData
+from arap.server.meshdata import load_builtin, load_upload, mesh_frame
 from arap.server.messages import ClientMessage
 from arap.server.pictures import is_picture, load_picture
 from arap.server.protocol import check_against_mesh, error_message, validate

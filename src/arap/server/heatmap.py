@@ -10,7 +10,7 @@ import numpy as np
 from arap.method.cells import Cells, build_cells
 from arap.method.elements import element_cells
 from arap.method.energy import distortion_from_cells
-from arap.server.protocol import RequestError
+from arap.server.errors import RequestError
 from arap.server.server_messages import Distortion
 from arap.server.session import Session
 

@@ -1,5 +1,6 @@
 """Meshes of the studio: built-in models, the operator's default mesh, client uploads and the ``mesh`` frame that
-sends one (the loaded mesh itself and its export are :mod:`arap.server.mesh_model`, re-exported here).
+sends one (the loaded mesh itself, :class:`~arap.server.mesh_model.MeshData`, and its export are
+:mod:`arap.server.mesh_model`).
 
 A client never names a file on the server: uploads arrive as bytes and are parsed from memory, and exports are
 encoded in memory.
@@ -14,17 +15,18 @@ from pathlib import Path
 
 import numpy as np
 
-import arap
 from arap.errors import ArapError, MeshFormatError, MeshTooLargeError
 from arap.io import formats, load_mesh_bytes_with_report, load_mesh_with_report
+from arap.meshes.grids import box_tetrahedra
+from arap.meshes.mesh import check_mesh
+from arap.meshes.shapes import BUILTIN_MESHES, builtin_mesh
 from arap.server.errors import RequestError
 from arap.server.frames import encode_binary
-from arap.server.mesh_model import EXPORT_MIME, MeshData, export_mesh
+from arap.server.mesh_model import MeshData
 from arap.server.messages import UPLOAD_EXTENSIONS
 from arap.server.server_messages import Mesh
 
-__all__ = ["EXPORT_MIME", "MeshData", "builtin_names", "export_mesh", "load_builtin", "load_default", "load_upload",
-           "mesh_frame"]
+__all__ = ["builtin_names", "load_builtin", "load_default", "load_upload", "mesh_frame"]
 
 logger = logging.getLogger(__name__)
 
@@ -37,7 +39,7 @@ deformed through their tetrahedra."""
 
 def builtin_names() -> list[str]:
     """Names of the built-in models: the surfaces, then the solids."""
-    return [*arap.BUILTIN_MESHES, *SOLID_BUILTINS]
+    return [*BUILTIN_MESHES, *SOLID_BUILTINS]
 
 
 def load_builtin(name: str) -> MeshData:
@@ -53,9 +55,9 @@ def load_builtin(name: str) -> MeshData:
         raise RequestError("bad_message", f"unknown built-in mesh {name[:64]!r}; expected one of {names}")
     if name in SOLID_BUILTINS:
         (nx, ny, nz), size = SOLID_BUILTINS[name]
-        V, T = arap.box_tetrahedra(nx, ny, nz, size=size)
+        V, T = box_tetrahedra(nx, ny, nz, size=size)
         return MeshData.solid(name, V - np.array([size[0], 0.0, size[2]]) / 2, T)
-    V, F = arap.builtin_mesh(name)
+    V, F = builtin_mesh(name)
     return MeshData.make(name, V, F)
 
 
@@ -145,7 +147,7 @@ def _load_volume_upload(data: bytes | memoryview, name: str, ext: str, max_verti
         if T.shape[1] == 3:
             V = V if V.shape[1] == 3 else np.column_stack([V, np.zeros(len(V))])
             mesh = MeshData.make(name, V, T)
-            arap.check_mesh(mesh.V, mesh.F)
+            check_mesh(mesh.V, mesh.F)
         else:
             mesh = MeshData.solid(name, V, T)
     except MeshTooLargeError as exc:

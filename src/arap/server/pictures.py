@@ -17,9 +17,9 @@ import numpy as np
 import arap.io.formats as formats
 from arap.errors import ArapError
 from arap.method.points import PointConstraints
+from arap.server.errors import RequestError
 from arap.server.mesh_model import MeshData
 from arap.server.meshdata import load_upload
-from arap.server.protocol import RequestError
 from arap.server.render_mesh import Look, look_from_upload
 
 __all__ = [

@@ -1,8 +1,8 @@
 """The studio wire protocol: message types, their fields, error codes and the binary frame layout.
 
 The messages are classes, :mod:`arap.server.client_messages` and :mod:`arap.server.server_messages` (their
-specifications, derived from the classes, and the constants of :mod:`arap.server.messages` are re-exported here),
-the error codes live in :mod:`arap.server.errors` and the binary frame helpers in :mod:`arap.server.frames`.
+specifications, derived from the classes, and the protocol's constants are in :mod:`arap.server.messages`), the
+error codes live in :mod:`arap.server.errors` and the binary frame helpers in :mod:`arap.server.frames`.
 
 This module is the single source of truth of the protocol spoken over the studio's WebSocket (see
 ``docs/protocol.md``). The browser client's copy, ``web/src/protocol.js``, is generated from it::
@@ -23,60 +23,15 @@ from typing import Any
 import numpy as np
 
 from arap.server.bulkjson import NumberList, loads_bulk
-from arap.server.client_messages import CLIENT_MESSAGE_CLASSES, CLIENT_MESSAGES, Drag, SetConstraints, Upload
-from arap.server.errors import ERROR_CODES, RequestError
+from arap.server.client_messages import CLIENT_MESSAGE_CLASSES, Drag, SetConstraints, Upload
+from arap.server.errors import RequestError
 from arap.server.fields import check_field
-from arap.server.frames import MAX_HEADER_BYTES, decode_binary, encode_binary, loads_json
-from arap.server.messages import (
-    ANIMATION_STATUSES,
-    ENERGIES,
-    EXPORT_FORMATS,
-    MAX_FPS,
-    MAX_HANDLE_GROUPS,
-    MAX_KEYFRAME_MATRICES,
-    MAX_KEYFRAMES,
-    MAX_SEQ,
-    MAX_STIFFNESS_GROUPS,
-    PARAMS,
-    PROTOCOL_VERSION,
-    SETTLE_STATUSES,
-    UPLOAD_EXTENSIONS,
-    WEIGHTS,
-    ClientMessage,
-    Field,
-    MessageSpec,
-    ServerMessage,
-    message_spec,
-)
-from arap.server.server_messages import SERVER_MESSAGES, Error
+from arap.server.frames import decode_binary, loads_json
+from arap.server.messages import MAX_HANDLE_GROUPS, MAX_STIFFNESS_GROUPS, ClientMessage, message_spec
+from arap.server.server_messages import Error
 
 __all__ = [
-    "ANIMATION_STATUSES",
-    "CLIENT_MESSAGES",
-    "ENERGIES",
-    "ERROR_CODES",
-    "EXPORT_FORMATS",
-    "MAX_FPS",
-    "MAX_HANDLE_GROUPS",
-    "MAX_HEADER_BYTES",
-    "MAX_KEYFRAMES",
-    "MAX_KEYFRAME_MATRICES",
-    "MAX_SEQ",
-    "MAX_STIFFNESS_GROUPS",
-    "PARAMS",
-    "PROTOCOL_VERSION",
-    "SERVER_MESSAGES",
-    "SETTLE_STATUSES",
-    "UPLOAD_EXTENSIONS",
-    "WEIGHTS",
-    "ClientMessage",
-    "Field",
-    "MessageSpec",
-    "RequestError",
-    "ServerMessage",
     "check_against_mesh",
-    "decode_binary",
-    "encode_binary",
     "error_message",
     "main",
     "parse_binary",

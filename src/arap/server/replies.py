@@ -17,7 +17,7 @@ from weakref import WeakKeyDictionary
 
 import numpy as np
 
-import arap
+from arap import __version__
 from arap.server.constraints import matrices_to_json
 from arap.server.frames import encode_binary
 from arap.server.meshdata import builtin_names
@@ -48,7 +48,7 @@ export)."""
 def welcome_message(session: Session, config: StudioConfig) -> dict[str, Any]:
     """The ``welcome`` message: versions, built-in models, the server's limits and the session's parameters."""
     return Welcome(
-        version=arap.__version__,
+        version=__version__,
         protocol=PROTOCOL_VERSION,
         builtin_meshes=builtin_names(),
         limits={"max_upload_bytes": config.max_upload_bytes,

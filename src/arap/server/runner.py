@@ -27,7 +27,7 @@ from arap.server.app import (
 from arap.server.connection import SEND_QUEUE_EXTENSION
 from arap.server.guard import TOKEN_PARAM, is_loopback_host
 from arap.server.headtimeout import DEFAULT_HEAD_TIMEOUT, head_timeout_protocol
-from arap.server.meshdata import MeshData
+from arap.server.mesh_model import MeshData
 
 __all__ = ["bind_socket", "kernel_unsent_bytes", "make_server", "new_token", "serve", "studio_url",
            "websocket_protocol"]

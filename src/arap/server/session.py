@@ -17,10 +17,11 @@ from typing import Any
 
 import numpy as np
 
-import arap
 from arap.errors import ArapError
+from arap.meshes.domain import check_domain
 from arap.method.weights import WeightType
 from arap.options import EnergyType, LoosePartsMode
+from arap.render.show import show
 from arap.server.constraints import ConstraintSet, identity_transforms, matrices_from_json
 from arap.server.mesh_model import MeshData
 from arap.server.numbering import document_in_file_numbering
@@ -374,7 +375,7 @@ class Session(SessionState):
         V = np.array(self.U, dtype=np.float64)
         V.setflags(write=False)
         try:
-            arap.check_domain(V, mesh.solve_elements)
+            check_domain(V, mesh.solve_elements)
         except ArapError as exc:
             raise UnusableMesh(f"the deformed shape cannot become the rest pose: {exc}") from exc
         old = self.constraints
@@ -408,7 +409,7 @@ class Session(SessionState):
             from arap.server.pictures import warped_picture_png
 
             return warped_picture_png(mesh, self.U, self.constraints.points, self.pin_depth)
-        return bytes(arap.show(self.U, mesh.F, width=1024, height=768).png())
+        return bytes(show(self.U, mesh.F, width=1024, height=768).png())
 
     def set_pin_depth(self, depth: list[int]) -> None:
         """A picture's depth per pin (point handle, in their order): where parts overlap, the part of the pin of

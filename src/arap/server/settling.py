@@ -8,7 +8,8 @@ from collections.abc import Callable
 
 import numpy as np
 
-import arap
+from arap.solve.result import ArapResult
+from arap.solve.solver import ArapSolver
 
 __all__ = ["SETTLE_FRAME_MOTION", "SETTLE_FRAME_SECONDS", "SETTLE_ITERATIONS", "FrameCallback", "settle_solve"]
 
@@ -27,9 +28,9 @@ FrameCallback = Callable[[np.ndarray | None, int, float], None]
 """``on_frame(vertices, iteration, energy)``: vertices None when only the progress is new."""
 
 
-def settle_solve(solver: arap.ArapSolver, targets: np.ndarray, point_targets: np.ndarray | None,
+def settle_solve(solver: ArapSolver, targets: np.ndarray, point_targets: np.ndarray | None,
                  initial: np.ndarray | None, shown: np.ndarray, diagonal: float, interrupted: Callable[[], bool],
-                 on_frame: FrameCallback | None) -> tuple[arap.ArapResult, bool]:
+                 on_frame: FrameCallback | None) -> tuple[ArapResult, bool]:
     """Solve until converged (at most :data:`SETTLE_ITERATIONS`), reporting progress and stopping on request.
 
     Parameters

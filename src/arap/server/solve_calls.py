@@ -14,11 +14,12 @@ from typing import Any
 
 import numpy as np
 
-import arap
 from arap.errors import ArapError
 from arap.server.records import DragOutcome, Params
 from arap.server.session_errors import BadValues, SolveFailed
 from arap.server.settling import FrameCallback, settle_solve
+from arap.solve.result import ArapResult
+from arap.solve.solver import ArapSolver
 
 __all__ = ["LOAD_ITERATIONS", "TARGET_RANGE", "check_target_range", "checked_settle", "solve_for_targets"]
 
@@ -63,9 +64,9 @@ def solve_for_targets(solver: Any, params: Params, targets: np.ndarray, initial:
                                         1000.0 * float(result.timings.get("total", 0.0)))
 
 
-def checked_settle(solver: arap.ArapSolver, targets: np.ndarray, point_targets: np.ndarray | None,
+def checked_settle(solver: ArapSolver, targets: np.ndarray, point_targets: np.ndarray | None,
                    initial: np.ndarray | None, shown: np.ndarray, diagonal: float, interrupted: Callable[[], bool],
-                   on_frame: FrameCallback | None) -> tuple[arap.ArapResult, bool]:
+                   on_frame: FrameCallback | None) -> tuple[ArapResult, bool]:
     """:func:`arap.server.settling.settle_solve`, its failures as :class:`BadValues` (the solver refused) and
     :class:`SolveFailed` (non-finite positions)."""
     try:

@@ -9,13 +9,14 @@ from typing import Any
 
 import numpy as np
 
-import arap
 from arap.errors import ArapError
 from arap.method.points import PointConstraints
 from arap.options import DEFAULT_TOLERANCE
 from arap.server.constraints import ConstraintSet
 from arap.server.records import Params
 from arap.server.session_errors import ConstraintsRejected
+from arap.solve.result import ArapResult
+from arap.solve.solver import ArapSolver
 
 __all__ = ["SOLVER_CACHE_VERTICES", "PlaneSolver", "SolverCache", "plane_solver", "points_in_tetrahedra"]
 
@@ -30,7 +31,7 @@ class SolverCache:
     first."""
 
     def __init__(self) -> None:
-        self._solvers: OrderedDict[tuple[Any, ...], arap.ArapSolver | PlaneSolver] = OrderedDict()
+        self._solvers: OrderedDict[tuple[Any, ...], ArapSolver | PlaneSolver] = OrderedDict()
 
     def clear(self) -> None:
         """Drop every solver (a new mesh)."""
@@ -38,7 +39,7 @@ class SolverCache:
 
     def get(self, rest_id: int, V: np.ndarray, F: np.ndarray, cs: ConstraintSet, params: Params,
             solid: tuple[np.ndarray, np.ndarray] | None = None,
-            planar: bool = False) -> arap.ArapSolver | PlaneSolver | None:
+            planar: bool = False) -> ArapSolver | PlaneSolver | None:
         """A factorised solver for the constraint set on the rest pose ``V`` (numbered ``rest_id``), or None when
         nothing is constrained.
 
@@ -68,8 +69,8 @@ class SolverCache:
             elements = solid[0]
             points = None if points is None else points_in_tetrahedra(points, F, solid[0], solid[1])
         try:
-            made = arap.ArapSolver(V, elements, cs.constrained, energy=energy, weights=params.weights, roi=cs.roi,
-                                   alpha=params.alpha, stiffness=cs.stiffness, points=points, loose=params.loose)
+            made = ArapSolver(V, elements, cs.constrained, energy=energy, weights=params.weights, roi=cs.roi,
+                              alpha=params.alpha, stiffness=cs.stiffness, points=points, loose=params.loose)
             solver = plane_solver(made, params.warp) if planar else made
         except ArapError as exc:
             raise ConstraintsRejected(str(exc)) from exc
@@ -123,7 +124,7 @@ class PlaneSolver:
         The warp's mode.
     """
 
-    def __init__(self, solver: arap.ArapSolver, mode: str = "rigid") -> None:
+    def __init__(self, solver: ArapSolver, mode: str = "rigid") -> None:
         from arap.puppet.blend import NORMAL_LAMBDA, BlendSolver
 
         self.mode = mode
@@ -137,7 +138,7 @@ class PlaneSolver:
 
     def solve(self, targets: Any, initial: Any = None, max_iterations: int | None = None,
               tolerance: float = DEFAULT_TOLERANCE, callback: Any = None, acceleration: Any = "lbfgs",
-              window: int | None = None, point_targets: Any = None) -> arap.ArapResult:
+              window: int | None = None, point_targets: Any = None) -> ArapResult:
         """:meth:`arap.ArapSolver.solve` with the targets on the plane, in the solver's mode."""
         kind: Any = self.inner if self._blend is None else self._blend
         return kind.solve(_on_plane(targets), initial=initial, max_iterations=max_iterations, tolerance=tolerance,
@@ -149,7 +150,7 @@ class PlaneSolver:
         return (self.inner if self._blend is None else self._blend).current_vertices()
 
 
-def plane_solver(solver: arap.ArapSolver, mode: str) -> PlaneSolver:
+def plane_solver(solver: ArapSolver, mode: str) -> PlaneSolver:
     """The studio's solver of a picture (see :class:`PlaneSolver`).
 
     Raises

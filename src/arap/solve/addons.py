@@ -18,7 +18,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from arap.method.cells import Cells
-from arap.method.covariance import local_step
+from arap.method.local_step import local_step
 from arap.method.points import PointSystem
 from arap.method.rigid import RIGID_TOLERANCE, RigidRegions
 from arap.method.rotations import identity_rotations

@@ -10,7 +10,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
-from arap.method.covariance import assemble_rhs, assemble_rhs_and_gradient
+from arap.method.local_step import assemble_rhs, assemble_rhs_and_gradient
 from arap.solve.addons import LocalState
 from arap.solve.anderson import AndersonAccelerator
 from arap.solve.lbfgs import LbfgsHistory

@@ -3,7 +3,7 @@ the constrained surface around it.
 
 A model made of several pieces (the wheels of a car, the buttons of a coat, a separate eye) has pieces that no
 anchor or handle touches; their position is undetermined by the energy. Held in place they get left behind when the
-body moves; here each such part takes the rigid motion (weighted Procrustes, :func:`arap.solve.start.
+body moves; here each such part takes the rigid motion (weighted Procrustes, :func:`arap.meshes._geometry.
 best_rigid_transform`) that best maps the rest positions of its *anchors* onto their current positions: for every
 vertex of the part, the nearest vertex of the rest of the mesh at rest. A wheel thus turns and moves with the wheel
 arch around it, not with the car's far end. The part's own cells stay rigid, so its energy stays zero.
@@ -15,7 +15,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 
-from arap.solve.start import best_rigid_transform
+from arap.meshes._geometry import best_rigid_transform
 
 __all__ = ["FollowingParts"]
 

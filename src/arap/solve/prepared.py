@@ -16,6 +16,7 @@ import scipy.sparse as sp
 from numpy.typing import ArrayLike, NDArray
 
 from arap.errors import ArapError, ConstraintError
+from arap.meshes._geometry import barycentric_areas
 from arap.meshes.domain import Domain, check_domain
 from arap.meshes.mesh import MeshLike, bounding_box
 from arap.meshes.topology import locality_order, vertex_adjacency
@@ -45,7 +46,6 @@ from arap.solve.addons import AddOn, PlainFit, PointHandles, RigidAddOn, Rotatio
 from arap.solve.indexing import check_index_array, internal_origin, rows_of, with_rows
 from arap.solve.loose import FollowingParts
 from arap.solve.partition import check_point_targets, check_positions, check_reach, check_targets, partition_vertices
-from arap.solve.start import vertex_areas
 from arap.sparse._csr import SparseRowsProduct, leading_blocks
 from arap.sparse.linsolve import Factor, NotPositiveDefiniteError, background_ordering, factorize
 
@@ -387,7 +387,7 @@ def prepare(V: NDArray[np.floating] | MeshLike, F: NDArray[np.integer] | None = 
     origin = internal_origin(domain.V, diagonal)
     rest = np.ascontiguousarray(domain.V[perm] - origin)
     F_int = inv[F]
-    areas = vertex_areas(rest, F_int) if domain.kind == "surface" else vertex_measures(rest, F_int)
+    areas = barycentric_areas(rest, F_int) if domain.kind == "surface" else vertex_measures(rest, F_int)
     # Element cells in the order of their first internal vertex, so that neighbouring cells stay close in memory.
     cell_order = np.argsort(F_int.min(axis=1), kind="stable") if energy == "elements" else None
     assembly = assemble(rest, F_int, inv[graph] if domain.kind == "solid" else F_int, energy, weights,

@@ -11,6 +11,8 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import NDArray
 
+from arap.errors import MeshError
+
 if TYPE_CHECKING:
     import trimesh
 
@@ -70,9 +72,14 @@ class ArapResult:
             The faces the solve used, or the asset the solve came from (its ``solve_mesh()`` or its file vertices):
             then its texture (first UV set and image) or vertex colours are kept.
         """
-        from arap.io.asset_model import result_trimesh
+        if hasattr(mesh, "to_trimesh"):  # an asset converts positions on itself (arap.io.MeshAsset.to_trimesh)
+            return mesh.to_trimesh(self.vertices)
+        F = np.asarray(mesh)
+        if F.ndim != 2 or F.shape[1] != 3 or not np.issubdtype(F.dtype, np.integer):
+            raise MeshError("to_trimesh needs the faces (m, 3) or the MeshAsset the solve came from")
+        import trimesh
 
-        return result_trimesh(self.vertices, mesh)
+        return trimesh.Trimesh(vertices=np.asarray(self.vertices, dtype=np.float64), faces=F, process=False)
 
 
 def rounding_floor(diagonal: float, *targets: NDArray[np.float64] | None) -> float:

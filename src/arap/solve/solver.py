@@ -9,7 +9,6 @@ import scipy.sparse as sp
 from numpy.typing import ArrayLike, NDArray
 
 from arap.meshes.mesh import MeshLike
-from arap.method.kernel_cache import announce_first_compile
 from arap.method.points import PointConstraints
 from arap.options import (
     DEFAULT_ALPHA,
@@ -29,11 +28,12 @@ from arap.solve import steps
 from arap.solve.addons import LocalState
 from arap.solve.anderson import AndersonAccelerator
 from arap.solve.iteration import SolveState, lbfgs_applies, make_iterate
+from arap.solve.kernel_cache import announce_first_compile
 from arap.solve.lbfgs import LbfgsHistory
 from arap.solve.loops import PLAIN_START, lbfgs_iterations, plain_iterations
 from arap.solve.prepared import Points, Prepared, prepare
 from arap.solve.result import ArapResult, IterationCallback, rounding_floor
-from arap.solve.solve_start import start_positions
+from arap.solve.start import start_positions
 from arap.sparse.linsolve import Factor
 
 

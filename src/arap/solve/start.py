@@ -1,4 +1,6 @@
-"""Starting poses for a cold solve: the rest pose, or the rest pose moved by the best-fit rigid motion of the targets.
+"""Where a solve starts: the previous solution (warm), the rest pose, the rest pose moved by the targets' best-fit
+rigid motion, whichever of these two has the lower energy, or positions given by the caller; and the rotations its
+first global step uses.
 
 The local/global iteration only descends to the nearest minimum, and from the rest pose it cannot undo a large
 common rotation of all constraints: rotated 170°, the constrained vertices pull the surface through itself and the
@@ -13,61 +15,69 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-from arap.meshes._geometry import barycentric_areas
+from arap.errors import OptionError
+from arap.meshes._geometry import best_rigid_transform
+from arap.options import START_NAMES
+from arap.solve.indexing import assign_rows
+from arap.solve.iteration import SolveState, local_energy
+from arap.solve.prepared import Prepared
 
-__all__ = ["best_rigid_transform", "rigid_start", "vertex_areas"]
+__all__ = ["cold_rotations", "rigid_start", "start_positions"]
 
 
-def best_rigid_transform(
-    P: NDArray[np.float64], Q: NDArray[np.float64], weights: NDArray[np.float64] | None = None
-) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Rotation ``R`` and translation ``t`` minimising ``Σ_k w_k ‖R p_k + t − q_k‖²`` (weighted Procrustes).
+def start_positions(
+    p: Prepared, state: SolveState, T: NDArray[np.float64], fixed: NDArray[np.float64],
+    initial: NDArray[np.float64] | str | None, timings: dict[str, float]
+) -> tuple[NDArray[np.float64], float | None, str]:
+    """Starting positions (internal order, non-free vertices at their fixed positions), their active-cell energy
+    (None when the rotations in ``state.local.R`` were not fitted to them) and the name of the start.
 
-    Parameters
-    ----------
-    P, Q : (k, 3) float arrays
-        Source and target points (k ≥ 1).
-    weights : (k,) float array or None
-        Non-negative weights (None: all 1). A zero total weight falls back to equal weights.
-
-    Returns
-    -------
-    R : (3, 3) float64 array
-        A proper rotation (det +1), also when the best orthogonal map would be a reflection. With fewer than three
-        non-collinear points the rotation about their line is not determined; the one closest to the identity
-        among the optima is returned.
-    t : (3,) float64 array
-
-    Examples
-    --------
-    >>> import numpy as np
-    >>> P = np.array([[0., 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]])
-    >>> Rz = np.array([[-1., 0, 0], [0, -1, 0], [0, 0, 1]])     # 180° about z
-    >>> R, t = best_rigid_transform(P, P @ Rz.T + [1, 2, 3])
-    >>> bool(np.allclose(R, Rz)), bool(np.allclose(t, [1, 2, 3]))
-    (True, True)
+    ``initial`` is already checked (an array in the internal numbering, relative to the origin), a start name or
+    None. Leaves in ``state.local.R`` the rotations the first global step uses.
     """
-    P = np.asarray(P, dtype=np.float64)
-    Q = np.asarray(Q, dtype=np.float64)
-    w = np.ones(len(P)) if weights is None else np.asarray(weights, dtype=np.float64)
-    if w.sum() <= 0:
-        w = np.ones(len(P))
-    w = w / w.sum()
-    cp = w @ P
-    cq = w @ Q
-    H = (P - cp).T @ ((Q - cq) * w[:, None])  # Σ w p qᵀ; the best R maximises tr(R H)
-    U, s, Vt = np.linalg.svd(H)
-    D = np.eye(3)
-    # Singular values that vanish leave directions free: keep those as the identity would (rank-deficient fits).
-    scale = max(float(s[0]), 1e-300)
-    if s[0] <= 1e-300:
-        return np.eye(3), cq - cp
-    if s[1] <= 1e-12 * scale:
-        R = _smallest_rotation(U[:, 0], Vt[0])
-        return R, cq - R @ cp
-    D[2, 2] = np.sign(np.linalg.det(Vt.T @ U.T)) or 1.0
-    R = Vt.T @ D @ U.T
-    return R, cq - R @ cp
+    local = state.local
+    if initial is None:
+        if state.last is None:
+            initial = "auto"
+        else:
+            U = state.last  # continued in place: the solver owns it, and the result is a copy
+            if not state.rotations_fresh:
+                local_energy(p, local, U, 0.0, timings)
+            at_targets = assign_rows(U[p.nf:], fixed)
+            E = p.rotation_fit.stored_energy(local, p.active) if at_targets else None
+            return U, E, "warm"
+    if isinstance(initial, str):
+        if initial not in START_NAMES:
+            raise OptionError(f"unknown initial {initial!r}; expected one of {START_NAMES}, an array or None")
+        candidates = []
+        if initial in ("auto", "rest"):
+            U = p.rest.copy()
+            U[p.nf:] = fixed
+            candidates.append(("rest", U))
+        if initial in ("auto", "rigid"):
+            candidates.append(("rigid", rigid_start(p.rest, p.numbering.constrained, T, p.areas, fixed)))
+        best: tuple[float, str, NDArray[np.float64], NDArray[np.float64]] | None = None
+        for name, U in candidates:
+            cold_rotations(p, state, U)
+            E = local_energy(p, local, U, 0.0, timings)
+            if best is None or E < best[0]:
+                best = (E, name, U, local.R.copy() if len(candidates) > 1 else local.R)
+        assert best is not None
+        E, name, U, R = best
+        if R is not local.R:
+            local.R[:] = R
+        return U, E, name
+    U = np.asarray(initial)
+    U[p.nf:] = fixed
+    cold_rotations(p, state, U)
+    return U, local_energy(p, local, U, 0.0, timings), "given"
+
+
+def cold_rotations(p: Prepared, state: SolveState, U: NDArray[np.float64]) -> None:
+    """Before a cold start: the rotations the first local step goes on from. Identities (the rotation fits start
+    their search there, so that a cold start does not depend on earlier solves, to the last bit), or for
+    ``smooth_rotations`` the start of the coupled local steps (:meth:`arap.method.smooth.SmoothRotations.start`)."""
+    p.rotation_fit.cold(p.rest, U, p.areas, state.local.R)
 
 
 def rigid_start(V: NDArray[np.float64], constrained: NDArray[np.integer], targets: NDArray[np.float64],
@@ -91,34 +101,3 @@ def rigid_start(V: NDArray[np.float64], constrained: NDArray[np.integer], target
         U[:nf] = V[:nf] @ R.T + t
     U[nf:] = fixed
     return U
-
-
-def _smallest_rotation(a: NDArray[np.float64], b: NDArray[np.float64]) -> NDArray[np.float64]:
-    """The rotation of least angle taking the unit vector ``a`` to the unit vector ``b`` (Rodrigues)."""
-    axis = np.cross(a, b)
-    s = float(np.linalg.norm(axis))
-    c = float(np.dot(a, b))
-    if s <= 1e-12:
-        if c > 0:
-            return np.eye(3)
-        # Opposite directions: half a turn about any axis perpendicular to a.
-        p = np.eye(3)[int(np.argmin(np.abs(a)))]
-        k = np.cross(a, p)
-        k /= np.linalg.norm(k)
-        return 2.0 * np.outer(k, k) - np.eye(3)
-    k = axis / s
-    K = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
-    return np.eye(3) + s * K + (1.0 - c) * (K @ K)
-
-
-def vertex_areas(V: NDArray[np.float64], F: NDArray[np.integer]) -> NDArray[np.float64]:
-    """Barycentric vertex areas: a third of the area of every incident triangle, shape (n,).
-
-    Examples
-    --------
-    >>> import numpy as np
-    >>> V = np.array([[0., 0, 0], [1, 0, 0], [0, 1, 0]]); F = np.array([[0, 1, 2]])
-    >>> vertex_areas(V, F).round(4).tolist()
-    [0.1667, 0.1667, 0.1667]
-    """
-    return barycentric_areas(V, F)

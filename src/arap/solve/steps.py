@@ -9,7 +9,7 @@ import scipy.sparse as sp
 from numpy.typing import NDArray
 
 from arap.method.cells import system_matrix
-from arap.method.covariance import assemble_rhs, covariances
+from arap.method.local_step import assemble_rhs, covariances
 from arap.method.rotations import identity_rotations
 from arap.solve.iteration import rhs_constant
 from arap.solve.prepared import Prepared

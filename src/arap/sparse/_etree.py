@@ -6,7 +6,7 @@ from __future__ import annotations
 import numba as nb
 import numpy as np
 
-import arap.method._numba_cache  # noqa: F401  (a writable cache folder before the kernels below are defined)
+import arap.kernels.cache  # noqa: F401  (a writable cache folder before the kernels below are defined)
 from arap.sparse._csr_permute import permuted_rows
 
 

@@ -39,9 +39,14 @@ from numpy.typing import NDArray
 
 from arap._cstdout import c_stdout_to_log
 from arap.errors import OptionError
-from arap.meshes.topology import leading_subgraph
 from arap.sparse._csr_permute import permuted_pattern, permuted_symmetric, with_diagonal
-from arap.sparse.ordering import BackgroundOrdering, metis_available, permute_rows, unpermute_rows
+from arap.sparse.ordering import (
+    BackgroundOrdering,
+    leading_subgraph,
+    metis_available,
+    permute_rows,
+    unpermute_rows,
+)
 
 logger = logging.getLogger(__name__)
 

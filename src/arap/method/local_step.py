@@ -8,7 +8,7 @@ cell by cell into a structure-of-arrays scratch, the rotations of the whole bloc
 (:func:`arap.method.rotations.rotations_block`), and rotations and energies are written back. Blocks are grouped in
 chunks of :data:`CHUNK` blocks, the unit of parallel work, and energies are summed per chunk and then over chunks in
 order, so the thread count never changes a result. Each kernel is compiled twice, serial and parallel;
-:data:`arap.method._parallel.policy` picks one per call from the work size (and the measured times).
+:data:`arap.kernels.parallel.policy` picks one per call from the work size (and the measured times).
 """
 
 from __future__ import annotations
@@ -17,7 +17,7 @@ import numba as nb
 import numpy as np
 import scipy.sparse as sp
 
-from arap.method._parallel import policy
+from arap.kernels.parallel import policy
 from arap.method.cells import Cells, RhsGather
 from arap.method.planar import planar_local_parallel, planar_local_serial
 from arap.method.rotations import BLOCK, ROW_TRACE, SCRATCH_ROWS, put_covariance, rotations_block, take_rotation

@@ -1,8 +1,7 @@
-"""Whether the solver's compiled kernels are cached for this environment, and whether a background warm-up still
-compiles them: what the first solver announces and what the studio server waits for before greeting a page.
+"""Whether the solver's compiled kernels are cached for this environment: what the first solver announces.
 
 numba keeps each kernel's machine code in an index and data files beside the module (``__pycache__``), in the user's
-cache folder, or in ``NUMBA_CACHE_DIR`` (see :mod:`arap.method.jit`); an environment without the index compiles on first
+cache folder, or in ``NUMBA_CACHE_DIR`` (see :mod:`arap.warmup`); an environment without the index compiles on first
 use.
 """
 
@@ -10,15 +9,8 @@ from __future__ import annotations
 
 import logging
 import os
-import threading
 
-__all__ = ["KERNELS_READY", "announce_first_compile", "first_compile_pending"]
-
-KERNELS_READY = threading.Event()
-"""Set unless a warm-up runs in the background (``arap studio`` serves the page while the kernels compile): the studio
-server greets a new connection once it is set, so that the page says the solver is being prepared instead of
-hanging on its first drag."""
-KERNELS_READY.set()
+__all__ = ["announce_first_compile", "first_compile_pending"]
 
 logger = logging.getLogger("arap")
 
@@ -29,7 +21,7 @@ def first_compile_pending() -> bool:
     """True when this environment has no cached machine code for the solver's kernels yet, so that the first solve
     compiles them (ten seconds to minutes); False when they are cached, or when that cannot be told."""
     try:
-        from arap.method.covariance import _local_serial
+        from arap.method.local_step import _local_serial
 
         index = _local_serial._cache._cache_file._index_path  # type: ignore[attr-defined]
     except (AttributeError, ImportError):  # caching off, or another numba layout: nothing to say

@@ -1,9 +1,10 @@
 """Cell-by-cell kernels of the local step, the rotation fit and the right-hand side: the reference for the batched
-kernels of the package (tests only; ``benchmarks/bench_armadillo.py`` times one against the other).
+kernels of the package (the tests check that both agree; ``benchmarks/bench_armadillo.py`` times one against the
+other).
 
 These are the straightforward per-cell loops (one covariance, one scalar rotation fit
 (:func:`arap.method.horn.rotation_from_covariance`), one energy per cell; one gathered row per vertex), parallel over
-cells with numba's current thread count. :mod:`arap.method.covariance` computes the same quantities in blocks of cells
+cells with numba's current thread count. :mod:`arap.method.local_step` computes the same quantities in blocks of cells
 with SIMD rotations; tests check that both agree, and benchmarks time one against the other.
 """
 
@@ -12,7 +13,7 @@ from __future__ import annotations
 import numba as nb
 import numpy as np
 
-from arap.method._parallel import kernel_lock
+from arap.kernels.parallel import kernel_lock
 from arap.method.cells import Cells, RhsGather
 from arap.method.horn import best_rotation, rotation_from_covariance
 
@@ -71,13 +72,13 @@ def _rhs_kernel(ptr, cell, g, R, const, out):  # pragma: no cover - compiled
 
 
 def local_step_reference(cells: Cells, cell_ids: np.ndarray, U: np.ndarray, R: np.ndarray, E: np.ndarray) -> None:
-    """Cell-by-cell version of :func:`arap.method.covariance.local_step` (same arguments, nothing returned)."""
+    """Cell-by-cell version of :func:`arap.method.local_step.local_step` (same arguments, nothing returned)."""
     with kernel_lock:
         _local_kernel(cell_ids, cells.ptr, cells.a, cells.b, cells.w, cells.we, cells.rest_sq, U, R, E)
 
 
 def assemble_rhs_reference(gather: RhsGather, R: np.ndarray, const: np.ndarray, out: np.ndarray) -> None:
-    """Row-by-row version of :func:`arap.method.covariance.assemble_rhs` (same arguments)."""
+    """Row-by-row version of :func:`arap.method.local_step.assemble_rhs` (same arguments)."""
     with kernel_lock:
         _rhs_kernel(gather.ptr, gather.cell, gather.g, R, const, out)
 
@@ -91,7 +92,8 @@ def fit_rotations_scalar(S: np.ndarray, R: np.ndarray) -> None:  # pragma: no co
 
 
 def fit_rotations_svd(S: np.ndarray) -> np.ndarray:
-    """Best-fit rotations by ``numpy.linalg.svd``: the reference for :func:`arap.method.rotations.fit_rotations`.
+    """Best-fit rotations by ``numpy.linalg.svd``: the reference for
+    :func:`arap.method.rotations.rotations_from_covariances`.
 
     ``S = U Σ Vᵀ``, ``R = V Uᵀ``; where ``det R < 0`` the column of ``U`` of the smallest singular value is negated.
 

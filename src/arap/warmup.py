@@ -1,17 +1,19 @@
-"""The compiled (numba) kernels: warm them up before timing anything, and where their machine code is cached.
+"""The compiled (numba) kernels: warm them up before timing anything, where their machine code is cached, and
+whether a background warm-up still compiles them.
 
 numba compiles a kernel on its first call (seconds for the whole set) and, as every kernel is declared with
 ``cache=True``, stores the machine code for later processes: in ``__pycache__`` next to the modules when that folder
 is writable, else in the user's cache folder (``~/.cache/numba``), or in ``NUMBA_CACHE_DIR`` when it is set. So only
 the first run in a new environment (or after an update of arap or numba) pays for compilation.
 
->>> from arap.method.jit import warm_up_kernels
+>>> from arap.warmup import warm_up_kernels
 >>> warm_up_kernels().compiled     # doctest: +SKIP
 0
 """
 
 from __future__ import annotations
 
+import math
 import sys
 import threading
 import time
@@ -21,7 +23,14 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["FIRST_KERNELS", "LATER_KERNELS", "CompileProgress", "KernelWarmUp", "compile_progress", "warm_up_kernels"]
+__all__ = ["FIRST_KERNELS", "KERNELS_READY", "LATER_KERNELS", "CompileProgress", "KernelWarmUp", "compile_progress",
+           "compile_reporter", "warm_up_kernels"]
+
+KERNELS_READY = threading.Event()
+"""Set unless a warm-up runs in the background (``arap studio`` serves the page while the kernels compile): the studio
+server greets a new connection once it is set, so that the page says the solver is being prepared instead of
+hanging on its first drag."""
+KERNELS_READY.set()
 
 FIRST_KERNELS = (
     "arap.meshes._geometry._double_areas",
@@ -34,20 +43,20 @@ FIRST_KERNELS = (
     "arap.sparse._csr._terms_to_csr",
     "arap.sparse._csr._leading_blocks",
     "arap.method.cells._gather_kernel",
-    "arap.method.covariance._local_serial",
+    "arap.method.local_step._local_serial",
     "arap.solve.indexing._with_rows",
     "arap.method.inactive._changed_rows",
     "arap.method.inactive._rigid_fit_miss",
     "arap.sparse._csr._rows_product",
-    "arap.method.covariance._rhs_gradient_serial",
+    "arap.method.local_step._rhs_gradient_serial",
     "arap.solve.lbfgs._subtract_sq_place",
     "arap.solve.indexing._rows_of",
 )
 """The kernels a session needs first (loading a mesh, solving it on one thread), in the order the warm-up's first
 solve compiles them (the kernels they call are compiled with them)."""
 LATER_KERNELS = (
-    "arap.method.covariance._local_parallel",
-    "arap.method.covariance._rhs_gradient_parallel",
+    "arap.method.local_step._local_parallel",
+    "arap.method.local_step._rhs_gradient_parallel",
 )
 """The threaded variants that only large meshes run, compiled after :data:`FIRST_KERNELS`."""
 
@@ -145,6 +154,10 @@ class KernelWarmUp:
     loaded: int
     cache_dir: str | None
 
+    def record(self) -> dict[str, object]:
+        """What a JSON report says of the warm-up: whether it compiled, its seconds and the cache folder."""
+        return {"compiled": self.compiled > 0, "seconds": self.seconds, "cache_dir": self.cache_dir}
+
 
 def _dispatchers() -> list[Any]:
     """The numba dispatchers defined in arap's loaded modules."""
@@ -169,7 +182,7 @@ def _counts() -> tuple[int, int]:
     return hits, misses
 
 
-def warm_up_kernels(progress: Callable[[CompileProgress], None] | None = None,
+def warm_up_kernels(quiet: bool = True, progress: Callable[[CompileProgress], None] | None = None,
                     first_ready: Callable[[], None] | None = None) -> KernelWarmUp:
     """Compile (or load from the cache) every kernel a solve uses, with tiny solves on a 42-vertex sphere (serial,
     then with the threaded variants that large meshes use).
@@ -180,6 +193,10 @@ def warm_up_kernels(progress: Callable[[CompileProgress], None] | None = None,
 
     Parameters
     ----------
+    quiet : bool
+        False: say on stderr how far the compilation is every few seconds (unless ``progress`` is given) and, when
+        kernels were compiled, how long it took and where they are cached (the command line's note before timing
+        anything).
     progress : callable or None
         ``progress(CompileProgress)`` each time a kernel has been compiled (never when all come from the cache);
         :func:`compile_progress` tells the same from any thread.
@@ -196,13 +213,36 @@ def warm_up_kernels(progress: Callable[[CompileProgress], None] | None = None,
     global _started
     with _state_lock:
         _started = time.perf_counter()
+    if progress is None and not quiet:
+        progress = compile_reporter()
     with event.install_listener("numba:compile", _compile_listener(progress)):
-        return _warm_up(first_ready)
+        warm = _warm_up(first_ready)
+    if warm.compiled and not quiet:
+        where = f"cached in {warm.cache_dir}"
+        sys.stderr.write(f"arap: compiling kernels (first run only)… {warm.seconds:.1f} s ({where})\n")
+        sys.stderr.flush()
+    return warm
+
+
+def compile_reporter(every: float = 5.0) -> Callable[[CompileProgress], None]:
+    """A ``progress`` for :func:`warm_up_kernels` that writes to stderr how many kernels are ready, by name, at most
+    every ``every`` seconds (and when the last is)."""
+    last = [-math.inf]
+
+    def report(progress: CompileProgress) -> None:
+        now = time.monotonic()
+        if progress.done < progress.total and now - last[0] < every:
+            return
+        last[0] = now
+        sys.stderr.write(f"arap: compiling the solver's kernels: {progress.describe()}\n")
+        sys.stderr.flush()
+
+    return report
 
 
 def _warm_up(first_ready: Callable[[], None] | None) -> KernelWarmUp:
+    from arap.kernels.parallel import policy
     from arap.meshes.shapes import sphere
-    from arap.method._parallel import policy
     from arap.solve.solver import ArapSolver
 
     t0 = time.perf_counter()
@@ -215,6 +255,8 @@ def _warm_up(first_ready: Callable[[], None] | None) -> KernelWarmUp:
     ArapSolver(V, F, constrained).solve(targets, max_iterations=2)
     if first_ready is not None:
         first_ready()
+    # The paper's spokes energy assembles its cells from the edge weight matrix, which the default energy does not.
+    ArapSolver(V, F, constrained, energy="spokes").solve(targets, max_iterations=2)
     # Large meshes run the threaded variants: make the size rule pick them for this tiny solve too.
     saved = policy.min_work, policy.work_per_thread
     try:
@@ -226,5 +268,6 @@ def _warm_up(first_ready: Callable[[], None] | None) -> KernelWarmUp:
         policy.reset()
     hits, misses = _counts()
     paths = [d.stats.cache_path for d in _dispatchers() if d.stats.cache_path]
-    return KernelWarmUp(seconds=time.perf_counter() - t0, compiled=misses - misses0, loaded=hits - hits0,
+    warm = KernelWarmUp(seconds=time.perf_counter() - t0, compiled=misses - misses0, loaded=hits - hits0,
                         cache_dir=paths[0] if paths else None)
+    return warm

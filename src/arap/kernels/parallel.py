@@ -31,11 +31,11 @@ from typing import TypeVar
 
 import numba
 
-from arap.method._numba_cache import ensure_writable_cache
+import arap.kernels.cache  # noqa: F401  (a writable cache folder before the kernel modules importing this define theirs)
 
 kernel_lock = threading.Lock()
 
-__all__ = ["ThreadPolicy", "ensure_writable_cache", "kernel_lock", "policy"]
+__all__ = ["ThreadPolicy", "kernel_lock", "policy"]
 
 PARALLEL_MIN_WORK = 50_000
 """Edge terms below which kernels run on one thread (about 4k vertices with spoke cells, local step and right-hand
