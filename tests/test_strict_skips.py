@@ -13,7 +13,9 @@ from tests.conftest import STRICT_ENV, strict_failure
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def test_strict_runs_fail_skipped_tests(tmp_path: Path) -> None:
+@pytest.mark.parametrize("workers", [[], ["-n", "2"]], ids=["one-process", "xdist-workers"])
+def test_strict_runs_fail_skipped_tests(tmp_path: Path, workers: list[str]) -> None:
+    """Also on pytest-xdist's workers (.ci/run's jobs): a skip there is turned into a failure before it is reported."""
     probe = tmp_path / "test_probe.py"
     probe.write_text("import pytest\n\n"
                      "def test_skipped():\n    pytest.skip('chromium is missing')\n\n"
@@ -23,7 +25,7 @@ def test_strict_runs_fail_skipped_tests(tmp_path: Path) -> None:
     (tmp_path / "conftest.py").write_text(conftest.read_text())
     # A skip in the call fails the test; one in the set-up (a skipif mark, a fixture) errors it: both fail the run.
     for strict, expected in (("1", "1 failed, 1 passed, 1 error"), ("0", "1 passed, 2 skipped")):
-        run = subprocess.run([sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", str(probe)],
+        run = subprocess.run([sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", *workers, str(probe)],
                              cwd=tmp_path, capture_output=True, text=True, timeout=120,
                              env={"PATH": "/usr/bin:/bin", STRICT_ENV: strict, "PYTHONPATH": str(ROOT)})
         assert expected in run.stdout, run.stdout[-2000:]

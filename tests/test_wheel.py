@@ -27,7 +27,8 @@ import pytest
 
 from tests.conftest import REPO_ROOT
 
-pytestmark = [pytest.mark.packaging, pytest.mark.slow, pytest.mark.timeout(900)]
+# One pytest-xdist worker runs them all (with --dist loadgroup): the module's build and environment are made once.
+pytestmark = [pytest.mark.packaging, pytest.mark.slow, pytest.mark.timeout(900), pytest.mark.xdist_group("package")]
 
 STEP_TIMEOUT = 600  # seconds for one build or install step
 
