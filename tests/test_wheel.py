@@ -26,16 +26,19 @@ from pathlib import Path
 import pytest
 
 from tests.conftest import REPO_ROOT
+from tests.waiting import scaled
 
 # One pytest-xdist worker runs them all (with --dist loadgroup): the module's build and environment are made once.
 pytestmark = [pytest.mark.packaging, pytest.mark.slow, pytest.mark.timeout(900), pytest.mark.xdist_group("package")]
 
-STEP_TIMEOUT = 600  # seconds for one build or install step
+STEP_TIMEOUT = 600
+"""Seconds for one build or install step on an idle machine, stretched on a loaded one (:func:`tests.waiting.scaled`:
+CI builds the package while other jobs run their tests)."""
 
 
 def _run(args: list[str], cwd: Path, env: dict[str, str] | None = None,
          timeout: float = STEP_TIMEOUT) -> subprocess.CompletedProcess[str]:
-    result = subprocess.run(args, cwd=cwd, env=env, capture_output=True, text=True, timeout=timeout)
+    result = subprocess.run(args, cwd=cwd, env=env, capture_output=True, text=True, timeout=scaled(timeout))
     assert result.returncode == 0, f"{' '.join(args)} failed ({result.returncode}):\n{result.stdout}\n{result.stderr}"
     return result
 
