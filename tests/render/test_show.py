@@ -18,6 +18,7 @@ from arap.render.png import SIGNATURE, encode_png
 from arap.render.show import STUDIO_COLORS
 from tests.png_files import decode_png
 from tests.render.pixels import colour_share
+from tests.waiting import scaled
 
 V, F = arap.builtin_mesh("sphere:500")
 TOWARD = view_basis(30.0, 20.0)[2]  # the default view
@@ -217,6 +218,6 @@ def test_the_armadillo_renders_quickly(shared_meshes_dir: Path) -> None:
     start = time.perf_counter()
     pic = arap.show(Va, Fa, width=640, height=480)
     seconds = time.perf_counter() - start
-    assert seconds < 3.0  # about 0.2 s on a laptop core: this leaves room for a loaded machine
+    assert seconds < scaled(3.0)  # about 0.2 s on a laptop core: room for a machine running other jobs too
     covered = (pic.pixels != pic.pixels[0, 0]).any(axis=2).mean()
     assert 0.1 < covered < 0.6

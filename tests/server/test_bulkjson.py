@@ -20,6 +20,7 @@ from arap.server.errors import RequestError
 from arap.server.messages import ClientMessage
 from arap.server.protocol import check_against_mesh, parse_large_text, parse_text
 from tests.server.fuzz_messages import messages as fuzzed_messages
+from tests.waiting import scaled
 
 pytestmark = pytest.mark.timeout(120)
 
@@ -173,7 +174,7 @@ def test_many_handle_groups_are_refused_by_count_in_bounded_memory() -> None:
     assert peak < 2 * len(data), peak  # json.loads: 2 million lists, about 20 times the text
     assert isinstance(error, RequestError) and error.code == "bad_message"
     assert "handle_groups has 2000000 groups, at most 256" in error.message
-    assert seconds < 10
+    assert seconds < scaled(10)  # stretched on a machine running other jobs too
 
 
 def test_many_indices_take_a_few_bytes_each() -> None:
