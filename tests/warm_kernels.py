@@ -4,7 +4,7 @@
 ``arap warmup`` compiles what a default solve of a few iterations uses; the tests also solve with every energy and
 acceleration, and ask for energies and distortions. On an empty cache each pytest-xdist worker of each job would
 compile those itself, at the same moment; here they are compiled once, serial and threaded variants alike (the
-solves run with the size rule of :func:`arap.method.jit.warm_up_kernels` that picks the threaded variants).
+solves run with the size rule of :func:`arap.warmup.warm_up_kernels` that picks the threaded variants).
 Compiling or not changes no result, so a kernel this misses is only compiled later, by the test that needs it.
 """
 
@@ -15,9 +15,9 @@ import time
 import numpy as np
 
 import arap
-from arap.meshes.shapes import sphere
-from arap.method._parallel import policy
-from arap.method.jit import warm_up_kernels
+from arap.kernels.parallel import policy
+from arap.meshes.spheres import sphere
+from arap.warmup import warm_up_kernels
 
 ENERGIES = ("spokes", "spokes_and_rims", "smooth_rotations")
 ACCELERATIONS = ("none", "anderson", "lbfgs")
