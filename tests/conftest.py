@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import os
 import shutil
+import signal
 import tempfile
 from collections.abc import Generator
 from pathlib import Path
@@ -46,10 +47,14 @@ def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo[None]) ->
 
 
 def pytest_configure(config: pytest.Config) -> None:
-    """Hypothesis keeps its caches in a temporary folder, never in the checkout."""
+    """Hypothesis keeps its caches in a temporary folder, never in the checkout. Ctrl-C works as in a terminal:
+    pytest-xdist's workers start with SIGINT ignored, which the tests of interrupted commands (and the processes
+    they start, which inherit it) must not see."""
     from hypothesis.configuration import set_hypothesis_home_dir
 
     set_hypothesis_home_dir(_HYPOTHESIS_HOME)
+    if signal.getsignal(signal.SIGINT) == signal.SIG_IGN:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
 
 
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:

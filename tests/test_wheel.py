@@ -230,7 +230,10 @@ def test_fresh_install_core_then_notebook_then_studio(dists: tuple[Path, Path], 
         from websockets.sync.client import connect
 
         with connect(url.replace("http://", "ws://") + "ws", open_timeout=30) as ws:
-            welcome = json.loads(ws.recv(timeout=60))
+            # while a fresh install compiles its kernels, the server says how far it is (preparing), then greets
+            welcome = json.loads(ws.recv(timeout=scaled(300)))
+            while welcome["type"] == "preparing":
+                welcome = json.loads(ws.recv(timeout=scaled(300)))
         assert welcome["type"] == "welcome" and welcome["protocol"] >= 1
         lines = []
         while not err.empty():

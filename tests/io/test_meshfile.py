@@ -284,15 +284,15 @@ def test_binary_ply_with_polygons_of_several_sizes() -> None:
 def test_every_format_list_comes_from_the_registry() -> None:
     from arap.cli import build_parser
     from arap.io import ASSET_FORMATS, VOLUME_FORMATS, formats
-    from arap.server import protocol
+    from arap.server import messages
     from arap.server.mesh_model import EXPORT_MIME
     from arap.server.pictures import PICTURE_EXTENSIONS
 
     assert MESH_FORMATS == formats.names("surface") == ("obj", "off", "ply", "stl", "glb", "gltf")
     assert ASSET_FORMATS == formats.names("surface", asset=True)
     assert VOLUME_FORMATS == tuple(s[1:] for s in formats.suffixes("volume"))
-    assert protocol.UPLOAD_EXTENSIONS == formats.upload_suffixes()
-    assert protocol.EXPORT_FORMATS == formats.export_names()
+    assert messages.UPLOAD_EXTENSIONS == formats.upload_suffixes()
+    assert messages.EXPORT_FORMATS == formats.export_names()
     assert PICTURE_EXTENSIONS == formats.suffixes("picture")
     assert EXPORT_MIME == {"obj": "model/obj", "ply": "application/octet-stream", "glb": "model/gltf-binary"}
     assert {formats.get(name).mime for name in EXPORT_MIME} <= set(formats.mime_types().values())
