@@ -145,8 +145,8 @@ addSnapshotPart('timeline', () => timeline.snapshot());
 /** @type {TimelineSnapshot} the keyframes when the connection went away, put back with the session */
 let lostTimeline = null;
 onSessionRestored((snap) => timeline.restore(/** @type {TimelineSnapshot|undefined} */ (snap.timeline) ?? lostTimeline));
-// the up axis of the view is kept with the session
-addSnapshotPart('view', () => ({ upAxis: viewer.upAxis }));
+// the up axis of the view is kept with the session when it is not the default (Y up), which alone is no edit
+addSnapshotPart('view', () => (viewer.upAxis === 'y' ? null : { upAxis: viewer.upAxis }));
 onSessionRestored((snap) => {
   const view = /** @type {{upAxis?: unknown}|undefined} */ (snap.view);
   if (view?.upAxis === 'z' || view?.upAxis === 'y') setUpAxis(view.upAxis, false);
