@@ -13,7 +13,7 @@ import pytest
 
 from arap.errors import ConstraintError, MeshError, MeshFormatError, MeshTooLargeError
 from arap.io import MeshAsset, load_asset, load_asset_bytes, load_mesh, load_mesh_with_report, save_asset, save_mesh
-from arap.io.asset_model import weld_rows
+from arap.io.assets import weld_rows
 from arap.io.gltf_asset import accessor_array
 from tests.io.asset_models import (
     FACE_NORMALS,

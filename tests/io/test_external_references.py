@@ -19,8 +19,8 @@ from arap.cli import main
 from arap.errors import MeshFormatError
 from arap.io import load_asset, obj_asset, paths, save_asset
 from arap.io.obj_asset import mtl_texture_references
+from arap.server.appearance import export_glb, look_from_path
 from arap.server.mesh_model import MeshData
-from arap.server.render_mesh import export_glb, look_from_path
 from tests.io.asset_models import cube_gltf_document, cube_obj, cube_ply, glb_bytes, png
 
 

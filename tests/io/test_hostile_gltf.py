@@ -194,7 +194,7 @@ def _png_header(width: int, height: int) -> bytes:
 
 
 def test_a_texture_announcing_too_many_pixels_is_not_decoded(tmp_path: Path) -> None:
-    from arap.io.asset_model import MAX_TEXTURE_PIXELS
+    from arap.io.assets import MAX_TEXTURE_PIXELS
     from tests.io.asset_models import cube_obj
 
     asset = load_asset(cube_obj(tmp_path))

@@ -15,8 +15,8 @@ import pytest
 
 from arap.io import load_asset, load_mesh
 from arap.meshes.shapes import sphere
+from arap.server.appearance import look_from_path
 from arap.server.meshdata import load_default
-from arap.server.render_mesh import look_from_path
 from tests.io.asset_models import png
 
 

@@ -16,8 +16,8 @@ from starlette.testclient import TestClient
 
 from arap.io import load_asset
 from arap.server import create_app
+from arap.server.appearance import build_look, look_from_path
 from arap.server.meshdata import load_default
-from arap.server.render_mesh import build_look, look_from_path
 from tests.io.asset_models import coloured_ply
 from tests.server.helpers import Reply, StudioClient, translation
 

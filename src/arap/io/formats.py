@@ -12,7 +12,11 @@ Kinds
     ``(data, name, folder, max_vertices)`` and gives ``(V, F)`` as stored; the writer takes ``(V, F)`` and gives the
     file's bytes. ``screen`` (``(data, label) -> data``), ``vertex_count`` (``data -> (count, text) | None``) and
     ``face_count`` (``data -> int | None``) check the bytes before the reader sees them (:mod:`arap.io.screening`).
-    ``asset``: :func:`arap.io.load_asset` reads it with its texture coordinates, colours and materials too.
+    With ``asset_reader`` and ``asset_writer`` :func:`arap.io.load_asset` reads it with its texture coordinates,
+    colours and materials too, and :func:`arap.io.save_asset` writes it back (:mod:`arap.io.assets`): the reader takes
+    ``(data, name, folder, max_vertices)`` and gives a :class:`~arap.io.assets.MeshAsset`, the writer takes
+    ``(path, asset, positions or None)`` and gives the files it wrote, the mesh first; ``asset_hint``
+    (``data -> bool``) says cheaply whether an upload may hold anything worth that reading (empty: always).
 ``volume``
     Tetrahedral (or planar triangle) meshes (:func:`arap.io.load_volume_mesh`, :func:`arap.io.save_volume_mesh`).
     The reader of a one-file format takes ``(data, name, format name)`` and gives ``(V, T)``; a TetGen mesh, two
@@ -77,9 +81,10 @@ class FileFormat:
         ``"module:function"`` reading and writing it (empty when arap does not).
     screen, vertex_count, face_count : str
         ``"module:function"`` checking a surface file's bytes before parsing (empty: none).
-    asset : bool
-        :func:`arap.io.load_asset` and :func:`arap.io.save_asset` keep its attributes (texture coordinates, colours,
-        materials, a glTF scene).
+    asset_reader, asset_writer, asset_hint : str
+        ``"module:function"`` reading and writing it with its attributes (texture coordinates, colours, materials, a
+        glTF scene) for :func:`arap.io.load_asset` and :func:`arap.io.save_asset`, and telling whether an upload's
+        bytes may hold any (see the module notes); empty when arap keeps none.
     family : str
         Formats of one family hold the same attributes (GLB and glTF): a textured model is written in its family.
     upload : bool
@@ -98,10 +103,18 @@ class FileFormat:
     screen: str = ""
     vertex_count: str = ""
     face_count: str = ""
-    asset: bool = False
+    asset_reader: str = ""
+    asset_writer: str = ""
+    asset_hint: str = ""
     family: str = ""
     upload: bool = False
     export: bool = False
+
+    @property
+    def asset(self) -> bool:
+        """:func:`arap.io.load_asset` and :func:`arap.io.save_asset` keep its attributes (it has an asset reader and
+        an asset writer)."""
+        return bool(self.asset_reader and self.asset_writer)
 
     @property
     def suffix(self) -> str:
@@ -121,22 +134,28 @@ class FileFormat:
 
 _M = "arap.io.meshfile"
 _S = "arap.io.screening"
+_G = "arap.io.gltf_asset"
 
 #: Every format, surfaces first (in the order their lists show them), then volumes, pictures and bundles.
 FORMATS: tuple[FileFormat, ...] = (
     FileFormat("obj", "Wavefront OBJ", "surface", (".obj",), "model/obj", f"{_M}:read_obj", f"{_M}:obj_bytes",
-               f"{_S}:screen_obj", f"{_S}:obj_vertex_count", asset=True, upload=True, export=True),
+               f"{_S}:screen_obj", f"{_S}:obj_vertex_count", asset_reader="arap.io.obj_asset:read_obj_asset",
+               asset_writer="arap.io.obj_write:write_obj_asset", asset_hint="arap.io.obj_asset:may_have_attributes",
+               upload=True, export=True),
     FileFormat("off", "Object File Format", "surface", (".off",), "application/octet-stream", f"{_M}:read_off",
                f"{_M}:off_bytes", f"{_S}:screen_off", f"{_S}:off_vertex_count", f"{_S}:off_face_count", upload=True),
     FileFormat("ply", "Stanford PLY", "surface", (".ply",), "application/octet-stream", f"{_M}:read_ply",
-               f"{_M}:ply_bytes", f"{_S}:screen_ply", f"{_S}:ply_vertex_count", f"{_S}:ply_face_count", asset=True,
-               upload=True, export=True),
+               f"{_M}:ply_bytes", f"{_S}:screen_ply", f"{_S}:ply_vertex_count", f"{_S}:ply_face_count",
+               asset_reader="arap.io.ply_asset:read_ply_asset", asset_writer="arap.io.ply_asset:write_ply_asset",
+               asset_hint="arap.io.ply_asset:may_have_attributes", upload=True, export=True),
     FileFormat("stl", "STL", "surface", (".stl",), "model/stl", f"{_M}:read_stl", f"{_M}:stl_bytes",
                f"{_S}:screen_stl", f"{_S}:stl_vertex_count", upload=True),
     FileFormat("glb", "glTF binary (GLB)", "surface", (".glb",), "model/gltf-binary", f"{_M}:read_gltf",
-               f"{_M}:glb_bytes", asset=True, family="gltf", upload=True, export=True),
+               f"{_M}:glb_bytes", asset_reader=f"{_G}:read_gltf_asset", asset_writer=f"{_G}:write_glb_asset",
+               family="gltf", upload=True, export=True),
     FileFormat("gltf", "glTF", "surface", (".gltf",), "model/gltf+json", f"{_M}:read_gltf", f"{_M}:gltf_bytes",
-               asset=True, family="gltf", upload=True),
+               asset_reader=f"{_G}:read_gltf_asset", asset_writer=f"{_G}:write_gltf_asset", family="gltf",
+               upload=True),
     FileFormat("mesh", "Medit", "volume", (".mesh",), reader="arap.io.volume:read_meshio_bytes", upload=True),
     FileFormat("msh", "gmsh", "volume", (".msh",), reader="arap.io.volume:read_meshio_bytes", upload=True),
     FileFormat("vtu", "VTK (.vtu)", "volume", (".vtu",), reader="arap.io.volume:read_meshio_bytes", upload=True),

@@ -25,7 +25,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from arap.errors import MeshError, MeshFormatError, MeshTooLargeError
-from arap.io.asset_model import MeshAsset, group_normals, missing_file_warning, vertex_normal_groups, write_beside
+from arap.io.assets import MeshAsset, group_normals, missing_file_warning, vertex_normal_groups, write_beside
 from arap.io.gltf_container import (
     COMPRESSION,
     FLOAT,
@@ -48,7 +48,7 @@ from arap.io.gltf_container import (
 )
 from arap.io.paths import SpecialFileError
 
-__all__ = ["GltfData", "accessor_array", "geometry_glb", "read_gltf_asset", "write_gltf_asset"]
+__all__ = ["GltfData", "accessor_array", "geometry_glb", "read_gltf_asset", "write_glb_asset", "write_gltf_asset"]
 
 logger = logging.getLogger(__name__)
 
@@ -462,9 +462,20 @@ def _updated(asset: MeshAsset, V: NDArray[np.float64] | None) -> tuple[dict[str,
         _separate_instances(document, buffers, gltf, V, normals)
     return document, [bytes(b) for b in buffers]
 
-def write_gltf_asset(path: Path, asset: MeshAsset, V: NDArray[np.float64] | None, *, binary: bool) -> list[Path]:
-    """Write a glTF asset as GLB (buffers merged into the binary chunk) or glTF (external buffers beside it as
-    ``NAME.bin``, ``NAME_1.bin``, ...; data URIs kept); image files it names are written beside it."""
+def write_glb_asset(path: Path, asset: MeshAsset, V: NDArray[np.float64] | None) -> list[Path]:
+    """Write a glTF asset as GLB (buffers merged into the binary chunk; data URIs kept); image files it names are
+    written beside it. The files written, the GLB first."""
+    return _write_gltf(path, asset, V, binary=True)
+
+
+def write_gltf_asset(path: Path, asset: MeshAsset, V: NDArray[np.float64] | None) -> list[Path]:
+    """Write a glTF asset as glTF, its external buffers beside it as ``NAME.bin``, ``NAME_1.bin``, ... (data URIs
+    kept); image files it names are written beside it. The files written, the glTF first."""
+    return _write_gltf(path, asset, V, binary=False)
+
+
+def _write_gltf(path: Path, asset: MeshAsset, V: NDArray[np.float64] | None, *, binary: bool) -> list[Path]:
+    """Write a glTF asset as GLB (``binary``) or glTF (see :func:`write_glb_asset`, :func:`write_gltf_asset`)."""
     from arap.io.atomic import write_atomic
 
     gltf: GltfData = asset.data

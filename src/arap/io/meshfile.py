@@ -48,7 +48,7 @@ from arap.meshes.mesh import MeshLike, mesh_arrays, triangulate_polygons
 from arap.meshes.repair import RepairResult, repair_mesh
 
 if TYPE_CHECKING:
-    from arap.io.asset_model import MeshAsset
+    from arap.io.assets import MeshAsset
 
 __all__ = [
     "MESH_FORMATS",
@@ -170,7 +170,7 @@ def _parse(stream: io.BytesIO, file_type: str, label: str) -> tuple[np.ndarray, 
 def _parse_obj(data: bytes, label: str) -> tuple[np.ndarray, np.ndarray]:
     """Vertices (``v`` lines in order) and triangles of an OBJ file with any statements: texture coordinates,
     normals, groups and materials leave the vertex numbering as it is."""
-    from arap.io.asset_model import fan
+    from arap.io.assets import fan
     from arap.io.obj_asset import parse_obj
 
     V, obj, _, _ = parse_obj(data, label)

@@ -21,16 +21,18 @@ import numpy as np
 from numpy.typing import NDArray
 
 from arap.errors import MeshError, MeshFormatError, MeshTooLargeError
-from arap.io.asset_model import MeshAsset, fan, read_referenced
+from arap.io.assets import MeshAsset, fan, read_referenced
 from arap.io.screening import screen
 
-__all__ = ["ObjData", "map_file_name", "mtl_texture_references", "parse_obj", "read_obj_asset"]
+__all__ = ["ObjData", "map_file_name", "may_have_attributes", "mtl_texture_references", "parse_obj", "read_obj_asset"]
 
 logger = logging.getLogger(__name__)
 
 #: MTL statements naming a texture image (options first, then the file name to the end of the line).
 _MAP_KEYS = {"map_ka", "map_kd", "map_ks", "map_ns", "map_d", "map_bump", "bump", "disp", "decal", "refl", "norm",
              "map_pr", "map_pm", "map_ps", "map_ke", "map_rma", "map_orm", "map_tr"}
+_COLOUR_LINE = re.compile(rb"^v[ \t]+(?:\S+[ \t]+){5}\S+", re.M)
+_MTLLIB_LINE = re.compile(rb"^[ \t]*mtllib[ \t]+\S", re.M)
 
 
 @dataclass(eq=False)
@@ -363,6 +365,14 @@ def mtl_texture_references(mtl: bytes) -> list[str]:
             if ref and ref not in out:
                 out.append(ref)
     return out
+
+
+def may_have_attributes(data: bytes) -> bool:
+    """Cheap test of an OBJ file's bytes for what :func:`read_obj_asset` keeps beyond the geometry: vertex colours
+    (``v x y z r g b``), or texture coordinates and an ``mtllib`` statement (its files brought along or not)."""
+    texcoords = b"\nvt " in data or b"\nvt\t" in data or data.startswith((b"vt ", b"vt\t"))
+    mtllib = texcoords and b"mtllib" in data and _MTLLIB_LINE.search(data) is not None
+    return mtllib or _COLOUR_LINE.search(data) is not None
 
 
 def read_obj_asset(data: bytes, label: str, folder: Path | None, max_vertices: int | None) -> MeshAsset:

@@ -11,7 +11,7 @@ from typing import cast
 import numpy as np
 from numpy.typing import NDArray
 
-from arap.io.asset_model import MeshAsset, fan, group_normals, weld_rows, write_beside
+from arap.io.assets import MeshAsset, fan, group_normals, weld_rows, write_beside
 from arap.io.obj_asset import ObjData
 
 __all__ = ["obj_files", "obj_text", "write_obj_asset"]

@@ -18,16 +18,17 @@ import numpy as np
 from numpy.typing import NDArray
 
 from arap.errors import MeshError, MeshFormatError, MeshTooLargeError
-from arap.io.asset_model import MeshAsset, fan, group_normals, read_referenced, vertex_normal_groups, write_beside
+from arap.io.assets import MeshAsset, fan, group_normals, read_referenced, vertex_normal_groups, write_beside
 from arap.io.screening import screen
 
-__all__ = ["PlyData", "PlyElement", "read_ply_asset", "write_ply_asset"]
+__all__ = ["PlyData", "PlyElement", "may_have_attributes", "read_ply_asset", "write_ply_asset"]
 
 logger = logging.getLogger(__name__)
 
 _UV_NAMES = (("s", "t"), ("u", "v"), ("texture_u", "texture_v"), ("texture_s", "texture_t"))
 _COLOR_NAMES = (("red", "green", "blue", "alpha"), ("r", "g", "b", "a"),
                 ("diffuse_red", "diffuse_green", "diffuse_blue", "diffuse_alpha"))
+_HEADER_HINTS = (b"red", b"texture", b" s\n", b" u\n", b" s\r\n", b" u\r\n")
 
 
 @dataclass(eq=False)
@@ -280,6 +281,13 @@ def parse_ply(data: bytes, label: str) -> PlyData:
                            data=column)
                 for (name, count, props), column in zip(header, columns, strict=True)]
     return PlyData(elements=elements, comments=comments)
+
+
+def may_have_attributes(data: bytes) -> bool:
+    """Cheap test of a PLY file's header for what :func:`read_ply_asset` keeps beyond the geometry: colours,
+    texture coordinates or a texture file."""
+    end = data.find(b"end_header")
+    return any(h in data[: end if end > 0 else 4096] for h in _HEADER_HINTS)
 
 
 def read_ply_asset(data: bytes, label: str, folder: Path | None, max_vertices: int | None, *,

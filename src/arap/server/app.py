@@ -24,6 +24,7 @@ from starlette.types import Receive, Scope, Send
 from starlette.websockets import WebSocket, WebSocketDisconnect
 
 from arap import __version__
+from arap.server.appearance import Look, look_from_path
 from arap.server.client_files import STATIC_DIR, client_missing_advice
 from arap.server.connection import Connection, StudioConfig
 from arap.server.decoder import FrameDecoder
@@ -33,7 +34,6 @@ from arap.server.memory import release_memory
 from arap.server.mesh_model import MeshData
 from arap.server.meshdata import load_default
 from arap.server.protocol import error_message
-from arap.server.render_mesh import Look, look_from_path
 from arap.server.session import Session
 
 __all__ = ["DEFAULT_MAX_EXPORT_BYTES", "DEFAULT_MAX_SESSIONS", "DEFAULT_MAX_UPLOAD_BYTES", "DEFAULT_MAX_VERTICES",

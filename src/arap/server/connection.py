@@ -28,6 +28,7 @@ import anyio.to_thread
 import numpy as np
 from starlette.websockets import WebSocket, WebSocketDisconnect
 
+from arap.server.appearance import Look
 from arap.server.budget import ByteBudget, RequestQueue, request_cost
 from arap.server.client_messages import Drag, ExportAnimation, Upload
 from arap.server.decoder import PROCESS_BYTES, FrameDecoder
@@ -38,7 +39,6 @@ from arap.server.mesh_model import MeshData
 from arap.server.messages import ClientMessage
 from arap.server.protocol import parse_binary, parse_text
 from arap.server.records import DragOutcome
-from arap.server.render_mesh import Look
 from arap.server.server_messages import Preparing
 from arap.server.session import Session
 from arap.server.studio_config import check_upload_size
@@ -87,7 +87,7 @@ class Connection:
         Called with the session once it holds the default mesh, before the page receives it (e.g. to set initial
         constraints); the page then adopts the session's constraints and shape.
     default_look : Look or None
-        The default mesh file's colours and texture (:mod:`arap.server.render_mesh`), None for a plain mesh.
+        The default mesh file's colours and texture (:mod:`arap.server.appearance`), None for a plain mesh.
     """
 
     def __init__(self, ws: WebSocket, config: StudioConfig, default_mesh: MeshData,

@@ -22,6 +22,7 @@ from typing import Any
 import numpy as np
 
 from arap.server.animation_export import AnimationCancelled, export_animation, keyframes_document
+from arap.server.appearance import BUNDLE_EXPANSION, Look, is_bundle, load_bundle_upload, look_from_upload
 from arap.server.client_messages import (
     Apply,
     Drag,
@@ -49,7 +50,6 @@ from arap.server.meshdata import load_builtin, load_upload, mesh_frame
 from arap.server.messages import ClientMessage
 from arap.server.pictures import is_picture, load_picture
 from arap.server.protocol import check_against_mesh, error_message, validate
-from arap.server.render_mesh import BUNDLE_EXPANSION, Look, is_bundle, load_bundle_upload, look_from_upload
 from arap.server.replies import (
     SETTLE,
     Reply,

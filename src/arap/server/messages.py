@@ -81,7 +81,7 @@ of a picture, else a picture of the shape)."""
 UPLOAD_EXTENSIONS = formats.upload_suffixes()
 """Files ``upload`` takes (those :mod:`arap.io.formats` marks for upload): surfaces, volume meshes (opened as solids
 when they hold tetrahedra), pictures for the puppet warp (:mod:`arap.server.pictures`), and a zip of a model file with
-the files it names (MTL files, textures, glTF buffers; :func:`arap.server.render_mesh.load_bundle_upload`)."""
+the files it names (MTL files, textures, glTF buffers; :func:`arap.server.appearance.load_bundle_upload`)."""
 
 PARAMS: dict[str, dict[str, Any]] = {
     "iterations": {"min": 1, "max": 100, "default": 2},

@@ -2,7 +2,7 @@
 
 An opened picture becomes a flat textured mesh: its opaque part outlined and meshed (:func:`arap.image_mesh`), at
 ``(x, h − y, 0)`` in pixels (y up, as the studio draws), textured with the picture itself. It is loaded through the
-same path as a textured GLB (:func:`arap.server.render_mesh.look_from_upload`), so the page draws it, picks on it and
+same path as a textured GLB (:func:`arap.server.appearance.look_from_upload`), so the page draws it, picks on it and
 exports it as any textured model. The session then deforms it in its plane with the element energy (one 2×2
 rotation per triangle), whatever the energy chosen for surfaces; handles dragged off the plane are put back on it.
 **Export PNG** gives the warped picture, drawn at the picture's resolution (:func:`arap.puppet.raster.draw_textured`).
@@ -17,10 +17,10 @@ import numpy as np
 import arap.io.formats as formats
 from arap.errors import ArapError
 from arap.method.points import PointConstraints
+from arap.server.appearance import Look, look_from_upload
 from arap.server.errors import RequestError
 from arap.server.mesh_model import MeshData
 from arap.server.meshdata import load_upload
-from arap.server.render_mesh import Look, look_from_upload
 
 __all__ = [
     "DENSITIES",

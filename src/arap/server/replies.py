@@ -18,12 +18,12 @@ from weakref import WeakKeyDictionary
 import numpy as np
 
 from arap import __version__
+from arap.server.appearance import Look
 from arap.server.constraints import matrices_to_json
 from arap.server.frames import encode_binary
 from arap.server.meshdata import builtin_names
 from arap.server.messages import MAX_HANDLE_GROUPS, PROTOCOL_VERSION
 from arap.server.records import DragOutcome, readable_energy
-from arap.server.render_mesh import Look
 from arap.server.server_messages import Appearance, Settle, State, Vertices, Welcome
 from arap.server.session import Session
 from arap.server.studio_config import StudioConfig

@@ -22,11 +22,11 @@ from arap.meshes.domain import check_domain
 from arap.method.weights import WeightType
 from arap.options import EnergyType, LoosePartsMode
 from arap.render.show import show
+from arap.server.appearance import Look, export_asset
 from arap.server.constraints import ConstraintSet, identity_transforms, matrices_from_json
 from arap.server.mesh_model import MeshData
 from arap.server.numbering import document_in_file_numbering
 from arap.server.records import DragOutcome, Params, SettleOutcome
-from arap.server.render_mesh import Look, export_asset
 from arap.server.session_errors import BadValues, ConstraintsRejected, SolveFailed, UnusableMesh
 from arap.server.session_state import SessionState
 from arap.server.settling import FrameCallback
@@ -393,7 +393,7 @@ class Session(SessionState):
 
     def export(self, fmt: str) -> tuple[str, str, bytes]:
         """The deformed mesh as a file: ``(filename, mime, bytes)``; GLB, and the source's own format, keep the file's
-        UVs, textures and colours (:func:`arap.server.render_mesh.export_asset`)."""
+        UVs, textures and colours (:func:`arap.server.appearance.export_asset`)."""
         mesh = self._require_mesh()
         try:
             if fmt == "png":

@@ -14,12 +14,12 @@ from typing import Any
 import numpy as np
 
 from arap.meshes.mesh import bounding_box
+from arap.server.appearance import Look
 from arap.server.constraints import ConstraintSet, identity_transforms
 from arap.server.history import History, Snapshot
 from arap.server.mesh_model import MeshData
 from arap.server.numbering import message_in_file_numbering
 from arap.server.records import Params
-from arap.server.render_mesh import Look
 from arap.server.session_errors import ConstraintsRejected, NoMesh
 from arap.server.solvers import SolverCache
 

@@ -1,4 +1,5 @@
-"""How the studio draws a textured or coloured mesh file, and how it writes it back as GLB.
+"""The appearance of the studio's mesh: how the page draws a textured or coloured mesh file, and how the deformed
+shape is exported with it (GLB, or the file's own format).
 
 The solver works on the studio's mesh (:class:`~arap.server.meshdata.MeshData`, one vertex per position), but a
 texture needs a vertex wherever a UV seam splits one: a *render mesh* of its own. A :class:`Look` holds what the page
@@ -20,7 +21,6 @@ from __future__ import annotations
 import logging
 import os
 import posixpath
-import re
 import tempfile
 import warnings
 from collections import Counter
@@ -32,7 +32,7 @@ import numpy as np
 
 from arap.errors import ArapError
 from arap.io import formats, load_asset, load_asset_bytes, save_asset, save_mesh_bytes
-from arap.io.asset_model import MeshAsset, result_trimesh, weld_rows
+from arap.io.assets import MeshAsset, may_have_attributes, result_trimesh, weld_rows
 from arap.io.obj_write import obj_files, obj_text
 from arap.server.mesh_model import EXPORT_MIME, MeshData, export_mesh
 
@@ -54,9 +54,6 @@ ZIP_MIME = formats.get("zip").mime
 _ASSET_EXTENSIONS = tuple(formats.get(name).suffix for name in formats.names("surface", asset=True))
 """Uploads read as textured models too (their colours and textures drawn)."""
 _IMAGE_MIME = ((b"\x89PNG\r\n\x1a\n", "image/png"), (b"\xff\xd8\xff", "image/jpeg"))
-_OBJ_COLOUR_LINE = re.compile(rb"^v[ \t]+(?:\S+[ \t]+){5}\S+", re.M)
-_OBJ_MTLLIB_LINE = re.compile(rb"^[ \t]*mtllib[ \t]+\S", re.M)
-_PLY_HINTS = (b"red", b"texture", b" s\n", b" u\n", b" s\r\n", b" u\r\n")
 
 
 def _mib(n: int) -> str:
@@ -306,21 +303,6 @@ def look_from_path(spec: str | os.PathLike[str] | MeshData | None, mesh: MeshDat
     return build_look(asset, mesh, max_texture_bytes, notes)
 
 
-def _may_have_look(data: bytes, ext: str) -> bool:
-    """Cheap test for attributes worth a second, attribute-keeping read of an upload (or a note on what it names
-    but does not bring)."""
-    if ext in (".glb", ".gltf"):
-        return True
-    if ext == ".ply":
-        end = data.find(b"end_header")
-        return any(h in data[: end if end > 0 else 4096] for h in _PLY_HINTS)
-    if ext == ".obj":  # vertex colours, or texture coordinates and an MTL file (brought with it or not)
-        texcoords = b"\nvt " in data or b"\nvt\t" in data or data.startswith((b"vt ", b"vt\t"))
-        mtllib = texcoords and b"mtllib" in data and _OBJ_MTLLIB_LINE.search(data) is not None
-        return mtllib or _OBJ_COLOUR_LINE.search(data) is not None
-    return False
-
-
 def look_from_upload(data: bytes | memoryview, filename: str, mesh: MeshData, max_vertices: int | None = None,
                      max_texture_bytes: int = MAX_TEXTURE_BYTES, folder: Path | None = None) -> Look | None:
     """The look of an uploaded file already loaded as ``mesh`` (None for a plain one with nothing to say).
@@ -335,7 +317,7 @@ def look_from_upload(data: bytes | memoryview, filename: str, mesh: MeshData, ma
     if ext not in _ASSET_EXTENSIONS:
         return None
     blob = bytes(data)
-    if folder is None and not _may_have_look(blob, ext):
+    if folder is None and not may_have_attributes(blob, ext):  # nothing worth a second, attribute-keeping read
         return None
     notes: list[str] = []
     label = f"{mesh.name}{ext}"
@@ -410,7 +392,7 @@ def _name_material(mesh: Any, asset: MeshAsset) -> None:
 def export_glb(name: str, U: np.ndarray, F: np.ndarray, look: Look | None) -> tuple[str, str, bytes]:
     """The deformed mesh as GLB: a glTF or GLB source written back with everything it holds
     (:func:`arap.io.save_asset`), an OBJ or PLY source with its first texture and UVs (and the name of the material
-    most triangles use) or its vertex colours (:func:`arap.io.asset_model.result_trimesh`), a plain mesh as
+    most triangles use) or its vertex colours (:func:`arap.io.assets.result_trimesh`), a plain mesh as
     geometry.
 
     Returns
