@@ -172,5 +172,6 @@ def test_closed_session_is_released(budgeted: TestClient) -> None:
     if not poll_until(released, 10 * time_factor(), 0.1):
         held = session_ref()
         holders = [] if held is None else [type(r).__name__ for r in gc.get_referrers(held)]
-        raise AssertionError(f"the closed session is still referenced (connection alive: {connection_ref() is not None}; "
+        alive = connection_ref() is not None
+        raise AssertionError(f"the closed session is still referenced (connection alive: {alive}; "
                              f"the session's referrers: {holders})")
