@@ -8,20 +8,21 @@ import pytest
 
 import arap
 from arap.puppet.blend import BlendSolver, cell_scales
+from tests.puppet.blend_reference import StepwiseBlend
 from tests.puppet.pictures import bar
 
 PINS = np.array([[25.0, 100.0], [175.0, 100.0]])
 STRETCHED = [None, [250.0, 100.0]]  # the bar pulled to 1.5 times its length
 
 
+def _areas(P: np.ndarray, F: np.ndarray) -> np.ndarray:
+    e1, e2 = P[F[:, 1]] - P[F[:, 0]], P[F[:, 2]] - P[F[:, 0]]
+    return 0.5 * np.abs(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0])
+
+
 def _mean_area_ratio(puppet: arap.PuppetWarp, U: np.ndarray) -> float:
     V, F = puppet.mesh.vertices, puppet.mesh.triangles
-
-    def areas(P: np.ndarray) -> np.ndarray:
-        e1, e2 = P[F[:, 1]] - P[F[:, 0]], P[F[:, 2]] - P[F[:, 0]]
-        return 0.5 * np.abs(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0])
-
-    return float(areas(U).sum() / areas(V).sum())
+    return float(_areas(U, F).sum() / _areas(V, F).sum())
 
 
 def test_normal_grows_the_picture_between_rigid_and_distort() -> None:
@@ -100,3 +101,56 @@ def test_a_pin_with_an_angle_turns_its_surroundings(mode: str) -> None:
         held.deform(angles=[10.0, None])
     with pytest.raises(arap.ArapError, match="one angle"):
         arap.PuppetWarp(bar(), pins, spacing=6, angles=[1.0])
+
+
+@pytest.mark.parametrize("lam", [0.0, 1.0])
+def test_the_compiled_solve_reaches_the_stepwise_one(lam: float) -> None:
+    # The blend runs in the ARAP solver's compiled loop; the reference iterates the formulas step by step.
+    puppet = arap.PuppetWarp(bar(), PINS, spacing=10, mode="rigid")
+    held = puppet.mesh.vertices[puppet.held]
+    targets = [[25.0, 100.0], [150.0, 160.0]]
+    fast = BlendSolver(puppet._solver, lam).solve(held, point_targets=targets, max_iterations=500, tolerance=1e-6)
+    slow = StepwiseBlend(puppet._solver, lam).solve(held, point_targets=targets, max_iterations=500, tolerance=1e-6)
+    assert fast.converged and slow.converged
+    assert np.abs(fast.vertices - slow.vertices).max() < 0.05  # pixels, of a bar 150 long
+    area = float(_areas(puppet.mesh.vertices, puppet.mesh.triangles).sum())
+    assert abs(fast.energies[-1] - slow.energies[-1]) < 1e-6 * area
+    E = np.array(fast.energies)
+    assert np.all(np.diff(E) <= 1e-9 * E[0])
+
+
+@pytest.mark.parametrize("lam", [0.0, 1.0, 2.5])
+def test_the_compiled_energy_is_the_formula(lam: float) -> None:
+    puppet = arap.PuppetWarp(bar(), PINS, spacing=10, mode="rigid")
+    V = puppet.mesh.vertices
+    rng = np.random.default_rng(3)
+    U = V * [1.3, 0.8] + rng.normal(scale=2.0, size=V.shape)  # stretched, squashed and shaken
+    want = StepwiseBlend(puppet._solver, lam).energy(U)
+    assert BlendSolver(puppet._solver, lam).energy(U) == pytest.approx(want, rel=1e-9)
+
+
+def test_painted_stiffness_weighs_the_whole_blend_energy() -> None:
+    # The global step's matrix carries the stiffness; the scale term of a stiffer cell weighs as much more.
+    puppet = arap.PuppetWarp(bar(), PINS, spacing=10, mode="rigid")
+    V, F = puppet.mesh.vertices, puppet.mesh.triangles
+    U = V * [1.3, 0.8]
+    points = (puppet.faces, puppet.barycentric)
+    plain = BlendSolver(arap.ArapSolver(V, F, puppet.held, points=points), 1.0).energy(U)
+    stiff = BlendSolver(arap.ArapSolver(V, F, puppet.held, points=points, stiffness=np.full(len(V), 3.0)), 1.0)
+    assert stiff.energy(U) == pytest.approx(3.0 * plain, rel=1e-9)
+
+
+def test_a_blend_solve_reports_the_solver_loops_timings() -> None:
+    puppet = arap.PuppetWarp(bar(), PINS, spacing=10, mode="normal")
+    result = puppet._solver.solve(puppet.mesh.vertices[puppet.held], point_targets=[[25.0, 100.0], [160, 120]],
+                                  max_iterations=2)
+    assert result.iterations == 2
+    assert {"local", "rhs", "solve", "total"} <= set(result.timings)
+    with pytest.raises(arap.ArapError, match="acceleration"):
+        puppet._solver.solve(puppet.mesh.vertices[puppet.held], acceleration="fast")  # type: ignore[arg-type]
+
+
+def test_the_blend_needs_a_planar_element_solver() -> None:
+    V, F = arap.builtin_mesh("sphere:200")
+    with pytest.raises(arap.OptionError, match="planar"):
+        BlendSolver(arap.ArapSolver(V, F, [0]), 1.0)

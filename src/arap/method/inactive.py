@@ -13,6 +13,8 @@ ones (checked to round-off), only the cells that also hold an unchanged vertex a
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numba as nb
 import numpy as np
 from numpy.typing import NDArray
@@ -43,6 +45,10 @@ class InactiveCells:
         Constrained vertices, in the order of the targets.
     V : (n, 3) float64 array
         Rest positions.
+    fit : callable or None
+        ``fit(cells, cell_ids, U, R, E)``: the local step that gives the cells' energies (None:
+        :func:`arap.method.local_step.local_step`, the best rotations; a variant's must also leave a cell's energy
+        unchanged when all its vertices move by one rigid motion).
 
     Attributes
     ----------
@@ -51,8 +57,9 @@ class InactiveCells:
     """
 
     def __init__(self, cells: Cells, active: NDArray[np.integer], constrained: NDArray[np.integer],
-                 V: NDArray[np.float64]) -> None:
+                 V: NDArray[np.float64], fit: Callable[..., float] | None = None) -> None:
         n = len(V)
+        self._fit = local_step if fit is None else fit
         nc = cells.n_cells
         self._cells = cells
         self._constrained = constrained
@@ -67,7 +74,7 @@ class InactiveCells:
         self._R = identity_rotations(nc)  # the rest pose's rotations: where later fits start
         self._E = np.zeros(nc)  # energy of every inactive cell at the cached targets
         if len(self._inactive):
-            local_step(cells, self._inactive, V, self._R, self._E)
+            self._fit(cells, self._inactive, V, self._R, self._E)
         box = bounding_box(V) if n else np.zeros((2, 3))
         self._tolerance = RIGID_TOLERANCE * float(np.linalg.norm(box[1] - box[0]))
         self._n = n
@@ -101,7 +108,7 @@ class InactiveCells:
         cells = mixed if self._moved_rigidly(np.flatnonzero(changed), targets) else touched
         if len(cells):
             E = self._E
-            local_step(self._cells, cells, U, self._R, E)
+            self._fit(self._cells, cells, U, self._R, E)
             self.recomputed = len(cells)
             self._value = float(E[self._inactive].sum())
         self._targets = targets.copy()

@@ -19,25 +19,43 @@ similarity, ``E_t(r) = |t| (2r² − 4rc + λ(r² − 1)² + const)`` is least a
 
 so ``λ = 1`` (:data:`NORMAL_LAMBDA`) gives ``r = ∛c``: a part the pins stretch by a similarity of scale ``c`` keeps
 the scale ``∛c`` (stretched 8 times, it is drawn twice as large and bends the rest). The global step is ARAP's
-(the same prefactored matrix, :meth:`arap.ArapSolver.global_step`) with the similarities in place of the rotations,
-hard pins included. Each iteration lowers ``E``.
+(the same prefactored matrix) with the similarities in place of the rotations, hard pins included. Each iteration
+lowers ``E``.
+
+In the cells of :mod:`arap.method.elements` (``Σ w ‖e' − L e‖² = |t| ‖J − L‖²`` for any ``L``), with ``S`` the
+cell's covariance: ``c = |(S₀₀ + S₁₁, S₀₁ − S₁₀)| / Σ w ‖e‖²``. So the hybrid's local step is the planar ARAP local step
+(:mod:`arap.method.planar`) with the rotation multiplied by ``r``, and :class:`BlendSolver` runs it as the local step
+of ARAP's own solve (:class:`ScaledFit`): the same compiled steps, starts, acceleration and stopping rule. The energy
+is the ARAP energy of the similarities plus a term that does not depend on the positions, so its gradient in the
+positions is ARAP's ``2 (A x − b)`` with the similarities, and L-BFGS applies where it applies to ARAP.
 """
 
 from __future__ import annotations
 
-import time
+import math
 from collections.abc import Callable
+from dataclasses import replace
+from functools import partial
 from typing import Any
 
+import numba as nb
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
+import arap.kernels.cache  # noqa: F401  (a writable cache folder before the kernels below are defined)
 from arap.errors import OptionError
-from arap.options import DEFAULT_TOLERANCE, DEFAULT_WINDOW, MAX_ITERATIONS
-from arap.solve.anderson import AndersonAccelerator
+from arap.kernels.parallel import policy
+from arap.method.cells import Cells
+from arap.method.inactive import InactiveCells
+from arap.options import DEFAULT_TOLERANCE, Acceleration
+from arap.solve.addons import LocalState, RotationFit
 from arap.solve.result import ArapResult
+from arap.solve.solver import ArapSolver
 
-__all__ = ["NORMAL_LAMBDA", "BlendSolver", "cell_scales"]
+__all__ = ["NORMAL_LAMBDA", "BlendSolver", "ScaledFit", "cell_scales", "similarity_step"]
+
+_CHUNK = 512
+"""Cells per unit of parallel work (as :mod:`arap.method.planar`)."""
 
 NORMAL_LAMBDA = 1.0
 """The scale term's weight λ of the "normal" mode: each part keeps the cube root of the scale the pins ask of it."""
@@ -70,42 +88,159 @@ def cell_scales(c: NDArray[np.float64], lam: float) -> NDArray[np.float64]:
     return r
 
 
+@nb.njit(cache=True, nogil=True, inline="always")
+def _scale(c, lam):  # pragma: no cover - compiled
+    """One cell's :func:`cell_scales` (``c ≥ 0``)."""
+    if lam == 0.0:
+        return c
+    if lam == 1.0:
+        return np.cbrt(c)
+    r = max(c, 1.0)
+    for _ in range(100):
+        slope = 3.0 * lam * r * r + 1.0 - lam
+        step = (lam * r * r * r + (1.0 - lam) * r - c) / (slope if slope > 0.0 else 1.0)
+        r = max(r - step, 0.0)
+        if abs(step) <= 1e-15 * max(r, 1.0):
+            break
+    return r
+
+
+@nb.njit(cache=True, nogil=True)
+def _similarity_chunk(ch, lam, cell_ids, ptr, a, b, w, we, rest_sq, U, R, E):  # pragma: no cover - compiled
+    # arap.method.planar's kernel with the similarity r R in place of the rotation R, and the scale term.
+    total = 0.0
+    for t in range(ch * _CHUNK, min(cell_ids.shape[0], (ch + 1) * _CHUNK)):
+        c = cell_ids[t]
+        s00 = s01 = s10 = s11 = 0.0
+        cur = 0.0
+        for k in range(ptr[c], ptr[c + 1]):
+            d0 = U[a[k], 0] - U[b[k], 0]
+            d1 = U[a[k], 1] - U[b[k], 1]
+            d2 = U[a[k], 2] - U[b[k], 2]
+            cur += w[k] * (d0 * d0 + d1 * d1 + d2 * d2)
+            x0 = we[k, 0]
+            x1 = we[k, 1]
+            s00 += x0 * d0
+            s01 += x0 * d1
+            s10 += x1 * d0
+            s11 += x1 * d1
+        p = s00 + s11
+        q = s01 - s10
+        length = math.sqrt(p * p + q * q)  # tr(R S) of the best rotation: 2|t| c
+        double = rest_sq[c]  # Σ w ‖e‖² = 2|t| (cotangent weights)
+        r = _scale(length / double if double > 0.0 else 0.0, lam)
+        cs = r  # no preferred angle for a collapsed cell: none
+        sn = 0.0
+        if length > 0.0:
+            cs = r * p / length
+            sn = r * q / length
+        R[c, 0, 0] = cs
+        R[c, 0, 1] = -sn
+        R[c, 0, 2] = 0.0
+        R[c, 1, 0] = sn
+        R[c, 1, 1] = cs
+        R[c, 1, 2] = 0.0
+        R[c, 2, 0] = 0.0
+        R[c, 2, 1] = 0.0
+        R[c, 2, 2] = 1.0
+        grow = r * r - 1.0
+        e = cur - 2.0 * r * length + r * r * double + 0.5 * lam * double * grow * grow
+        E[c] = e
+        total += e
+    return total
+
+
+@nb.njit(cache=True, nogil=True)
+def _similarity_serial(lam, cell_ids, ptr, a, b, w, we, rest_sq, U, R, E):  # pragma: no cover - compiled
+    total = 0.0
+    for ch in range((cell_ids.shape[0] + _CHUNK - 1) // _CHUNK):
+        total += _similarity_chunk(ch, lam, cell_ids, ptr, a, b, w, we, rest_sq, U, R, E)
+    return total
+
+
+@nb.njit(cache=True, nogil=True, parallel=True)
+def _similarity_parallel(lam, cell_ids, ptr, a, b, w, we, rest_sq, U, R, E):  # pragma: no cover - compiled
+    n_chunks = (cell_ids.shape[0] + _CHUNK - 1) // _CHUNK
+    part = np.empty(n_chunks)
+    for ch in nb.prange(n_chunks):
+        part[ch] = _similarity_chunk(ch, lam, cell_ids, ptr, a, b, w, we, rest_sq, U, R, E)
+    total = 0.0
+    for ch in range(n_chunks):  # summed in order: the thread count does not change the sum
+        total += part[ch]
+    return total
+
+
+def similarity_step(cells: Cells, cell_ids: NDArray[np.int64], U: NDArray[np.float64], R: NDArray[np.float64],
+                    E: NDArray[np.float64], lam: float) -> float:
+    """The local step of the hybrid energy on planar element cells, in place: each listed cell's best similarity
+    ``r R`` into ``R`` (3×3, the ``z`` row and column of the identity) and its energy
+    ``Σ w ‖e' − r R e‖² + λ ½ Σ w ‖e‖² (r² − 1)²`` into ``E``; their sum.
+
+    With the cotangent weights ``½ Σ w ‖e‖²`` is the triangle's area ``|t|`` and the energy is the module's
+    ``|t| (‖J − r R‖² + λ (r² − 1)²)``; with other weights or painted stiffness the scale term is weighted as the
+    cell's other terms are.
+    """
+    args = (float(lam), cell_ids, cells.ptr, cells.a, cells.b, cells.w, cells.we, cells.rest_sq, U, R, E)
+    work = len(cell_ids) * len(cells.a) // max(cells.n_cells, 1)
+    return float(policy.run("similarity", work, lambda: _similarity_serial(*args),
+                            lambda: _similarity_parallel(*args)))
+
+
+class ScaledFit(RotationFit):
+    """Each planar cell's best similarity of the hybrid energy (:func:`similarity_step`), as the local step of a
+    prepared solver."""
+
+    def __init__(self, cells: Cells, active: NDArray[np.int64], lam: float) -> None:
+        self.cells = cells
+        self.active = active
+        self.lam = float(lam)
+
+    def fit(self, U: NDArray[np.float64], state: LocalState) -> float:
+        return similarity_step(self.cells, self.active, U, state.R, state.E, self.lam)
+
+    def fit_all(self, U: NDArray[np.float64], R: NDArray[np.float64], E: NDArray[np.float64]) -> None:
+        similarity_step(self.cells, np.arange(self.cells.n_cells), U, R, E, self.lam)
+
+
 class BlendSolver:
-    """A planar element mesh deformed with the hybrid energy (see :mod:`arap.puppet.blend`), on the factorisation of
-    an :class:`arap.ArapSolver` (the global step's matrix is ARAP's).
+    """A planar element mesh deformed with the hybrid energy (see :mod:`arap.puppet.blend`), on the set-up and the
+    factorisation of an :class:`arap.ArapSolver` (the global step's matrix is ARAP's).
+
+    The solve is the ARAP solver's own (its starts, warm starts, Anderson's acceleration or L-BFGS, stopping rule
+    and compiled steps) with the local step fitting similarities instead of rotations (:class:`ScaledFit`).
 
     Parameters
     ----------
     solver : ArapSolver
         Built with ``energy="elements"`` on a planar mesh (``(n, 2)`` positions, or ``(n, 3)`` in ``z = 0``) and
-        the constraints (anchored vertices, point handles) to meet.
+        the constraints (anchored vertices, point handles) to meet. Its factorisation is shared, not copied.
     lam : float
         λ ≥ 0: 0 the as-similar-as-possible energy, larger values nearer the rigid one.
+
+    Raises
+    ------
+    OptionError
+        λ negative or not finite, or a solver of another energy or of a mesh not in a plane.
 
     Notes
     -----
     :meth:`solve` takes what :meth:`arap.ArapSolver.solve` takes and gives an :class:`arap.ArapResult`.
     """
 
-    def __init__(self, solver: Any, lam: float) -> None:
+    def __init__(self, solver: ArapSolver, lam: float) -> None:
         if not (lam >= 0.0 and np.isfinite(lam)):
             raise OptionError(f"the scale weight must be a finite number ≥ 0, got {lam!r}")
+        p = solver.prepared
+        if p.energy_type != "elements" or not p.cells.planar or p.F.shape[1] != 3:
+            raise OptionError("the hybrid energy needs a solver of a planar triangle mesh with energy='elements'")
         self.inner = solver
         self.lam = float(lam)
-        V = np.asarray(solver.V, dtype=np.float64)[:, :2]
-        F = np.asarray(solver.F, dtype=np.int64)
-        E = np.stack([V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]]], axis=2)  # (m, 2, 2): edges as columns
-        inv = np.linalg.inv(E)  # J = [u1 − u0, u2 − u0] @ inv
-        self._F = F
-        self._corners = (np.ascontiguousarray(F[:, 0]), np.ascontiguousarray(F[:, 1]), np.ascontiguousarray(F[:, 2]))
-        self._grad = tuple(np.ascontiguousarray(inv[:, i, j]) for i in (0, 1) for j in (0, 1))
-        self._area = 0.5 * np.abs(np.linalg.det(E))
-        self._similarities = np.zeros((len(F), 3, 3))
-        lo, hi = V.min(axis=0), V.max(axis=0)
-        self._diagonal = float(np.linalg.norm(hi - lo))
-        self._last: NDArray[np.float64] | None = None
-        self._live: NDArray[np.float64] | None = None
-        self.factor_seconds = float(getattr(solver, "factor_seconds", 0.0))
+        fit = ScaledFit(p.cells, p.active, self.lam)
+        inactive = InactiveCells(p.cells, p.active, p.numbering.constrained, p.rest,
+                                 fit=partial(similarity_step, lam=self.lam))
+        #: The ARAP solver with the similarities' local step, sharing ``inner``'s factorisation.
+        self.solver = ArapSolver.from_prepared(replace(p, rotation_fit=fit, inactive=inactive))
+        self.factor_seconds = float(solver.factor_seconds)
 
     @property
     def n_free(self) -> int:
@@ -120,129 +255,30 @@ class BlendSolver:
     @property
     def F(self) -> NDArray[np.int64]:
         """Triangles."""
-        return self._F
+        return np.asarray(self.inner.F)
 
-    def _gradients(self, U: NDArray[np.float64]) -> tuple[NDArray[np.float64], ...]:
-        """The deformation gradients' entries ``(J00, J01, J10, J11)`` at positions ``U``, each (m,)."""
-        x, y = U[:, 0], U[:, 1]
-        f0, f1, f2 = self._corners
-        g00, g01, g10, g11 = self._grad
-        x0, y0 = x[f0], y[f0]
-        dx1, dx2, dy1, dy2 = x[f1] - x0, x[f2] - x0, y[f1] - y0, y[f2] - y0
-        return dx1 * g00 + dx2 * g10, dx1 * g01 + dx2 * g11, dy1 * g00 + dy2 * g10, dy1 * g01 + dy2 * g11
-
-    def jacobians(self, U: NDArray[np.float64]) -> NDArray[np.float64]:
-        """The deformation gradient of every triangle at positions ``U``, shape (m, 2, 2)."""
-        J = self._gradients(np.asarray(U, dtype=np.float64))
-        return np.stack(J, axis=1).reshape(-1, 2, 2)
-
-    def _local(self, J: tuple[NDArray[np.float64], ...]) -> tuple[NDArray[np.float64], ...]:
-        """The cells' similarities ``r R`` for gradients ``J``: their entries ``(L00, L01, L10, L11)`` and scales ``r``.
-
-        The rotation is the nearest to ``J`` (in the plane, of angle ``atan2(J10 − J01, J00 + J11)``; the local step of
-        planar ARAP) and ``c = ½ tr(Rᵀ J) = ½ |(J00 + J11, J10 − J01)|``.
-        """
-        p = 0.5 * (J[0] + J[3])
-        q = 0.5 * (J[2] - J[1])
-        c = np.hypot(p, q)
-        r = cell_scales(c, self.lam)
-        turned = c > 0.0
-        scale = np.divide(r, c, out=np.zeros_like(r), where=turned)
-        cos = np.where(turned, p * scale, r)  # no preferred angle for a collapsed triangle: none
-        sin = q * scale
-        return cos, -sin, sin, cos, r
-
-    def _energy(self, J: tuple[NDArray[np.float64], ...], L: tuple[NDArray[np.float64], ...]) -> float:
-        a, b, c, d = J[0] - L[0], J[1] - L[1], J[2] - L[2], J[3] - L[3]
-        r = L[4]
-        # Not np.dot: the threaded BLAS's start-up costs more than this short product on busy cores.
-        return float(np.einsum("m,m->", self._area, a * a + b * b + c * c + d * d + self.lam * (r * r - 1.0) ** 2))
-
-    def _as_matrices(self, L: tuple[NDArray[np.float64], ...]) -> NDArray[np.float64]:
-        """The similarities as the global step takes rotations: (m, 3, 3)."""
-        M = self._similarities
-        M[:, 0, 0], M[:, 0, 1], M[:, 1, 0], M[:, 1, 1], M[:, 2, 2] = L
-        return M
-
-    def energy(self, U: NDArray[np.float64]) -> float:
-        """The hybrid energy of positions ``U`` with their best similarities."""
-        J = self._gradients(np.asarray(U, dtype=np.float64))
-        return self._energy(J, self._local(J))
+    def energy(self, U: ArrayLike) -> float:
+        """The hybrid energy of positions ``U`` with their best similarities, summed over all cells."""
+        return self.solver.energy(np.asarray(U, dtype=np.float64))
 
     def solve(self, targets: Any, initial: Any = None, max_iterations: int | None = None,
               tolerance: float = DEFAULT_TOLERANCE, callback: Callable[[int, float], Any] | None = None,
-              acceleration: Any = "anderson", window: int | None = None, point_targets: Any = None) -> ArapResult:
-        """Deform the mesh so the constraints reach their targets (as :meth:`arap.ArapSolver.solve`).
-
-        ``initial`` None continues from the previous solution (the first time: ARAP's start, the rest pose or its
-        best rigid motion onto the targets); a tolerance of 0 runs all ``max_iterations``. Converged when the plain
-        step's root mean square is at most ``tolerance`` times the rest pose's bounding-box diagonal.
-        ``acceleration``: ``"none"`` the plain local/global iteration, anything else Anderson's acceleration with
-        ``window`` iterates (default 5) and an energy safeguard (an extrapolation that raises the energy is replaced
-        by the plain step), as :meth:`arap.ArapSolver.solve` does with ``"anderson"``. The energies never rise.
+              acceleration: Acceleration = "lbfgs", window: int | None = None,
+              point_targets: Any = None) -> ArapResult:
+        """Deform the mesh so the constraints reach their targets: :meth:`arap.ArapSolver.solve`, with its meaning
+        of every parameter (``initial`` None continues from the previous solution; a tolerance of 0 runs all
+        ``max_iterations``; L-BFGS where that solver runs it, else Anderson's acceleration with its energy
+        safeguard). The energies never rise.
         """
-        t0 = time.perf_counter()
-        cap = MAX_ITERATIONS if max_iterations is None else int(max_iterations)
-        if cap < 0:
-            raise OptionError(f"max_iterations must be ≥ 0, got {max_iterations}")
-        if initial is None and self._last is not None:
-            U, start = self._last, "warm"
-        elif initial is None or isinstance(initial, str):
-            first = self.inner.solve(targets, initial="auto" if initial is None else initial, max_iterations=0,
-                                     point_targets=point_targets)
-            U, start = first.vertices, first.start
-        else:
-            U, start = np.array(initial, dtype=np.float64), "given"
-            if U.shape != self.V.shape:
-                raise OptionError(f"initial must have shape {self.V.shape}, got {U.shape}")
-        energies: list[float] = []
-        converged = False
-        step = float("nan")
-        accelerator = None if acceleration == "none" else AndersonAccelerator(
-            DEFAULT_WINDOW if window is None else int(window), U.size)
-        J = self._gradients(U)
-        L = self._local(J)
-        best = float("inf")
-        for iteration in range(1, cap + 1):
-            plain = self.inner.global_step(self._as_matrices(L), targets, point_targets)
-            moved = plain - U
-            step = float(np.sqrt(np.einsum("ij,ij->", moved, moved) / len(U)))
-            guess = None if accelerator is None else accelerator.step(U.ravel(), plain.ravel())
-            if guess is not None:  # Anderson's extrapolation, kept only if it lowers the energy (Peng et al. 2018)
-                U_try = guess.reshape(U.shape)
-                J_try = self._gradients(U_try)
-                L_try = self._local(J_try)
-                energy = self._energy(J_try, L_try)
-                if energy <= best:
-                    U, J, L = U_try, J_try, L_try
-                else:
-                    guess = None
-                    assert accelerator is not None
-                    accelerator.reset()
-            if guess is None:
-                U = plain
-                J = self._gradients(U)
-                L = self._local(J)
-                energy = self._energy(J, L)
-            best = min(best, energy)
-            energies.append(energy)
-            self._live = U
-            if callback is not None and callback(iteration, energy) is False:
-                break
-            if tolerance > 0 and step <= tolerance * self._diagonal:
-                converged = True
-                break
-        self._live = None
-        self._last = U
-        return ArapResult(vertices=U.copy(), energies=energies, iterations=len(energies), converged=converged,
-                          timings={"total": time.perf_counter() - t0}, residual=step, start=start)
+        return self.solver.solve(targets, initial=initial, max_iterations=max_iterations, tolerance=tolerance,
+                                 callback=callback, acceleration=acceleration, window=window,
+                                 point_targets=point_targets)
 
     def current_vertices(self) -> NDArray[np.float64]:
         """Positions of the current iterate during :meth:`solve` (from its callback), else of the last solution
         (the rest pose before any)."""
-        U = self._live if self._live is not None else self._last
-        return self.V.copy() if U is None else U.copy()
+        return self.solver.current_vertices()
 
     def reset(self) -> None:
         """Forget the previous solution."""
-        self._last = None
+        self.solver.reset()

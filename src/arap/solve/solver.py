@@ -139,6 +139,17 @@ class ArapSolver:
         self._state = SolveState(LocalState.empty(self.prepared.cells.n_cells))
         self.factor_seconds = time.perf_counter() - t0
 
+    @classmethod
+    def from_prepared(cls, prepared: Prepared) -> ArapSolver:
+        """A solver on a set-up record built before: another solver's, or one derived from it with
+        ``dataclasses.replace`` (another local step, e.g. :class:`arap.puppet.blend.ScaledFit`). Nothing is
+        factorised again (the factor is shared); the new solver has its own solve state."""
+        solver = cls.__new__(cls)
+        solver.prepared = prepared
+        solver._state = SolveState(LocalState.empty(prepared.cells.n_cells))
+        solver.factor_seconds = 0.0
+        return solver
+
     # ------------------------------------------------------------------ the set-up, as given and checked
     @property
     def V(self) -> NDArray[np.float64]:
