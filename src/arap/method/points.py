@@ -164,6 +164,7 @@ class PointSystem:
         self._w_all = np.where(self.hard, self.mu, self.soft_w)
         self.Z: NDArray[np.float64] | None = None
         self._S: tuple[NDArray[np.float64], bool] | None = None
+        self._C_hard: sp.csr_matrix | None = None
 
     def matrix(self) -> sp.csr_matrix:
         """``Σ_soft w CᵀC + μ Σ_hard CᵀC`` over the free vertices, added to the system matrix."""
@@ -189,6 +190,7 @@ class PointSystem:
             raise ConstraintError(message)
         self._S = factor
         self.Z = Z
+        self._C_hard = Ch
 
     def known(self, fixed: NDArray[np.float64]) -> NDArray[np.float64]:
         """(p, 3) contribution of the non-free vertices to each point."""
@@ -202,11 +204,20 @@ class PointSystem:
     def correct(self, y: NDArray[np.float64], targets: NDArray[np.float64], fixed: NDArray[np.float64]
                 ) -> NDArray[np.float64]:
         """The solution of the global step with the hard constraints met, from the unconstrained one ``y``."""
-        if self._S is None or self.Z is None:
-            return y
+        return self.project(y, self.goal(targets, fixed))
+
+    def goal(self, targets: NDArray[np.float64], fixed: NDArray[np.float64]) -> NDArray[np.float64]:
+        """What the free vertices must give the hard points, ``C_h x``, for ``targets``: (h, 3), once per solve."""
         h = self.hard
-        miss = np.asarray(self.C_free[h] @ y) - (targets[h] - self.known(fixed)[h])
-        return np.asarray(y - self.Z @ sla.cho_solve(self._S, miss))
+        return targets[h] - self.known(fixed)[h]
+
+    def project(self, y: NDArray[np.float64], goal: NDArray[np.float64]) -> NDArray[np.float64]:
+        """:meth:`correct` with the hard points' :meth:`goal` computed before (the matrices' rows taken once, at
+        :meth:`prepare`: a drag corrects every iteration)."""
+        if self._S is None or self.Z is None or self._C_hard is None:
+            return y
+        miss = np.asarray(self._C_hard @ y) - goal
+        return np.asarray(y - self.Z @ sla.cho_solve(self._S, miss, check_finite=False))
 
     def penalty(self, free: NDArray[np.float64], targets: NDArray[np.float64], fixed: NDArray[np.float64]) -> float:
         """``Σ_soft w ‖C x − t‖²``: the soft constraints' part of the energy."""

@@ -209,9 +209,10 @@ class PointHandles(AddOn):
         if P is None or not self.system.hard.any():
             return None
         system = self.system
+        goal = system.goal(P, fixed)
 
         def correct(g: Array) -> Array:
-            return system.correct(g, P, fixed)
+            return system.project(g, goal)
 
         return correct
 
