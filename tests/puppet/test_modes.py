@@ -154,3 +154,30 @@ def test_the_blend_needs_a_planar_element_solver() -> None:
     V, F = arap.builtin_mesh("sphere:200")
     with pytest.raises(arap.OptionError, match="planar"):
         BlendSolver(arap.ArapSolver(V, F, [0]), 1.0)
+
+
+def test_distort_is_one_linear_solve_at_the_energys_minimum() -> None:
+    puppet = arap.PuppetWarp(bar(), PINS, spacing=10, mode="rigid")
+    held = puppet.mesh.vertices[puppet.held]
+    targets = [[25.0, 100.0], [150.0, 160.0]]
+    direct = BlendSolver(puppet._solver, 0.0)
+    result = direct.solve(held, point_targets=targets)
+    assert result.iterations == 1 and result.converged
+    assert direct.energy(result.vertices) == pytest.approx(result.energies[0], rel=1e-9)
+    iterated = BlendSolver(puppet._solver, 0.0, direct=False).solve(held, point_targets=targets,
+                                                                    initial=result.vertices, max_iterations=50,
+                                                                    tolerance=0.0)
+    area = float(_areas(puppet.mesh.vertices, puppet.mesh.triangles).sum())
+    assert iterated.energies[-1] >= result.energies[0] - 1e-9 * area  # the iteration finds nothing lower
+    assert np.abs(iterated.vertices - result.vertices).max() < 0.01
+    corners = result.vertices[puppet.mesh.triangles[puppet.faces]]
+    assert np.abs(np.einsum("pc,pcx->px", puppet.barycentric, corners) - targets).max() < 1e-6
+
+
+def test_distort_with_one_pin_moves_the_picture_with_it() -> None:
+    # One pin leaves the shape free to turn and scale about it: the solve takes the shape nearest the rest pose.
+    puppet = arap.PuppetWarp(bar(), PINS[:1], spacing=10, mode="rigid")
+    result = BlendSolver(puppet._solver, 0.0).solve(puppet.mesh.vertices[puppet.held], point_targets=[[40.0, 90.0]])
+    assert result.converged
+    moved = result.vertices - puppet.mesh.vertices
+    assert np.abs(moved - [15.0, -10.0]).max() < 1e-3

@@ -33,6 +33,7 @@ positions is ARAP's ``2 (A x − b)`` with the similarities, and L-BFGS applies 
 from __future__ import annotations
 
 import math
+import time
 from collections.abc import Callable
 from dataclasses import replace
 from functools import partial
@@ -47,8 +48,10 @@ from arap.errors import OptionError
 from arap.kernels.parallel import policy
 from arap.method.cells import Cells
 from arap.method.inactive import InactiveCells
-from arap.options import DEFAULT_TOLERANCE, Acceleration
-from arap.solve.addons import LocalState, RotationFit
+from arap.options import DEFAULT_TOLERANCE, START_NAMES, Acceleration
+from arap.puppet.similar import SimilarSystem
+from arap.solve.addons import LocalState, RigidAddOn, RotationFit
+from arap.solve.iteration import local_energy
 from arap.solve.result import ArapResult
 from arap.solve.solver import ArapSolver
 
@@ -216,6 +219,10 @@ class BlendSolver:
         the constraints (anchored vertices, point handles) to meet. Its factorisation is shared, not copied.
     lam : float
         λ ≥ 0: 0 the as-similar-as-possible energy, larger values nearer the rigid one.
+    direct : bool
+        With λ = 0 the energy is quadratic: every solve is then one linear solve of its minimum
+        (:class:`arap.puppet.similar.SimilarSystem`, factorised here), converged at once, instead of iterations
+        (without rigid regions; False: iterate).
 
     Raises
     ------
@@ -227,7 +234,7 @@ class BlendSolver:
     :meth:`solve` takes what :meth:`arap.ArapSolver.solve` takes and gives an :class:`arap.ArapResult`.
     """
 
-    def __init__(self, solver: ArapSolver, lam: float) -> None:
+    def __init__(self, solver: ArapSolver, lam: float, direct: bool = True) -> None:
         if not (lam >= 0.0 and np.isfinite(lam)):
             raise OptionError(f"the scale weight must be a finite number ≥ 0, got {lam!r}")
         p = solver.prepared
@@ -240,7 +247,12 @@ class BlendSolver:
                                  fit=partial(similarity_step, lam=self.lam))
         #: The ARAP solver with the similarities' local step, sharing ``inner``'s factorisation.
         self.solver = ArapSolver.from_prepared(replace(p, rotation_fit=fit, inactive=inactive))
-        self.factor_seconds = float(solver.factor_seconds)
+        t0 = time.perf_counter()
+        rigid = any(isinstance(addon, RigidAddOn) for addon in p.addons)
+        #: The as-similar-as-possible minimum as one solve (λ = 0), or None.
+        self.similar = SimilarSystem(self.solver.prepared) if direct and self.lam == 0.0 and p.nf and not rigid \
+            else None
+        self.factor_seconds = float(solver.factor_seconds) + time.perf_counter() - t0
 
     @property
     def n_free(self) -> int:
@@ -270,9 +282,41 @@ class BlendSolver:
         ``max_iterations``; L-BFGS where that solver runs it, else Anderson's acceleration with its energy
         safeguard). The energies never rise.
         """
-        return self.solver.solve(targets, initial=initial, max_iterations=max_iterations, tolerance=tolerance,
-                                 callback=callback, acceleration=acceleration, window=window,
-                                 point_targets=point_targets)
+        if self.similar is None or max_iterations == 0:
+            return self.solver.solve(targets, initial=initial, max_iterations=max_iterations, tolerance=tolerance,
+                                     callback=callback, acceleration=acceleration, window=window,
+                                     point_targets=point_targets)
+        return self._solve_similar(targets, initial, callback, point_targets)
+
+    def _solve_similar(self, targets: Any, initial: Any, callback: Callable[[int, float], Any] | None,
+                       point_targets: Any) -> ArapResult:
+        """The as-similar-as-possible minimum in one solve (the start does not matter, but is checked), kept as the
+        solver's last solution; one iteration, converged."""
+        t0 = time.perf_counter()
+        solver = self.solver
+        p, state = solver.prepared, solver._state
+        T = p.check_targets(targets)
+        fixed = p.fixed_positions(T)
+        P = p.check_point_targets(point_targets)
+        if initial is not None and not isinstance(initial, str):
+            p.check_positions(initial, "initial")
+        elif isinstance(initial, str) and initial not in START_NAMES:
+            raise OptionError(f"unknown initial {initial!r}; expected one of {START_NAMES}, an array or None")
+        timings = {"local": 0.0, "rhs": 0.0, "solve": 0.0, "acceleration": 0.0}
+        assert self.similar is not None
+        U = p.rest.copy()
+        U[p.nf:] = fixed
+        U[:p.nf] = self.similar.solve(fixed, P)
+        timings["solve"] = time.perf_counter() - t0
+        state.local.points = None if P is None else (P, fixed)
+        energy = local_energy(p, state.local, U, p.inactive.energy(U, T), timings)
+        state.last, state.live, state.rotations_fresh = U, None, True
+        if callback is not None:
+            callback(1, energy)
+        timings["total"] = time.perf_counter() - t0
+        return ArapResult(vertices=p.to_caller(U), energies=[energy], iterations=1, converged=True, timings=timings,
+                          residual=0.0, start="given" if initial is not None and not isinstance(initial, str)
+                          else "rest")
 
     def current_vertices(self) -> NDArray[np.float64]:
         """Positions of the current iterate during :meth:`solve` (from its callback), else of the last solution
