@@ -7,11 +7,14 @@ client (as ``bench_studio.py``'s) sends a drag, waits for its ``vertices`` frame
 pointer follows the picture). Reported per mode (``rigid``, ``normal``, ``distort``) at the studio's default of
 iterations per update: the server's solve time per update (``solve_ms`` of each frame), the round trip from sending
 the drag to receiving its frame (message in to frame out, plus the loopback), both as median and p95 over the
-updates, against the targets of 16 ms at 5k and 50 ms at 50k vertices.
+updates, against the targets of 16 ms at 5k and 50 ms at 50k vertices; then the settle after the pin is released
+(the server's time from the release to converged, and its iterations), against 0.2 s at 5k; and the mesher's time
+for the picture at each size (median of three, in this process), against 0.5 s at 5k.
 
 Peer: libigl's planar ARAP (``ARAP_ENERGY_TYPE_ELEMENTS``) of the same mesh, one ``arap_solve`` per update with the
 same number of iterations, warm-started from its previous solution, the pins constrained at their nearest vertices
-(libigl has no point handles), in this process.
+(libigl has no point handles), in this process; and for the settle, one ``arap_solve`` of as many iterations as the
+studio's settle took, from libigl's shape at the last update.
 
 Run: ``python benchmarks/bench_puppet_drag.py [--quick] [--updates N] [--modes rigid,normal] [--json OUT]``
 (``--quick``: a 300 × 300 picture at about 1,000 and 5,000 vertices).
@@ -34,12 +37,14 @@ import numpy as np
 from numpy.typing import NDArray
 from websockets.asyncio.client import ClientConnection, connect
 
+from arap.puppet.imagemesh import image_mesh
 from arap.server.frames import decode_binary
 from bench_puppet import figure_picture
 from benchjson import add_json_option, figure, write_results
 
 ROOT = Path(__file__).resolve().parents[1]
 TARGET_MS = {5000: 16.0, 50000: 50.0}
+MESH_TARGET_S = 0.5
 
 _SERVER = """
 import sys
@@ -149,53 +154,83 @@ async def drag_session(url: str, pins: NDArray[np.float64], h: int, updates: int
             trip.append(1000 * (time.perf_counter() - sent))
             solve.append(float(frame["solve_ms"]))
             iterations = int(frame["iterations"])
+        released = time.perf_counter()
         await ws.send(json.dumps({"type": "end_drag"}))
+        while True:  # the settle after the release, until converged (or its cap)
+            data, _ = await _recv(ws)
+            if data["type"] == "settle" and data["status"] in ("settled", "unconverged"):
+                break
+        settle_wall = 1000 * (time.perf_counter() - released)
     return {"mode": mode, "vertices": n, "triangles": m, "factor_ms": factor_ms, "iterations": iterations,
             "solve_median_ms": float(np.median(solve)), "solve_p95_ms": float(np.percentile(solve, 95)),
             "roundtrip_median_ms": float(np.median(trip)), "roundtrip_p95_ms": float(np.percentile(trip, 95)),
+            "settle_ms": 1000 * float(data["seconds"] or 0.0), "settle_wall_ms": settle_wall,
+            "settle_iterations": int(data["iterations"]), "settled": data["status"] == "settled",
             "V": V, "F": F, "pins": studio_pins, "reach": reach}
 
 
-def igl_updates(V: NDArray[np.float64], F: NDArray[np.int64], pins: NDArray[np.float64], reach: float,
-                updates: int, iterations: int) -> dict[str, float] | None:
-    """libigl's planar ARAP per update: one warm-started ``arap_solve`` of ``iterations`` iterations each."""
-    try:
+class IglPeer:
+    """libigl's planar ARAP of the studio's mesh, the pins at their nearest vertices: per drag update one
+    warm-started ``arap_solve`` of the studio's iterations, and the settle after the release as ``arap_solve`` of
+    as many iterations as the studio's settle took, from the last update's shape."""
+
+    def __init__(self, V: NDArray[np.float64], F: NDArray[np.int64], pins: NDArray[np.float64]) -> None:
         import igl
-    except ImportError:
-        return None
-    V2 = np.ascontiguousarray(V[:, :2])
-    F = np.ascontiguousarray(F)
-    b = np.array([int(np.argmin(np.hypot(*(V2 - p).T))) for p in pins], dtype=np.int64)
-    d = igl.ARAPData()
-    d.energy = igl.ARAP_ENERGY_TYPE_ELEMENTS
-    d.max_iter = max(iterations, 1)
-    igl.arap_precomputation(V2, F, 2, b, d)
-    U = V2.copy()
-    times = []
-    for seq in range(updates):
-        targets = V2[b].copy()
-        targets[2] = path(0.05 * (seq + 1), V2[b[2]], reach)
+
+        self.igl = igl
+        self.V2 = np.ascontiguousarray(V[:, :2])
+        self.F = np.ascontiguousarray(F)
+        self.b = np.array([int(np.argmin(np.hypot(*(self.V2 - p).T))) for p in pins], dtype=np.int64)
+        self.data = igl.ARAPData()
+        self.data.energy = igl.ARAP_ENERGY_TYPE_ELEMENTS
+        self.data.max_iter = 1
+        igl.arap_precomputation(self.V2, self.F, 2, self.b, self.data)
+        self.U = self.V2.copy()
+        self.targets = self.V2[self.b].copy()
+
+    def drag(self, reach: float, updates: int, iterations: int) -> dict[str, float]:
+        """Times (ms) of the drag's updates, median and p95."""
+        self.data.max_iter = max(iterations, 1)
+        times = []
+        for seq in range(updates):
+            self.targets = self.V2[self.b].copy()
+            self.targets[2] = path(0.05 * (seq + 1), self.V2[self.b[2]], reach)
+            t0 = time.perf_counter()
+            self.U = np.asarray(self.igl.arap_solve(self.targets, self.data, self.U), dtype=np.float64)
+            times.append(1000 * (time.perf_counter() - t0))
+        return {"igl_median_ms": float(np.median(times)), "igl_p95_ms": float(np.percentile(times, 95))}
+
+    def settle(self, iterations: int) -> float:
+        """Time (ms) of ``iterations`` iterations from the last update's shape (which is kept)."""
+        self.data.max_iter = max(iterations, 1)
         t0 = time.perf_counter()
-        U = np.asarray(igl.arap_solve(targets, d, U), dtype=np.float64)
-        times.append(1000 * (time.perf_counter() - t0))
-    return {"igl_median_ms": float(np.median(times)), "igl_p95_ms": float(np.percentile(times, 95))}
+        self.igl.arap_solve(self.targets, self.data, self.U)
+        return 1000 * (time.perf_counter() - t0)
 
 
 async def measure(img: NDArray[np.uint8], pins: NDArray[np.float64], vertices: int, updates: int,
                   modes: list[str]) -> list[dict[str, Any]]:
     rows = []
-    peer: dict[str, float] | None = None
+    drag: dict[str, float] | None = None
     with tempfile.TemporaryDirectory() as tmp:
+        t0 = time.perf_counter()
         proc, url = start(img, spacing_for(img, vertices), Path(tmp))
+        started = time.perf_counter() - t0
         try:
             for mode in modes:
                 r = await drag_session(url, pins, img.shape[0], updates, mode)
                 V, F, studio_pins, reach = r.pop("V"), r.pop("F"), r.pop("pins"), r.pop("reach")
-                if mode == modes[0]:
-                    peer = igl_updates(V, F, studio_pins, reach, updates, r["iterations"])
-                if peer is not None:
-                    r.update(peer)
+                try:
+                    peer = IglPeer(V, F, studio_pins)
+                except ImportError:
+                    peer = None
+                if peer is not None:  # the same drag (it leaves libigl at the last update's shape), then the settle
+                    updates_ms = peer.drag(reach, updates, r["iterations"])
+                    drag = drag if drag is not None else updates_ms  # the first mode's: libigl's is one energy
+                    r.update(drag)
+                    r["igl_settle_ms"] = peer.settle(r["settle_iterations"])
                 r["asked"] = vertices
+                r["server_start_s"] = started
                 rows.append(r)
         finally:
             proc.terminate()
@@ -218,21 +253,39 @@ def main(argv: list[str] | None = None) -> None:
     img, pins, _ = figure_picture(size)
     print(f"{size}x{size} cut-out, 5 pins, the right hand dragged; {args.updates} updates per mode")
     print(f"{'vertices':>9} {'mode':>8} {'iter':>4} {'solve med':>9} {'p95':>6} {'trip med':>8} {'p95':>6} "
-          f"{'target':>6} {'igl med':>7} {'p95':>6}")
+          f"{'target':>6} {'igl med':>7} {'p95':>6} {'settle':>7} {'iter':>5} {'igl':>7}")
     rows, figures = [], []
     for count in counts:
+        spacing = spacing_for(img, count)
+        mesh_times = []
+        for _ in range(3):
+            t0 = time.perf_counter()
+            image_mesh(img, spacing)
+            mesh_times.append(time.perf_counter() - t0)
+        mesh_s = float(np.median(mesh_times))
+        print(f"{'':>9} meshing the picture: {1000 * mesh_s:.0f} ms (median of 3; target at 5k: "
+              f"{1000 * MESH_TARGET_S:.0f} ms)")
         for r in asyncio.run(measure(img, pins, count, args.updates, modes)):
+            r["mesh_s"] = mesh_s
             rows.append(r)
             target = TARGET_MS.get(count, math.nan)
             peer = (f"{r['igl_median_ms']:>7.1f} {r['igl_p95_ms']:>6.1f}" if "igl_median_ms" in r
                     else f"{'(no libigl)':>14}")
+            settle = f"{r['settle_ms']:>7.1f} {r['settle_iterations']:>5}{'' if r['settled'] else '!'}"
+            igl_settle = f"{r['igl_settle_ms']:>7.1f}" if "igl_settle_ms" in r else ""
             print(f"{r['vertices']:>9,} {r['mode']:>8} {r['iterations']:>4} {r['solve_median_ms']:>9.1f} "
                   f"{r['solve_p95_ms']:>6.1f} {r['roundtrip_median_ms']:>8.1f} {r['roundtrip_p95_ms']:>6.1f} "
-                  f"{target:>6.0f} {peer}")
+                  f"{target:>6.0f} {peer} {settle} {igl_settle}")
             n = f"{r['vertices'] / 1000:.0f}k vertices"
             figures.append(figure(f"puppet drag: {r['mode']} update round trip (median), {n}",
                                   r["roundtrip_median_ms"] / 1000, "s", "libigl arap_solve per update",
                                   r["igl_median_ms"] / 1000 if "igl_median_ms" in r else None))
+            figures.append(figure(f"puppet drag: {r['mode']} server solve per update (median), {n}",
+                                  r["solve_median_ms"] / 1000, "s", "libigl arap_solve per update",
+                                  r["igl_median_ms"] / 1000 if "igl_median_ms" in r else None))
+            figures.append(figure(f"puppet drag: {r['mode']} settle after release, {n}", r["settle_ms"] / 1000, "s",
+                                  "libigl arap_solve of as many iterations",
+                                  r["igl_settle_ms"] / 1000 if "igl_settle_ms" in r else None))
     if args.json is not None:
         write_results(args.json, "bench_puppet_drag", figures, rows)
 

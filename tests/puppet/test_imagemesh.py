@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import sys
 
 import numpy as np
@@ -9,6 +10,7 @@ import pytest
 import scipy.ndimage as ndi
 
 import arap
+from arap.puppet.imagemesh import _lattice
 from arap.puppet.outline import loop_area, outline_loops
 from arap.puppet.raster import draw_textured
 from tests.puppet.pictures import centres, ring
@@ -92,3 +94,24 @@ def test_a_missing_optional_package_is_named_with_its_install_line(monkeypatch: 
     monkeypatch.setitem(sys.modules, "PIL", None)
     with pytest.raises(arap.ArapError, match=r"needs Pillow: pip install 'arap\[image\]'"):
         arap.image_mesh(__file__)
+
+
+def test_the_lattice_keeps_the_points_the_distance_transform_keeps() -> None:
+    # The lattice measures its points' distance to the shape's edge pixels only; the whole picture's distance
+    # transform gives the same points.
+    rng = np.random.default_rng(5)
+    y, x = np.mgrid[0:120, 0:160]
+    masks = [np.hypot(x - 80, y - 60) < 50, (np.abs(x - 30) < 25) | (np.abs(y - 100) < 15),
+             ndi.binary_opening(rng.random((120, 160)) < 0.7, iterations=2), np.ones((120, 160), dtype=bool)]
+    for mask in masks:
+        for spacing in (4.0, 7.5, 12.0):
+            distance = ndi.distance_transform_edt(np.pad(mask, 1))[1:-1, 1:-1]
+            h, w = mask.shape
+            dy = spacing * math.sqrt(3.0) / 2.0
+            ys = np.arange(dy / 2, h, dy)
+            xs = np.arange(spacing / 2, w + spacing, spacing)
+            X = xs[None, :] + (np.arange(len(ys)) % 2)[:, None] * (spacing / 2)
+            P = np.column_stack([X.ravel(), np.broadcast_to(ys[:, None], X.shape).ravel()])
+            P = P[(P[:, 0] < w) & (P[:, 1] < h)]
+            want = P[distance[P[:, 1].astype(np.int64), P[:, 0].astype(np.int64)] > 0.55 * spacing + 0.5]
+            assert np.array_equal(_lattice(mask, spacing), want)

@@ -17,8 +17,8 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-import scipy.ndimage as ndi
 from numpy.typing import NDArray
+from scipy.spatial import cKDTree
 
 from arap.errors import ArapError
 from arap.puppet.outline import loop_area, outline_loops, shape_mask, simplify_loop
@@ -88,10 +88,26 @@ def _cdt() -> Any:
     return pythoncdt
 
 
+def _edge_pixels(mask: NDArray[np.bool_]) -> NDArray[np.int64]:
+    """(k, 2) (row, column) of the background pixels next to the shape (8-neighbours; the frame around the picture
+    counts as background, at row or column -1 and h or w)."""
+    m = np.pad(mask, 1)
+    near = m.copy()
+    near[1:, :] |= m[:-1, :]
+    near[:-1, :] |= m[1:, :]
+    near[:, 1:] |= near[:, :-1].copy()
+    near[:, :-1] |= near[:, 1:].copy()
+    return np.argwhere(near & ~m) - 1
+
+
 def _lattice(mask: NDArray[np.bool_], spacing: float) -> NDArray[np.float64]:
-    """Points of a triangular lattice at ``spacing`` on shape pixels at least about half a spacing from its edge."""
+    """Points of a triangular lattice at ``spacing`` on shape pixels at least about half a spacing from its edge.
+
+    A pixel's distance to the nearest background pixel (the Euclidean distance transform, with the frame around the
+    picture as background) is its distance to the nearest background pixel next to the shape: one step from any
+    other towards the pixel is a nearer one. So only the lattice's points are measured, to those edge pixels.
+    """
     h, w = mask.shape
-    distance = ndi.distance_transform_edt(np.pad(mask, 1))[1:-1, 1:-1]
     dy = spacing * math.sqrt(3.0) / 2.0
     ys = np.arange(dy / 2, h, dy)
     xs = np.arange(spacing / 2, w + spacing, spacing)
@@ -100,7 +116,12 @@ def _lattice(mask: NDArray[np.bool_], spacing: float) -> NDArray[np.float64]:
     P = np.column_stack([X.ravel(), Y.ravel()])
     P = P[(P[:, 0] < w) & (P[:, 1] < h)]
     r, c = P[:, 1].astype(np.int64), P[:, 0].astype(np.int64)
-    return P[distance[r, c] > 0.55 * spacing + 0.5]
+    P, r, c = P[mask[r, c]], r[mask[r, c]], c[mask[r, c]]
+    edge = _edge_pixels(mask)
+    if not len(P) or not len(edge):
+        return P
+    distance, _ = cKDTree(edge).query(np.column_stack([r, c]))
+    return P[distance > 0.55 * spacing + 0.5]
 
 
 def mesh_of_mask(mask: NDArray[np.bool_], spacing: float) -> ImageMesh:
