@@ -181,3 +181,17 @@ def test_distort_with_one_pin_moves_the_picture_with_it() -> None:
     assert result.converged
     moved = result.vertices - puppet.mesh.vertices
     assert np.abs(moved - [15.0, -10.0]).max() < 1e-3
+
+
+def test_the_studios_distort_is_converged_after_one_solve() -> None:
+    from arap.server.solvers import plane_solver
+
+    puppet = arap.PuppetWarp(bar(), PINS, spacing=10, mode="rigid")
+    V = np.column_stack([puppet.mesh.vertices, np.zeros(len(puppet.mesh.vertices))])
+    solver = plane_solver(arap.ArapSolver(V, puppet.mesh.triangles, [], energy="elements",
+                                          points=(puppet.faces, puppet.barycentric)), "distort")
+    result = solver.solve(np.zeros((0, 3)), point_targets=[[25.0, 100.0, 0.0], [150.0, 160.0, 7.0]],
+                          max_iterations=2)
+    assert result.converged and result.iterations == 1
+    assert np.abs(result.vertices[:, 2]).max() == 0.0  # the targets are put back on the plane
+    assert solver.factor_seconds >= solver.inner.factor_seconds

@@ -114,7 +114,8 @@ class PlaneSolver:
     """A solver of a flat mesh in ``z = 0`` (a picture) whose targets are put back on the plane (the studio's handles
     can be dragged in any direction), in one of the puppet warp's modes (:data:`arap.puppet.warp.MODES`):
     ``rigid`` is the element ARAP energy itself, ``normal`` and ``distort`` the hybrid energy of
-    :mod:`arap.puppet.blend` (λ = 1 and λ = 0) on ARAP's factorisation.
+    :mod:`arap.puppet.blend` (λ = 1 and λ = 0) in ARAP's solve on its factorisation (``distort``: one linear solve,
+    :mod:`arap.puppet.similar`).
 
     Parameters
     ----------
@@ -131,7 +132,7 @@ class PlaneSolver:
         self.inner = solver
         self._blend = None if mode == "rigid" else BlendSolver(solver, NORMAL_LAMBDA if mode == "normal" else 0.0)
         self.n_free = solver.n_free
-        self.factor_seconds = solver.factor_seconds
+        self.factor_seconds = solver.factor_seconds if self._blend is None else self._blend.factor_seconds
 
     def __getattr__(self, name: str) -> Any:
         return getattr(self.inner, name)  # the rest of the ArapSolver's attributes (V, F, energy_type, ...)
