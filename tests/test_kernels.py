@@ -10,10 +10,23 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from arap.cli import main
 from arap.cli.bench import bench_constraints
+from arap.kernels.parallel import policy
+from arap.meshes.grids import box_tetrahedra, rectangle_triangles
 from arap.meshes.shapes import builtin_mesh
+from arap.method.energy import arap_energy, cell_distortion
+from arap.options import ACCELERATIONS, ENERGY_TYPES
 from arap.solve.solver import ArapSolver
-from arap.warmup import _counts, warm_up_kernels
+from arap.warmup import (
+    EVERY_SOLVE_KERNELS,
+    FIRST_KERNELS,
+    LATER_KERNELS,
+    _counts,
+    _kernel_ready,
+    compile_progress,
+    warm_up_kernels,
+)
 
 
 def test_warm_up_covers_every_solve() -> None:
@@ -31,6 +44,46 @@ def test_warm_up_covers_every_solve() -> None:
     assert _counts() == before
     assert warm_up_kernels().compiled == 0
 
+
+
+def _every_solve() -> None:
+    """Solve other meshes than the warm-up's with every energy each takes, every acceleration and weighting."""
+    cactus = builtin_mesh("cactus")
+    for V, F, energies in ((*cactus, ENERGY_TYPES),
+                           (*rectangle_triangles(7, 3), ("spokes", "spokes_and_rims", "elements")),
+                           (*box_tetrahedra(3, 2, 1), ("elements",))):
+        fixed = np.flatnonzero(V[:, 1] < V[:, 1].min() + 0.2 * np.ptp(V[:, 1]))
+        handle = np.array([int(np.argmax(V[:, 1]))])
+        targets = np.concatenate([V[fixed], V[handle] - 0.2 * np.ptp(V[:, 1])])
+        for energy in energies:
+            for weights in ("cotangent", "uniform"):
+                solver = ArapSolver(V, F, np.concatenate([fixed, handle]), energy=energy, weights=weights)
+                for acceleration in ACCELERATIONS:
+                    solver.reset()
+                    U = solver.solve(targets, max_iterations=15, tolerance=0, acceleration=acceleration).vertices
+            arap_energy(V, F, U, energy=energy)
+            cell_distortion(V, F, U, energy=energy)
+
+
+def test_arap_warmup_covers_every_energy_and_acceleration(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["warmup"]) == 0
+    assert "arap:" in capsys.readouterr().out
+    assert all(_kernel_ready(k) for k in EVERY_SOLVE_KERNELS), [k for k in EVERY_SOLVE_KERNELS if not _kernel_ready(k)]
+    before = _counts()
+    _every_solve()
+    saved = policy.min_work, policy.work_per_thread
+    try:
+        policy.min_work, policy.work_per_thread = 0, 1
+        policy.reset()
+        _every_solve()
+    finally:
+        policy.min_work, policy.work_per_thread = saved
+        policy.reset()
+    # No kernel signature was compiled or even loaded from the cache after ``arap warmup``.
+    assert _counts() == before
+    # The progress of a later default warm-up counts the default kernels again.
+    assert compile_progress().total == len(FIRST_KERNELS) + len(LATER_KERNELS)
+    assert warm_up_kernels(every_energy=True).compiled == 0
 
 @pytest.mark.parametrize("preset", [False, True])
 def test_cache_falls_back_to_a_temporary_folder(tmp_path: Path, preset: bool) -> None:

@@ -19,12 +19,16 @@ import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
 
-__all__ = ["FIRST_KERNELS", "KERNELS_READY", "LATER_KERNELS", "CompileProgress", "KernelWarmUp", "compile_progress",
-           "compile_reporter", "warm_up_kernels"]
+if TYPE_CHECKING:
+    from arap.options import Acceleration, EnergyType
+
+__all__ = ["EVERY_SOLVE_ITERATIONS", "EVERY_SOLVE_KERNELS", "FIRST_KERNELS", "KERNELS_READY", "LATER_KERNELS",
+           "CompileProgress", "KernelWarmUp", "compile_progress", "compile_reporter", "warm_up_every_solve",
+           "warm_up_kernels"]
 
 KERNELS_READY = threading.Event()
 """Set unless a warm-up runs in the background (``arap studio`` serves the page while the kernels compile): the studio
@@ -59,6 +63,34 @@ LATER_KERNELS = (
     "arap.method.local_step._rhs_gradient_parallel",
 )
 """The threaded variants that only large meshes run, compiled after :data:`FIRST_KERNELS`."""
+EVERY_SOLVE_KERNELS: tuple[str, ...] = (
+    "arap.solve.lbfgs._diff_dot",
+    "arap.solve.lbfgs._pair",
+    "arap.solve.lbfgs._dot",
+    "arap.solve.lbfgs._axpy",
+    "arap.solve.lbfgs._axpy_dot",
+    "arap.solve.lbfgs._subtract_sq",
+    "arap.method.local_step._rhs_serial",
+    "arap.solve.lbfgs._difference_sq",
+    "arap.method.smooth._covariances_serial",
+    "arap.method.rotation_step._energy_serial",
+    "arap.method.rotation_step._rotate_serial",
+    "arap.method.smooth._sweep_serial",
+    "arap.method.smooth._rotation_term_serial",
+    "arap.method.planar.planar_local_serial",
+    "arap.method.local_step._rhs_parallel",
+    "arap.method.smooth._covariances_parallel",
+    "arap.method.rotation_step._energy_parallel",
+    "arap.method.rotation_step._rotate_parallel",
+    "arap.method.smooth._sweep_parallel",
+    "arap.method.smooth._rotation_term_parallel",
+    "arap.method.planar.planar_local_parallel",
+)
+"""The kernels that only the other energies, accelerations and the energy and distortion of a result run, serial
+and threaded, compiled by :func:`warm_up_every_solve` after :data:`LATER_KERNELS`."""
+EVERY_SOLVE_ITERATIONS = 12
+"""Iterations of each solve of :func:`warm_up_every_solve`: enough for L-BFGS to take its own steps after the plain
+ones it starts with."""
 
 
 @dataclass(frozen=True)
@@ -68,7 +100,8 @@ class CompileProgress:
     Attributes
     ----------
     done, total : int
-        Kernels of :data:`FIRST_KERNELS` and :data:`LATER_KERNELS` ready (compiled or loaded from the cache), of all.
+        Kernels of :data:`FIRST_KERNELS` and :data:`LATER_KERNELS` (and of :data:`EVERY_SOLVE_KERNELS` in a warm-up
+        of every energy) ready (compiled or loaded from the cache), of all.
     kernel : str or None
         Name of the kernel being compiled now (``compiling``), else of the one compiled last (None before any).
     compiling : bool
@@ -92,7 +125,13 @@ class CompileProgress:
 _started: float | None = None
 _compiling: list[str] = []  # names of the kernels being compiled, outermost first
 _last: list[str] = []  # the kernel compiled last
+_kernels: list[str] = [*FIRST_KERNELS, *LATER_KERNELS]  # those the warm-up under way compiles (its progress's total)
 _state_lock = threading.Lock()
+
+
+def _all_kernels(every_energy: bool) -> tuple[str, ...]:
+    """The kernels a warm-up compiles, in their order: those of every solve too with ``every_energy``."""
+    return FIRST_KERNELS + LATER_KERNELS + (EVERY_SOLVE_KERNELS if every_energy else ())
 
 
 def _kernel_ready(qualified: str) -> bool:
@@ -103,8 +142,8 @@ def _kernel_ready(qualified: str) -> bool:
 
 def compile_progress() -> CompileProgress:
     """Where the warm-up stands now (:class:`CompileProgress`); callable from any thread."""
-    kernels = FIRST_KERNELS + LATER_KERNELS
     with _state_lock:
+        kernels = tuple(_kernels)
         kernel = _compiling[0] if _compiling else (_last[0] if _last else None)
         compiling = bool(_compiling)
         seconds = 0.0 if _started is None else time.perf_counter() - _started
@@ -183,13 +222,14 @@ def _counts() -> tuple[int, int]:
 
 
 def warm_up_kernels(quiet: bool = True, progress: Callable[[CompileProgress], None] | None = None,
-                    first_ready: Callable[[], None] | None = None) -> KernelWarmUp:
+                    first_ready: Callable[[], None] | None = None, every_energy: bool = False) -> KernelWarmUp:
     """Compile (or load from the cache) every kernel a solve uses, with tiny solves on a 42-vertex sphere (serial,
     then with the threaded variants that large meshes use).
 
-    The kernels take the same argument types for every mesh, energy and weighting, so after this no solve
-    compiles anything and its timings are those of the iterations alone. The lower half of the sphere is fixed,
-    so that some cells see only constrained vertices (their energy is computed once, with the same kernel).
+    The kernels take the same argument types for every mesh and weighting, so after this no solve of the default
+    energy (or of ``spokes``) compiles anything and its timings are those of the iterations alone; with
+    ``every_energy``, no solve at all (``arap warmup``). The lower half of the sphere is fixed, so that some cells
+    see only constrained vertices (their energy is computed once, with the same kernel).
 
     Parameters
     ----------
@@ -203,6 +243,10 @@ def warm_up_kernels(quiet: bool = True, progress: Callable[[CompileProgress], No
     first_ready : callable or None
         Called once the kernels a session needs first (:data:`FIRST_KERNELS`) are ready, before the threaded
         variants (:data:`LATER_KERNELS`) are compiled.
+    every_energy : bool
+        Also compile what every other choice a user can make runs (:func:`warm_up_every_solve`): each energy, the
+        element energies of planar meshes and of tetrahedra included, with each acceleration, and the energy and
+        distortion of a result. Their kernels (:data:`EVERY_SOLVE_KERNELS`) then count in the progress too.
 
     Returns
     -------
@@ -213,10 +257,15 @@ def warm_up_kernels(quiet: bool = True, progress: Callable[[CompileProgress], No
     global _started
     with _state_lock:
         _started = time.perf_counter()
+        _kernels[:] = _all_kernels(every_energy)
     if progress is None and not quiet:
         progress = compile_reporter()
-    with event.install_listener("numba:compile", _compile_listener(progress)):
-        warm = _warm_up(first_ready)
+    try:
+        with event.install_listener("numba:compile", _compile_listener(progress)):
+            warm = _warm_up(first_ready, every_energy)
+    finally:
+        with _state_lock:
+            _kernels[:] = _all_kernels(False)
     if warm.compiled and not quiet:
         where = f"cached in {warm.cache_dir}"
         sys.stderr.write(f"arap: compiling kernels (first run only)… {warm.seconds:.1f} s ({where})\n")
@@ -240,7 +289,7 @@ def compile_reporter(every: float = 5.0) -> Callable[[CompileProgress], None]:
     return report
 
 
-def _warm_up(first_ready: Callable[[], None] | None) -> KernelWarmUp:
+def _warm_up(first_ready: Callable[[], None] | None, every_energy: bool = False) -> KernelWarmUp:
     from arap.kernels.parallel import policy
     from arap.meshes.shapes import sphere
     from arap.solve.solver import ArapSolver
@@ -266,8 +315,54 @@ def _warm_up(first_ready: Callable[[], None] | None) -> KernelWarmUp:
     finally:
         policy.min_work, policy.work_per_thread = saved
         policy.reset()
+    if every_energy:
+        warm_up_every_solve()
     hits, misses = _counts()
     paths = [d.stats.cache_path for d in _dispatchers() if d.stats.cache_path]
     warm = KernelWarmUp(seconds=time.perf_counter() - t0, compiled=misses - misses0, loaded=hits - hits0,
                         cache_dir=paths[0] if paths else None)
     return warm
+
+
+def warm_up_every_solve() -> None:
+    """Solve a 42-vertex sphere, a planar rectangle and a box of tetrahedra with every energy each takes
+    (:data:`~arap.options.ENERGY_TYPES`) and every acceleration (:data:`~arap.options.ACCELERATIONS`), and ask for the
+    energy and the distortion of each result: serial, then with the threaded variants of large meshes. What
+    :func:`warm_up_kernels` compiles with ``every_energy`` after the default solves (``arap warmup``).
+    """
+    from arap.errors import OptionError
+    from arap.kernels.parallel import policy
+    from arap.meshes.grids import box_tetrahedra, rectangle_triangles
+    from arap.meshes.shapes import sphere
+    from arap.method.energy import arap_energy, cell_distortion
+    from arap.options import ACCELERATIONS, ENERGY_TYPES
+    from arap.solve.solver import ArapSolver
+
+    meshes = (sphere(frequency=2), rectangle_triangles(4, 2), box_tetrahedra(2, 1, 1))
+
+    def solves() -> None:
+        for V, F in meshes:
+            fixed = np.flatnonzero(V[:, 0] < V[:, 0].min() + 0.25 * np.ptp(V[:, 0]))
+            handle = np.array([int(np.argmax(V[:, 0]))])
+            targets = np.concatenate([V[fixed], V[handle] + 0.1 * np.ptp(V[:, 0])])
+            for energy in cast("tuple[EnergyType, ...]", ENERGY_TYPES):
+                try:
+                    solver = ArapSolver(V, F, np.concatenate([fixed, handle]), energy=energy)
+                except OptionError:  # an energy this kind of mesh does not take (smooth rotations of a plane)
+                    continue
+                for acceleration in cast("tuple[Acceleration, ...]", ACCELERATIONS):
+                    solver.reset()
+                    U = solver.solve(targets, max_iterations=EVERY_SOLVE_ITERATIONS, tolerance=0,
+                                     acceleration=acceleration).vertices
+                arap_energy(V, F, U, energy=energy)
+                cell_distortion(V, F, U, energy=energy)
+
+    solves()
+    saved = policy.min_work, policy.work_per_thread
+    try:
+        policy.min_work, policy.work_per_thread = 0, 1
+        policy.reset()
+        solves()
+    finally:
+        policy.min_work, policy.work_per_thread = saved
+        policy.reset()
