@@ -3,41 +3,20 @@ package's lazy loader of public names, ``arap/__init__.py``, is left out: every 
 
 from __future__ import annotations
 
-import ast
 from pathlib import Path
 
 import arap
+from tests.imports import imported_modules, package_modules
 
 SRC = Path(arap.__file__).resolve().parents[1]
 
 
-def _module_name(path: Path) -> str:
-    name = ".".join(path.relative_to(SRC).with_suffix("").parts)
-    return name.removesuffix(".__init__")
-
-
-def import_graph() -> dict[str, set[str]]:
-    """Each module of ``arap`` and the modules of ``arap`` it imports anywhere in its source."""
-    paths = {_module_name(p): p for p in (SRC / "arap").rglob("*.py")}
-    graph: dict[str, set[str]] = {m: set() for m in paths}
-    for module, path in paths.items():
-        package = module if path.name == "__init__.py" else module.rpartition(".")[0]
-        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
-            names: list[str] = []
-            if isinstance(node, ast.Import):
-                names = [a.name for a in node.names]
-            elif isinstance(node, ast.ImportFrom):
-                base = node.module or ""
-                if node.level:
-                    parts = package.split(".")[:len(package.split(".")) - node.level + 1]
-                    base = ".".join([*parts, base] if base else parts)
-                names = [base, *(f"{base}.{a.name}" for a in node.names)]
-            for name in names:
-                while name and name not in paths:
-                    name = name.rpartition(".")[0]
-                if name and name not in (module, "arap"):
-                    graph[module].add(name)
-    return graph
+def import_graph(src: Path = SRC) -> dict[str, set[str]]:
+    """Each module of ``arap`` (in the source folder ``src``) and the modules of ``arap`` it imports anywhere in its
+    source."""
+    paths = package_modules(src)
+    return {module: {name for name, _ in imported_modules(path, module, set(paths)) if name != "arap"}
+            for module, path in paths.items()}
 
 
 def cycles(graph: dict[str, set[str]]) -> list[list[str]]:
@@ -77,6 +56,19 @@ def cycles(graph: dict[str, set[str]]) -> list[list[str]]:
 
 def test_the_cycle_finder_finds_a_cycle() -> None:
     assert cycles({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == [["a", "b", "c"]]
+
+
+def test_a_cycle_through_relative_imports_is_found(tmp_path: Path) -> None:
+    package = tmp_path / "arap"
+    (package / "solve").mkdir(parents=True)
+    (package / "__init__.py").write_text("")
+    (package / "solve" / "__init__.py").write_text("")
+    (package / "solve" / "solver.py").write_text("def f():\n    from ..method import cells\n")
+    (package / "method").mkdir()
+    (package / "method" / "__init__.py").write_text("from arap import solve\n")
+    (package / "method" / "cells.py").write_text("from . import weights\n")
+    (package / "method" / "weights.py").write_text("from ..solve.solver import f\n")
+    assert cycles(import_graph(tmp_path)) == [["arap.method.cells", "arap.method.weights", "arap.solve.solver"]]
 
 
 def test_no_import_cycle_in_the_package() -> None:

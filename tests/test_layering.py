@@ -11,12 +11,12 @@ module may read only ``arap.__version__`` from it.
 
 from __future__ import annotations
 
-import ast
 from pathlib import Path
 
 import pytest
 
 import arap
+from tests.imports import imported_modules, module_name, package_modules
 
 SRC = Path(arap.__file__).resolve().parents[1]
 
@@ -37,11 +37,6 @@ ANY_LAYER_NAMES = {"__version__"}
 """Names every module may import from the package itself (``from arap import __version__``)."""
 
 
-def module_name(path: Path, src: Path) -> str:
-    """The dotted name of the module at ``path`` in the source folder ``src``."""
-    return ".".join(path.relative_to(src).with_suffix("").parts).removesuffix(".__init__")
-
-
 def layer_of(module: str) -> int:
     """The index in :data:`LAYERS` of a module of ``arap``."""
     parts = module.split(".")
@@ -52,39 +47,12 @@ def layer_of(module: str) -> int:
     raise KeyError(f"{module} is in no layer: add {top} to LAYERS")
 
 
-def imports(path: Path, module: str, modules: set[str]) -> list[tuple[str, int]]:
-    """The modules of ``arap`` that a module imports, with the line of each import (imports of nothing but
-    :data:`ANY_LAYER_NAMES` from the package itself left out)."""
-    package = module if path.name == "__init__.py" else module.rpartition(".")[0]
-    found: list[tuple[str, int]] = []
-    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
-        names: list[str] = []
-        if isinstance(node, ast.Import):
-            names = [a.name for a in node.names]
-        elif isinstance(node, ast.ImportFrom):
-            base = node.module or ""
-            if node.level:
-                parts = package.split(".")[:len(package.split(".")) - node.level + 1]
-                base = ".".join([*parts, base] if base else parts)
-            if base == "arap" and {a.name for a in node.names} <= ANY_LAYER_NAMES:
-                continue
-            names = [f"{base}.{a.name}" if f"{base}.{a.name}" in modules else base for a in node.names]
-        targets = set()
-        for name in names:
-            while name and name not in modules:
-                name = name.rpartition(".")[0]
-            if name and name != module:
-                targets.add(name)
-        found.extend((name, node.lineno) for name in sorted(targets))
-    return found
-
-
 def upward_imports(src: Path) -> list[str]:
     """Every import of a module from a higher layer, as ``module:line imports other``."""
-    paths = {module_name(p, src): p for p in (src / "arap").rglob("*.py")}
+    paths = package_modules(src)
     found = []
     for module, path in sorted(paths.items()):
-        for name, line in imports(path, module, set(paths)):
+        for name, line in imported_modules(path, module, set(paths), free_names=ANY_LAYER_NAMES):
             if layer_of(name) > layer_of(module):
                 found.append(f"{module}:{line} imports {name}")
     return found
