@@ -9,6 +9,7 @@ from typing import Any
 
 import numpy as np
 import pytest
+from starlette.testclient import TestClient
 
 from arap.animation import animate
 from arap.io import load_mesh_bytes
@@ -419,3 +420,34 @@ def test_concurrent_exports_of_two_sessions_stay_within_the_servers_budget(stati
                     reply = client.recv()
                 assert reply.type == "animation" and reply.data["frames"] == 10, reply.data
     assert budget.used == 0 and budget.peak == one
+
+
+def test_a_keyframes_shape_given_back_to_a_new_session_is_its_shape_again(http: TestClient) -> None:
+    # the page keeps the shape of each keyframe (as float32 frames): after the connection was lost, the new session
+    # is given it back, and a drag to that keyframe's pose shows it instead of solving again
+    with http.websocket_connect("/ws") as ws:
+        first = StudioClient(ws)
+        first.greet()
+        fixed, top = first.bottom_top()
+        first.set_constraints(fixed, [top])
+        first.drag(1, [translation(0.4)])
+        first.send({"type": "end_drag"})
+        first.expect("state")
+        first.settled()
+        first.send({"type": "keep_shape", "key": 5})
+        first.ping()
+        kept = first.held.copy()
+    with http.websocket_connect("/ws") as ws:
+        second = StudioClient(ws)
+        second.greet()
+        second.set_constraints(fixed, [top])
+        second.send({"type": "keep_shape", "key": 5, "shape": kept.tolist()})
+        second.ping()
+        second.send({"type": "drag", "seq": 2, "transforms": [translation(0.4)], "key": 5})
+        again = second.expect("vertices")
+        assert again.data["seq"] == 2 and again.data["iterations"] == 0
+        np.testing.assert_allclose(again.positions, kept, rtol=0, atol=1e-6)
+        # another pose is solved
+        assert second.drag(3, [translation(0.1)]).data["iterations"] > 0
+        second.send({"type": "keep_shape", "key": 6, "shape": kept[:-1].tolist()})
+        assert "one per vertex" in second.error("bad_message")["message"]

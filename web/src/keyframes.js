@@ -8,10 +8,11 @@
 import * as THREE from 'three';
 
 /**
- * @typedef {{ms: number, transforms: number[][], easing?: string, id?: number}} Keyframe
+ * @typedef {{ms: number, transforms: number[][], easing?: string, id?: number, shape?: Float32Array|null}} Keyframe
  *   time in milliseconds, one column-major 4×4 (16 numbers) per group of the server's constraint set (handle groups,
- *   then point handles), how the groups move to the next keyframe (one of EASINGS; absent: linear), and the number
- *   under which the server kept the shape shown when the keyframe was made (keep_shape)
+ *   then point handles), how the groups move to the next keyframe (one of EASINGS; absent: linear), the number
+ *   under which the server kept the shape shown when the keyframe was made (keep_shape), and that shape as the page
+ *   last saw it (x, y, z per vertex), given back to a new session after a restore or a lost connection
  */
 
 /** The easings of a keyframe, in the order of export_animation's `easings` numbers (as arap.constraints.keyframes). */

@@ -90,6 +90,7 @@ export class ServerMessages {
         return this.state(msg);
       case SERVER.SETTLE:
         if (Number.isFinite(msg.energy)) d.stats.noteEnergies([/** @type {number} finite */ (msg.energy)]);
+        if (msg.status !== 'settling') d.timeline.settled();
         return d.panel.setSettle(msg);
       case SERVER.CONSTRAINTS: // the document carries the mirror pairs of its handle groups in "meta"
         if (d.mesh.repaired && msg.document?.points?.length) return d.showRequestError(POINTS_NOT_SAVED(d.mesh.name));

@@ -265,6 +265,7 @@ export const UPLOAD_EXTENSIONS = Object.freeze([
  * @typedef {object} KeepShapeClientMessage
  * @property {"keep_shape"} type
  * @property {number} key the keyframe's number, chosen by the client
+ * @property {number[][]|null} [shape] the keyframe's shape, one [x, y, z] per vertex, kept as it is instead of the current shape (a keyframe kept before the connection was lost, given back to the new session); null: the current shape
  */
 
 /**

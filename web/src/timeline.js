@@ -46,6 +46,8 @@ export class Timeline {
     this._raf = 0;
     this._moved = false; // drags sent since the last end_drag
     this._nextId = 1; // the number of the next keyframe (keep_shape's key)
+    /** @type {Keyframe|null} the keyframe made last, while the shape it keeps may still be settling */
+    this._keeping = null;
     /** @type {ExportAnimationClientMessage['format']} */
     this.format = 'glb';
     /** @type {number|null} where a press on a marker started (a scrub begins once the pointer leaves it) */
@@ -96,13 +98,41 @@ export class Timeline {
     const at = this.keys.findIndex((k) => k.ms >= this.timeMs);
     const replaced = at >= 0 && this.keys[at].ms === this.timeMs ? this.keys[at] : null;
     const key = { ms: this.timeMs, transforms: all.map((m) => m.slice()), easing: replaced?.easing ?? 'linear',
-      id: this._nextId++ };
+      id: this._nextId++, shape: Float32Array.from(this.deps.positions()) };
+    this._keeping = key; // the server settles the shape before it keeps it: settled() takes the settled one
     if (replaced) this.keys[at] = key;
     else if (at >= 0) this.keys.splice(at, 0, key);
     else this.keys.push(key);
     this.deps.send({ type: CLIENT.KEEP_SHAPE, key: key.id });
     this._changed();
     return undefined;
+  }
+
+  /** The shape shown has settled: the keyframe made last keeps it as its shape (as the server did), unless its
+   * handles have moved away from that keyframe's pose since. */
+  settled() {
+    const key = this._keeping;
+    this._keeping = null;
+    if (!key || !this.keys.includes(key)) return;
+    const now = this.deps.transforms();
+    const same = now.length === key.transforms.length
+      && now.every((m, g) => m.every((v, i) => Math.abs(v - key.transforms[g][i]) <= 1e-9 * (1 + Math.abs(v))));
+    if (!same) return;
+    key.shape = Float32Array.from(this.deps.positions());
+    this._changed();
+  }
+
+  /** Give the server back the shapes of the keyframes (after a restore: the session that kept them is gone). */
+  _giveShapesBack() {
+    const n = this.deps.positions().length;
+    for (const key of this.keys) {
+      const shape = key.shape;
+      if (!shape || shape.length !== n || key.id === undefined) continue;
+      /** @type {number[][]} */
+      const points = [];
+      for (let i = 0; i < n; i += 3) points.push([shape[i], shape[i + 1], shape[i + 2]]);
+      this.deps.send({ type: CLIENT.KEEP_SHAPE, key: key.id, shape: points });
+    }
   }
 
   /** The keyframe at the playhead, or null. */
@@ -244,6 +274,7 @@ export class Timeline {
     this._nextId = Math.max(this._nextId, ...this.keys.map((k) => (k.id ?? 0) + 1));
     this.pivots = saved.pivots;
     if (saved.base) this.rebase(saved.base, saved.base.length);
+    this._giveShapesBack();
     this._changed();
   }
 

@@ -145,6 +145,9 @@ class KeepShape(ClientMessage):
         "back); no answer"
     )
     key: int = field(metadata=wire("int", "the keyframe's number, chosen by the client", minimum=0, maximum=MAX_SEQ))
+    shape: Any = field(default=None, metadata=wire(
+        "points_or_null", "the keyframe's shape, one [x, y, z] per vertex, kept as it is instead of the current shape "
+        "(a keyframe kept before the connection was lost, given back to the new session); null: the current shape"))
 
 
 @dataclass(frozen=True)

@@ -303,9 +303,10 @@ class Dispatcher:
         yield self.vertices(msg.seq, outcome)
 
     def _keep_shape(self, msg: KeepShape) -> Answers:
-        # the converged shape is kept: an unsettled one settles first (as for an export)
-        yield SETTLE
-        self.session.keep_shape(msg.key)
+        # the converged shape is kept: an unsettled one settles first (as for an export); a given one as it is
+        if msg.shape is None:
+            yield SETTLE
+        self.session.keep_shape(msg.key, msg.shape)
 
     def _end_drag(self, msg: EndDrag) -> Answers:
         self.session.end_drag()

@@ -38,6 +38,9 @@ MAX_KEPT_SHAPES = 64
 """Most keyframe shapes a session keeps (:meth:`Session.keep_shape`); the oldest goes first."""
 _KEPT_AT_TARGETS = 1e-9
 """How far (per bounding-box diagonal) a kept shape's constrained vertices may be from the targets it is given for."""
+_GIVEN_AT_TARGETS = 2.0**-18
+"""How far (per largest rest coordinate) the constrained vertices of a shape the client gave back may be from the
+targets: it knows shapes as float32 frames, and a restored timeline poses them with transforms rebased on them."""
 
 
 class Session(SessionState):
@@ -68,6 +71,7 @@ class Session(SessionState):
         self.settled = True
         self.energy = 0.0
         self.kept_shapes.clear()
+        self._given_shapes.clear()
         self.pin_depth = []
         self.history.clear(self._snapshot())
 
@@ -165,18 +169,49 @@ class Session(SessionState):
             self._kept_shapes = shapes
         return shapes
 
-    def keep_shape(self, key: int) -> None:
+    @property
+    def _given_shapes(self) -> set[int]:
+        """The keys of :attr:`kept_shapes` whose shape the client gave (float32 frames), not the session's own."""
+        given: set[int] | None = getattr(self, "_given_keys", None)
+        if given is None:
+            given = set()
+            self._given_keys = given
+        return given
+
+    def keep_shape(self, key: int, shape: list[list[float]] | None = None) -> None:
         """Keep the shape shown as keyframe ``key``'s: a drag or an animation export at that keyframe gives it back
         (:meth:`kept_shape`) instead of solving the pose again, which could end in another shape. At most
-        :data:`MAX_KEPT_SHAPES` are kept."""
+        :data:`MAX_KEPT_SHAPES` are kept.
+
+        ``shape``: one ``[x, y, z]`` per vertex, kept instead of the shape shown: a keyframe's shape the client keeps
+        and gives back to a new session (after the connection was lost, or a saved session restored).
+
+        Raises
+        ------
+        BadValues
+            ``shape`` does not have one finite point per vertex, or lies absurdly far away.
+        """
         self._require_mesh()
+        if shape is None:
+            kept = np.array(self.U, dtype=np.float64)
+        else:
+            kept = np.array(shape, dtype=np.float64)
+            if kept.shape != (len(self.V), 3):
+                raise BadValues(f"a kept shape must be {len(self.V)} points [x, y, z], one per vertex")
+            self._check_range(kept)
+            kept = np.ascontiguousarray(kept[:, :self.V.shape[1]])
+        kept.setflags(write=False)
         shapes = self.kept_shapes
         shapes.pop(key, None)
-        shape = np.array(self.U, dtype=np.float64)
-        shape.setflags(write=False)
-        shapes[key] = shape
+        shapes[key] = kept
+        given = self._given_shapes
+        given.discard(key)
+        if shape is not None:
+            given.add(key)
         while len(shapes) > MAX_KEPT_SHAPES:
-            shapes.pop(next(iter(shapes)))
+            oldest = next(iter(shapes))
+            shapes.pop(oldest)
+            given.discard(oldest)
 
     def kept_shape(self, key: int | None, targets: np.ndarray) -> np.ndarray | None:
         """Keyframe ``key``'s kept shape when its constrained vertices are at ``targets`` (in the order of the
@@ -186,7 +221,10 @@ class Session(SessionState):
             return None
         constrained = self.constraints.constrained
         off = float(np.abs(shape[constrained] - targets).max(initial=0.0))
-        return shape if off <= _KEPT_AT_TARGETS * self.diagonal + 1e-12 * self.scale else None
+        slack = _KEPT_AT_TARGETS * self.diagonal + 1e-12 * self.scale
+        if key is not None and int(key) in self._given_shapes:
+            slack = max(slack, _GIVEN_AT_TARGETS * self.scale)
+        return shape if off <= slack else None
 
     def drag(self, transforms: list[list[float]], key: int | None = None) -> DragOutcome:
         """Move the handle groups by ``transforms`` (column-major 4×4 each) and solve; or, when ``key`` names a
