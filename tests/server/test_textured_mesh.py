@@ -4,6 +4,10 @@ its mesh frame, nothing more for a plain mesh, and exports the deformed model as
 from __future__ import annotations
 
 import io
+import json
+import shutil
+import subprocess
+import zipfile
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -284,3 +288,76 @@ def test_ply_and_obj_exports_of_their_own_sources_keep_the_attributes(connect: A
     studio.send({"type": "export", "format": "obj"})
     reply = studio.expect("export")
     assert reply.payload is not None and b"mtllib" not in reply.payload
+
+
+def rest_export_format(filename: str) -> str | None:
+    """The export format the page asks for after an apply of a mesh with a look uploaded as ``filename`` (its
+    ``restExportFormat``, run by node)."""
+    snapshot = Path(__file__).resolve().parents[2] / "web" / "src" / "snapshot.js"
+    script = (f"import {{ restExportFormat }} from {json.dumps(snapshot.as_uri())};\n"
+              f"console.log(JSON.stringify(restExportFormat({{kind: 'file', filename: {json.dumps(filename)}}})));\n")
+    done = subprocess.run(["node", "--input-type=module", "-e", script], capture_output=True, text=True, timeout=60,
+                          check=False)
+    assert done.returncode == 0, done.stderr
+    return json.loads(done.stdout)
+
+
+@pytest.mark.skipif(shutil.which("node") is None, reason="node is not installed")
+@pytest.mark.parametrize("source", ["grid.glb", "grid.zip", "grid.obj", "ball.ply"])
+def test_the_rest_pose_an_apply_made_is_kept_as_a_file_that_uploads_again_with_its_look(
+        connect: Any, tmp_path: Path, source: str) -> None:
+    # after an apply, the page keeps the new rest pose of a mesh with a look (a restore uploads it again) as the
+    # export in the format restExportFormat picks: the same mesh, vertex numbering and look come back from it
+    fmt = rest_export_format(source)
+    assert fmt is not None
+    if source.endswith(".glb"):
+        data = textured_grid().export(file_type="glb")
+    elif source.endswith(".ply"):
+        data = coloured_ply(tmp_path / "ball.ply").read_bytes()
+    elif source.endswith(".obj"):
+        data = textured_grid().export(file_type="obj").encode()  # alone: UVs and a material it cannot read
+    else:
+        textured_grid().export(tmp_path / "grid.obj")  # OBJ + MTL + texture, uploaded as a zip as the page does
+        buffer = io.BytesIO()
+        with zipfile.ZipFile(buffer, "w") as z:
+            for path in tmp_path.iterdir():
+                z.write(path, path.name)
+        data = buffer.getvalue()
+
+    def look_of(studio: StudioClient) -> dict[str, Any]:
+        look = appearance_arrays(studio.expect("appearance"), len(studio.V))
+        if source.endswith(".ply"):
+            assert "colors" in look
+        elif not source.endswith(".obj"):
+            assert len(look["uv"]) > 0 and is_checker(look["texture"])
+        studio.expect("state")
+        return look
+
+    studio, _ = connect("bar")
+    studio.send_binary({"type": "upload", "filename": source}, data)
+    studio.read_mesh()
+    first = look_of(studio)
+    lo, hi = studio.bottom_top(0.2)
+    studio.set_constraints(lo, [hi])
+    studio.drag(1, [translation(0.0, 0.3, 0.4)])
+    studio.send({"type": "end_drag"})
+    studio.expect("state")
+    studio.settled()
+    studio.send({"type": "apply"})
+    studio.expect("state")
+    rest = studio.held.astype(np.float64)
+    assert np.abs(rest - studio.V).max() > 0.1
+    studio.send({"type": "export", "format": fmt})
+    while (reply := studio.recv()).type != "export":
+        pass
+    assert reply.payload is not None
+    again, _ = connect("bar")
+    again.send_binary({"type": "upload", "filename": reply.data["filename"]}, reply.payload)
+    again.read_mesh()
+    back = look_of(again)
+    assert again.V.shape == rest.shape and again.F.shape == studio.F.shape
+    np.testing.assert_allclose(again.V, rest, rtol=0, atol=1e-5)
+    np.testing.assert_array_equal(again.F, studio.F)
+    for name in ("uv", "colors"):
+        if name in first:
+            np.testing.assert_allclose(back[name], first[name], rtol=0, atol=1e-6)

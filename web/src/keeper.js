@@ -5,7 +5,7 @@ import { showRestoreOffer } from './offer.js';
 import { CLIENT } from './protocol.js';
 import { SessionRestore } from './restore.js';
 import { deleteSession, getMesh, newestOrphan, newSessionId } from './sessiondb.js';
-import { builtinSource, captureSession, describe, encodePly, fileSource, hasEdits } from './snapshot.js';
+import { builtinSource, captureSession, describe, encodePly, fileSource, hasEdits, restExportFormat } from './snapshot.js';
 
 /**
  * What the keeper reads and tells (panel and gizmo: getters, as they are created later).
@@ -30,6 +30,9 @@ export class SessionKeeper {
     this.id = newSessionId();
     this.pendingSource = null; // source of the mesh requested last
     this.applying = 0; // apply requests whose state has not arrived yet
+    /** @type {boolean[]} per export request not answered yet, in order: whether it asks for the rest pose */
+    this.exports = [];
+    this.exportingRest = false; // the export being sent asks for the rest pose an apply made
     this.lost = null; // {snap, live}: the session when the connection was lost, put back after reconnecting
     this.queued = null; // {snap, recordId}: a restore chosen before the session was ready
     this.rest = null; // the rest pose of the mesh shown (as loaded, or as the last apply made it)
@@ -97,13 +100,42 @@ export class SessionKeeper {
 
   /** @param {import('./protocol.js').ClientMessage} msg a message sent to the server */
   sent(msg) {
-    if (msg.type === CLIENT.APPLY) this.applying++;
+    if (msg.type === CLIENT.EXPORT) this.exports.push(this.exportingRest);
+    if (msg.type !== CLIENT.APPLY) return;
+    this.applying++;
+    // a mesh with a look (UVs, textures, colours) keeps it through a restore: the rest pose is kept as a file of the
+    // source's kind, exported now (before anything can move the shape away from the new rest pose)
+    const format = this.deps.viewer.look ? restExportFormat(this.deps.mesh.source) : null;
+    if (!format) return;
+    this.exportingRest = true;
+    try {
+      this.deps.send({ type: CLIENT.EXPORT, format });
+    } finally {
+      this.exportingRest = false;
+    }
+  }
+
+  /**
+   * An export arrived: true when it is the rest pose asked for after an apply, kept as the mesh's source (what a
+   * restore uploads) instead of being downloaded.
+   * @param {import('./protocol.js').ExportServerMessage & import('./messages.js').Framed} msg
+   */
+  exportArrived(msg) {
+    if (!this.exports.shift()) return false;
+    const { mesh } = this.deps;
+    const bytes = msg.frame.payload.slice();
+    if (!mesh.limits.max_upload_bytes || bytes.byteLength <= mesh.limits.max_upload_bytes) {
+      mesh.source = fileSource(msg.filename, bytes, mesh.repaired);
+      this.touch();
+    }
+    return true;
   }
 
   /** The open connection was lost: keep the session to put it back once reconnected. */
   connectionLost() {
     this.pendingSource = null;
     this.applying = 0;
+    this.exports = [];
     const restoring = this.restore.cancel();
     if (restoring) this.lost = { snap: restoring, live: false };
     else if (!this.lost && !this.autosave.held) this.lost = { snap: this.autosave.hold(), live: true };
@@ -148,7 +180,8 @@ export class SessionKeeper {
   stateArrived(synced) {
     const { mesh, viewer } = this.deps;
     if (this.applying > 0) {
-      // the deformed shape is now the rest pose: a restore must upload it
+      // the deformed shape is now the rest pose: a restore must upload it (as a PLY until the export of a mesh
+      // with a look arrives, exportArrived)
       this.applying--;
       this.rest = Float32Array.from(viewer.positions);
       // an apply was answered, so a mesh is shown: its geometry and triangles are there
@@ -166,6 +199,7 @@ export class SessionKeeper {
   errorArrived(msg) {
     if (msg.request === CLIENT.LOAD_BUILTIN || msg.request === CLIENT.UPLOAD) this.pendingSource = null;
     if (msg.request === CLIENT.APPLY) this.applying = Math.max(0, this.applying - 1);
+    if (msg.request === CLIENT.EXPORT) this.exports.shift();
     this.restore.errorArrived(msg);
   }
 

@@ -97,6 +97,7 @@ export class ServerMessages {
         return d.panel.showStatus(downloadConstraints(d.mirror.documentWithPartners(msg.document, d.sync.groupMap),
           d.mesh.name), 'info', 2500);
       case SERVER.EXPORT:
+        if (d.keeper.exportArrived(msg)) return undefined; // the rest pose an apply made, kept for a restore
         return d.panel.showStatus(downloadExport(msg), 'info', 3000);
       case SERVER.ANIMATION_PROGRESS:
       case SERVER.ANIMATION:

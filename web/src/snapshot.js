@@ -27,6 +27,22 @@ export function fileSource(filename, bytes, repaired = false) {
 }
 
 /**
+ * The export format (of the server's `export`) that keeps the look of a mesh from `source` (UVs, materials, textures,
+ * vertex colours) and its file's vertex numbering, so that the file uploads again as the same mesh with the same
+ * look: what the page keeps as the source once an apply made the shape the rest pose. A GLB stays a GLB and a PLY a
+ * PLY; an OBJ (alone or in a zip with its MTL and textures) or a glTF comes back as an OBJ with its MTL and textures
+ * (a zip). Null for a built-in model (no look: a PLY of the shape does).
+ * @param {{kind: string, filename?: string}|null} source
+ * @returns {'glb'|'ply'|'obj'|null}
+ */
+export function restExportFormat(source) {
+  if (source?.kind !== 'file') return null;
+  const ext = String(source.filename ?? '').split('.').pop()?.toLowerCase();
+  if (ext === 'glb' || ext === 'ply') return ext;
+  return 'obj';
+}
+
+/**
  * Binary little-endian PLY of a triangle mesh (float32 positions, uint32 faces). With `vertexMap` (the mesh vertex of
  * each vertex of the mesh file it came from, when repair renumbered them), in the file's numbering: uploaded again,
  * it is repaired into the same mesh with the same map (numbering.js inFileNumbering).
