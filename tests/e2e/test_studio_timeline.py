@@ -115,10 +115,12 @@ def test_keyframes_scrub_play_restore_export(page: Page, tmp_path: Path) -> None
     wait_settled(page)
     tl = timeline(page)
     assert [k["ms"] for k in tl["keys"]] == [0, 1000] and tl["timeMs"] == saved["timeMs"]
+    assert [k["shapeVertices"] for k in tl["keys"]] == [len(rest)] * 2  # the page keeps each keyframe's shape
     np.testing.assert_allclose(positions(page), half, atol=1e-4 * diag)
-    # the keyframes still pose the handles as they did before the reload
+    # the keyframes still pose the handles as they did before the reload, and give back the shapes kept with them
     seek(page, 1000)
     np.testing.assert_allclose(positions(page)[handle], moved_to[handle], atol=1e-4 * diag)
+    np.testing.assert_allclose(positions(page), moved_to, atol=1e-5 * diag)
     seek(page, 0)
     np.testing.assert_allclose(positions(page)[handle], rest[handle], atol=1e-4 * diag)
 

@@ -262,12 +262,14 @@ export function installTestHook({
     /** Every client group's transform (column-major 4×4), as the next drag would send it. */
     transforms: () => gizmo.matrices.map((m) => Array.from(m.elements)),
     /**
-     * The keyframe timeline: its keyframes (time in ms, one column-major 4×4 per handle group), the playhead,
+     * The keyframe timeline: its keyframes (time in ms, one column-major 4×4 per handle group, the vertices of the
+     * shape the page keeps for it), the playhead,
      * playback and export state; `interpolate(keys, pivots, seconds)` is the page's interpolation rule.
      */
     get timeline() {
       return {
-        keys: timeline.keys.map((k) => ({ ...k, transforms: k.transforms.map((m) => m.slice()) })),
+        keys: timeline.keys.map(({ shape, ...k }) => ({ ...k, transforms: k.transforms.map((m) => m.slice()),
+          shapeVertices: shape ? shape.length / 3 : 0 })),
         pivots: timeline.pivots?.map((p) => p.slice()) ?? null,
         timeMs: timeline.timeMs,
         durationMs: timeline.durationMs,
