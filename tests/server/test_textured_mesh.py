@@ -310,6 +310,7 @@ def test_the_rest_pose_an_apply_made_is_kept_as_a_file_that_uploads_again_with_i
     # export in the format restExportFormat picks: the same mesh, vertex numbering and look come back from it
     fmt = rest_export_format(source)
     assert fmt is not None
+    assert rest_export_format("cat.png") is None and rest_export_format("part.stl") is None
     if source.endswith(".glb"):
         data = textured_grid().export(file_type="glb")
     elif source.endswith(".ply"):

@@ -31,7 +31,7 @@ export function fileSource(filename, bytes, repaired = false) {
  * vertex colours) and its file's vertex numbering, so that the file uploads again as the same mesh with the same
  * look: what the page keeps as the source once an apply made the shape the rest pose. A GLB stays a GLB and a PLY a
  * PLY; an OBJ (alone or in a zip with its MTL and textures) or a glTF comes back as an OBJ with its MTL and textures
- * (a zip). Null for a built-in model (no look: a PLY of the shape does).
+ * (a zip). Null for a built-in model or any other source (a picture, an OFF or STL file: a PLY of the shape does).
  * @param {{kind: string, filename?: string}|null} source
  * @returns {'glb'|'ply'|'obj'|null}
  */
@@ -39,7 +39,7 @@ export function restExportFormat(source) {
   if (source?.kind !== 'file') return null;
   const ext = String(source.filename ?? '').split('.').pop()?.toLowerCase();
   if (ext === 'glb' || ext === 'ply') return ext;
-  return 'obj';
+  return ext === 'obj' || ext === 'gltf' || ext === 'zip' ? 'obj' : null;
 }
 
 /**
