@@ -17,6 +17,7 @@ from arap.server.messages import (
     UPLOAD_EXTENSIONS,
     Field,
     MessageSpec,
+    Wire,
 )
 from arap.server.server_messages import SERVER_MESSAGES
 
@@ -28,20 +29,20 @@ _HEADER = """\
 // The protocol is described in docs/protocol.md.
 """
 
-_TS_TYPES = {
-    "int": "number",
-    "number": "number",
-    "string": "string",
-    "bool": "boolean",
-    "object": "Object<string, any>",
-    "list": "Array<any>",
-    "indices": "number[]",
-    "indices_or_null": "number[]|null",
-    "index_groups": "number[][]",
-    "matrices": "number[][]",
-    "points_or_null": "number[][]|null",
-    "stiffness_or_null": "Array<{vertices: number[], value: number|\"rigid\"}>|null",
-    "point_handles_or_null": "Array<{face: number, barycentric: number[], weight?: number, target?: number[]}>|null",
+_TS_TYPES: dict[Wire, str] = {
+    Wire.INT: "number",
+    Wire.NUMBER: "number",
+    Wire.STRING: "string",
+    Wire.BOOL: "boolean",
+    Wire.OBJECT: "Object<string, any>",
+    Wire.LIST: "Array<any>",
+    Wire.INDICES: "number[]",
+    Wire.INDICES_OR_NULL: "number[]|null",
+    Wire.INDEX_GROUPS: "number[][]",
+    Wire.MATRICES: "number[][]",
+    Wire.POINTS_OR_NULL: "number[][]|null",
+    Wire.STIFFNESS_OR_NULL: "Array<{vertices: number[], value: number|\"rigid\"}>|null",
+    Wire.POINT_HANDLES_OR_NULL: "Array<{face: number, barycentric: number[], weight?: number, target?: number[]}>|null",
 }
 """JSDoc type of each field kind (``enum`` fields get the union of their choices)."""
 
@@ -62,7 +63,7 @@ def _type_name(message_type: str, side: str) -> str:
 def _field_type(f: Field) -> str:
     if f.js_type is not None:
         js = f.js_type
-    elif f.kind == "enum":
+    elif f.kind is Wire.ENUM:
         js = "|".join(json.dumps(c) for c in f.choices)
     else:
         js = _TS_TYPES[f.kind]
