@@ -15,7 +15,7 @@ import pytest
 
 from arap.server.client_messages import CLIENT_MESSAGE_CLASSES, Upload
 from arap.server.errors import RequestError
-from arap.server.jsgen import _TS_TYPES, generate_js
+from arap.server.jsgen import JS_TYPES, generate_js
 from arap.server.messages import (
     SENT_ONLY,
     ClientMessage,
@@ -45,7 +45,7 @@ def test_every_field_of_every_message_has_a_wire_kind_with_a_checker() -> None:
         for f in spec.fields:
             where = f"{cls.__name__}.{f.name}"
             assert isinstance(f.kind, Wire), where
-            assert f.kind is Wire.ENUM or f.kind in _TS_TYPES, f"{where}: no JSDoc type of kind {f.kind.value}"
+            assert f.kind is Wire.ENUM or f.kind in JS_TYPES, f"{where}: no JSDoc type of kind {f.kind.value}"
             if issubclass(cls, ClientMessage):
                 assert f.kind in CHECKS, f"{where}: no checker of kind {f.kind.value}"
             if f.kind is Wire.ENUM:
@@ -54,7 +54,7 @@ def test_every_field_of_every_message_has_a_wire_kind_with_a_checker() -> None:
 
 def test_the_kinds_are_listed_once_and_every_one_a_client_sends_has_a_checker() -> None:
     assert set(CHECKS) == set(Wire) - SENT_ONLY
-    assert set(_TS_TYPES) == set(Wire) - {Wire.ENUM}
+    assert set(JS_TYPES) == set(Wire) - {Wire.ENUM}
 
 
 def test_the_checker_of_the_kind_answers_a_client_field() -> None:
