@@ -125,7 +125,7 @@ class Wire(str, Enum):
     A field's kind is part of its annotation (``seq: Annotated[int, Wire.INT]``, or one of the aliases below, such
     as :data:`Int`). Every kind a client may send has a checker (:data:`arap.server.protocol.CHECKS`, verified when
     that module is imported); the kinds of :data:`SENT_ONLY` only the server sends. Each has a JSDoc type in the
-    generated client module (:mod:`arap.server.jsgen`).
+    generated client module (:data:`arap.server.jsgen.JS_TYPES`; an ``enum`` field: the union of its choices).
     """
 
     INT = "int"
