@@ -48,7 +48,8 @@ from arap.studio_handle import Selection, initial_constraints, picture_input, se
 if TYPE_CHECKING:
     from arap.render.picture import Picture
     from arap.server.channel import ChannelWorker
-    from arap.server.dispatch import Dispatcher, Reply
+    from arap.server.dispatch import Dispatcher
+    from arap.server.replies import Reply
     from arap.server.session import Session
 
 __all__ = ["OPEN_MESSAGE", "PREPARING_MESSAGE", "STOPPED_MESSAGE", "StudioWidget", "has_comm_kernel", "widget",
@@ -156,9 +157,10 @@ class StudioWidget:
     def _setup(self, *, V: NDArray[np.float64], F: NDArray[np.int64], name: str, prepare: Any = None,
                picture: bool = True, opened: Any = None) -> None:
         from arap.server.channel import ChannelWorker
-        from arap.server.dispatch import Dispatcher, StudioConfig
+        from arap.server.dispatch import Dispatcher
         from arap.server.mesh_model import MeshData
         from arap.server.session import Session
+        from arap.server.studio_config import StudioConfig
         from arap.warmup import KERNELS_READY
 
         self._V = V

@@ -11,7 +11,8 @@ import tracemalloc
 
 import pytest
 
-from arap.server.protocol import RequestError, parse_large_text
+from arap.server.errors import RequestError
+from arap.server.protocol import parse_large_text
 from tests.waiting import scaled
 
 pytestmark = pytest.mark.timeout(300)

@@ -48,7 +48,7 @@ from arap.server.numbering import document_in_file_numbering
 if TYPE_CHECKING:
     from arap.server.session import Session
 
-__all__ = ["ANIMATION_MIMES", "EXPORT_MIME", "MAX_EXPORT_FRAMES", "MAX_FPS", "AnimationCancelled", "ProgressCallback",
+__all__ = ["ANIMATION_MIMES", "EXPORT_MIME", "MAX_EXPORT_FRAMES", "AnimationCancelled", "ProgressCallback",
            "export_animation", "export_bytes", "keyframes_document"]
 
 MAX_EXPORT_FRAMES = 600

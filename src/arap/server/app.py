@@ -26,7 +26,7 @@ from starlette.websockets import WebSocket, WebSocketDisconnect
 from arap import __version__
 from arap.server.appearance import Look, look_from_path
 from arap.server.client_files import STATIC_DIR, client_missing_advice
-from arap.server.connection import Connection, StudioConfig
+from arap.server.connection import Connection
 from arap.server.decoder import FrameDecoder
 from arap.server.errors import RequestError
 from arap.server.guard import RequestGuard, normalize_origin, presented_token, token_matches
@@ -35,6 +35,7 @@ from arap.server.mesh_model import MeshData
 from arap.server.meshdata import load_default
 from arap.server.protocol import error_message
 from arap.server.session import Session
+from arap.server.studio_config import StudioConfig
 
 __all__ = ["DEFAULT_MAX_EXPORT_BYTES", "DEFAULT_MAX_SESSIONS", "DEFAULT_MAX_UPLOAD_BYTES", "DEFAULT_MAX_VERTICES",
            "STATIC_DIR", "client_missing_advice", "create_app", "frame_limit"]
@@ -164,7 +165,7 @@ def create_app(
         Most sessions at once; one more is accepted, sent a ``busy`` error and closed with code 1013 and a reason.
     max_queued_bytes, max_unsent_bytes : int
         Byte budgets of one session (requests waiting, answers not yet sent): past them its frames are not read
-        until the worker catches up (see :class:`arap.server.connection.StudioConfig`).
+        until the worker catches up (see :class:`arap.server.studio_config.StudioConfig`).
     max_export_bytes : int
         Estimated memory the animation exports of all sessions may take at once: a larger export is refused, one
         that does not fit beside those running waits (see :func:`arap.server.animation_export.export_bytes`).

@@ -17,11 +17,11 @@ from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 
 from arap.server.client_messages import Drag, ExportAnimation
-from arap.server.dispatch import Dispatcher, Reply
+from arap.server.dispatch import Dispatcher
 from arap.server.errors import RequestError
 from arap.server.frames import decode_binary
 from arap.server.messages import ClientMessage
-from arap.server.replies import _Settle
+from arap.server.replies import Reply, _Settle
 
 __all__ = ["ChannelWorker"]
 

@@ -1,13 +1,14 @@
-"""The messages a client sends, one frozen dataclass each, with their fields declared by
-:func:`arap.server.messages.wire` (kind, meaning, range): the single description of these messages, from which the
-validator (:func:`arap.server.protocol.validate`) builds instances, the dispatcher picks a handler by class, and the
-client module and the protocol document take their field lists (:data:`CLIENT_MESSAGES`).
+"""The messages a client sends, one frozen dataclass each, each field declared once: its kind by its annotation
+(:class:`arap.server.messages.Wire`), its meaning and range by :func:`arap.server.messages.wire`. This is the single
+description of these messages, from which the validator (:func:`arap.server.protocol.validate`) builds instances,
+the dispatcher picks a handler by class, and the client module and the protocol document take their field lists
+(:data:`CLIENT_MESSAGES`).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any, ClassVar
+from typing import Annotated, ClassVar
 
 from arap.options import EnergyType, LoosePartsMode, WeightType
 from arap.server.messages import (
@@ -23,8 +24,20 @@ from arap.server.messages import (
     MAX_STIFFNESS_GROUPS,
     PARAMS,
     WEIGHTS,
+    Choice,
     ClientMessage,
+    IndexGroups,
+    Indices,
+    IndicesOrNull,
+    Int,
+    Matrices,
     MessageSpec,
+    Number,
+    PointHandlesOrNull,
+    PointsOrNull,
+    StiffnessOrNull,
+    Text,
+    Wire,
     message_spec,
     wire,
 )
@@ -51,15 +64,11 @@ __all__ = [
     "Upload",
 ]
 
-IndexList = Any
-"""A list of vertex indices: a Python list, or a (k,) integer NumPy array from :mod:`arap.server.decoder`."""
-
-
 @dataclass(frozen=True)
 class LoadBuiltin(ClientMessage):
     type: ClassVar[str] = "load_builtin"
     doc: ClassVar[str] = "replace the session's mesh by a built-in model"
-    name: str = field(metadata=wire("string", "built-in model name (welcome.builtin_meshes)", max_length=64))
+    name: Text = field(metadata=wire("built-in model name (welcome.builtin_meshes)", max_length=64))
 
 
 @dataclass(frozen=True)
@@ -68,7 +77,7 @@ class Upload(ClientMessage):
     doc: ClassVar[str] = ("load an uploaded OBJ/OFF/PLY/STL/GLB/glTF file, or a zip of one with the files it names "
                           "(payload: the file's bytes)")
     binary: ClassVar[bool] = True
-    filename: str = field(metadata=wire("string", "original file name; only its extension is used", max_length=255))
+    filename: Text = field(metadata=wire("original file name; only its extension is used", max_length=255))
     payload: memoryview = field(repr=False, compare=False)
     """The file's bytes (the binary frame's payload)."""
 
@@ -77,33 +86,30 @@ class Upload(ClientMessage):
 class SetConstraints(ClientMessage):
     type: ClassVar[str] = "set_constraints"
     doc: ClassVar[str] = "new constraint set; transforms of all groups reset to identity"
-    roi: IndexList | None = field(metadata=wire("indices_or_null", "region of interest, or null for the whole mesh"))
-    fixed: IndexList = field(metadata=wire("indices", "vertices held in place"))
-    handle_groups: list[IndexList] = field(
+    roi: IndicesOrNull = field(metadata=wire("region of interest, or null for the whole mesh"))
+    fixed: Indices = field(metadata=wire("vertices held in place"))
+    handle_groups: IndexGroups = field(
         metadata=wire(
-            "index_groups", "vertices moved together by one transform per group", max_length=MAX_HANDLE_GROUPS
+            "vertices moved together by one transform per group", max_length=MAX_HANDLE_GROUPS
         )
     )
-    targets: Any = field(
+    targets: PointsOrNull = field(
         default=None,
         metadata=wire(
-            "points_or_null",
             "positions of the handle vertices (groups concatenated), or null to keep them where they are",
         ),
     )
-    stiffness: list[dict[str, Any]] | None = field(
+    stiffness: StiffnessOrNull = field(
         default=None,
         metadata=wire(
-            "stiffness_or_null",
             'painted stiffness (cell weights) as [{vertices, value}], value > 0 or "rigid", 1 '
             "elsewhere; null or absent: all 1",
             max_length=MAX_STIFFNESS_GROUPS,
         ),
     )
-    points: list[dict[str, Any]] | None = field(
+    points: PointHandlesOrNull = field(
         default=None,
         metadata=wire(
-            "point_handles_or_null",
             "point handles as [{face, barycentric, weight?, target?}] (no weight: hard); each "
             "is a handle group of its own, after handle_groups; null or absent: none",
             max_length=MAX_HANDLE_GROUPS,
@@ -115,20 +121,18 @@ class SetConstraints(ClientMessage):
 class Drag(ClientMessage):
     type: ClassVar[str] = "drag"
     doc: ClassVar[str] = "move the handle groups; only the newest pending drag is solved"
-    seq: int = field(
-        metadata=wire("int", "sequence number echoed by the answering vertices frame", minimum=0, maximum=MAX_SEQ)
+    seq: Int = field(
+        metadata=wire("sequence number echoed by the answering vertices frame", minimum=0, maximum=MAX_SEQ)
     )
-    transforms: list[list[float]] = field(
+    transforms: Matrices = field(
         metadata=wire(
-            "matrices",
             "one affine 4x4 matrix per handle group, then per point handle, column-major",
             max_length=MAX_HANDLE_GROUPS,
         )
     )
-    key: int | None = field(
+    key: Int | None = field(
         default=None,
         metadata=wire(
-            "int",
             "the keyframe (keep_shape's key) these transforms are the pose of: its kept shape is shown, unsolved, "
             "while its handles are where these transforms put them",
             minimum=0,
@@ -144,9 +148,9 @@ class KeepShape(ClientMessage):
         "keep the current shape, settled first, as a keyframe's (a drag or an export at that keyframe gives it "
         "back); no answer"
     )
-    key: int = field(metadata=wire("int", "the keyframe's number, chosen by the client", minimum=0, maximum=MAX_SEQ))
-    shape: Any = field(default=None, metadata=wire(
-        "points_or_null", "the keyframe's shape, one [x, y, z] per vertex, kept as it is instead of the current shape "
+    key: Int = field(metadata=wire("the keyframe's number, chosen by the client", minimum=0, maximum=MAX_SEQ))
+    shape: PointsOrNull = field(default=None, metadata=wire(
+        "the keyframe's shape, one [x, y, z] per vertex, kept as it is instead of the current shape "
         "(a keyframe kept before the connection was lost, given back to the new session); null: the current shape"))
 
 
@@ -161,30 +165,30 @@ class SetParams(ClientMessage):
     type: ClassVar[str] = "set_params"
     doc: ClassVar[str] = "change solver parameters (any of the fields)"
     at_least_one: ClassVar[bool] = True
-    iterations: int | None = field(
+    iterations: Int | None = field(
         default=None,
         metadata=wire(
-            "int",
             "local/global iterations per update",
             minimum=PARAMS["iterations"]["min"],
             maximum=PARAMS["iterations"]["max"],
         ),
     )
-    energy: EnergyType | None = field(default=None, metadata=wire("enum", "ARAP energy", choices=ENERGIES))
-    weights: WeightType | None = field(default=None, metadata=wire("enum", "edge weights", choices=WEIGHTS))
-    alpha: float | None = field(
+    energy: Annotated[EnergyType, Wire.ENUM] | None = field(
+        default=None, metadata=wire("ARAP energy", choices=ENERGIES))
+    weights: Annotated[WeightType, Wire.ENUM] | None = field(
+        default=None, metadata=wire("edge weights", choices=WEIGHTS))
+    alpha: Number | None = field(
         default=None,
         metadata=wire(
-            "number",
             "weight of the rotation term of smooth_rotations (SR-ARAP)",
             minimum=PARAMS["alpha"]["min"],
             maximum=PARAMS["alpha"]["max"],
         )
     )
-    loose: LoosePartsMode | None = field(default=None, metadata=wire(
-        "enum", "what parts no constraint reaches do", choices=tuple(PARAMS["loose"]["choices"])))
-    warp: str | None = field(default=None, metadata=wire(
-        "enum", "how a picture bends (the puppet warp's mode): rigid, normal or distort",
+    loose: Annotated[LoosePartsMode, Wire.ENUM] | None = field(default=None, metadata=wire(
+        "what parts no constraint reaches do", choices=tuple(PARAMS["loose"]["choices"])))
+    warp: Choice | None = field(default=None, metadata=wire(
+        "how a picture bends (the puppet warp's mode): rigid, normal or distort",
         choices=tuple(PARAMS["warp"]["choices"])))
 
 
@@ -217,7 +221,7 @@ class SetPinDepth(ClientMessage):
     type: ClassVar[str] = "set_pin_depth"
     doc: ClassVar[str] = ("a picture's depth per pin: where parts overlap, the part of the pin of larger depth is "
                           "drawn over the other (Export PNG)")
-    depth: IndexList = field(metadata=wire("indices", "one depth per point handle, in their order (absent: 0)",
+    depth: Indices = field(metadata=wire("one depth per point handle, in their order (absent: 0)",
                                            max_length=MAX_HANDLE_GROUPS))
 
 
@@ -225,7 +229,7 @@ class SetPinDepth(ClientMessage):
 class Remesh(ClientMessage):
     type: ClassVar[str] = "remesh"
     doc: ClassVar[str] = "mesh a picture again at another density, its pins kept at their places and targets"
-    density: str = field(metadata=wire("enum", "the mesh's density", choices=("coarse", "normal", "fine")))
+    density: Choice = field(metadata=wire("the mesh's density", choices=("coarse", "normal", "fine")))
 
 
 @dataclass(frozen=True)
@@ -234,7 +238,7 @@ class Export(ClientMessage):
     doc: ClassVar[str] = (
         "ask for the deformed mesh as a file (GLB keeps a textured or coloured source's UVs, textures and colours)"
     )
-    format: str = field(metadata=wire("enum", "file format", choices=EXPORT_FORMATS))
+    format: Choice = field(metadata=wire("file format", choices=EXPORT_FORMATS))
 
 
 @dataclass(frozen=True)
@@ -244,36 +248,32 @@ class GetConstraints(ClientMessage):
         "ask for the constraints document (command-line format), with the timeline's keyframes "
         "when given (as arap animate reads them)"
     )
-    times_ms: IndexList | None = field(
+    times_ms: Indices | None = field(
         default=None,
         metadata=wire(
-            "indices",
             "keyframe times in milliseconds, increasing (absent or empty: no keyframes)",
             max_length=MAX_KEYFRAMES,
         ),
     )
-    transforms: list[list[float]] | None = field(
+    transforms: Matrices | None = field(
         default=None,
         metadata=wire(
-            "matrices",
             "per keyframe, one column-major 4x4 matrix per handle group (then, optionally, per point handle), "
             "keyframe after keyframe",
             max_length=MAX_KEYFRAME_MATRICES,
         ),
     )
-    easings: IndexList | None = field(
+    easings: IndicesOrNull = field(
         default=None,
         metadata=wire(
-            "indices_or_null",
             "per keyframe, how the handles move to the next one: " + ", ".join(
                 f"{k} {name}" for k, name in enumerate(EASINGS)) + " (absent: all linear)",
             max_length=MAX_KEYFRAMES,
         ),
     )
-    keys: IndexList | None = field(
+    keys: IndicesOrNull = field(
         default=None,
         metadata=wire(
-            "indices_or_null",
             "per keyframe, its number for keep_shape: a shape kept under it is the keyframe's shape",
             max_length=MAX_KEYFRAMES,
         ),
@@ -289,36 +289,33 @@ class ExportAnimation(ClientMessage):
         "(morph targets) or, for a picture, an animated GIF or WebP or a zip of PNG frames; animation_progress "
         "messages report the frames solved, and any new request cancels it"
     )
-    times_ms: IndexList = field(
-        metadata=wire("indices", "keyframe times in milliseconds, increasing", max_length=MAX_KEYFRAMES)
+    times_ms: Indices = field(
+        metadata=wire("keyframe times in milliseconds, increasing", max_length=MAX_KEYFRAMES)
     )
-    transforms: list[list[float]] = field(
+    transforms: Matrices = field(
         metadata=wire(
-            "matrices",
             "per keyframe, one column-major 4x4 matrix per handle group "
             "(then, optionally, per point handle), keyframe after keyframe",
             max_length=MAX_KEYFRAME_MATRICES,
         )
     )
-    fps: float = field(metadata=wire("number", "frames per second", minimum=1, maximum=MAX_FPS))
-    easings: IndexList | None = field(
+    fps: Number = field(metadata=wire("frames per second", minimum=1, maximum=MAX_FPS))
+    easings: IndicesOrNull = field(
         default=None,
         metadata=wire(
-            "indices_or_null",
             "per keyframe, how the handles move to the next one: " + ", ".join(
                 f"{k} {name}" for k, name in enumerate(EASINGS)) + " (absent: all linear)",
             max_length=MAX_KEYFRAMES,
         ),
     )
-    keys: IndexList | None = field(
+    keys: IndicesOrNull = field(
         default=None,
         metadata=wire(
-            "indices_or_null",
             "per keyframe, its number for keep_shape: a shape kept under it is the keyframe's shape",
             max_length=MAX_KEYFRAMES,
         ),
     )
-    format: str = field(default="glb", metadata=wire("enum", "file format (gif, webp, zip: pictures only)",
+    format: Choice = field(default="glb", metadata=wire("file format (gif, webp, zip: pictures only)",
                                                      choices=ANIMATION_FORMATS))
 
 

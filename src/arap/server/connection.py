@@ -32,19 +32,20 @@ from arap.server.appearance import Look
 from arap.server.budget import ByteBudget, RequestQueue, request_cost
 from arap.server.client_messages import Drag, ExportAnimation, Upload
 from arap.server.decoder import PROCESS_BYTES, FrameDecoder
-from arap.server.dispatch import SETTLE, Dispatcher, Reply, StudioConfig
+from arap.server.dispatch import Dispatcher
 from arap.server.errors import RequestError
 from arap.server.frames import encode_binary
 from arap.server.mesh_model import MeshData
 from arap.server.messages import ClientMessage
 from arap.server.protocol import parse_binary, parse_text
 from arap.server.records import DragOutcome
+from arap.server.replies import SETTLE, Reply
 from arap.server.server_messages import Preparing
 from arap.server.session import Session
-from arap.server.studio_config import check_upload_size
+from arap.server.studio_config import StudioConfig, check_upload_size
 from arap.warmup import KERNELS_READY
 
-__all__ = ["SEND_QUEUE_EXTENSION", "TAKEN_BYTES", "Connection", "StudioConfig"]
+__all__ = ["SEND_QUEUE_EXTENSION", "TAKEN_BYTES", "Connection"]
 
 logger = logging.getLogger(__name__)
 
@@ -164,7 +165,7 @@ class Connection:
 
     async def _answer(self, replies: Iterator[Reply | object]) -> None:
         """Send what a dispatcher's generator yields; each of its steps runs on a thread (solves, file parsing,
-        encoding), the sending on the event loop; :data:`~arap.server.dispatch.SETTLE` settles the shape."""
+        encoding), the sending on the event loop; :data:`~arap.server.replies.SETTLE` settles the shape."""
         done = object()
         while True:
             reply = await self._off_loop(next, replies, done)

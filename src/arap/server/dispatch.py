@@ -50,6 +50,7 @@ from arap.server.meshdata import load_builtin, load_upload, mesh_frame
 from arap.server.messages import ClientMessage
 from arap.server.pictures import is_picture, load_picture
 from arap.server.protocol import check_against_mesh, error_message, validate
+from arap.server.records import DragOutcome, SettleOutcome
 from arap.server.replies import (
     SETTLE,
     Reply,
@@ -62,12 +63,12 @@ from arap.server.replies import (
 )
 from arap.server.server_messages import Animation, AnimationProgress, Constraints
 from arap.server.server_messages import Export as ExportReply
-from arap.server.session import DragOutcome, Session, SettleOutcome
+from arap.server.session import Session
 from arap.server.session_errors import SessionError
 from arap.server.settling import FrameCallback
 from arap.server.studio_config import StudioConfig, check_upload_size
 
-__all__ = ["SETTLE", "Dispatcher", "Reply", "StudioConfig", "decode_message"]
+__all__ = ["Dispatcher", "decode_message"]
 
 logger = logging.getLogger("arap.server.connection")
 

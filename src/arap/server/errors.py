@@ -1,7 +1,7 @@
 """Errors of the studio protocol: the ``error`` codes, the exception a rejected request raises, and the one table
 that gives the code of each refusal of a session (:mod:`arap.server.session_errors`).
 
-Part of the wire protocol; :mod:`arap.server.protocol` re-exports ``ERROR_CODES`` and ``RequestError``.
+Part of the wire protocol (:mod:`arap.server.protocol`).
 """
 
 from __future__ import annotations

@@ -1,6 +1,6 @@
 """Binary frames of the studio protocol: ``u32 LE header length | JSON header padded with spaces | payload``.
 
-Part of the wire protocol; :mod:`arap.server.protocol` re-exports these names.
+Part of the wire protocol (:mod:`arap.server.protocol`).
 """
 
 from __future__ import annotations

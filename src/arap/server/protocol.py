@@ -1,23 +1,28 @@
-"""The studio wire protocol: message types, their fields, error codes and the binary frame layout.
+"""The studio wire protocol: decoding and validation of a client's messages.
 
 The messages are classes, :mod:`arap.server.client_messages` and :mod:`arap.server.server_messages` (their
-specifications, derived from the classes, and the protocol's constants are in :mod:`arap.server.messages`), the
-error codes live in :mod:`arap.server.errors` and the binary frame helpers in :mod:`arap.server.frames`.
+specifications, derived from the classes, the kinds of their fields and the protocol's constants are in
+:mod:`arap.server.messages`), the error codes live in :mod:`arap.server.errors` and the binary frame helpers in
+:mod:`arap.server.frames`.
 
 This module is the single source of truth of the protocol spoken over the studio's WebSocket (see
 ``docs/protocol.md``). The browser client's copy, ``web/src/protocol.js``, is generated from it::
 
     python -m arap.server.protocol > web/src/protocol.js
 
-Incoming messages are validated in two stages: :func:`parse_text` / :func:`parse_binary` check the
-structure of a frame (JSON object, known type, every field of the right type and range) without knowing the
-session and return an instance of the message's class, and :func:`check_against_mesh` checks what depends on
-the session's current mesh (vertex index bounds, number of handle groups). Both raise :class:`RequestError`, which
-the server turns into an ``error`` reply.
+Incoming messages are validated in two stages: :func:`parse_text` / :func:`parse_binary` check the structure of a
+frame (JSON object, known type, every field of the right type and range: the checker of its kind in :data:`CHECKS`)
+without knowing the session and return an instance of the message's class, and :func:`check_against_mesh` checks
+what depends on the session's current mesh (vertex index bounds, number of handle groups). Both raise
+:class:`RequestError`, which the server turns into an ``error`` reply.
 """
 
 from __future__ import annotations
 
+import json
+import math
+import sys
+from collections.abc import Callable, Iterable, Mapping
 from typing import Any
 
 import numpy as np
@@ -25,13 +30,25 @@ import numpy as np
 from arap.server.bulkjson import NumberList, loads_bulk
 from arap.server.client_messages import CLIENT_MESSAGE_CLASSES, Drag, SetConstraints, Upload
 from arap.server.errors import RequestError
-from arap.server.fields import check_field
 from arap.server.frames import decode_binary, loads_json
-from arap.server.messages import MAX_HANDLE_GROUPS, MAX_STIFFNESS_GROUPS, ClientMessage, message_spec
+from arap.server.messages import (
+    MAX_HANDLE_GROUPS,
+    MAX_STIFFNESS_GROUPS,
+    SENT_ONLY,
+    ClientMessage,
+    Field,
+    Wire,
+    message_spec,
+)
 from arap.server.server_messages import Error
 
 __all__ = [
+    "AFFINE_TOLERANCE",
+    "CHECKS",
+    "SHORT_LIST_BYTES",
+    "Check",
     "check_against_mesh",
+    "check_field",
     "error_message",
     "main",
     "parse_binary",
@@ -44,6 +61,265 @@ __all__ = [
 def error_message(exc: RequestError) -> dict[str, Any]:
     """The ``error`` message that tells the client why ``exc``'s request was rejected."""
     return Error(code=exc.code, message=exc.message, request=exc.request).to_wire()
+
+
+# ---------------------------------------------------------------------------------------------- field checks
+AFFINE_TOLERANCE = 1e-9
+"""How far the last row of a drag transform may be from (0, 0, 0, 1)."""
+
+SHORT_LIST_BYTES = 2**20
+"""A :class:`~arap.server.bulkjson.NumberList` where a list of objects or matrices is expected is decoded into
+Python lists (and then refused or accepted by the usual checks) only up to this length of text."""
+
+Check = Callable[[Field, Any, str], Any]
+"""The checker of a field kind: ``check(field, value, where)`` returns the value as the message's class holds it, or
+raises :class:`RequestError` (``bad_message``) with a message that starts with ``where`` (``"drag.seq"``)."""
+
+_FLOAT_MAX = sys.float_info.max
+
+
+def _is_int(x: Any) -> bool:
+    return type(x) is int
+
+
+def _is_number(x: Any) -> bool:
+    """A finite float, or an integer a float64 can hold (comparing an int with a float is exact in Python)."""
+    if type(x) is float:
+        return math.isfinite(x)
+    return type(x) is int and -_FLOAT_MAX <= x <= _FLOAT_MAX
+
+
+def _shown_list(value: Any) -> Any:
+    """How a long list of numbers appears in a message (``json.dumps``'s ``default``)."""
+    if isinstance(value, NumberList):
+        return f"<list of {len(value)}>"
+    raise TypeError(f"{type(value).__name__} is not JSON")
+
+
+def _counted(f: Field, value: Any, where: str, what: str = "elements") -> None:
+    """Refuse a long list of numbers (:class:`~arap.server.bulkjson.NumberList`) with more elements than ``f``
+    allows, before any of them is decoded."""
+    if isinstance(value, NumberList) and f.max_length is not None and len(value) > f.max_length:
+        raise RequestError("bad_message", f"{where} has {len(value)} {what}, at most {f.max_length}")
+
+
+def _decoded(value: NumberList, where: str) -> list[Any]:
+    """A long list of numbers given where Python lists are checked: decoded when short, else refused."""
+    if value.nbytes > SHORT_LIST_BYTES:
+        raise RequestError("bad_message", f"{where} is a list of {len(value):,} "
+                           f"{'lists of numbers' if value.nested else 'numbers'}, not what it must hold")
+    return value.tolist()
+
+
+def _in_range(f: Field, value: Any, where: str) -> None:
+    if (f.minimum is not None and value < f.minimum) or (f.maximum is not None and value > f.maximum):
+        raise RequestError("bad_message", f"{where} must be in {f.minimum}..{f.maximum}, got {str(value)[:40]}")
+
+
+def _check_int(f: Field, value: Any, where: str) -> int:
+    _counted(f, value, where)
+    if not _is_int(value):
+        raise RequestError("bad_message", f"{where} must be an integer")
+    _in_range(f, value, where)
+    return value
+
+
+def _check_number(f: Field, value: Any, where: str) -> float:
+    _counted(f, value, where)
+    if not _is_number(value):
+        raise RequestError("bad_message", f"{where} must be a finite number")
+    _in_range(f, value, where)
+    return float(value)
+
+
+def _check_string(f: Field, value: Any, where: str) -> str:
+    _counted(f, value, where)
+    if not isinstance(value, str):
+        raise RequestError("bad_message", f"{where} must be a string")
+    if f.max_length is not None and len(value) > f.max_length:
+        raise RequestError("bad_message", f"{where} is longer than {f.max_length} characters")
+    return value
+
+
+def _check_enum(f: Field, value: Any, where: str) -> str:
+    value = _check_string(f, value, where)
+    if value not in f.choices:
+        raise RequestError("bad_message", f"{where} must be one of {list(f.choices)}, got {value[:40]!r}")
+    return value
+
+
+def _index_list(value: Any, where: str) -> Any:
+    if isinstance(value, NumberList):
+        return value.integers(where)
+    if not isinstance(value, list):
+        raise RequestError("bad_message", f"{where} must be a list of vertex indices")
+    if not all(type(x) is int for x in value):
+        bad = next(x for x in value if type(x) is not int)
+        shown = json.dumps(bad, default=_shown_list)[:40]
+        raise RequestError("bad_message", f"{where} must hold integers, found {shown}")
+    return value
+
+
+def _check_indices(f: Field, value: Any, where: str) -> Any:
+    _counted(f, value, where)
+    if isinstance(value, NumberList) and value.nested:
+        value = _decoded(value, where)
+    return _index_list(value, where)
+
+
+def _check_indices_or_null(f: Field, value: Any, where: str) -> Any:
+    return None if value is None else _check_indices(f, value, where)
+
+
+def _check_index_groups(f: Field, value: Any, where: str) -> Any:
+    if isinstance(value, NumberList):
+        _counted(f, value, where, "groups")
+        if value.nested:
+            return value.integer_groups(where)
+        value = _decoded(value, where) if len(value) else []
+    if not isinstance(value, list):
+        raise RequestError("bad_message", f"{where} must be a list of lists of vertex indices")
+    if f.max_length is not None and len(value) > f.max_length:
+        raise RequestError("bad_message", f"{where} has {len(value)} groups, at most {f.max_length}")
+    return [_index_list(g, f"{where}[{i}]") for i, g in enumerate(value)]
+
+
+def _check_matrices(f: Field, value: Any, where: str) -> Any:
+    if isinstance(value, NumberList):
+        _counted(f, value, where, "matrices")
+        value = _decoded(value, where)
+    if not isinstance(value, list):
+        raise RequestError("bad_message", f"{where} must be a list of 4x4 matrices (16 numbers each)")
+    if f.max_length is not None and len(value) > f.max_length:
+        raise RequestError("bad_message", f"{where} has {len(value)} matrices, at most {f.max_length}")
+    for i, m in enumerate(value):
+        if not isinstance(m, list) or len(m) != 16:
+            raise RequestError("bad_message", f"{where}[{i}] must be a list of 16 numbers")
+        if not all(_is_number(x) for x in m):
+            raise RequestError("bad_message", f"{where}[{i}] must hold 16 finite numbers")
+        if max(abs(m[3]), abs(m[7]), abs(m[11]), abs(m[15] - 1)) > AFFINE_TOLERANCE:
+            raise RequestError(
+                "bad_message", f"{where}[{i}] must be affine (last row 0, 0, 0, 1; column-major elements "
+                "3, 7, 11, 15)")
+    return value
+
+
+def _check_points_or_null(f: Field, value: Any, where: str) -> Any:
+    if value is None:
+        return None
+    if isinstance(value, NumberList):
+        _counted(f, value, where)
+        if value.nested:
+            return value.points(where)
+        value = _decoded(value, where) if len(value) else []
+    if not isinstance(value, list):
+        raise RequestError("bad_message", f"{where} must be a list of [x, y, z] points or null")
+    for i, p in enumerate(value):
+        if not isinstance(p, list) or len(p) != 3 or not all(_is_number(x) for x in p):
+            raise RequestError("bad_message", f"{where}[{i}] must be a list of 3 finite numbers")
+    return value
+
+
+def _check_stiffness_or_null(f: Field, value: Any, where: str) -> Any:
+    if value is None:
+        return None
+    if isinstance(value, NumberList):
+        _counted(f, value, where, "groups")
+        value = _decoded(value, where)
+    if not isinstance(value, list):
+        raise RequestError("bad_message", f"{where} must be a list of {{vertices, value}} objects or null")
+    if f.max_length is not None and len(value) > f.max_length:
+        raise RequestError("bad_message", f"{where} has {len(value)} groups, at most {f.max_length}")
+    for i, item in enumerate(value):
+        if not isinstance(item, dict) or set(item) != {"vertices", "value"}:
+            raise RequestError("bad_message", f'{where}[{i}] must be an object with "vertices" and "value"')
+        item["vertices"] = _index_list(item["vertices"], f"{where}[{i}].vertices")
+        v = item["value"]
+        if v != "rigid" and not (_is_number(v) and v > 0):
+            raise RequestError("bad_message", f'{where}[{i}].value must be a positive number or "rigid"')
+    return value
+
+
+_POINT_KEYS = frozenset({"face", "barycentric", "weight", "target"})
+
+
+def _check_point_handles_or_null(f: Field, value: Any, where: str) -> Any:
+    """The form of ``set_constraints.points``; ranges and coordinates are checked against the mesh by
+    :func:`arap.constraints.points_from_json` (``bad_constraints``)."""
+    if value is None:
+        return None
+    if isinstance(value, NumberList):
+        _counted(f, value, where, "point handles")
+        value = _decoded(value, where)
+    if not isinstance(value, list):
+        raise RequestError("bad_message", f"{where} must be a list of {{face, barycentric}} objects or null")
+    if f.max_length is not None and len(value) > f.max_length:
+        raise RequestError("bad_message", f"{where} has {len(value)} point handles, at most {f.max_length}")
+    for i, item in enumerate(value):
+        if not isinstance(item, dict) or not {"face", "barycentric"} <= set(item) or not set(item) <= _POINT_KEYS:
+            raise RequestError("bad_message", f'{where}[{i}] must be an object with "face", "barycentric" and '
+                               'optionally "weight" and "target"')
+        if not _is_int(item["face"]):
+            raise RequestError("bad_message", f"{where}[{i}].face must be an integer triangle index")
+        for key in ("barycentric", "target"):
+            p = item.get(key, [0, 0, 0])
+            if isinstance(p, NumberList) and p.nbytes <= SHORT_LIST_BYTES:
+                p = item[key] = p.tolist()
+            if not isinstance(p, list) or len(p) != 3 or not all(_is_number(x) for x in p):
+                raise RequestError("bad_message", f"{where}[{i}].{key} must be a list of 3 finite numbers")
+        w = item.get("weight", 1)
+        if not (_is_number(w) and w > 0):
+            raise RequestError("bad_message", f"{where}[{i}].weight must be a positive number (omit it for a "
+                               "hard handle)")
+    return value
+
+
+def checks_of_every_kind(checks: Mapping[Wire, Check], kinds: Iterable[Wire]) -> dict[Wire, Check]:
+    """``checks`` as a dict, when it has a checker for each of ``kinds`` a client may send and for no other.
+
+    Raises
+    ------
+    TypeError
+        A kind a client may send without a checker, or a checker of a kind only the server sends (or of no kind).
+    """
+    receivable = [k for k in kinds if k not in SENT_ONLY]
+    missing = [k.value for k in receivable if k not in checks]
+    if missing:
+        raise TypeError(f"field kinds without a checker: {missing}; add one to arap.server.protocol.CHECKS, or the "
+                        "kind to SENT_ONLY when only the server sends it")
+    extra = [str(getattr(k, "value", k)) for k in checks if k not in receivable]
+    if extra:
+        raise TypeError(f"checkers of field kinds a client cannot send: {extra}")
+    return dict(checks)
+
+
+CHECKS: dict[Wire, Check] = checks_of_every_kind({
+    Wire.INT: _check_int,
+    Wire.NUMBER: _check_number,
+    Wire.STRING: _check_string,
+    Wire.ENUM: _check_enum,
+    Wire.INDICES: _check_indices,
+    Wire.INDICES_OR_NULL: _check_indices_or_null,
+    Wire.INDEX_GROUPS: _check_index_groups,
+    Wire.MATRICES: _check_matrices,
+    Wire.POINTS_OR_NULL: _check_points_or_null,
+    Wire.STIFFNESS_OR_NULL: _check_stiffness_or_null,
+    Wire.POINT_HANDLES_OR_NULL: _check_point_handles_or_null,
+}, Wire)
+"""The checker of each kind of field a client may send (every :class:`~arap.server.messages.Wire` but those of
+:data:`~arap.server.messages.SENT_ONLY`: checked when this module is imported)."""
+
+
+def check_field(f: Field, value: Any, mtype: str) -> Any:
+    """Check the value of field ``f`` of a ``mtype`` message with the checker of its kind (:data:`CHECKS`); returns
+    it as the message's class holds it (numbers of ``number`` fields as float).
+
+    Raises
+    ------
+    RequestError
+        ``bad_message``: a value of the wrong kind, out of range or too long.
+    """
+    return CHECKS[f.kind](f, value, f"{mtype}.{f.name}")
 
 
 # ---------------------------------------------------------------------------------------------- validation

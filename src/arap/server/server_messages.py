@@ -1,5 +1,6 @@
-"""The messages the server sends, one frozen dataclass each, with their fields declared by
-:func:`arap.server.messages.wire`: the server builds every message as an instance (so a message cannot miss or add a
+"""The messages the server sends, one frozen dataclass each, each field declared once: its kind by its annotation
+(:class:`arap.server.messages.Wire`; one that admits None may be null), its meaning by
+:func:`arap.server.messages.wire`. The server builds every message as an instance (so a message cannot miss or add a
 field) and sends :meth:`~arap.server.messages.ServerMessage.to_wire`; the client module's typedefs and the
 protocol document take their field lists from the same classes (:data:`SERVER_MESSAGES`).
 """
@@ -8,7 +9,7 @@ from __future__ import annotations
 
 import json
 from dataclasses import dataclass, field
-from typing import Any, ClassVar
+from typing import Annotated, ClassVar
 
 from arap.server.errors import ERROR_CODES
 from arap.server.messages import (
@@ -17,8 +18,16 @@ from arap.server.messages import (
     PARAMS,
     SETTLE_STATUSES,
     WEIGHTS,
+    Choice,
+    Flag,
+    Int,
+    JsonObject,
+    Matrices,
     MessageSpec,
+    Number,
     ServerMessage,
+    Text,
+    Wire,
     message_spec,
     wire,
 )
@@ -51,23 +60,24 @@ _PARAMS_JS = (f"{{iterations: number, energy: {_union(ENERGIES)}, weights: {_uni
 _STIFFNESS_JS = 'Array<{vertices: number[], value: number|"rigid"}>'
 _POINTS_JS = "Array<{face: number, barycentric: number[], weight?: number}>"
 
+_Strings = Annotated[list[str], Wire.LIST]
+
 
 @dataclass(frozen=True)
 class Welcome(ServerMessage):
     type: ClassVar[str] = "welcome"
     doc: ClassVar[str] = "sent once on connect, followed by a mesh frame"
-    version: str = field(metadata=wire("string", "server package version"))
-    protocol: int = field(metadata=wire("int", "PROTOCOL_VERSION"))
-    builtin_meshes: list[str] = field(metadata=wire("list", "names accepted by load_builtin", js_type="string[]"))
-    limits: dict[str, int] = field(
+    version: Text = field(metadata=wire("server package version"))
+    protocol: Int = field(metadata=wire("PROTOCOL_VERSION"))
+    builtin_meshes: _Strings = field(metadata=wire("names accepted by load_builtin", js_type="string[]"))
+    limits: JsonObject = field(
         metadata=wire(
-            "object",
             "max_upload_bytes, max_vertices, max_frame_bytes, max_handle_groups",
             js_type="{max_upload_bytes: number, max_vertices: number, max_frame_bytes: "
             "number, max_handle_groups: number}",
         )
     )
-    params: dict[str, Any] = field(metadata=wire("object", "current solver parameters", js_type=_PARAMS_JS))
+    params: JsonObject = field(metadata=wire("current solver parameters", js_type=_PARAMS_JS))
 
 
 @dataclass(frozen=True)
@@ -77,22 +87,20 @@ class Mesh(ServerMessage):
         "a new mesh (payload: float32[n_vertices*3], uint32[n_faces*3], then int32[file_vertices]); history is cleared"
     )
     binary: ClassVar[bool] = True
-    name: str = field(metadata=wire("string", "model name"))
-    n_vertices: int = field(metadata=wire("int", "number of vertices"))
-    n_faces: int = field(metadata=wire("int", "number of triangles"))
-    report: list[str] = field(metadata=wire("list", "repairs made while loading, one line each", js_type="string[]"))
-    file_vertices: int = field(
+    name: Text = field(metadata=wire("model name"))
+    n_vertices: Int = field(metadata=wire("number of vertices"))
+    n_faces: Int = field(metadata=wire("number of triangles"))
+    report: _Strings = field(metadata=wire("repairs made while loading, one line each", js_type="string[]"))
+    file_vertices: Int = field(
         metadata=wire(
-            "int",
             "vertices of the mesh file when repair renumbered them (the payload then ends "
             "with the mesh vertex each file vertex became, -1 for one dropped), else 0: "
             "constraints documents use the file's numbering",
         )
     )
-    n_tetrahedra: int = field(metadata=wire("int", "tetrahedra of a solid, which the solver deforms (0 for a surface)"))
-    picture: list[int] | None = field(default=None, metadata=wire(
-        "list", "[width, height] of the picture this mesh is (the puppet warp), else null", nullable=True,
-        js_type="number[]|null"))
+    n_tetrahedra: Int = field(metadata=wire("tetrahedra of a solid, which the solver deforms (0 for a surface)"))
+    picture: Annotated[list[int], Wire.LIST] | None = field(default=None, metadata=wire(
+        "[width, height] of the picture this mesh is (the puppet warp), else null", js_type="number[]"))
 
 
 @dataclass(frozen=True)
@@ -106,16 +114,16 @@ class Appearance(ServerMessage):
         "bytes"
     )
     binary: ClassVar[bool] = True
-    colors: bool = field(metadata=wire("bool", "the payload holds a colour per mesh vertex"))
-    render_vertices: int = field(metadata=wire("int", "vertices of the render mesh (0: no texture shown)"))
-    render_faces: int = field(metadata=wire("int", "triangles of the render mesh"))
-    texture_bytes: int = field(
-        metadata=wire("int", "size of the base-colour image at the end of the payload (0: none)")
+    colors: Flag = field(metadata=wire("the payload holds a colour per mesh vertex"))
+    render_vertices: Int = field(metadata=wire("vertices of the render mesh (0: no texture shown)"))
+    render_faces: Int = field(metadata=wire("triangles of the render mesh"))
+    texture_bytes: Int = field(
+        metadata=wire("size of the base-colour image at the end of the payload (0: none)")
     )
-    texture_mime: str = field(metadata=wire("string", "its type: image/png or image/jpeg (empty without one)"))
-    notes: list[str] = field(
+    texture_mime: Text = field(metadata=wire("its type: image/png or image/jpeg (empty without one)"))
+    notes: _Strings = field(
         metadata=wire(
-            "list", "what is not shown and why (a texture over the size limit), one line each", js_type="string[]"
+            "what is not shown and why (a texture over the size limit), one line each", js_type="string[]"
         )
     )
 
@@ -128,25 +136,23 @@ class Vertices(ServerMessage):
         "frame, float32[subset*3] in a subset frame)"
     )
     binary: ClassVar[bool] = True
-    seq: int = field(metadata=wire("int", "seq of the drag answered, or -1"))
-    skipped: int = field(metadata=wire("int", "stale drags dropped since the previous answer"))
-    iterations: int = field(metadata=wire("int", "iterations run"))
-    energies: list[float | None] = field(
-        metadata=wire("list", "energy after each iteration", js_type="Array<number|null>")
+    seq: Int = field(metadata=wire("seq of the drag answered, or -1"))
+    skipped: Int = field(metadata=wire("stale drags dropped since the previous answer"))
+    iterations: Int = field(metadata=wire("iterations run"))
+    energies: Annotated[list[float | None], Wire.LIST] = field(
+        metadata=wire("energy after each iteration", js_type="Array<number|null>")
     )
-    solve_ms: float = field(metadata=wire("number", "solve time"))
-    ms_per_iteration: float = field(metadata=wire("number", "solve time per iteration"))
-    subset: int = field(
+    solve_ms: Number = field(metadata=wire("solve time"))
+    ms_per_iteration: Number = field(metadata=wire("solve time per iteration"))
+    subset: Int = field(
         metadata=wire(
-            "int",
             "-1: a full frame, the positions of all vertices; k >= 0: a subset frame, the "
             "positions of the k movable vertices listed by the last full frame, in its order (the others "
             "keep their positions)",
         )
     )
-    movable: int = field(
+    movable: Int = field(
         metadata=wire(
-            "int",
             "in a full frame, length of the list of movable vertices appended to the positions "
             "(0: none, and no subset frame follows until the next full frame); 0 in a subset frame",
         )
@@ -161,48 +167,45 @@ class Settle(ServerMessage):
         "change) the server iterates until converged, streaming vertices frames (seq -1, at most 30 per second); "
         "any new request stops it at once"
     )
-    status: str = field(
+    status: Choice = field(
         metadata=wire(
-            "enum",
             "settling, settled (converged; also sent after undo, redo, apply and loading when "
             "the shape shown is already settled), stopped (a request interrupted it; it resumes once the "
             "requests are answered) or unconverged (the iteration cap was reached)",
             choices=SETTLE_STATUSES,
         )
     )
-    iterations: int = field(
-        metadata=wire("int", "iterations run so far in this settling run (0: the shape was settled already)")
+    iterations: Int = field(
+        metadata=wire("iterations run so far in this settling run (0: the shape was settled already)")
     )
-    energy: float | None = field(
-        metadata=wire("number", "current energy, or null before the first iteration", nullable=True)
+    energy: Number | None = field(
+        metadata=wire("current energy, or null before the first iteration")
     )
-    seconds: float | None = field(metadata=wire("number", "time since settling started", nullable=True))
+    seconds: Number | None = field(metadata=wire("time since settling started"))
 
 
 @dataclass(frozen=True)
 class State(ServerMessage):
     type: ClassVar[str] = "state"
     doc: ClassVar[str] = "session state after any change"
-    can_undo: bool = field(metadata=wire("bool", ""))
-    can_redo: bool = field(metadata=wire("bool", ""))
-    params: dict[str, Any] = field(metadata=wire("object", "solver parameters", js_type=_PARAMS_JS))
-    constraints: dict[str, Any] = field(
+    can_undo: Flag = field(metadata=wire(""))
+    can_redo: Flag = field(metadata=wire(""))
+    params: JsonObject = field(metadata=wire("solver parameters", js_type=_PARAMS_JS))
+    constraints: JsonObject = field(
         metadata=wire(
-            "object",
             "roi, fixed, handle_groups, stiffness, points as last accepted",
             js_type=f"{{roi: number[]|null, fixed: number[], handle_groups: number[][], "
             f"stiffness: {_STIFFNESS_JS}|null, points: {_POINTS_JS}}}",
         )
     )
-    transforms: list[list[float]] = field(metadata=wire("matrices", "current transform of each handle group"))
-    rest_id: int = field(
+    transforms: Matrices = field(metadata=wire("current transform of each handle group"))
+    rest_id: Int = field(
         metadata=wire(
-            "int", "the rest pose: a new value after apply, the earlier one again when an undo or redo goes back to it"
+            "the rest pose: a new value after apply, the earlier one again when an undo or redo goes back to it"
         )
     )
-    stats: dict[str, Any] = field(
+    stats: JsonObject = field(
         metadata=wire(
-            "object",
             "n_vertices, n_faces, roi_size, n_free, factor_ms",
             js_type="{n_vertices: number, n_faces: number, roi_size: number, n_free: number, factor_ms: number}",
         )
@@ -213,7 +216,7 @@ class State(ServerMessage):
 class Constraints(ServerMessage):
     type: ClassVar[str] = "constraints"
     doc: ClassVar[str] = "answer to get_constraints"
-    document: dict[str, Any] = field(metadata=wire("object", "constraints document (command-line format)"))
+    document: JsonObject = field(metadata=wire("constraints document (command-line format)"))
 
 
 @dataclass(frozen=True)
@@ -221,8 +224,8 @@ class Export(ServerMessage):
     type: ClassVar[str] = "export"
     doc: ClassVar[str] = "answer to export (payload: the file's bytes)"
     binary: ClassVar[bool] = True
-    filename: str = field(metadata=wire("string", "suggested file name"))
-    mime: str = field(metadata=wire("string", "media type"))
+    filename: Text = field(metadata=wire("suggested file name"))
+    mime: Text = field(metadata=wire("media type"))
 
 
 @dataclass(frozen=True)
@@ -232,14 +235,14 @@ class AnimationProgress(ServerMessage):
         "progress of export_animation: sent before the first frame, then at most 10 times per "
         "second while frames are solved, and once more when a new request cancelled it"
     )
-    status: str = field(
+    status: Choice = field(
         metadata=wire(
-            "enum", "solving, or cancelled (a request arrived; nothing is exported)", choices=ANIMATION_STATUSES
+            "solving, or cancelled (a request arrived; nothing is exported)", choices=ANIMATION_STATUSES
         )
     )
-    frame: int = field(metadata=wire("int", "frames solved so far"))
-    frames: int = field(metadata=wire("int", "frames of the animation"))
-    seconds: float = field(metadata=wire("number", "time since the export started"))
+    frame: Int = field(metadata=wire("frames solved so far"))
+    frames: Int = field(metadata=wire("frames of the animation"))
+    seconds: Number = field(metadata=wire("time since the export started"))
 
 
 @dataclass(frozen=True)
@@ -251,10 +254,10 @@ class Animation(ServerMessage):
         "or zip of PNG frames)"
     )
     binary: ClassVar[bool] = True
-    filename: str = field(metadata=wire("string", "suggested file name"))
-    mime: str = field(metadata=wire("string", "media type"))
-    frames: int = field(metadata=wire("int", "frames in the file"))
-    seconds: float = field(metadata=wire("number", "time spent solving and encoding"))
+    filename: Text = field(metadata=wire("suggested file name"))
+    mime: Text = field(metadata=wire("media type"))
+    frames: Int = field(metadata=wire("frames in the file"))
+    seconds: Number = field(metadata=wire("time spent solving and encoding"))
 
 
 @dataclass(frozen=True)
@@ -265,8 +268,8 @@ class Distortion(ServerMessage):
         "rest size (payload: float32[n_vertices])"
     )
     binary: ClassVar[bool] = True
-    high: float = field(metadata=wire("number", "98th percentile of the values: the top of the colour scale"))
-    max: float = field(metadata=wire("number", "largest value"))
+    high: Number = field(metadata=wire("98th percentile of the values: the top of the colour scale"))
+    max: Number = field(metadata=wire("largest value"))
 
 
 @dataclass(frozen=True)
@@ -276,23 +279,22 @@ class Preparing(ServerMessage):
         "sent before the welcome, about once a second, while the server compiles the solver's kernels (the first "
         "run in a new environment); the welcome follows once the kernels a session needs first are ready"
     )
-    done: int = field(metadata=wire("int", "kernels ready (compiled or loaded from the cache)"))
-    total: int = field(metadata=wire("int", "kernels to prepare"))
-    kernel: str | None = field(
-        metadata=wire("string", "the kernel being compiled now (compiling), else the one compiled last, or null",
-                      nullable=True)
+    done: Int = field(metadata=wire("kernels ready (compiled or loaded from the cache)"))
+    total: Int = field(metadata=wire("kernels to prepare"))
+    kernel: Text | None = field(
+        metadata=wire("the kernel being compiled now (compiling), else the one compiled last, or null")
     )
-    compiling: bool = field(metadata=wire("bool", "whether kernel is being compiled now"))
-    seconds: float = field(metadata=wire("number", "time since the compilation started"))
+    compiling: Flag = field(metadata=wire("whether kernel is being compiled now"))
+    seconds: Number = field(metadata=wire("time since the compilation started"))
 
 
 @dataclass(frozen=True)
 class Error(ServerMessage):
     type: ClassVar[str] = "error"
     doc: ClassVar[str] = "a request was rejected; the session continues unchanged"
-    code: str = field(metadata=wire("enum", "error code", choices=tuple(ERROR_CODES)))
-    message: str = field(metadata=wire("string", "explanation"))
-    request: str | None = field(metadata=wire("string", "type of the rejected message, or null", nullable=True))
+    code: Choice = field(metadata=wire("error code", choices=tuple(ERROR_CODES)))
+    message: Text = field(metadata=wire("explanation"))
+    request: Text | None = field(metadata=wire("type of the rejected message, or null"))
 
 
 SERVER_MESSAGE_CLASSES: dict[str, type[ServerMessage]] = {

@@ -32,7 +32,7 @@ from arap.server.session_state import SessionState
 from arap.server.settling import FrameCallback
 from arap.server.solve_calls import check_target_range, checked_settle, solve_for_targets
 
-__all__ = ["MAX_KEPT_SHAPES", "DragOutcome", "Params", "Session", "SettleOutcome"]
+__all__ = ["MAX_KEPT_SHAPES", "Session"]
 
 MAX_KEPT_SHAPES = 64
 """Most keyframe shapes a session keeps (:meth:`Session.keep_shape`); the oldest goes first."""
