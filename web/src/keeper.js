@@ -155,8 +155,8 @@ export class SessionKeeper {
    */
   meshArrived(msg, positions, faces) {
     const { mesh } = this.deps;
-    mesh.source = this.pendingSource
-      ?? (mesh.builtins.includes(msg.name) ? builtinSource(msg.name) : fileSource(`${msg.name}.ply`, encodePly(positions, faces, mesh.vertexMap), mesh.repaired));
+    mesh.sourceKnown(this.pendingSource
+      ?? (mesh.builtins.includes(msg.name) ? builtinSource(msg.name) : fileSource(`${msg.name}.ply`, encodePly(positions, faces, mesh.vertexMap), mesh.repaired)));
     this.pendingSource = null;
     this.rest = Float32Array.from(positions);
     if (this.offer?.banner.open) this.offer.banner.setText(describe(this.offer.record, msg.name));
@@ -189,7 +189,7 @@ export class SessionKeeper {
       const faces = /** @type {import('three').BufferAttribute} */ (geometry.index).array;
       const bytes = encodePly(viewer.positions, faces, mesh.vertexMap);
       if (!mesh.limits.max_upload_bytes || bytes.byteLength <= mesh.limits.max_upload_bytes) {
-        mesh.source = fileSource(`${mesh.name}.ply`, bytes, mesh.repaired);
+        mesh.sourceKnown(fileSource(`${mesh.name}.ply`, bytes, mesh.repaired));
       }
     }
     this.restore.stateArrived(synced);

@@ -133,7 +133,7 @@ const timeline = new Timeline({
   },
   endDrag: () => {
     conn.endDrag();
-    history.awaitingState = true;
+    history.dragEnded();
   },
   send,
   download: downloadExport,
@@ -175,14 +175,14 @@ const conn = createConnection({
   onClose: () => {
     lostTimeline = timeline.snapshot();
     timeline.pause();
-    mesh.ready = false;
-    history.awaitingState = false;
+    mesh.connectionLost();
+    history.connectionLost();
     keeper.connectionLost();
     panel.connectionLost();
   },
   onRefused: ({ reason, delayMs }) => {
-    mesh.ready = false;
-    history.awaitingState = false;
+    mesh.connectionLost();
+    history.connectionLost();
     panel.serverFull(reason, delayMs, keeper.keepsWork);
   },
   onRetry: ({ attempt, delayMs }) => panel.setConnection('reconnecting', { attempt, delayMs }),
@@ -267,7 +267,7 @@ function applySavedSelection(/** @type {import('./autosave.js').Snapshot} */ sna
 }
 
 function setRole(/** @type {string} */ role) {
-  painting.role = role;
+  painting.roleChosen(role);
   panel.setSegment('role-seg', 'role', role);
   modes.showRole(role);
   shown.refresh(false);
@@ -309,7 +309,7 @@ function setGizmoMode(/** @type {'translate'|'rotate'} */ mode) {
   setRole,
   setGizmoMode,
   setBrushRadius: (v) => {
-    painting.brush[tools.units] = v;
+    painting.brushSized(tools.units, v);
     if (tools.units === 'world') tools.worldRadiusFrac = v / 100;
     else tools.radiusPx = v;
     panel.setBrushRadius(tools.units, v);

@@ -79,7 +79,7 @@ export function installManipulation({
     },
     onDragEnd: () => {
       connection().endDrag();
-      history.awaitingState = true;
+      history.dragEnded();
     },
     onPivot: () => {
       mirror.followPivot(gizmo, gizmo.group); // the partner turns about the mirrored pivot

@@ -69,7 +69,7 @@ export class ServerMessages {
    */
   handle(msg) {
     const { d } = this;
-    d.diagnostics.messages++;
+    d.diagnostics.messageReceived();
     if (msg.type !== SERVER.WELCOME && d.mesh.incompatible) return undefined;
     d.keeper.touch();
     // a shape received and not drawn yet is shown before anything that may read it; settling progress is not such
@@ -132,7 +132,7 @@ export class ServerMessages {
   meshArrived(msg) {
     const { d } = this;
     const t0 = performance.now();
-    d.diagnostics.uploadAt.received = performance.timeOrigin + t0;
+    d.diagnostics.mark('received', performance.timeOrigin + t0);
     const { positions, faces, vertexMap } = meshArrays(msg.frame);
     d.viewer.setMesh(positions, faces);
     showLoadNote(null, []); // an appearance right after says what this mesh's file could not show
@@ -145,7 +145,7 @@ export class ServerMessages {
     d.mesh.shown(msg, vertexMap);
     d.timeline.clear();
     d.sync.meshLoaded();
-    d.mesh.ready = true;
+    d.mesh.setUp();
     d.stats.reset();
     d.panel.meshLoaded(msg);
     d.refreshSelection(true);
@@ -154,7 +154,7 @@ export class ServerMessages {
     d.mirror.meshChanged(positions, faces); // after the status line: it may say that no symmetry was found
     d.keeper.meshArrived(msg, positions, faces);
     d.mesh.sourceArrived();
-    d.diagnostics.meshMs = performance.now() - t0;
+    d.diagnostics.meshShown(performance.now() - t0);
     d.diagnostics.mark('shown');
     requestAnimationFrame(() => d.diagnostics.mark('drawn')); // after the viewer's own frame callback: drawn once
   }
@@ -191,7 +191,7 @@ export class ServerMessages {
     const { d } = this;
     d.diagnostics.frameApplied(ms);
     d.heat.shapeChanged();
-    if (w.seq >= 0) d.mesh.lastSeq = w.seq;
+    if (w.seq >= 0) d.mesh.dragAnswered(w.seq);
     d.gizmo.recenter();
     d.points.refresh();
     if (w.solved) d.stats.frame(w.solved); // not for a pose change without a solve (undo, reset)
@@ -233,7 +233,7 @@ export class ServerMessages {
     d.sync.errorArrived(msg);
     if (msg.request === CLIENT.SET_PARAMS) d.panel.setParams(d.params.values); // the controls show what the server uses
     if (d.history.busyFor) d.setBusy(null);
-    if (msg.request === CLIENT.END_DRAG) d.history.awaitingState = false;
+    if (msg.request === CLIENT.END_DRAG) d.history.endDragRefused();
     if (msg.request === CLIENT.GET_DISTORTION) d.heat.failed();
     if (msg.request === CLIENT.EXPORT_ANIMATION) d.timeline.failed(msg.message || msg.code);
     d.keeper.errorArrived(msg);

@@ -199,7 +199,7 @@ export class Panel extends PanelReadouts {
   }
 
   /**
-   * @param {string[]} names
+   * @param {readonly string[]} names
    * @param {string|null} current
    */
   setBuiltins(names, current) {

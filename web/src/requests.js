@@ -56,7 +56,7 @@ export class Requests {
    * @param {string} [forType]
    */
   setBusy(text, forType) {
-    this.d.history.busyFor = text ? /** @type {string} */ (forType) : null;
+    this.d.history.waitingFor(text ? /** @type {string} */ (forType) : null);
     this.d.panel().setBusy(text);
   }
 
@@ -77,7 +77,7 @@ export class Requests {
       d.panel().hint(undo ? 'Nothing to undo.' : 'Nothing to redo.', 2000);
       return false;
     }
-    d.history.lastHistory = type;
+    d.history.stepAsked(type);
     if (!this.send({ type })) return false;
     // busy until the state that answers it: the shape and the gizmo move back, so a drag must wait for them
     this.setBusy(undo ? 'Undoing…' : 'Redoing…', SERVER.STATE);

@@ -1,6 +1,7 @@
 // The mesh the page shows and what the server said of it: its name and counts, the file's vertex numbering when
 // repair renumbered it, whether repair changed it, where it came from (what a restore loads again), the server's
 // limits and built-in models, and whether the session is ready (greeted, in our protocol version, a mesh shown).
+// Only this store writes its fields: the others tell it what happened through its methods.
 
 /** @typedef {import('../protocol.js').WelcomeServerMessage} WelcomeServerMessage */
 /** @typedef {import('../protocol.js').MeshServerMessage} MeshServerMessage */
@@ -17,25 +18,71 @@
  */
 
 export class MeshStore {
-  /** The session can be edited: the server greeted this page in its protocol version and a mesh is shown. */
-  ready = false;
-  /** The server speaks another protocol version: its messages are not read. */
-  incompatible = false;
-  /** @type {string|null} the model's name (null before the first mesh) */
-  name = null;
-  nFaces = 0;
-  /** @type {Int32Array|null} mesh vertex of each vertex of the mesh file, when repair renumbered them */
-  vertexMap = null;
-  /** Repair changed the mesh: its triangles are not the file's. */
-  repaired = false;
-  /** @type {MeshSource|null} where the current mesh came from */
-  source = null;
+  #ready = false;
+  #incompatible = false;
+  /** @type {string|null} */
+  #name = null;
+  #nFaces = 0;
+  /** @type {Int32Array|null} */
+  #vertexMap = null;
+  #repaired = false;
+  /** @type {MeshSource|null} */
+  #source = null;
   /** @type {Limits} */
-  limits = { max_upload_bytes: 0, max_vertices: 0 };
-  /** @type {string[]} names of the built-in models */
-  builtins = [];
+  #limits = { max_upload_bytes: 0, max_vertices: 0 };
+  /** @type {string[]} */
+  #builtins = [];
+  #lastSeq = -1;
+
+  /** The session can be edited: the server greeted this page in its protocol version and a mesh is shown. */
+  get ready() {
+    return this.#ready;
+  }
+
+  /** The server speaks another protocol version: its messages are not read. */
+  get incompatible() {
+    return this.#incompatible;
+  }
+
+  /** @returns {string|null} the model's name (null before the first mesh) */
+  get name() {
+    return this.#name;
+  }
+
+  /** The number of triangles of the mesh shown. */
+  get nFaces() {
+    return this.#nFaces;
+  }
+
+  /** @returns {Int32Array|null} mesh vertex of each vertex of the mesh file, when repair renumbered them */
+  get vertexMap() {
+    return this.#vertexMap;
+  }
+
+  /** Repair changed the mesh: its triangles are not the file's. */
+  get repaired() {
+    return this.#repaired;
+  }
+
+  /** @returns {Readonly<MeshSource>|null} where the current mesh came from */
+  get source() {
+    return this.#source;
+  }
+
+  /** @returns {Readonly<Limits>} */
+  get limits() {
+    return this.#limits;
+  }
+
+  /** @returns {readonly string[]} names of the built-in models */
+  get builtins() {
+    return this.#builtins;
+  }
+
   /** The newest drag request the shape shown answers (-1: none since the mesh arrived). */
-  lastSeq = -1;
+  get lastSeq() {
+    return this.#lastSeq;
+  }
 
   /**
    * The server greeted the page: false when it speaks another protocol version (`ours`), which makes it not ready.
@@ -43,13 +90,13 @@ export class MeshStore {
    * @param {number} ours
    */
   welcomed(msg, ours) {
-    this.incompatible = msg.protocol !== ours;
-    if (this.incompatible) {
-      this.ready = false;
+    this.#incompatible = msg.protocol !== ours;
+    if (this.#incompatible) {
+      this.#ready = false;
       return false;
     }
-    this.builtins = msg.builtin_meshes || [];
-    this.limits = { ...this.limits, ...(msg.limits || {}) };
+    this.#builtins = msg.builtin_meshes || [];
+    this.#limits = { ...this.#limits, ...(msg.limits || {}) };
     return true;
   }
 
@@ -59,15 +106,41 @@ export class MeshStore {
    * @param {Int32Array|null} vertexMap
    */
   shown(msg, vertexMap) {
-    this.name = msg.name;
-    this.nFaces = msg.n_faces;
-    this.vertexMap = vertexMap; // constraints documents name the file's vertices (numbering.js)
-    this.repaired = (msg.report || []).length > 0;
-    this.lastSeq = -1;
+    this.#name = msg.name;
+    this.#nFaces = msg.n_faces;
+    this.#vertexMap = vertexMap; // constraints documents name the file's vertices (numbering.js)
+    this.#repaired = (msg.report || []).length > 0;
+    this.#lastSeq = -1;
+  }
+
+  /** The mesh shown was set up (selection, gizmo, timeline, constraint sync): the session can be edited. */
+  setUp() {
+    this.#ready = true;
+  }
+
+  /** The connection went away (lost, or refused by a full server): the session cannot be edited. */
+  connectionLost() {
+    this.#ready = false;
+  }
+
+  /**
+   * The shape shown answers the drag request `seq`.
+   * @param {number} seq
+   */
+  dragAnswered(seq) {
+    this.#lastSeq = seq;
+  }
+
+  /**
+   * Where the mesh shown comes from is known (what a restore loads again).
+   * @param {MeshSource} source
+   */
+  sourceKnown(source) {
+    this.#source = source;
   }
 
   /** The source is a PLY written from a repaired mesh: still not the file's triangles. */
   sourceArrived() {
-    if (this.source?.repaired) this.repaired = true;
+    if (this.#source?.repaired) this.#repaired = true;
   }
 }
