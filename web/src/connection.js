@@ -46,9 +46,9 @@ export const WELCOME_WAIT_MS = 1500;
 export class Connection {
   /**
    * @param {string} url WebSocket address
-   * @param {ConnectionHandlers} handlers
+   * @param {ConnectionHandlers} [handlers] what it tells (also given later: listen)
    */
-  constructor(url, handlers) {
+  constructor(url, handlers = {}) {
     this.url = url;
     this.handlers = handlers;
     this.ws = null;
@@ -67,6 +67,14 @@ export class Connection {
     this.refusal = null; // why the server refused the current connection (its busy error, before any welcome)
     /** @type {ReturnType<typeof setTimeout> | undefined} */
     this.welcomeTimer = undefined; // fires onWaiting when the welcome is late
+  }
+
+  /**
+   * Tell `handlers` from now on what happens to the connection (instead of the handlers it had).
+   * @param {ConnectionHandlers} handlers
+   */
+  listen(handlers) {
+    this.handlers = handlers;
   }
 
   /** Connect now (also cancels a scheduled reconnection); a lost connection is retried with backoff. */
@@ -280,9 +288,9 @@ export const WIDGET_OPEN = { widget: 'open' };
 export class ModelConnection extends Connection {
   /**
    * @param {WidgetModel} model
-   * @param {ConnectionHandlers} handlers
+   * @param {ConnectionHandlers} [handlers] what it tells (also given later: listen)
    */
-  constructor(model, handlers) {
+  constructor(model, handlers = {}) {
     super('', handlers);
     this.model = model;
     /** @type {CustomListener} */
@@ -373,10 +381,10 @@ export function parentModel(target = window.parent) {
 /**
  * The studio session of this page: through the notebook's widget when the page is a widget's frame (the widget
  * sets `window.__ARAP_HOST__` to 'parent'), else the WebSocket of the server that served it.
- * @param {ConnectionHandlers} handlers
+ * @param {ConnectionHandlers} [handlers] what it tells (also given later: Connection.listen)
  * @returns {Connection}
  */
-export function createConnection(handlers) {
+export function createConnection(handlers = {}) {
   if (/** @type {any} */ (window).__ARAP_HOST__ === 'parent') return new ModelConnection(parentModel(), handlers);
   return new Connection(defaultSocketUrl(), handlers);
 }

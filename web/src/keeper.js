@@ -8,7 +8,7 @@ import { deleteSession, getMesh, newestOrphan, newSessionId } from './sessiondb.
 import { builtinSource, captureSession, describe, encodePly, fileSource, hasEdits, restExportFormat } from './snapshot.js';
 
 /**
- * What the keeper reads and tells (panel and gizmo: getters, as they are created later).
+ * What the keeper reads and tells.
  * @typedef {object} KeeperDeps
  * @property {import('./stores/meshstore.js').MeshStore} mesh
  * @property {import('./stores/historystore.js').HistoryStore} history

@@ -1,6 +1,9 @@
 // ARAP Studio: wires the connection, the 3D view, the selection tools, the gizmo and the side panel. The page's
 // state lives in small stores (stores/), the constraint-sync protocol in ConstraintSync (constraintsync.js) and the
 // handling of the server's messages in ServerMessages (messages.js); this module builds the pieces and connects them.
+// Each piece is built after the pieces it needs, so none is reached before it exists: the panel's readouts and the
+// connection are built first (the panel's controls and the connection's handlers are bound once everything is
+// built), and where a piece must tell one built after it, it emits one of the studio's events (events.js).
 import './style.css';
 import { createConnection } from './connection.js';
 import { ConstraintSync } from './constraintsync.js';
@@ -14,7 +17,7 @@ import { ignoreTypeAhead, installShortcuts, releaseFocusAfterPointerUse } from '
 import { loadConstraintsFile } from './loaddocument.js';
 import { installManipulation } from './manipulate.js';
 import { MeshLoading } from './meshloading.js';
-import { Requests } from './requests.js';
+import { Requests, showRequestError } from './requests.js';
 import { ServerMessages } from './messages.js';
 import { MirrorEditing } from './mirror.js';
 import { Panel } from './panel.js';
@@ -28,6 +31,7 @@ import { SelectionView } from './selectionview.js';
 import { UpdateStats } from './stats.js';
 import { onSessionRestored } from './restore.js';
 import { addSnapshotPart } from './autosave.js';
+import { StudioEvents } from './events.js';
 import { Diagnostics } from './stores/diagnostics.js';
 import { HistoryStore } from './stores/historystore.js';
 import { MeshStore } from './stores/meshstore.js';
@@ -46,9 +50,13 @@ const history = new HistoryStore();
 const params = new ParamStore();
 const diagnostics = new Diagnostics();
 const painting = new ToolStore();
+const events = new StudioEvents();
 
 const viewer = new Viewer(byId('view'));
-const livePose = new LivePose(viewer, (w, ms) => messages.shapeApplied(w, ms));
+const panel = new Panel(); // its controls act once bound to the studio's actions, below
+const conn = createConnection(); // it tells what happens once the pieces that listen are built, below
+const help = new Help();
+const livePose = new LivePose(viewer, (w, ms) => events.emit('shapeApplied', w, ms));
 const selection = new Selection();
 const mirror = new MirrorEditing({ viewer, selection, tell: (text) => panel.showStatus(text, 'info', 6000) });
 const sync = new ConstraintSync(selection, {
@@ -56,67 +64,66 @@ const sync = new ConstraintSync(selection, {
     selection.fromConstraints(c);
     mirror.repair();
   },
-  selectionReplaced: () => shown.refresh(true),
+  selectionReplaced: () => events.emit('selectionChanged', true),
   requestErrorCleared: () => panel.clearStatus('request'),
 });
-
-/** @type {Requests} */ const requests = new Requests({
-  mesh, history, sync, conn: () => conn, panel: () => panel, gizmo: () => gizmo, timeline: () => timeline,
-  keeper: () => keeper,
-});
-const send = requests.send.bind(requests);
-const setBusy = requests.setBusy.bind(requests);
-const showRequestError = requests.showError.bind(requests);
-const stepHistory = requests.stepHistory.bind(requests);
-
-/** @type {SessionKeeper} */ const keeper = new SessionKeeper({
-  mesh,
-  history,
-  params,
-  selection,
-  viewer,
-  get panel() {
-    return panel;
-  },
-  send,
-  requestMesh: (source) => loading.request(source),
-  get gizmo() {
-    return gizmo;
-  },
-  applySelection: applySavedSelection,
-  offerParent: byId('viewport'),
-});
+const showError = (/** @type {string} */ text) => showRequestError(sync, panel, text);
 
 const { gizmo, transformUi } = installManipulation({
-  mesh, history, sync, viewer, selection, mirror, connection: () => conn,
-  status: (...a) => panel.showStatus(...a), hush: () => panel.hideStatus(), changed: () => keeper.touch(),
-  refused: (text) => showRequestError(text), hint: (text) => panel.hint(text, 5000),
+  mesh, history, sync, viewer, selection, mirror, connection: conn,
+  status: (...a) => panel.showStatus(...a), hush: () => panel.hideStatus(), changed: () => events.emit('edited'),
+  refused: showError, hint: (text) => panel.hint(text, 5000),
+});
+const requests = new Requests({ mesh, history, sync, conn, panel, gizmo, events });
+const send = requests.send.bind(requests);
+const setBusy = requests.setBusy.bind(requests);
+const stepHistory = requests.stepHistory.bind(requests);
+
+const modes = new PaintModes({ selection, setRole, onWeightProblem: (text) => panel.showStatus(text, 'error', 5000) });
+const points = new PointHandles({ viewer, selection, changed: selectionEdited, weight: () => modes.weight() });
+const surface = new SurfaceSelection({
+  viewer, selection, role: () => painting.role, changed: selectionEdited, paint: (...a) => mirror.paint(...a),
+});
+const heat = new HeatMap({
+  viewer, send, role: () => selection.role, restore: () => events.emit('selectionChanged', false),
 });
 const tools = new SelectionTools(viewer, {
   isGizmoActive: () => gizmo.active,
   onPaint: (indices, subtract) => {
-    if (mirror.paint(indices, painting.role, modes.subtract(painting.role, subtract))) shown.refresh(false);
+    if (mirror.paint(indices, painting.role, modes.subtract(painting.role, subtract))) {
+      events.emit('selectionChanged', false);
+    }
   },
   onStrokeEnd: () => commitConstraints(),
   graph: () => surface.graph(),
   picking: () => painting.role === 'point',
   onPick: (hit, subtract) => points.pick(hit, subtract),
 });
-const points = new PointHandles({ viewer, selection, changed: selectionEdited, weight: () => modes.weight() });
-const modes = new PaintModes({ selection, setRole, onWeightProblem: (text) => panel.showStatus(text, 'error', 5000) });
-const surface = new SurfaceSelection({
-  viewer, selection, role: () => painting.role, changed: selectionEdited, paint: (...a) => mirror.paint(...a),
-});
-const heat = new HeatMap({ viewer, send, role: () => selection.role, restore: () => shown.refresh(false) });
-const help = new Help();
 viewer.attachControls(); // after the gizmo and the tools, so they see pointer events first
-const shown = new SelectionView({
-  viewer, selection, role: () => painting.role, heat, points, gizmo, help, panel: () => panel,
-  changed: () => keeper.touch(),
+
+const keeper = new SessionKeeper({
+  mesh,
+  history,
+  params,
+  selection,
+  viewer,
+  panel,
+  send,
+  requestMesh: (source) => loading.request(source), // the loading asks the keeper before it replaces a mesh
+  gizmo,
+  applySelection: applySavedSelection,
+  offerParent: byId('viewport'),
 });
+events.on('edited', () => keeper.touch());
+events.on('sent', (msg) => keeper.sent(msg));
+
+const shown = new SelectionView({
+  viewer, selection, role: () => painting.role, heat, points, gizmo, help, panel, changed: () => keeper.touch(),
+});
+events.on('selectionChanged', (full) => shown.refresh(full));
+
 /** @type {MeshLoading} */ const loading = new MeshLoading({
-  mesh, diagnostics, conn: () => conn, keeper, panel: () => panel, setBusy,
-  notConnected: () => requests.notConnected(),
+  mesh, diagnostics, conn, keeper, panel, setBusy, notConnected: () => requests.notConnected(),
 });
 
 const timeline = new Timeline({
@@ -140,6 +147,10 @@ const timeline = new Timeline({
   changed: () => keeper.touch(),
   say: (text, kind) => panel.showStatus(text, kind, kind === 'error' ? 8000 : 4000),
 });
+events.on('sent', (msg) => {
+  // apply makes the shape the new rest pose and the pose of the constraints: keyframes are carried over to it
+  if (msg.type === CLIENT.APPLY) timeline.rebase(gizmo.transformsFor(sync.groupMap), sync.serverGroups.length);
+});
 /** @typedef {ReturnType<Timeline['snapshot']>} TimelineSnapshot what the 'timeline' part of a snapshot holds */
 addSnapshotPart('timeline', () => timeline.snapshot());
 /** @type {TimelineSnapshot} the keyframes when the connection went away, put back with the session */
@@ -152,19 +163,17 @@ onSessionRestored((snap) => {
   if (view?.upAxis === 'z' || view?.upAxis === 'y') setUpAxis(view.upAxis, false);
 });
 
-/** Why the timeline cannot pose the handles now (null: it can). */
-function timelineBlocked() {
-  if (!mesh.ready || !conn.open) return 'not connected to the studio server';
-  if (gizmo.dragging) return 'a drag is under way';
-  if (sync.pending) return 'the new selection is still being set up';
-  if (sync.refusal) return 'the server refused the current selection';
-  if (!sync.groupMap.length) return 'paint a handle group or place a point handle first (keyframes pose them)';
-  return null;
-}
+const stats = new UpdateStats({ panel, latencyMs: () => conn.lastLatencyMs });
 
-const stats = new UpdateStats({ panel: () => panel, latencyMs: () => conn.lastLatencyMs });
+const messages = new ServerMessages({
+  mesh, history, params, diagnostics, sync, viewer, livePose, selection, gizmo, transformUi, timeline, stats, panel,
+  heat, mirror, keeper, help, points, conn, refreshSelection: (full) => shown.refresh(full),
+  updateGroupsUi: () => shown.updateList(), setBusy, showRequestError: showError,
+  commitConstraints,
+});
+events.on('shapeApplied', (w, ms) => messages.shapeApplied(w, ms));
 
-const conn = createConnection({
+conn.listen({
   onOpen: () => {
     panel.clearStatus('preparing');
     panel.setConnection('open');
@@ -189,6 +198,124 @@ const conn = createConnection({
   onWaiting: () => panel.preparingSolver(),
   onMessage: (msg) => messages.handle(msg),
 });
+
+// ------------------------------------------------------------------ panel, keyboard and drop
+
+panel.bind({
+  send,
+  loadBuiltin: (name) => loading.builtin(name),
+  uploadFile: (file) => loading.upload(file),
+  loadConstraintsFile: (file) => loadConstraintsFile(file, {
+    mesh, diagnostics, viewer, selection, mirror, timeline, rest: () => keeper.rest,
+    refreshSelection: (full) => shown.refresh(full),
+    commit: commitConstraints, say: (text, kind) => panel.showStatus(text, kind),
+  }),
+  setTool,
+  setRole,
+  setGizmoMode,
+  setBrushRadius: (v) => {
+    painting.brushSized(tools.units, v);
+    if (tools.units === 'world') tools.worldRadiusFrac = v / 100;
+    else tools.radiusPx = v;
+    panel.setBrushRadius(tools.units, v);
+  },
+  setBrushUnits,
+  setFrontOnly: (on) => (tools.frontOnly = on),
+  clearRole: () => {
+    mirror.clear(painting.role);
+    selectionEdited();
+  },
+  invertRole: () => selection.invert(painting.role) && selectionEdited(),
+  clearAll: () => {
+    selection.clear('erase');
+    selectionEdited();
+  },
+  newGroup: () => {
+    selection.addGroup();
+    setRole('handle');
+    shown.refresh(true);
+  },
+  removeGroup: (g) => {
+    selection.removeGroup(g);
+    selectionEdited();
+  },
+  selectGroup: (g) => {
+    selection.activeGroup = g;
+    setRole(selection.groups[g]?.point ? 'point' : 'handle');
+    shown.updateList();
+  },
+  undo: () => stepHistory(CLIENT.UNDO),
+  redo: () => stepHistory(CLIENT.REDO),
+  setParams: (p) => send({ type: CLIENT.SET_PARAMS, ...p }),
+  activePin: () => (selection.groups[selection.activeGroup]?.point
+    ? selection.groups.slice(0, selection.activeGroup).filter((g) => g.point).length : null),
+  saveConstraints: () => send({ type: CLIENT.GET_CONSTRAINTS, ...(timeline.messageFields() ?? {}) }),
+  setFlatShading: (on) => viewer.setFlatShading(on),
+  setWireframe: (on) => viewer.setWireframe(on),
+  setUpAxis,
+  setSurface,
+  fit: () => viewer.fit(),
+  reconnect: () => {
+    panel.setConnection('connecting');
+    panel.hideStatus();
+    conn.connect();
+  },
+});
+
+installShortcuts({
+  undo: () => stepHistory(CLIENT.UNDO),
+  redo: () => stepHistory(CLIENT.REDO),
+  keys: describedKeys({
+    w: () => setGizmoMode('translate'),
+    e: () => setGizmoMode('rotate'),
+    b: () => setTool('brush'),
+    x: () => setTool('box'),
+    o: () => setTool('orbit'),
+    f: () => viewer.fit(),
+    n: () => panel.actions.newGroup(),
+    1: () => setRole('roi'),
+    2: () => setRole('fixed'),
+    3: () => setRole('handle'),
+    4: () => setRole('erase'),
+    5: () => setRole('point'),
+    6: () => setRole('stiffness'),
+    '+': () => ringKey(false),
+    '=': () => ringKey(false),
+    '-': () => ringKey(true),
+    h: () => heat.setOn(!heat.on),
+    m: () => mirror.setOn(!mirror.on),
+    k: () => timeline.addKeyframe(),
+    delete: () => selection.groups[selection.activeGroup]?.point && panel.actions.removeGroup(selection.activeGroup),
+    '?': () => help.toggle(),
+    escape: () => (help.shown ? help.hide() : panel.hideStatus()),
+    ...transformUi.keys,
+  }),
+  unbound: (key) => panel.hint(`“${key}” is not a shortcut; press ? for the list of keys.`),
+});
+installSurfaceControls(surface, tools, (text) => panel.showStatus(text, 'info', 3000));
+installHud(byId('hud'), /** @type {HTMLElement} */ (document.querySelector('#hud .hud-head')), byId('hud-toggle'));
+installPanelFold(byId('panel'), /** @type {HTMLButtonElement} */ (byId('btn-panel')));
+ignoreTypeAhead(byId('builtin-select'));
+releaseFocusAfterPointerUse(byId('panel'));
+
+installDropTarget(byId('viewport'), byId('drop-overlay'), (file) => loading.upload(file));
+
+installTestHook({
+  mesh, history, params, diagnostics, tools: painting, sync, viewer, livePose, selection, gizmo, conn, keeper, points,
+  mirror, transformUi, timeline,
+});
+
+// ------------------------------------------------------------------ actions
+
+/** Why the timeline cannot pose the handles now (null: it can). */
+function timelineBlocked() {
+  if (!mesh.ready || !conn.open) return 'not connected to the studio server';
+  if (gizmo.dragging) return 'a drag is under way';
+  if (sync.pending) return 'the new selection is still being set up';
+  if (sync.refusal) return 'the server refused the current selection';
+  if (!sync.groupMap.length) return 'paint a handle group or place a point handle first (keyframes pose them)';
+  return null;
+}
 
 /**
  * Grow or shrink the current role by a ring from the keyboard; says so when there is nothing to grow.
@@ -295,119 +422,6 @@ function setGizmoMode(/** @type {'translate'|'rotate'} */ mode) {
   gizmo.setMode(mode);
   panel.setSegment('gizmo-seg', 'gizmo', mode);
 }
-
-/** @type {Panel} */ const panel = new Panel({
-  send,
-  loadBuiltin: (name) => loading.builtin(name),
-  uploadFile: (file) => loading.upload(file),
-  loadConstraintsFile: (file) => loadConstraintsFile(file, {
-    mesh, diagnostics, viewer, selection, mirror, timeline, rest: () => keeper.rest,
-    refreshSelection: (full) => shown.refresh(full),
-    commit: commitConstraints, say: (text, kind) => panel.showStatus(text, kind),
-  }),
-  setTool,
-  setRole,
-  setGizmoMode,
-  setBrushRadius: (v) => {
-    painting.brushSized(tools.units, v);
-    if (tools.units === 'world') tools.worldRadiusFrac = v / 100;
-    else tools.radiusPx = v;
-    panel.setBrushRadius(tools.units, v);
-  },
-  setBrushUnits,
-  setFrontOnly: (on) => (tools.frontOnly = on),
-  clearRole: () => {
-    mirror.clear(painting.role);
-    selectionEdited();
-  },
-  invertRole: () => selection.invert(painting.role) && selectionEdited(),
-  clearAll: () => {
-    selection.clear('erase');
-    selectionEdited();
-  },
-  newGroup: () => {
-    selection.addGroup();
-    setRole('handle');
-    shown.refresh(true);
-  },
-  removeGroup: (g) => {
-    selection.removeGroup(g);
-    selectionEdited();
-  },
-  selectGroup: (g) => {
-    selection.activeGroup = g;
-    setRole(selection.groups[g]?.point ? 'point' : 'handle');
-    shown.updateList();
-  },
-  undo: () => stepHistory(CLIENT.UNDO),
-  redo: () => stepHistory(CLIENT.REDO),
-  setParams: (p) => send({ type: CLIENT.SET_PARAMS, ...p }),
-  activePin: () => (selection.groups[selection.activeGroup]?.point
-    ? selection.groups.slice(0, selection.activeGroup).filter((g) => g.point).length : null),
-  saveConstraints: () => send({ type: CLIENT.GET_CONSTRAINTS, ...(timeline.messageFields() ?? {}) }),
-  setFlatShading: (on) => viewer.setFlatShading(on),
-  setWireframe: (on) => viewer.setWireframe(on),
-  setUpAxis,
-  setSurface,
-  fit: () => viewer.fit(),
-  reconnect: () => {
-    panel.setConnection('connecting');
-    panel.hideStatus();
-    conn.connect();
-  },
-});
-
-// ------------------------------------------------------------------ keyboard and drop
-
-installShortcuts({
-  undo: () => stepHistory(CLIENT.UNDO),
-  redo: () => stepHistory(CLIENT.REDO),
-  keys: describedKeys({
-    w: () => setGizmoMode('translate'),
-    e: () => setGizmoMode('rotate'),
-    b: () => setTool('brush'),
-    x: () => setTool('box'),
-    o: () => setTool('orbit'),
-    f: () => viewer.fit(),
-    n: () => panel.actions.newGroup(),
-    1: () => setRole('roi'),
-    2: () => setRole('fixed'),
-    3: () => setRole('handle'),
-    4: () => setRole('erase'),
-    5: () => setRole('point'),
-    6: () => setRole('stiffness'),
-    '+': () => ringKey(false),
-    '=': () => ringKey(false),
-    '-': () => ringKey(true),
-    h: () => heat.setOn(!heat.on),
-    m: () => mirror.setOn(!mirror.on),
-    k: () => timeline.addKeyframe(),
-    delete: () => selection.groups[selection.activeGroup]?.point && panel.actions.removeGroup(selection.activeGroup),
-    '?': () => help.toggle(),
-    escape: () => (help.shown ? help.hide() : panel.hideStatus()),
-    ...transformUi.keys,
-  }),
-  unbound: (key) => panel.hint(`“${key}” is not a shortcut; press ? for the list of keys.`),
-});
-installSurfaceControls(surface, tools, (text) => panel.showStatus(text, 'info', 3000));
-installHud(byId('hud'), /** @type {HTMLElement} */ (document.querySelector('#hud .hud-head')), byId('hud-toggle'));
-installPanelFold(byId('panel'), /** @type {HTMLButtonElement} */ (byId('btn-panel')));
-ignoreTypeAhead(byId('builtin-select'));
-releaseFocusAfterPointerUse(byId('panel'));
-
-installDropTarget(byId('viewport'), byId('drop-overlay'), (file) => loading.upload(file));
-
-const messages = new ServerMessages({
-  mesh, history, params, diagnostics, sync, viewer, livePose, selection, gizmo, transformUi, timeline, stats, panel,
-  heat, mirror, keeper, help, points, conn, refreshSelection: (full) => shown.refresh(full),
-  updateGroupsUi: () => shown.updateList(), setBusy, showRequestError,
-  commitConstraints,
-});
-
-installTestHook({
-  mesh, history, params, diagnostics, tools: painting, sync, viewer, livePose, selection, gizmo, conn, keeper, points,
-  mirror, transformUi, timeline,
-});
 
 // ------------------------------------------------------------------ start
 

@@ -46,7 +46,7 @@ export function refusedDragText(reason) {
  * @param {import('./viewer.js').Viewer} opts.viewer
  * @param {Selection} opts.selection
  * @param {import('./mirror.js').MirrorEditing} opts.mirror
- * @param {() => import('./connection.js').Connection} opts.connection the Connection, created later
+ * @param {import('./connection.js').Connection} opts.connection
  * @param {(text: string, kind?: string, ms?: number) => void} opts.status the status line
  * @param {() => void} opts.hush hides the status line
  * @param {(text: string) => void} opts.refused a request's error: a drag was refused
@@ -59,7 +59,7 @@ export function installManipulation({
 }) {
   const gizmo = new HandleGizmo(viewer, {
     onDragStart: () => {
-      if (!connection().open) {
+      if (!connection.open) {
         status('Not connected to the studio server: the handles can be moved again once it is back.', 'error');
         return false;
       }
@@ -75,10 +75,10 @@ export function installManipulation({
     },
     onDrag: () => {
       mirror.follow(gizmo, gizmo.group); // the partner group moves by the mirrored transform in the same message
-      connection().drag(gizmo.transformsFor(sync.groupMap));
+      connection.drag(gizmo.transformsFor(sync.groupMap));
     },
     onDragEnd: () => {
-      connection().endDrag();
+      connection.endDrag();
       history.dragEnded();
     },
     onPivot: () => {

@@ -12,9 +12,9 @@ import { builtinSource, fileSource } from './snapshot.js';
  * @typedef {object} MeshLoadingDeps
  * @property {import('./stores/meshstore.js').MeshStore} mesh
  * @property {import('./stores/diagnostics.js').Diagnostics} diagnostics
- * @property {() => import('./connection.js').Connection} conn (created later)
+ * @property {import('./connection.js').Connection} conn
  * @property {import('./keeper.js').SessionKeeper} keeper
- * @property {() => import('./panel.js').Panel} panel (created later)
+ * @property {import('./panel.js').Panel} panel
  * @property {() => void} notConnected say that nothing can be sent
  * @property {(text: string|null, forType?: string) => void} setBusy
  */
@@ -32,8 +32,8 @@ export class MeshLoading {
   request(source) {
     const { d } = this;
     const ok = source.kind === 'builtin'
-      ? d.conn().send({ type: CLIENT.LOAD_BUILTIN, name: /** @type {string} */ (source.name) })
-      : d.conn().sendBinary({ type: CLIENT.UPLOAD, filename: /** @type {string} */ (source.filename) }, source.bytes);
+      ? d.conn.send({ type: CLIENT.LOAD_BUILTIN, name: /** @type {string} */ (source.name) })
+      : d.conn.sendBinary({ type: CLIENT.UPLOAD, filename: /** @type {string} */ (source.filename) }, source.bytes);
     if (!ok) {
       d.notConnected();
       return false;
@@ -57,7 +57,7 @@ export class MeshLoading {
     }
     bundleFiles(chosen).then((file) => this.uploadOne(file), (/** @type {Error} */ err) => {
       d.diagnostics.error('client_check', err.message, CLIENT.UPLOAD);
-      d.panel().showStatus(err.message, 'error');
+      d.panel.showStatus(err.message, 'error');
     });
   }
 
@@ -70,7 +70,7 @@ export class MeshLoading {
     const problem = checkMeshFile(file, d.mesh.limits.max_upload_bytes);
     if (problem) {
       d.diagnostics.error('client_check', problem, CLIENT.UPLOAD);
-      d.panel().showStatus(problem, 'error');
+      d.panel.showStatus(problem, 'error');
       return;
     }
     if (!d.keeper.confirmReplace(file.name)) return;
@@ -89,6 +89,6 @@ export class MeshLoading {
     const { d } = this;
     if (!name || name === d.mesh.name) return;
     if (d.keeper.confirmReplace(name)) this.request(builtinSource(name));
-    else d.panel().setCurrentModel(d.mesh.name);
+    else d.panel.setCurrentModel(d.mesh.name);
   }
 }

@@ -1,5 +1,5 @@
 // The side panel's controls: model choice, tools, roles and handle groups, solver parameters, export, view
-// options, each bound to a studio action (main.js supplies them), and the panel's answers to what happens to the
+// options, each bound to a studio action (main.js supplies them once every piece is built: bind), and the panel's answers to what happens to the
 // connection. What the panel only displays (status bar, connection, statistics, settling) is in readouts.js,
 // whose class this one extends, so that the studio still talks to one panel object.
 import { REFERENCED_EXTENSIONS } from './files.js';
@@ -68,14 +68,28 @@ function fillChoices(select, param) {
  * @property {() => void} reconnect
  */
 
+/** The actions of a panel whose controls are not bound yet: none of them is called before bind. */
+const UNBOUND = /** @type {PanelActions} */ ({});
+
 export class Panel extends PanelReadouts {
-  /** @param {PanelActions} actions callbacks invoked by the controls (see main.js) */
-  constructor(actions) {
+  /**
+   * The panel's readouts work at once; its controls act once bound to the studio's actions (bind).
+   */
+  constructor() {
     super();
-    this.actions = actions;
+    /** @type {PanelActions} the actions of the controls (see main.js) */
+    this.actions = UNBOUND;
     this.enabled = true; // the controls take input (not while the server is away)
     /** @type {import('./protocol.js').PreparingServerMessage|undefined} the server's last word on its compilation */
     this.lastPreparing = undefined;
+  }
+
+  /**
+   * Bind the controls to the studio's actions (once, when the pieces they act on are built).
+   * @param {PanelActions} actions callbacks invoked by the controls (see main.js)
+   */
+  bind(actions) {
+    this.actions = actions;
 
     $('builtin-select').addEventListener('change', (/** @type {Event} */ e) => actions.loadBuiltin(source(e).value));
     const fileInput = /** @type {HTMLInputElement} */ ($('file-input'));

@@ -8,16 +8,16 @@ import { CLIENT, SERVER } from './protocol.js';
 /** @typedef {import('./stores/historystore.js').HistoryStep} HistoryStep */
 
 /**
- * What sending reads and tells (the getters: pieces created later).
+ * What sending reads and tells: a request sent is told as the studio's `sent` event (events.js), which the session
+ * keeper and the timeline hear.
  * @typedef {object} RequestDeps
  * @property {import('./stores/meshstore.js').MeshStore} mesh
  * @property {import('./stores/historystore.js').HistoryStore} history
  * @property {import('./constraintsync.js').ConstraintSync} sync
- * @property {() => import('./connection.js').Connection} conn
- * @property {() => import('./panel.js').Panel} panel
- * @property {() => import('./gizmo.js').HandleGizmo} gizmo
- * @property {() => import('./timeline.js').Timeline} timeline
- * @property {() => import('./keeper.js').SessionKeeper} keeper
+ * @property {import('./connection.js').Connection} conn
+ * @property {import('./panel.js').Panel} panel
+ * @property {import('./gizmo.js').HandleGizmo} gizmo
+ * @property {import('./events.js').StudioEvents} events
  */
 
 export class Requests {
@@ -33,20 +33,17 @@ export class Requests {
    */
   send(msg) {
     const { d } = this;
-    // apply makes the shape the new rest pose and the pose of the constraints: keyframes are carried over to it
-    const current = msg.type === CLIENT.APPLY ? d.gizmo().transformsFor(d.sync.groupMap) : null;
-    if (!d.conn().send(msg)) {
+    if (!d.conn.send(msg)) {
       this.notConnected();
       return false;
     }
-    if (current) d.timeline().rebase(current, d.sync.serverGroups.length);
-    d.keeper().sent(msg);
+    d.events.emit('sent', msg);
     return true;
   }
 
   /** Say that nothing can be sent, unless the status bar already says why (connection lost, server full). */
   notConnected() {
-    const panel = this.d.panel();
+    const { panel } = this.d;
     if (!panel.showing('connection')) panel.showStatus('Not connected to the studio server.', 'error');
   }
 
@@ -57,7 +54,7 @@ export class Requests {
    */
   setBusy(text, forType) {
     this.d.history.waitingFor(text ? /** @type {string} */ (forType) : null);
-    this.d.panel().setBusy(text);
+    this.d.panel.setBusy(text);
   }
 
   /**
@@ -67,14 +64,14 @@ export class Requests {
   stepHistory(type) {
     const { d } = this;
     const undo = type === CLIENT.UNDO;
-    if (!d.conn().open) {
+    if (!d.conn.open) {
       this.notConnected();
       return false;
     }
     // a drag or selection under way (its state not back yet) may make a step where the last state had none
-    const pending = d.history.awaitingState || d.sync.pending || d.gizmo().dragging;
+    const pending = d.history.awaitingState || d.sync.pending || d.gizmo.dragging;
     if (d.mesh.ready && !pending && !d.history.can(type)) {
-      d.panel().hint(undo ? 'Nothing to undo.' : 'Nothing to redo.', 2000);
+      d.panel.hint(undo ? 'Nothing to undo.' : 'Nothing to redo.', 2000);
       return false;
     }
     d.history.stepAsked(type);
@@ -83,13 +80,15 @@ export class Requests {
     this.setBusy(undo ? 'Undoing…' : 'Redoing…', SERVER.STATE);
     return true;
   }
+}
 
-  /**
-   * Show the error of a request (or a refused drag): it goes once a later constraint set is accepted.
-   * @param {string} text
-   */
-  showError(text) {
-    this.d.sync.requestErrorShown();
-    this.d.panel().showStatus(text, 'error', 0, 'request');
-  }
+/**
+ * Show the error of a request (or a refused drag) on the panel: it goes once a later constraint set is accepted.
+ * @param {import('./constraintsync.js').ConstraintSync} sync
+ * @param {import('./panel.js').Panel} panel
+ * @param {string} text
+ */
+export function showRequestError(sync, panel, text) {
+  sync.requestErrorShown();
+  panel.showStatus(text, 'error', 0, 'request');
 }

@@ -15,7 +15,7 @@ const LIST_DELAY_MS = 100;
  * @property {import('./pointhandles.js').PointHandles} points
  * @property {import('./gizmo.js').HandleGizmo} gizmo
  * @property {import('./help.js').Help} help (its guide)
- * @property {() => import('./panel.js').Panel} panel (created later)
+ * @property {import('./panel.js').Panel} panel
  * @property {() => void} changed something to save
  */
 
@@ -55,7 +55,7 @@ export class SelectionView {
     const { viewer, selection, points, gizmo } = this.d;
     this.d.changed();
     const counts = selection.counts();
-    this.d.panel().setGroups(selection.groups, selection.activeGroup, counts, viewer.nVertices);
+    this.d.panel.setGroups(selection.groups, selection.activeGroup, counts, viewer.nVertices);
     this.d.help.guideProgress({ anchors: counts.fixed > 0, handle: counts.groups.some((c) => c > 0) });
     const anchor = points.anchor(selection.activeGroup);
     if (!gizmo.dragging) gizmo.attach(selection.activeGroup, anchor.indices, anchor.weights);

@@ -8,7 +8,7 @@ const energyNote = () => /** @type {HTMLElement} */ (document.getElementById('en
 export class UpdateStats {
   /**
    * @param {object} opts
-   * @param {() => import('./panel.js').Panel} opts.panel the panel (its setStats)
+   * @param {import('./panel.js').Panel} opts.panel the panel (its setStats)
    * @param {() => number|null} opts.latencyMs the connection's last round trip, or null
    */
   constructor({ panel, latencyMs }) {
@@ -20,7 +20,7 @@ export class UpdateStats {
     this.timePlot = new LinePlot(/** @type {HTMLCanvasElement} */ (document.getElementById('plot-time')),
       { color: '#f0883e', xLabel: 'updates', maxPoints: 300 });
     setInterval(() => {
-      if (this.updateTimes.length) this.panel().setStats({ ups: this._ups() });
+      if (this.updateTimes.length) this.panel.setStats({ ups: this._ups() });
     }, 500);
   }
 
@@ -66,7 +66,7 @@ export class UpdateStats {
     this.timePlot.draw();
     if (energies.length) this.noteEnergies(energies); // a settling frame carries none: its `settle` message does
     const latency = this.latencyMs();
-    this.panel().setStats({
+    this.panel.setStats({
       ms_per_iteration: msg.ms_per_iteration,
       ups: this._ups(),
       latency_ms: msg.seq >= 0 && latency !== null ? latency : msg.solve_ms,
