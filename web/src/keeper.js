@@ -155,8 +155,8 @@ export class SessionKeeper {
    */
   meshArrived(msg, positions, faces) {
     const { mesh } = this.deps;
-    mesh.sourceKnown(this.pendingSource
-      ?? (mesh.builtins.includes(msg.name) ? builtinSource(msg.name) : fileSource(`${msg.name}.ply`, encodePly(positions, faces, mesh.vertexMap), mesh.repaired)));
+    mesh.sourceKnown(this.pendingSource ?? (mesh.builtins.includes(msg.name) ? builtinSource(msg.name)
+      : fileSource(`${msg.name}.ply`, encodePly(positions, faces, mesh.vertexMap), mesh.repaired)));
     this.pendingSource = null;
     this.rest = Float32Array.from(positions);
     if (this.offer?.banner.open) this.offer.banner.setText(describe(this.offer.record, msg.name));

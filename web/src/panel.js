@@ -1,7 +1,7 @@
 // The side panel's controls: model choice, tools, roles and handle groups, solver parameters, export, view
-// options, each bound to a studio action (main.js supplies them once every piece is built: bind), and the panel's answers to what happens to the
-// connection. What the panel only displays (status bar, connection, statistics, settling) is in readouts.js,
-// whose class this one extends, so that the studio still talks to one panel object.
+// options, each bound to a studio action (main.js supplies them once every piece is built: bind), and the panel's
+// answers to what happens to the connection. What the panel only displays (status bar, connection, statistics,
+// settling) is in readouts.js, whose class this one extends, so that the studio still talks to one panel object.
 import { REFERENCED_EXTENSIONS } from './files.js';
 import { installPictureControls, pictureShown, warpShown } from './picturemode.js';
 import { EXPORT_FORMATS, PARAMS, UPLOAD_EXTENSIONS } from './protocol.js';

@@ -28,7 +28,7 @@ export class Diagnostics {
     return this.#messages;
   }
 
-  /** @returns {readonly number[]} JavaScript ms spent applying each vertices frame (the newest 256; drawing excluded) */
+  /** @returns {readonly number[]} JavaScript ms spent applying each vertices frame (the newest 256; no drawing) */
   get frameMs() {
     return this.#frameMs;
   }
@@ -38,7 +38,7 @@ export class Diagnostics {
     return this.#meshMs;
   }
 
-  /** @returns {Readonly<Partial<Record<UploadStep, number>>>} wall-clock times (ms since the epoch) of the last upload's steps */
+  /** @returns {Readonly<Partial<Record<UploadStep, number>>>} when the last upload's steps happened (epoch ms) */
   get uploadAt() {
     return this.#uploadAt;
   }
