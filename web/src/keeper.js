@@ -125,7 +125,7 @@ export class SessionKeeper {
     const { mesh } = this.deps;
     const bytes = msg.frame.payload.slice();
     if (!mesh.limits.max_upload_bytes || bytes.byteLength <= mesh.limits.max_upload_bytes) {
-      mesh.source = fileSource(msg.filename, bytes, mesh.repaired);
+      mesh.sourceKnown(fileSource(msg.filename, bytes, mesh.repaired));
       this.touch();
     }
     return true;
