@@ -48,15 +48,18 @@ def _public_names() -> dict[str, tuple[object, ModuleType]]:
 PUBLIC = _public_names()
 
 
-def _examples_of(dotted: str) -> list[doctest.DocTest]:
-    """The docstring examples that show ``dotted``: its own, or its module's that name it (constants)."""
+def _examples_of(dotted: str) -> list[doctest.Example]:
+    """The docstring examples that show ``dotted`` and run (not skipped): its own, or for a constant its module's
+    that name it."""
     obj, module = PUBLIC[dotted]
     finder = doctest.DocTestFinder(recurse=False)
     if inspect.isclass(obj) or inspect.isroutine(obj):
-        return [t for t in finder.find(obj, dotted, module=False, globs={}) if t.examples]
-    short = dotted.rpartition(".")[2]
-    return [t for t in finder.find(module, module.__name__, globs={})
-            if any(re.search(rf"\b{re.escape(short)}\b", e.source) for e in t.examples)]
+        tests = finder.find(obj, dotted, module=False, globs={})
+    else:
+        short = re.compile(rf"\b{re.escape(dotted.rpartition('.')[2])}\b")
+        tests = [t for t in finder.find(module, module.__name__, globs={})
+                 if any(short.search(e.source) for e in t.examples)]
+    return [e for t in tests for e in t.examples if not e.options.get(doctest.SKIP)]
 
 
 @pytest.mark.parametrize("name", MODULES)
