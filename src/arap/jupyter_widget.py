@@ -85,11 +85,11 @@ def widget_module() -> str:
     ArapError
         It is not built.
     """
-    from arap.server.client_files import STATIC_DIR, client_missing_advice
+    from arap.server.client_files import client_dir, client_missing_advice
 
-    path = STATIC_DIR / "widget.js"
+    path = client_dir() / "widget.js"
     if not path.is_file():
-        advice = client_missing_advice()
+        advice = client_missing_advice(client_dir())
         if advice is None:
             advice = f"The notebook widget's module {path} is missing: build it with ./dev setup."
         raise ArapError(advice)

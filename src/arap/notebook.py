@@ -278,9 +278,9 @@ def _widget_works() -> bool:
         import anywidget  # noqa: F401
     except ImportError:
         return False
-    from arap.server.client_files import STATIC_DIR
+    from arap.server.client_files import client_dir
 
-    return (STATIC_DIR / "widget.js").is_file()
+    return (client_dir() / "widget.js").is_file()
 
 
 def _display(handle: Studio | StudioWidget) -> None:
