@@ -11,7 +11,9 @@
 3. With ``--screenshots DIR``: the three results of each mesh rendered by the studio in headless Chromium and put
    side by side (``DIR/MESH.jpg``, spokes | spokes and rims | smooth rotations).
 
-Run: ``python benchmarks/bench_energies.py [--max-iterations 2000] [--screenshots benchmarks/out/energies]``
+Run: ``python benchmarks/bench_energies.py [--max-iterations 2000] [--screenshots benchmarks/out/energies] [--quick]``
+(``--quick``: a built-in sphere of 1,000 vertices, 2 iterations, one run, pulls of at most 30 iterations: a check
+that it runs, not a measurement).
 """
 
 from __future__ import annotations
@@ -30,6 +32,7 @@ import numpy as np
 
 from arap.constraints.scenarios import bend
 from arap.io import load_mesh, save_mesh
+from arap.meshes.shapes import builtin_mesh
 from arap.method.smooth import STEPS, SWEEPS
 from arap.solve.solver import ArapSolver
 from benchjson import add_json_option, figure, write_results
@@ -135,8 +138,17 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--repeats", type=int, default=5, help="timing runs; the median is printed (default: 5)")
     p.add_argument("--max-iterations", type=int, default=2000, help="cap of the pull solves (default: 2000)")
     p.add_argument("--screenshots", type=Path, default=None, metavar="DIR", help="save side-by-side renders here")
+    p.add_argument("--quick", action="store_true",
+                   help="a built-in sphere of 1,000 vertices, 2 iterations, one run, pulls of at most 30 iterations")
     add_json_option(p, "bench_energies")
     args = p.parse_args(argv)
+    if args.quick:
+        with tempfile.TemporaryDirectory() as tmp:
+            sphere = Path(tmp) / "sphere.off"
+            save_mesh(sphere, *builtin_mesh("sphere:1000"))
+            quick = [*(argv or sys.argv[1:]), "--meshes", str(sphere), "--iterations", "2", "--repeats", "1",
+                     "--max-iterations", "30"]
+            return main([a for a in quick if a != "--quick"])
     missing = [m for m in args.meshes if not m.exists()]
     if missing:
         print(f"missing meshes: {', '.join(map(str, missing))}", file=sys.stderr)
