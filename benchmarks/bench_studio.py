@@ -24,6 +24,8 @@ Usage::
 
     .venv/bin/python benchmarks/bench_studio.py [--mesh ../shared/meshes/armadillo.obj] [--seconds 5]
     .venv/bin/python benchmarks/bench_studio.py --payload --subdivide [--sphere 134000] [--updates 30]
+    .venv/bin/python benchmarks/bench_studio.py --quick    # a sphere of 1,000 vertices, 1 s runs, 1 and 2 sessions:
+                                                           # a check that it runs, not a measurement
 """
 
 from __future__ import annotations
@@ -47,7 +49,7 @@ from websockets.asyncio.client import ClientConnection, connect
 from arap.io import save_mesh_bytes
 from arap.meshes.shapes import sphere, sphere_frequency_for
 from arap.server.frames import decode_binary, encode_binary
-from benchjson import add_json_option, figure, write_results
+from benchjson import add_json_option, figure, quick_mesh, write_results
 
 ROOT = Path(__file__).resolve().parents[1]
 DEFAULT_MESH = ROOT.parent / "shared" / "meshes" / "armadillo.obj"
@@ -474,10 +476,15 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--sphere", type=int, default=0, metavar="N", help="with --payload, also a geodesic "
                         "sphere of about N vertices (OBJ)")
     parser.add_argument("--updates", type=int, default=30, help="drags per constraint set with --payload")
+    parser.add_argument("--quick", action="store_true", help="a sphere of 1,000 vertices, 1 s runs, 1 and 2 sessions")
     args = parser.parse_args(argv)
-    if not args.mesh.is_file():
-        parser.error(f"mesh not found: {args.mesh}")
-    results = asyncio.run(main_async(args))
+    with tempfile.TemporaryDirectory() as tmp:
+        if args.quick:
+            args.mesh, args.seconds, args.iterations, args.sessions = quick_mesh(Path(tmp)), 1.0, [1], [1, 2]
+            args.updates, args.subdivide, args.sphere = 5, False, 0
+        if not args.mesh.is_file():
+            parser.error(f"mesh not found: {args.mesh}")
+        results = asyncio.run(main_async(args))
     if args.json:
         write_results(args.json, "bench_studio", studio_figures(results), results)
 
