@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import argparse
 import base64
+import os
 import statistics
 import sys
 import tempfile
@@ -85,7 +86,10 @@ def screenshots(out: Path, name: str, F: np.ndarray, shapes: list[np.ndarray]) -
     from playwright.sync_api import sync_playwright
 
     from arap.server import make_server
+    from arap.server.client_files import CLIENT_ENV
+    from bench_studio import hooked_client
 
+    os.environ[CLIENT_ENV] = str(hooked_client())  # the page's test hook tells when the mesh is shown
     server, sock, url = make_server(None, "127.0.0.1", 0, max_upload_bytes=200 * 2**20)
     thread = threading.Thread(target=server.run, kwargs={"sockets": [sock]}, daemon=True)
     thread.start()

@@ -48,6 +48,7 @@ from websockets.asyncio.client import ClientConnection, connect
 
 from arap.io import save_mesh_bytes
 from arap.meshes.shapes import sphere, sphere_frequency_for
+from arap.server.client_files import CLIENT_ENV
 from arap.server.frames import decode_binary, encode_binary
 from benchjson import add_json_option, figure, quick_mesh, write_results
 
@@ -77,17 +78,34 @@ class Run:
 
 
 # ---------------------------------------------------------------------------------------------- server
-def start_server(log: Path | None = None) -> tuple[subprocess.Popen[str], str]:
+HOOKED_CLIENT = ROOT / "build" / "studio-e2e"
+"""The studio client with the test hook (``window.__arap``) that the benchmarks in a browser read: the browser
+tests' build (``npm run build:e2e`` in ``web/``); the packaged client has no hook."""
+
+
+def hooked_client() -> Path:
+    """:data:`HOOKED_CLIENT`, built first when it is missing or older than the client's sources."""
+    built = HOOKED_CLIENT / "index.html"
+    web = ROOT / "web"
+    sources = [p for p in (web / "src").rglob("*") if p.is_file()] + [web / "index.html", web / "vite.config.js"]
+    if not built.is_file() or any(p.stat().st_mtime > built.stat().st_mtime for p in sources):
+        subprocess.run(["npm", "run", "build:e2e"], cwd=web, check=True, capture_output=True)
+    return HOOKED_CLIENT
+
+
+def start_server(log: Path | None = None, hook: bool = False) -> tuple[subprocess.Popen[str], str]:
     """Run the studio in a subprocess on a free port; its ws:// URL. With ``log``, the server's INFO lines about
-    the connections (e.g. each upload's step times) are written to that file."""
+    the connections (e.g. each upload's step times) are written to that file; with ``hook``, it serves the client
+    with the test hook (:func:`hooked_client`)."""
     code = ("import sys\nfrom arap.server import serve\n"
             "serve(port=0, log_level='warning', on_ready=lambda url: print(url, flush=True))\n")
     if log is not None:
         code = ("import logging\nimport sys\nh = logging.FileHandler(sys.argv[1])\nh.setLevel(logging.INFO)\n"
                 "lg = logging.getLogger('arap.server.connection')\nlg.setLevel(logging.INFO)\nlg.addHandler(h)\n"
                 + code)
+    env = {**os.environ, CLIENT_ENV: str(hooked_client())} if hook else None
     proc = subprocess.Popen([sys.executable, "-c", code, *([str(log)] if log is not None else [])],
-                            stdout=subprocess.PIPE, text=True, cwd=ROOT)
+                            stdout=subprocess.PIPE, text=True, cwd=ROOT, env=env)
     assert proc.stdout is not None
     line = proc.stdout.readline().strip()
     if not line.startswith("http://"):
