@@ -5,7 +5,8 @@ Scenario ("bend"): the lowest 10% of the vertices along y are fixed; the top 10%
 through their centroid and shifted by 10% of the bounding-box diagonal along x. Both solvers start from the rest
 pose and run the same number of iterations with the spokes energy and cotangent weights.
 
-Run: ``python benchmarks/bench_armadillo.py [--mesh PATH] [--iterations 10] [--repeats 5] [--json OUT]``
+Run: ``python benchmarks/bench_armadillo.py [--mesh PATH] [--iterations 10] [--repeats 5] [--quick] [--json OUT]``
+(``--quick``: a built-in sphere of 1,000 vertices, 2 iterations, one run: a check that it runs, not a measurement).
 """
 
 from __future__ import annotations
@@ -272,12 +273,17 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--repeats", type=int, default=5, help="runs; medians are reported (default: 5)")
     add_json_option(parser, "bench_armadillo")
     parser.add_argument("--plot", type=Path, help="bar chart of the times (PNG; needs matplotlib)")
+    parser.add_argument("--quick", action="store_true",
+                        help="a built-in sphere of 1,000 vertices, 2 iterations, one run")
     args = parser.parse_args(argv)
-    if not args.mesh.exists():
+    if args.quick:
+        args.mesh, args.iterations, args.repeats = Path("sphere:1000"), 2, 1
+        V, F = arap.builtin_mesh("sphere:1000")
+    elif not args.mesh.exists():
         print(f"mesh {args.mesh} not found (use --mesh)", file=sys.stderr)
         return 2
-
-    V, F = load_mesh(args.mesh)
+    else:
+        V, F = load_mesh(args.mesh)
     diag = float(np.linalg.norm(V.max(axis=0) - V.min(axis=0)))
     scenario = bend(V, axis=1, angle=np.radians(45.0), shift=0.1)
     fixed, handles = scenario.fixed, scenario.handles

@@ -12,7 +12,8 @@ Timed, best of ``--repeats``:
 - ``trimesh load``: ``trimesh.load`` with its defaults (which merges vertices) and with ``process=False``;
 - ``trimesh export``: ``scene.export(file_type="glb")``.
 
-Run: ``python benchmarks/bench_assets.py [--vertices 1000000] [--repeats 3]``
+Run: ``python benchmarks/bench_assets.py [--vertices 1000000] [--repeats 3] [--quick]`` (``--quick``: 2,000 vertices,
+one run: a check that it runs, not a measurement)
 """
 
 from __future__ import annotations
@@ -68,8 +69,11 @@ def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--vertices", type=int, default=1_000_000)
     parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--quick", action="store_true", help="2,000 vertices, one run")
     add_json_option(parser, "bench_assets")
     args = parser.parse_args(argv)
+    if args.quick:
+        args.vertices, args.repeats = 2000, 1
     with tempfile.TemporaryDirectory() as tmp:
         folder = Path(tmp)
         path = folder / "model.glb"

@@ -15,12 +15,15 @@ the peak resident memory of the run's processes (this process and its children; 
 included). ``--json OUT`` writes the figures.
 
 Run: ``python benchmarks/bench_batch.py [--mesh PATH] [--jobs 200] [--sets 4] [--workers 2]
-[--backends loop serial serial1 process ray dask] [--json OUT]``
+[--backends loop serial serial1 process ray dask] [--quick] [--json OUT]`` (``--quick``: 4 jobs of 2 sets on a
+built-in sphere of 500 vertices, backends loop, serial and process unless ``--backends`` names others: a check that
+it runs, not a measurement). Ray and Dask are left out when they are not installed.
 """
 
 from __future__ import annotations
 
 import argparse
+import importlib.util
 import json
 import os
 import subprocess
@@ -126,16 +129,30 @@ def main(argv: list[str] | None = None) -> None:
     p.add_argument("--sets", type=int, default=4)
     p.add_argument("--share", type=float, default=0.1)
     p.add_argument("--workers", type=int, default=2)
-    p.add_argument("--backends", nargs="+", default=["loop", "serial", "serial1", "process", "ray", "dask"])
+    p.add_argument("--backends", nargs="+", default=None,
+                   help="default: loop serial serial1 process ray dask (--quick: loop serial process)")
+    p.add_argument("--quick", action="store_true", help="4 jobs of 2 sets on a built-in sphere of 500 vertices")
     add_json_option(p, "bench_batch")
     args = p.parse_args(argv)
+    if args.backends is None:
+        args.backends = (["loop", "serial", "process"] if args.quick
+                         else ["loop", "serial", "serial1", "process", "ray", "dask"])
     from arap.warmup import warm_up_kernels
 
+    missing = [b for b, module in (("ray", "ray"), ("dask", "dask.distributed")) if b in args.backends
+               and importlib.util.find_spec(module.split(".")[0]) is None]
+    if missing:
+        print(f"left out (not installed): {', '.join(missing)}")
+        args.backends = [b for b in args.backends if b not in missing]
     warm_up_kernels()
     figures: dict[str, Any] = {"mesh": args.mesh.name, "jobs": args.jobs, "sets": args.sets,
                                "workers": args.workers, "runs": {}}
     with tempfile.TemporaryDirectory() as tmp:
         folder = Path(tmp)
+        if args.quick:
+            args.jobs, args.sets, args.mesh = 4, 2, folder / "sphere.ply"
+            arap.save_mesh(args.mesh, *arap.builtin_mesh("sphere:500"))
+            figures.update(mesh="sphere:500", jobs=args.jobs, sets=args.sets)
         jobs = make_jobs(folder, args.mesh, args.jobs, args.sets, args.share)
         for backend in args.backends:
             out = folder / "out"

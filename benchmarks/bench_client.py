@@ -19,6 +19,8 @@ Usage::
 
     .venv/bin/python benchmarks/bench_client.py [--mesh ../shared/meshes/armadillo.obj | --sphere 134000]
         [--updates 30] [--out artifacts/bench_client]
+    .venv/bin/python benchmarks/bench_client.py --quick   # a sphere of 1,000 vertices, 3 drags per constraint set:
+                                                          # a check that it runs, not a measurement
 """
 
 from __future__ import annotations
@@ -137,7 +139,7 @@ def run(mesh: Path, updates: int, out: Path) -> dict[str, Any]:
     log = out / "server.log"
     log.unlink(missing_ok=True)
     out.mkdir(parents=True, exist_ok=True)
-    proc, url = start_server(log)
+    proc, url = start_server(log, hook=True)
     http = url.replace("ws://", "http://").rsplit("/ws", 1)[0] + "/"
     results: dict[str, Any] = {"mesh": mesh.name}
     try:
@@ -212,8 +214,11 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--updates", type=int, default=30, help="drags per constraint set")
     parser.add_argument("--out", type=Path, default=ROOT / "artifacts" / "bench_client",
                         help="folder for the screenshots")
+    parser.add_argument("--quick", action="store_true", help="a sphere of 1,000 vertices, 3 drags per constraint set")
     add_json_option(parser, "bench_client")
     args = parser.parse_args(argv)
+    if args.quick:
+        args.sphere, args.updates = 1000, 3
     if args.sphere:
         with tempfile.TemporaryDirectory() as tmp:
             mesh = sphere_obj(args.sphere, Path(tmp))

@@ -11,13 +11,16 @@
 3. With ``--screenshots DIR``: the three results of each mesh rendered by the studio in headless Chromium and put
    side by side (``DIR/MESH.jpg``, spokes | spokes and rims | smooth rotations).
 
-Run: ``python benchmarks/bench_energies.py [--max-iterations 2000] [--screenshots benchmarks/out/energies]``
+Run: ``python benchmarks/bench_energies.py [--max-iterations 2000] [--screenshots benchmarks/out/energies] [--quick]``
+(``--quick``: a built-in sphere of 1,000 vertices, 2 iterations, one run, pulls of at most 30 iterations: a check
+that it runs, not a measurement).
 """
 
 from __future__ import annotations
 
 import argparse
 import base64
+import os
 import statistics
 import sys
 import tempfile
@@ -30,6 +33,7 @@ import numpy as np
 
 from arap.constraints.scenarios import bend
 from arap.io import load_mesh, save_mesh
+from arap.meshes.shapes import builtin_mesh
 from arap.method.smooth import STEPS, SWEEPS
 from arap.solve.solver import ArapSolver
 from benchjson import add_json_option, figure, write_results
@@ -82,7 +86,10 @@ def screenshots(out: Path, name: str, F: np.ndarray, shapes: list[np.ndarray]) -
     from playwright.sync_api import sync_playwright
 
     from arap.server import make_server
+    from arap.server.client_files import CLIENT_ENV
+    from bench_studio import hooked_client
 
+    os.environ[CLIENT_ENV] = str(hooked_client())  # the page's test hook tells when the mesh is shown
     server, sock, url = make_server(None, "127.0.0.1", 0, max_upload_bytes=200 * 2**20)
     thread = threading.Thread(target=server.run, kwargs={"sockets": [sock]}, daemon=True)
     thread.start()
@@ -135,8 +142,17 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--repeats", type=int, default=5, help="timing runs; the median is printed (default: 5)")
     p.add_argument("--max-iterations", type=int, default=2000, help="cap of the pull solves (default: 2000)")
     p.add_argument("--screenshots", type=Path, default=None, metavar="DIR", help="save side-by-side renders here")
+    p.add_argument("--quick", action="store_true",
+                   help="a built-in sphere of 1,000 vertices, 2 iterations, one run, pulls of at most 30 iterations")
     add_json_option(p, "bench_energies")
     args = p.parse_args(argv)
+    if args.quick:
+        with tempfile.TemporaryDirectory() as tmp:
+            sphere = Path(tmp) / "sphere.off"
+            save_mesh(sphere, *builtin_mesh("sphere:1000"))
+            quick = [*(argv or sys.argv[1:]), "--meshes", str(sphere), "--iterations", "2", "--repeats", "1",
+                     "--max-iterations", "30"]
+            return main([a for a in quick if a != "--quick"])
     missing = [m for m in args.meshes if not m.exists()]
     if missing:
         print(f"missing meshes: {', '.join(map(str, missing))}", file=sys.stderr)

@@ -10,7 +10,8 @@ resident memory is sampled during the run and again after every session has disc
 Everything is bounded: each session stops after ``--seconds``, every wait has a timeout, and the server is stopped
 at the end.
 
-Run: ``python benchmarks/bench_load.py [--sessions 20] [--seconds 60] [--mesh PATH] [--large 50]``
+Run: ``python benchmarks/bench_load.py [--sessions 20] [--seconds 60] [--mesh PATH] [--large 50] [--quick]``
+(``--quick``: 2 sessions for 3 s on a sphere of 1,000 vertices: a check that it runs, not a measurement)
 """
 
 from __future__ import annotations
@@ -28,6 +29,7 @@ import psutil
 from websockets.asyncio.client import connect
 
 from arap.io import load_mesh, save_mesh
+from arap.meshes.shapes import builtin_mesh
 from bench_studio import DEFAULT_MESH, Studio, start_server
 from benchjson import add_json_option, figure, write_results
 
@@ -139,9 +141,14 @@ def main(argv: list[str] | None = None) -> None:
     p.add_argument("--seconds", type=float, default=60.0)
     p.add_argument("--mesh", type=Path, default=DEFAULT_MESH)
     p.add_argument("--large", type=float, default=0.0, help="also send one message of this many MB (0: none)")
+    p.add_argument("--quick", action="store_true", help="2 sessions for 3 s on a sphere of 1,000 vertices")
     add_json_option(p, "bench_load")
     args = p.parse_args(argv)
-    V, F = load_mesh(args.mesh)
+    if args.quick:
+        args.sessions, args.seconds, args.large = 2, 3.0, 0.0
+        V, F = builtin_mesh("sphere:1000")
+    else:
+        V, F = load_mesh(args.mesh)
     diag = float(np.linalg.norm(np.ptp(V, axis=0)))
     with tempfile.TemporaryDirectory() as tmp:
         meshes = []

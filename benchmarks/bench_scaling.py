@@ -4,7 +4,9 @@ Scenario: the bottom cap (lowest 5% along y) is fixed; the top cap (highest 5%) 
 through its centroid and lifted by 0.3 radius. Each size runs in a fresh subprocess so that its peak memory
 (resident set size, which also counts the C and C++ allocations of the sparse factorisation) is its own.
 
-Run: ``python benchmarks/bench_scaling.py [--max-vertices 1000000] [--iterations 5] [--repeats 3] [--json OUT]``
+Run: ``python benchmarks/bench_scaling.py [--max-vertices 1000000] [--iterations 5] [--repeats 3] [--quick]
+[--json OUT]`` (``--quick``: one sphere of 2,000 vertices, 2 iterations, one run: a check that it runs, not a
+measurement).
 
 ``--sizes 400000 1000000 --backends sksparse cholespy`` measures only those sizes, each with each sparse Cholesky
 backend (old and new configuration side by side in one run), and prints where precompute goes: cells (weights and
@@ -117,7 +119,7 @@ def child(target_vertices: int, iterations: int, repeats: int, backend: str | No
     ArapSolver(Vs, Fs, bs).solve(bcs, max_iterations=1)
     base = current_rss_mb()
     parts: dict[str, float] = {}
-    for name, key in (("build_cells", "cells"), ("build_rhs_gather", "gather"), ("factorize", "factorize")):
+    for name, key in (("assemble", "cells"), ("build_rhs_gather", "gather"), ("factorize", "factorize")):
         setattr(setup_module, name, _Timed(getattr(setup_module, name), key, parts))
     t0 = time.perf_counter()
     solver = ArapSolver(V, F, b, backend=backend)
@@ -160,6 +162,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--iterations", type=int, default=5, help="iterations per run (default: 5)")
     parser.add_argument("--repeats", type=int, default=3, help="runs per size; medians reported (default: 3)")
     parser.add_argument("--timeout", type=float, default=1200.0, help="seconds allowed per size (default: 1200)")
+    parser.add_argument("--quick", action="store_true", help="one sphere of 2,000 vertices, 2 iterations, one run")
     add_json_option(parser, "bench_scaling")
     parser.add_argument("--child", type=int, help=argparse.SUPPRESS)
     parser.add_argument("--backend", help=argparse.SUPPRESS)
@@ -167,6 +170,8 @@ def main(argv: list[str] | None = None) -> int:
     if args.child is not None:
         print(json.dumps(child(args.child, args.iterations, args.repeats, args.backend)))
         return 0
+    if args.quick:
+        args.sizes, args.iterations, args.repeats = args.sizes or [2000], 2, 1
     sizes = args.sizes or [s for s in SIZES if s <= args.max_vertices]
     if any(not 0 < s <= 2_000_000 for s in sizes):
         parser.error("sizes must be between 1 and 2,000,000 vertices")

@@ -5,7 +5,8 @@ and makes the top 10% a handle group, then repeats: drag the handle to a new pos
 each, as a mouse drag does), release, and time until the server says ``settled``. Printed: the median and
 worst release-to-settled time, the settling iterations and the frames streamed meanwhile.
 
-Run: ``python benchmarks/bench_settle.py [--mesh PATH] [--drags 5]``
+Run: ``python benchmarks/bench_settle.py [--mesh PATH] [--drags 5] [--quick]`` (``--quick``: 2 drags on a sphere of
+1,000 vertices: a check that it runs, not a measurement)
 """
 
 from __future__ import annotations
@@ -14,13 +15,14 @@ import argparse
 import asyncio
 import json
 import statistics
+import tempfile
 import time
 from pathlib import Path
 
 from websockets.asyncio.client import connect
 
 from bench_studio import DEFAULT_MESH, Studio, start_server
-from benchjson import add_json_option, figure, write_results
+from benchjson import add_json_option, figure, quick_mesh, write_results
 
 TIMEOUT = 120.0
 
@@ -61,9 +63,13 @@ def main(argv: list[str] | None = None) -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--mesh", type=Path, default=DEFAULT_MESH)
     p.add_argument("--drags", type=int, default=5)
+    p.add_argument("--quick", action="store_true", help="2 drags on a sphere of 1,000 vertices")
     add_json_option(p, "bench_settle")
     args = p.parse_args(argv)
-    results = asyncio.run(run(args.mesh, args.drags))
+    with tempfile.TemporaryDirectory() as tmp:
+        if args.quick:
+            args.mesh, args.drags = quick_mesh(Path(tmp)), 2
+        results = asyncio.run(run(args.mesh, args.drags))
     seconds = [r[0] for r in results]
     print(f"\nRelease to settled on {args.mesh.name} ({args.drags} drags)")
     print(f"{'drag':>5}{'seconds':>10}{'iterations':>12}{'frames':>8}")

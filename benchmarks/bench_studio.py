@@ -24,6 +24,8 @@ Usage::
 
     .venv/bin/python benchmarks/bench_studio.py [--mesh ../shared/meshes/armadillo.obj] [--seconds 5]
     .venv/bin/python benchmarks/bench_studio.py --payload --subdivide [--sphere 134000] [--updates 30]
+    .venv/bin/python benchmarks/bench_studio.py --quick    # a sphere of 1,000 vertices, 1 s runs, 1 and 2 sessions:
+                                                           # a check that it runs, not a measurement
 """
 
 from __future__ import annotations
@@ -46,8 +48,9 @@ from websockets.asyncio.client import ClientConnection, connect
 
 from arap.io import save_mesh_bytes
 from arap.meshes.shapes import sphere, sphere_frequency_for
+from arap.server.client_files import CLIENT_ENV
 from arap.server.frames import decode_binary, encode_binary
-from benchjson import add_json_option, figure, write_results
+from benchjson import add_json_option, figure, quick_mesh, write_results
 
 ROOT = Path(__file__).resolve().parents[1]
 DEFAULT_MESH = ROOT.parent / "shared" / "meshes" / "armadillo.obj"
@@ -75,17 +78,34 @@ class Run:
 
 
 # ---------------------------------------------------------------------------------------------- server
-def start_server(log: Path | None = None) -> tuple[subprocess.Popen[str], str]:
+HOOKED_CLIENT = ROOT / "build" / "studio-e2e"
+"""The studio client with the test hook (``window.__arap``) that the benchmarks in a browser read: the browser
+tests' build (``npm run build:e2e`` in ``web/``); the packaged client has no hook."""
+
+
+def hooked_client() -> Path:
+    """:data:`HOOKED_CLIENT`, built first when it is missing or older than the client's sources."""
+    built = HOOKED_CLIENT / "index.html"
+    web = ROOT / "web"
+    sources = [p for p in (web / "src").rglob("*") if p.is_file()] + [web / "index.html", web / "vite.config.js"]
+    if not built.is_file() or any(p.stat().st_mtime > built.stat().st_mtime for p in sources):
+        subprocess.run(["npm", "run", "build:e2e"], cwd=web, check=True, capture_output=True)
+    return HOOKED_CLIENT
+
+
+def start_server(log: Path | None = None, hook: bool = False) -> tuple[subprocess.Popen[str], str]:
     """Run the studio in a subprocess on a free port; its ws:// URL. With ``log``, the server's INFO lines about
-    the connections (e.g. each upload's step times) are written to that file."""
+    the connections (e.g. each upload's step times) are written to that file; with ``hook``, it serves the client
+    with the test hook (:func:`hooked_client`)."""
     code = ("import sys\nfrom arap.server import serve\n"
             "serve(port=0, log_level='warning', on_ready=lambda url: print(url, flush=True))\n")
     if log is not None:
         code = ("import logging\nimport sys\nh = logging.FileHandler(sys.argv[1])\nh.setLevel(logging.INFO)\n"
                 "lg = logging.getLogger('arap.server.connection')\nlg.setLevel(logging.INFO)\nlg.addHandler(h)\n"
                 + code)
+    env = {**os.environ, CLIENT_ENV: str(hooked_client())} if hook else None
     proc = subprocess.Popen([sys.executable, "-c", code, *([str(log)] if log is not None else [])],
-                            stdout=subprocess.PIPE, text=True, cwd=ROOT)
+                            stdout=subprocess.PIPE, text=True, cwd=ROOT, env=env)
     assert proc.stdout is not None
     line = proc.stdout.readline().strip()
     if not line.startswith("http://"):
@@ -474,10 +494,15 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--sphere", type=int, default=0, metavar="N", help="with --payload, also a geodesic "
                         "sphere of about N vertices (OBJ)")
     parser.add_argument("--updates", type=int, default=30, help="drags per constraint set with --payload")
+    parser.add_argument("--quick", action="store_true", help="a sphere of 1,000 vertices, 1 s runs, 1 and 2 sessions")
     args = parser.parse_args(argv)
-    if not args.mesh.is_file():
-        parser.error(f"mesh not found: {args.mesh}")
-    results = asyncio.run(main_async(args))
+    with tempfile.TemporaryDirectory() as tmp:
+        if args.quick:
+            args.mesh, args.seconds, args.iterations, args.sessions = quick_mesh(Path(tmp)), 1.0, [1], [1, 2]
+            args.updates, args.subdivide, args.sphere = 5, False, 0
+        if not args.mesh.is_file():
+            parser.error(f"mesh not found: {args.mesh}")
+        results = asyncio.run(main_async(args))
     if args.json:
         write_results(args.json, "bench_studio", studio_figures(results), results)
 

@@ -53,6 +53,17 @@ def figure(name: str, value: float, unit: str, peer: str | None = None, peer_val
     return out
 
 
+def quick_mesh(folder: Path, vertices: int = 1000) -> Path:
+    """A built-in sphere of about ``vertices`` vertices written as OBJ in ``folder``: the mesh of the ``--quick`` runs
+    of the benchmarks that read a mesh file (checks that they run, not measurements)."""
+    from arap.io import save_mesh
+    from arap.meshes.shapes import builtin_mesh
+
+    path = folder / f"sphere{vertices}.obj"
+    save_mesh(path, *builtin_mesh(f"sphere:{vertices}"))
+    return path
+
+
 def machine() -> dict[str, Any]:
     """What the figures were measured on."""
     return {"cpu_count": os.cpu_count(), "python": platform.python_version(), "platform": platform.platform(),

@@ -3,9 +3,19 @@ import { fileURLToPath } from 'node:url';
 import { defineConfig } from 'vite';
 
 const outDir = fileURLToPath(new URL('../src/arap/static', import.meta.url));
+/**
+ * The browser tests' build (`npm run build:e2e`, modes `e2e` and `e2e-widget`): the same page and widget with the
+ * test hook (src/hook.js, `window.__arap`) built in, into build/studio-e2e (outside the package and web/); the tests
+ * serve it through the ARAP_STUDIO_CLIENT environment variable (src/arap/server/client_files.py). The normal build
+ * leaves the hook out.
+ */
+const e2eDir = fileURLToPath(new URL('../build/studio-e2e', import.meta.url));
 
-/** The normal build: the studio page served by `arap studio` (index.html and assets/). */
-const page = {
+/**
+ * The studio page served by `arap studio` (index.html and assets/).
+ * @param {string} outDir
+ */
+const page = (outDir) => ({
   base: './',
   build: {
     outDir,
@@ -18,15 +28,16 @@ const page = {
       '/ws': { target: 'ws://127.0.0.1:8000', ws: true },
     },
   },
-};
+});
 
 const PAGE_MODULE = 'virtual:arap-studio-page';
 
 /**
  * The built studio page as one self-contained HTML string (its script and styles inlined), marked to talk to its
  * parent window (connection.js, createConnection): what the notebook widget shows in its frame.
+ * @param {string} outDir
  */
-function studioPage() {
+function studioPage(outDir) {
   return {
     name: 'arap-studio-page',
     resolveId(id) {
@@ -49,9 +60,12 @@ function studioPage() {
   };
 }
 
-/** `--mode widget`: the notebook widget's ES module (static/widget.js), after the page build. */
-const widget = {
-  plugins: [studioPage()],
+/**
+ * `--mode widget`: the notebook widget's ES module (static/widget.js), after the page build.
+ * @param {string} outDir
+ */
+const widget = (outDir) => ({
+  plugins: [studioPage(outDir)],
   build: {
     outDir,
     emptyOutDir: false,
@@ -63,6 +77,9 @@ const widget = {
       fileName: () => 'widget.js',
     },
   },
-};
+});
 
-export default defineConfig(({ mode }) => (mode === 'widget' ? widget : page));
+export default defineConfig(({ mode }) => {
+  const dir = mode.startsWith('e2e') ? e2eDir : outDir;
+  return mode.endsWith('widget') ? widget(dir) : page(dir);
+});

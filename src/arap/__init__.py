@@ -12,6 +12,8 @@ Fix both ends of a bar and move one of them sideways:
 >>> result = solver.solve(targets)                        # back-substitutes per iteration, until converged
 >>> result.converged, result.vertices.shape
 (True, (4314, 3))
+>>> arap.__version__
+'0.1.0'
 
 Public names are imported on first use, so ``import arap`` stays light.
 """

@@ -81,6 +81,16 @@ class Animation:
         Construction of the solver (factorisation).
     at_key : (N,) bool array or None
         The frames at keyframe times (solved to ``tolerance`` in any case); None when not known.
+
+    Examples
+    --------
+    >>> import arap
+    >>> V, F = arap.sphere(1)
+    >>> keys = {"fixed": [0], "handles": [5], "keyframes": [
+    ...     {"time": 0.0, "targets": [V[5].tolist()]}, {"time": 0.5, "targets": [[0.0, 2.0, 0.0]]}]}
+    >>> animation = arap.animate(V, F, keys, fps=4)
+    >>> len(animation.times), bool(animation.converged.all()), animation.vertices[-1, 5].round(6).tolist()
+    (3, True, [0.0, 2.0, 0.0])
     """
 
     times: NDArray[np.float64]
@@ -209,6 +219,18 @@ def animate(V: NDArray[np.float64], F: NDArray[np.integer], keyframes: Keyframes
     Returns
     -------
     Animation
+
+    Examples
+    --------
+    The handle goes up over a second, five frames a second; each frame starts from the one before:
+
+    >>> import arap
+    >>> V, F = arap.sphere(1)
+    >>> keys = {"fixed": [0], "handles": [5], "keyframes": [
+    ...     {"time": 0.0, "targets": [V[5].tolist()]}, {"time": 1.0, "targets": [[0.0, 2.0, 0.0]]}]}
+    >>> animation = arap.animate(V, F, keys, fps=5)
+    >>> animation.times.round(2).tolist(), animation.vertices.shape
+    ([0.0, 0.2, 0.4, 0.6, 0.8, 1.0], (6, 42, 3))
     """
     from arap.solve.solver import ArapSolver
 

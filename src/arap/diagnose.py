@@ -67,6 +67,14 @@ class MeshInfo:
         Faces using a vertex with non-finite coordinates (left out of the edges, components and surface).
     non_manifold_vertices : int
         Vertices where separate sheets of faces meet at a point (a bow-tie).
+
+    Examples
+    --------
+    >>> import arap
+    >>> V, F = arap.sphere(1)
+    >>> info = arap.inspect_mesh(V, F[1:])                 # one triangle cut out
+    >>> info.boundary_loops, info.boundary_edges
+    (1, 3)
     """
 
     n_vertices: int
@@ -280,6 +288,13 @@ def inspect_mesh(V: np.ndarray, F: np.ndarray) -> MeshInfo:
     ------
     MeshError
         Only for arrays of the wrong shape or type.
+
+    Examples
+    --------
+    >>> import arap
+    >>> info = arap.inspect_mesh(*arap.sphere(1))
+    >>> info.n_vertices, info.n_faces, info.boundary_loops, info.component_sizes
+    (42, 80, 0, [42])
     """
     V = _as_vertices(V)
     F = _as_faces(F)

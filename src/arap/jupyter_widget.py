@@ -85,11 +85,11 @@ def widget_module() -> str:
     ArapError
         It is not built.
     """
-    from arap.server.client_files import STATIC_DIR, client_missing_advice
+    from arap.server.client_files import client_dir, client_missing_advice
 
-    path = STATIC_DIR / "widget.js"
+    path = client_dir() / "widget.js"
     if not path.is_file():
-        advice = client_missing_advice()
+        advice = client_missing_advice(client_dir())
         if advice is None:
             advice = f"The notebook widget's module {path} is missing: build it with ./dev setup."
         raise ArapError(advice)
@@ -150,6 +150,14 @@ class StudioWidget:
     ----------
     url : None
         There is no page to open elsewhere (the studio's server has one: ``arap.studio(..., transport="server")``).
+
+    Examples
+    --------
+    >>> import arap
+    >>> w = arap.widget(*arap.sphere(1))
+    >>> w.url, w.vertices.shape, w.constraints.fixed.tolist()
+    (None, (42, 3), [])
+    >>> w.stop()
     """
 
     url: str | None = None
@@ -398,6 +406,14 @@ def widget(
         ``constraints`` is invalid for this mesh, or holds stiffness.
     ArapError
         anywidget is not installed (``pip install "arap[notebook]"``) or the widget's module is not built.
+
+    Examples
+    --------
+    >>> import arap
+    >>> w = arap.widget(*arap.sphere(1), height=480)             # display w in a cell to edit the mesh
+    >>> type(w).__name__, w.faces.shape
+    ('StudioWidget', (80, 3))
+    >>> w.stop()
     """
     rest: NDArray[np.float64]
     faces: NDArray[np.int64]

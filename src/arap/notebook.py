@@ -58,6 +58,16 @@ class Studio:
     url : str
         The page to open (``http://127.0.0.1:PORT/?token=...``); it holds the token that the server asks of every
         page and program, so share it only with whoever may edit (and read) this mesh.
+
+    Examples
+    --------
+    >>> import arap
+    >>> s = arap.studio(*arap.sphere(1), show=False)           # show=False: no page opened, nothing displayed
+    >>> s.running, s.url.startswith("http://127.0.0.1:"), s.vertices.shape
+    (True, True, (42, 3))
+    >>> s.stop()
+    >>> s.running
+    False
     """
 
     def __init__(self, server: uvicorn.Server, sock: socket.socket, url: str, token: str, V: NDArray[np.float64],
@@ -216,8 +226,9 @@ def studio(
     Example
     -------
     >>> import arap
-    >>> with arap.studio(*arap.builtin_mesh("bar"), show=False) as s:   # doctest: +SKIP
-    ...     print(s.url)
+    >>> with arap.studio(*arap.builtin_mesh("bar"), show=False) as s:
+    ...     print(s.url.startswith("http://127.0.0.1:"), s.running)
+    True True
     """
     if transport not in TRANSPORTS:
         raise ValueError(f"transport must be one of {', '.join(TRANSPORTS)}, got {transport!r}")
@@ -267,9 +278,9 @@ def _widget_works() -> bool:
         import anywidget  # noqa: F401
     except ImportError:
         return False
-    from arap.server.client_files import STATIC_DIR
+    from arap.server.client_files import client_dir
 
-    return (STATIC_DIR / "widget.js").is_file()
+    return (client_dir() / "widget.js").is_file()
 
 
 def _display(handle: Studio | StudioWidget) -> None:

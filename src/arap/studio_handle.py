@@ -37,6 +37,14 @@ class Selection:
     document : dict
         The same constraints in the command-line format (``arap deform MESH CONSTRAINTS``; see
         :func:`arap.save_constraints`).
+
+    Examples
+    --------
+    >>> import arap
+    >>> with arap.studio(*arap.sphere(1), show=False) as s:
+    ...     selection = s.constraints                          # no page has selected anything yet
+    >>> selection.fixed.tolist(), selection.handle_groups, selection.targets.shape, selection.document["fixed"]
+    ([], [], (0, 3), [])
     """
 
     roi: NDArray[np.int64] | None

@@ -19,12 +19,18 @@ from playwright.sync_api import Browser, ConsoleMessage, Frame, Page, Playwright
 from playwright.sync_api import TimeoutError as PlaywrightTimeoutError
 
 from arap.server import bind_socket, create_app, studio_url
-from arap.server.app import STATIC_DIR, frame_limit
+from arap.server.app import frame_limit
+from arap.server.client_files import CLIENT_ENV
 from arap.server.runner import websocket_protocol
 from tests.waiting import scaled_ms, wait_until
 
 REPO = Path(__file__).resolve().parents[2]
 WEB = REPO / "web"
+E2E_CLIENT = REPO / "build" / "studio-e2e"
+"""The client with the test hook (``window.__arap``) that these tests read: ``npm run build:e2e``, served in place of
+the package's (which has no hook) through :data:`arap.server.client_files.CLIENT_ENV`."""
+CLIENT_SOURCES = ("src", "index.html", "vite.config.js", "package.json")
+"""What the client is built from, in ``web/``: the test build is made again when any is newer."""
 CHROMIUM = Path("/usr/bin/chromium")
 CHROMIUM_ARGS = [
     "--headless",
@@ -45,23 +51,41 @@ EXPECT_SECONDS = 5.0
 
 
 def _client_built() -> bool:
-    return (STATIC_DIR / "index.html").is_file()
+    """Whether the test build is there and newer than every source of the client."""
+    built = E2E_CLIENT / "index.html"
+    if not (built.is_file() and (E2E_CLIENT / "widget.js").is_file()):
+        return False
+    sources = [p for name in CLIENT_SOURCES for p in ((WEB / name).rglob("*") if (WEB / name).is_dir()
+                                                       else [WEB / name]) if p.is_file()]
+    return all(p.stat().st_mtime <= built.stat().st_mtime for p in sources)
 
 
 def _build_client() -> str | None:
-    """Build the web client when it is missing; the reason it cannot be built, or None."""
+    """Build the tests' web client when it is missing or older than its sources; the reason it cannot be built,
+    or None."""
     if _client_built():
         return None
     npm = shutil.which("npm")
     if npm is None or not (WEB / "package.json").is_file():
-        return "the web client is not built (src/arap/static) and npm is not available to build it"
+        return "the web client's test build is missing or stale (build/studio-e2e) and npm is not available to build it"
     steps = [[npm, "ci", "--no-audit", "--no-fund"]] if not (WEB / "node_modules").is_dir() else []
-    steps.append([npm, "run", "build"])
+    steps.append([npm, "run", "build:e2e"])
     for cmd in steps:
         done = subprocess.run(cmd, cwd=WEB, capture_output=True, text=True, timeout=600, check=False)
         if done.returncode != 0:
             return f"building the web client failed ({' '.join(cmd[1:])}): {done.stderr[-400:]}"
-    return None if _client_built() else "the web client build did not produce src/arap/static/index.html"
+    return None if _client_built() else "the web client's test build did not produce build/studio-e2e/index.html"
+
+
+@pytest.fixture(scope="session", autouse=True)
+def e2e_client() -> Iterator[Path]:
+    """Every studio these tests start (in this process or in a child) serves the test build, which has the hook."""
+    reason = _build_client()
+    if reason is not None:
+        pytest.skip(reason)
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setenv(CLIENT_ENV, str(E2E_CLIENT))
+        yield E2E_CLIENT
 
 
 class _ServerThread(threading.Thread):
@@ -107,9 +131,6 @@ class _ServerThread(threading.Thread):
 @pytest.fixture(scope="session")
 def server_url() -> Iterator[str]:
     """URL of a studio server for the whole test session (each page opens its own editing session)."""
-    reason = _build_client()
-    if reason is not None:
-        pytest.skip(reason)
     server = _ServerThread()
     server.start()
     server.wait_started()

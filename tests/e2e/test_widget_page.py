@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 from playwright.sync_api import Browser, BrowserContext, Frame, Page
 
-from arap.server.app import STATIC_DIR
+from arap.server.client_files import client_dir
 from tests.e2e.conftest import VIEWPORT, canvas_pixels, positions, wait_idle
 from tests.waiting import scaled_ms
 
@@ -103,7 +103,7 @@ def _open_page(browser: Browser, kernel: Kernel) -> tuple[BrowserContext, Page, 
     page.on("console", lambda msg: errors.append(msg.text) if msg.type == "error" else None)
     page.expose_function("kernelReceive", kernel.receive)
     page.expose_function("kernelSent", kernel.sent)
-    module = (STATIC_DIR / "widget.js").read_text(encoding="utf-8")
+    module = (client_dir() / "widget.js").read_text(encoding="utf-8")
     page.route(f"{ORIGIN}/notebook.html", lambda route: route.fulfill(body=HOST, content_type="text/html"))
     page.route(f"{ORIGIN}/widget.js", lambda route: route.fulfill(body=module, content_type="text/javascript"))
     page.goto(f"{ORIGIN}/notebook.html")
@@ -115,7 +115,7 @@ def _open_page(browser: Browser, kernel: Kernel) -> tuple[BrowserContext, Page, 
 
 @pytest.fixture
 def widget_page(browser: Browser) -> Iterator[tuple[Page, Frame, StudioWidget, Kernel]]:
-    if not (STATIC_DIR / "widget.js").is_file():
+    if not (client_dir() / "widget.js").is_file():
         pytest.skip("the widget module is not built (./dev setup)")
     V, F = arap.builtin_mesh("cactus")
     w = arap.widget(V, F, name="cactus", height=VIEWPORT["height"])
@@ -245,7 +245,7 @@ def test_while_the_session_is_prepared_the_view_shows_the_mesh_and_the_time_wait
         browser: Browser, monkeypatch: pytest.MonkeyPatch) -> None:
     """On a first run the kernel compiles the solver before it greets the page: meanwhile the view shows its picture
     of the mesh and the seconds waited, then the studio once greeted."""
-    if not (STATIC_DIR / "widget.js").is_file():
+    if not (client_dir() / "widget.js").is_file():
         pytest.skip("the widget module is not built (./dev setup)")
     load = Session.load
     gate = threading.Event()

@@ -300,10 +300,13 @@ releaseFocusAfterPointerUse(byId('panel'));
 
 installDropTarget(byId('viewport'), byId('drop-overlay'), (file) => loading.upload(file));
 
-installTestHook({
-  mesh, history, params, diagnostics, tools: painting, sync, viewer, livePose, selection, gizmo, conn, keeper, points,
-  mirror, transformUi, timeline,
-});
+// only the browser tests' build has the hook (vite.config.js): the normal build drops this branch and hook.js with it
+if (import.meta.env.MODE === 'e2e') {
+  installTestHook({
+    mesh, history, params, diagnostics, tools: painting, sync, viewer, livePose, selection, gizmo, conn, keeper, points,
+    mirror, transformUi, timeline,
+  });
+}
 
 // ------------------------------------------------------------------ actions
 

@@ -97,6 +97,13 @@ class Constraints:
         Handles inside triangles (:mod:`arap.method.points`).
     point_targets : (p, 3) float64 array or None
         Their targets.
+
+    Examples
+    --------
+    >>> import arap
+    >>> c = arap.load_constraints({"fixed": [0, 1], "handles": [5], "targets": [[0.0, 2.0, 0.0]]}, n_vertices=42)
+    >>> c.constrained.tolist(), c.targets.tolist()
+    ([0, 1, 5], [[0.0, 2.0, 0.0]])
     """
 
     fixed: np.ndarray
@@ -290,6 +297,16 @@ def load_constraints(source: str | os.PathLike[str] | Mapping[str, Any], n_verti
     ConstraintError
         Unreadable or invalid JSON (nested too deeply, integers of hundreds of digits included), unknown keys, and
         what :func:`check_selection` and :func:`check_listed_targets` refuse, or no constraint at all.
+
+    Examples
+    --------
+    >>> import arap
+    >>> V, F = arap.sphere(1)
+    >>> c = arap.load_constraints({"fixed": [0, 1], "handles": [5], "targets": [[0.0, 2.0, 0.0]]}, len(V))
+    >>> indices, targets = c.indices_and_targets(V)             # fixed vertices at rest, then the handles
+    >>> result = arap.ArapSolver(V, F, indices).solve(targets)
+    >>> bool(result.converged), result.vertices[5].round(6).tolist()
+    (True, [0.0, 2.0, 0.0])
     """
     data = source if isinstance(source, Mapping) else read_json(Path(source))
     if not isinstance(data, Mapping):
@@ -364,6 +381,17 @@ def save_constraints(path: str | os.PathLike[str], constraints: Constraints) -> 
     ------
     ConstraintError
         Non-finite targets (JSON has no NaN) or the file cannot be written.
+
+    Examples
+    --------
+    >>> import os, tempfile, arap
+    >>> c = arap.load_constraints({"fixed": [0, 1], "handles": [5], "targets": [[0.0, 2.0, 0.0]]}, n_vertices=42)
+    >>> with tempfile.TemporaryDirectory() as folder:
+    ...     path = os.path.join(folder, "pose.json")
+    ...     arap.save_constraints(path, c)
+    ...     again = arap.load_constraints(path, n_vertices=42)
+    >>> again.handles.tolist(), again.fixed.tolist()
+    ([5], [0, 1])
     """
     data = constraints.to_dict()
     if not all(math.isfinite(x) for row in data["targets"] for x in row):

@@ -368,6 +368,15 @@ def load_keyframes(source: str | Path | Mapping[str, Any], V: NDArray[np.float64
     ConstraintError
         Whatever :func:`arap.load_constraints` refuses, and keyframes that are not in increasing time, targets of the
         wrong count, transforms that are not 4×4 per group or that mirror, poses absurdly far away.
+
+    Examples
+    --------
+    >>> import arap
+    >>> V, F = arap.sphere(1)
+    >>> keys = arap.load_keyframes({"fixed": [0], "handles": [5], "keyframes": [
+    ...     {"time": 0.0, "targets": [V[5].tolist()]}, {"time": 1.0, "targets": [[0.0, 2.0, 0.0]]}]}, V)
+    >>> keys.start, keys.end
+    (0.0, 1.0)
     """
     data = source if isinstance(source, Mapping) else read_json(Path(source))
     return Keyframes.from_json(data, V, n_faces)

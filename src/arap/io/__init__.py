@@ -1,6 +1,15 @@
 """Mesh files: OBJ, OFF, PLY, STL, GLB and glTF from paths or bytes, in file vertex order; textured models (their
 UVs, normals, colours, materials, textures and scenes kept) through :mod:`arap.io.assets`; tetrahedral and planar
-meshes in Medit, gmsh, VTK and TetGen files through :mod:`arap.io.volume`."""
+meshes in Medit, gmsh, VTK and TetGen files through :mod:`arap.io.volume`.
+
+Examples
+--------
+>>> import arap
+>>> arap.MESH_FORMATS
+('obj', 'off', 'ply', 'stl', 'glb', 'gltf')
+>>> arap.VOLUME_FORMATS
+('mesh', 'msh', 'vtu', 'vtk', 'node', 'ele')
+"""
 
 from arap.io.assets import (
     ASSET_FORMATS,

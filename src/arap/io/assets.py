@@ -123,6 +123,16 @@ class SolveMesh:
         For each file vertex, its welded vertex.
     to_file : (k,) int64 array
         For each welded vertex, its first copy in the file.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from arap.io import MeshAsset
+    >>> V = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], dtype=float)
+    >>> asset = MeshAsset("obj", V, np.array([[0, 1, 2], [3, 4, 5]]))
+    >>> welded = asset.solve_mesh()
+    >>> welded.V.shape, welded.to_solve.tolist(), welded.to_file.tolist()
+    ((4, 3), [0, 1, 2, 1, 3, 2], [0, 1, 2, 4])
     """
 
     V: NDArray[np.float64]
@@ -208,6 +218,23 @@ class MeshAsset:
     data : object
         The format's own record that writing needs (``arap.io.obj_asset.ObjData``, ``arap.io.ply_asset.PlyData``,
         ``arap.io.gltf_asset.GltfData``).
+
+    Examples
+    --------
+    Two triangles of a square, each with its own copies of the shared corners (a texture seam):
+
+    >>> import os, tempfile, arap
+    >>> obj = ("v 0 0 0\\nv 1 0 0\\nv 0 1 0\\nv 1 0 0\\nv 1 1 0\\nv 0 1 0\\n"
+    ...        "vt 0 0\\nvt 1 0\\nvt 0 1\\nvt 1 1\\nf 1/1 2/2 3/3\\nf 4/2 5/4 6/3\\n")
+    >>> with tempfile.TemporaryDirectory() as folder:
+    ...     path = os.path.join(folder, "square.obj")
+    ...     with open(path, "w") as file:
+    ...         _ = file.write(obj)
+    ...     asset = arap.load_asset(path)
+    >>> asset.format, asset.vertices.shape, asset.uvs.shape
+    ('obj', (6, 3), (2, 3, 2))
+    >>> len(asset.solve_mesh().V)                             # the corners the two triangles share are welded
+    4
     """
 
     format: str
@@ -312,6 +339,17 @@ def load_asset(path: str | os.PathLike[str], *, max_vertices: int | None = None)
         An MTL file or texture image the file names cannot be read, or may not be: only regular files inside the
         file's own folder are read (:func:`arap.io.paths.read_reference`); the mesh loads without it (its reference
         is kept for writing). A glTF buffer that cannot be read is a :class:`MeshFormatError`.
+
+    Examples
+    --------
+    >>> import os, tempfile, arap
+    >>> with tempfile.TemporaryDirectory() as folder:
+    ...     path = os.path.join(folder, "triangle.obj")
+    ...     with open(path, "w") as file:
+    ...         _ = file.write("v 0 0 0\\nv 1 0 0\\nv 0 1 0\\nvt 0 0\\nvt 1 0\\nvt 0 1\\nf 1/1 2/2 3/3\\n")
+    ...     asset = arap.load_asset(path)
+    >>> asset.format, asset.faces.tolist(), asset.uvs[0].tolist()
+    ('obj', [[0, 1, 2]], [[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]])
     """
     path = Path(path)
     if path.is_dir():
@@ -353,6 +391,19 @@ def save_asset(path: str | os.PathLike[str], asset: MeshAsset, vertices: Any = N
         An extension of another format, a destination that is not a regular file, a write that fails.
     MeshError
         Positions of the wrong shape or not finite.
+
+    Examples
+    --------
+    >>> import os, tempfile, arap
+    >>> with tempfile.TemporaryDirectory() as folder:
+    ...     source = os.path.join(folder, "triangle.obj")
+    ...     with open(source, "w") as file:
+    ...         _ = file.write("v 0 0 0\\nv 1 0 0\\nv 0 1 0\\nvt 0 0\\nvt 1 0\\nvt 0 1\\nf 1/1 2/2 3/3\\n")
+    ...     asset = arap.load_asset(source)
+    ...     written = arap.save_asset(os.path.join(folder, "moved.obj"), asset, asset.vertices * 2)
+    ...     again = arap.load_asset(written[0])
+    >>> again.vertices[2].tolist(), again.uvs[0, 2].tolist()   # new positions, the same texture coordinates
+    ([0.0, 2.0, 0.0], [0.0, 1.0])
     """
     path = Path(path)
     fmt = _asset_record(path.name)

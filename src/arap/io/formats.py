@@ -29,10 +29,13 @@ Kinds
 
 Example
 -------
+>>> import typing
 >>> get("model.OBJ").title, get(".msh").kind, get("tet.ele").name
 ('Wavefront OBJ', 'volume', 'tetgen')
 >>> names("surface")
 ('obj', 'off', 'ply', 'stl', 'glb', 'gltf')
+>>> len(FORMATS) == len(names()), {f.kind for f in FORMATS} == set(typing.get_args(Kind))
+(True, True)
 """
 
 from __future__ import annotations
@@ -91,6 +94,13 @@ class FileFormat:
         The studio opens uploads of it.
     export : bool
         The studio's export offers it.
+
+    Examples
+    --------
+    >>> from arap.io.formats import get
+    >>> fmt = get("scan.ply")
+    >>> fmt.name, fmt.kind, fmt.suffix, fmt.asset
+    ('ply', 'surface', '.ply', True)
     """
 
     name: str
@@ -177,7 +187,13 @@ _BY_SUFFIX = {s: f for f in FORMATS for s in f.suffixes}
 
 def suffix_of(name: str | os.PathLike[str]) -> str:
     """The lower-case extension of a file name, a suffix or a bare type name, with its dot (``"mesh.OBJ"``,
-    ``".obj"`` and ``"obj"`` all give ``".obj"``; a name without a dot gives itself as the suffix)."""
+    ``".obj"`` and ``"obj"`` all give ``".obj"``; a name without a dot gives itself as the suffix).
+
+    Examples
+    --------
+    >>> suffix_of("models/Mesh.OBJ"), suffix_of(".obj"), suffix_of("obj")
+    ('.obj', '.obj', '.obj')
+    """
     text = str(name).strip()
     base = text.replace("\\", "/").rsplit("/", 1)[-1]
     return "." + base.rsplit(".", 1)[-1].lower()
@@ -185,7 +201,13 @@ def suffix_of(name: str | os.PathLike[str]) -> str:
 
 def find(name: str | os.PathLike[str], kind: Kind | None = None) -> FileFormat | None:
     """The format of a file name, a suffix, a bare extension or a format name (``"tetgen"``), or None; only of
-    ``kind`` when given."""
+    ``kind`` when given.
+
+    Examples
+    --------
+    >>> find("tet.ele").name, find("shape.xyz"), find("model.obj", kind="volume")
+    ('tetgen', None, None)
+    """
     text = str(name).strip().lower()
     found = _BY_NAME.get(text) or _BY_SUFFIX.get(suffix_of(name))
     return found if found is not None and (kind is None or found.kind == kind) else None
@@ -198,6 +220,11 @@ def get(name: str | os.PathLike[str], kind: Kind | None = None) -> FileFormat:
     ------
     MeshFormatError
         No such format (of ``kind``).
+
+    Examples
+    --------
+    >>> get("model.OBJ").title, get("msh").kind
+    ('Wavefront OBJ', 'volume')
     """
     found = find(name, kind)
     if found is None:
@@ -217,6 +244,11 @@ def family(name: str | os.PathLike[str]) -> str:
     ------
     MeshFormatError
         No such format.
+
+    Examples
+    --------
+    >>> family("scene.glb"), family("model.gltf"), family("mesh.obj")
+    ('gltf', 'gltf', 'obj')
     """
     found = get(name)
     return found.family or found.name
@@ -224,25 +256,55 @@ def family(name: str | os.PathLike[str]) -> str:
 
 def names(kind: Kind | None = None, *, asset: bool | None = None) -> tuple[str, ...]:
     """The names of the formats (of ``kind``; with ``asset``, only those whose attributes :func:`arap.io.load_asset`
-    keeps, or only the others)."""
+    keeps, or only the others).
+
+    Examples
+    --------
+    >>> names("volume")
+    ('mesh', 'msh', 'vtu', 'vtk', 'tetgen')
+    """
     return tuple(f.name for f in FORMATS if (kind is None or f.kind == kind) and (asset is None or f.asset == asset))
 
 
 def suffixes(kind: Kind | None = None) -> tuple[str, ...]:
-    """Every extension of the formats (of ``kind``), with its dot, in the order of :data:`FORMATS`."""
+    """Every extension of the formats (of ``kind``), with its dot, in the order of :data:`FORMATS`.
+
+    Examples
+    --------
+    >>> suffixes("surface")[:3]
+    ('.obj', '.off', '.ply')
+    """
     return tuple(s for f in FORMATS if kind is None or f.kind == kind for s in f.suffixes)
 
 
 def upload_suffixes() -> tuple[str, ...]:
-    """The extensions of the files the studio opens."""
+    """The extensions of the files the studio opens.
+
+    Examples
+    --------
+    >>> ".obj" in upload_suffixes(), ".zip" in upload_suffixes()
+    (True, True)
+    """
     return tuple(s for f in FORMATS if f.upload for s in f.suffixes)
 
 
 def export_names() -> tuple[str, ...]:
-    """The formats the studio exports to."""
+    """The formats the studio exports to.
+
+    Examples
+    --------
+    >>> "obj" in export_names()
+    True
+    """
     return tuple(f.name for f in FORMATS if f.export)
 
 
 def mime_types() -> dict[str, str]:
-    """The media type of each format, by name."""
+    """The media type of each format, by name.
+
+    Examples
+    --------
+    >>> mime_types()["obj"]
+    'model/obj'
+    """
     return {f.name: f.mime for f in FORMATS}

@@ -342,6 +342,13 @@ def load_mesh_bytes(data: bytes, file_type: str, *, repair: bool = True) -> tupl
     -------
     V : (n, 3) float64 array
     F : (m, 3) int64 array
+
+    Examples
+    --------
+    >>> import arap
+    >>> V, F = arap.load_mesh_bytes(b"OFF\\n3 1 0\\n0 0 0\\n1 0 0\\n0 1 0\\n3 0 1 2\\n", "off")
+    >>> V.shape, F.tolist()
+    ((3, 3), [[0, 1, 2]])
     """
     V, F, _ = load_mesh_bytes_with_report(data, file_type, repair=repair)
     return V, F
@@ -357,6 +364,19 @@ def load_mesh_with_report(
     MeshFormatError
         Unknown extension, missing or unreadable file, a path that is not a regular file (a folder, a FIFO, a
         device, a socket, or a link to one), unparsable content, no faces.
+
+    Examples
+    --------
+    A square with a vertex that no face uses: the vertex is dropped, and the report says so:
+
+    >>> import os, tempfile, arap
+    >>> with tempfile.TemporaryDirectory() as folder:
+    ...     path = os.path.join(folder, "square.obj")
+    ...     with open(path, "w") as file:
+    ...         _ = file.write("v 0 0 0\\nv 1 0 0\\nv 1 1 0\\nv 0 1 0\\nv 5 5 5\\nf 1 2 3\\nf 1 3 4\\n")
+    ...     V, F, repair = arap.load_mesh_with_report(path)
+    >>> V.shape, repair.report
+    ((4, 3), ['dropped 1 vertices used by no face'])
     """
     path = Path(path)
     if path.is_dir():
@@ -384,6 +404,16 @@ def load_mesh(path: str | os.PathLike[str], *, repair: bool = True) -> tuple[np.
     -------
     V : (n, 3) float64 array
     F : (m, 3) int64 array
+
+    Examples
+    --------
+    >>> import os, tempfile, arap
+    >>> with tempfile.TemporaryDirectory() as folder:
+    ...     path = os.path.join(folder, "sphere.obj")
+    ...     arap.save_mesh(path, *arap.sphere(1))
+    ...     V, F = arap.load_mesh(path)
+    >>> V.shape, F.shape
+    ((42, 3), (80, 3))
     """
     V, F, _ = load_mesh_with_report(path, repair=repair)
     return V, F
@@ -444,6 +474,15 @@ def save_mesh_bytes(V: np.ndarray, F: np.ndarray, file_type: str) -> bytes:
     Returns
     -------
     bytes
+
+    Examples
+    --------
+    >>> import arap
+    >>> data = arap.save_mesh_bytes(*arap.sphere(1), "off")
+    >>> data.splitlines()[:2]
+    [b'OFF', b'42 80 0']
+    >>> arap.load_mesh_bytes(data, "off")[1].shape
+    (80, 3)
     """
     V, F = _check_for_saving(V, F)
     write = formats.get(format_of(file_type)).function("writer")
@@ -517,6 +556,14 @@ def save_mesh(path: str | os.PathLike[str], V: NDArray[np.floating] | MeshLike,
         then unchanged).
     MeshError
         Unusable arrays.
+
+    Examples
+    --------
+    >>> import os, tempfile, arap
+    >>> with tempfile.TemporaryDirectory() as folder:
+    ...     arap.save_mesh(os.path.join(folder, "sphere.ply"), *arap.sphere(1))   # the extension picks the format
+    ...     print(os.listdir(folder))
+    ['sphere.ply']
     """
     path = Path(path)
     from arap.io.assets import MeshAsset, save_asset

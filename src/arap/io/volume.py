@@ -504,6 +504,17 @@ def save_volume_mesh(path: str | os.PathLike[str], V: NDArray[np.floating], T: N
         Unknown extension, a destination that is not a regular file or cannot be written, meshio missing.
     MeshError
         Unusable arrays (wrong shapes, indices out of range, non-finite coordinates); nothing is written.
+
+    Examples
+    --------
+    >>> import os, tempfile, arap
+    >>> V, T = arap.box_tetrahedra(2, 2, 2)
+    >>> with tempfile.TemporaryDirectory() as folder:
+    ...     path = os.path.join(folder, "box.mesh")
+    ...     arap.save_volume_mesh(path, V, T)
+    ...     V2, T2 = arap.load_volume_mesh(path)
+    >>> bool((T2 == T).all() and abs(V2 - V).max() < 1e-12)
+    True
     """
     path = Path(path)
     ft = volume_format_of(path.name)

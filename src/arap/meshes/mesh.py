@@ -247,7 +247,17 @@ def degenerate_faces(V: np.ndarray, F: np.ndarray, tolerance: float = DEGENERATE
 # ---------------------------------------------------------------------------------------------- check
 @runtime_checkable
 class MeshLike(Protocol):
-    """Any triangle mesh object with ``vertices`` (n, 3) and ``faces`` (m, 3), e.g. a ``trimesh.Trimesh``."""
+    """Any triangle mesh object with ``vertices`` (n, 3) and ``faces`` (m, 3), e.g. a ``trimesh.Trimesh``.
+
+    Examples
+    --------
+    >>> import numpy as np, arap
+    >>> class Mesh:
+    ...     vertices = np.zeros((3, 3))
+    ...     faces = np.array([[0, 1, 2]])
+    >>> isinstance(Mesh(), arap.MeshLike), isinstance(np.zeros((3, 3)), arap.MeshLike)
+    (True, False)
+    """
 
     @property
     def vertices(self) -> Any: ...
@@ -380,6 +390,13 @@ def check_mesh(V: np.ndarray, F: np.ndarray) -> tuple[NDArray[np.float64], NDArr
         Wrong shapes or dtypes (quads and other polygons must be triangulated), an empty mesh, non-finite
         coordinates, coordinates of an unsupported scale (:func:`check_coordinates`), face indices out of range,
         faces repeating a vertex, zero-area faces.
+
+    Examples
+    --------
+    >>> import numpy as np, arap
+    >>> V, F = arap.check_mesh([[0, 0, 0], [1, 0, 0], [0, 1, 0]], [[0, 1, 2]])
+    >>> V.dtype, F.dtype, F.shape
+    (dtype('float64'), dtype('int64'), (1, 3))
     """
     V = _as_vertices(V)
     F = _as_faces(F)

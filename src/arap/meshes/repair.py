@@ -46,6 +46,14 @@ class RepairResult:
     input_V, input_F : (n, 3) float64 and (m0, 3) int64 arrays, or None
         The input's vertices and triangles (polygons fan-triangulated, nothing dropped), kept when the repair changed
         the vertex numbering (for :meth:`in_input_order`); else None.
+
+    Examples
+    --------
+    >>> import numpy as np, arap
+    >>> V, F = arap.sphere(1)
+    >>> result = arap.repair_mesh(np.vstack([V, V[:1]]), F)   # one more vertex, used by no face
+    >>> result.report, int(result.vertex_map[-1]), len(result.V)
+    (['dropped 1 vertices used by no face'], -1, 42)
     """
 
     V: np.ndarray
@@ -165,6 +173,16 @@ def repair_mesh(
     MeshError
         Faces use non-finite vertices or out-of-range indices, the coordinates have an unsupported scale
         (:func:`check_coordinates`), or no valid face remains.
+
+    Examples
+    --------
+    A quad and a vertex no face uses:
+
+    >>> import numpy as np, arap
+    >>> V = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0], [9, 9, 9]], dtype=float)
+    >>> repaired = arap.repair_mesh(V, [[0, 1, 2, 3]])
+    >>> repaired.F.shape, len(repaired.V), repaired.counts["triangulated_polygons"]
+    ((2, 3), 4, 1)
     """
     V = _as_vertices(V)
     n_polygons = len(polygons)

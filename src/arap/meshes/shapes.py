@@ -10,6 +10,14 @@ arrays.
 
 Two generators make meshes like real scans, with many obtuse triangles and so many negative cotangent weights
 (seeded, deterministic, not built-ins): :func:`obtuse_cylinder` and :func:`scan_blob`.
+
+Examples
+--------
+>>> import arap
+>>> arap.BUILTIN_MESHES
+('cactus', 'bar', 'cylinder')
+>>> [arap.builtin_mesh(name)[0].shape[1] for name in arap.BUILTIN_MESHES]
+[3, 3, 3]
 """
 
 from __future__ import annotations

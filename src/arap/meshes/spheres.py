@@ -56,6 +56,13 @@ def sphere(subdivisions: int = 4, *, frequency: int | None = None, radius: float
     ------
     OptionError
         ``k < 1``, or more than :data:`MAX_SPHERE_VERTICES` vertices.
+
+    Examples
+    --------
+    >>> import arap
+    >>> V, F = arap.sphere(1)                                  # an icosahedron subdivided once
+    >>> V.shape, F.shape
+    ((42, 3), (80, 3))
     """
     k = int(frequency) if frequency is not None else 2 ** int(subdivisions)
     if k < 1:

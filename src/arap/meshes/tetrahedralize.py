@@ -274,6 +274,18 @@ def interpolate_points(U: ArrayLike, T: ArrayLike, tets: ArrayLike, barycentric:
     -------
     (k, 3) float64 array
         ``Σ_j barycentric[:, j] U[T[tets, j]]``.
+
+    Examples
+    --------
+    Points carried along by a tetrahedral mesh that moves as a whole:
+
+    >>> import numpy as np, arap
+    >>> V, T = arap.box_tetrahedra(2, 2, 2)
+    >>> points = np.array([[0.25, 0.5, 0.5], [0.5, 0.5, 0.75]])
+    >>> tets, barycentric = arap.embed_points(V, T, points)
+    >>> moved = arap.interpolate_points(V + [1.0, 0.0, 0.0], T, tets, barycentric)
+    >>> moved.round(6).tolist()
+    [[1.25, 0.5, 0.5], [1.5, 0.5, 0.75]]
     """
     U = np.asarray(U, dtype=np.float64)
     T = np.asarray(T, dtype=np.int64)

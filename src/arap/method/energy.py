@@ -298,5 +298,15 @@ def arap_energy(
     ------
     MeshError, ArapError, OptionError
         As :func:`cell_energies`.
+
+    Examples
+    --------
+    A rigid motion costs nothing; a stretch does:
+
+    >>> import numpy as np, arap
+    >>> V, F = arap.sphere(1)
+    >>> turned = V @ np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]]) + 2.0
+    >>> bool(abs(arap.arap_energy(V, F, turned)) < 1e-9), bool(arap.arap_energy(V, F, V * [1.0, 1.0, 1.5]) > 0)
+    (True, True)
     """
     return float(cell_energies(V, F, U, energy, weights, stiffness, alpha).sum())

@@ -111,6 +111,14 @@ def cotangent_laplacian(V: np.ndarray, F: np.ndarray, weights: str = "cotangent"
     -------
     (n, n) scipy.sparse.csr_matrix
         Symmetric, zero row sums.
+
+    Examples
+    --------
+    >>> import numpy as np, arap
+    >>> V, F = arap.sphere(1)
+    >>> L = arap.cotangent_laplacian(V, F)
+    >>> L.shape, bool(abs(L @ np.ones(len(V))).max() < 1e-12)     # constants are in its null space
+    ((42, 42), True)
     """
     W = edge_weight_matrix(V, F, weights)
     d = np.asarray(W.sum(axis=1)).ravel()

@@ -48,6 +48,14 @@ class ImageMesh:
         The shape's pixels.
     spacing : float
         The mesh's edge length, in pixels.
+
+    Examples
+    --------
+    >>> import numpy as np, arap
+    >>> img = np.zeros((40, 60, 4), dtype=np.uint8); img[10:30, 10:50] = 255    # an opaque 40 x 20 rectangle
+    >>> mesh = arap.image_mesh(img, spacing=5)
+    >>> mesh.size, mesh.vertices.shape[1], bool(mesh.mask[20, 30]), bool(mesh.mask[5, 5])
+    ((60, 40), 2, True, False)
     """
 
     vertices: NDArray[np.float64]

@@ -25,7 +25,7 @@ from starlette.websockets import WebSocket, WebSocketDisconnect
 
 from arap import __version__
 from arap.server.appearance import Look, look_from_path
-from arap.server.client_files import STATIC_DIR, client_missing_advice
+from arap.server.client_files import STATIC_DIR, client_dir, client_missing_advice
 from arap.server.connection import Connection
 from arap.server.decoder import FrameDecoder
 from arap.server.errors import RequestError
@@ -181,7 +181,7 @@ def create_app(
     allowed_hosts : iterable of str
         More host names accepted in ``Host``.
     static_dir : path-like or None
-        Built client (default: the package's ``static`` folder).
+        Built client (default: the package's ``static`` folder, or the folder ``ARAP_STUDIO_CLIENT`` names).
     token : str or None
         Secret every request must present, as ``?token=...`` in its URL or an ``Authorization: token ...``
         header (the client's static files excepted); 403 without it. None: no token (loopback servers).
@@ -227,7 +227,7 @@ def create_app(
     mesh = load_default(default_mesh)
     logger.info("default mesh %s: %d vertices, %d faces", mesh.name, mesh.n_vertices, mesh.n_faces)
     look = look_from_path(default_mesh, mesh)
-    static = Path(static_dir) if static_dir is not None else STATIC_DIR
+    static = Path(static_dir) if static_dir is not None else client_dir()
     advice = client_missing_advice(static)
     if advice is not None:
         logger.warning("%s The server answers its pages with 503 until then.", advice)

@@ -4,12 +4,23 @@ needs neither starlette nor uvicorn."""
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
-__all__ = ["STATIC_DIR", "client_missing_advice"]
+__all__ = ["CLIENT_ENV", "STATIC_DIR", "client_dir", "client_missing_advice"]
 
 STATIC_DIR = Path(__file__).resolve().parent.parent / "static"
 """The built client: packaged in the wheel, or built there by ``./dev setup`` (``npm run build`` in ``web/``)."""
+CLIENT_ENV = "ARAP_STUDIO_CLIENT"
+"""Environment variable naming another built client to serve, e.g. the browser tests' build with their hook
+(``npm run build:e2e`` in ``web/``, into ``build/studio-e2e``)."""
+
+
+def client_dir() -> Path:
+    """The folder of the client the studio serves and the widget loads: :data:`STATIC_DIR`, unless
+    :data:`CLIENT_ENV` names another."""
+    other = os.environ.get(CLIENT_ENV)
+    return Path(other) if other else STATIC_DIR
 
 
 def client_missing_advice(static_dir: Path = STATIC_DIR) -> str | None:

@@ -238,6 +238,17 @@ def serve(
         The mesh cannot be loaded.
     OSError
         The address cannot be bound.
+
+    Examples
+    --------
+    The mesh is read before the server starts, so a mistake shows at once:
+
+    >>> from arap.server.runner import serve
+    >>> try:
+    ...     serve("no-such-mesh.obj")
+    ... except Exception as error:
+    ...     print(type(error).__name__)
+    MeshFormatError
     """
     server, sock, url = make_server(mesh, host, port, max_upload_bytes=max_upload_bytes,
                                     max_vertices=max_vertices, max_sessions=max_sessions,

@@ -127,7 +127,21 @@ class SmoothFit(RotationFit):
 
 
 class AddOn:
-    """A part of the energy or of the constraints that only some solves have; every method defaults to nothing."""
+    """A part of the energy or of the constraints that only some solves have; every method defaults to nothing.
+
+    Examples
+    --------
+    Rigid vertices (infinite stiffness) bring an add-on to the solve:
+
+    >>> import numpy as np, arap
+    >>> from arap.solve.prepared import prepare
+    >>> V, F = arap.sphere(1)
+    >>> stiffness = np.where(V[:, 1] > 0.5, np.inf, 1.0)
+    >>> [type(a).__name__ for a in prepare(V, F, [0, 2], stiffness=stiffness).addons]
+    ['RigidAddOn']
+    >>> prepare(V, F, [0, 2]).addons
+    ()
+    """
 
     #: The tolerance a solve needs at least (relative to the diagonal), or 0.
     min_tolerance: float = 0.0

@@ -150,6 +150,14 @@ class Prepared:
         Energies of the cells outside ``active``.
     factor : Factor or None
         The Cholesky factor of ``matrix`` (None when no vertex is free).
+
+    Examples
+    --------
+    >>> import arap
+    >>> from arap.solve.prepared import prepare
+    >>> p = prepare(*arap.sphere(1), [0, 1])
+    >>> p.n, p.energy_type, len(p.free) + len(p.nonfree) == p.n
+    (42, 'spokes_and_rims', True)
     """
 
     V: NDArray[np.float64]

@@ -52,6 +52,14 @@ class ArapResult:
     rejected : int
         Accelerated steps rejected by the energy safeguard: Anderson extrapolations, or L-BFGS line searches that
         found no lower energy (the plain step was taken instead).
+
+    Examples
+    --------
+    >>> import arap
+    >>> V, F = arap.sphere(1)
+    >>> result = arap.ArapSolver(V, F, [0, 1]).solve(V[[0, 1]] + [0.0, 0.0, 0.5])   # a translation
+    >>> bool(result.converged), result.vertices.shape, bool(abs(result.vertices[:, 2] - V[:, 2] - 0.5).max() < 1e-6)
+    (True, (42, 3), True)
     """
 
     vertices: NDArray[np.float64]
