@@ -23,6 +23,7 @@ export const CLIENT = Object.freeze(/** @type {const} */ ({
   "GET_DISTORTION": "get_distortion",
   "KEEP_SHAPE": "keep_shape",
   "SET_PIN_DEPTH": "set_pin_depth",
+  "SET_PIN_ANGLE": "set_pin_angle",
   "REMESH": "remesh"
 }));
 
@@ -276,13 +277,21 @@ export const UPLOAD_EXTENSIONS = Object.freeze([
  */
 
 /**
+ * a picture's pin holds its surroundings turned by an angle about it (Alt-drag about a pin): a turn of the pin's transform about z adds to it; solved at once, and like a drag an undo step with the next end_drag
+ * @typedef {object} SetPinAngleClientMessage
+ * @property {"set_pin_angle"} type
+ * @property {number} pin the pin: its number among the point handles
+ * @property {number} [angle] degrees, counter-clockwise as seen, from the picture as opened (absent: the angle its surroundings show now)
+ */
+
+/**
  * mesh a picture again at another density, its pins kept at their places and targets
  * @typedef {object} RemeshClientMessage
  * @property {"remesh"} type
  * @property {"coarse"|"normal"|"fine"} density the mesh's density
  */
 
-/** Any message a client sends. @typedef {LoadBuiltinClientMessage|UploadClientMessage|SetConstraintsClientMessage|DragClientMessage|EndDragClientMessage|SetParamsClientMessage|UndoClientMessage|RedoClientMessage|ResetClientMessage|ApplyClientMessage|ExportClientMessage|GetConstraintsClientMessage|ExportAnimationClientMessage|GetDistortionClientMessage|KeepShapeClientMessage|SetPinDepthClientMessage|RemeshClientMessage} ClientMessage */
+/** Any message a client sends. @typedef {LoadBuiltinClientMessage|UploadClientMessage|SetConstraintsClientMessage|DragClientMessage|EndDragClientMessage|SetParamsClientMessage|UndoClientMessage|RedoClientMessage|ResetClientMessage|ApplyClientMessage|ExportClientMessage|GetConstraintsClientMessage|ExportAnimationClientMessage|GetDistortionClientMessage|KeepShapeClientMessage|SetPinDepthClientMessage|SetPinAngleClientMessage|RemeshClientMessage} ClientMessage */
 
 /**
  * sent once on connect, followed by a mesh frame
@@ -351,7 +360,7 @@ export const UPLOAD_EXTENSIONS = Object.freeze([
  * @property {boolean} can_undo
  * @property {boolean} can_redo
  * @property {{iterations: number, energy: "spokes"|"spokes_and_rims"|"smooth_rotations", weights: "cotangent"|"clamped"|"uniform", alpha: number, loose: "follow"|"hold"|"error", warp: "rigid"|"normal"|"distort"}} params solver parameters
- * @property {{roi: number[]|null, fixed: number[], handle_groups: number[][], stiffness: Array<{vertices: number[], value: number|"rigid"}>|null, points: Array<{face: number, barycentric: number[], weight?: number}>}} constraints roi, fixed, handle_groups, stiffness, points as last accepted
+ * @property {{roi: number[]|null, fixed: number[], handle_groups: number[][], stiffness: Array<{vertices: number[], value: number|"rigid"}>|null, points: Array<{face: number, barycentric: number[], weight?: number, angle?: number}>}} constraints roi, fixed, handle_groups, stiffness, points as last accepted (a picture's pin that holds an angle: with it, in degrees)
  * @property {number[][]} transforms current transform of each handle group
  * @property {number} rest_id the rest pose: a new value after apply, the earlier one again when an undo or redo goes back to it
  * @property {{n_vertices: number, n_faces: number, roi_size: number, n_free: number, factor_ms: number}} stats n_vertices, n_faces, roi_size, n_free, factor_ms

@@ -328,20 +328,48 @@ def _export(session: Session, times_ms: Sequence[int] | np.ndarray, transforms: 
                            "for animation exports (arap studio --max-export-mb): lower the frame rate or shorten the "
                            "animation")
     if budget is None:
-        return _solve_and_encode(session, mine, frames_keys, frame_t, fps, interrupted, progress, encoder, fmt)
+        return _solve_and_encode(session, mine, frames_keys, frame_t, fps, interrupted, progress, encoder, fmt,
+                                 _ring_targets(session, keyed))
     if progress is not None:
         progress(0, len(frame_t))  # while waiting for room
     with budget.reserve(needed, interrupted) as reserved:
         if not reserved:
             raise AnimationCancelled
-        return _solve_and_encode(session, mine, frames_keys, frame_t, fps, interrupted, progress, encoder, fmt)
+        return _solve_and_encode(session, mine, frames_keys, frame_t, fps, interrupted, progress, encoder, fmt,
+                                 _ring_targets(session, keyed))
+
+
+def _ring_targets(session: Session, keyed: _Keys) -> Callable[[float], np.ndarray] | None:
+    """The targets at a time of the hidden rings of a picture's pins that hold an angle (None without any): at each
+    keyframe those its transforms give (:meth:`~arap.server.constraints.ConstraintSet.solver_point_targets`), between
+    two eased from one to the other as the pins' targets are."""
+    from arap.constraints.keyframes import ease
+
+    cs = session.constraints
+    if cs.rings is None:
+        return None
+    at_keys = [np.asarray(cs.solver_point_targets(Tk))[cs.n_points:] for Tk in keyed.T]
+    times = keyed.times
+
+    def at(t: float) -> np.ndarray:
+        if t <= times[0]:
+            return at_keys[0]
+        if t >= times[-1]:
+            return at_keys[-1]
+        b = int(np.searchsorted(times, t, side="right"))
+        s = ease(keyed.easings[b - 1], (t - times[b - 1]) / (times[b] - times[b - 1]))
+        return (1.0 - s) * at_keys[b - 1] + s * at_keys[b]
+
+    return at
 
 
 def _solve_and_encode(session: Session, mine: dict[str, Any], frames_keys: Keyframes, frame_t: np.ndarray, fps: float,
                       interrupted: Callable[[], bool], progress: ProgressCallback | None,
                       encoder: Callable[[np.ndarray, float], bytes] | None,
-                      fmt: str) -> tuple[str, str, bytes, int, float]:
-    """Solve the frames at times ``frame_t`` and encode them (see :func:`_export`)."""
+                      fmt: str, rings: Callable[[float], np.ndarray] | None = None
+                      ) -> tuple[str, str, bytes, int, float]:
+    """Solve the frames at times ``frame_t`` and encode them (see :func:`_export`); ``rings``: the targets at a time
+    of the hidden rings of the pins that hold an angle (:func:`_ring_targets`)."""
     mesh = session._require_mesh()
     solver = session.solver
     assert solver is not None
@@ -366,6 +394,8 @@ def _solve_and_encode(session: Session, mine: dict[str, Any], frames_keys: Keyfr
     for k, t in enumerate(frame_t):
         X[handles] = frames_keys.handle_targets(float(t))
         point_targets = frames_keys.point_targets(float(t))
+        if rings is not None and point_targets is not None:
+            point_targets = np.concatenate([point_targets, rings(float(t))])
         key = frames_keys.key_at(float(t))
         shape = None if key is None else key.shape
         try:

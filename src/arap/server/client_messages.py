@@ -59,6 +59,7 @@ __all__ = [
     "Reset",
     "SetConstraints",
     "SetParams",
+    "SetPinAngle",
     "SetPinDepth",
     "Undo",
     "Upload",
@@ -226,6 +227,19 @@ class SetPinDepth(ClientMessage):
 
 
 @dataclass(frozen=True)
+class SetPinAngle(ClientMessage):
+    type: ClassVar[str] = "set_pin_angle"
+    doc: ClassVar[str] = ("a picture's pin holds its surroundings turned by an angle about it (Alt-drag about a pin): "
+                          "a turn of the pin's transform about z adds to it; solved at once, and like a drag an undo "
+                          "step with the next end_drag")
+    pin: Int = field(metadata=wire("the pin: its number among the point handles", minimum=0,
+                                   maximum=MAX_HANDLE_GROUPS - 1))
+    angle: Number | None = field(default=None, metadata=wire(
+        "degrees, counter-clockwise as seen, from the picture as opened (absent: the angle its surroundings show now)",
+        minimum=-36000, maximum=36000))
+
+
+@dataclass(frozen=True)
 class Remesh(ClientMessage):
     type: ClassVar[str] = "remesh"
     doc: ClassVar[str] = "mesh a picture again at another density, its pins kept at their places and targets"
@@ -344,6 +358,7 @@ CLIENT_MESSAGE_CLASSES: dict[str, type[ClientMessage]] = {
         GetDistortion,
         KeepShape,
         SetPinDepth,
+        SetPinAngle,
         Remesh,
     )
 }

@@ -21,7 +21,7 @@ from arap.errors import ConstraintError
 from arap.method.points import PointConstraints
 from arap.server.session_errors import ConstraintsRejected
 
-__all__ = ["ConstraintSet", "identity_transforms", "matrices_from_json", "matrices_to_json"]
+__all__ = ["ConstraintSet", "PinRings", "identity_transforms", "matrices_from_json", "matrices_to_json", "turn_of"]
 
 
 def identity_transforms(n_groups: int) -> np.ndarray:
@@ -62,6 +62,38 @@ _NO_POINTS = np.zeros((0, 3))
 _NO_POINTS.setflags(write=False)
 
 
+def turn_of(transforms: np.ndarray) -> np.ndarray:
+    """The turn about z (radians, counter-clockwise seen from +z) of each of ``transforms`` ``(g, 4, 4)``."""
+    T = np.asarray(transforms, dtype=np.float64).reshape(-1, 4, 4)
+    return np.arctan2(T[:, 1, 0], T[:, 0, 0])
+
+
+@dataclass(frozen=True, eq=False)
+class PinRings:
+    """The angles a picture's pins hold, and the hidden rings that hold them (:func:`arap.server.pictures.pin_rings`):
+    around each pin that holds an angle, hard point handles that move with the pin turned by its angle. They are the
+    solver's alone: the constraint set's point handles, the ``state`` message and documents hold the pins only.
+
+    Attributes
+    ----------
+    angles : tuple of float or None
+        Per point handle, the angle (radians, counter-clockwise seen from +z, from the rest pose) it holds while its
+        transform is the identity (its transform's turn about z adds to it), or None for a pin whose surroundings turn
+        freely with the bend.
+    points : PointConstraints
+        The ring points, on the rest pose (hard).
+    pin : (r,) int64 array
+        The point handle each ring point turns with.
+    offset : (r, 3) float64 array
+        Each ring point's rest place relative to its pin's rest place.
+    """
+
+    angles: tuple[float | None, ...]
+    points: PointConstraints
+    pin: np.ndarray
+    offset: np.ndarray
+
+
 @dataclass(frozen=True, eq=False)
 class ConstraintSet:
     """Validated constraints of a session (treat as immutable).
@@ -98,6 +130,7 @@ class ConstraintSet:
     stiffness: np.ndarray | None = None
     points: PointConstraints | None = None
     point_pose: np.ndarray = field(default_factory=lambda: _NO_POINTS)
+    rings: PinRings | None = None
 
     @classmethod
     def build(
@@ -217,7 +250,38 @@ class ConstraintSet:
 
     def solver_digest(self) -> bytes:
         """Hash of what the solver's factorisation depends on (constrained vertices, roi, stiffness, points)."""
-        return _digest(self.roi, self.constrained, stiffness=self.stiffness, points=self.points)
+        return _digest(self.roi, self.constrained, stiffness=self.stiffness, points=self.solver_points)
+
+    @property
+    def solver_points(self) -> PointConstraints | None:
+        """The point handles the solver holds: :attr:`points`, then the rings of the pins that hold an angle."""
+        if self.rings is None or not len(self.rings.pin) or self.points is None:
+            return self.points
+        p, r = self.points, self.rings.points
+        return PointConstraints(np.concatenate([p.faces, r.faces]), np.concatenate([p.barycentric, r.barycentric]),
+                                np.concatenate([p.weights, r.weights]))
+
+    def pin_angles(self, transforms: np.ndarray) -> list[float | None]:
+        """Per point handle, the angle (radians) it holds under ``transforms`` ``(g, 4, 4)``, or None (turns freely)."""
+        if self.rings is None:
+            return [None] * self.n_points
+        turn = turn_of(transforms[len(self.groups):])
+        return [None if a is None else float(a + t) for a, t in zip(self.rings.angles, turn, strict=True)]
+
+    def solver_point_targets(self, transforms: np.ndarray) -> np.ndarray | None:
+        """Targets of :attr:`solver_points` under ``transforms``: :meth:`point_targets`, then each ring point at its
+        pin's pose turned by the pin's angle, moved by the pin's transform."""
+        targets = self.point_targets(transforms)
+        if targets is None or self.rings is None or not len(self.rings.pin):
+            return targets
+        rings = self.rings
+        base = np.array([0.0 if a is None else a for a in rings.angles])[rings.pin]
+        c, s = np.cos(base), np.sin(base)
+        o = rings.offset
+        turned = np.column_stack([c * o[:, 0] - s * o[:, 1], s * o[:, 0] + c * o[:, 1], o[:, 2]])
+        pose = self.point_pose[rings.pin] + turned
+        T = transforms[len(self.groups):][rings.pin]
+        return np.concatenate([targets, np.einsum("pij,pj->pi", T[:, :3, :3], pose) + T[:, :3, 3]])
 
     def handle_targets(self, transforms: np.ndarray) -> np.ndarray:
         """Targets of the handle vertices (groups concatenated) under ``transforms`` ``(g, 4, 4)``."""

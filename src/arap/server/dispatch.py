@@ -38,6 +38,7 @@ from arap.server.client_messages import (
     Reset,
     SetConstraints,
     SetParams,
+    SetPinAngle,
     SetPinDepth,
     Undo,
     Upload,
@@ -131,6 +132,7 @@ class Dispatcher:
             GetConstraints: self._get_constraints,
             KeepShape: self._keep_shape,
             SetPinDepth: self._set_pin_depth,
+            SetPinAngle: self._set_pin_angle,
             Remesh: self._remesh,
         }
         """The handler of each message class (``export_animation`` is run by the transports, which stream its
@@ -334,6 +336,11 @@ class Dispatcher:
 
     def _set_pin_depth(self, msg: SetPinDepth) -> Answers:
         self.session.set_pin_depth(list(msg.depth))
+        yield self.state()
+
+    def _set_pin_angle(self, msg: SetPinAngle) -> Answers:
+        outcome = self.session.set_pin_angle(msg.pin, msg.angle)
+        yield self.vertices(-1, outcome)
         yield self.state()
 
     def _remesh(self, msg: Remesh) -> Answers:

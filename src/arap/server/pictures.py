@@ -18,6 +18,7 @@ import arap.io.formats as formats
 from arap.errors import ArapError
 from arap.method.points import PointConstraints
 from arap.server.appearance import Look, look_from_upload
+from arap.server.constraints import PinRings
 from arap.server.errors import RequestError
 from arap.server.mesh_model import MeshData
 from arap.server.meshdata import load_upload
@@ -31,6 +32,8 @@ __all__ = [
     "locate_points",
     "picture_mesh",
     "pin_parts",
+    "pin_rings",
+    "pin_turn",
     "warped_picture_png",
 ]
 
@@ -156,6 +159,67 @@ def locate_points(mesh: MeshData, points: np.ndarray) -> tuple[np.ndarray, np.nd
         inside = np.clip(lam[best], 0.0, None)
         faces[k], bary[k] = best, inside / inside.sum()
     return faces, bary
+
+
+def _ring_offsets(V: np.ndarray, F: np.ndarray) -> np.ndarray:
+    """The rest offsets of a ring about a pin: :data:`arap.puppet.warp.RING_POINTS` points at
+    :data:`arap.puppet.warp.RING_SPACINGS` mean edge lengths (as :class:`arap.puppet.PuppetWarp`'s)."""
+    from arap.puppet.warp import RING_POINTS, RING_SPACINGS
+
+    edges = np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]])
+    spacing = float(np.linalg.norm(V[edges[:, 0], :2] - V[edges[:, 1], :2], axis=1).mean())
+    turn = 2.0 * np.pi * np.arange(RING_POINTS) / RING_POINTS
+    return RING_SPACINGS * spacing * np.column_stack([np.cos(turn), np.sin(turn), np.zeros(RING_POINTS)])
+
+
+def pin_rings(V: np.ndarray, F: np.ndarray, points: PointConstraints,
+              angles: list[float | None] | tuple[float | None, ...]) -> PinRings | None:
+    """The hidden rings of the pins ``points`` of a picture's mesh (rest pose ``V``, triangles ``F``) that hold an
+    angle (``angles``: per pin, radians or None; see :class:`arap.server.constraints.PinRings`): the points of a ring
+    about each such pin that lie on the picture's shape. None when no pin holds an angle.
+
+    Raises
+    ------
+    BadValues
+        A pin that holds an angle with no ring point on the shape (too near its edge).
+    """
+    from arap.server.session_errors import BadValues
+
+    held = [k for k, a in enumerate(angles) if a is not None]
+    if not held:
+        return None
+    F = np.asarray(F, dtype=np.int64)
+    offsets = _ring_offsets(V, F)
+    centre = points.positions(V, F)
+    mesh = MeshData("rings", V, F)
+    faces, bary, pin, offset = [], [], [], []
+    for k in held:
+        ring = centre[k] + offsets
+        f, b = locate_points(mesh, ring)
+        on = np.linalg.norm(np.einsum("kc,kcd->kd", b, V[F[f]])[:, :2] - ring[:, :2], axis=1) <= 1e-6 * (
+            1.0 + np.abs(ring[:, :2]).max())
+        if not on.any():
+            raise BadValues(f"pin {k} is too near the picture's edge to hold an angle")
+        faces.append(f[on])
+        bary.append(b[on])
+        pin.append(np.full(int(on.sum()), k, dtype=np.int64))
+        offset.append(offsets[on])
+    ring_points = PointConstraints(np.concatenate(faces), np.concatenate(bary), np.full(sum(map(len, pin)), np.inf))
+    return PinRings(tuple(None if a is None else float(a) for a in angles), ring_points, np.concatenate(pin),
+                    np.concatenate(offset))
+
+
+def pin_turn(V: np.ndarray, U: np.ndarray, F: np.ndarray, points: PointConstraints, k: int) -> float:
+    """The angle (radians, counter-clockwise seen from +z) by which the shape ``U`` of a picture's mesh (rest pose
+    ``V``) has turned the surroundings of pin ``k`` of ``points``: the best-fitting rotation of its ring's points."""
+    F = np.asarray(F, dtype=np.int64)
+    single = PointConstraints(points.faces[k:k + 1], points.barycentric[k:k + 1], points.weights[k:k + 1])
+    rings = pin_rings(V, F, single, [0.0])
+    assert rings is not None
+    at_rest = rings.points.positions(V, F)[:, :2] - single.positions(V, F)[0, :2]
+    now = rings.points.positions(U, F)[:, :2] - single.positions(U, F)[0, :2]
+    cross = float(np.sum(at_rest[:, 0] * now[:, 1] - at_rest[:, 1] * now[:, 0]))
+    return float(np.arctan2(cross, float(np.sum(at_rest * now))))
 
 
 def draw_order(parts: np.ndarray, depth: list[int] | np.ndarray | None) -> np.ndarray | None:

@@ -64,11 +64,15 @@ def state_message(session: Session) -> dict[str, Any]:
     n = session.n_vertices
     cs = session.constraints
     solver = session.solver
+    constraints = cs.to_json()
+    for point, angle in zip(constraints["points"], session.pin_angles(), strict=True):
+        if angle is not None:
+            point["angle"] = angle  # the angle a picture's pin holds (its hidden ring is the solver's alone)
     return State(
         can_undo=session.can_undo,
         can_redo=session.can_redo,
         params=asdict(session.params),
-        constraints=cs.to_json(),
+        constraints=constraints,
         transforms=matrices_to_json(session.transforms),
         rest_id=session.rest_id,
         stats={

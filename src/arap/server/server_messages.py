@@ -193,9 +193,11 @@ class State(ServerMessage):
     params: JsonObject = field(metadata=wire("solver parameters", js_type=_PARAMS_JS))
     constraints: JsonObject = field(
         metadata=wire(
-            "roi, fixed, handle_groups, stiffness, points as last accepted",
+            "roi, fixed, handle_groups, stiffness, points as last accepted (a picture's pin that holds an angle: "
+            "with it, in degrees)",
             js_type=f"{{roi: number[]|null, fixed: number[], handle_groups: number[][], "
-            f"stiffness: {_STIFFNESS_JS}|null, points: {_POINTS_JS}}}",
+            f"stiffness: {_STIFFNESS_JS}|null, points: Array<{{face: number, barycentric: number[], weight?: number, "
+            "angle?: number}>}",
         )
     )
     transforms: Matrices = field(metadata=wire("current transform of each handle group"))

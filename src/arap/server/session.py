@@ -10,6 +10,8 @@ bookkeeping the requests share, is :class:`~arap.server.session_state.SessionSta
 
 from __future__ import annotations
 
+import dataclasses
+import math
 import time
 from collections.abc import Callable
 from dataclasses import asdict
@@ -23,7 +25,7 @@ from arap.method.weights import WeightType
 from arap.options import EnergyType, LoosePartsMode
 from arap.render.show import show
 from arap.server.appearance import Look, export_asset
-from arap.server.constraints import ConstraintSet, identity_transforms, matrices_from_json
+from arap.server.constraints import ConstraintSet, identity_transforms, matrices_from_json, turn_of
 from arap.server.mesh_model import MeshData
 from arap.server.numbering import document_in_file_numbering
 from arap.server.records import DragOutcome, Params, SettleOutcome
@@ -120,6 +122,7 @@ class Session(SessionState):
             positions = given if n_handles else None
         cs = self._build(self.V, self.U, roi, fixed, groups, handle_positions=positions, stiffness=stiffness,
                          points=points)
+        cs = self._with_angles(cs, self._carried_angles(cs))
         moved = positions is not None or any("target" in p for p in points or [])
         if moved:
             self._check_range(cs.point_pose)
@@ -134,7 +137,8 @@ class Session(SessionState):
         if moved:
             assert solver is not None
             # Loaded targets can be far from the current shape: iterate until the energy settles, not one drag's worth.
-            U, outcome = self._solve(solver, cs.targets(T), self.U, settle=True, point_targets=cs.point_targets(T))
+            U, outcome = self._solve(solver, cs.targets(T), self.U, settle=True,
+                                     point_targets=cs.solver_point_targets(T))
         self.constraints = cs
         self.transforms = T
         self.solver = solver
@@ -144,6 +148,34 @@ class Session(SessionState):
         self.energy = outcome.energies[-1] if outcome is not None and outcome.energies else None
         self._commit()
         return outcome
+
+    def _carried_angles(self, cs: ConstraintSet) -> list[float | None]:
+        """Per point handle of ``cs`` (a new set on the current shape), the angle the same pin (same triangle and
+        coordinates) holds now, or None."""
+        old = self.constraints
+        if old.rings is None or old.points is None or cs.points is None:
+            return [None] * cs.n_points
+        now = {(int(f), tuple(b.tolist())): a for f, b, a in zip(old.points.faces, old.points.barycentric,
+                                                                 old.pin_angles(self.transforms), strict=True)}
+        return [now.get((int(f), tuple(b.tolist()))) for f, b in zip(cs.points.faces, cs.points.barycentric,
+                                                                       strict=True)]
+
+    def _with_angles(self, cs: ConstraintSet, angles: list[float | None], rest: np.ndarray | None = None
+                     ) -> ConstraintSet:
+        """``cs`` whose pins hold ``angles`` (radians under identity transforms; None: turn freely), with their
+        hidden rings on the rest pose ``rest`` (None: the session's; :func:`arap.server.pictures.pin_rings`).
+
+        Raises
+        ------
+        BadValues
+            A pin too near the picture's edge to hold an angle.
+        """
+        if cs.points is None or all(a is None for a in angles):
+            return cs if cs.rings is None else dataclasses.replace(cs, rings=None)
+        from arap.server.pictures import pin_rings
+
+        return dataclasses.replace(cs, rings=pin_rings(self.V if rest is None else rest, self._require_mesh().F,
+                                                       cs.points, angles))
 
     def _check_range(self, points: np.ndarray) -> None:
         check_target_range(points, self.V)
@@ -248,7 +280,7 @@ class Session(SessionState):
             raise ConstraintsRejected("nothing to solve: select fixed vertices or handles first")
         T = matrices_from_json(transforms)
         targets = self.constraints.targets(T)
-        point_targets = self.constraints.point_targets(T)
+        point_targets = self.constraints.solver_point_targets(T)
         self._check_range(targets)
         if point_targets is not None:
             self._check_range(point_targets)
@@ -297,7 +329,7 @@ class Session(SessionState):
         t0 = time.perf_counter()
         try:
             result, stopped = checked_settle(solver, self.constraints.targets(self.transforms),
-                                             self.constraints.point_targets(self.transforms),
+                                             self.constraints.solver_point_targets(self.transforms),
                                              None if self._warm else self.U, self.U, self.diagonal, interrupted,
                                              on_frame)
         except SolveFailed:
@@ -397,6 +429,7 @@ class Session(SessionState):
         roi = None if old.roi is None else old.roi.tolist()
         cs = self._build(self.V, self.V, roi, old.fixed.tolist(), groups, stiffness=old.stiffness_json(),
                          points=old.points_json())
+        cs = self._with_angles(cs, [None if a is None else 0.0 for a in old.pin_angles(self.transforms)])
         self.solver = self._solver_for(self.rest_id, self.V, cs, self.params)
         self.U = self.V
         self.constraints = cs
@@ -419,6 +452,7 @@ class Session(SessionState):
         old = self.constraints
         cs = self._build(V, V, None if old.roi is None else old.roi.tolist(), old.fixed.tolist(),
                          [g.tolist() for g in old.groups], stiffness=old.stiffness_json(), points=old.points_json())
+        cs = self._with_angles(cs, [None if a is None else 0.0 for a in old.pin_angles(self.transforms)], rest=V)
         rest_id = self._new_rest_id()
         self.solver = self._solver_for(rest_id, V, cs, self.params)
         self.rest_id, self.V, self.U = rest_id, V, V
@@ -455,6 +489,59 @@ class Session(SessionState):
         self._require_mesh()
         self.pin_depth = [int(d) for d in depth]
 
+    def pin_angles(self) -> list[float | None]:
+        """Per pin (point handle, in their order), the angle in degrees (counter-clockwise as seen, from the picture
+        as opened) by which it holds its surroundings turned about it, or None for a pin whose surroundings turn
+        freely with the bend."""
+        return [None if a is None else math.degrees(a) for a in self.constraints.pin_angles(self.transforms)]
+
+    def set_pin_angle(self, pin: int, angle: float | None = None) -> DragOutcome:
+        """Make a picture's pin hold its surroundings turned by ``angle`` degrees about it (counter-clockwise as seen,
+        from the picture as opened; None: the angle they show now), as Photoshop's fixed pin rotation: a hidden
+        ring of points about the pin moves with it, turned by that angle (:func:`arap.server.pictures.pin_rings`);
+        a turn of the pin's transform about z (a drag that turns it about itself) adds to the angle. The shape is
+        solved at once; like a drag, the change becomes an undo step with the next :meth:`end_drag`.
+
+        Raises
+        ------
+        UnusableMesh
+            The mesh is not a picture's.
+        BadValues
+            No such pin, or a pin too near the picture's edge to hold an angle.
+        ConstraintsRejected
+            The constraints cannot be solved.
+        """
+        from arap.server.pictures import pin_turn
+
+        mesh = self._require_mesh()
+        if mesh.picture is None:
+            raise UnusableMesh("only a picture's pins hold angles")
+        cs = self.constraints
+        if cs.points is None or not 0 <= pin < cs.n_points:
+            raise BadValues(f"there is no pin {pin}: the picture has {cs.n_points} pins")
+        if angle is not None and not math.isfinite(angle):
+            raise BadValues("the angle must be a finite number of degrees")
+        held = cs.pin_angles(self.transforms)
+        if angle is not None:
+            now = math.radians(angle)
+        else:
+            found = held[pin]
+            now = pin_turn(self.V, self.U, mesh.F, cs.points, pin) if found is None else found
+        turn = float(turn_of(self.transforms[len(cs.groups) + pin])[0])
+        bases: list[float | None] = list(cs.rings.angles) if cs.rings is not None else [None] * cs.n_points
+        bases[pin] = now - turn
+        new = self._with_angles(cs, bases)
+        solver = self._solver_for(self.rest_id, self.V, new, self.params)
+        assert solver is not None  # the pins are constraints
+        U, outcome = self._solve(solver, new.targets(self.transforms), self.U,
+                                 point_targets=new.solver_point_targets(self.transforms))
+        self.constraints, self.solver, self.U = new, solver, U
+        self.energy = outcome.energies[-1] if outcome.energies else None
+        self._warm = True
+        self._dirty = True
+        self.settled = False
+        return outcome
+
     def remesh(self, density: str, max_vertices: int) -> MeshData:
         """Mesh a picture again at ``density`` (:data:`arap.server.pictures.DENSITIES`), keeping its pins: each stays
         at its place on the picture and keeps its weight, its target (where it is now) and its depth; the other
@@ -485,10 +572,17 @@ class Session(SessionState):
                     pin["weight"] = float(old.weights[k])
                 pins.append(pin)
         depth = self.pin_depth
+        angles = self.pin_angles()
         self.load(new, look)
         self.pin_depth = depth
         if pins:
             self.set_constraints(None, [], [], points=pins)
+            for k, angle in enumerate(angles):
+                if angle is not None:
+                    self.set_pin_angle(k, angle)
+            if self._dirty:
+                self.history.replace_current(self._snapshot())  # the pins with their angles: one step
+                self._dirty = False
         return new
 
     def constraints_document(self) -> dict[str, Any]:

@@ -64,7 +64,7 @@ class SolverCache:
         if solver is not None:
             self._solvers.move_to_end(key)
             return solver
-        elements, points = F, cs.points
+        elements, points = F, cs.solver_points  # a picture's pins that hold an angle add their rings
         if solid is not None:
             elements = solid[0]
             points = None if points is None else points_in_tetrahedra(points, F, solid[0], solid[1])
