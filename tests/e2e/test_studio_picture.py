@@ -90,3 +90,45 @@ def test_a_pin_goes_forward_and_the_picture_is_meshed_again_with_its_pin(page: P
     page.wait_for_function("() => window.__arap.constraints().points.length === 1")  # the pin is kept
     assert len(positions(page)) < before
     assert not page.evaluate("() => window.__arap.errors")
+
+
+def test_alt_drag_turns_the_picture_about_its_pin_and_a_restored_session_keeps_its_angle(page: Page,
+                                                                                        tmp_path: Path) -> None:
+    import math
+
+    from tests.e2e.conftest import screen_points, wait_idle
+    from tests.e2e.test_session_safety import wait_autosaved
+
+    upload(page, _picture(tmp_path / "turned.png"), "texture")
+    x, y = np.median(screen_points(page), axis=0)
+    page.mouse.click(x, y)
+    wait_idle(page)
+    page.wait_for_function("() => window.__arap.constraints().points.length === 1")
+    rest = positions(page)
+    px, py = page.evaluate("() => window.__arap.pointHandles()[0].screen")
+    page.keyboard.down("Alt")  # a quarter turn counter-clockwise about the pin, from its right to above it
+    page.mouse.move(px + 60, py)
+    page.mouse.down()
+    for k in range(1, 13):
+        a = k / 12 * math.pi / 2
+        page.mouse.move(px + 60 * math.cos(a), py - 60 * math.sin(a))
+    page.mouse.up()
+    page.keyboard.up("Alt")
+    page.wait_for_function("() => Math.abs(window.__arap.picturePins().angles[0] ?? 0) > 45")
+    wait_settled(page)
+    wait_idle(page)
+    angle = page.evaluate("() => window.__arap.picturePins().angles[0]")
+    assert abs(angle - 90.0) < 20.0
+    moved = positions(page)
+    assert np.ptp(rest[:, 1]) > 2 * np.ptp(rest[:, 0]) and np.ptp(moved[:, 0]) > 2 * np.ptp(moved[:, 1]), \
+        "the upright bar did not turn about its pin"
+    assert page.evaluate("() => window.__arap.constraints().points.length") == 1  # the ring is the server's
+    page.get_by_test_id("pin-forward").click()
+    wait_autosaved(page)
+    page.reload()
+    page.get_by_test_id("restore-accept").click()
+    page.wait_for_function("() => window.__arap.picturePins().angles[0] !== null && "
+                           "window.__arap.picturePins().angles[0] !== undefined", timeout=30_000)
+    pins = page.evaluate("() => window.__arap.picturePins()")
+    assert abs(pins["angles"][0] - angle) < 1e-6 and pins["depth"] == [0]
+    assert not page.evaluate("() => window.__arap.errors")

@@ -1,5 +1,6 @@
 // Read-only view of the studio state on `window.__arap`, for automated browser tests and debugging.
 import { computeNormals } from './normals.js';
+import { picturePins } from './picturemode.js';
 import { interpolate } from './timeline.js';
 
 /**
@@ -220,6 +221,8 @@ export function installTestHook({
       return { min: box.min.toArray(), max: box.max.toArray(), center: sphere.center.toArray(), radius: sphere.radius };
     },
     counts: () => selection.counts(),
+    /** A picture's pins: their depths as last sent and the angles (degrees or null) the last state gave them. */
+    picturePins: () => picturePins(),
     constraints: () => {
       const c = selection.toConstraints();
       return { roi: c.roi, fixed: c.fixed, handle_groups: c.handle_groups, stiffness: c.stiffness, points: c.points };

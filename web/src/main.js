@@ -25,6 +25,8 @@ import { LivePose } from './livepose.js';
 import { installPanelFold } from './panelfold.js';
 import { PaintModes } from './paintmodes.js';
 import { PointHandles } from './pointhandles.js';
+import { isPicture } from './picturemode.js';
+import { installPinRotation } from './pinrotate.js';
 import { CLIENT, SERVER } from './protocol.js';
 import { constraintsMessage, Selection } from './selection.js';
 import { SelectionView } from './selectionview.js';
@@ -261,6 +263,7 @@ panel.bind({
     conn.connect();
   },
 });
+installPinRotation({ viewer, gizmo, picture: isPicture, activePin: panel.actions.activePin, send });
 
 installShortcuts({
   undo: () => stepHistory(CLIENT.UNDO),

@@ -5,6 +5,7 @@
 // messages say; this module tells the views.
 import { downloadConstraints, downloadExport } from './files.js';
 import { meshArrays } from './frames.js';
+import { pinsStated } from './picturemode.js';
 import { CLIENT, ERROR, PROTOCOL_VERSION, SERVER } from './protocol.js';
 import { appearanceArrays } from './texture.js';
 
@@ -200,6 +201,7 @@ export class ServerMessages {
   /** @param {StateServerMessage} msg */
   state(msg) {
     const { d } = this;
+    pinsStated(msg);
     if (d.history.stateArrived(msg)) d.help.guideProgress({ drag: true }); // the state that answers a drag's end
     d.mirror.stateArrived(msg.rest_id);
     d.panel.setHistory(d.history.canUndo, d.history.canRedo);

@@ -2,8 +2,10 @@
 // warp's mode, Rigid, Normal or Distort, as Photoshop's Puppet Warp offers them (set_params `warp`), and whether the
 // mesh is drawn over the picture. They are hidden for a surface or a solid, which the mode does not concern. A picture
 // opens in point handle mode, as Puppet Warp does: a click on the picture places a pin, the gizmo then moves it.
+import { addSnapshotPart } from './autosave.js';
 import { byId, byIdAs } from './dom.js';
 import { PARAMS } from './protocol.js';
+import { onSessionRestored } from './restore.js';
 
 /** @type {((role: string) => void)|null} */
 let chooseRole = null;
@@ -11,6 +13,15 @@ let chooseRole = null;
 let depth = [];
 /** Whether the next mesh is the picture meshed again (its pins and their depths kept). */
 let remeshing = false;
+/** Whether the mesh shown is a picture's. */
+let shownPicture = false;
+/** Per pin, the angle (degrees) it holds as the last state said, or null (it turns freely). @type {(number|null)[]} */
+let angles = [];
+
+/** True when the mesh shown is a picture's (its pins can be turned, pinrotate.js). */
+export function isPicture() {
+  return shownPicture;
+}
 
 /**
  * The pins' depths with pin `k` moved to the front (`forward`) or the back, as ranks 0, 1, ... (larger: in front).
@@ -36,6 +47,21 @@ export function movedDepth(given, k, forward) {
  */
 export function installPictureControls(actions) {
   chooseRole = actions.setRole;
+  // a saved session keeps the pins' depths and angles, and restoring sends them again
+  addSnapshotPart('pins', () => (shownPicture && (depth.length || angles.some((a) => a !== null))
+    ? { depth: depth.slice(), angles: angles.slice() } : null));
+  onSessionRestored((snap) => {
+    const pins = /** @type {{depth?: unknown, angles?: unknown}|undefined} */ (snap.pins);
+    if (!shownPicture || !pins) return;
+    if (Array.isArray(pins.depth) && pins.depth.length && pins.depth.every(Number.isInteger)) {
+      depth = /** @type {number[]} */ (pins.depth).slice();
+      actions.send({ type: 'set_pin_depth', depth });
+    }
+    if (!Array.isArray(pins.angles)) return;
+    const held = pins.angles.map((a, k) => [k, a]).filter(([, a]) => typeof a === 'number' && Number.isFinite(a));
+    for (const [pin, angle] of held) actions.send({ type: 'set_pin_angle', pin, angle });
+    if (held.length) actions.send({ type: 'end_drag' }); // one undo step
+  });
   const select = byIdAs('warp', HTMLSelectElement);
   select.innerHTML = '';
   for (const value of PARAMS.warp.choices) {
@@ -73,6 +99,7 @@ export function installPictureControls(actions) {
  */
 export function pictureShown(msg) {
   const picture = Array.isArray(msg.picture) && msg.picture.length === 2;
+  shownPicture = picture;
   byId('picture-rows').hidden = !picture;
   byId('picture-size').textContent = picture ? `${msg.picture?.[0]} × ${msg.picture?.[1]} px` : '';
   byIdAs('picture-mesh', HTMLInputElement).checked = byIdAs('wireframe', HTMLInputElement).checked;
@@ -82,6 +109,19 @@ export function pictureShown(msg) {
     byIdAs('density', HTMLSelectElement).value = 'normal';
   }
   remeshing = false;
+}
+
+/**
+ * A state: the angles the picture's pins hold.
+ * @param {{constraints?: {points?: {angle?: number}[]}}} msg
+ */
+export function pinsStated(msg) {
+  angles = (msg.constraints?.points ?? []).map((p) => (typeof p.angle === 'number' ? p.angle : null));
+}
+
+/** The pins' depths as last sent and their angles as last stated (the test hook's view). */
+export function picturePins() {
+  return { depth: depth.slice(), angles: angles.slice() };
 }
 
 /**
