@@ -132,3 +132,35 @@ def test_alt_drag_turns_the_picture_about_its_pin_and_a_restored_session_keeps_i
     pins = page.evaluate("() => window.__arap.picturePins()")
     assert abs(pins["angles"][0] - angle) < 1e-6 and pins["depth"] == [0]
     assert not page.evaluate("() => window.__arap.errors")
+
+
+def test_pin_depth_chooses_which_part_the_page_draws_over_the_other(page: Page, tmp_path: Path) -> None:
+    from tests.e2e.conftest import screen_points, wait_idle
+
+    rgba = np.zeros((60, 120, 4), dtype=np.uint8)  # a red square and a blue one, apart
+    rgba[10:50, 10:50] = [230, 40, 40, 255]
+    rgba[10:50, 70:110] = [40, 60, 230, 255]
+    Image.fromarray(rgba, "RGBA").save(tmp_path / "squares.png")
+    upload(page, tmp_path / "squares.png", "texture")
+    pts = screen_points(page)
+    left, right = pts[:, 0].min(), pts[:, 0].max()
+    y = float(np.median(pts[:, 1]))
+    red_x, blue_x = left + (right - left) * 20 / 100, left + (right - left) * 80 / 100  # the squares' centres
+    for x in (red_x, blue_x):  # a pin on each; the blue one is then the active pin
+        page.mouse.click(x, y)
+        wait_idle(page)
+    page.wait_for_function("() => window.__arap.constraints().points.length === 2")
+    drag_gizmo_x(page, -0.6 * (blue_x - red_x))  # the blue square over the red one's right part
+    wait_settled(page)
+
+    def counts_after(button: str, first: int | None) -> tuple[int, int, int]:
+        page.get_by_test_id(button).click()  # the state that answers it gives another drawing order
+        page.wait_for_function(f"() => ![null, {first if first is not None else 'null'}].includes("
+                               "window.__arap.picturePins().drawFirst)")
+        page.evaluate("() => new Promise((done) => requestAnimationFrame(() => requestAnimationFrame(done)))")
+        return (*colour_counts(page), page.evaluate("() => window.__arap.picturePins().drawFirst"))
+
+    red_back, blue_front, first = counts_after("pin-forward", None)
+    red_front, blue_back, _ = counts_after("pin-backward", first)
+    assert red_front > red_back + 50 and blue_front > blue_back + 50, (red_back, blue_front, red_front, blue_back)
+    assert not page.evaluate("() => window.__arap.errors")

@@ -188,6 +188,34 @@ def test_pin_depth_chooses_which_part_covers_the_other_in_the_png() -> None:
     assert front_red[0] > 200 and front_red[2] < 60
 
 
+def test_the_state_gives_the_page_the_drawing_order_of_the_pins_depths() -> None:
+    from arap.server.meshdata import load_builtin
+    from arap.server.replies import state_message
+
+    mesh, look = load_picture(_two_squares_png(), "squares.png", 100_000)
+    s = Session()
+    s.load(mesh, look)
+    s.set_constraints(None, [], [], points=[_pin_at(mesh, 30, 30), _pin_at(mesh, 90, 30)])
+    assert state_message(s)["draw_order"] is None  # no depths: the mesh's order
+    blue = mesh.V[mesh.F].mean(axis=1)[:, 0] > 60  # the triangles of the right square (pin 1's part)
+
+    def last_drawn() -> np.ndarray:
+        order = state_message(s)["draw_order"]
+        assert order is not None and sorted(order) == list(range(mesh.n_faces))
+        return blue[np.asarray(order)]
+
+    s.set_pin_depth([0, 1])
+    assert last_drawn()[-int(blue.sum()):].all()  # the blue square's triangles after the red one's
+    s.set_pin_depth([1, 0])
+    assert not last_drawn()[-int((~blue).sum()):].any()
+    s.set_pin_depth([0, 0])
+    assert state_message(s)["draw_order"] is None
+    bar = Session()
+    bar.load(load_builtin("bar"))
+    bar.pin_depth = [1]
+    assert state_message(bar)["draw_order"] is None
+
+
 def test_meshing_again_keeps_the_pins_places_and_targets() -> None:
     s = _loaded()
     mesh = s.mesh

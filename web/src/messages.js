@@ -201,7 +201,7 @@ export class ServerMessages {
   /** @param {StateServerMessage} msg */
   state(msg) {
     const { d } = this;
-    pinsStated(msg);
+    pinsStated(msg, d.viewer);
     if (d.history.stateArrived(msg)) d.help.guideProgress({ drag: true }); // the state that answers a drag's end
     d.mirror.stateArrived(msg.rest_id);
     d.panel.setHistory(d.history.canUndo, d.history.canRedo);

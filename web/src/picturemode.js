@@ -17,6 +17,8 @@ let remeshing = false;
 let shownPicture = false;
 /** Per pin, the angle (degrees) it holds as the last state said, or null (it turns freely). @type {(number|null)[]} */
 let angles = [];
+/** The first triangle of the drawing order the last state gave (null: the mesh's order). @type {number|null} */
+let drawFirst = null;
 
 /** True when the mesh shown is a picture's (its pins can be turned, pinrotate.js). */
 export function isPicture() {
@@ -112,16 +114,21 @@ export function pictureShown(msg) {
 }
 
 /**
- * A state: the angles the picture's pins hold.
- * @param {{constraints?: {points?: {angle?: number}[]}}} msg
+ * A state: the angles the picture's pins hold, and the order in which its triangles are drawn (their pins' depths).
+ * @param {{constraints?: {points?: {angle?: number}[]}, draw_order?: number[]|null}} msg
+ * @param {import('./viewer.js').Viewer} viewer
  */
-export function pinsStated(msg) {
+export function pinsStated(msg, viewer) {
   angles = (msg.constraints?.points ?? []).map((p) => (typeof p.angle === 'number' ? p.angle : null));
+  drawFirst = msg.draw_order?.[0] ?? null;
+  if (!viewer.textured) return;
+  viewer.textured.drawOrder(msg.draw_order);
+  viewer.requestRender();
 }
 
-/** The pins' depths as last sent and their angles as last stated (the test hook's view). */
+/** The pins' depths as last sent, their angles and the first triangle drawn as last stated (the test hook's view). */
 export function picturePins() {
-  return { depth: depth.slice(), angles: angles.slice() };
+  return { depth: depth.slice(), angles: angles.slice(), drawFirst };
 }
 
 /**

@@ -364,6 +364,7 @@ export const UPLOAD_EXTENSIONS = Object.freeze([
  * @property {number[][]} transforms current transform of each handle group
  * @property {number} rest_id the rest pose: a new value after apply, the earlier one again when an undo or redo goes back to it
  * @property {{n_vertices: number, n_faces: number, roi_size: number, n_free: number, factor_ms: number}} stats n_vertices, n_faces, roi_size, n_free, factor_ms
+ * @property {number[]|null} [draw_order] a picture whose pins have depths (set_pin_depth): the order in which to draw the triangles of its textured mesh (appearance's render triangles), later over earlier where the warp overlaps them; else null
  */
 
 /**

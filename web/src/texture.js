@@ -101,6 +101,8 @@ export class RenderMesh {
   constructor(look, redraw) {
     const r = look.map.length;
     this.map = look.map;
+    /** The triangles as the appearance gave them (drawOrder reorders the index from them). */
+    this.faces = look.faces.slice();
     const g = new THREE.BufferGeometry();
     g.setAttribute('position', new THREE.BufferAttribute(new Float32Array(3 * r), 3));
     g.setAttribute('normal', new THREE.BufferAttribute(new Float32Array(3 * r), 3));
@@ -180,6 +182,18 @@ export class RenderMesh {
       c[o + 3] = tint[i + 3];
     }
     attr.needsUpdate = true;
+  }
+
+  /**
+   * Draw the triangles in `order` (later over earlier where they overlap: a picture's pin depths), or as given (null).
+   * @param {number[]|null|undefined} order a permutation of the triangles
+   */
+  drawOrder(order) {
+    const index = /** @type {THREE.BufferAttribute} */ (this.geometry.index);
+    const out = index.array, faces = this.faces, t = faces.length / 3;
+    if (!order || order.length !== t) out.set(faces);
+    else order.forEach((f, j) => out.set(faces.subarray(3 * f, 3 * f + 3), 3 * j));
+    index.needsUpdate = true;
   }
 
   dispose() {

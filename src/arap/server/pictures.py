@@ -30,6 +30,7 @@ __all__ = [
     "is_picture",
     "load_picture",
     "locate_points",
+    "page_draw_order",
     "picture_mesh",
     "pin_parts",
     "pin_rings",
@@ -239,6 +240,26 @@ def draw_order(parts: np.ndarray, depth: list[int] | np.ndarray | None) -> np.nd
     d[: len(given)] = given
     per_triangle = d[parts]  # -1 (no pin) reads the last entry, 0
     return np.argsort(per_triangle, kind="stable").astype(np.int64)
+
+
+def page_draw_order(session: Any) -> list[int] | None:
+    """The order in which the page draws the triangles of a picture's textured mesh (its look's render triangles,
+    :class:`arap.server.render_mesh.Look`) for the session's pin depths (:func:`draw_order`; later over earlier), or
+    None: not a picture, no depths, or all equal (the mesh's order)."""
+    mesh, look = session.mesh, session.look
+    depth = session.pin_depth
+    if mesh is None or mesh.picture is None or not any(depth):
+        return None
+    order = draw_order(pin_parts(mesh, session.constraints.points), depth)
+    if order is None:
+        return None
+    if look is None or look.render_faces is None or look.render_map is None:
+        return order.tolist()
+    drawn = look.render_map[look.render_faces].astype(np.int64)
+    F = np.asarray(mesh.F, dtype=np.int64)
+    if drawn.shape != F.shape or not np.array_equal(np.sort(drawn, axis=1), np.sort(F, axis=1)):
+        return None  # (a picture's render triangles are its mesh's, in its order)
+    return order.tolist()
 
 
 def warped_picture_png(mesh: MeshData, U: np.ndarray, points: PointConstraints | None = None,

@@ -212,6 +212,10 @@ class State(ServerMessage):
             js_type="{n_vertices: number, n_faces: number, roi_size: number, n_free: number, factor_ms: number}",
         )
     )
+    draw_order: Annotated[list[int], Wire.LIST] | None = field(default=None, metadata=wire(
+        "a picture whose pins have depths (set_pin_depth): the order in which to draw the triangles of its textured "
+        "mesh (appearance's render triangles), later over earlier where the warp overlaps them; else null",
+        js_type="number[]"))
 
 
 @dataclass(frozen=True)
