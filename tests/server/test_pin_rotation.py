@@ -109,6 +109,10 @@ def test_a_held_pin_turns_with_its_transform_and_keeps_its_angle_through_new_pin
     s.remesh("coarse", 100_000)
     again = s.pin_angles()
     assert again[0] is not None and abs(again[0] - angle) < 1e-6 and again[1:] == [None, None]
+    s.reset()  # back to the rest pose: the pin holds it, unturned
+    assert s.pin_angles() == [0.0, None, None]
+    s.settle(lambda: False)
+    np.testing.assert_allclose(s.U, s.V, atol=1e-6)
 
 
 def test_pin_angles_are_refused_off_pictures_and_pins() -> None:
