@@ -37,6 +37,7 @@ export const SHORTCUTS = [
   { key: null, label: 'Shift+drag', does: 'Box select' },
   { key: null, label: 'Ctrl+paint', does: 'Remove the current role (stiffness: back to 1)' },
   { key: null, label: 'Ctrl+click', does: 'Remove the point handle under the pointer (point handle mode)' },
+  { key: null, label: 'Alt+drag', does: 'Turn a picture about its active pin (start near the pin): the pin keeps that angle' },
   { key: null, label: 'Right drag', does: 'Pan' },
   { key: null, label: 'Wheel', does: 'Zoom' },
   {
