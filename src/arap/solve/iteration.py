@@ -11,6 +11,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from arap.method.local_step import assemble_rhs, assemble_rhs_and_gradient
+from arap.method.unfold import Unfolder
 from arap.solve.addons import LocalState
 from arap.solve.anderson import AndersonAccelerator
 from arap.solve.lbfgs import LbfgsHistory
@@ -95,8 +96,12 @@ def make_iterate(p: Prepared, state: LocalState, U: Array, fixed: Array, P: Arra
     for addon in p.addons:
         correct = addon.corrector(P, fixed) or correct
 
+    # Element energies have no barrier against inversion: elements a solve turns over are opened and the solve resumes.
+    unfold = None
+    if p.energy_type == "elements" and p.domain.kind in ("planar", "solid") and nf:
+        unfold = Unfolder(p.numbering.inv[p.F], p.rest, U, nf)
     scale = p.diagonal * np.sqrt(max(nf, 1))
     return Iterate(U=U, nf=nf, rotations=R, local=lambda X: local_energy(p, state, X, const_E, timings), rhs=rhs,
                    rhs_gradient=rhs_gradient, solve=solve, correct=correct, coupled=p.rotation_fit.coupled,
                    step_limit=tolerance * scale, scale=scale, cap=cap, callback=callback, timings=timings,
-                   scale_initial=p.non_negative)
+                   scale_initial=p.non_negative, unfold=unfold)

@@ -4,14 +4,15 @@ and L-BFGS preconditioned by the global step.
 Both act on an :class:`Iterate`, which the solver builds for one call: the positions, the local step, the
 right-hand side (and the global step's residual), the back-substitution and the point-handle correction. Energies
 never rise from one iteration to the next: Anderson's extrapolations and L-BFGS's line search fall back on the
-plain step, which cannot raise the energy.
+plain step, which cannot raise the energy. The one exception: an element solve that converged with elements it
+turned over opens them (:mod:`arap.method.unfold`), and goes on from there only to end lower.
 """
 
 from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from numpy.typing import NDArray
@@ -80,6 +81,9 @@ class Iterate:
         :meth:`arap.solve.lbfgs.LbfgsHistory.update`). Its longer steps can end in another minimum of an energy with
         several (the spokes energy with negative cotangent weights), so the solver asks for it only where every
         cell's energy is a sum of non-negative terms.
+    unfold : callable or None
+        ``unfold(U) -> bool``: opens, in place, the elements that the solve turned over at a converged ``U``; False
+        if there were none (:class:`arap.method.unfold.Unfolder`, element energies only). None: nothing is unfolded.
     """
 
     U: Array
@@ -97,6 +101,7 @@ class Iterate:
     callback: IterationCallback | None
     timings: dict[str, float]
     scale_initial: bool = False
+    unfold: Callable[[Array], bool] | None = None
 
 
 @dataclass
@@ -184,6 +189,11 @@ def lbfgs_iterations(it: Iterate, energy: float | None, history: LbfgsHistory, p
     lowered it, then the residual at the new iterate. The plain step's size, the convergence measure, costs a
     back-substitution: it is taken when the step was small, every ``CHECK_EVERY`` iterations, and at the end.
 
+    When the solve converges with elements it turned over and ``it.unfold`` opens them, the iteration resumes from
+    there (L-BFGS at once, with a new history, within what is left of ``it.cap``). Its result is kept if its energy
+    ends lower, and then the energies rise once, where the folds were opened; otherwise the first result is restored
+    (and the further iterations, already passed to the callback, are not counted).
+
     Parameters
     ----------
     it : Iterate
@@ -195,6 +205,26 @@ def lbfgs_iterations(it: Iterate, energy: float | None, history: LbfgsHistory, p
     plain_start : int
         The first this many iterations take the plain step and keep no curvature pair (see :data:`PLAIN_START`).
     """
+    out = _lbfgs_run(it, energy, history, plain_start)
+    if it.unfold is None or not out.converged or len(out.energies) >= it.cap:
+        return out
+    nf, U = it.nf, it.U
+    kept = U[:nf].copy()
+    if not it.unfold(U):
+        return out
+    done, callback = len(out.energies), it.callback
+    shifted = None if callback is None else (lambda k, e: callback(k + done, e))
+    resumed = replace(it, cap=it.cap - done, callback=shifted, unfold=None)
+    more = _lbfgs_run(resumed, it.local(U), history, 0)
+    if more.energies and more.energies[-1] < out.energies[-1]:
+        return Outcome(out.energies + more.energies, more.converged, more.residual, out.rejected + more.rejected)
+    U[:nf] = kept
+    it.local(U)  # the rotations (and cell energies) of the restored iterate
+    return out
+
+
+def _lbfgs_run(it: Iterate, energy: float | None, history: LbfgsHistory, plain_start: int) -> Outcome:
+    """One run of :func:`lbfgs_iterations`'s iteration, without unfolding."""
     out = Outcome()
     nf, U, timings = it.nf, it.U, it.timings
     history.reset()

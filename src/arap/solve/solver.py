@@ -296,7 +296,8 @@ class ArapSolver:
         Returns
         -------
         ArapResult
-            Its ``energies`` never rise from one iteration to the next.
+            Its ``energies`` never rise from one iteration to the next, but once where an element solve opens the
+            elements it turned over (:mod:`arap.method.unfold`), to end lower.
         """
         t_start = time.perf_counter()
         p, state = self.prepared, self._state
