@@ -81,7 +81,11 @@ def test_planar_input_gives_planar_output_and_the_elements_energy(strip: tuple[n
     assert result.vertices.shape == V.shape
     np.testing.assert_allclose(result.vertices[b], targets, atol=1e-12)
     energies = np.asarray(result.energies)
-    assert np.all(np.diff(energies) <= 1e-12 * abs(energies[0]))
+    # never rising, but for the one step where a solve that converged with triangles it turned over opens them
+    # (arap.method.unfold; whether it turns any over depends on round-off), after which it ends lower
+    rises = np.flatnonzero(np.diff(energies) > 1e-12 * abs(energies[0]))
+    assert len(rises) <= 1
+    assert len(rises) == 0 or energies[-1] < energies[rises[0]]
     assert arap.arap_energy(V, F, result.vertices) == pytest.approx(energies[-1], rel=1e-9)
     # a gentler turn folds no triangle over
     b, targets = _turned_strip(V, np.pi / 4)
