@@ -121,15 +121,19 @@ def test_frames_are_throttled() -> None:
         assert (U is None or U.shape == session.V.shape) and np.isfinite(energy)
         time.sleep(0.002)  # the scenario: a consumer that takes a while with each frame
 
+    def slow_iteration() -> bool:  # a settle of several frame times on any machine: each iteration takes ≥ 10 ms
+        time.sleep(0.01)
+        return False
+
     start = time.perf_counter()
-    outcome = session.settle(lambda: False, on_frame)
+    outcome = session.settle(slow_iteration, on_frame)
     assert outcome is not None and outcome.converged
+    assert outcome.seconds > 3 * SETTLE_FRAME_SECONDS and len(times) >= 2, (outcome.seconds, len(times))
     assert len(times) <= 1 + (time.perf_counter() - start) / SETTLE_FRAME_SECONDS
     # the clock is read before the shape is copied and measured, the time here after: a loaded machine delays one
     # report's recording and not the next, so a single interval may come short by that delay; most do not
     assert np.median(np.diff(times)) >= SETTLE_FRAME_SECONDS - 1e-3
     assert iterations == sorted(iterations)
-    assert outcome.seconds < 2 * SETTLE_FRAME_SECONDS or times, "a long settle streams frames"
 
 
 def test_only_visible_motion_is_streamed(monkeypatch: pytest.MonkeyPatch) -> None:
