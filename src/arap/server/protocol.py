@@ -220,16 +220,23 @@ def _check_points_or_null(f: Field, value: Any, where: str) -> Any:
     return value
 
 
+def _object_list(f: Field, value: Any, where: str, what: str, form: str) -> list[Any]:
+    """A list of objects (``form`` names their keys in the error), at most ``f.max_length`` of ``what``, counted
+    before a bulk-decoded list is turned into Python objects."""
+    if isinstance(value, NumberList):
+        _counted(f, value, where, what)
+        value = _decoded(value, where)
+    if not isinstance(value, list):
+        raise RequestError("bad_message", f"{where} must be a list of {{{form}}} objects or null")
+    if f.max_length is not None and len(value) > f.max_length:
+        raise RequestError("bad_message", f"{where} has {len(value)} {what}, at most {f.max_length}")
+    return value
+
+
 def _check_stiffness_or_null(f: Field, value: Any, where: str) -> Any:
     if value is None:
         return None
-    if isinstance(value, NumberList):
-        _counted(f, value, where, "groups")
-        value = _decoded(value, where)
-    if not isinstance(value, list):
-        raise RequestError("bad_message", f"{where} must be a list of {{vertices, value}} objects or null")
-    if f.max_length is not None and len(value) > f.max_length:
-        raise RequestError("bad_message", f"{where} has {len(value)} groups, at most {f.max_length}")
+    value = _object_list(f, value, where, "groups", "vertices, value")
     for i, item in enumerate(value):
         if not isinstance(item, dict) or set(item) != {"vertices", "value"}:
             raise RequestError("bad_message", f'{where}[{i}] must be an object with "vertices" and "value"')
@@ -248,13 +255,7 @@ def _check_point_handles_or_null(f: Field, value: Any, where: str) -> Any:
     :func:`arap.constraints.points_from_json` (``bad_constraints``)."""
     if value is None:
         return None
-    if isinstance(value, NumberList):
-        _counted(f, value, where, "point handles")
-        value = _decoded(value, where)
-    if not isinstance(value, list):
-        raise RequestError("bad_message", f"{where} must be a list of {{face, barycentric}} objects or null")
-    if f.max_length is not None and len(value) > f.max_length:
-        raise RequestError("bad_message", f"{where} has {len(value)} point handles, at most {f.max_length}")
+    value = _object_list(f, value, where, "point handles", "face, barycentric")
     for i, item in enumerate(value):
         if not isinstance(item, dict) or not {"face", "barycentric"} <= set(item) or not set(item) <= _POINT_KEYS:
             raise RequestError("bad_message", f'{where}[{i}] must be an object with "face", "barycentric" and '
