@@ -90,12 +90,12 @@ def e2e_client() -> Iterator[Path]:
 
 class _ServerThread(threading.Thread):
     """uvicorn serving the studio app on an already bound socket, in a daemon thread (``port`` 0 picks a free
-    port; ``options``: more arguments of ``create_app``, such as ``max_sessions``)."""
+    port; ``options``: more arguments of ``create_app``, such as ``max_sessions`` or ``default_mesh``)."""
 
     def __init__(self, port: int = 0, **options: Any) -> None:
         super().__init__(daemon=True, name="studio-server")
         self.options = options
-        app = create_app(None, max_upload_bytes=MAX_UPLOAD_BYTES, **options)
+        app = create_app(max_upload_bytes=MAX_UPLOAD_BYTES, **{"default_mesh": None, **options})
         self.sock = bind_socket("127.0.0.1", port)
         self.port = int(self.sock.getsockname()[1])
         self.url = studio_url("127.0.0.1", self.sock.getsockname()[1])

@@ -29,10 +29,16 @@ export class SessionKeeper {
     this.deps = deps;
     this.id = newSessionId();
     this.pendingSource = null; // source of the mesh requested last
+    this.madeSource = false; // the mesh shown came from the server (its own file): its source is a PLY made here
     this.applying = 0; // apply requests whose state has not arrived yet
-    /** @type {boolean[]} per export request not answered yet, in order: whether it asks for the rest pose */
+    /**
+     * Per export request not answered yet, in order: false for a download, else the rest pose kept as the mesh's
+     * source, a file named after the mesh (`name`), so that a restore shows the same name.
+     * @type {(false|{name: string})[]}
+     */
     this.exports = [];
-    this.exportingRest = false; // the export being sent asks for the rest pose an apply made
+    /** @type {false|{name: string}} what the export being sent is for */
+    this.exportingRest = false;
     this.lost = null; // {snap, live}: the session when the connection was lost, put back after reconnecting
     this.queued = null; // {snap, recordId}: a restore chosen before the session was ready
     this.rest = null; // the rest pose of the mesh shown (as loaded, or as the last apply made it)
@@ -96,6 +102,7 @@ export class SessionKeeper {
    */
   meshRequested(source) {
     this.pendingSource = source;
+    this.madeSource = false;
   }
 
   /** @param {import('./protocol.js').ClientMessage} msg a message sent to the server */
@@ -106,8 +113,16 @@ export class SessionKeeper {
     // a mesh with a look (UVs, textures, colours) keeps it through a restore: the rest pose is kept as a file of the
     // source's kind, exported now (before anything can move the shape away from the new rest pose)
     const format = this.deps.viewer.look ? restExportFormat(this.deps.mesh.source) : null;
-    if (!format) return;
-    this.exportingRest = true;
+    if (format) this._exportRest(format, this.deps.mesh.name ?? 'model');
+  }
+
+  /**
+   * Ask for the shape shown as a file of `format`, kept as the mesh's source instead of downloaded.
+   * @param {'glb'|'ply'|'obj'} format
+   * @param {string} name the source's file name without its extension
+   */
+  _exportRest(format, name) {
+    this.exportingRest = { name };
     try {
       this.deps.send({ type: CLIENT.EXPORT, format });
     } finally {
@@ -116,16 +131,31 @@ export class SessionKeeper {
   }
 
   /**
+   * The look of the mesh just sent arrived (`fileFormat`: its file's format). A mesh the server opened itself (the
+   * one it was started with) has only a PLY of its triangles as its source here, which would lose the look in a
+   * restore; its file is asked for now, while the shape is its rest pose, and kept as the source.
+   * @param {string} fileFormat
+   */
+  appearanceArrived(fileFormat) {
+    if (!this.madeSource) return;
+    this.madeSource = false;
+    const format = restExportFormat({ kind: 'file', filename: `mesh.${fileFormat}` });
+    if (format) this._exportRest(format, this.deps.mesh.name ?? 'model');
+  }
+
+  /**
    * An export arrived: true when it is the rest pose asked for after an apply, kept as the mesh's source (what a
    * restore uploads) instead of being downloaded.
    * @param {import('./protocol.js').ExportServerMessage & import('./messages.js').Framed} msg
    */
   exportArrived(msg) {
-    if (!this.exports.shift()) return false;
+    const rest = this.exports.shift();
+    if (!rest) return false;
     const { mesh } = this.deps;
     const bytes = msg.frame.payload.slice();
+    const filename = `${rest.name}.${msg.filename.split('.').pop()}`;
     if (!mesh.limits.max_upload_bytes || bytes.byteLength <= mesh.limits.max_upload_bytes) {
-      mesh.sourceKnown(fileSource(msg.filename, bytes, mesh.repaired));
+      mesh.sourceKnown(fileSource(filename, bytes, mesh.repaired));
       this.touch();
     }
     return true;
@@ -134,6 +164,7 @@ export class SessionKeeper {
   /** The open connection was lost: keep the session to put it back once reconnected. */
   connectionLost() {
     this.pendingSource = null;
+    this.madeSource = false;
     this.applying = 0;
     this.exports = [];
     const restoring = this.restore.cancel();
@@ -155,6 +186,8 @@ export class SessionKeeper {
    */
   meshArrived(msg, positions, faces) {
     const { mesh } = this.deps;
+    // a picture's look is its image, which no mesh export keeps as a picture
+    this.madeSource = !this.pendingSource && !mesh.builtins.includes(msg.name) && !msg.picture;
     mesh.sourceKnown(this.pendingSource ?? (mesh.builtins.includes(msg.name) ? builtinSource(msg.name)
       : fileSource(`${msg.name}.ply`, encodePly(positions, faces, mesh.vertexMap), mesh.repaired)));
     this.pendingSource = null;
@@ -210,6 +243,7 @@ export class SessionKeeper {
    */
   startRestore(snap, recordId) {
     const { mesh, panel } = this.deps;
+    this.madeSource = false; // the restore replaces the mesh shown (and its shape): not the file's rest pose
     if (!mesh.ready) {
       this.queued = { snap, recordId };
       panel.showStatus('The saved session is restored as soon as the studio server answers.', 'info');

@@ -168,6 +168,7 @@ export class ServerMessages {
   appearance(msg) {
     const { d } = this;
     d.viewer.setLook(appearanceArrays(msg.frame, d.viewer.nVertices));
+    d.keeper.appearanceArrived(msg.file_format);
     d.panel.setSurfaces(d.viewer.surfaces, d.viewer.surface);
     d.refreshSelection(false);
     if (msg.notes?.length) d.panel.showStatus(`${d.mesh.name}: ${msg.notes.join('; ')}.`, 'info', 10000);

@@ -326,6 +326,7 @@ export const UPLOAD_EXTENSIONS = Object.freeze([
  * @property {number} render_faces triangles of the render mesh
  * @property {number} texture_bytes size of the base-colour image at the end of the payload (0: none)
  * @property {string} texture_mime its type: image/png or image/jpeg (empty without one)
+ * @property {string} file_format format of the mesh file the look comes from (obj, ply, glb or gltf): what an export keeps it in
  * @property {string[]} notes what is not shown and why (a texture over the size limit), one line each
  */
 

@@ -117,7 +117,8 @@ def appearance_frame(look: Look) -> bytes:
     r = 0 if look.render_map is None else len(look.render_map)
     t = 0 if look.render_faces is None else len(look.render_faces)
     header = Appearance(colors=look.colors is not None, render_vertices=r, render_faces=t,
-                        texture_bytes=len(look.texture), texture_mime=look.texture_mime, notes=look.notes).to_wire()
+                        texture_bytes=len(look.texture), texture_mime=look.texture_mime,
+                        file_format=look.asset.format, notes=look.notes).to_wire()
     parts: list[bytes] = []
     if r:
         assert look.render_map is not None and look.render_uv is not None and look.render_faces is not None

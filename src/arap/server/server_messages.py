@@ -121,6 +121,8 @@ class Appearance(ServerMessage):
         metadata=wire("size of the base-colour image at the end of the payload (0: none)")
     )
     texture_mime: Text = field(metadata=wire("its type: image/png or image/jpeg (empty without one)"))
+    file_format: Text = field(metadata=wire(
+        "format of the mesh file the look comes from (obj, ply, glb or gltf): what an export keeps it in"))
     notes: _Strings = field(
         metadata=wire(
             "what is not shown and why (a texture over the size limit), one line each", js_type="string[]"
