@@ -1,5 +1,8 @@
 """The studio client's stores (``web/src/stores/``) are the only writers of their fields: the other modules read
 them and tell a store what happened through its methods (``history.dragEnded()``, ``mesh.connectionLost()`` …).
+The selection (``Selection``), the pointer tools (``SelectionTools``) and the gizmo's placed pivots
+(``HandleGizmo.pivots``) follow the same rule from their own modules (``selection.groupChosen(g)``,
+``tools.toolChosen(tool)``, ``gizmo.pivotFollowed(g, pivot)`` …).
 
 A store keeps its state in private fields (``#name``) behind getters, so ``npm run typecheck`` already refuses
 an assignment from outside; these tests say the same without Node, and name the line that breaks the rule.
@@ -16,8 +19,32 @@ import pytest
 WEB_SRC = Path(__file__).resolve().parents[1] / "web" / "src"
 STORES = WEB_SRC / "stores"
 
-MUTATORS = ("push", "pop", "shift", "unshift", "splice", "sort", "reverse", "fill", "copyWithin")
-"""Array methods that change the array they are called on."""
+MUTATORS = ("push", "pop", "shift", "unshift", "splice", "sort", "reverse", "fill", "copyWithin", "set")
+"""Array methods that change the array they are called on (``set``: a typed array's)."""
+
+OWNERS: dict[str, tuple[str, frozenset[str] | None]] = {
+    "Selection": ("selection.js", None),
+    "SelectionTools": ("tools.js", None),
+    "HandleGizmo": ("gizmo.js", frozenset({"pivots"})),
+}
+"""Classes outside ``stores/`` that are the only writers of fields of theirs, as a store is of its fields: the module
+that defines each, and the fields it keeps to itself (None: all it shows)."""
+
+
+def class_bodies(path: Path) -> dict[str, str]:
+    """The body of each class a module exports."""
+    text = path.read_text(encoding="utf-8")
+    return {m.group(1): m.group(2) for m in re.finditer(r"^export class (\w+) \{\n(.*?)^\}", text, re.M | re.S)}
+
+
+def shown_fields(body: str) -> set[str]:
+    """The fields a class body shows: its getters, its public fields, and the public fields its methods create
+    (``this.x = …``)."""
+    return (
+        set(re.findall(r"^  get (\w+)\(\)", body, re.M))
+        | set(re.findall(r"^  (\w+)\s*(?:=|;)", body, re.M))
+        | set(re.findall(r"^\s+this\.(\w+)\s*=(?![=>])", body, re.M))
+    )
 
 
 def store_classes() -> dict[str, set[str]]:
@@ -25,12 +52,17 @@ def store_classes() -> dict[str, set[str]]:
     have)."""
     classes: dict[str, set[str]] = {}
     for path in sorted(STORES.glob("*.js")):
-        text = path.read_text(encoding="utf-8")
-        for match in re.finditer(r"^export class (\w+) \{\n(.*?)^\}", text, re.M | re.S):
-            body = match.group(2)
-            classes[match.group(1)] = set(re.findall(r"^  get (\w+)\(\)", body, re.M)) | set(
-                re.findall(r"^  (\w+)\s*(?:=|;)", body, re.M)
-            )
+        for name, body in class_bodies(path).items():
+            classes[name] = shown_fields(body)
+    return classes
+
+
+def owner_classes() -> dict[str, set[str]]:
+    """Each class of OWNERS and the fields it keeps to itself."""
+    classes: dict[str, set[str]] = {}
+    for name, (module, kept) in OWNERS.items():
+        fields = shown_fields(class_bodies(WEB_SRC / module)[name])
+        classes[name] = fields & kept if kept is not None else fields
     return classes
 
 
@@ -53,25 +85,63 @@ def store_names(classes: set[str]) -> set[str]:
     return names
 
 
-def outside_writes() -> list[str]:
-    """Every line outside ``stores/`` that assigns to a store's field (or to a part of it), or changes an array a
-    store holds, as ``file:line: text``."""
-    classes = store_classes()
-    fields = set().union(*classes.values())
-    names = store_names(set(classes))
-    receiver = rf"\b(?:{'|'.join(sorted(names))})\??\.(?:{'|'.join(sorted(fields))})\b"
+def write_pattern(names: set[str], fields: set[str], field_aliases: set[str]) -> re.Pattern[str]:
+    """A line that assigns to ``name.field`` (or to a part of it), or changes an array it holds; or that writes into
+    a local copy of such a field (``const {roi} = selection; roi[i] = 1``)."""
+    assign = r"(?:[-+*/%&|^]?=(?![=>])|\+\+|--)"
     part = r"(?:\??\.\w+|\[[^\]]*\])*"
-    write = re.compile(
-        rf"{receiver}{part}\s*(?:[-+*/%&|^]?=(?![=>])|\+\+|--)"
-        rf"|(?:\+\+|--|\bdelete\s+){receiver}"
-        rf"|{receiver}{part}\.(?:{'|'.join(MUTATORS)})\("
-    )
+    mutate = rf"\.(?:{'|'.join(MUTATORS)})\("
+    receiver = rf"\b(?:{'|'.join(sorted(names))})\??\.(?:{'|'.join(sorted(fields))})\b"
+    alternatives = [
+        rf"{receiver}{part}\s*{assign}",
+        rf"(?:\+\+|--|\bdelete\s+){receiver}",
+        rf"{receiver}{part}{mutate}",
+    ]
+    if field_aliases:
+        alias = rf"(?<![.\w])(?:{'|'.join(sorted(field_aliases))})"
+        alternatives += [rf"{alias}(?:\??\.\w+|\[[^\]]*\])+\s*{assign}", rf"{alias}{part}{mutate}"]
+    return re.compile("|".join(alternatives))
+
+
+def aliases(text: str, names: set[str], fields: set[str]) -> tuple[set[str], set[str]]:
+    """The local names a module gives a class's instance (``const s = this.selection;``) and its fields
+    (``const {roi, role} = s;``, ``const roi = s.roi;``)."""
+    alternatives = "|".join(sorted(names))
+    instance = set(re.findall(rf"\b(?:const|let|var)\s+(\w+)\s*=\s*(?:[\w.]*\.)?(?:{alternatives})\s*;", text))
+    every = "|".join(sorted(names | instance))
+    field_aliases: set[str] = set()
+    for group in re.findall(rf"\b(?:const|let|var)\s*\{{([^}}]*)\}}\s*=\s*(?:[\w.]*\.)?(?:{every})\s*;", text):
+        for entry in group.split(","):
+            source, _, local = entry.partition(":")
+            if source.strip() in fields:
+                field_aliases.add((local or source).strip())
+    for local, field in re.findall(rf"\b(?:const|let|var)\s+(\w+)\s*=\s*(?:[\w.]*\.)?(?:{every})\.(\w+)\s*;", text):
+        if field in fields:
+            field_aliases.add(local)
+    return instance, field_aliases
+
+
+def outside_writes(classes: dict[str, set[str]] | None = None) -> list[str]:
+    """Every line outside ``stores/`` (and outside the module of the class) that assigns to a field of one of
+    `classes` (the stores by default) or to a part of it, or changes an array it holds, as ``file:line: text``."""
+    if classes is None:
+        classes = store_classes()
+    homes = {name: module for name, (module, _) in OWNERS.items()}
+    names_of = {name: store_names({name}) for name in classes}
     found = []
     for path in client_modules():
-        for number, line in enumerate(path.read_text(encoding="utf-8").splitlines(), start=1):
+        text = path.read_text(encoding="utf-8")
+        patterns = []
+        for name, fields in sorted(classes.items()):
+            names = names_of[name]
+            if homes.get(name) == path.name or not fields or not names:
+                continue
+            instance, field_aliases = aliases(text, names, fields)
+            patterns.append(write_pattern(names | instance, fields, field_aliases))
+        for number, line in enumerate(text.splitlines(), start=1):
             if line.lstrip().startswith(("//", "*", "/*")):
                 continue
-            if write.search(line):
+            if any(p.search(line) for p in patterns):
                 found.append(f"{path.relative_to(WEB_SRC)}:{number}: {line.strip()}")
     return found
 
@@ -126,3 +196,68 @@ def test_the_scan_sees_the_writes_it_forbids(tmp_path: Path, monkeypatch: pytest
     monkeypatch.setattr(module, "WEB_SRC", src)
     monkeypatch.setattr(module, "STORES", src / "stores")
     assert [w.split(":")[1] for w in outside_writes()] == ["2", "3", "4", "5", "6"]
+
+
+def test_the_owners_are_found() -> None:
+    classes = owner_classes()
+    assert {"activeGroup", "groups", "roi", "role", "stiff", "stiffnessValue", "version"} <= classes["Selection"]
+    assert {"tool", "units", "radiusPx", "worldRadiusFrac", "frontOnly", "metric"} <= classes["SelectionTools"]
+    assert classes["HandleGizmo"] == {"pivots"}
+    assert {"selection", "tools", "gizmo"} <= store_names(set(classes))
+
+
+def test_no_module_writes_the_selection_the_tools_or_the_pivots() -> None:
+    found = outside_writes(owner_classes())
+    assert not found, "fields written outside the module of their class (call a method of it instead):\n" + "\n".join(
+        found
+    )
+
+
+@pytest.mark.parametrize("name", sorted(OWNERS))
+def test_an_owner_keeps_its_fields_private(name: str) -> None:
+    module, kept = OWNERS[name]
+    body = class_bodies(WEB_SRC / module)[name]
+    public_fields = set(re.findall(r"^  (\w+)\s*(?:=|;)", body, re.M))
+    public_writes = set(re.findall(r"\bthis\.(\w+)(?:\.\w+|\[[^\]]*\])*\s*(?:[-+*/]?=(?![=>])|\+\+|--)", body))
+    if kept is not None:
+        public_fields &= kept
+        public_writes &= kept
+        assert kept <= set(re.findall(r"^  get (\w+)\(\)", body, re.M)), f"{module}: no getters for {sorted(kept)}"
+    assert not public_fields, f"{module}: {name} has public fields {sorted(public_fields)} (keep them private)"
+    assert not public_writes, f"{module}: {name} writes public fields {sorted(public_writes)}"
+
+
+def test_the_scan_follows_local_names(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Writes through a local name of the instance or of one of its fields are seen; writes in the class's own
+    module, to other fields, and rebinding a local name are not."""
+    src = tmp_path / "src"
+    (src / "stores").mkdir(parents=True)
+    (src / "sel.js").write_text(
+        "export class Selection {\n  #g = 0;\n  get activeGroup() {\n    return this.#g;\n  }\n"
+        "  get roi() {\n    return this.#g;\n  }\n}\nconst selection = new Selection();\nselection.activeGroup = 2;\n",
+        encoding="utf-8",
+    )
+    (src / "m.js").write_text(
+        "/** @param {import('./sel.js').Selection} selection */\n"
+        "const s = this.selection;\n"
+        "s.activeGroup = 1;\n"
+        "s.roi.fill(0);\n"
+        "const { roi, other } = s;\n"
+        "roi[3] = 1;\n"
+        "other[3] = 1;\n"
+        "let r = s.roi;\n"
+        "r.set([1]);\n"
+        "r = null;\n"
+        "s.partnerOf(1).x = 2;\n",
+        encoding="utf-8",
+    )
+    module = sys.modules[__name__]
+    monkeypatch.setattr(module, "WEB_SRC", src)
+    monkeypatch.setattr(module, "STORES", src / "stores")
+    monkeypatch.setattr(module, "OWNERS", {"Selection": ("sel.js", None)})
+    assert [w.split(":")[:2] for w in outside_writes(owner_classes())] == [
+        ["m.js", "3"],
+        ["m.js", "4"],
+        ["m.js", "6"],
+        ["m.js", "9"],
+    ]

@@ -8,6 +8,9 @@ import { gridStep, rotationOf } from './transform.js';
 const IDENTITY = new THREE.Matrix4().elements.slice();
 
 export class HandleGizmo {
+  /** @type {(THREE.Vector3|null)[]} per group: the placed pivot in the group's untransformed frame, or null (the centroid) */
+  #pivots = [];
+
   /**
    * @param {import('./viewer.js').Viewer} viewer
    * @param {{onDragStart?: () => boolean|void, onDrag: () => void, onDragEnd: () => void,
@@ -36,8 +39,6 @@ export class HandleGizmo {
     viewer.scene.add(this.marker);
     /** @type {THREE.Matrix4[]} one per client handle group */
     this.matrices = [];
-    /** @type {(THREE.Vector3|null)[]} per group: the placed pivot in the group's untransformed frame, or null (the centroid) */
-    this.pivots = [];
     this.group = -1;
     /** @type {number[]} */
     this.indices = [];
@@ -68,6 +69,15 @@ export class HandleGizmo {
       this.refused = false;
       setTimeout(() => this.recenter(), 0); // put the gizmo back once the controls have let go
     });
+  }
+
+  /**
+   * Per group, its placed pivot in the group's untransformed frame, or null (it turns about its centroid). Only the
+   * gizmo writes them (placePivot, resetPivot, restorePivots, pivotFollowed …).
+   * @returns {ReadonlyArray<Readonly<THREE.Vector3>|null>}
+   */
+  get pivots() {
+    return this.#pivots;
   }
 
   get dragging() {
@@ -111,7 +121,7 @@ export class HandleGizmo {
   meshChanged() {
     this._saved = null; // a preview's positions belong to the mesh gone
     this.previewing = false;
-    this.pivots = this.matrices.map(() => null);
+    this.#pivots = this.matrices.map(() => null);
     this.controls.gridStep = gridStep(this.viewer.geometry?.boundingBox ?? null);
   }
 
@@ -122,14 +132,14 @@ export class HandleGizmo {
   syncGroups(nGroups) {
     while (this.matrices.length < nGroups) this.matrices.push(new THREE.Matrix4());
     this.matrices.length = nGroups;
-    while (this.pivots.length < nGroups) this.pivots.push(null);
-    this.pivots.length = nGroups;
+    while (this.#pivots.length < nGroups) this.#pivots.push(null);
+    this.#pivots.length = nGroups;
   }
 
   /** Every group back to identity (a new constraint set: its frame is the current pose); pivots stay put. */
   resetTransforms() {
     this.matrices.forEach((m, g) => {
-      if (this.pivots[g]) this.pivots[g].applyMatrix4(m);
+      if (this.#pivots[g]) this.#pivots[g].applyMatrix4(m);
       m.identity();
     });
   }
@@ -173,7 +183,7 @@ export class HandleGizmo {
 
   /** True when the active group has a placed pivot (rather than its centroid). */
   get pivotPlaced() {
-    return !!this.pivots[this.group];
+    return !!this.#pivots[this.group];
   }
 
   /**
@@ -183,14 +193,14 @@ export class HandleGizmo {
   placePivot(p) {
     const m = this.matrices[this.group];
     if (!m || !this.indices.length) return;
-    this.pivots[this.group] = new THREE.Vector3(p[0], p[1], p[2]).applyMatrix4(m.clone().invert());
+    this.#pivots[this.group] = new THREE.Vector3(p[0], p[1], p[2]).applyMatrix4(m.clone().invert());
     this.opts.onPivot?.();
     this.recenter();
   }
 
   /** Per group, its placed pivot where it is now (world [x, y, z]), or null where it turns about its centroid. */
   placedPivots() {
-    return this.pivots.map((q, g) => (q ? q.clone().applyMatrix4(this.matrices[g] || new THREE.Matrix4()).toArray() : null));
+    return this.#pivots.map((q, g) => (q ? q.clone().applyMatrix4(this.matrices[g] || new THREE.Matrix4()).toArray() : null));
   }
 
   /**
@@ -200,15 +210,26 @@ export class HandleGizmo {
    */
   restorePivots(points) {
     (points || []).forEach((p, g) => {
-      if (g >= this.pivots.length || !Array.isArray(p) || p.length !== 3 || !p.every(Number.isFinite)) return;
-      this.pivots[g] = new THREE.Vector3(p[0], p[1], p[2]).applyMatrix4((this.matrices[g] || new THREE.Matrix4()).clone().invert());
+      if (g >= this.#pivots.length || !Array.isArray(p) || p.length !== 3 || !p.every(Number.isFinite)) return;
+      this.#pivots[g] = new THREE.Vector3(p[0], p[1], p[2]).applyMatrix4((this.matrices[g] || new THREE.Matrix4()).clone().invert());
     });
     this.recenter();
   }
 
+  /**
+   * Group g's pivot follows another group's (mirror editing: the mirror image of its partner's): `pivot` in g's
+   * untransformed frame, or null for its centroid. Groups that do not exist are ignored.
+   * @param {number} g
+   * @param {THREE.Vector3|null} pivot
+   */
+  pivotFollowed(g, pivot) {
+    if (g < 0 || g >= this.#pivots.length) return;
+    this.#pivots[g] = pivot;
+  }
+
   /** The active group's pivot back to its centroid. */
   resetPivot() {
-    if (this.group >= 0 && this.group < this.pivots.length) this.pivots[this.group] = null;
+    if (this.group >= 0 && this.group < this.#pivots.length) this.#pivots[this.group] = null;
     this.opts.onPivot?.();
     this.recenter();
   }
@@ -217,7 +238,7 @@ export class HandleGizmo {
   recenter() {
     if (this.controls.dragging || this.previewing || !this.indices.length) return;
     const m = this.matrices[this.group] || new THREE.Matrix4();
-    const placed = this.pivots[this.group];
+    const placed = this.#pivots[this.group];
     if (placed) this.pivot.position.copy(placed).applyMatrix4(m);
     else this.pivot.position.fromArray(this.centroid);
     this.pivot.quaternion.copy(rotationOf(m)); // the local axes (world axes ignore it)

@@ -217,12 +217,11 @@ panel.bind({
   setGizmoMode,
   setBrushRadius: (v) => {
     painting.brushSized(tools.units, v);
-    if (tools.units === 'world') tools.worldRadiusFrac = v / 100;
-    else tools.radiusPx = v;
+    tools.brushSized(v);
     panel.setBrushRadius(tools.units, v);
   },
   setBrushUnits,
-  setFrontOnly: (on) => (tools.frontOnly = on),
+  setFrontOnly: (on) => tools.frontOnlyChosen(on),
   clearRole: () => {
     mirror.clear(painting.role);
     selectionEdited();
@@ -242,7 +241,7 @@ panel.bind({
     selectionEdited();
   },
   selectGroup: (g) => {
-    selection.activeGroup = g;
+    selection.groupChosen(g);
     setRole(selection.groups[g]?.point ? 'point' : 'handle');
     shown.updateList();
   },
@@ -392,7 +391,7 @@ function setSurface(mode) {
 function applySavedSelection(/** @type {import('./autosave.js').Snapshot} */ snap) {
   selection.fromConstraints({ roi: snap.roi, fixed: snap.fixed, handle_groups: snap.groups, stiffness: snap.stiffness },
     snap.groupPoints);
-  selection.activeGroup = Math.max(0, Math.min(snap.activeGroup ?? 0, selection.groups.length - 1));
+  selection.groupChosen(Math.max(0, Math.min(snap.activeGroup ?? 0, selection.groups.length - 1)));
   mirror.setPartners(snap.partners);
   shown.refresh(true);
   commitConstraints(null, true);
@@ -415,12 +414,12 @@ function roleControls() {
 }
 
 function setTool(/** @type {string} */ tool) {
-  tools.setTool(tool);
+  tools.toolChosen(tool);
   panel.setSegment('tool-seg', 'tool', tool);
 }
 
 function setBrushUnits(/** @type {string} 'screen' or 'world' */ units) {
-  tools.units = units;
+  tools.unitsChosen(units);
   panel.setBrushRadius(units, painting.brush[units]);
 }
 

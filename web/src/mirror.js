@@ -230,20 +230,13 @@ export class MirrorEditing {
     const mirrored = image.filter((j) => !direct.has(j));
     let changed = s.paint(list, mode, subtract);
     if (!mirrored.length) return changed;
-    const g = s.activeGroup;
-    let p = s.partnerOf(g);
+    let p = s.partnerOf(s.activeGroup);
     if (p < 0) {
       if (subtract) return changed;
-      s.groups.push({ id: s.nextGroupId++ });
-      p = s.groups.length - 1;
-      s.pair(g, p);
-      s.version++;
+      p = s.partnerAdded(s.activeGroup);
       changed = true;
     }
-    s.activeGroup = p;
-    changed = s.paint(mirrored, mode, subtract) || changed;
-    s.activeGroup = g;
-    return changed;
+    return s.paint(mirrored, mode, subtract, p) || changed;
   }
 
   /**
@@ -254,11 +247,7 @@ export class MirrorEditing {
     const s = this.selection;
     const p = this.active && mode === 'handle' ? s.partnerOf(s.activeGroup) : -1;
     s.clear(mode);
-    if (p < 0) return;
-    const g = s.activeGroup;
-    s.activeGroup = p;
-    s.clear(mode);
-    s.activeGroup = g;
+    if (p >= 0) s.clear(mode, p);
   }
 
   /**
@@ -278,7 +267,8 @@ export class MirrorEditing {
   /**
    * The active group's pivot was placed or reset: with mirror editing on, its partner's pivot becomes the mirror
    * image (or its centroid too), so dragging either side turns both about mirrored points.
-   * @param {{pivots: (THREE.Vector3|null)[]}} gizmo pivots in each group's untransformed frame
+   * @param {{pivots: ReadonlyArray<Readonly<THREE.Vector3>|null>,
+   *   pivotFollowed: (g: number, pivot: THREE.Vector3|null) => void}} gizmo pivots in each group's untransformed frame
    * @param {number} group client handle group
    */
   followPivot(gizmo, group) {
@@ -286,7 +276,7 @@ export class MirrorEditing {
     const p = this.selection.partnerOf(group);
     if (p < 0 || p >= gizmo.pivots.length) return;
     const q = gizmo.pivots[group];
-    gizmo.pivots[p] = q ? q.clone().applyMatrix4(this.matrix) : null;
+    gizmo.pivotFollowed(p, q ? q.clone().applyMatrix4(this.matrix) : null);
   }
 
   /**

@@ -79,7 +79,7 @@ export class PaintModes {
 
   _update() {
     const value = this.rigid.checked ? Infinity : sliderToStiffness(Number(this.slider.value));
-    this.selection.stiffnessValue = value;
+    this.selection.stiffnessChosen(value);
     this.slider.disabled = !this.on || this.rigid.checked;
     byId('stiffness-val').textContent = stiffnessLabel(value);
   }

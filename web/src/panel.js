@@ -380,7 +380,7 @@ export class Panel extends PanelReadouts {
 
   /**
    * groups: [{id, partner?}] (partner: the id of its mirror partner), active: index, roi/fixed counts.
-   * @param {import('./selection.js').HandleGroup[]} groups
+   * @param {readonly Readonly<import('./selection.js').HandleGroup>[]} groups
    * @param {number} active
    * @param {ReturnType<import('./selection.js').Selection['counts']>} counts
    * @param {number} nVertices

@@ -16,6 +16,11 @@ import { stiffnessFromJson, stiffnessKey, stiffnessToJson } from './stiffness.js
  * @typedef {{face: number, barycentric: number[], weight?: number}} PointSpec */
 /** @typedef {{id: number, partner?: number, point?: PointHandle}} HandleGroup */
 /**
+ * What Selection.copy keeps of a selection, for Selection.restored to put back.
+ * @typedef {{role: Int16Array, roi: Uint8Array, stiff: Float64Array, activeGroup: number, groups: HandleGroup[]}}
+ *   SelectionCopy
+ */
+/**
  * A constraint set as Selection.toConstraints gives it: `groupMap[k]` is the client group of server group k.
  * @typedef {object} Constraints
  * @property {number[]|null} roi
@@ -43,25 +48,21 @@ export const HANDLE0 = 2;
 const STIFFNESS_BRUSH = 10;
 
 export class Selection {
-  // All set again by reset(), which the constructor calls.
-  /** @type {number} vertices */
-  n = 0;
+  // All set again by reset(), which the constructor calls. Only this class writes them: the other modules read them
+  // and tell the selection what the user did through its methods (paint, groupChosen, stiffnessChosen …).
+  #n = 0;
   /** @type {Uint8Array} */
-  roi = new Uint8Array(0);
+  #roi = new Uint8Array(0);
   /** @type {Int16Array} */
-  role = new Int16Array(0);
+  #role = new Int16Array(0);
   /** @type {Float64Array} */
-  stiff = new Float64Array(0);
-  /** @type {number} */
-  stiffnessValue = STIFFNESS_BRUSH;
+  #stiff = new Float64Array(0);
+  #stiffnessValue = STIFFNESS_BRUSH;
   /** @type {HandleGroup[]} */
-  groups = [];
-  /** @type {number} */
-  nextGroupId = 1;
-  /** @type {number} */
-  activeGroup = 0;
-  /** @type {number} */
-  version = 0;
+  #groups = [];
+  #nextGroupId = 1;
+  #activeGroup = 0;
+  #version = 0;
 
   constructor() {
     this.reset(0);
@@ -69,31 +70,87 @@ export class Selection {
 
   /** @param {number} n */
   reset(n) {
-    this.n = n;
-    this.roi = new Uint8Array(n);
-    this.role = new Int16Array(n);
-    this.stiff = new Float64Array(n).fill(1);
-    this.stiffnessValue = STIFFNESS_BRUSH;
-    this.groups = [{ id: 1 }];
-    this.nextGroupId = 2;
-    this.activeGroup = 0;
-    this.version = 0;
+    this.#n = n;
+    this.#roi = new Uint8Array(n);
+    this.#role = new Int16Array(n);
+    this.#stiff = new Float64Array(n).fill(1);
+    this.#stiffnessValue = STIFFNESS_BRUSH;
+    this.#groups = [{ id: 1 }];
+    this.#nextGroupId = 2;
+    this.#activeGroup = 0;
+    this.#version = 0;
+  }
+
+  /** The number of vertices. */
+  get n() {
+    return this.#n;
+  }
+
+  /** @returns {Readonly<Uint8Array>} per vertex, 1 inside the painted region of interest */
+  get roi() {
+    return this.#roi;
+  }
+
+  /** @returns {Readonly<Int16Array>} per vertex: NONE, FIXED or HANDLE0 + its handle group */
+  get role() {
+    return this.#role;
+  }
+
+  /** @returns {Readonly<Float64Array>} per vertex, its painted stiffness (1 unpainted, Infinity rigid) */
+  get stiff() {
+    return this.#stiff;
+  }
+
+  /** The value the stiffness brush paints. */
+  get stiffnessValue() {
+    return this.#stiffnessValue;
+  }
+
+  /** @returns {readonly Readonly<HandleGroup>[]} the handle groups */
+  get groups() {
+    return this.#groups;
+  }
+
+  /** The handle group that painting a handle paints into and the gizmo moves. */
+  get activeGroup() {
+    return this.#activeGroup;
+  }
+
+  /** Counts the edits: it changes whenever the selection does. */
+  get version() {
+    return this.#version;
   }
 
   get roiCount() {
     let c = 0;
-    for (let i = 0; i < this.n; i++) c += this.roi[i];
+    for (let i = 0; i < this.#n; i++) c += this.#roi[i];
     return c;
+  }
+
+  /**
+   * The user chose handle group g.
+   * @param {number} g
+   */
+  groupChosen(g) {
+    this.#activeGroup = g;
+  }
+
+  /**
+   * The user chose the value the stiffness brush paints.
+   * @param {number} value (Infinity: rigid)
+   */
+  stiffnessChosen(value) {
+    this.#stiffnessValue = value;
   }
 
   /** Counts of roles: {roi, fixed, groups: [count per group]}. */
   counts() {
-    const groups = new Array(this.groups.length).fill(0);
+    const groups = new Array(this.#groups.length).fill(0);
     let fixed = 0;
     let roi = 0;
-    for (let i = 0; i < this.n; i++) {
-      roi += this.roi[i];
-      const r = this.role[i];
+    for (let i = 0; i < this.#n; i++) {
+      roi += this.#roi[i];
+      const r = this.#role[i];
       if (r === FIXED) fixed++;
       else if (r >= HANDLE0) groups[r - HANDLE0]++;
     }
@@ -103,18 +160,19 @@ export class Selection {
   /**
    * The value painted into `role` by a mode, or null for modes that only touch the ROI.
    * @param {string} mode
+   * @param {number} [group] the handle group that mode 'handle' paints (the active one by default)
    * @returns {number|null}
    */
-  roleValue(mode) {
+  roleValue(mode, group = this.#activeGroup) {
     if (mode === 'fixed') return FIXED;
-    if (mode === 'handle') return HANDLE0 + this.activeGroup;
+    if (mode === 'handle') return HANDLE0 + group;
     if (mode === 'erase') return NONE;
     return null;
   }
 
   /** True when the active group is a point handle. */
   get activeIsPoint() {
-    return !!this.groups[this.activeGroup]?.point;
+    return !!this.#groups[this.#activeGroup]?.point;
   }
 
   /**
@@ -122,63 +180,68 @@ export class Selection {
    * @param {Iterable<number>} indices
    * @param {string} mode
    * @param {boolean} [subtract]
+   * @param {number} [group] the handle group that mode 'handle' paints (the active one by default)
    */
-  paint(indices, mode, subtract = false) {
+  paint(indices, mode, subtract = false, group = this.#activeGroup) {
     let changed = false;
-    if (mode === 'handle' && this.activeIsPoint) this.addGroup(); // a point handle has no vertices
+    if (mode === 'handle' && this.#groups[group]?.point) group = this.addGroup(); // a point handle has no vertices
     if (mode === 'point') return false;
-    const value = this.roleValue(mode);
-    const stiffness = subtract ? 1 : this.stiffnessValue;
+    const value = this.roleValue(mode, group);
+    const stiffness = subtract ? 1 : this.#stiffnessValue;
     for (const i of indices) {
       if (mode === 'stiffness') {
-        if (this.stiff[i] !== stiffness) {
-          this.stiff[i] = stiffness;
+        if (this.#stiff[i] !== stiffness) {
+          this.#stiff[i] = stiffness;
           changed = true;
         }
       } else if (mode === 'roi') {
         const v = subtract ? 0 : 1;
-        if (this.roi[i] !== v) {
-          this.roi[i] = v;
+        if (this.#roi[i] !== v) {
+          this.#roi[i] = v;
           changed = true;
         }
       } else if (mode === 'erase') {
-        if (!subtract && (this.role[i] !== NONE || this.roi[i])) {
-          this.role[i] = NONE;
-          this.roi[i] = 0;
+        if (!subtract && (this.#role[i] !== NONE || this.#roi[i])) {
+          this.#role[i] = NONE;
+          this.#roi[i] = 0;
           changed = true;
         }
       } else if (subtract) {
-        if (this.role[i] === value) {
-          this.role[i] = NONE;
+        if (this.#role[i] === value) {
+          this.#role[i] = NONE;
           changed = true;
         }
-      } else if (this.role[i] !== value) {
-        this.role[i] = value ?? NONE;
+      } else if (this.#role[i] !== value) {
+        this.#role[i] = value ?? NONE;
         changed = true;
       }
     }
-    if (changed) this.version++;
+    if (changed) this.#version++;
     return changed;
   }
 
-  /** @param {string} mode */
-  clear(mode) {
-    if (mode === 'roi') this.roi.fill(0);
-    else if (mode === 'stiffness') this.stiff.fill(1);
+  /**
+   * Take a role off every vertex (mode 'erase': every role, the point handles and the stiffness).
+   * @param {string} mode
+   * @param {number} [group] the handle group that mode 'handle' clears (the active one by default)
+   */
+  clear(mode, group = this.#activeGroup) {
+    if (mode === 'roi') this.#roi.fill(0);
+    else if (mode === 'stiffness') this.#stiff.fill(1);
     else if (mode === 'point') {
-      for (let g = this.groups.length - 1; g >= 0; g--) if (this.groups[g].point) this.removeGroup(g);
+      for (let g = this.#groups.length - 1; g >= 0; g--) if (this.#groups[g].point) this.removeGroup(g);
     } else if (mode === 'erase') {
-      this.roi.fill(0);
-      this.role.fill(NONE);
-      this.stiff.fill(1);
-      this.groups = this.groups.filter((g) => !g.point);
-      if (!this.groups.length) this.groups.push({ id: this.nextGroupId++ });
-      this.activeGroup = Math.min(this.activeGroup, this.groups.length - 1);
+      this.#roi.fill(0);
+      this.#role.fill(NONE);
+      this.#stiff.fill(1);
+      this.#groups = this.#groups.filter((g) => !g.point);
+      if (!this.#groups.length) this.#groups.push({ id: this.#nextGroupId++ });
+      this.#activeGroup = Math.min(this.#activeGroup, this.#groups.length - 1);
     } else {
-      const value = this.roleValue(mode);
-      for (let i = 0; i < this.n; i++) if (this.role[i] === value) this.role[i] = NONE;
+      const value = this.roleValue(mode, group);
+      for (let i = 0; i < this.#n; i++) if (this.#role[i] === value) this.#role[i] = NONE;
     }
-    this.version++;
+    this.#version++;
   }
 
   /**
@@ -196,42 +259,42 @@ export class Selection {
   invert(mode) {
     if (!this.invertible(mode)) return false;
     if (mode === 'roi') {
-      for (let i = 0; i < this.n; i++) this.roi[i] ^= 1;
+      for (let i = 0; i < this.#n; i++) this.#roi[i] ^= 1;
     } else {
       const value = this.roleValue(mode);
-      for (let i = 0; i < this.n; i++) {
-        if (this.role[i] === value) this.role[i] = NONE;
-        else if (this.role[i] === NONE) this.role[i] = value ?? NONE;
+      for (let i = 0; i < this.#n; i++) {
+        if (this.#role[i] === value) this.#role[i] = NONE;
+        else if (this.#role[i] === NONE) this.#role[i] = value ?? NONE;
       }
     }
-    this.version++;
+    this.#version++;
     return true;
   }
 
   addGroup() {
     const counts = this.counts().groups;
-    const empty = counts.findIndex((c, g) => c === 0 && !this.groups[g].point);
-    if (empty >= 0 && empty === this.groups.length - 1) {
-      this.activeGroup = empty;
+    const empty = counts.findIndex((c, g) => c === 0 && !this.#groups[g].point);
+    if (empty >= 0 && empty === this.#groups.length - 1) {
+      this.#activeGroup = empty;
       return empty;
     }
-    this.groups.push({ id: this.nextGroupId++ });
-    this.activeGroup = this.groups.length - 1;
-    this.version++;
-    return this.activeGroup;
+    this.#groups.push({ id: this.#nextGroupId++ });
+    this.#activeGroup = this.#groups.length - 1;
+    this.#version++;
+    return this.#activeGroup;
   }
 
   /** @param {number} g */
   removeGroup(g) {
-    for (let i = 0; i < this.n; i++) {
-      const r = this.role[i];
-      if (r === HANDLE0 + g) this.role[i] = NONE;
-      else if (r > HANDLE0 + g) this.role[i] = r - 1;
+    for (let i = 0; i < this.#n; i++) {
+      const r = this.#role[i];
+      if (r === HANDLE0 + g) this.#role[i] = NONE;
+      else if (r > HANDLE0 + g) this.#role[i] = r - 1;
     }
-    this.groups.splice(g, 1);
-    if (this.groups.length === 0) this.groups.push({ id: this.nextGroupId++ });
-    this.activeGroup = Math.min(this.activeGroup, this.groups.length - 1);
-    this.version++;
+    this.#groups.splice(g, 1);
+    if (this.#groups.length === 0) this.#groups.push({ id: this.#nextGroupId++ });
+    this.#activeGroup = Math.min(this.#activeGroup, this.#groups.length - 1);
+    this.#version++;
   }
 
   /**
@@ -239,13 +302,13 @@ export class Selection {
    * @param {PointHandle} point
    */
   addPoint(point) {
-    const last = this.groups.length - 1;
+    const last = this.#groups.length - 1;
     const counts = this.counts().groups;
-    if (counts[last] === 0 && !this.groups[last].point) this.groups.pop(); // an empty vertex group gives way
-    this.groups.push({ id: this.nextGroupId++, point });
-    this.activeGroup = this.groups.length - 1;
-    this.version++;
-    return this.activeGroup;
+    if (counts[last] === 0 && !this.#groups[last].point) this.#groups.pop(); // an empty vertex group gives way
+    this.#groups.push({ id: this.#nextGroupId++, point });
+    this.#activeGroup = this.#groups.length - 1;
+    this.#version++;
+    return this.#activeGroup;
   }
 
   /**
@@ -253,8 +316,8 @@ export class Selection {
    * @param {number} g
    */
   partnerOf(g) {
-    const id = this.groups[g]?.partner;
-    return id === undefined ? -1 : this.groups.findIndex((x) => x.id === id);
+    const id = this.#groups[g]?.partner;
+    return id === undefined ? -1 : this.#groups.findIndex((x) => x.id === id);
   }
 
   /**
@@ -264,14 +327,51 @@ export class Selection {
    * @param {number} h
    */
   pair(g, h) {
-    if (this.groups[g]?.point || this.groups[h]?.point) return false;
+    if (this.#groups[g]?.point || this.#groups[h]?.point) return false;
     for (const k of [g, h]) {
       const old = this.partnerOf(k);
-      if (old >= 0) delete this.groups[old].partner;
+      if (old >= 0) delete this.#groups[old].partner;
     }
-    this.groups[g].partner = this.groups[h].id;
-    this.groups[h].partner = this.groups[g].id;
+    this.#groups[g].partner = this.#groups[h].id;
+    this.#groups[h].partner = this.#groups[g].id;
     return true;
+  }
+
+  /**
+   * Mirror editing needs a partner for vertex group g: a new empty vertex group, paired with g (see pair); its index.
+   * The active group stays.
+   * @param {number} g
+   */
+  partnerAdded(g) {
+    this.#groups.push({ id: this.#nextGroupId++ });
+    const p = this.#groups.length - 1;
+    this.pair(g, p);
+    this.#version++;
+    return p;
+  }
+
+  /**
+   * A copy of the painted roles, region and stiffness, the handle groups and the active group, for `restored`.
+   * @returns {SelectionCopy}
+   */
+  copy() {
+    return {
+      role: this.#role.slice(), roi: this.#roi.slice(), stiff: this.#stiff.slice(), activeGroup: this.#activeGroup,
+      groups: copyGroups(this.#groups),
+    };
+  }
+
+  /**
+   * The selection goes back to what `copy` gave (taken with the same number of vertices).
+   * @param {SelectionCopy} saved
+   */
+  restored(saved) {
+    this.#role.set(saved.role);
+    this.#roi.set(saved.roi);
+    this.#stiff.set(saved.stiff);
+    this.#groups = copyGroups(saved.groups);
+    this.#activeGroup = saved.activeGroup;
+    this.#version++;
   }
 
   /**
@@ -281,7 +381,7 @@ export class Selection {
   groupIndices(g) {
     const out = [];
     const v = HANDLE0 + g;
-    for (let i = 0; i < this.n; i++) if (this.role[i] === v) out.push(i);
+    for (let i = 0; i < this.#n; i++) if (this.#role[i] === v) out.push(i);
     return out;
   }
 
@@ -291,16 +391,16 @@ export class Selection {
    * @returns {Constraints}
    */
   toConstraints() {
-    const stiffness = stiffnessToJson(this.stiff);
+    const stiffness = stiffnessToJson(this.#stiff);
     /** @type {number[]} */
     const fixed = [];
     /** @type {number[]} */
     const roi = [];
     /** @type {number[][]} */
-    const lists = this.groups.map(() => []);
-    for (let i = 0; i < this.n; i++) {
-      if (this.roi[i]) roi.push(i);
-      const r = this.role[i];
+    const lists = this.#groups.map(() => []);
+    for (let i = 0; i < this.#n; i++) {
+      if (this.#roi[i]) roi.push(i);
+      const r = this.#role[i];
       if (r === FIXED) fixed.push(i);
       else if (r >= HANDLE0) lists[r - HANDLE0].push(i);
     }
@@ -309,14 +409,14 @@ export class Selection {
     /** @type {number[][]} */
     const handleGroups = [];
     lists.forEach((list, g) => {
-      if (list.length && !this.groups[g].point) {
+      if (list.length && !this.#groups[g].point) {
         groupMap.push(g);
         handleGroups.push(list);
       }
     });
     /** @type {PointSpec[]} */
     const points = [];
-    this.groups.forEach((group, g) => {
+    this.#groups.forEach((group, g) => {
       if (!group.point) return;
       const { face, barycentric, weight } = group.point;
       groupMap.push(g);
@@ -333,30 +433,39 @@ export class Selection {
    * @param {(PointHandle|null|undefined)[]|null} [groupPoints]
    */
   fromConstraints(c, groupPoints = null) {
-    const n = this.n;
-    this.roi.fill(0);
-    this.role.fill(NONE);
-    this.stiff = stiffnessFromJson(c.stiffness, n);
+    const n = this.#n;
+    this.#roi.fill(0);
+    this.#role.fill(NONE);
+    this.#stiff = stiffnessFromJson(c.stiffness, n);
     const ok = (/** @type {number} */ i) => Number.isInteger(i) && i >= 0 && i < n;
-    for (const i of c.roi || []) if (ok(i)) this.roi[i] = 1;
-    for (const i of c.fixed || []) if (ok(i)) this.role[i] = FIXED;
+    for (const i of c.roi || []) if (ok(i)) this.#roi[i] = 1;
+    for (const i of c.fixed || []) if (ok(i)) this.#role[i] = FIXED;
     const groups = c.handle_groups || [];
     groups.forEach((list, g) => {
-      for (const i of list) if (ok(i)) this.role[i] = HANDLE0 + g;
+      for (const i of list) if (ok(i)) this.#role[i] = HANDLE0 + g;
     });
-    this.groups = [];
+    this.#groups = [];
     for (let g = 0; g < groups.length; g++) {
       const point = groupPoints?.[g];
-      this.groups.push(point ? { id: this.nextGroupId++, point: { ...point } } : { id: this.nextGroupId++ });
+      this.#groups.push(point ? { id: this.#nextGroupId++, point: { ...point } } : { id: this.#nextGroupId++ });
     }
     for (const p of c.points || []) {
       const point = { face: p.face, barycentric: p.barycentric.slice(), weight: p.weight ?? null };
-      this.groups.push({ id: this.nextGroupId++, point });
+      this.#groups.push({ id: this.#nextGroupId++, point });
     }
-    if (!this.groups.length) this.groups.push({ id: this.nextGroupId++ });
-    this.activeGroup = Math.min(this.activeGroup, this.groups.length - 1);
-    this.version++;
+    if (!this.#groups.length) this.#groups.push({ id: this.#nextGroupId++ });
+    this.#activeGroup = Math.min(this.#activeGroup, this.#groups.length - 1);
+    this.#version++;
   }
+}
+
+/**
+ * Copies of handle groups (a point handle's point copied too).
+ * @param {readonly HandleGroup[]} groups
+ * @returns {HandleGroup[]}
+ */
+function copyGroups(groups) {
+  return groups.map((g) => ({ ...g, ...(g.point ? { point: { ...g.point } } : {}) }));
 }
 
 /**

@@ -14,8 +14,7 @@ const MAX_GROWN = 32;
 /**
  * A Grow that Shrink can take back: the selection before it, the role it grew, and the selection's vertex count and
  * version right after it.
- * @typedef {{before: {role: Int16Array, roi: Uint8Array, stiff: Float64Array, activeGroup: number,
- *   groups: import('./selection.js').HandleGroup[]}, role: string, n: number, version: number}} Grown
+ * @typedef {{before: import('./selection.js').SelectionCopy, role: string, n: number, version: number}} Grown
  */
 
 export class SurfaceSelection {
@@ -84,21 +83,12 @@ export class SurfaceSelection {
     const last = this._grown[this._grown.length - 1];
     if (last && (last.version !== s.version || last.role !== role || last.n !== s.n)) this._grown = [];
     if (shrink && this._grown.length) {
-      const before = /** @type {Grown} */ (this._grown.pop()).before;
-      s.role.set(before.role);
-      s.roi.set(before.roi);
-      s.stiff.set(before.stiff);
-      s.groups = before.groups;
-      s.activeGroup = before.activeGroup;
-      s.version++;
+      s.restored(/** @type {Grown} */ (this._grown.pop()).before);
       this.changed();
       if (this._grown.length) this._grown[this._grown.length - 1].version = s.version;
       return true;
     }
-    const before = shrink ? null : {
-      role: s.role.slice(), roi: s.roi.slice(), stiff: s.stiff.slice(), activeGroup: s.activeGroup,
-      groups: s.groups.map((g) => ({ ...g, ...(g.point ? { point: { ...g.point } } : {}) })),
-    };
+    const before = shrink ? null : s.copy();
     const ring = ringAround(this.graph(), this.viewer.nVertices, member, shrink);
     if (!this.paint(ring, role, shrink)) return false;
     this.changed();
@@ -133,11 +123,11 @@ export class SurfaceSelection {
       const radius = (amount / 100) * box.min.distanceTo(box.max);
       region = geodesicDistances(this.graph(), this.viewer.positions, handles.map((v) => [v, 0]), radius).vertices;
     }
-    s.roi.fill(0);
+    s.clear('roi');
     this.paint(region, 'roi', false);
-    for (let i = 0; i < s.n; i++) if (s.role[i] === FIXED || s.role[i] >= HANDLE0) s.roi[i] = 1;
-    for (const i of handles) s.roi[i] = 1;
-    s.version++;
+    const kept = handles.slice(); // the handles and anchors are in it whatever the distance
+    for (let i = 0; i < s.n; i++) if (s.role[i] === FIXED) kept.push(i);
+    s.paint(kept, 'roi', false);
     this.changed();
     return true;
   }
@@ -151,7 +141,7 @@ export class SurfaceSelection {
  */
 export function installSurfaceControls(surface, tools, tell) {
   const metric = byIdAs('brush-metric', HTMLSelectElement);
-  metric.addEventListener('change', () => (tools.metric = metric.value));
+  metric.addEventListener('change', () => tools.metricChosen(metric.value));
   byId('btn-grow').addEventListener('click', () => surface.ring(false));
   byId('btn-shrink').addEventListener('click', () => surface.ring(true));
   byId('btn-roi-from-handles').addEventListener('click', () => {

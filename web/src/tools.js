@@ -6,38 +6,48 @@ import { connectedPatch, geodesicDistances, triangleSeeds } from './geodesic.js'
 /** How the brush measures its radius: straight distance, distance along the surface, or the connected patch. */
 export const BRUSH_METRICS = ['straight', 'surface', 'patch'];
 
+/**
+ * @typedef {{isGizmoActive: () => boolean, onPaint: (indices: number[], subtract: boolean) => void,
+ *   onStrokeEnd: () => void, graph: () => {ptr: Int32Array, adj: Int32Array}, picking?: () => boolean,
+ *   onPick: (hit: THREE.Intersection, subtract: boolean) => void}} ToolsOptions
+ */
+
 export class SelectionTools {
+  // Only this class writes its fields: the page tells it what the user chose through its methods (toolChosen,
+  // unitsChosen, brushSized, frontOnlyChosen, metricChosen).
+  /** @type {import('./viewer.js').Viewer} */
+  #viewer;
+  /** @type {ToolsOptions} */
+  #opts;
+  #tool = 'brush';
+  #radiusPx = 24;
+  #units = 'screen';
+  #worldRadiusFrac = 0.04;
+  #frontOnly = true;
+  #metric = 'straight';
+  /** @type {THREE.Face|null} the face under the brush at its last raycast (null: unknown) */
+  #hitFace = null;
+  #erasing = false;
+  #painting = false;
+  /** @type {{x0: number, y0: number, x1: number, y1: number, subtract: boolean}|null} the box being dragged */
+  #box = null;
+  #picked = false;
+  #raycaster = new THREE.Raycaster();
+  #cursorEl = byId('brush-cursor');
+  #rectEl = byId('box-rect');
+  /** @type {number[]|null} the pointer position waiting for the next animation frame's raycast */
+  #queued = null;
+
   /**
    * @param {import('./viewer.js').Viewer} viewer
-   * @param {{isGizmoActive: () => boolean, onPaint: (indices: number[], subtract: boolean) => void,
-   *   onStrokeEnd: () => void, graph: () => {ptr: Int32Array, adj: Int32Array}, picking?: () => boolean,
-   *   onPick: (hit: THREE.Intersection, subtract: boolean) => void}} opts isGizmoActive(): bool,
+   * @param {ToolsOptions} opts isGizmoActive(): bool,
    *   onPaint(indices, subtract), onStrokeEnd(), graph(): the mesh's adjacency (geodesic.js buildAdjacency),
    *   picking(): true when a click places a point instead of painting, onPick(hit, subtract) (the raycast
    *   intersection under a click in that mode)
    */
   constructor(viewer, opts) {
-    this.viewer = viewer;
-    this.opts = opts;
-    this.tool = 'brush';
-    this.radiusPx = 24;
-    this.units = 'screen';
-    this.worldRadiusFrac = 0.04;
-    this.frontOnly = true;
-    this.metric = 'straight';
-    /** @type {THREE.Face|null} the face under the brush at its last raycast (null: unknown) */
-    this._hitFace = null;
-    this.erasing = false;
-    this.painting = false;
-    /** @type {{x0: number, y0: number, x1: number, y1: number, subtract: boolean}|null} the box being dragged */
-    this.box = null;
-    this.picked = false;
-    this.raycaster = new THREE.Raycaster();
-    this.cursorEl = byId('brush-cursor');
-    this.rectEl = byId('box-rect');
-    this._lastHit = null;
-    /** @type {number[]|null} the pointer position waiting for the next animation frame's raycast */
-    this._queued = null;
+    this.#viewer = viewer;
+    this.#opts = opts;
     const c = viewer.canvas;
     c.addEventListener('pointerdown', (e) => this._down(e));
     c.addEventListener('pointermove', (e) => this._move(e));
@@ -47,15 +57,81 @@ export class SelectionTools {
     c.addEventListener('contextmenu', (e) => e.preventDefault());
   }
 
-  /** @param {string} tool */
-  setTool(tool) {
-    this.tool = tool;
+  /** The pointer tool: 'brush', 'box' or 'orbit'. */
+  get tool() {
+    return this.#tool;
+  }
+
+  /** What the brush radius is measured in: 'screen' (pixels) or 'world' (a fraction of the model's size). */
+  get units() {
+    return this.#units;
+  }
+
+  /** The brush radius in pixels (units 'screen'). */
+  get radiusPx() {
+    return this.#radiusPx;
+  }
+
+  /** The brush radius as a fraction of the model's bounding-box diagonal (units 'world'). */
+  get worldRadiusFrac() {
+    return this.#worldRadiusFrac;
+  }
+
+  /** The brush and the box take front-facing vertices only. */
+  get frontOnly() {
+    return this.#frontOnly;
+  }
+
+  /** How the brush measures its radius: one of BRUSH_METRICS. */
+  get metric() {
+    return this.#metric;
+  }
+
+  /**
+   * The user chose the pointer tool.
+   * @param {string} tool
+   */
+  toolChosen(tool) {
+    this.#tool = tool;
     this._hideCursor();
+  }
+
+  /**
+   * The user chose what the brush radius is measured in ('screen' or 'world').
+   * @param {string} units
+   */
+  unitsChosen(units) {
+    this.#units = units;
+  }
+
+  /**
+   * The user sized the brush in its current units: pixels, or percent of the model's size.
+   * @param {number} radius
+   */
+  brushSized(radius) {
+    if (this.#units === 'world') this.#worldRadiusFrac = radius / 100;
+    else this.#radiusPx = radius;
+  }
+
+  /**
+   * The user chose whether the brush and the box take front-facing vertices only.
+   * @param {boolean} on
+   */
+  frontOnlyChosen(on) {
+    this.#frontOnly = on;
+  }
+
+  /**
+   * The user chose how the brush measures its radius (one of BRUSH_METRICS).
+   * @param {string} metric
+   */
+  metricChosen(metric) {
+    this.#metric = metric;
   }
 
   /** @param {PointerEvent} e */
   _local(e) {
-    const r = this.viewer.canvas.getBoundingClientRect();
+    const r = this.#viewer.canvas.getBoundingClientRect();
     return [e.clientX - r.left, e.clientY - r.top];
   }
 
@@ -65,11 +141,11 @@ export class SelectionTools {
    * @param {number} y
    */
   _intersect(x, y) {
-    const v = this.viewer;
+    const v = this.#viewer;
     if (!v.mesh) return null;
     const ndc = new THREE.Vector2((x / v.canvas.clientWidth) * 2 - 1, -(y / v.canvas.clientHeight) * 2 + 1);
-    this.raycaster.setFromCamera(ndc, v.camera);
-    const hits = this.raycaster.intersectObject(v.mesh, false);
+    this.#raycaster.setFromCamera(ndc, v.camera);
+    const hits = this.#raycaster.intersectObject(v.mesh, false);
     return hits.length ? hits[0] : null;
   }
 
@@ -79,12 +155,12 @@ export class SelectionTools {
    */
   _hit(x, y) {
     const hit = this._intersect(x, y);
-    this._hitFace = hit?.face ?? null;
+    this.#hitFace = hit?.face ?? null;
     return hit ? hit.point : null;
   }
 
   get _picking() {
-    return this.tool !== 'orbit' && !!this.opts.picking?.();
+    return this.#tool !== 'orbit' && !!this.#opts.picking?.();
   }
 
   /**
@@ -92,49 +168,49 @@ export class SelectionTools {
    * @param {THREE.Vector3} point
    */
   worldRadius(point) {
-    const box = this.viewer.box;
-    if (this.units === 'world' && box) return this.worldRadiusFrac * box.min.distanceTo(box.max);
-    return this.radiusPx * this.viewer.worldPerPixel(point);
+    const box = this.#viewer.box;
+    if (this.#units === 'world' && box) return this.#worldRadiusFrac * box.min.distanceTo(box.max);
+    return this.#radiusPx * this.#viewer.worldPerPixel(point);
   }
 
   /** @param {PointerEvent} e */
   _down(e) {
-    if (e.button !== 0 || !this.viewer.mesh) return;
+    if (e.button !== 0 || !this.#viewer.mesh) return;
     const [x, y] = this._local(e);
     const subtract = e.ctrlKey || e.metaKey || e.altKey;
     // a point handle's marker lies under its gizmo: removing it must reach through
-    if (this.opts.isGizmoActive() && !(this._picking && subtract)) return;
+    if (this.#opts.isGizmoActive() && !(this._picking && subtract)) return;
     if (this._picking) {
       const hit = this._intersect(x, y);
       if (!hit) return; // empty space: let the camera orbit
-      this.picked = true;
+      this.#picked = true;
       this._takePointer(e);
-      this.opts.onPick(hit, subtract);
+      this.#opts.onPick(hit, subtract);
       return;
     }
-    if (e.shiftKey || this.tool === 'box') {
-      this.box = { x0: x, y0: y, x1: x, y1: y, subtract };
+    if (e.shiftKey || this.#tool === 'box') {
+      this.#box = { x0: x, y0: y, x1: x, y1: y, subtract };
       this._takePointer(e);
-      this._drawRect(this.box);
+      this._drawRect(this.#box);
       return;
     }
-    if (this.tool !== 'brush') return;
+    if (this.#tool !== 'brush') return;
     // just off the silhouette (the brush's circle reaches the model) the stroke starts at the nearest vertex;
     // farther out it is empty space: let the camera orbit
     const p = this._hit(x, y) ?? this._nearby(x, y);
     if (!p) return;
-    this.painting = true;
-    this.erasing = subtract;
+    this.#painting = true;
+    this.#erasing = subtract;
     this._takePointer(e);
     this._paintAt(p);
   }
 
   /** The brush's radius in canvas pixels (at the model's centre for a radius in model units). */
   _radiusPx() {
-    const box = this.viewer.box;
-    if (this.units !== 'world' || !box) return this.radiusPx;
+    const box = this.#viewer.box;
+    if (this.#units !== 'world' || !box) return this.#radiusPx;
     const centre = box.getCenter(new THREE.Vector3());
-    return this.worldRadius(centre) / this.viewer.worldPerPixel(centre);
+    return this.worldRadius(centre) / this.#viewer.worldPerPixel(centre);
   }
 
   /**
@@ -145,7 +221,7 @@ export class SelectionTools {
    * @param {number} y
    */
   _nearby(x, y) {
-    const v = this.viewer;
+    const v = this.#viewer;
     if (!v.geometry) return null;
     const reach = Math.max(6, this._radiusPx());
     const w = v.canvas.clientWidth;
@@ -166,44 +242,44 @@ export class SelectionTools {
       const dy = ((1 - (m[1] * px + m[5] * py + m[9] * pz + m[13]) / cw) / 2) * h - y;
       const d = dx * dx + dy * dy;
       if (d > bestD) continue;
-      if (this.frontOnly
+      if (this.#frontOnly
         && nrm[3 * i] * (cam.x - px) + nrm[3 * i + 1] * (cam.y - py) + nrm[3 * i + 2] * (cam.z - pz) < 0) continue;
       best = i;
       bestD = d;
     }
-    this._hitFace = null;
+    this.#hitFace = null;
     return best < 0 ? null : new THREE.Vector3(pos[3 * best], pos[3 * best + 1], pos[3 * best + 2]);
   }
 
   /** @param {PointerEvent} e */
   _takePointer(e) {
     e.stopImmediatePropagation();
-    if (this.viewer.controls) this.viewer.controls.enabled = false;
-    this.viewer.canvas.setPointerCapture(e.pointerId);
+    if (this.#viewer.controls) this.#viewer.controls.enabled = false;
+    this.#viewer.canvas.setPointerCapture(e.pointerId);
   }
 
   /** @param {PointerEvent} e */
   _move(e) {
     const [x, y] = this._local(e);
-    if (this.box) {
-      this.box.x1 = x;
-      this.box.y1 = y;
-      this._drawRect(this.box);
+    if (this.#box) {
+      this.#box.x1 = x;
+      this.#box.y1 = y;
+      this._drawRect(this.#box);
       return;
     }
-    if (this.tool === 'brush' && !this.opts.isGizmoActive() && !this._picking) this._showCursor(x, y, e.ctrlKey || e.metaKey || e.altKey);
+    if (this.#tool === 'brush' && !this.#opts.isGizmoActive() && !this._picking) this._showCursor(x, y, e.ctrlKey || e.metaKey || e.altKey);
     else this._hideCursor();
-    if (!this.painting) return;
+    if (!this.#painting) return;
     // coalesce to one raycast per animation frame
-    if (this._queued) {
-      this._queued = [x, y];
+    if (this.#queued) {
+      this.#queued = [x, y];
       return;
     }
-    this._queued = [x, y];
+    this.#queued = [x, y];
     requestAnimationFrame(() => {
-      const q = this._queued;
-      this._queued = null;
-      if (!this.painting || !q) return;
+      const q = this.#queued;
+      this.#queued = null;
+      if (!this.#painting || !q) return;
       const p = this._hit(q[0], q[1]);
       if (p) this._paintAt(p);
     });
@@ -211,46 +287,46 @@ export class SelectionTools {
 
   /** @param {PointerEvent} e */
   _up(e) {
-    if (this.picked) {
-      this.picked = false;
+    if (this.#picked) {
+      this.#picked = false;
       this._release(e);
       return;
     }
-    if (this.box) {
-      const b = this.box;
-      this.box = null;
-      this.rectEl.hidden = true;
+    if (this.#box) {
+      const b = this.#box;
+      this.#box = null;
+      this.#rectEl.hidden = true;
       this._release(e);
       const indices = this.boxIndices(b.x0, b.y0, b.x1, b.y1);
-      this.opts.onPaint(indices, b.subtract);
-      this.opts.onStrokeEnd();
+      this.#opts.onPaint(indices, b.subtract);
+      this.#opts.onStrokeEnd();
       return;
     }
-    if (this.painting) {
-      this.painting = false;
-      this._queued = null;
+    if (this.#painting) {
+      this.#painting = false;
+      this.#queued = null;
       this._release(e);
-      this.opts.onStrokeEnd();
+      this.#opts.onStrokeEnd();
     }
   }
 
   /** @param {PointerEvent} e */
   _release(e) {
-    if (this.viewer.controls) this.viewer.controls.enabled = true;
-    if (this.viewer.canvas.hasPointerCapture(e.pointerId)) this.viewer.canvas.releasePointerCapture(e.pointerId);
+    if (this.#viewer.controls) this.#viewer.controls.enabled = true;
+    if (this.#viewer.canvas.hasPointerCapture(e.pointerId)) this.#viewer.canvas.releasePointerCapture(e.pointerId);
   }
 
   /** @param {THREE.Vector3} p */
   _paintAt(p) {
     const r = this.worldRadius(p);
-    const pos = this.viewer.positions;
-    if (this.metric !== 'straight' && this._hitFace) {
-      const seeds = triangleSeeds(pos, this._hitFace, p);
-      const graph = this.opts.graph();
-      const out = this.metric === 'surface'
+    const pos = this.#viewer.positions;
+    if (this.#metric !== 'straight' && this.#hitFace) {
+      const seeds = triangleSeeds(pos, this.#hitFace, p);
+      const graph = this.#opts.graph();
+      const out = this.#metric === 'surface'
         ? geodesicDistances(graph, pos, seeds, r).vertices
         : connectedPatch(graph, pos, seeds.map(([v]) => v), p, r);
-      this.opts.onPaint(out, this.erasing);
+      this.#opts.onPaint(out, this.#erasing);
       return;
     }
     const r2 = r * r;
@@ -262,7 +338,7 @@ export class SelectionTools {
       const dz = pos[3 * i + 2] - p.z;
       if (dx * dx + dy * dy + dz * dz <= r2) out.push(i);
     }
-    this.opts.onPaint(out, this.erasing);
+    this.#opts.onPaint(out, this.#erasing);
   }
 
   /**
@@ -274,7 +350,7 @@ export class SelectionTools {
    * @returns {number[]}
    */
   boxIndices(x0, y0, x1, y1) {
-    const v = this.viewer;
+    const v = this.#viewer;
     const w = v.canvas.clientWidth;
     const h = v.canvas.clientHeight;
     const xa = Math.min(x0, x1);
@@ -297,7 +373,7 @@ export class SelectionTools {
       const sx = (((m[0] * px + m[4] * py + m[8] * pz + m[12]) / cw + 1) / 2) * w;
       const sy = ((1 - (m[1] * px + m[5] * py + m[9] * pz + m[13]) / cw) / 2) * h;
       if (sx < xa || sx > xb || sy < ya || sy > yb) continue;
-      if (this.frontOnly) {
+      if (this.#frontOnly) {
         const facing = nrm[3 * i] * (cam.x - px) + nrm[3 * i + 1] * (cam.y - py) + nrm[3 * i + 2] * (cam.z - pz);
         if (facing <= 0) continue;
       }
@@ -308,12 +384,12 @@ export class SelectionTools {
 
   /** @param {{x0: number, y0: number, x1: number, y1: number}} b */
   _drawRect(b) {
-    const s = this.rectEl.style;
+    const s = this.#rectEl.style;
     s.left = `${Math.min(b.x0, b.x1)}px`;
     s.top = `${Math.min(b.y0, b.y1)}px`;
     s.width = `${Math.abs(b.x1 - b.x0)}px`;
     s.height = `${Math.abs(b.y1 - b.y0)}px`;
-    this.rectEl.hidden = false;
+    this.#rectEl.hidden = false;
   }
 
   /**
@@ -322,22 +398,22 @@ export class SelectionTools {
    * @param {boolean} erase
    */
   _showCursor(x, y, erase) {
-    let r = this.radiusPx;
-    if (this.units === 'world' && this.viewer.geometry) {
+    let r = this.#radiusPx;
+    if (this.#units === 'world' && this.#viewer.geometry) {
       const p = this._hit(x, y);
       if (!p) return this._hideCursor();
-      r = this.worldRadius(p) / this.viewer.worldPerPixel(p);
+      r = this.worldRadius(p) / this.#viewer.worldPerPixel(p);
     }
-    const s = this.cursorEl.style;
+    const s = this.#cursorEl.style;
     s.left = `${x}px`;
     s.top = `${y}px`;
     s.width = `${2 * r}px`;
     s.height = `${2 * r}px`;
-    this.cursorEl.classList.toggle('erase', erase);
-    this.cursorEl.hidden = false;
+    this.#cursorEl.classList.toggle('erase', erase);
+    this.#cursorEl.hidden = false;
   }
 
   _hideCursor() {
-    this.cursorEl.hidden = true;
+    this.#cursorEl.hidden = true;
   }
 }
