@@ -103,3 +103,26 @@ def test_only_planar_and_solid_element_solves_unfold() -> None:
         it = make_iterate(p, solver._state.local, U, U[p.nf:].copy(), None, 0.0, 1, 1e-6, None,
                           {"local": 0.0, "rhs": 0.0, "solve": 0.0, "acceleration": 0.0})
         assert (it.unfold is not None) == unfolds
+
+
+def test_a_solve_that_never_looks_for_folds_measures_no_orientation(monkeypatch: pytest.MonkeyPatch) -> None:
+    # a drag's capped run (and any run with hard point handles) never opens folds: it pays for no orientation, which
+    # on a 50k-vertex picture cost more than an iteration
+    import arap.method.unfold as unfold_module
+
+    calls = []
+    measured = unfold_module.signed_measures
+    monkeypatch.setattr(unfold_module, "signed_measures", lambda V, T: calls.append(1) or measured(V, T))
+    V, F, b, targets = _turned_rectangle(12, 6)
+    solver = arap.ArapSolver(V, F, b)
+    solver.solve(targets, max_iterations=2, tolerance=0.0)
+    assert calls == []
+
+
+def test_the_start_is_the_shape_the_solve_began_from_even_when_moved_in_place() -> None:
+    rest = np.array([[0.5, 0.5, 0], [0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]])
+    T = np.array([[1, 2, 0], [2, 3, 0], [3, 4, 0], [4, 1, 0]])
+    U = rest.copy()
+    unfold = Unfolder(T, rest, U, nf=1)
+    U[0, :2] = [0.5, -0.3]  # the solve moves its iterate, which is the start it was given, in place
+    assert unfold.turned_over(U).tolist() == [0]

@@ -60,9 +60,31 @@ class Unfolder:
         self.T = np.ascontiguousarray(T, dtype=np.int64)
         self.nf = nf
         self.n = len(rest)
-        self.orient = np.sign(signed_measures(rest, self.T))
-        self.positive = signed_measures(start, self.T) * self.orient > 0
+        # The orientations are measured when first asked for (most solves never are: a drag's capped run, a solve
+        # with hard point handles), of copies: the solve moves ``start`` in place.
+        self._rest: NDArray[np.float64] | None = rest
+        self._start: NDArray[np.float64] | None = np.array(start, dtype=np.float64)
+        self._orient: NDArray[np.float64] | None = None
+        self._positive: NDArray[np.bool_] | None = None
         self._neighbours: sp.csr_matrix | None = None
+
+    @property
+    def orient(self) -> NDArray[np.float64]:
+        """Each element's sign of measure at rest (its positive orientation)."""
+        if self._orient is None:
+            assert self._rest is not None
+            self._orient = np.sign(signed_measures(self._rest, self.T))
+            self._rest = None
+        return self._orient
+
+    @property
+    def positive(self) -> NDArray[np.bool_]:
+        """The elements positively oriented at the start of the solve."""
+        if self._positive is None:
+            assert self._start is not None
+            self._positive = signed_measures(self._start, self.T) * self.orient > 0
+            self._start = None
+        return self._positive
 
     def turned_over(self, U: NDArray[np.float64]) -> NDArray[np.int64]:
         """The elements positively oriented at the start and not at ``U`` (n, 3)."""
