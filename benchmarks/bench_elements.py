@@ -1,16 +1,17 @@
 """The element energy (one rotation per triangle or tetrahedron) against libigl's elements solver, same run.
 
-Scenarios: a planar 2:1 strip with a hole (about 7k vertices) and a planar rectangle of about 50k vertices, one end
-held and the other turned 90° about its centre; a 30×6×6-cube bar of tetrahedra (six per cube) and a larger bar
-(over 100k tetrahedra), one end held and the other twisted 120°. libigl (``ARAP_ENERGY_TYPE_ELEMENTS``, from the
-rest pose with the constrained vertices at their targets) runs ``--igl-iterations`` iterations (1,000 planar, 300 for
-tetrahedra by default); its energy is evaluated with our exact energy. arap (the default solver: L-BFGS, until
-converged, from the same start) records the time of every iteration. Printed per scenario: libigl's time (precompute
-and iterations), the time arap needs to reach libigl's energy and to converge (set-up included in both), their
-ratios (target ≤ 1/20), the iterations arap takes to each (deterministic: comparable across machines and loads, unlike
-the times), both final energies and arap's relative to libigl's (target ≤ 0), and the inverted elements of each result
-(target: none where libigl has none; an element solve opens the elements it turned over, see
-``arap.method.unfold``).
+Scenarios: a planar 2:1 strip with a hole (about 7k vertices) and a planar rectangle of about 50k vertices, one end held
+and the other turned 90° about its centre; a 30×6×6-cube bar of tetrahedra (six per cube) and a larger bar (over 100k
+tetrahedra), one end held and the other twisted 120°; a tetrahedralized scan, the armadillo filled with about 120k
+tetrahedra (:func:`fill_surface`, cached), feet held and head turned 90° about the vertical. libigl
+(``ARAP_ENERGY_TYPE_ELEMENTS``, from the rest pose with the constrained vertices at their targets) runs
+``--igl-iterations`` iterations (1,000 planar, 300 for tetrahedra by default); its energy is evaluated with our exact
+energy. arap (the default solver: L-BFGS, until converged, from the same start) records the time of every iteration.
+Printed per scenario: libigl's time (precompute and iterations), the time arap needs to reach libigl's energy and to
+converge (set-up included in both), their ratios (target ≤ 1/20), the iterations arap takes to each (deterministic:
+comparable across machines and loads, unlike the times), both final energies and arap's relative to libigl's (target ≤
+0), and the inverted elements of each result (target: none where libigl has none; an element solve opens the elements it
+turned over, see ``arap.method.unfold``).
 
 Run: ``python benchmarks/bench_elements.py [--quick] [--json [OUT]]``
 """
