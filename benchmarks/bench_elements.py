@@ -1,16 +1,17 @@
 """The element energy (one rotation per triangle or tetrahedron) against libigl's elements solver, same run.
 
-Scenarios: a planar 2:1 strip with a hole (about 7k vertices) and a planar rectangle of about 50k vertices, one end
-held and the other turned 90° about its centre; a 30×6×6-cube bar of tetrahedra (six per cube) and a larger bar
-(over 100k tetrahedra), one end held and the other twisted 120°. libigl (``ARAP_ENERGY_TYPE_ELEMENTS``, from the
-rest pose with the constrained vertices at their targets) runs ``--igl-iterations`` iterations (1,000 planar, 300 for
-tetrahedra by default); its energy is evaluated with our exact energy. arap (the default solver: L-BFGS, until
-converged, from the same start) records the time of every iteration. Printed per scenario: libigl's time (precompute
-and iterations), the time arap needs to reach libigl's energy and to converge (set-up included in both), their
-ratios (target ≤ 1/20), the iterations arap takes to each (deterministic: comparable across machines and loads, unlike
-the times), both final energies and arap's relative to libigl's (target ≤ 0), and the inverted elements of each result
-(target: none where libigl has none; an element solve opens the elements it turned over, see
-``arap.method.unfold``).
+Scenarios: a planar 2:1 strip with a hole (about 7k vertices) and a planar rectangle of about 50k vertices, one end held
+and the other turned 90° about its centre; a 30×6×6-cube bar of tetrahedra (six per cube) and a larger bar (over 100k
+tetrahedra), one end held and the other twisted 120°; a tetrahedralized scan, the armadillo filled with about 120k
+tetrahedra (:func:`fill_surface`, cached), feet held and head turned 90° about the vertical. libigl
+(``ARAP_ENERGY_TYPE_ELEMENTS``, from the rest pose with the constrained vertices at their targets) runs
+``--igl-iterations`` iterations (1,000 planar, 300 for tetrahedra by default); its energy is evaluated with our exact
+energy. arap (the default solver: L-BFGS, until converged, from the same start) records the time of every iteration.
+Printed per scenario: libigl's time (precompute and iterations), the time arap needs to reach libigl's energy and to
+converge (set-up included in both), their ratios (target ≤ 1/20), the iterations arap takes to each (deterministic:
+comparable across machines and loads, unlike the times), both final energies and arap's relative to libigl's (target ≤
+0), and the inverted elements of each result (target: none where libigl has none; an element solve opens the elements it
+turned over, see ``arap.method.unfold``).
 
 Run: ``python benchmarks/bench_elements.py [--quick] [--json [OUT]]``
 """
@@ -18,15 +19,23 @@ Run: ``python benchmarks/bench_elements.py [--quick] [--json [OUT]]``
 from __future__ import annotations
 
 import argparse
+import hashlib
 import time
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from arap import ArapSolver, arap_energy
+from arap import ArapSolver, arap_energy, load_mesh
+from arap.io.atomic import atomic_output
 from arap.meshes.domain import signed_measures
 from arap.meshes.grids import box_tetrahedra, rectangle_triangles
 from benchjson import add_json_option, figure, write_results
+from scenarios import twist
+
+SCAN = Path(__file__).resolve().parents[1].parent / "shared" / "meshes" / "armadillo.obj"
+SCAN_TETRAHEDRA = {False: 120_000, True: 6_000}  # tetrahedra aimed at, full and --quick
+SCAN_VERSION = 1  # part of the cache key: bump when scan_tetrahedra changes what it makes
 
 
 def _rotation(angle: float, dim: int) -> np.ndarray:
@@ -34,6 +43,110 @@ def _rotation(angle: float, dim: int) -> np.ndarray:
     if dim == 2:
         return np.array([[c, -s], [s, c]])
     return np.array([[1.0, 0, 0], [0, c, -s], [0, s, c]])
+
+
+def _quality(V: np.ndarray, T: np.ndarray) -> np.ndarray:
+    """6√2 volume / longest edge³ of each tetrahedron: 1 for a regular one, 0 for a flat one, negative inverted."""
+    E = V[T]
+    longest = np.max([np.linalg.norm(E[:, i] - E[:, j], axis=1) for i in range(4) for j in range(i + 1, 4)], axis=0)
+    return np.sqrt(2.0) * signed_measures(V, T) / longest ** 3  # signed_measures: 6 × the volume
+
+
+def _faces(T: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The four faces of each tetrahedron (sorted corners) as unique rows, and the index of each tet face in them."""
+    faces = np.sort(T[:, [[1, 2, 3], [0, 2, 3], [0, 1, 3], [0, 1, 2]]].reshape(-1, 3), axis=1)
+    unique, index = np.unique(faces, axis=0, return_inverse=True)
+    return unique, index.ravel()
+
+
+def _move(G: np.ndarray, T: np.ndarray, moving: np.ndarray, goal: np.ndarray, min_quality: float) -> np.ndarray:
+    """``G`` with the vertices ``moving`` moved towards ``goal``, each a share of the way (1, halved up to ten
+    times, else 0) that keeps every tetrahedron they are corners of at a quality of at least ``min_quality``."""
+    where = np.full(len(G), -1, dtype=np.int64)
+    where[moving] = np.arange(len(moving))
+    near = np.flatnonzero((where[T] >= 0).any(axis=1))
+    share = np.ones(len(moving))
+    moved = G.copy()
+    for attempt in range(12):
+        if attempt == 11:
+            share[share < 0.5 ** 10] = 0.0
+        moved[moving] = G[moving] + share[:, None] * (goal - G[moving])
+        bad = near[_quality(moved, T[near]) < min_quality]
+        if not len(bad):
+            return moved
+        hit = where[T[bad]].ravel()
+        share[np.unique(hit[hit >= 0])] *= 0.5
+    return G  # not reached: with every share 0 the tetrahedra are those of G
+
+
+def fill_surface(V: np.ndarray, F: np.ndarray, count: int, min_quality: float = 0.1,
+                 rounds: int = 4) -> tuple[np.ndarray, np.ndarray]:
+    """About ``count`` well-shaped, positively oriented tetrahedra filling the closed surface ``V``, ``F``.
+
+    A lattice of cubes cut into six tetrahedra each (:func:`box_tetrahedra`, quality 0.27), spaced for ``count``
+    tetrahedra in the surface's volume, keeps the tetrahedra whose centroid is inside (libigl's fast winding number
+    > ½) and, of them, the largest piece joined by faces. Then, ``rounds`` times, its boundary vertices move towards
+    their closest points of the surface and its inner vertices towards the mean of their neighbours, each only as far
+    as keeps every tetrahedron around it at a quality (6√2 volume / longest edge³, 1 for a regular tetrahedron) of at
+    least ``min_quality``.
+    """
+    import igl
+    import scipy.sparse as sp
+    from scipy.sparse.csgraph import connected_components
+
+    volume = abs(float(np.einsum("ij,ij->", V[F[:, 0]], np.cross(V[F[:, 1]], V[F[:, 2]])))) / 6.0
+    h = (6.0 * volume / count) ** (1.0 / 3.0)
+    low = V.min(axis=0) - h
+    cells = np.ceil((V.max(axis=0) + h - low) / h).astype(int)
+    G, T = box_tetrahedra(*cells.tolist(), size=tuple(cells * h))
+    G += low
+    T = T[np.asarray(igl.fast_winding_number(V, F, G[T].mean(axis=1))) > 0.5]
+    faces, index = _faces(T)
+    tet = np.repeat(np.arange(len(T)), 4)
+    order = np.argsort(index, kind="stable")
+    pairs = np.flatnonzero(index[order][1:] == index[order][:-1])  # a face shared by two tetrahedra
+    joined = sp.coo_matrix((np.ones(len(pairs)), (tet[order][pairs], tet[order][pairs + 1])), shape=(len(T),) * 2)
+    _, labels = connected_components(joined, directed=False)
+    T = T[labels == np.argmax(np.bincount(labels))]
+    used = np.unique(T)
+    renumber = np.full(len(G), -1, dtype=np.int64)
+    renumber[used] = np.arange(len(used))
+    G, T = G[used], renumber[T]
+    faces, index = _faces(T)
+    boundary = np.unique(faces[np.bincount(index, minlength=len(faces)) == 1])
+    inner = np.setdiff1d(np.arange(len(G)), boundary)
+    edges = T[:, [[0, 1], [0, 2], [0, 3], [1, 2], [1, 3], [2, 3]]].reshape(-1, 2)
+    A = sp.coo_matrix((np.ones(2 * len(edges)), (edges.ravel(), edges[:, ::-1].ravel())), shape=(len(G),) * 2).tocsr()
+    A.data[:] = 1.0  # each edge once, however many tetrahedra share it
+    A = sp.diags(1.0 / np.asarray(A.sum(axis=1)).ravel()) @ A
+    for _ in range(rounds):
+        G = _move(G, T, boundary, np.asarray(igl.point_mesh_squared_distance(G[boundary], V, F)[2]), min_quality)
+        G = _move(G, T, inner, (A @ G)[inner], min_quality)
+    return np.ascontiguousarray(G), np.ascontiguousarray(T, dtype=np.int64)
+
+
+def cache_folder() -> Path:
+    """The benchmarks' folder in the user's cache folder (``~/.cache/arap/benchmarks`` on Linux)."""
+    from numba.misc.appdirs import AppDirs  # what numba finds its own cache folder with (see arap.kernels.cache)
+
+    return Path(AppDirs(appname="arap", appauthor=False).user_cache_dir) / "benchmarks"
+
+
+def scan_tetrahedra(path: Path, count: int) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`fill_surface` of the scan ``path``, cached in :func:`cache_folder` by file content and ``count``."""
+    key = hashlib.sha256(path.read_bytes() + f"|{count}|{SCAN_VERSION}".encode()).hexdigest()[:24]
+    cached = cache_folder() / f"scan-{path.stem}-{key}.npz"
+    if cached.exists():
+        with np.load(cached) as saved:
+            return saved["V"], saved["T"]
+    t = time.perf_counter()
+    V, F = load_mesh(path)
+    V_tet, T = fill_surface(np.asarray(V, dtype=np.float64), np.asarray(F, dtype=np.int64), count)
+    print(f"  filled {path.name} with {len(T)} tetrahedra in {time.perf_counter() - t:.1f} s (cached in {cached})")
+    cached.parent.mkdir(parents=True, exist_ok=True)
+    with atomic_output(cached) as out:
+        np.savez(out, V=V_tet, T=T)
+    return V_tet, T
 
 
 def scenario(name: str, quick: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, int]:
@@ -47,9 +160,13 @@ def scenario(name: str, quick: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray
     elif name == "tet bar 30x6x6":
         V, T = box_tetrahedra(15, 3, 3) if quick else box_tetrahedra(30, 6, 6)
         angle, iterations = 2 * np.pi / 3, 300
-    else:  # "tet bar 100k"
+    elif name == "tet bar 100k":
         V, T = box_tetrahedra(20, 4, 4) if quick else box_tetrahedra(60, 12, 24)
         angle, iterations = 2 * np.pi / 3, 300
+    else:  # "tet scan": the armadillo filled with tetrahedra, feet held, head turned 90° about the vertical
+        V, T = scan_tetrahedra(SCAN, SCAN_TETRAHEDRA[quick])
+        turned = twist(V, axis=1, share=0.1, angle=np.pi / 2)
+        return V, T, turned.constrained, turned.targets, 300
     x = V[:, 0]
     left = np.flatnonzero(x <= x.min() + 1e-9)
     right = np.flatnonzero(x >= x.max() - 1e-9)
@@ -103,7 +220,7 @@ def main() -> None:
     parser.add_argument("--quick", action="store_true", help="small meshes, for a smoke run")
     parser.add_argument("--igl-iterations", type=int, default=None, help="libigl's iterations (default per scenario)")
     parser.add_argument("--scenarios", nargs="*", default=["strip with a hole", "planar 50k", "tet bar 30x6x6",
-                                                            "tet bar 100k"])
+                                                            "tet bar 100k", "tet scan"])
     add_json_option(parser, "bench_elements")
     args = parser.parse_args()
     # warm-up: compile the kernels on a tiny problem of each kind
@@ -112,6 +229,9 @@ def main() -> None:
         ArapSolver(V, T, b).solve(bc, max_iterations=3)
     figures, data = [], {}
     for name in args.scenarios:
+        if name == "tet scan" and not SCAN.exists():
+            print(f"{name}: skipped, the scan {SCAN} is not there")
+            continue
         V, T, b, bc, default_iterations = scenario(name, args.quick)
         iterations = args.igl_iterations or default_iterations
         igl_run = run_igl(V, T, b, bc, iterations)
