@@ -190,3 +190,18 @@ def test_the_start_is_the_shape_the_solve_began_from_even_when_moved_in_place() 
     unfold = Unfolder(T, rest, U, nf=1)
     U[0, :2] = [0.5, -0.3]  # the solve moves its iterate, which is the start it was given, in place
     assert unfold.turned_over(U).tolist() == [0]
+
+
+def test_a_callback_that_stops_the_opened_run_leaves_the_solve_there(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Stopped two iterations into the opened run, the solve returns there: every iteration the callback saw, and
+    the energy of the iterate returned last."""
+    V, F, b, targets = _turned_rectangle(60, 30)
+    full, _ = _solve(V, F, b, targets, monkeypatch, unfolding=True)
+    opened_at = int(np.flatnonzero(np.diff(full.energies) > 1e-12 * full.energies[0])[0]) + 2  # the first opened
+    stop_at = opened_at + 2
+    seen: list[float] = []
+    result = arap.ArapSolver(V, F, b).solve(targets, initial="rest",
+                                            callback=lambda k, e: seen.append(e) is None and k < stop_at)
+    assert not result.converged and result.iterations == len(seen) == stop_at
+    assert result.energies == seen == full.energies[:stop_at]
+    assert result.energies[-1] == pytest.approx(arap.arap_energy(V, F, result.vertices), rel=1e-9)
