@@ -14,9 +14,10 @@ from arap.solve.iteration import make_iterate
 pytestmark = pytest.mark.filterwarnings("ignore::DeprecationWarning")
 
 
-def _turned_rectangle(nx: int, ny: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """A rectangle, its left end held and its right end turned 90° about its centre."""
-    V, F = arap.rectangle_triangles(nx, ny)
+def _turned_rectangle(nx: int, ny: int, hole: tuple[float, float, float] | None = None
+                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """A rectangle (with a round hole), its left end held and its right end turned 90° about its centre."""
+    V, F = arap.rectangle_triangles(nx, ny, hole=hole)
     x = V[:, 0]
     left, right = np.flatnonzero(x <= x.min() + 1e-9), np.flatnonzero(x >= x.max() - 1e-9)
     c = V[right].mean(axis=0)
@@ -25,12 +26,15 @@ def _turned_rectangle(nx: int, ny: int) -> tuple[np.ndarray, np.ndarray, np.ndar
 
 
 def _solve(V: np.ndarray, F: np.ndarray, b: np.ndarray, targets: np.ndarray, monkeypatch: pytest.MonkeyPatch,
-           unfolding: bool) -> tuple[arap.ArapResult, np.ndarray]:
-    """A solve from the rest pose, with or without unfolding; and the elements it turned over."""
+           unfolding: bool, seen: list[float] | None = None) -> tuple[arap.ArapResult, np.ndarray]:
+    """A solve from the rest pose, with or without unfolding (the energies passed to the callback into ``seen``);
+    and the elements it turned over."""
     with monkeypatch.context() as patch:
         if not unfolding:
             patch.setattr(Unfolder, "__call__", lambda self, U: False)
-        result = arap.ArapSolver(V, F, b).solve(targets, initial="rest")
+            patch.setattr(Unfolder, "settled", lambda self, U, before, e, most: False, raising=False)
+        callback = None if seen is None else (lambda k, e: seen.append(e) is None)
+        result = arap.ArapSolver(V, F, b).solve(targets, initial="rest", callback=callback)
     lift = (lambda X: np.column_stack([X, np.zeros(len(X))])) if V.shape[1] == 2 else (lambda X: X)
     start = V.copy()
     start[b] = targets
@@ -58,8 +62,9 @@ def test_the_unfolder_opens_only_what_the_solve_turned_over() -> None:
 
 
 def test_a_solve_that_turned_elements_over_resumes_to_a_lower_minimum(monkeypatch: pytest.MonkeyPatch) -> None:
-    """The 60×30 rectangle turned 90°: L-BFGS turns three triangles over and stops at a folded minimum; opened, the
-    solve goes on to a lower one with fewer folds."""
+    """The 60×30 rectangle turned 90°: L-BFGS turns three triangles over and stops at a folded minimum; opened once
+    the energy settles, the solve goes on to a lower one with fewer folds, in fewer iterations than the folded
+    solve and a second solve from its result would take."""
     V, F, b, targets = _turned_rectangle(60, 30)
     folded, turned_before = _solve(V, F, b, targets, monkeypatch, unfolding=False)
     result, turned = _solve(V, F, b, targets, monkeypatch, unfolding=True)
@@ -69,8 +74,67 @@ def test_a_solve_that_turned_elements_over_resumes_to_a_lower_minimum(monkeypatc
     assert e < e_folded - 1e-7 * e_folded
     # the energies rise once, where the folds were opened, and never again
     rises = np.flatnonzero(np.diff(result.energies) > 1e-12 * result.energies[0])
-    assert len(rises) == 1 and rises[0] == folded.iterations - 1
+    assert len(rises) == 1 and rises[0] < folded.iterations - 1  # opened before the folded solve converged
     assert result.energies[-1] == pytest.approx(e, rel=1e-9)
+    assert result.iterations <= folded.iterations + 20  # opening after convergence took 32 more
+
+
+# The rectangles (and the strip with a hole) turned 90°: the elements libigl's elements solver (1,000 iterations from
+# the same start) ends with turned over, and the iterations the solve took when it opened folds only once converged.
+LIBIGL_TURNED = {(60, 30): 1, (80, 40): 2, (100, 50): 2, (120, 60): 2}
+ITERATIONS_BEFORE = {(60, 30): 89, (80, 40): 94, (100, 50): 109, (120, 60): 119}
+
+
+@pytest.mark.parametrize("nx, ny", [(60, 30), (80, 40), (100, 50), (120, 60)])
+def test_unfolding_ends_no_higher_and_no_more_folded_than_libigl(monkeypatch: pytest.MonkeyPatch, nx: int,
+                                                                 ny: int) -> None:
+    """Opened or not (the opened run is given up when it settles no lower, or with more folds: the strip with a hole
+    would reach a lower minimum with three folds), the result is no higher than the solve that never opens folds,
+    has no more elements turned over than that solve or libigl, and takes fewer iterations than opening after
+    convergence did; every iteration is counted."""
+    V, F, b, targets = _turned_rectangle(nx, ny, hole=(1.0, 0.5, 0.25) if nx == 120 else None)
+    folded, turned_before = _solve(V, F, b, targets, monkeypatch, unfolding=False)
+    seen: list[float] = []
+    result, turned = _solve(V, F, b, targets, monkeypatch, unfolding=True, seen=seen)
+    assert result.converged
+    e_folded, e = arap.arap_energy(V, F, folded.vertices), arap.arap_energy(V, F, result.vertices)
+    assert e <= e_folded + 1e-9 * e_folded
+    assert len(turned) <= min(len(turned_before), LIBIGL_TURNED[nx, ny])
+    assert result.iterations < ITERATIONS_BEFORE[nx, ny]
+    assert seen == result.energies and result.iterations == len(seen)
+    assert result.energies[-1] == pytest.approx(e, rel=1e-9)
+    assert len(np.flatnonzero(np.diff(result.energies) > 1e-12 * result.energies[0])) <= 1
+
+
+def test_a_given_up_opening_is_counted(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The 80×40 rectangle turned 90°: opened, the solve settles back at the folded minimum and goes back to where it
+    opened; the iterations it spent are in the result (the callback saw them all), which ends at the folded
+    minimum."""
+    V, F, b, targets = _turned_rectangle(80, 40)
+    folded, _ = _solve(V, F, b, targets, monkeypatch, unfolding=False)
+    seen: list[float] = []
+    result, _ = _solve(V, F, b, targets, monkeypatch, unfolding=True, seen=seen)
+    assert result.iterations == len(result.energies) == len(seen) > folded.iterations
+    assert seen == result.energies
+    assert arap.arap_energy(V, F, result.vertices) == pytest.approx(arap.arap_energy(V, F, folded.vertices), rel=1e-9)
+    assert result.energies[-1] == pytest.approx(arap.arap_energy(V, F, result.vertices), rel=1e-9)
+
+
+def test_surface_element_solves_never_unfold(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A surface's element solve builds no unfolder: its result is bit-identical with the unfolding unreachable."""
+    V, F = arap.sphere(2)
+    b = np.array([0, int(np.argmin(V[:, 2]))])
+    targets = V[b] + [[0.0, 0.0, 0.4], [0.0, 0.0, 0.0]]
+    reference = arap.ArapSolver(V, F, b, energy="elements").solve(targets, initial="rest", max_iterations=300)
+
+    def unreachable(*args: object) -> None:
+        raise AssertionError("a surface solve built an unfolder")
+
+    with monkeypatch.context() as patch:
+        patch.setattr(Unfolder, "__init__", unreachable)
+        result = arap.ArapSolver(V, F, b, energy="elements").solve(targets, initial="rest", max_iterations=300)
+    assert result.iterations == reference.iterations and result.energies == reference.energies
+    assert np.array_equal(result.vertices, reference.vertices)
 
 
 def test_solves_without_folds_are_unchanged(monkeypatch: pytest.MonkeyPatch) -> None:
@@ -126,3 +190,18 @@ def test_the_start_is_the_shape_the_solve_began_from_even_when_moved_in_place() 
     unfold = Unfolder(T, rest, U, nf=1)
     U[0, :2] = [0.5, -0.3]  # the solve moves its iterate, which is the start it was given, in place
     assert unfold.turned_over(U).tolist() == [0]
+
+
+def test_a_callback_that_stops_the_opened_run_leaves_the_solve_there(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Stopped two iterations into the opened run, the solve returns there: every iteration the callback saw, and
+    the energy of the iterate returned last."""
+    V, F, b, targets = _turned_rectangle(60, 30)
+    full, _ = _solve(V, F, b, targets, monkeypatch, unfolding=True)
+    opened_at = int(np.flatnonzero(np.diff(full.energies) > 1e-12 * full.energies[0])[0]) + 2  # the first opened
+    stop_at = opened_at + 2
+    seen: list[float] = []
+    result = arap.ArapSolver(V, F, b).solve(targets, initial="rest",
+                                            callback=lambda k, e: seen.append(e) is None and k < stop_at)
+    assert not result.converged and result.iterations == len(seen) == stop_at
+    assert result.energies == seen == full.energies[:stop_at]
+    assert result.energies[-1] == pytest.approx(arap.arap_energy(V, F, result.vertices), rel=1e-9)

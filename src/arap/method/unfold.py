@@ -2,18 +2,18 @@
 
 The element energy ``|τ| ‖J − R‖²_F`` has no barrier at zero area or volume: a long L-BFGS step can push a thin
 element through it, and the solve can then settle in a nearby minimum with that element folded, of higher energy
-than the fold-free one (a 50k-vertex rectangle turned 90° at one end: two folded triangles, 8e-7 relatively above
-libigl's energy, where libigl's plain iteration keeps every triangle positive). Bounding every step so that no
-element turns over keeps the solve in the fold-free basin but costs many iterations: on the way, L-BFGS's steps turn
-healthy elements over and back (the 103k-tetrahedron bar ends with none inverted, yet its steps would have been cut
-138 times, 55 iterations becoming 200).
+than a minimum without it. Bounding every step so that no element turns over would keep the solve out of such
+minima, but L-BFGS's steps turn healthy elements over and back on the way to fold-free results, and cutting those
+steps costs many iterations.
 
-So the solve goes on unbounded, and only a converged iterate with elements turned over is looked at: an element
-positively oriented (in its rest orientation) at the start of the solve and not at the end was folded by the solve,
-not by the targets. Its free vertices and their neighbours are moved to the mean of their neighbours a few times
-(Jacobi sweeps of the uniform Laplacian), which opens the fold in place at a small rise of the energy, and the solve
-resumes from there (see :func:`arap.solve.loops.lbfgs_iterations`); it keeps the result only if its energy ends
-lower.
+So the solve goes on unbounded, and the iterate is looked at once the energy has settled: an element positively
+oriented (in its rest orientation) at the start of the solve and not there was folded by the solve, not by the
+targets. Its free vertices and their neighbours are moved to the mean of their neighbours a few times (Jacobi sweeps
+of the uniform Laplacian), which opens the fold in place at a small rise of the energy, and the solve resumes from
+there (see :func:`arap.solve.loops.lbfgs_iterations`). Opening as soon as the energy settles, rather than after
+convergence, saves the iterations that would only refine the folded minimum; the opened run is kept only if it ends
+lower with no more elements turned over, and is given up as soon as it settles otherwise (the energy alone would
+sometimes keep a lower minimum with more folds). The figures are in ``benchmarks/bench_elements.py``.
 """
 
 from __future__ import annotations
@@ -24,10 +24,15 @@ from numpy.typing import NDArray
 
 from arap.meshes.domain import signed_measures
 
-__all__ = ["SMOOTHING_SWEEPS", "Unfolder"]
+__all__ = ["SETTLED", "SMOOTHING_SWEEPS", "Unfolder"]
 
 SMOOTHING_SWEEPS = 20
 """Jacobi sweeps of neighbour averaging over the vertices around the folded elements."""
+
+SETTLED = 1e-6
+"""The energy has settled when an iteration lowers it by at most this much of it. Folds are opened then; a looser
+threshold opens folds that later iterations would have opened themselves (the 60×30 rectangle at 1e-5 ends in its
+folded minimum), a tighter one spends iterations refining the folded minimum."""
 
 
 class Unfolder:
@@ -121,3 +126,8 @@ class Unfolder:
         for _ in range(SMOOTHING_SWEEPS):
             U[rows] = (A_rows @ U) / degree
         return True
+
+    def settled(self, U: NDArray[np.float64], before: float, energy: float, most: int) -> bool:
+        """True when an iteration that ended at ``U`` lowered the energy from ``before`` to ``energy`` by at most
+        :data:`SETTLED` of it, with more than ``most`` elements turned over at ``U``."""
+        return before - energy <= SETTLED * abs(energy) and len(self.turned_over(U)) > most

@@ -4,8 +4,8 @@ and L-BFGS preconditioned by the global step.
 Both act on an :class:`Iterate`, which the solver builds for one call: the positions, the local step, the
 right-hand side (and the global step's residual), the back-substitution and the point-handle correction. Energies
 never rise from one iteration to the next: Anderson's extrapolations and L-BFGS's line search fall back on the
-plain step, which cannot raise the energy. The one exception: an element solve that converged with elements it
-turned over opens them (:mod:`arap.method.unfold`), and goes on from there only to end lower.
+plain step, which cannot raise the energy. The one exception: an element solve that settles with elements it turned
+over opens them (:mod:`arap.method.unfold`), and goes on from there.
 """
 
 from __future__ import annotations
@@ -17,6 +17,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from numpy.typing import NDArray
 
+from arap.method.unfold import Unfolder
 from arap.solve.anderson import AndersonAccelerator
 from arap.solve.lbfgs import LbfgsHistory, difference_norm, step_dot, step_norm, subtract_norm
 from arap.solve.result import IterationCallback
@@ -81,9 +82,9 @@ class Iterate:
         :meth:`arap.solve.lbfgs.LbfgsHistory.update`). Its longer steps can end in another minimum of an energy with
         several (the spokes energy with negative cotangent weights), so the solver asks for it only where every
         cell's energy is a sum of non-negative terms.
-    unfold : callable or None
-        ``unfold(U) -> bool``: opens, in place, the elements that the solve turned over at a converged ``U``; False
-        if there were none (:class:`arap.method.unfold.Unfolder`, element energies only). None: nothing is unfolded.
+    unfold : Unfolder or None
+        Opens the elements that the solve turned over (:class:`arap.method.unfold.Unfolder`, planar and solid element
+        energies only). None: nothing is unfolded.
     """
 
     U: Array
@@ -101,7 +102,7 @@ class Iterate:
     callback: IterationCallback | None
     timings: dict[str, float]
     scale_initial: bool = False
-    unfold: Callable[[Array], bool] | None = None
+    unfold: Unfolder | None = None
 
 
 @dataclass
@@ -189,10 +190,14 @@ def lbfgs_iterations(it: Iterate, energy: float | None, history: LbfgsHistory, p
     lowered it, then the residual at the new iterate. The plain step's size, the convergence measure, costs a
     back-substitution: it is taken when the step was small, every ``CHECK_EVERY`` iterations, and at the end.
 
-    When the solve converges with elements it turned over and ``it.unfold`` opens them, the iteration resumes from
-    there (L-BFGS at once, with a new history, within what is left of ``it.cap``). Its result is kept if its energy
-    ends lower, and then the energies rise once, where the folds were opened; otherwise the first result is restored
-    (and the further iterations, already passed to the callback, are not counted).
+    When the energy settles with elements the solve turned over (:meth:`arap.method.unfold.Unfolder.settled`: an
+    iteration lowered it by at most :data:`arap.method.unfold.SETTLED` of it, before it converged) or converges with
+    them, ``it.unfold`` opens them and the iteration goes on from there (L-BFGS at once, with a new history). That run
+    is kept if it ends lower than the iterate it opened, with no more elements turned over; it is given up as soon as
+    it settles at or above that energy or with more elements turned over, and then the iteration goes on from the
+    iterate it opened (without opening again). One iteration of ``it.cap`` is kept back for that. Every iteration,
+    given up or not, is in the outcome's energies (and was passed to the callback); they rise once, where the
+    elements were opened. A callback that stops the opened run leaves the solve where it is.
 
     Parameters
     ----------
@@ -205,26 +210,52 @@ def lbfgs_iterations(it: Iterate, energy: float | None, history: LbfgsHistory, p
     plain_start : int
         The first this many iterations take the plain step and keep no curvature pair (see :data:`PLAIN_START`).
     """
-    out = _lbfgs_run(it, energy, history, plain_start)
-    if it.unfold is None or not out.converged or len(out.energies) >= it.cap:
-        return out
+    unfold = it.unfold
+    if unfold is None or it.cap < 3:
+        return _lbfgs_run(it, energy, history, plain_start)
     nf, U = it.nf, it.U
-    kept = U[:nf].copy()
-    if not it.unfold(U):
+    settled = False  # the last run was stopped by its watch
+
+    def watch(most: int, ceiling: float = np.inf) -> Callable[[float, float], bool]:
+        """Stop when the energy settles with more than ``most`` elements turned over, or at ``ceiling`` or above."""
+        def stop(before: float, e: float) -> bool:
+            nonlocal settled
+            settled = unfold.settled(U, before, e, -1 if e >= ceiling else most)
+            return settled
+        return stop
+
+    out = _lbfgs_run(it, energy, history, plain_start, watch(0))
+    if not (out.converged or settled) or len(out.energies) >= it.cap - 1:
         return out
-    done, callback = len(out.energies), it.callback
-    shifted = None if callback is None else (lambda k, e: callback(k + done, e))
-    resumed = replace(it, cap=it.cap - done, callback=shifted, unfold=None)
-    more = _lbfgs_run(resumed, it.local(U), history, 0)
-    if more.energies and more.energies[-1] < out.energies[-1]:
-        return Outcome(out.energies + more.energies, more.converged, more.residual, out.rejected + more.rejected)
+    folds, kept, e_kept = len(unfold.turned_over(U)), U[:nf].copy(), out.energies[-1]
+    if not unfold(U):
+        return out if out.converged else _resume(it, out, history, e_kept, None)
+    # One iteration is kept back for the restored iterate. The opened run is given up as soon as it settles with
+    # more elements turned over than there were, or not below the kept energy.
+    settled = False
+    opened = _resume(replace(it, cap=it.cap - 1), out, history, it.local(U), watch(folds, e_kept))
+    if not (opened.converged or settled or len(opened.energies) >= it.cap - 1):
+        return opened  # stopped by the callback
+    if not settled and opened.energies[-1] < e_kept and len(unfold.turned_over(U)) <= folds:
+        return opened
     U[:nf] = kept
-    it.local(U)  # the rotations (and cell energies) of the restored iterate
-    return out
+    return _resume(it, opened, history, it.local(U), None)
 
 
-def _lbfgs_run(it: Iterate, energy: float | None, history: LbfgsHistory, plain_start: int) -> Outcome:
-    """One run of :func:`lbfgs_iterations`'s iteration, without unfolding."""
+def _resume(it: Iterate, before: Outcome, history: LbfgsHistory, energy: float,
+            watch: Callable[[float, float], bool] | None) -> Outcome:
+    """L-BFGS from ``it.U`` (at ``energy``, the rotations fitted to it), with a new history, after the iterations of
+    ``before`` and within what is left of ``it.cap``: the outcome of both."""
+    done, callback = len(before.energies), it.callback
+    shifted = None if callback is None else (lambda k, e: callback(k + done, e))
+    more = _lbfgs_run(replace(it, cap=it.cap - done, callback=shifted), energy, history, 0, watch)
+    return Outcome(before.energies + more.energies, more.converged, more.residual, before.rejected + more.rejected)
+
+
+def _lbfgs_run(it: Iterate, energy: float | None, history: LbfgsHistory, plain_start: int,
+               watch: Callable[[float, float], bool] | None = None) -> Outcome:
+    """One run of :func:`lbfgs_iterations`'s iteration, without unfolding; ``watch(previous energy, energy)`` after
+    an iteration, True: stop there."""
     out = Outcome()
     nf, U, timings = it.nf, it.U, it.timings
     history.reset()
@@ -296,14 +327,15 @@ def _lbfgs_run(it: Iterate, energy: float | None, history: LbfgsHistory, plain_s
                                step_dot(U[:nf], x, rhs) - before if it.scale_initial else None)
         grad, new_grad = new_grad, grad
         fresh = True
-        energy = e
+        previous, energy = energy, e
         out.energies.append(e)
         stop = it.callback is not None and it.callback(k, e) is False
         if check:
             out.residual, residual_at = subtract_norm(plain_step_from_here(), U[:nf]) / it.scale, k
             if out.residual * it.scale <= it.step_limit:
                 out.converged = True
-        if out.converged or stop or k == it.cap:
+        if out.converged or stop or k == it.cap or (
+                watch is not None and previous is not None and watch(previous, e)):
             break
         x[:] = U[:nf]  # the next iteration's base (the loop's last iterate is read from U)
         base = x

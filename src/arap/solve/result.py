@@ -37,7 +37,8 @@ class ArapResult:
     energies : list of float
         ARAP energy (with optimal rotations) after each iteration.
     iterations : int
-        Iterations run.
+        Iterations run: every one passed to the callback, one per entry of ``energies`` (with those of a run an
+        element solve gave up after opening the elements it turned over, see :func:`arap.solve.loops.lbfgs_iterations`).
     converged : bool
         True if the last iteration's plain step was within ``tolerance`` (see :meth:`ArapSolver.solve`); False when
         the iteration cap or the callback stopped it first.

@@ -297,7 +297,7 @@ class ArapSolver:
         -------
         ArapResult
             Its ``energies`` never rise from one iteration to the next, but once where an element solve opens the
-            elements it turned over (:mod:`arap.method.unfold`), to end lower.
+            elements it turned over (:mod:`arap.method.unfold`), to end lower than where it opened them.
         """
         t_start = time.perf_counter()
         p, state = self.prepared, self._state
