@@ -13,11 +13,13 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from arap.errors import OptionError
+from arap.meshes.grids import box_tetrahedra
 from arap.meshes.shapes import sphere, sphere_frequency_for
 from arap.solve.solver import ArapSolver
 from arap.sparse.linsolve import (
     BACKEND_ENV,
     BACKENDS,
+    LARGE_SOLID_SYSTEM,
     LARGE_SYSTEM,
     ORDERINGS,
     NotPositiveDefiniteError,
@@ -131,6 +133,21 @@ def test_default_backend_follows_the_system_size(monkeypatch: pytest.MonkeyPatch
     assert small == ("cholespy" if "cholespy" in found else found[0])
     large = default_backend(LARGE_SYSTEM)
     assert large == ("sksparse" if HAVE_SKSPARSE else small)
+
+
+def test_a_solid_takes_the_large_backend_from_fewer_unknowns(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.delenv(BACKEND_ENV, raising=False)
+    assert LARGE_SOLID_SYSTEM < LARGE_SYSTEM
+    small = default_backend(LARGE_SOLID_SYSTEM - 1, solid=True)
+    assert small == default_backend(LARGE_SOLID_SYSTEM - 1)
+    assert default_backend(LARGE_SOLID_SYSTEM, solid=True) == ("sksparse" if HAVE_SKSPARSE else small)
+    assert default_backend(LARGE_SOLID_SYSTEM) == small  # a surface of as many unknowns keeps the small one
+    V, T = box_tetrahedra(28, 20, 20)  # 12,789 vertices, 11,760 unknowns with both ends held
+    x = V[:, 0]
+    ends = np.flatnonzero((x <= x.min() + 1e-9) | (x >= x.max() - 1e-9))
+    solver = ArapSolver(V, T, ends)
+    assert solver.system_size >= LARGE_SOLID_SYSTEM
+    assert solver.backend == default_backend(solver.system_size, solid=True)
 
 
 @pytest.mark.parametrize("name", available_backends())

@@ -47,7 +47,7 @@ from arap.solve.indexing import check_index_array, internal_origin, rows_of, wit
 from arap.solve.loose import FollowingParts
 from arap.solve.partition import check_point_targets, check_positions, check_reach, check_targets, partition_vertices
 from arap.sparse._csr import SparseRowsProduct, leading_blocks
-from arap.sparse.linsolve import Factor, NotPositiveDefiniteError, background_ordering, factorize
+from arap.sparse.linsolve import Factor, NotPositiveDefiniteError, background_ordering, default_backend, factorize
 
 __all__ = ["Numbering", "Prepared", "prepare"]
 
@@ -386,6 +386,7 @@ def prepare(V: NDArray[np.floating] | MeshLike, F: NDArray[np.integer] | None = 
         loose=loose != "error")
     numbering = _number_vertices(graph, n, adjacency, free, given.constrained, energy == "smooth_rotations")
     perm, inv, nf = numbering.perm, numbering.inv, numbering.nf
+    backend = backend or default_backend(nf, solid=domain.kind == "solid")
     # The reduced system's fill-reducing ordering needs only its pattern: it runs beside the set-up below.
     ordering = background_ordering(adjacency, perm, nf, backend)
 

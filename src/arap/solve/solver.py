@@ -97,8 +97,8 @@ class ArapSolver:
         raises UnconstrainedRegionError naming it; ``hold`` keeps it at rest; ``follow`` moves it with the rigid
         motion of the constrained surface nearest to it (see :mod:`arap.solve.loose`).
     backend : str or None
-        Sparse Cholesky backend (see :mod:`arap.sparse.linsolve`); None chooses by system size
-        (:func:`arap.sparse.linsolve.default_backend`).
+        Sparse Cholesky backend (see :mod:`arap.sparse.linsolve`); None chooses by system size and whether the mesh
+        is a solid (:func:`arap.sparse.linsolve.default_backend`).
 
     Notes
     -----

@@ -19,8 +19,9 @@ The default (:func:`default_backend`) trades factorisation time against solve ti
 factor keeps the zeros of CHOLMOD's relaxed supernodes and solves noticeably slower, at every size (both are measured
 side by side by ``benchmarks/bench_scaling.py --backends sksparse cholespy``). So cholespy is the default below
 :data:`LARGE_SYSTEM` unknowns, where it also factorises as fast, and scikit-sparse above, where factorisation
-dominates. The environment variable :data:`BACKEND_ENV` (``ARAP_BACKEND``) names one backend for every size instead,
-e.g. to run the tests with a backend they would not otherwise use (``.ci/run`` runs the core tests once with
+dominates; for a tetrahedral solid, whose factor fills much more, scikit-sparse from :data:`LARGE_SOLID_SYSTEM`.
+The environment variable :data:`BACKEND_ENV` (``ARAP_BACKEND``) names one backend for every size instead, e.g. to run
+the tests with a backend they would not otherwise use (``.ci/run`` runs the core tests once with
 ``ARAP_BACKEND=sksparse``); a backend named in a call still wins.
 """
 
@@ -57,6 +58,10 @@ ORDERINGS: tuple[str, ...] = ("metis", "nesdis", "amd")
 DEFAULT_ORDERING: Ordering = "metis"
 LARGE_SYSTEM = 250_000
 """Unknowns from which the default backend is ``sksparse`` (when installed)."""
+LARGE_SOLID_SYSTEM = 10_000
+"""Unknowns from which the default backend of a tetrahedral solid's system is ``sksparse`` (when installed): the
+fill of a volume's factor grows much faster than a surface's, so METIS' nested dissection and the supernodal
+factorisation pay at far fewer unknowns (``benchmarks/bench_elements.py``'s tetrahedra)."""
 BACKEND_ENV = "ARAP_BACKEND"
 """Environment variable naming the default backend for every size (one of :data:`BACKENDS`; unset or empty: by size,
 see :func:`default_backend`)."""
@@ -248,19 +253,22 @@ def available_backends() -> list[str]:
     return found
 
 
-def default_backend(size: int) -> str:
+def default_backend(size: int, solid: bool = False) -> str:
     """The backend :func:`factorize` uses for a ``size`` × ``size`` matrix when none is named.
 
     Parameters
     ----------
     size : int
         Number of unknowns.
+    solid : bool
+        The matrix is a tetrahedral solid's (:data:`LARGE_SOLID_SYSTEM` instead of :data:`LARGE_SYSTEM`).
 
     Returns
     -------
     str
         The backend named by the environment variable :data:`BACKEND_ENV` if set; else ``sksparse`` from
-        :data:`LARGE_SYSTEM` unknowns on if installed, else ``cholespy`` if installed, else the first available.
+        :data:`LARGE_SYSTEM` unknowns on (:data:`LARGE_SOLID_SYSTEM` for a solid) if installed, else ``cholespy``
+        if installed, else the first available.
 
     Raises
     ------
@@ -273,7 +281,7 @@ def default_backend(size: int) -> str:
             raise OptionError(f"{BACKEND_ENV}={forced!r} names no backend; expected one of {BACKENDS}")
         return forced
     found = available_backends()
-    if size >= LARGE_SYSTEM and "sksparse" in found:
+    if size >= (LARGE_SOLID_SYSTEM if solid else LARGE_SYSTEM) and "sksparse" in found:
         return "sksparse"
     return "cholespy" if "cholespy" in found else found[0]
 
