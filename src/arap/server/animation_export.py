@@ -299,7 +299,7 @@ def _export(session: Session, times_ms: Sequence[int] | np.ndarray, transforms: 
     """
     from arap.animation import frame_times
 
-    mesh = session._require_mesh()
+    mesh = session.require_mesh()
     solver = session.solver
     if solver is None:
         raise RequestError("bad_constraints", "nothing to solve: select fixed vertices or handles first")
@@ -370,7 +370,7 @@ def _solve_and_encode(session: Session, mine: dict[str, Any], frames_keys: Keyfr
                       ) -> tuple[str, str, bytes, int, float]:
     """Solve the frames at times ``frame_t`` and encode them (see :func:`_export`); ``rings``: the targets at a time
     of the hidden rings of the pins that hold an angle (:func:`_ring_targets`)."""
-    mesh = session._require_mesh()
+    mesh = session.require_mesh()
     solver = session.solver
     assert solver is not None
     cs = session.constraints

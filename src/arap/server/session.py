@@ -1,16 +1,18 @@
-"""The requests of one studio editing session: load a mesh, set constraints, drag, settle, change parameters,
-undo, redo, reset, apply, export and describe the constraints.
+"""One studio editing session: what it holds (the mesh, rest pose, shape, constraint set, solver and parameters, the
+undo history, the keyframes' kept shapes) and its requests: load a mesh, set constraints, drag, settle, change
+parameters, undo, redo, reset, apply, export and describe the constraints.
 
 A :class:`Session` is synchronous and not thread-safe: the server calls it from one worker at a time (on a
 thread, since solves and factorisations take a while). Every request either succeeds or raises a
 :class:`~arap.server.session_errors.SessionError` and leaves the session unchanged; the session knows nothing of
-the wire protocol (the transports' layer turns its refusals into ``error`` messages). What it holds, and the
-bookkeeping the requests share, is :class:`~arap.server.session_state.SessionState`.
+the wire protocol (the transports' layer turns its refusals into ``error`` messages). Its state is its own: other
+modules read its attributes and change them only through its methods.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import logging
 import math
 import time
 from collections.abc import Callable
@@ -21,20 +23,24 @@ import numpy as np
 
 from arap.errors import ArapError
 from arap.meshes.domain import check_domain
+from arap.meshes.mesh import bounding_box
 from arap.method.weights import WeightType
 from arap.options import EnergyType, LoosePartsMode
 from arap.render.show import show
 from arap.server.appearance import Look, export_asset
 from arap.server.constraints import ConstraintSet, identity_transforms, matrices_from_json, turn_of
+from arap.server.history import History, Snapshot
 from arap.server.mesh_model import MeshData
-from arap.server.numbering import document_in_file_numbering
+from arap.server.numbering import document_in_file_numbering, message_in_file_numbering
 from arap.server.records import DragOutcome, Params, SettleOutcome
-from arap.server.session_errors import BadValues, ConstraintsRejected, SolveFailed, UnusableMesh
-from arap.server.session_state import SessionState
+from arap.server.session_errors import BadValues, ConstraintsRejected, NoMesh, SolveFailed, UnusableMesh
 from arap.server.settling import FrameCallback
 from arap.server.solve_calls import check_target_range, checked_settle, solve_for_targets
+from arap.server.solvers import SolverCache, StudioSolver
 
 __all__ = ["MAX_KEPT_SHAPES", "Session"]
+
+logger = logging.getLogger(__name__)
 
 MAX_KEPT_SHAPES = 64
 """Most keyframe shapes a session keeps (:meth:`Session.keep_shape`); the oldest goes first."""
@@ -45,7 +51,7 @@ _GIVEN_AT_TARGETS = 2.0**-18
 targets: it knows shapes as float32 frames, and a restored timeline poses them with transforms rebased on them."""
 
 
-class Session(SessionState):
+class Session:
     """One client's editing session.
 
     Parameters
@@ -56,6 +62,174 @@ class Session(SessionState):
         Memory budget of the undo history.
     """
 
+    def __init__(self, max_history_steps: int = 100, max_history_bytes: int = 512 * 2**20) -> None:
+        self.mesh: MeshData | None = None
+        """The loaded mesh (None before the first :meth:`load`)."""
+        self.look: Look | None = None
+        """The mesh file's colours, texture and render mesh (None for a plain mesh)."""
+        self.params: Params = Params()
+        """The solver's parameters (kept across meshes)."""
+        self.history: History = History(max_history_steps, max_history_bytes)
+        """The undo history: one snapshot of the state per step."""
+        self.rest_id: int = 0
+        """Number of the rest pose ``V``: a new one with each mesh and each :meth:`apply`."""
+        self._rest_counter: int = 0
+        """The last rest pose number handed out."""
+        self.V: np.ndarray = np.zeros((0, 3))
+        """The rest pose, (n, 3), never modified in place."""
+        self.U: np.ndarray = self.V
+        """The deformed shape shown, (n, 3), never modified in place (a new shape is a new array)."""
+        self.constraints: ConstraintSet = ConstraintSet.empty(self.V)
+        """The constraint set: region, fixed vertices, handle groups and point handles, on the pose it was made on."""
+        self.transforms: np.ndarray = identity_transforms(0)
+        """One 4×4 transform per handle group, then per point handle, relative to the constraint set's pose."""
+        self._solvers: SolverCache = SolverCache()
+        """The factorised solvers of the constraint sets used last."""
+        self.solver: StudioSolver | None = None
+        """The factorised solver of the current constraints (None when nothing is constrained or they cannot be
+        solved)."""
+        self._unsolvable: str | None = None
+        """Why the solver rejected the constraints an undo or redo restored (``solver`` is then None)."""
+        self._warm: bool = False
+        """Whether the solver's last solution is the shape ``U`` (the next solve starts from it)."""
+        self._dirty: bool = False
+        """Whether the shape moved since the last history step (a drag under way)."""
+        self.solves: int = 0
+        """Solves run for drags, loaded targets and pins' angles (settling runs not counted)."""
+        self.settled: bool = True
+        """Whether the shape is converged for the constraints (or settling gave up on it): nothing to settle."""
+        self.energy: float | None = 0.0
+        """Energy of the shape ``U`` when known (0 at a rest pose)."""
+        self._diagonal: tuple[int, float] = (-1, 0.0)
+        """The rest pose's number and its bounding-box diagonal, computed once per rest pose."""
+        self.pin_depth: list[int] = []
+        """A picture's depth per point handle (pin): larger ones' parts are drawn over smaller ones' (none: 0)."""
+        self.kept_shapes: dict[int, np.ndarray] = {}
+        """The shapes kept as keyframes' (:meth:`keep_shape`), by the keyframe's number, oldest first."""
+        self._given_shapes: set[int] = set()
+        """The keys of :attr:`kept_shapes` whose shape the client gave (float32 frames), not the session's own."""
+
+    # ------------------------------------------------------------------ what the state tells
+    @property
+    def n_vertices(self) -> int:
+        """Vertices of the current mesh (0 without one)."""
+        return 0 if self.mesh is None else self.mesh.n_vertices
+
+    @property
+    def scale(self) -> float:
+        """Largest absolute rest coordinate (1 without a mesh): the size float32 frames resolve against."""
+        return max(float(np.abs(self.V).max(initial=0.0)), 1e-300) if self.mesh is not None else 1.0
+
+    @property
+    def diagonal(self) -> float:
+        """Bounding-box diagonal of the rest pose (0 without a mesh)."""
+        if self.mesh is None or not len(self.V):
+            return 0.0
+        if self._diagonal[0] != self.rest_id:
+            lo, hi = bounding_box(self.V)
+            self._diagonal = (self.rest_id, float(np.linalg.norm(hi - lo)))
+        return self._diagonal[1]
+
+    @property
+    def n_groups(self) -> int:
+        """Handle groups of the current constraint set."""
+        return self.constraints.n_groups
+
+    @property
+    def needs_settle(self) -> bool:
+        """True when the shape may not be converged and no drag is under way (see :meth:`settle`)."""
+        return not self.settled and not self._dirty and self.solver is not None and self.mesh is not None
+
+    @property
+    def can_undo(self) -> bool:
+        """Whether undo has a step to go back to (an unfinished drag counts as one)."""
+        return self.history.can_undo or self._dirty
+
+    @property
+    def can_redo(self) -> bool:
+        """Whether redo has a step to go forward to (not during a drag)."""
+        return self.history.can_redo and not self._dirty
+
+    def require_mesh(self) -> MeshData:
+        """The loaded mesh.
+
+        Raises
+        ------
+        NoMesh
+            No mesh is loaded.
+        """
+        if self.mesh is None:
+            raise NoMesh("no mesh is loaded")
+        return self.mesh
+
+    def solver_moved_on(self) -> None:
+        """The solver was used for other shapes (an animation export): the next solve starts from the shape shown,
+        not from the solver's last solution."""
+        self._warm = False
+
+    # ------------------------------------------------------------------ the bookkeeping the requests share
+    def _new_rest_id(self) -> int:
+        self._rest_counter += 1
+        return self._rest_counter
+
+    def _solver_for(self, rest_id: int, V: np.ndarray, cs: ConstraintSet, params: Params) -> StudioSolver | None:
+        """A factorised solver for the constraint set (cached), or None when nothing is constrained.
+
+        Raises ConstraintsRejected when the solver rejects the constraints.
+        """
+        try:
+            mesh = self.require_mesh()
+            solid = None if mesh.elements is None or mesh.face_owner is None else (mesh.elements, mesh.face_owner)
+            return self._solvers.get(rest_id, V, mesh.F, cs, params, solid, planar=mesh.picture is not None)
+        except ConstraintsRejected as exc:
+            raise self._in_file_numbering(exc) from exc.__cause__
+
+    def _in_file_numbering(self, exc: ConstraintsRejected) -> ConstraintsRejected:
+        """``exc`` with the vertices its message names numbered as in the mesh file (the user's numbering)."""
+        message = message_in_file_numbering(exc.message, self.mesh)
+        if message == exc.message:
+            return exc
+        return type(exc)(message)
+
+    def _build(self, rest: np.ndarray, pose: np.ndarray, roi: Any, fixed: Any, groups: Any,
+               **kwargs: Any) -> ConstraintSet:
+        """:meth:`ConstraintSet.build` for the current mesh, its errors naming vertices in the file's numbering."""
+        try:
+            return ConstraintSet.build(rest, pose, roi, fixed, groups, faces=self.require_mesh().F, **kwargs)
+        except ConstraintsRejected as exc:
+            raise self._in_file_numbering(exc) from exc.__cause__
+
+    def _snapshot(self) -> Snapshot:
+        return Snapshot(self.rest_id, self.V, self.U, self.constraints, self.transforms, self.settled,
+                        self.energy)
+
+    def _restore(self, snap: Snapshot) -> None:
+        self._unsolvable = None
+        try:
+            solver = self._solver_for(snap.rest_id, snap.V, snap.constraints, self.params)
+        except ConstraintsRejected as exc:
+            logger.warning("restored constraints cannot be solved with the current parameters: %s", exc.message)
+            solver = None
+            self._unsolvable = (f"the constraints of this step cannot be solved with the {self.params.energy} "
+                                f"energy and {self.params.weights} weights: {exc.message}")
+        self.rest_id, self.V, self.U = snap.rest_id, snap.V, snap.U
+        self.constraints, self.transforms = snap.constraints, snap.transforms
+        self.solver = solver
+        self._warm = False
+        self._dirty = False
+        self.settled = snap.settled
+        self.energy = snap.energy
+
+    def _commit(self) -> None:
+        """Record the current state as a new history step."""
+        self.history.push(self._snapshot())
+        self._dirty = False
+
+    def _commit_pending_drag(self) -> None:
+        if self._dirty:
+            self._commit()
+
+    # ------------------------------------------------------------------ the requests
     def load(self, mesh: MeshData, look: Look | None = None) -> None:
         """Replace the mesh (and its file's colours and texture); constraints, transforms and history start afresh
         (parameters are kept)."""
@@ -111,7 +285,7 @@ class Session(SessionState):
         BadValues
             Targets of the wrong shape or absurdly far away.
         """
-        self._require_mesh()
+        self.require_mesh()
         positions = None
         n_handles = sum(len(g) for g in groups)
         if targets is not None:
@@ -174,13 +348,13 @@ class Session(SessionState):
             return cs if cs.rings is None else dataclasses.replace(cs, rings=None)
         from arap.server.pictures import pin_rings
 
-        return dataclasses.replace(cs, rings=pin_rings(self.V if rest is None else rest, self._require_mesh().F,
+        return dataclasses.replace(cs, rings=pin_rings(self.V if rest is None else rest, self.require_mesh().F,
                                                        cs.points, angles))
 
     def _check_range(self, points: np.ndarray) -> None:
         check_target_range(points, self.V)
 
-    def _solve(self, solver: Any, targets: np.ndarray, initial: np.ndarray | None,
+    def _solve(self, solver: StudioSolver, targets: np.ndarray, initial: np.ndarray | None,
                settle: bool = False, point_targets: np.ndarray | None = None) -> tuple[np.ndarray, DragOutcome]:
         """:func:`~arap.server.solve_calls.solve_for_targets` with the session's parameters; the positions and the
         outcome, the session unchanged but for the count of solves (and no warm start after a failed one)."""
@@ -191,24 +365,6 @@ class Session(SessionState):
             raise
         self.solves += 1
         return U, outcome
-
-    @property
-    def kept_shapes(self) -> dict[int, np.ndarray]:
-        """The shapes kept as keyframes' (:meth:`keep_shape`), by the keyframe's number, oldest first."""
-        shapes: dict[int, np.ndarray] | None = getattr(self, "_kept_shapes", None)
-        if shapes is None:
-            shapes = {}
-            self._kept_shapes = shapes
-        return shapes
-
-    @property
-    def _given_shapes(self) -> set[int]:
-        """The keys of :attr:`kept_shapes` whose shape the client gave (float32 frames), not the session's own."""
-        given: set[int] | None = getattr(self, "_given_keys", None)
-        if given is None:
-            given = set()
-            self._given_keys = given
-        return given
 
     def keep_shape(self, key: int, shape: list[list[float]] | None = None) -> None:
         """Keep the shape shown as keyframe ``key``'s: a drag or an animation export at that keyframe gives it back
@@ -223,7 +379,7 @@ class Session(SessionState):
         BadValues
             ``shape`` does not have one finite point per vertex, or lies absurdly far away.
         """
-        self._require_mesh()
+        self.require_mesh()
         if shape is None:
             kept = np.array(self.U, dtype=np.float64)
         else:
@@ -270,7 +426,7 @@ class Session(SessionState):
         BadValues
             The targets are not finite, or absurdly far away.
         """
-        self._require_mesh()
+        self.require_mesh()
         if len(transforms) != self.n_groups:
             raise BadValues(f"drag has {len(transforms)} transforms but the constraints have {self.n_groups} handle "
                             "groups")
@@ -397,7 +553,7 @@ class Session(SessionState):
 
     def undo(self) -> bool:
         """Step back in the history (an unfinished drag becomes a step first); True if something changed."""
-        self._require_mesh()
+        self.require_mesh()
         self._commit_pending_drag()
         snap = self.history.undo()
         if snap is None:
@@ -407,7 +563,7 @@ class Session(SessionState):
 
     def redo(self) -> bool:
         """Step forward in the history; True if something changed."""
-        self._require_mesh()
+        self.require_mesh()
         if self._dirty:
             return False
         snap = self.history.redo()
@@ -418,7 +574,7 @@ class Session(SessionState):
 
     def reset(self) -> None:
         """Back to the rest pose, keeping the selection (an undo step)."""
-        self._require_mesh()
+        self.require_mesh()
         self._commit_pending_drag()
         old = self.constraints
         at_rest = (self.U is self.V and old.pose is self.V
@@ -441,7 +597,7 @@ class Session(SessionState):
 
     def apply(self) -> None:
         """Make the deformed shape the new rest pose, keeping the selection (an undo step)."""
-        mesh = self._require_mesh()
+        mesh = self.require_mesh()
         self._commit_pending_drag()
         V = np.array(self.U, dtype=np.float64)
         V.setflags(write=False)
@@ -466,7 +622,7 @@ class Session(SessionState):
     def export(self, fmt: str) -> tuple[str, str, bytes]:
         """The deformed mesh as a file: ``(filename, mime, bytes)``; GLB, and the source's own format, keep the file's
         UVs, textures and colours (:func:`arap.server.appearance.export_asset`)."""
-        mesh = self._require_mesh()
+        mesh = self.require_mesh()
         try:
             if fmt == "png":
                 return f"{mesh.name}-deformed.png", "image/png", self._picture()
@@ -476,7 +632,7 @@ class Session(SessionState):
 
     def _picture(self) -> bytes:
         """PNG: a picture's warp at its resolution, else a picture of the deformed shape (:func:`arap.show`)."""
-        mesh = self._require_mesh()
+        mesh = self.require_mesh()
         if mesh.picture is not None:
             from arap.server.pictures import warped_picture_png
 
@@ -486,7 +642,7 @@ class Session(SessionState):
     def set_pin_depth(self, depth: list[int]) -> None:
         """A picture's depth per pin (point handle, in their order): where parts overlap, the part of the pin of
         larger depth is drawn over the other (Export PNG); pins beyond the list have depth 0."""
-        self._require_mesh()
+        self.require_mesh()
         self.pin_depth = [int(d) for d in depth]
 
     def pin_angles(self) -> list[float | None]:
@@ -513,7 +669,7 @@ class Session(SessionState):
         """
         from arap.server.pictures import pin_turn
 
-        mesh = self._require_mesh()
+        mesh = self.require_mesh()
         if mesh.picture is None:
             raise UnusableMesh("only a picture's pins hold angles")
         cs = self.constraints
@@ -554,7 +710,7 @@ class Session(SessionState):
         """
         from arap.server.pictures import locate_points, picture_mesh
 
-        mesh = self._require_mesh()
+        mesh = self.require_mesh()
         if mesh.picture is None:
             raise UnusableMesh("only a picture's mesh can be meshed again")
         new, look = picture_mesh(np.array(mesh.picture), mesh.name, max_vertices, density=density)
@@ -589,5 +745,5 @@ class Session(SessionState):
         """The current constraints in the command-line format, in the mesh file's vertex numbering (as ``arap
         deform`` reads them; :func:`arap.server.numbering.document_in_file_numbering`); with the timeline's keyframes,
         :func:`arap.server.animation_export.keyframes_document`."""
-        mesh = self._require_mesh()
+        mesh = self.require_mesh()
         return document_in_file_numbering(self.constraints.document(self.V, self.transforms), mesh)

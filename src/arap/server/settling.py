@@ -8,8 +8,8 @@ from collections.abc import Callable
 
 import numpy as np
 
+from arap.server.solvers import StudioSolver
 from arap.solve.result import ArapResult
-from arap.solve.solver import ArapSolver
 
 __all__ = ["SETTLE_FRAME_MOTION", "SETTLE_FRAME_SECONDS", "SETTLE_ITERATIONS", "FrameCallback", "settle_solve"]
 
@@ -28,14 +28,14 @@ FrameCallback = Callable[[np.ndarray | None, int, float], None]
 """``on_frame(vertices, iteration, energy)``: vertices None when only the progress is new."""
 
 
-def settle_solve(solver: ArapSolver, targets: np.ndarray, point_targets: np.ndarray | None,
+def settle_solve(solver: StudioSolver, targets: np.ndarray, point_targets: np.ndarray | None,
                  initial: np.ndarray | None, shown: np.ndarray, diagonal: float, interrupted: Callable[[], bool],
                  on_frame: FrameCallback | None) -> tuple[ArapResult, bool]:
     """Solve until converged (at most :data:`SETTLE_ITERATIONS`), reporting progress and stopping on request.
 
     Parameters
     ----------
-    solver : ArapSolver
+    solver : StudioSolver
     targets, point_targets : arrays
         The constraints' targets (see :meth:`arap.ArapSolver.solve`).
     initial : (n, 3) float array or None

@@ -20,8 +20,8 @@ from arap.errors import ArapError
 from arap.server.records import DragOutcome, Params
 from arap.server.session_errors import BadValues, SolveFailed
 from arap.server.settling import FrameCallback, settle_solve
+from arap.server.solvers import StudioSolver
 from arap.solve.result import ArapResult, IterationCallback
-from arap.solve.solver import ArapSolver
 
 __all__ = ["DRAG_BUDGET", "DRAG_BUDGET_SECONDS", "DRAG_BUDGET_VERTICES", "LOAD_ITERATIONS", "TARGET_RANGE",
            "DragBudget", "check_target_range", "checked_settle", "solve_for_targets"]
@@ -94,7 +94,7 @@ def check_target_range(points: np.ndarray, V: np.ndarray) -> None:
         raise BadValues(f"handle vertices would move absurdly far (beyond {limit:.3g} from the origin)")
 
 
-def solve_for_targets(solver: Any, params: Params, targets: np.ndarray, initial: np.ndarray | None,
+def solve_for_targets(solver: StudioSolver, params: Params, targets: np.ndarray, initial: np.ndarray | None,
                       settle: bool = False, point_targets: np.ndarray | None = None,
                       budget: DragBudget | None = None) -> tuple[np.ndarray, DragOutcome]:
     """Solve for ``targets``; the positions and what the solve did.
@@ -126,7 +126,7 @@ def solve_for_targets(solver: Any, params: Params, targets: np.ndarray, initial:
                                         1000.0 * float(result.timings.get("total", 0.0)))
 
 
-def checked_settle(solver: ArapSolver, targets: np.ndarray, point_targets: np.ndarray | None,
+def checked_settle(solver: StudioSolver, targets: np.ndarray, point_targets: np.ndarray | None,
                    initial: np.ndarray | None, shown: np.ndarray, diagonal: float, interrupted: Callable[[], bool],
                    on_frame: FrameCallback | None) -> tuple[ArapResult, bool]:
     """:func:`arap.server.settling.settle_solve`, its failures as :class:`BadValues` (the solver refused) and

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import logging
 from collections import OrderedDict
-from typing import Any
+from typing import TYPE_CHECKING, Any, TypeAlias
 
 import numpy as np
 
@@ -18,7 +18,12 @@ from arap.server.session_errors import ConstraintsRejected
 from arap.solve.result import ArapResult
 from arap.solve.solver import ArapSolver
 
-__all__ = ["SOLVER_CACHE_VERTICES", "PlaneSolver", "SolverCache", "plane_solver", "points_in_tetrahedra"]
+if TYPE_CHECKING:
+    from arap.puppet.blend import BlendSolver
+
+__all__ = [
+    "SOLVER_CACHE_VERTICES", "PlaneSolver", "SolverCache", "StudioSolver", "plane_solver", "points_in_tetrahedra",
+]
 
 logger = logging.getLogger(__name__)
 
@@ -31,7 +36,7 @@ class SolverCache:
     first."""
 
     def __init__(self) -> None:
-        self._solvers: OrderedDict[tuple[Any, ...], ArapSolver | PlaneSolver] = OrderedDict()
+        self._solvers: OrderedDict[tuple[Any, ...], StudioSolver] = OrderedDict()
 
     def clear(self) -> None:
         """Drop every solver (a new mesh)."""
@@ -39,7 +44,7 @@ class SolverCache:
 
     def get(self, rest_id: int, V: np.ndarray, F: np.ndarray, cs: ConstraintSet, params: Params,
             solid: tuple[np.ndarray, np.ndarray] | None = None,
-            planar: bool = False) -> ArapSolver | PlaneSolver | None:
+            planar: bool = False) -> StudioSolver | None:
         """A factorised solver for the constraint set on the rest pose ``V`` (numbered ``rest_id``), or None when
         nothing is constrained.
 
@@ -130,7 +135,8 @@ class PlaneSolver:
 
         self.mode = mode
         self.inner = solver
-        self._blend = None if mode == "rigid" else BlendSolver(solver, NORMAL_LAMBDA if mode == "normal" else 0.0)
+        self._blend: BlendSolver | None = None if mode == "rigid" else \
+            BlendSolver(solver, NORMAL_LAMBDA if mode == "normal" else 0.0)
         self.n_free = solver.n_free
         self.factor_seconds = solver.factor_seconds if self._blend is None else self._blend.factor_seconds
 
@@ -141,7 +147,7 @@ class PlaneSolver:
               tolerance: float = DEFAULT_TOLERANCE, callback: Any = None, acceleration: Any = "lbfgs",
               window: int | None = None, point_targets: Any = None) -> ArapResult:
         """:meth:`arap.ArapSolver.solve` with the targets on the plane, in the solver's mode."""
-        kind: Any = self.inner if self._blend is None else self._blend
+        kind: ArapSolver | BlendSolver = self.inner if self._blend is None else self._blend
         return kind.solve(_on_plane(targets), initial=initial, max_iterations=max_iterations, tolerance=tolerance,
                           callback=callback, acceleration=acceleration, window=window,
                           point_targets=_on_plane(point_targets))
@@ -149,6 +155,10 @@ class PlaneSolver:
     def current_vertices(self) -> np.ndarray:
         """The current iterate during :meth:`solve`, else the last solution."""
         return (self.inner if self._blend is None else self._blend).current_vertices()
+
+
+StudioSolver: TypeAlias = ArapSolver | PlaneSolver
+"""A studio session's factorised solver: a mesh's (:class:`arap.ArapSolver`) or a picture's (:class:`PlaneSolver`)."""
 
 
 def plane_solver(solver: ArapSolver, mode: str) -> PlaneSolver:
