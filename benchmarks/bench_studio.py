@@ -46,6 +46,7 @@ from typing import Any
 import numpy as np
 from websockets.asyncio.client import ClientConnection, connect
 
+from arap.batching.locks import output_lock
 from arap.io import save_mesh_bytes
 from arap.meshes.shapes import sphere, sphere_frequency_for
 from arap.server.client_files import CLIENT_ENV
@@ -84,12 +85,20 @@ tests' build (``npm run build:e2e`` in ``web/``); the packaged client has no hoo
 
 
 def hooked_client() -> Path:
-    """:data:`HOOKED_CLIENT`, built first when it is missing or older than the client's sources."""
+    """:data:`HOOKED_CLIENT`, built first when it is missing or older than the client's sources (by one process at a
+    time: others that find it stale meanwhile wait for that build, then find it fresh)."""
     built = HOOKED_CLIENT / "index.html"
     web = ROOT / "web"
     sources = [p for p in (web / "src").rglob("*") if p.is_file()] + [web / "index.html", web / "vite.config.js"]
-    if not built.is_file() or any(p.stat().st_mtime > built.stat().st_mtime for p in sources):
-        subprocess.run(["npm", "run", "build:e2e"], cwd=web, check=True, capture_output=True)
+
+    def stale() -> bool:
+        return not built.is_file() or any(p.stat().st_mtime > built.stat().st_mtime for p in sources)
+
+    if stale():
+        HOOKED_CLIENT.parent.mkdir(parents=True, exist_ok=True)
+        with output_lock(HOOKED_CLIENT):
+            if stale():
+                subprocess.run(["npm", "run", "build:e2e"], cwd=web, check=True, capture_output=True)
     return HOOKED_CLIENT
 
 

@@ -1,6 +1,7 @@
 """Every benchmark runs to its end with ``--quick`` (tiny sizes, short runs: a check that it works, not a
-measurement), each in a subprocess as a reader would run it. They share one pytest-xdist worker, as they start
-servers, worker pools and a browser of their own."""
+measurement), each in a subprocess as a reader would run it. They spread over pytest-xdist's workers like other
+tests: a ``--quick`` run judges no time (its exit status says only that it ran), so a benchmark beside another
+test is as good a check as one alone, and one worker running all of them in turn held the whole run back."""
 
 from __future__ import annotations
 
@@ -18,7 +19,7 @@ BENCHMARKS = sorted(p.name for p in (ROOT / "benchmarks").glob("bench_*.py"))
 IN_A_BROWSER = {"bench_client.py"}
 """Benchmarks that open the studio in the system's Chromium."""
 
-pytestmark = [pytest.mark.slow, pytest.mark.xdist_group("benchmarks"), pytest.mark.timeout(900)]
+pytestmark = [pytest.mark.slow, pytest.mark.timeout(900)]
 
 
 def test_the_benchmarks_are_found() -> None:

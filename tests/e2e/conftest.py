@@ -18,6 +18,7 @@ import uvicorn
 from playwright.sync_api import Browser, ConsoleMessage, Frame, Page, Playwright, expect, sync_playwright
 from playwright.sync_api import TimeoutError as PlaywrightTimeoutError
 
+from arap.batching.locks import output_lock
 from arap.server import bind_socket, create_app, studio_url
 from arap.server.app import frame_limit
 from arap.server.client_files import CLIENT_ENV
@@ -62,9 +63,17 @@ def _client_built() -> bool:
 
 def _build_client() -> str | None:
     """Build the tests' web client when it is missing or older than its sources; the reason it cannot be built,
-    or None."""
+    or None. Several test processes (pytest-xdist's workers) may ask at once: one builds while the others wait for
+    it (a lock beside the build), then find the build fresh."""
     if _client_built():
         return None
+    E2E_CLIENT.parent.mkdir(parents=True, exist_ok=True)
+    with output_lock(E2E_CLIENT):
+        return None if _client_built() else _build_client_now()
+
+
+def _build_client_now() -> str | None:
+    """Build the tests' web client (:func:`_build_client` holds the lock)."""
     npm = shutil.which("npm")
     if npm is None or not (WEB / "package.json").is_file():
         return "the web client's test build is missing or stale (build/studio-e2e) and npm is not available to build it"
@@ -166,8 +175,8 @@ def browser(pw: Playwright, tmp_path_factory: pytest.TempPathFactory) -> Iterato
         pytest.skip(f"{CHROMIUM} is missing (apt-get install chromium)")
     b = pw.chromium.launch(executable_path=str(CHROMIUM), args=CHROMIUM_ARGS,
                            downloads_path=tmp_path_factory.mktemp("downloads"))
-    # a loaded machine: slower, not failing (every context's default deadline, every expect's)
-    expect.set_options(timeout=scaled_ms(EXPECT_SECONDS))
+    # a loaded machine: slower, not failing (every context's default deadline, as it is made; every expect's, see
+    # scaled_expect)
     new_context = b.new_context
 
     def scaled_context(*args: Any, **kwargs: Any) -> Any:
@@ -178,6 +187,14 @@ def browser(pw: Playwright, tmp_path_factory: pytest.TempPathFactory) -> Iterato
     b.new_context = scaled_context  # type: ignore[method-assign]
     yield b
     b.close()
+
+
+@pytest.fixture(autouse=True)
+def scaled_expect() -> None:
+    """Every ``expect``'s default deadline, stretched by the load as each test starts: the load changes during a
+    run (pytest-xdist's workers each drive a browser), so a factor taken once when the session began could be
+    that of an idle machine."""
+    expect.set_options(timeout=scaled_ms(EXPECT_SECONDS))
 
 
 @pytest.fixture

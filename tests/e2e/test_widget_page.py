@@ -17,7 +17,7 @@ from playwright.sync_api import Browser, BrowserContext, Frame, Page
 
 from arap.server.client_files import client_dir
 from tests.e2e.conftest import VIEWPORT, canvas_pixels, positions, wait_idle
-from tests.waiting import scaled_ms
+from tests.waiting import page_wait_until, scaled_ms
 
 pytestmark = [pytest.mark.e2e, pytest.mark.timeout(180)]
 
@@ -177,9 +177,8 @@ def test_the_widget_draws_the_mesh_and_a_drag_moves_it(widget_page: tuple[Page, 
     page.mouse.move(tx + 6, ty + 14, steps=6)
     page.mouse.up()
     wait_idle(frame)  # type: ignore[arg-type]
-    deadline = time.monotonic() + 30
-    while time.monotonic() < deadline and not (w.constraints.fixed.size and w.constraints.handle_groups):
-        page.wait_for_timeout(50)
+    page_wait_until(page, lambda: w.constraints.fixed.size and w.constraints.handle_groups, 30,
+                    "the painted selection to reach the widget")
     sel = w.constraints
     assert sel.fixed.size > 0 and len(sel.handle_groups) == 1, "the painted selection did not reach the widget"
     handle = sel.handle_groups[0]
