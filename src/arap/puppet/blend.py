@@ -48,6 +48,7 @@ from arap.errors import OptionError
 from arap.kernels.parallel import policy
 from arap.method.cells import Cells
 from arap.method.inactive import InactiveCells
+from arap.method.planar import planar_covariance, put_planar_rotation
 from arap.options import DEFAULT_TOLERANCE, START_NAMES, Acceleration
 from arap.puppet.similar import SimilarSystem
 from arap.solve.addons import LocalState, RigidAddOn, RotationFit
@@ -114,21 +115,7 @@ def _similarity_chunk(ch, lam, cell_ids, ptr, a, b, w, we, rest_sq, U, R, E):  #
     total = 0.0
     for t in range(ch * _CHUNK, min(cell_ids.shape[0], (ch + 1) * _CHUNK)):
         c = cell_ids[t]
-        s00 = s01 = s10 = s11 = 0.0
-        cur = 0.0
-        for k in range(ptr[c], ptr[c + 1]):
-            d0 = U[a[k], 0] - U[b[k], 0]
-            d1 = U[a[k], 1] - U[b[k], 1]
-            d2 = U[a[k], 2] - U[b[k], 2]
-            cur += w[k] * (d0 * d0 + d1 * d1 + d2 * d2)
-            x0 = we[k, 0]
-            x1 = we[k, 1]
-            s00 += x0 * d0
-            s01 += x0 * d1
-            s10 += x1 * d0
-            s11 += x1 * d1
-        p = s00 + s11
-        q = s01 - s10
+        p, q, cur = planar_covariance(c, ptr, a, b, w, we, U)
         length = math.sqrt(p * p + q * q)  # tr(R S) of the best rotation: 2|t| c
         double = rest_sq[c]  # Σ w ‖e‖² = 2|t| (cotangent weights)
         r = _scale(length / double if double > 0.0 else 0.0, lam)
@@ -137,15 +124,7 @@ def _similarity_chunk(ch, lam, cell_ids, ptr, a, b, w, we, rest_sq, U, R, E):  #
         if length > 0.0:
             cs = r * p / length
             sn = r * q / length
-        R[c, 0, 0] = cs
-        R[c, 0, 1] = -sn
-        R[c, 0, 2] = 0.0
-        R[c, 1, 0] = sn
-        R[c, 1, 1] = cs
-        R[c, 1, 2] = 0.0
-        R[c, 2, 0] = 0.0
-        R[c, 2, 1] = 0.0
-        R[c, 2, 2] = 1.0
+        put_planar_rotation(R, c, cs, sn)
         grow = r * r - 1.0
         e = cur - 2.0 * r * length + r * r * double + 0.5 * lam * double * grow * grow
         E[c] = e
@@ -181,7 +160,7 @@ def similarity_step(cells: Cells, cell_ids: NDArray[np.int64], U: NDArray[np.flo
 
     With the cotangent weights ``½ Σ w ‖e‖²`` is the triangle's area ``|t|`` and the energy is the module's
     ``|t| (‖J − r R‖² + λ (r² − 1)²)``; with other weights or painted stiffness the scale term is weighted as the
-    cell's other terms are.
+    cell's other terms are. ``U`` is (n, 2), or (n, 3) with ``z = 0`` (only the first two columns are read).
     """
     args = (float(lam), cell_ids, cells.ptr, cells.a, cells.b, cells.w, cells.we, cells.rest_sq, U, R, E)
     work = len(cell_ids) * len(cells.a) // max(cells.n_cells, 1)
@@ -192,6 +171,8 @@ def similarity_step(cells: Cells, cell_ids: NDArray[np.int64], U: NDArray[np.flo
 class ScaledFit(RotationFit):
     """Each planar cell's best similarity of the hybrid energy (:func:`similarity_step`), as the local step of a
     prepared solver."""
+
+    planar_columns = True  # the similarities are fitted from the first two coordinates
 
     def __init__(self, cells: Cells, active: NDArray[np.int64], lam: float) -> None:
         self.cells = cells

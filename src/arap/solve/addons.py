@@ -64,6 +64,9 @@ class RotationFit:
 
     #: The rotations are moved on from their previous values rather than fitted afresh.
     coupled: bool = False
+    #: The fit reads only the first two coordinates of the positions, so a planar solve can iterate on (n, 2) ones
+    #: (:func:`arap.solve.iteration.make_iterate`).
+    planar_columns: bool = False
 
     def fit(self, U: Array, state: LocalState) -> float:
         """Fit the rotations of the cells the iterations update at ``U``; their energy."""
@@ -92,6 +95,7 @@ class PlainFit(RotationFit):
     def __init__(self, cells: Cells, active: NDArray[np.int64]) -> None:
         self.cells = cells
         self.active = active
+        self.planar_columns = cells.planar  # rotations about z (arap.method.planar)
 
     def fit(self, U: Array, state: LocalState) -> float:
         return local_step(self.cells, self.active, U, state.R, state.E)
@@ -145,6 +149,8 @@ class AddOn:
 
     #: The tolerance a solve needs at least (relative to the diagonal), or 0.
     min_tolerance: float = 0.0
+    #: The add-on works on a planar solve's (n, 2) positions (its arrays given with as many columns).
+    planar_columns: bool = True
 
     def after_fit(self, U: Array, state: LocalState, e: float) -> float:
         """After the rotation fit of the iterations: change the state, return the energy ``e`` with its share."""
@@ -172,6 +178,7 @@ class SmoothAddOn(AddOn):
     exact; the fit itself is :class:`SmoothFit`."""
 
     fit: SmoothFit
+    planar_columns: bool = field(default=False)
 
     def lbfgs_applies(self, P: Array | None) -> bool:
         return False
@@ -189,6 +196,7 @@ class RigidAddOn(AddOn):
     every: RigidRegions
     smooth: SmoothFit | None = None
     min_tolerance: float = field(default=RIGID_TOLERANCE)
+    planar_columns: bool = field(default=False)  # the regions' rotations are fitted in space
 
     def after_fit(self, U: Array, state: LocalState, e: float) -> float:
         e += self.active.share(U, state.R, state.E)
@@ -213,7 +221,9 @@ class PointHandles(AddOn):
 
     def after_fit(self, U: Array, state: LocalState, e: float) -> float:
         if state.points is not None:
-            e += self.system.penalty(U[:self.n_free], *state.points)
+            P, fixed = state.points
+            d = U.shape[1]  # 2 in a planar solve's iterations (the targets' z is 0)
+            e += self.system.penalty(U[:self.n_free], P[:, :d], fixed[:, :d])
         return e
 
     def rhs_constant(self, const: Array, P: Array | None, fixed: Array) -> Array:

@@ -214,11 +214,11 @@ class LbfgsHistory:
         self._work: tuple[NDArray[np.float64], ...] = ()
         self.scale = 1.0
 
-    def buffers(self, rows: int, count: int = 4) -> tuple[NDArray[np.float64], ...]:
-        """``count`` work arrays of shape (rows, 3), allocated once for a given size (a drag calls the loop with
-        one iteration many times; fresh arrays of a large mesh cost page faults on every call)."""
-        if len(self._work) != count or self._work[0].shape != (rows, 3):
-            self._work = tuple(np.empty((rows, 3)) for _ in range(count))
+    def buffers(self, rows: int, count: int = 4, columns: int = 3) -> tuple[NDArray[np.float64], ...]:
+        """``count`` work arrays of shape (rows, columns), allocated once for a given size (a drag calls the loop
+        with one iteration many times; fresh arrays of a large mesh cost page faults on every call)."""
+        if len(self._work) != count or self._work[0].shape != (rows, columns):
+            self._work = tuple(np.empty((rows, columns)) for _ in range(count))
         return self._work
 
     def __len__(self) -> int:

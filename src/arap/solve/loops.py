@@ -48,8 +48,9 @@ class Iterate:
 
     Attributes
     ----------
-    U : (n, 3) float64 array
+    U : (n, d) float64 array
         Positions in the solver's internal order, written in place; the first ``nf`` rows are the free vertices.
+        ``d`` is 3, or 2 for a planar solve (every array below then has two columns).
     nf : int
         Number of free vertices.
     rotations : (n, 3, 3) float64 array
@@ -85,6 +86,9 @@ class Iterate:
     unfold : Unfolder or None
         Opens the elements that the solve turned over (:class:`arap.method.unfold.Unfolder`, planar and solid element
         energies only). None: nothing is unfolded.
+    sync : callable or None
+        Writes ``U`` into the solver's (n, 3) positions when ``U`` is a planar solve's (n, 2) copy of them; None
+        when ``U`` is the solver's array itself.
     """
 
     U: Array
@@ -103,6 +107,7 @@ class Iterate:
     timings: dict[str, float]
     scale_initial: bool = False
     unfold: Unfolder | None = None
+    sync: Callable[[], None] | None = None
 
 
 @dataclass
@@ -130,7 +135,7 @@ def plain_iterations(it: Iterate, energy: float | None, accel: AndersonAccelerat
     """
     out = Outcome()
     nf, U, timings = it.nf, it.U, it.timings
-    rhs = np.empty((nf, 3))
+    rhs = np.empty((nf, U.shape[1]))
     # The coupled rotations of smooth_rotations go on from the current ones: kept for the fallback of a rejected
     # extrapolation, in one buffer for the call.
     saved = np.empty_like(it.rotations) if accel is not None and it.coupled else None
@@ -159,7 +164,7 @@ def plain_iterations(it: Iterate, energy: float | None, accel: AndersonAccelerat
             timings["acceleration"] += time.perf_counter() - t
             if last or energy is None:
                 candidate = None
-            U[:nf] = g if candidate is None else candidate.reshape(nf, 3)
+            U[:nf] = g if candidate is None else candidate.reshape(nf, -1)
         if candidate is not None and saved is not None:
             np.copyto(saved, it.rotations)
         e = it.local(U)
@@ -259,7 +264,7 @@ def _lbfgs_run(it: Iterate, energy: float | None, history: LbfgsHistory, plain_s
     out = Outcome()
     nf, U, timings = it.nf, it.U, it.timings
     history.reset()
-    x, grad, new_grad, rhs = history.buffers(nf)
+    x, grad, new_grad, rhs = history.buffers(nf, columns=U.shape[1])
 
     def fit_rhs(grad: Array) -> None:
         """Right-hand side for the rotations fitted to ``x``, and the residual ``A x − b`` into ``grad``."""

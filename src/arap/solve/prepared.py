@@ -241,6 +241,13 @@ class Prepared:
         return np.ascontiguousarray(R[self.cell_order])
 
     @property
+    def iteration_columns(self) -> int:
+        """Coordinates per vertex that a solve's iterations carry: 2 for a planar mesh whose rotation fit and add-ons
+        all work in the plane (``z`` stays 0 and no work is spent on it), else 3."""
+        planar = self.domain.planar and self.rotation_fit.planar_columns
+        return 2 if planar and all(addon.planar_columns for addon in self.addons) else 3
+
+    @property
     def columns(self) -> int:
         """Coordinates per vertex in the caller's arrays (2 for a planar mesh given with two)."""
         return self.domain.columns

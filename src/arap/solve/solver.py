@@ -330,9 +330,11 @@ class ArapSolver:
             if acceleration != "none" and p.nf:
                 size = DEFAULT_WINDOW if window is None else int(window)
                 if state.accelerator is None or state.accelerator.window != size:
-                    state.accelerator = AndersonAccelerator(size, 3 * p.nf)
+                    state.accelerator = AndersonAccelerator(size, it.U[:p.nf].size)
                 accel = state.accelerator
             outcome = plain_iterations(it, E_cur, accel)
+        if it.sync is not None:
+            it.sync()
         state.last = U
         state.live = None
         # The rotations fit the stored solution only if an iteration ended with a local step on it.

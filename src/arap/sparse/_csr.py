@@ -278,6 +278,17 @@ def row_times(lo, hi, idx, val, X, s0, s1, s2):  # pragma: no cover - compiled
     return s0, s1, s2
 
 
+@nb.njit(cache=True, nogil=True, inline="always")
+def row_times_2(lo, hi, idx, val, X, s0, s1):  # pragma: no cover - compiled
+    """:func:`row_times` for an (m, 2) array ``X`` (the planar solver's two columns)."""
+    for k in range(np.uint64(lo), np.uint64(hi)):
+        j = np.uint64(idx[k])
+        v = val[k]
+        s0 += v * X[j, 0]
+        s1 += v * X[j, 1]
+    return s0, s1
+
+
 @nb.njit(cache=True, nogil=True)
 def _rows_product(rows, ptr, idx, val, X, out):  # pragma: no cover - compiled
     for t in range(rows.shape[0]):
