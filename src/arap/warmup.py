@@ -78,6 +78,8 @@ EVERY_SOLVE_KERNELS: tuple[str, ...] = (
     "arap.method.smooth._sweep_serial",
     "arap.method.smooth._rotation_term_serial",
     "arap.method.planar.planar_local_serial",
+    "arap.method.planar._rhs_gradient_serial",
+    "arap.method.planar._rhs_serial",
     "arap.method.local_step._rhs_parallel",
     "arap.method.smooth._covariances_parallel",
     "arap.method.rotation_step._energy_parallel",
@@ -85,6 +87,8 @@ EVERY_SOLVE_KERNELS: tuple[str, ...] = (
     "arap.method.smooth._sweep_parallel",
     "arap.method.smooth._rotation_term_parallel",
     "arap.method.planar.planar_local_parallel",
+    "arap.method.planar._rhs_gradient_parallel",
+    "arap.method.planar._rhs_parallel",
 )
 """The kernels that only the other energies, accelerations and the energy and distortion of a result run, serial
 and threaded, compiled by :func:`warm_up_every_solve` after :data:`LATER_KERNELS`."""
