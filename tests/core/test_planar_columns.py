@@ -37,8 +37,8 @@ def columns(monkeypatch: pytest.MonkeyPatch) -> Iterator[list[int]]:
     planar_rhs, planar_rhs_and_gradient = iteration.planar_rhs, iteration.planar_rhs_and_gradient
     assemble_rhs, assemble_rhs_and_gradient = iteration.assemble_rhs, iteration.assemble_rhs_and_gradient
 
-    def record(kernel):  # type: ignore[no-untyped-def]
-        def run(*args):  # type: ignore[no-untyped-def]
+    def record(kernel):
+        def run(*args):
             seen.append(args[-1].shape[1] if kernel in (planar_rhs, assemble_rhs) else args[-2].shape[1])
             return kernel(*args)
         return run
@@ -53,18 +53,20 @@ def _three_columns(monkeypatch: pytest.MonkeyPatch, on: bool) -> None:
     monkeypatch.setattr(iteration, "_PLANAR_COLUMNS", not on)
 
 
-@pytest.mark.parametrize("acceleration", ["lbfgs", "anderson", "none"])
+@pytest.mark.parametrize(("acceleration", "energy"), [("lbfgs", "elements"), ("anderson", "elements"),
+                                                      ("none", "elements"), ("lbfgs", "spokes_and_rims")])
 def test_two_columns_give_the_three_column_results(monkeypatch: pytest.MonkeyPatch, columns: list[int],
-                                                    acceleration: str) -> None:
+                                                    acceleration: str, energy: str) -> None:
     V, T, b, targets = _bend()
     results = {}
     for three in (True, False):
         _three_columns(monkeypatch, three)
         columns.clear()
-        solver = arap.ArapSolver(V, T, b)
+        solver = arap.ArapSolver(V, T, b, energy=energy)
         assert solver.prepared.iteration_columns == 2
         first = solver.solve(targets, max_iterations=25, tolerance=0, acceleration=acceleration)
-        warm = solver.solve(targets + [0.05, -0.02], max_iterations=10, tolerance=0, acceleration=acceleration)
+        moved = targets + np.array([0.05, -0.02])
+        warm = solver.solve(moved, max_iterations=10, tolerance=0, acceleration=acceleration)
         assert set(columns) == {3 if three else 2}
         results[three] = (first, warm)
     for old, new in zip(results[True], results[False], strict=True):
@@ -100,7 +102,7 @@ def test_energies_never_rise(columns: list[int], acceleration: str) -> None:
 @pytest.mark.parametrize("weights", [None, [1e3]])
 def test_point_handles_on_two_columns(monkeypatch: pytest.MonkeyPatch, columns: list[int],
                                       weights: list[float] | None) -> None:
-    V, T, b, targets = _bend(angle=np.pi / 4)
+    V, T, b, _ = _bend(angle=np.pi / 4)
     left = b[V[b, 0] < 1.0]
     face = int(np.argmax(V[T].mean(axis=1)[:, 0]))
     beta = np.array([[0.2, 0.3, 0.5]])
@@ -120,20 +122,28 @@ def test_point_handles_on_two_columns(monkeypatch: pytest.MonkeyPatch, columns: 
     np.testing.assert_allclose(results[False].energies, results[True].energies, rtol=1e-9)
 
 
-@pytest.mark.parametrize("offset", [0.0, 2.5])
-def test_planar_input_in_space_keeps_its_plane_exactly(columns: list[int], offset: float) -> None:
+@pytest.mark.parametrize(("axis", "offset"), [(2, 0.0), (1, 2.5)])
+def test_planar_input_in_space_keeps_its_plane_exactly(columns: list[int], axis: int, offset: float) -> None:
     V2, T, b, targets2 = _bend()
-    V = np.column_stack([V2[:, 0], np.full(len(V2), offset), V2[:, 1]])  # the plane y = offset
-    targets = np.column_stack([targets2[:, 0], np.full(len(b), offset), targets2[:, 1]])
+    inplane = [k for k in range(3) if k != axis]
+    V = np.full((len(V2), 3), offset)  # the plane z = 0, or y = 2.5
+    V[:, inplane] = V2
+    targets = np.full((len(b), 3), offset)
+    targets[:, inplane] = targets2
     solver = arap.ArapSolver(V, T, b, energy="elements")
     seen: list[np.ndarray] = []
-    result = solver.solve(targets, callback=lambda k, e: seen.append(solver.current_vertices()) is None)
+
+    def look(k: int, e: float) -> bool:
+        seen.append(solver.current_vertices())
+        return True
+
+    result = solver.solve(targets, callback=look)
     assert set(columns) == {2}
     assert result.vertices.shape == V.shape
-    assert (result.vertices[:, 1] == offset).all()
+    assert (result.vertices[:, axis] == offset).all()
     np.testing.assert_array_equal(seen[-1], result.vertices)  # the callback sees the iterate
     flat = arap.ArapSolver(V2, T, b).solve(targets2)
-    np.testing.assert_allclose(result.vertices[:, [0, 2]], flat.vertices, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(result.vertices[:, inplane], flat.vertices, rtol=0, atol=1e-9)
 
 
 def test_the_picture_warp_similarity_step_runs_on_two_columns(monkeypatch: pytest.MonkeyPatch,
@@ -142,7 +152,7 @@ def test_the_picture_warp_similarity_step_runs_on_two_columns(monkeypatch: pytes
     shapes: list[int] = []
     step = blend.similarity_step
 
-    def spy(cells, cell_ids, U, R, E, lam):  # type: ignore[no-untyped-def]
+    def spy(cells, cell_ids, U, R, E, lam):
         shapes.append(U.shape[1])
         return step(cells, cell_ids, U, R, E, lam)
 
