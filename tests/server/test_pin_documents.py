@@ -165,3 +165,15 @@ def test_arap_warp_names_a_constraints_document_and_honours_angles(tmp_path: Pat
     pins_file.write_text(json.dumps(pins | {"angles": 45}))
     assert main(["warp", str(image), "--pins", str(pins_file), "-o", str(tmp_path / "o2.png")]) == 1
     assert '"angles" must be a list' in capsys.readouterr().err
+
+
+def test_arap_batch_says_why_a_job_with_a_pins_angle_fails(tmp_path: Path,
+                                                           capsys: pytest.CaptureFixture[str]) -> None:
+    s = _turned_and_layered()
+    _mesh_file(s, tmp_path / "squares.obj")
+    (tmp_path / "pins.json").write_text(json.dumps(s.constraints_document()))
+    manifest = tmp_path / "jobs.jsonl"
+    manifest.write_text(json.dumps({"mesh": "squares.obj", "constraints": "pins.json", "output": "out.obj"}) + "\n")
+    assert main(["batch", str(manifest), "--backend", "serial", "-q"]) == 1
+    assert "arap batch cannot hold a pin's surroundings turned" in capsys.readouterr().err
+    assert not (tmp_path / "out.obj").exists()
