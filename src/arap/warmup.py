@@ -89,9 +89,12 @@ EVERY_SOLVE_KERNELS: tuple[str, ...] = (
     "arap.method.planar.planar_local_parallel",
     "arap.method.planar._rhs_gradient_parallel",
     "arap.method.planar._rhs_parallel",
+    "arap.puppet.blend._similarity_serial",
+    "arap.puppet.blend._similarity_parallel",
 )
-"""The kernels that only the other energies, accelerations and the energy and distortion of a result run, serial
-and threaded, compiled by :func:`warm_up_every_solve` after :data:`LATER_KERNELS`."""
+"""The kernels that only the other energies, accelerations, the warp modes of pictures (the similarity step of the
+Normal and Distort modes, :func:`arap.puppet.blend.similarity_step`) and the energy and distortion of a result run,
+serial and threaded, compiled by :func:`warm_up_every_solve` after :data:`LATER_KERNELS`."""
 EVERY_SOLVE_ITERATIONS = 12
 """Iterations of each solve of :func:`warm_up_every_solve`: enough for L-BFGS to take its own steps after the plain
 ones it starts with."""
@@ -331,8 +334,9 @@ def _warm_up(first_ready: Callable[[], None] | None, every_energy: bool = False)
 def warm_up_every_solve() -> None:
     """Solve a 42-vertex sphere, a planar rectangle and a box of tetrahedra with every energy each takes
     (:data:`~arap.options.ENERGY_TYPES`) and every acceleration (:data:`~arap.options.ACCELERATIONS`), and ask for the
-    energy and the distortion of each result: serial, then with the threaded variants of large meshes. What
-    :func:`warm_up_kernels` compiles with ``every_energy`` after the default solves (``arap warmup``).
+    energy and the distortion of each result, and warp a tiny picture in each of the puppet warp's modes
+    (:func:`_picture_solves`): serial, then with the threaded variants of large meshes. What :func:`warm_up_kernels`
+    compiles with ``every_energy`` after the default solves (``arap warmup``).
     """
     from arap.errors import OptionError
     from arap.kernels.parallel import policy
@@ -360,6 +364,7 @@ def warm_up_every_solve() -> None:
                                      acceleration=acceleration).vertices
                 arap_energy(V, F, U, energy=energy)
                 cell_distortion(V, F, U, energy=energy)
+        _picture_solves()
 
     solves()
     saved = policy.min_work, policy.work_per_thread
@@ -370,3 +375,20 @@ def warm_up_every_solve() -> None:
     finally:
         policy.min_work, policy.work_per_thread = saved
         policy.reset()
+
+
+def _picture_solves() -> None:
+    """Warp a tiny opaque picture with two pins in each of the puppet warp's modes (:data:`arap.puppet.warp.MODES`),
+    as :class:`arap.puppet.PuppetWarp` does, and as the studio does (its Distort mode is the hybrid energy's solve
+    with λ = 0, :class:`arap.server.solvers.PlaneSolver`)."""
+    from arap.puppet.blend import BlendSolver
+    from arap.puppet.warp import MODES, PuppetWarp
+
+    picture = np.full((12, 16, 4), 255, dtype=np.uint8)
+    pins, targets = [[3.0, 6.0], [12.0, 6.0]], [[3.0, 6.0], [14.0, 8.0]]
+    for mode in cast("tuple[Any, ...]", MODES):
+        puppet = PuppetWarp(picture, pins, spacing=2.0, mode=mode)
+        puppet.deform(targets)
+        if mode == "rigid":
+            BlendSolver(puppet._solver, 0.0).solve(puppet.mesh.vertices[puppet.held],
+                                                   point_targets=np.asarray(targets), max_iterations=4)

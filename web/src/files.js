@@ -248,9 +248,11 @@ const isNumber = (x) => typeof x === 'number' && Number.isFinite(x);
 const isTriple = (/** @type {unknown} */ p) => Array.isArray(p) && p.length === 3 && p.every(isNumber);
 
 /**
- * The point handles of a document (version 2): [{face, barycentric, weight?, target?}].
+ * The point handles of a document (version 2): [{face, barycentric, weight?, target?, angle?, depth?}] (a picture's
+ * pin: the angle in degrees it holds, its depth).
  * @param {any} doc a parsed constraints document (JSON from a file: anything)
- * @returns {{face: number, barycentric: number[], weight?: number, target?: number[]}[]}
+ * @returns {{face: number, barycentric: number[], weight?: number, target?: number[], angle?: number,
+ *   depth?: number}[]}
  */
 function pointList(doc) {
   if (doc.points === undefined || doc.points === null) return [];
@@ -263,10 +265,17 @@ function pointList(doc) {
     if (p.weight !== undefined && !(isNumber(p.weight) && p.weight > 0)) {
       throw new Error(`"points[${k}].weight" must be a positive number`);
     }
-    /** @type {{face: number, barycentric: number[], weight?: number, target?: number[]}} */
+    if (p.angle !== undefined && p.angle !== null && !isNumber(p.angle)) {
+      throw new Error(`"points[${k}].angle" must be a number of degrees`);
+    }
+    if (p.depth !== undefined && !Number.isInteger(p.depth)) throw new Error(`"points[${k}].depth" must be an integer`);
+    /** @type {{face: number, barycentric: number[], weight?: number, target?: number[], angle?: number,
+     *   depth?: number}} */
     const out = { face: p.face, barycentric: p.barycentric.slice() };
     if (p.weight !== undefined) out.weight = p.weight;
     if (p.target !== undefined) out.target = p.target.slice();
+    if (isNumber(p.angle)) out.angle = p.angle;
+    if (p.depth !== undefined) out.depth = p.depth;
     return out;
   });
 }

@@ -3,6 +3,7 @@
 // transforms apply to.
 import { readConstraintsFile } from './files.js';
 import { EASINGS } from './keyframes.js';
+import { isPicture, restorePins } from './picturemode.js';
 import { CLIENT } from './protocol.js';
 
 /**
@@ -66,11 +67,19 @@ export function loadConstraintsFile(file, d) {
   file.text().then((text) => {
     const keyed = keyframedDocument(text, d.rest(), d.mesh.vertexMap);
     const read = keyed ? new File([keyed.text], file.name, { type: 'application/json' }) : file;
-    return readConstraintsFile(read, d.viewer.nVertices, d.mesh.nFaces, d.mesh.vertexMap, d.mesh.repaired).then((c) => {
+    // a picture's pins name triangles of the studio's mesh of it, which is no file's: nothing to refuse
+    const repaired = d.mesh.repaired && !isPicture();
+    return readConstraintsFile(read, d.viewer.nVertices, d.mesh.nFaces, d.mesh.vertexMap, repaired).then((c) => {
       d.selection.fromConstraints(c);
       d.mirror.setPairs(c.partners);
       d.refreshSelection(true);
       d.commit(c.targets, false, c.points.map((/** @type {any} */ p) => p.target ?? null));
+      // a picture's pins: their depths and the angles they hold, after the pins themselves
+      const points = /** @type {{angle?: number, depth?: number}[]} */ (c.points);
+      if (points.some((p) => p.angle !== undefined || p.depth !== undefined)) {
+        restorePins({ depth: points.some((p) => p.depth !== undefined) ? points.map((p) => p.depth ?? 0) : [],
+          angles: points.map((p) => p.angle ?? null) });
+      }
       if (keyed) {
         const targets = /** @type {Map<number, number[]>} */ (c.targets);
         const pivots = c.handle_groups.map((/** @type {number[]} */ g) => {

@@ -20,6 +20,29 @@ let angles = [];
 /** The first triangle of the drawing order the last state gave (null: the mesh's order). @type {number|null} */
 let drawFirst = null;
 
+/** How the picture controls send a message (installPictureControls). @type {((m: any) => void)|null} */
+let sendPinMessage = null;
+
+/**
+ * Give the pins of the picture shown their depths and angles again (a restored session's `pins`, a loaded
+ * document's pins): set_pin_depth, then set_pin_angle for each pin that holds an angle (one undo step). Nothing for
+ * a mesh that is not a picture's.
+ * @param {{depth?: unknown, angles?: unknown}|undefined|null} pins per pin, its depth (integers) and its angle
+ *   (degrees or null)
+ */
+export function restorePins(pins) {
+  const send = sendPinMessage;
+  if (!shownPicture || !pins || !send) return;
+  if (Array.isArray(pins.depth) && pins.depth.length && pins.depth.every(Number.isInteger)) {
+    depth = /** @type {number[]} */ (pins.depth).slice();
+    send({ type: 'set_pin_depth', depth });
+  }
+  if (!Array.isArray(pins.angles)) return;
+  const held = pins.angles.map((a, k) => [k, a]).filter(([, a]) => typeof a === 'number' && Number.isFinite(a));
+  for (const [pin, angle] of held) send({ type: 'set_pin_angle', pin, angle });
+  if (held.length) send({ type: 'end_drag' }); // one undo step
+}
+
 /** True when the mesh shown is a picture's (its pins can be turned, pinrotate.js). */
 export function isPicture() {
   return shownPicture;
@@ -52,18 +75,8 @@ export function installPictureControls(actions) {
   // a saved session keeps the pins' depths and angles, and restoring sends them again
   addSnapshotPart('pins', () => (shownPicture && (depth.length || angles.some((a) => a !== null))
     ? { depth: depth.slice(), angles: angles.slice() } : null));
-  onSessionRestored((snap) => {
-    const pins = /** @type {{depth?: unknown, angles?: unknown}|undefined} */ (snap.pins);
-    if (!shownPicture || !pins) return;
-    if (Array.isArray(pins.depth) && pins.depth.length && pins.depth.every(Number.isInteger)) {
-      depth = /** @type {number[]} */ (pins.depth).slice();
-      actions.send({ type: 'set_pin_depth', depth });
-    }
-    if (!Array.isArray(pins.angles)) return;
-    const held = pins.angles.map((a, k) => [k, a]).filter(([, a]) => typeof a === 'number' && Number.isFinite(a));
-    for (const [pin, angle] of held) actions.send({ type: 'set_pin_angle', pin, angle });
-    if (held.length) actions.send({ type: 'end_drag' }); // one undo step
-  });
+  sendPinMessage = actions.send;
+  onSessionRestored((snap) => restorePins(/** @type {{depth?: unknown, angles?: unknown}|undefined} */ (snap.pins)));
   const select = byIdAs('warp', HTMLSelectElement);
   select.innerHTML = '';
   for (const value of PARAMS.warp.choices) {
@@ -121,9 +134,7 @@ export function pictureShown(msg) {
 export function pinsStated(msg, viewer) {
   angles = (msg.constraints?.points ?? []).map((p) => (typeof p.angle === 'number' ? p.angle : null));
   drawFirst = msg.draw_order?.[0] ?? null;
-  if (!viewer.textured) return;
-  viewer.textured.drawOrder(msg.draw_order);
-  viewer.requestRender();
+  viewer.drawOrder(msg.draw_order); // in every surface view (texture, colours, plain, the heat map)
 }
 
 /** The pins' depths as last sent, their angles and the first triangle drawn as last stated (the test hook's view). */

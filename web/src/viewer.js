@@ -69,6 +69,11 @@ export class Viewer {
     this._tint = null;
     /** @type {THREE.Mesh<THREE.BufferGeometry, THREE.MeshBasicMaterial>|null} */
     this.wire = null;
+    /** @type {THREE.Mesh<THREE.BufferGeometry, THREE.MeshStandardMaterial>|null} the solved mesh's triangles in a
+     * picture's pin-depth order (drawOrder), drawn in place of it: the solved mesh stays for picking */
+    this.ordered = null;
+    /** @type {number[]|null} the drawing order given last */
+    this._order = null;
     /** @type {THREE.GridHelper|null} */
     this.grid = null;
     this.radius = 1;
@@ -111,6 +116,7 @@ export class Viewer {
    */
   setMesh(positions, indices) {
     this._dropLook();
+    this._dropOrdered();
     if (this.mesh) this.scene.remove(this.mesh);
     if (this.wire) this.scene.remove(this.wire);
     this.geometry?.dispose();
@@ -214,9 +220,56 @@ export class Viewer {
     this._applySurface();
   }
 
+  /**
+   * Draw the triangles in `order` (later over earlier where they overlap: a picture's pin depths), or in the mesh's
+   * own order (null): the textured render mesh (whose triangles are the solved mesh's for a picture) and the solved
+   * mesh of the other surface views and the heat map alike. The solved mesh keeps its index (picking and point
+   * handles name its triangles): a copy of it in that order is drawn instead.
+   * @param {number[]|null|undefined} order a permutation of the triangles
+   */
+  drawOrder(order) {
+    this.textured?.drawOrder(order);
+    const g = this.geometry;
+    const index = g ? /** @type {THREE.BufferAttribute} */ (g.index) : null;
+    if (!g || !index || !order || order.length !== index.count / 3) {
+      this._order = null;
+    } else if (!this._order || this._order.length !== order.length || this._order.some((f, j) => f !== order[j])) {
+      const faces = /** @type {Uint32Array} */ (index.array);
+      if (!this.ordered) {
+        // the same attributes (positions, normals, colours: every update shows), its own index
+        const drawn = new THREE.BufferGeometry();
+        for (const name of ['position', 'normal', 'color']) drawn.setAttribute(name, g.attributes[name]);
+        drawn.setIndex(new THREE.BufferAttribute(new Uint32Array(faces.length), 1));
+        drawn.boundingBox = g.boundingBox;
+        drawn.boundingSphere = g.boundingSphere;
+        this.ordered = new THREE.Mesh(drawn, this.material);
+        this.ordered.raycast = () => {}; // picking uses the solved mesh
+        this.scene.add(this.ordered);
+      }
+      const drawnIndex = /** @type {THREE.BufferAttribute} */ (this.ordered.geometry.index);
+      const out = /** @type {Uint32Array} */ (drawnIndex.array);
+      order.forEach((f, j) => out.set(faces.subarray(3 * f, 3 * f + 3), 3 * j));
+      drawnIndex.needsUpdate = true;
+      this._order = order.slice();
+    }
+    this._applySurface();
+  }
+
+  /** Drop the ordered copy of the solved mesh (with the solved mesh, whose attributes it shares). */
+  _dropOrdered() {
+    if (this.ordered) {
+      this.scene.remove(this.ordered);
+      this.ordered.geometry.dispose();
+    }
+    this.ordered = null;
+    this._order = null;
+  }
+
   _applySurface() {
     const textured = this.surface === 'texture' && !!this.textured && !this._heat;
-    if (this.mesh) this.mesh.visible = !textured;
+    const ordered = !!this.ordered && !!this._order;
+    if (this.mesh) this.mesh.visible = !textured && !ordered;
+    if (this.ordered) this.ordered.visible = !textured && ordered;
     if (this.textured) this.textured.mesh.visible = textured;
     this.requestRender();
   }

@@ -101,6 +101,7 @@ def _solve_and_write(job: Job, state: _Chunk) -> JobOutcome:
             raise ArapError(state.load_error)
         V, F, repair, columns = state.mesh
         constraints = load_constraints(job.constraints, len(repair.vertex_map), len(F))
+        constraints.refuse_pin_angles("arap batch")
         if repair.renumbers:
             constraints = constraints.remapped(repair.vertex_map)
         indices, targets = constraints.indices_and_targets(V)

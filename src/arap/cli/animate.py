@@ -146,6 +146,7 @@ def run_animate(args: argparse.Namespace) -> int:
                                   "mesh file first (arap info shows what repair changes)")
         args.energy = args.energy or DEFAULT_ENERGY
     keys = load_keyframes(args.keyframes, V, len(F))
+    keys.constraints.refuse_pin_angles("arap animate")
     times = frame_times(keys, args.fps)
     warm_up_kernels(args.quiet)
     c = keys.constraints

@@ -326,6 +326,7 @@ def run_deform(args: argparse.Namespace) -> int:
                               "...), not both" if picked is not None else "give the constraints as a file "
                               "(-c FILE.json) or by position (--fix 'y<0.1' --handle 'y>0.9' --move 0.2,0,0)")
     constraints = picked if picked is not None else load_constraints(args.constraints, n_file, len(F))
+    constraints.refuse_pin_angles("arap deform")
     renumbered = repair.renumbers
     if repair.report and constraints.points is not None and len(constraints.points):
         raise ConstraintError("point handles refer to the file's triangles, which mesh repair changed; repair the "

@@ -1,7 +1,10 @@
 """``arap warp``: the puppet warp of a picture file with a pins file, written as a PNG with alpha.
 
 The pins file is JSON: ``{"pins": [[x, y], ...], "targets": [[x, y], ...]}`` in pixels (x to the right, y down);
-``targets`` may be shorter than ``pins`` or hold ``null`` for pins that stay where they are.
+``targets`` may be shorter than ``pins`` or hold ``null`` for pins that stay where they are; ``"angles"`` (optional,
+one per pin: degrees or ``null``) makes pins hold their surroundings turned by that angle (``PuppetWarp``'s
+``angles``). The studio's constraints documents name triangles of its own mesh of the picture instead of pixels:
+``arap warp`` says so rather than reading one.
 """
 
 from __future__ import annotations
@@ -17,7 +20,7 @@ from typing import Any
 from arap.cli.common import err, writable_destination
 from arap.errors import ArapError, ConstraintError
 
-__all__ = ["OUTPUTS", "add_parser", "read_pins", "run_warp"]
+__all__ = ["OUTPUTS", "add_parser", "read_pin_angles", "read_pins", "run_warp"]
 
 OUTPUTS = (".png", ".glb", ".obj")
 """The outputs by extension: the warped picture, or the warped mesh textured with the picture."""
@@ -32,7 +35,8 @@ def add_parser(commands: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     p.add_argument("image", metavar="IMAGE", help="picture file (PNG, JPEG, WebP, ...; at most 64 megapixels)")
     p.add_argument("--pins", required=True, metavar="PINS.json",
                    help='JSON {"pins": [[x, y], ...], "targets": [[x, y] or null, ...]} in pixels (x right, y '
-                        "down); pins without a target hold")
+                        'down); pins without a target hold; optional "angles": [degrees or null, ...], the angle '
+                        "each pin holds its surroundings turned by (counter-clockwise as seen)")
     p.add_argument("-o", "--output", required=True, metavar="OUT.png",
                    help="the warped picture (PNG with alpha); or OUT.glb, the warped mesh textured with the picture; "
                         "or OUT.obj, the same with OUT.mtl and the picture as OUT.texture.png beside it")
@@ -56,8 +60,29 @@ def read_pins(path: str | os.PathLike[str]) -> tuple[list[Any], list[Any] | None
     Raises
     ------
     ConstraintError
-        Unreadable, not JSON, or not an object with a ``pins`` list (and a ``targets`` list or nothing).
+        Unreadable, not JSON, or not an object with a ``pins`` list (and a ``targets`` list or nothing); a
+        constraints document (the studio's, whose pins are triangles of its mesh) is named as such.
     """
+    doc = _read_pins_file(path)
+    return doc["pins"], doc.get("targets")
+
+
+def read_pin_angles(path: str | os.PathLike[str]) -> list[Any] | None:
+    """The ``"angles"`` of a pins file (one per pin, degrees or None; checked by :class:`arap.puppet.PuppetWarp`),
+    or None.
+
+    Raises
+    ------
+    ConstraintError
+        What :func:`read_pins` refuses, or ``angles`` that is not a list.
+    """
+    angles = _read_pins_file(path).get("angles")
+    if angles is not None and not isinstance(angles, list):
+        raise ConstraintError(f'{path}: "angles" must be a list of one angle (degrees) or null per pin')
+    return angles
+
+
+def _read_pins_file(path: str | os.PathLike[str]) -> dict[str, Any]:
     try:
         text = Path(path).read_text(encoding="utf-8")
     except FileNotFoundError:
@@ -68,12 +93,16 @@ def read_pins(path: str | os.PathLike[str]) -> tuple[list[Any], list[Any] | None
         doc = json.loads(text)
     except json.JSONDecodeError as exc:
         raise ConstraintError(f"{path}: not JSON ({exc})") from None
+    if isinstance(doc, dict) and "pins" not in doc and any(k in doc for k in ("points", "fixed", "handles")):
+        raise ConstraintError(f'{path}: this is a constraints document (the studio\'s Save constraints, or arap '
+                              'deform\'s): its pins are triangles of the studio\'s mesh of the picture, not pixels; '
+                              'arap warp reads {"pins": [[x, y], ...], "targets": [...], "angles": [...]} in pixels')
     if not isinstance(doc, dict) or not isinstance(doc.get("pins"), list):
         raise ConstraintError(f'{path}: expected an object {{"pins": [[x, y], ...], "targets": [...]}}')
     targets = doc.get("targets")
     if targets is not None and not isinstance(targets, list):
         raise ConstraintError(f'{path}: "targets" must be a list of [x, y] or null')
-    return doc["pins"], targets
+    return doc
 
 
 def _check_destination(path: str) -> None:
@@ -119,10 +148,11 @@ def run_warp(args: argparse.Namespace) -> int:
     if args.spacing is not None and not (args.spacing > 0 and math.isfinite(args.spacing)):
         raise ArapError(f"--spacing must be a positive number of pixels, got {args.spacing}")
     pins, targets = read_pins(args.pins)
+    angles = read_pin_angles(args.pins)
     picture = read_picture(args.image)
     density = DEFAULT_DENSITY if args.density is None else args.density
     puppet = PuppetWarp(picture, pins, spacing=args.spacing, density=density, mode=args.mode,
-                        alpha_threshold=args.alpha_threshold)
+                        alpha_threshold=args.alpha_threshold, angles=angles)
     vertices = puppet.deform(targets)
     try:
         if Path(args.output).suffix.lower() != ".png":

@@ -12,7 +12,9 @@ The JSON format::
       "stiffness": [{"vertices": [7, 8], "value": 10.0},      # optional (version 2): per-vertex cell weights,
                     {"vertices": [9], "value": "rigid"}],     # 1 where not given; "rigid" keeps a region rigid
       "points": [{"face": 12, "barycentric": [0.2, 0.3, 0.5],        # optional (version 2): handles inside
-                  "target": [0.0, 5.0, 0.1], "weight": 10.0}],       # triangles; no "weight": a hard one
+                  "target": [0.0, 5.0, 0.1], "weight": 10.0,         # triangles; no "weight": a hard one;
+                  "angle": 30.0, "depth": 1}],                       # a picture's pin: the angle it holds and
+                                                                     #   its depth (optional, the studio's)
       "version": 2,                             # optional: 1 (the default) or 2 (for "stiffness", "points")
       "meta": {...},                            # optional, free-form, ignored
       "keyframes": [...]                        # optional: poses over time for arap animate
@@ -21,6 +23,13 @@ The JSON format::
 
 ``stiffness`` may also be a list of one number (or ``"rigid"``) per vertex. Files without ``version`` are version 1
 and load as before.
+
+A picture's pin (a point handle of the studio's picture mesh) may carry the angle it holds (``"angle"``, degrees,
+counter-clockwise as seen, from the picture as opened; left out: its surroundings turn freely with the bend) and its
+depth (``"depth"``, an integer: where the warped parts overlap, the part of the pin of larger depth is drawn over
+the other; left out: 0), as the studio's **Save constraints** writes them and its loading restores them
+(:data:`arap.constraints.entries.PIN_KEYS`). ``arap deform`` and ``arap animate`` refuse a document whose pins hold
+angles (they hold no pins' surroundings turned); depths only concern drawing, and they ignore them.
 
 Indices are 0-based in the mesh file's vertex order. ``fixed`` or ``handles`` may be omitted or empty, but not both.
 Handles may lie outside the region of interest: like every constrained vertex they go to their targets, while the
@@ -43,7 +52,14 @@ from typing import Any
 
 import numpy as np
 
-from arap.constraints.entries import points_and_targets, points_from_json, stiffness_from_json, stiffness_to_json
+from arap.constraints.entries import (
+    pin_entries,
+    pins_from_json,
+    points_and_targets,
+    points_from_json,
+    stiffness_from_json,
+    stiffness_to_json,
+)
 from arap.constraints.selection import check_listed_targets, check_selection
 from arap.errors import ConstraintError
 from arap.io.atomic import write_atomic
@@ -97,6 +113,12 @@ class Constraints:
         Handles inside triangles (:mod:`arap.method.points`).
     point_targets : (p, 3) float64 array or None
         Their targets.
+    pin_angles : list of float or None, or None
+        Per point handle (a picture's pin), the angle in degrees it holds, or None (turns freely); None when none
+        holds one.
+    pin_depth : list of int or None
+        Per point handle, its depth (larger: drawn over the others where the warped parts overlap); None when the
+        document gives none.
 
     Examples
     --------
@@ -114,11 +136,30 @@ class Constraints:
     stiffness: np.ndarray | None = None
     points: PointConstraints | None = None
     point_targets: np.ndarray | None = None
+    pin_angles: list[float | None] | None = None
+    pin_depth: list[int] | None = None
 
     @property
     def constrained(self) -> np.ndarray:
         """Fixed vertices then handles, shape (f + h,): the order of :meth:`indices_and_targets`."""
         return np.concatenate([self.fixed, self.handles])
+
+    def refuse_pin_angles(self, command: str) -> None:
+        """Refuse, for ``command`` (a solve that holds no pin's surroundings turned), pins that hold an angle.
+
+        Raises
+        ------
+        ConstraintError
+            A point handle holds an angle (``"angle"``: the studio's turn about a picture's pin).
+        """
+        held = [(k, a) for k, a in enumerate(self.pin_angles or []) if a is not None]
+        if held:
+            k, a = held[0]
+            raise ConstraintError(
+                f'{command} cannot hold a pin\'s surroundings turned: points[{k}] holds an angle of {a:g} degrees '
+                f'("angle", a picture pin turned in the studio{f", and {len(held) - 1} more" if len(held) > 1 else ""})'
+                '; remove "angle" to let the pins turn freely with the bend, or warp the picture in the studio or with '
+                '"angles" in the pins file of arap warp')
 
     def indices_and_targets(self, V: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Constrained vertices and their targets, fixed vertices at their rest positions.
@@ -231,12 +272,12 @@ class Constraints:
             out["handle_groups"] = [[int(i) for i in g] for g in self.handle_groups]
         if self.points is not None and self.point_targets is not None and len(self.points):
             out["version"] = FORMAT_VERSION
-            out["points"] = [
+            out["points"] = pin_entries([
                 {"face": int(f), "barycentric": [float(x) for x in b], "target": [float(x) for x in t]}
                 | ({} if np.isinf(w) else {"weight": float(w)})
                 for f, b, t, w in zip(self.points.faces, self.points.barycentric, self.point_targets,
                                       self.points.weights, strict=True)
-            ]
+            ], self.pin_angles, self.pin_depth)
         if self.stiffness is not None:
             out["version"] = FORMAT_VERSION
             out["stiffness"] = stiffness_to_json(self.stiffness)
@@ -296,7 +337,8 @@ def load_constraints(source: str | os.PathLike[str] | Mapping[str, Any], n_verti
     ------
     ConstraintError
         Unreadable or invalid JSON (nested too deeply, integers of hundreds of digits included), unknown keys, and
-        what :func:`check_selection` and :func:`check_listed_targets` refuse, or no constraint at all.
+        what :func:`check_selection` and :func:`check_listed_targets` refuse, a pin's angle that is not a finite
+        number or depth that is not an integer, or no constraint at all.
 
     Examples
     --------
@@ -348,14 +390,17 @@ def load_constraints(source: str | os.PathLike[str] | Mapping[str, Any], n_verti
             raise ConstraintError('"stiffness" needs "version": 2')
         stiffness = stiffness_from_json(data["stiffness"], n)
     points, point_targets = None, None
+    angles, depth = None, None
     if data.get("points") is not None:
         if version < 2:
             raise ConstraintError('"points" needs "version": 2')
         if n_faces is None:
             raise ConstraintError("point handles need the mesh's triangle count")
         points, point_targets = points_and_targets(data["points"], int(n_faces))
+        angles, depth = pins_from_json(data["points"])
     return Constraints(fixed=fixed, handles=handles, targets=targets, roi=roi, handle_groups=handle_groups,
-                       stiffness=stiffness, points=points, point_targets=point_targets)
+                       stiffness=stiffness, points=points, point_targets=point_targets, pin_angles=angles,
+                       pin_depth=depth)
 
 
 def _check_handle_groups(groups: list[list[int]], handles: np.ndarray) -> None:

@@ -1,5 +1,6 @@
 """The entries of a constraints document that are more than vertex lists: point handles (a triangle, barycentric
-coordinates, an optional weight and target each) and painted stiffness (groups of vertices with a positive value or
+coordinates, an optional weight and target each; in a document, a picture's pin may also carry the angle it holds
+and its depth) and painted stiffness (groups of vertices with a positive value or
 ``"rigid"``), checked and converted to and from JSON. The constraints document (:mod:`arap.constraints.document`)
 and the studio (:mod:`arap.server.constraints`) both use them.
 """
@@ -19,19 +20,76 @@ from arap.errors import ConstraintError
 from arap.method.points import PointConstraints, check_points
 from arap.solve.indexing import check_index_array
 
-__all__ = ["points_and_targets", "points_from_json", "stiffness_from_json", "stiffness_to_json"]
+__all__ = ["PIN_KEYS", "pin_entries", "pins_from_json", "points_and_targets", "points_from_json",
+           "stiffness_from_json", "stiffness_to_json"]
 
 #: Largest finite double: larger JSON integers are not numbers a coordinate or weight can take.
 _FLOAT_MAX = sys.float_info.max
 
+PIN_KEYS = ("angle", "depth")
+"""What a point handle of a constraints document may carry besides its place, target and weight: a picture's pin's
+``"angle"`` (degrees, counter-clockwise as seen, from the picture as opened: the studio's ``set_pin_angle``; left
+out: its surroundings turn freely) and ``"depth"`` (an integer: where the pins' parts overlap, the part of the pin of
+larger depth is drawn over the other: ``set_pin_depth``; left out: 0). They are the per-pin values the studio's
+autosaved session keeps (``pins``: ``angles`` and ``depth``)."""
+
 
 def points_and_targets(raw: Any, n_faces: int) -> tuple[PointConstraints, np.ndarray]:
-    """Point handles of a file: ``[{"face", "barycentric", "target", optional "weight"}, ...]``."""
-    points, targets, _ = points_from_json(raw, n_faces)
+    """Point handles of a file: ``[{"face", "barycentric", "target", optional "weight", "angle", "depth"}, ...]``
+    (:data:`PIN_KEYS`: read by :func:`pins_from_json`)."""
+    points, targets, _ = points_from_json(raw, n_faces, pin_keys=True)
     return points, targets
 
 
-def points_from_json(raw: Any, n_faces: int, *, require_target: bool = True
+def pins_from_json(raw: list[Any]) -> tuple[list[float | None] | None, list[int] | None]:
+    """The angles and depths of a document's point handles (:data:`PIN_KEYS`), already read by
+    :func:`points_from_json`.
+
+    Returns
+    -------
+    angles : list of float or None, or None
+        Per point handle, the angle in degrees it holds or None (turns freely); None when no point gives one.
+    depth : list of int, or None
+        Per point handle, its depth (0 where not given); None when no point gives one.
+
+    Raises
+    ------
+    ConstraintError
+        An angle that is not a finite number, a depth that is not an integer.
+    """
+    angles: list[float | None] = []
+    depth: list[int] = []
+    for k, item in enumerate(raw):
+        a = item.get("angle")
+        if a is not None and (type(a) not in (int, float) or not -_FLOAT_MAX <= a <= _FLOAT_MAX):
+            raise ConstraintError(f"points[{k}].angle must be a finite number of degrees (or left out: the pin turns "
+                                  f"freely), got {json.dumps(a, default=repr)[:40]}")
+        d = item.get("depth", 0)
+        if type(d) is not int or abs(d) > 2**31:
+            raise ConstraintError(f"points[{k}].depth must be an integer (larger: drawn over the others), got "
+                                  f"{json.dumps(d, default=repr)[:40]}")
+        angles.append(None if a is None else float(a))
+        depth.append(d)
+    return (angles if any(a is not None for a in angles) else None,
+            depth if any("depth" in item for item in raw) else None)
+
+
+def pin_entries(points: list[dict[str, Any]], angles: list[float | None] | None,
+                depth: list[int] | None) -> list[dict[str, Any]]:
+    """``points`` (a document's point handles) with each pin's ``"angle"`` (when not None) and ``"depth"`` (when
+    ``depth`` is given; pins beyond it: 0): the entries :func:`pins_from_json` reads."""
+    out = []
+    for k, item in enumerate(points):
+        item = dict(item)
+        if angles is not None and k < len(angles) and angles[k] is not None:
+            item["angle"] = float(angles[k])  # type: ignore[arg-type]
+        if depth:
+            item["depth"] = int(depth[k]) if k < len(depth) else 0
+        out.append(item)
+    return out
+
+
+def points_from_json(raw: Any, n_faces: int, *, require_target: bool = True, pin_keys: bool = False
                      ) -> tuple[PointConstraints, np.ndarray, np.ndarray]:
     """Point handles from ``[{"face", "barycentric", "target", optional "weight"}, ...]``: the one validator of
     point handles in JSON (constraints files and the studio's ``set_constraints``).
@@ -63,11 +121,13 @@ def points_from_json(raw: Any, n_faces: int, *, require_target: bool = True
     if not isinstance(raw, list):
         raise ConstraintError("points must be a list")
     required = {"face", "barycentric", "target"} if require_target else {"face", "barycentric"}
+    allowed = {"face", "barycentric", "target", "weight", *(PIN_KEYS if pin_keys else ())}
     faces, bary, targets, weights, given = [], [], [], [], []
     for k, item in enumerate(raw):
-        if not isinstance(item, Mapping) or not required <= set(item) or \
-                not set(item) <= {"face", "barycentric", "target", "weight"}:
+        if not isinstance(item, Mapping) or not required <= set(item) or not set(item) <= allowed:
             what = '"target" and optionally "weight"' if require_target else 'optionally "target" and "weight"'
+            if pin_keys:
+                what = '"target" and optionally "weight", "angle" and "depth"'
             raise ConstraintError(f'points[{k}] must be an object with "face", "barycentric", {what}')
         if type(item["face"]) is not int:
             raise ConstraintError(f"points[{k}].face must be an integer triangle index")

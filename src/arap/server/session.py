@@ -744,6 +744,12 @@ class Session:
     def constraints_document(self) -> dict[str, Any]:
         """The current constraints in the command-line format, in the mesh file's vertex numbering (as ``arap
         deform`` reads them; :func:`arap.server.numbering.document_in_file_numbering`); with the timeline's keyframes,
-        :func:`arap.server.animation_export.keyframes_document`."""
+        :func:`arap.server.animation_export.keyframes_document`. A picture's pins carry the angles they hold and
+        their depths (:data:`arap.constraints.entries.PIN_KEYS`)."""
+        from arap.constraints.entries import pin_entries
+
         mesh = self.require_mesh()
-        return document_in_file_numbering(self.constraints.document(self.V, self.transforms), mesh)
+        doc = self.constraints.document(self.V, self.transforms)
+        if doc.get("points"):
+            doc["points"] = pin_entries(doc["points"], self.pin_angles(), self.pin_depth)
+        return document_in_file_numbering(doc, mesh)
