@@ -26,7 +26,7 @@ import warnings
 from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 
@@ -121,7 +121,8 @@ def _colors_u8(values: np.ndarray) -> np.ndarray:
     """Vertex colours of a file (any type, 3 or 4 channels) as sRGB bytes, shape (n, 3)."""
     c = np.asarray(values)[:, :3]
     if np.issubdtype(c.dtype, np.floating):
-        return np.clip(np.nan_to_num(c) * 255.0 + 0.5, 0, 255).astype(np.uint8)
+        rounded: np.ndarray = np.clip(np.nan_to_num(c) * 255.0 + 0.5, 0, 255).astype(np.uint8)
+        return rounded
     if c.dtype.itemsize >= 2:
         scale = 257.0 if c.max(initial=0) > 255 else 1.0
         return np.clip(c / scale + 0.5, 0, 255).astype(np.uint8)
@@ -385,8 +386,10 @@ def _name_material(mesh: Any, asset: MeshAsset) -> None:
     if not len(used) or not isinstance(mesh.visual, trimesh.visual.TextureVisuals):
         return
     image = getattr(mesh.visual.material, "image", None)
-    mesh.visual.material = trimesh.visual.material.PBRMaterial(
-        name=asset.materials[int(np.bincount(used).argmax())], baseColorTexture=image)
+    # (trimesh's material constructors are untyped, and it types a texture's material as the SimpleMaterial its
+    # constructor makes, though any Material is one)
+    pbr_material = cast(Any, trimesh.visual.material.PBRMaterial)
+    mesh.visual.material = pbr_material(name=asset.materials[int(np.bincount(used).argmax())], baseColorTexture=image)
 
 
 def export_glb(name: str, U: np.ndarray, F: np.ndarray, look: Look | None) -> tuple[str, str, bytes]:

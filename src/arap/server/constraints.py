@@ -296,7 +296,8 @@ class ConstraintSet:
         if not self.n_points:
             return None
         T = transforms[len(self.groups):]
-        return np.einsum("pij,pj->pi", T[:, :3, :3], self.point_pose) + T[:, :3, 3]
+        targets: np.ndarray = np.einsum("pij,pj->pi", T[:, :3, :3], self.point_pose) + T[:, :3, 3]
+        return targets
 
     def points_json(self, transforms: np.ndarray | None = None) -> list[dict[str, Any]]:
         """The point handles as ``[{"face", "barycentric", "weight"?}]`` (no weight: hard), with ``"target"``

@@ -70,13 +70,14 @@ def is_loopback_host(host: str) -> bool:
 def presented_token(scope: Scope) -> str | None:
     """The token a request presents: the first ``token`` query parameter, else an ``Authorization: token ...`` (or
     ``Bearer``) header; None when it has none."""
-    query = scope.get("query_string", b"").decode("latin-1")
+    query: str = scope.get("query_string", b"").decode("latin-1")
     for key, value in parse_qsl(query, keep_blank_values=True):
         if key == TOKEN_PARAM:
             return value
     for key, value in scope.get("headers", []):
         if key.lower() == b"authorization":
-            scheme, _, credential = value.decode("latin-1").strip().partition(" ")
+            header: str = value.decode("latin-1")
+            scheme, _, credential = header.strip().partition(" ")
             if scheme.lower() in ("token", "bearer"):
                 return credential.strip()
     return None

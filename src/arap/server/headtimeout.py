@@ -14,7 +14,7 @@ from __future__ import annotations
 import asyncio
 import importlib.util
 import logging
-from typing import Any
+from typing import TYPE_CHECKING
 
 __all__ = ["DEFAULT_HEAD_TIMEOUT", "head_timeout_protocol"]
 
@@ -48,12 +48,18 @@ def head_timeout_protocol(timeout: float = DEFAULT_HEAD_TIMEOUT,
     """
     if not timeout > 0:
         raise ValueError(f"the request head timeout must be positive, got {timeout}")
-    parent: Any = base if base is not None else _base_protocol()
+    if TYPE_CHECKING:
+        # The base is chosen at run time, which mypy cannot take as a class's base; it checks the subclass against
+        # h11's protocol, whose attributes used here (cycle, transport, loop, client) httptools' protocol has too.
+        from uvicorn.protocols.http.h11_impl import H11Protocol as parent
+    else:
+        parent = base if base is not None else _base_protocol()
 
     class HeadTimeoutProtocol(parent):
         head_timeout = float(timeout)
 
-        def connection_made(self, transport: asyncio.Transport) -> None:
+        # (a stream transport, as uvicorn's own protocols take)
+        def connection_made(self, transport: asyncio.Transport) -> None:  # type: ignore[override]
             self._head_timer: asyncio.TimerHandle | None = None
             super().connection_made(transport)
             self._arm_head_timer()

@@ -58,7 +58,8 @@ class FileNumbering:
     def counts(self, idx: np.ndarray) -> np.ndarray:
         """How many file vertices each mesh vertex of ``idx`` is (1 unless repair welded copies of it)."""
         idx = np.asarray(idx, dtype=np.int64)
-        return self._starts[idx + 1] - self._starts[idx]
+        counts: np.ndarray = self._starts[idx + 1] - self._starts[idx]
+        return counts
 
     def copies(self, idx: np.ndarray) -> np.ndarray:
         """The file vertices of the mesh vertices ``idx``, in their order, each one's copies ascending.
@@ -77,7 +78,8 @@ class FileNumbering:
         total = int(counts.sum())
         # position of each output within its vertex's copies
         offset = np.arange(total) - np.repeat(np.cumsum(counts) - counts, counts)
-        return self._copies[np.repeat(self._starts[idx], counts) + offset]
+        files: np.ndarray = self._copies[np.repeat(self._starts[idx], counts) + offset]
+        return files
 
     def stiffness(self, raw: list[Any]) -> list[Any]:
         """Painted stiffness of a document in the file's numbering: ``[{"vertices", "value"}]`` groups list every
@@ -180,7 +182,8 @@ def document_in_file_numbering(document: dict[str, Any], mesh: MeshData) -> dict
     numbering = FileNumbering(mesh.vertex_map, mesh.n_vertices)
 
     def listed(key: str) -> list[int]:
-        return numbering.copies(np.asarray(document[key], dtype=np.int64)).tolist()
+        files: list[int] = numbering.copies(np.asarray(document[key], dtype=np.int64)).tolist()
+        return files
 
     out = dict(document)
     out["fixed"] = listed("fixed")

@@ -10,7 +10,7 @@ rotation per triangle), whatever the energy chosen for surfaces; handles dragged
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -22,6 +22,9 @@ from arap.server.constraints import PinRings
 from arap.server.errors import RequestError
 from arap.server.mesh_model import MeshData
 from arap.server.meshdata import load_upload
+
+if TYPE_CHECKING:
+    from arap.server.session import Session
 
 __all__ = [
     "DENSITIES",
@@ -242,7 +245,7 @@ def draw_order(parts: np.ndarray, depth: list[int] | np.ndarray | None) -> np.nd
     return np.argsort(per_triangle, kind="stable").astype(np.int64)
 
 
-def page_draw_order(session: Any) -> list[int] | None:
+def page_draw_order(session: Session) -> list[int] | None:
     """The order in which the page draws the triangles of a picture's textured mesh (its look's render triangles,
     :class:`arap.server.render_mesh.Look`) for the session's pin depths (:func:`draw_order`; later over earlier), or
     None: not a picture, no depths, or all equal (the mesh's order)."""
@@ -253,13 +256,14 @@ def page_draw_order(session: Any) -> list[int] | None:
     order = draw_order(pin_parts(mesh, session.constraints.points), depth)
     if order is None:
         return None
+    listed: list[int] = order.tolist()
     if look is None or look.render_faces is None or look.render_map is None:
-        return order.tolist()
+        return listed
     drawn = look.render_map[look.render_faces].astype(np.int64)
     F = np.asarray(mesh.F, dtype=np.int64)
     if drawn.shape != F.shape or not np.array_equal(np.sort(drawn, axis=1), np.sort(F, axis=1)):
         return None  # (a picture's render triangles are its mesh's, in its order)
-    return order.tolist()
+    return listed
 
 
 def warped_picture_png(mesh: MeshData, U: np.ndarray, points: PointConstraints | None = None,

@@ -23,7 +23,7 @@ import json
 import math
 import sys
 from collections.abc import Callable, Iterable, Mapping
-from typing import Any
+from typing import Any, TypeGuard
 
 import numpy as np
 
@@ -78,7 +78,7 @@ raises :class:`RequestError` (``bad_message``) with a message that starts with `
 _FLOAT_MAX = sys.float_info.max
 
 
-def _is_int(x: Any) -> bool:
+def _is_int(x: Any) -> TypeGuard[int]:
     return type(x) is int
 
 
@@ -142,10 +142,10 @@ def _check_string(f: Field, value: Any, where: str) -> str:
 
 
 def _check_enum(f: Field, value: Any, where: str) -> str:
-    value = _check_string(f, value, where)
-    if value not in f.choices:
-        raise RequestError("bad_message", f"{where} must be one of {list(f.choices)}, got {value[:40]!r}")
-    return value
+    text = _check_string(f, value, where)
+    if text not in f.choices:
+        raise RequestError("bad_message", f"{where} must be one of {list(f.choices)}, got {text[:40]!r}")
+    return text
 
 
 def _index_list(value: Any, where: str) -> Any:
