@@ -36,7 +36,7 @@ import time
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -45,6 +45,9 @@ from arap.constraints.keyframes import MAX_KEYFRAMES, Keyframe, Keyframes, load_
 from arap.errors import OptionError
 from arap.options import DEFAULT_TOLERANCE
 from arap.solve.result import ArapResult
+
+if TYPE_CHECKING:
+    from arap.solve.solver import ArapSolver
 
 __all__ = ["DEFAULT_FPS", "FRAME_TOLERANCE", "MAX_FRAMES", "MAX_KEYFRAMES", "Animation", "Keyframe", "Keyframes",
            "animate", "at_keyframes", "frame_paths", "frame_times", "iter_frames", "load_keyframes", "save_animation"]
@@ -129,7 +132,7 @@ def at_keyframes(keyframes: Keyframes, times: NDArray[np.float64]) -> NDArray[np
     return np.abs(times[:, None] - keys[None, :]).min(axis=1, initial=np.inf) <= 1e-9 * np.maximum(1.0, np.abs(times))
 
 
-def iter_frames(solver: Any, keyframes: Keyframes, V: NDArray[np.float64], times: NDArray[np.float64], *,
+def iter_frames(solver: ArapSolver, keyframes: Keyframes, V: NDArray[np.float64], times: NDArray[np.float64], *,
                 exact: bool = True, frame_tolerance: float = FRAME_TOLERANCE,
                 **solve_options: Any) -> Iterator[tuple[float, ArapResult]]:
     """Solve the frames at ``times`` one after another, each starting from the previous one.
@@ -181,7 +184,7 @@ def iter_frames(solver: Any, keyframes: Keyframes, V: NDArray[np.float64], times
                                      **solve_options)
 
 
-def _keyed(solver: Any, targets: NDArray[np.float64], points: NDArray[np.float64] | None,
+def _keyed(solver: ArapSolver, targets: NDArray[np.float64], points: NDArray[np.float64] | None,
            shape: NDArray[np.float64]) -> ArapResult:
     """The frame of a keyframe with a shape: that shape, which the solver's next solve starts from."""
     t0 = time.perf_counter()

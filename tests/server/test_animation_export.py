@@ -281,11 +281,16 @@ def test_a_picture_animation_as_gif_webp_and_png_frames() -> None:
         export_animation(bar_like(), [0, 500], [translation(0.0), translation(0.5)], 10.0, lambda: False, fmt="gif")
 
 
-def bar_like() -> Session:
+def bar_like(picture: bool = False) -> Session:
+    """The bar, its bottom fixed and its top a handle; with ``picture``, its mesh given a picture (what the export
+    checks before it draws)."""
+    import dataclasses
+
     from arap.server.meshdata import load_builtin
 
     s = Session()
-    s.load(load_builtin("bar"))
+    mesh = load_builtin("bar")
+    s.load(dataclasses.replace(mesh, picture=np.zeros((4, 4, 4), dtype=np.uint8)) if picture else mesh)
     y = s.V[:, 1]
     s.set_constraints(None, np.flatnonzero(y < 0.2).tolist(), [np.flatnonzero(y > 4.8).tolist()])
     return s
@@ -294,20 +299,11 @@ def bar_like() -> Session:
 def test_a_picture_animation_without_pillow_says_what_to_install(monkeypatch: pytest.MonkeyPatch) -> None:
     import sys
 
-    s = bar_like()
-    s.mesh = dataclasses_replace_picture(s)
+    s = bar_like(picture=True)
     monkeypatch.setitem(sys.modules, "PIL", None)
     for fmt in ("gif", "webp", "zip"):
         with pytest.raises(RequestError, match=r"needs Pillow.*arap\[image\]"):
             export_animation(s, [0, 500], [translation(0.0), translation(0.5)], 10.0, lambda: False, fmt=fmt)
-
-
-def dataclasses_replace_picture(s: Session) -> MeshData:
-    """The session's mesh with a picture (what the export checks before it draws)."""
-    import dataclasses
-
-    assert s.mesh is not None
-    return dataclasses.replace(s.mesh, picture=np.zeros((4, 4, 4), dtype=np.uint8))
 
 
 def test_keep_shape_over_the_socket_is_not_answered_and_a_drag_gives_the_shape_back(studio: StudioClient) -> None:

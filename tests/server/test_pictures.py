@@ -212,7 +212,7 @@ def test_the_state_gives_the_page_the_drawing_order_of_the_pins_depths() -> None
     assert state_message(s)["draw_order"] is None
     bar = Session()
     bar.load(load_builtin("bar"))
-    bar.pin_depth = [1]
+    bar.set_pin_depth([1])
     assert state_message(bar)["draw_order"] is None
 
 

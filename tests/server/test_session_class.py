@@ -7,11 +7,18 @@ from __future__ import annotations
 import ast
 from pathlib import Path
 
+import numpy as np
+
+import arap
 import arap.server
 from arap.server.session import Session
+from arap.server.solvers import PlaneSolver, plane_solver
 
 SERVER = Path(arap.server.__file__).parent
 SESSION = SERVER / "session.py"
+PACKAGE = Path(arap.__file__).parent
+SOLVER_USERS = [PACKAGE / "animation.py", PACKAGE / "batching" / "worker.py", PACKAGE / "puppet" / "warp.py"]
+"""Modules outside the server that hand solvers around."""
 
 
 def _parse(path: Path) -> ast.Module:
@@ -137,7 +144,7 @@ def test_no_other_module_of_the_server_sets_a_session_attribute() -> None:
 
 def test_no_solver_of_the_server_is_typed_any() -> None:
     found = []
-    for path in sorted(SERVER.glob("*.py")):
+    for path in [*sorted(SERVER.glob("*.py")), *SOLVER_USERS]:
         for node in ast.walk(_parse(path)):
             if isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef):
                 a = node.args
@@ -150,3 +157,18 @@ def test_no_solver_of_the_server_is_typed_any() -> None:
                     and _is_any(node.annotation):
                 found.append(f"{path.name}:{node.lineno}: {ast.unparse(node.target)}")
     assert found == []
+
+
+def test_a_pictures_solver_delegates_only_what_it_names() -> None:
+    """:class:`PlaneSolver` names the inner solver's attributes it gives (typed), and no others pass through."""
+    assert "__getattr__" not in vars(PlaneSolver)
+    V = np.array([[0.0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]])
+    F = np.array([[0, 1, 2], [0, 2, 3]])
+    inner = arap.ArapSolver(V, F, [0, 2], energy="elements")
+    solver = plane_solver(inner, "rigid")
+    assert solver.energy_type == "elements" and solver.n_free == inner.n_free == 2
+    np.testing.assert_array_equal(solver.V, V)
+    np.testing.assert_array_equal(solver.F, F)
+    assert not hasattr(solver, "fit_rotations")  # the inner solver's, not the picture's
+    result = solver.solve(np.array([[0.0, 0, 0], [1.2, 1.1, 0.5]]))
+    assert np.abs(result.vertices[:, 2]).max() == 0.0  # the targets are put back on the plane

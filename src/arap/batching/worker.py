@@ -13,12 +13,15 @@ import time
 from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from arap.batching.jobs import Job, JobOutcome
 from arap.batching.locks import exit_with_parent, output_lock
+
+if TYPE_CHECKING:
+    from arap.solve.solver import ArapSolver
 
 __all__ = ["run_chunk", "start_worker", "worker_environment"]
 
@@ -78,7 +81,7 @@ class _Chunk:
 
     mesh: tuple[np.ndarray, np.ndarray, Any, int] | None = None
     load_error: str = ""
-    solver: Any = None
+    solver: ArapSolver | None = None
     built_for: tuple[bytes, ...] | None = None
 
 
@@ -106,14 +109,15 @@ def _solve_and_write(job: Job, state: _Chunk) -> JobOutcome:
             constraints = constraints.remapped(repair.vertex_map)
         indices, targets = constraints.indices_and_targets(V)
         structure = _structure(constraints)
-        factorised = state.solver is None or structure != state.built_for
-        if factorised:
+        solver = state.solver if structure == state.built_for else None
+        factorised = solver is None
+        if solver is None:
             state.solver = None  # the previous factor goes before the next is built
-            state.solver = ArapSolver(V, F, indices, energy=job.energy, weights=job.weights,  # type: ignore[arg-type]
-                                      roi=constraints.roi, stiffness=constraints.stiffness, alpha=job.alpha,
-                                      points=constraints.points)
-            state.built_for = structure
-        result = state.solver.solve(targets, initial="auto", max_iterations=job.max_iterations,
+            solver = ArapSolver(V, F, indices, energy=job.energy, weights=job.weights,  # type: ignore[arg-type]
+                                roi=constraints.roi, stiffness=constraints.stiffness, alpha=job.alpha,
+                                points=constraints.points)
+            state.solver, state.built_for = solver, structure
+        result = solver.solve(targets, initial="auto", max_iterations=job.max_iterations,
                                     tolerance=job.tolerance, point_targets=constraints.point_targets)
         if not np.isfinite(result.vertices).all():
             raise ArapError("the solve produced non-finite positions; nothing was written")

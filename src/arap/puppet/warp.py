@@ -28,7 +28,7 @@ turned by its angle.
 
 from __future__ import annotations
 
-from typing import Any, Literal
+from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
 import scipy.sparse as sp
@@ -40,6 +40,10 @@ from arap.errors import ArapError, ConstraintError, OptionError
 from arap.puppet.imagemesh import DEFAULT_DENSITY, ImageMesh, image_mesh
 from arap.puppet.picture import as_picture
 from arap.puppet.raster import draw_textured
+
+if TYPE_CHECKING:
+    from arap.puppet.blend import BlendSolver
+    from arap.solve.solver import ArapSolver
 
 __all__ = ["MODES", "RING_POINTS", "RING_SPACINGS", "PuppetWarp", "WarpMode", "pin_targets", "warp"]
 
@@ -299,15 +303,16 @@ class PuppetWarp:
             c = np.clip(V[:, 0].astype(np.int64), 0, w - 1)
             r = np.clip(V[:, 1].astype(np.int64), 0, h - 1)
             stiffness = np.where(R[r, c], np.inf, 1.0)
-        self._solver: Any = None
+        self._solver: ArapSolver | BlendSolver | None = None
         if mode in ("rigid", "normal"):
             from arap.solve.solver import ArapSolver
 
-            self._solver = ArapSolver(V, F, self.held, points=(self._faces_all, self._bary_all), stiffness=stiffness)
+            solver = ArapSolver(V, F, self.held, points=(self._faces_all, self._bary_all), stiffness=stiffness)
+            self._solver = solver
             if mode == "normal":
                 from arap.puppet.blend import NORMAL_LAMBDA, BlendSolver
 
-                self._solver = BlendSolver(self._solver, NORMAL_LAMBDA)
+                self._solver = BlendSolver(solver, NORMAL_LAMBDA)
         else:
             self._prepare_distort()
 

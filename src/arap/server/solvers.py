@@ -8,10 +8,11 @@ from collections import OrderedDict
 from typing import TYPE_CHECKING, Any, TypeAlias
 
 import numpy as np
+from numpy.typing import NDArray
 
 from arap.errors import ArapError
 from arap.method.points import PointConstraints
-from arap.options import DEFAULT_TOLERANCE
+from arap.options import DEFAULT_TOLERANCE, EnergyType
 from arap.server.constraints import ConstraintSet
 from arap.server.records import Params
 from arap.server.session_errors import ConstraintsRejected
@@ -140,8 +141,20 @@ class PlaneSolver:
         self.n_free = solver.n_free
         self.factor_seconds = solver.factor_seconds if self._blend is None else self._blend.factor_seconds
 
-    def __getattr__(self, name: str) -> Any:
-        return getattr(self.inner, name)  # the rest of the ArapSolver's attributes (V, F, energy_type, ...)
+    @property
+    def V(self) -> NDArray[np.float64]:
+        """The rest positions (:attr:`arap.ArapSolver.V`)."""
+        return self.inner.V
+
+    @property
+    def F(self) -> NDArray[np.int64]:
+        """The triangles (:attr:`arap.ArapSolver.F`)."""
+        return self.inner.F
+
+    @property
+    def energy_type(self) -> EnergyType:
+        """The energy, ``"elements"`` (:attr:`arap.ArapSolver.energy_type`)."""
+        return self.inner.energy_type
 
     def solve(self, targets: Any, initial: Any = None, max_iterations: int | None = None,
               tolerance: float = DEFAULT_TOLERANCE, callback: Any = None, acceleration: Any = "lbfgs",
