@@ -10,7 +10,7 @@ rotation per triangle), whatever the energy chosen for surfaces; handles dragged
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any
+from typing import Any, Protocol
 
 import numpy as np
 
@@ -18,13 +18,10 @@ import arap.io.formats as formats
 from arap.errors import ArapError
 from arap.method.points import PointConstraints
 from arap.server.appearance import Look, look_from_upload
-from arap.server.constraints import PinRings
+from arap.server.constraints import ConstraintSet, PinRings
 from arap.server.errors import RequestError
 from arap.server.mesh_model import MeshData
 from arap.server.meshdata import load_upload
-
-if TYPE_CHECKING:
-    from arap.server.session import Session
 
 __all__ = [
     "DENSITIES",
@@ -245,7 +242,23 @@ def draw_order(parts: np.ndarray, depth: list[int] | np.ndarray | None) -> np.nd
     return np.argsort(per_triangle, kind="stable").astype(np.int64)
 
 
-def page_draw_order(session: Session) -> list[int] | None:
+class _DrawnSession(Protocol):
+    """What :func:`page_draw_order` reads of a studio session (:class:`arap.server.session.Session`)."""
+
+    @property
+    def mesh(self) -> MeshData | None: ...
+
+    @property
+    def look(self) -> Look | None: ...
+
+    @property
+    def pin_depth(self) -> list[int]: ...
+
+    @property
+    def constraints(self) -> ConstraintSet: ...
+
+
+def page_draw_order(session: _DrawnSession) -> list[int] | None:
     """The order in which the page draws the triangles of a picture's textured mesh (its look's render triangles,
     :class:`arap.server.render_mesh.Look`) for the session's pin depths (:func:`draw_order`; later over earlier), or
     None: not a picture, no depths, or all equal (the mesh's order)."""
