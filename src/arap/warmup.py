@@ -383,12 +383,13 @@ def _picture_solves() -> None:
     with λ = 0, :class:`arap.server.solvers.PlaneSolver`)."""
     from arap.puppet.blend import BlendSolver
     from arap.puppet.warp import MODES, PuppetWarp
+    from arap.solve.solver import ArapSolver
 
     picture = np.full((12, 16, 4), 255, dtype=np.uint8)
     pins, targets = [[3.0, 6.0], [12.0, 6.0]], [[3.0, 6.0], [14.0, 8.0]]
     for mode in cast("tuple[Any, ...]", MODES):
         puppet = PuppetWarp(picture, pins, spacing=2.0, mode=mode)
         puppet.deform(targets)
-        if mode == "rigid":
+        if mode == "rigid" and isinstance(puppet._solver, ArapSolver):  # (a rigid warp's solver is ARAP's own)
             BlendSolver(puppet._solver, 0.0).solve(puppet.mesh.vertices[puppet.held],
                                                    point_targets=np.asarray(targets), max_iterations=4)
