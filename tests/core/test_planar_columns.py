@@ -15,6 +15,11 @@ import arap.solve.iteration as iteration
 from arap.meshes.grids import rectangle_triangles
 from arap.puppet.blend import BlendSolver
 
+AGREE = 1e-7
+"""Relative agreement of the 2- and 3-column iterations: the same arithmetic in another order, whose round-off tens of
+iterations (and a stiff soft point handle) amplify to about 1e-9 with one Cholesky backend and 2e-9 with another; a
+wrong path differs by far more."""
+
 
 def _bend(nx: int = 24, ny: int = 12, angle: float = np.pi / 2) -> tuple[np.ndarray, np.ndarray, np.ndarray,
                                                                          np.ndarray]:
@@ -72,8 +77,8 @@ def test_two_columns_give_the_three_column_results(monkeypatch: pytest.MonkeyPat
     for old, new in zip(results[True], results[False], strict=True):
         assert new.vertices.shape == V.shape
         scale = np.abs(old.vertices).max()
-        np.testing.assert_allclose(new.vertices, old.vertices, rtol=0, atol=1e-9 * scale)
-        np.testing.assert_allclose(new.energies, old.energies, rtol=1e-9, atol=1e-12 * old.energies[0])
+        np.testing.assert_allclose(new.vertices, old.vertices, rtol=0, atol=AGREE * scale)
+        np.testing.assert_allclose(new.energies, old.energies, rtol=AGREE, atol=1e-12 * old.energies[0])
         assert new.iterations == old.iterations
 
 
@@ -118,8 +123,8 @@ def test_point_handles_on_two_columns(monkeypatch: pytest.MonkeyPatch, columns: 
     U = results[False].vertices
     if weights is None:  # hard: met exactly
         np.testing.assert_allclose(beta @ U[T[face]], goal, rtol=0, atol=1e-9)
-    np.testing.assert_allclose(U, results[True].vertices, rtol=0, atol=1e-9 * np.abs(U).max())
-    np.testing.assert_allclose(results[False].energies, results[True].energies, rtol=1e-9)
+    np.testing.assert_allclose(U, results[True].vertices, rtol=0, atol=AGREE * np.abs(U).max())
+    np.testing.assert_allclose(results[False].energies, results[True].energies, rtol=AGREE)
 
 
 @pytest.mark.parametrize(("axis", "offset"), [(2, 0.0), (1, 2.5)])
@@ -143,7 +148,7 @@ def test_planar_input_in_space_keeps_its_plane_exactly(columns: list[int], axis:
     assert (result.vertices[:, axis] == offset).all()
     np.testing.assert_array_equal(seen[-1], result.vertices)  # the callback sees the iterate
     flat = arap.ArapSolver(V2, T, b).solve(targets2)
-    np.testing.assert_allclose(result.vertices[:, inplane], flat.vertices, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(result.vertices[:, inplane], flat.vertices, rtol=0, atol=AGREE * np.abs(V2).max())
 
 
 def test_the_picture_warp_similarity_step_runs_on_two_columns(monkeypatch: pytest.MonkeyPatch,
@@ -167,9 +172,9 @@ def test_the_picture_warp_similarity_step_runs_on_two_columns(monkeypatch: pytes
         assert set(columns) == {3 if three else 2}
         assert (3 if three else 2) in shapes
     scale = np.abs(results[True].vertices).max()
-    np.testing.assert_allclose(results[False].vertices, results[True].vertices, rtol=0, atol=1e-9 * scale)
+    np.testing.assert_allclose(results[False].vertices, results[True].vertices, rtol=0, atol=AGREE * scale)
     e = np.asarray(results[False].energies)
-    np.testing.assert_allclose(e, results[True].energies, rtol=1e-9)
+    np.testing.assert_allclose(e, results[True].energies, rtol=AGREE)
     assert (np.diff(e) <= 1e-12 * e[0]).all()
 
 
