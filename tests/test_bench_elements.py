@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import sys
 from pathlib import Path
 from types import ModuleType
 
@@ -12,16 +11,12 @@ import pytest
 from arap.io.meshfile import save_mesh
 from arap.meshes.domain import signed_measures
 from arap.meshes.shapes import builtin_mesh
-from tests.tool_modules import ROOT, load_tool
+from tests.tool_modules import load_benchmark
 
 
 @pytest.fixture(scope="module")
 def bench() -> ModuleType:
-    sys.path.insert(0, str(ROOT / "benchmarks"))
-    try:
-        return load_tool("bench_elements", "benchmarks")
-    finally:
-        sys.path.remove(str(ROOT / "benchmarks"))
+    return load_benchmark("bench_elements")
 
 
 def _boundary_distances(bench: ModuleType, V: np.ndarray, F: np.ndarray, V_tet: np.ndarray,

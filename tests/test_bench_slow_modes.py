@@ -3,7 +3,6 @@ the conjugate gradients the ceiling counts with."""
 
 from __future__ import annotations
 
-import sys
 from types import ModuleType
 
 import numpy as np
@@ -13,16 +12,12 @@ from benchmarks.scenarios import make_scenario
 
 from arap import ArapSolver
 from arap.meshes.shapes import builtin_mesh
-from tests.tool_modules import ROOT, load_tool
+from tests.tool_modules import load_benchmark
 
 
 @pytest.fixture(scope="module")
 def bench() -> ModuleType:
-    sys.path.insert(0, str(ROOT / "benchmarks"))
-    try:
-        return load_tool("bench_slow_modes", "benchmarks")
-    finally:
-        sys.path.remove(str(ROOT / "benchmarks"))
+    return load_benchmark("bench_slow_modes")
 
 
 @pytest.fixture(scope="module")

@@ -3,13 +3,12 @@
 from __future__ import annotations
 
 import json
-import sys
 from pathlib import Path
 from typing import Any
 
 import pytest
 
-from tests.tool_modules import ROOT, load_tool
+from tests.tool_modules import load_benchmark, load_tool
 
 bench_table = load_tool("bench_table")
 
@@ -115,11 +114,7 @@ def test_a_bad_results_file_is_refused(fixtures: dict[str, Path], capsys: pytest
 
 def test_benchmarks_write_what_the_generator_reads(tmp_path: Path) -> None:
     """The writer the benchmarks share and the generator agree on the format."""
-    sys.path.insert(0, str(ROOT / "benchmarks"))
-    try:
-        benchjson = load_tool("benchjson", "benchmarks")
-    finally:
-        sys.path.remove(str(ROOT / "benchmarks"))
+    benchjson = load_benchmark("benchjson")
     results = tmp_path / "results"
     benchjson.write_results(results / "bench_settle.json", "bench_settle",
                             [benchjson.figure("release to settled", 0.25, "s", "target", 0.5)], {"drags": [0.25]})

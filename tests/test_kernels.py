@@ -5,6 +5,7 @@ from __future__ import annotations
 import os
 import subprocess
 import sys
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -46,6 +47,20 @@ def test_warm_up_covers_every_solve() -> None:
 
 
 
+def serial_then_threaded(run: Callable[[], object]) -> None:
+    """``run()`` as the kernels' thread policy has it, then again with every kernel above its threading threshold
+    (the threaded variants of large meshes too), the policy put back after."""
+    run()
+    saved = policy.min_work, policy.work_per_thread
+    try:
+        policy.min_work, policy.work_per_thread = 0, 1
+        policy.reset()
+        run()
+    finally:
+        policy.min_work, policy.work_per_thread = saved
+        policy.reset()
+
+
 def _every_solve() -> None:
     """Solve other meshes than the warm-up's with every energy each takes, every acceleration and weighting."""
     cactus = builtin_mesh("cactus")
@@ -70,15 +85,7 @@ def test_arap_warmup_covers_every_energy_and_acceleration(capsys: pytest.Capture
     assert "arap:" in capsys.readouterr().out
     assert all(_kernel_ready(k) for k in EVERY_SOLVE_KERNELS), [k for k in EVERY_SOLVE_KERNELS if not _kernel_ready(k)]
     before = _counts()
-    _every_solve()
-    saved = policy.min_work, policy.work_per_thread
-    try:
-        policy.min_work, policy.work_per_thread = 0, 1
-        policy.reset()
-        _every_solve()
-    finally:
-        policy.min_work, policy.work_per_thread = saved
-        policy.reset()
+    serial_then_threaded(_every_solve)
     # No kernel signature was compiled or even loaded from the cache after ``arap warmup``.
     assert _counts() == before
     # The progress of a later default warm-up counts the default kernels again.

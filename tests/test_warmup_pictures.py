@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from arap.kernels.parallel import policy
 from arap.warmup import EVERY_SOLVE_KERNELS, _counts, _kernel_ready, warm_up_kernels
+from tests.test_kernels import serial_then_threaded
 
 
 def _picture_solves() -> None:
@@ -33,14 +33,6 @@ def test_a_warm_up_of_every_solve_leaves_no_picture_solve_to_compile() -> None:
     assert _kernel_ready("arap.puppet.blend._similarity_parallel")
     assert all(_kernel_ready(k) for k in EVERY_SOLVE_KERNELS)
     before = _counts()
-    _picture_solves()
-    saved = policy.min_work, policy.work_per_thread
-    try:
-        policy.min_work, policy.work_per_thread = 0, 1  # the threaded variants of large pictures too
-        policy.reset()
-        _picture_solves()
-    finally:
-        policy.min_work, policy.work_per_thread = saved
-        policy.reset()
+    serial_then_threaded(_picture_solves)  # the threaded variants of large pictures too
     # No kernel signature was compiled or even loaded from the cache after the warm-up (a Normal solve included).
     assert _counts() == before

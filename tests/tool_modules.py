@@ -19,3 +19,14 @@ def load_tool(name: str, folder: str = "tools") -> ModuleType:
     sys.modules[name] = module
     spec.loader.exec_module(module)
     return module
+
+
+def load_benchmark(name: str) -> ModuleType:
+    """``benchmarks/<name>.py`` as the module ``name``, with ``benchmarks/`` on the import path while it loads (the
+    benchmarks import their shared modules, such as ``benchjson``, as siblings)."""
+    folder = str(ROOT / "benchmarks")
+    sys.path.insert(0, folder)
+    try:
+        return load_tool(name, "benchmarks")
+    finally:
+        sys.path.remove(folder)

@@ -167,13 +167,19 @@ def _pin_at(mesh: Any, x: float, y: float) -> dict[str, Any]:
     return {"face": face, "barycentric": [1 / 3, 1 / 3, 1 / 3]}
 
 
-def test_pin_depth_chooses_which_part_covers_the_other_in_the_png() -> None:
+def blue_pinned_over_red() -> Session:
+    """The two squares with a pin on each, the blue one's pin moved 40 px left, over the red square."""
     mesh, look = load_picture(_two_squares_png(), "squares.png", 100_000)
     s = Session()
     s.load(mesh, look)
     red, blue = _pin_at(mesh, 30, 30), _pin_at(mesh, 90, 30)
     blue["target"] = (np.array(blue["barycentric"]) @ mesh.V[mesh.F[blue["face"]]] + [-40.0, 0.0, 0.0]).tolist()
     s.set_constraints(None, [], [], points=[red, blue])
+    return s
+
+
+def test_pin_depth_chooses_which_part_covers_the_other_in_the_png() -> None:
+    s = blue_pinned_over_red()
     s.settle(lambda: False)
 
     def overlap_colour() -> np.ndarray:

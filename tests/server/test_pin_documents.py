@@ -15,18 +15,13 @@ from arap.constraints import load_constraints, save_constraints
 from arap.errors import ConstraintError
 from arap.server.pictures import load_picture, page_draw_order
 from arap.server.session import Session
-from tests.server.test_pictures import _pin_at, _two_squares_png
+from tests.server.test_pictures import _two_squares_png, blue_pinned_over_red
 
 
 def _turned_and_layered() -> Session:
     """The two squares with a pin on each, the blue one moved over the red one; pin 0 holds 30 degrees, pin 1 is in
     front."""
-    mesh, look = load_picture(_two_squares_png(), "squares.png", 100_000)
-    s = Session()
-    s.load(mesh, look)
-    red, blue = _pin_at(mesh, 30, 30), _pin_at(mesh, 90, 30)
-    blue["target"] = (np.array(blue["barycentric"]) @ mesh.V[mesh.F[blue["face"]]] + [-40.0, 0.0, 0.0]).tolist()
-    s.set_constraints(None, [], [], points=[red, blue])
+    s = blue_pinned_over_red()
     s.set_pin_angle(0, 30.0)
     s.end_drag()
     s.set_pin_depth([0, 1])
