@@ -3,7 +3,7 @@
 // transforms apply to.
 import { readConstraintsFile } from './files.js';
 import { EASINGS } from './keyframes.js';
-import { isPicture, restorePins } from './picturemode.js';
+import { restorePins } from './picturemode.js';
 import { CLIENT } from './protocol.js';
 
 /**
@@ -67,9 +67,7 @@ export function loadConstraintsFile(file, d) {
   file.text().then((text) => {
     const keyed = keyframedDocument(text, d.rest(), d.mesh.vertexMap);
     const read = keyed ? new File([keyed.text], file.name, { type: 'application/json' }) : file;
-    // a picture's pins name triangles of the studio's mesh of it, which is no file's: nothing to refuse
-    const repaired = d.mesh.repaired && !isPicture();
-    return readConstraintsFile(read, d.viewer.nVertices, d.mesh.nFaces, d.mesh.vertexMap, repaired).then((c) => {
+    return readConstraintsFile(read, d.viewer.nVertices, d.mesh.nFaces, d.mesh.vertexMap, d.mesh.repaired).then((c) => {
       d.selection.fromConstraints(c);
       d.mirror.setPairs(c.partners);
       d.refreshSelection(true);

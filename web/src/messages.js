@@ -5,7 +5,7 @@
 // messages say; this module tells the views.
 import { downloadConstraints, downloadExport } from './files.js';
 import { meshArrays } from './frames.js';
-import { isPicture, pinsStated } from './picturemode.js';
+import { pinsStated } from './picturemode.js';
 import { CLIENT, ERROR, PROTOCOL_VERSION, SERVER } from './protocol.js';
 import { appearanceArrays } from './texture.js';
 
@@ -94,7 +94,7 @@ export class ServerMessages {
         if (msg.status !== 'settling') d.timeline.settled();
         return d.panel.setSettle(msg);
       case SERVER.CONSTRAINTS: // the document carries the mirror pairs of its handle groups in "meta"
-        if (d.mesh.repaired && !isPicture() && msg.document?.points?.length) { // (a picture's pins: its own mesh's)
+        if (d.mesh.repaired && msg.document?.points?.length) {
           return d.showRequestError(POINTS_NOT_SAVED(d.mesh.name));
         }
         return d.panel.showStatus(downloadConstraints(d.mirror.documentWithPartners(msg.document, d.sync.groupMap),

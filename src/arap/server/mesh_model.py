@@ -71,6 +71,13 @@ class MeshData:
         return cls(mesh.name, mesh.V, mesh.F, mesh.report, None, elements, owner)
 
     @property
+    def repaired(self) -> bool:
+        """Loading named changes to the file (its ``report``: repairs, a solid's boundary), so that point handles of
+        a document, which name triangles, do not carry over between it and the file. A picture's mesh is no file's:
+        its pins name its own triangles, and its report only describes it."""
+        return bool(self.report) and self.picture is None
+
+    @property
     def solve_elements(self) -> np.ndarray:
         """What the solver deforms: the tetrahedra of a solid, else the triangles."""
         return self.F if self.elements is None else self.elements

@@ -163,9 +163,8 @@ def document_in_file_numbering(document: dict[str, Any], mesh: MeshData) -> dict
     Raises
     ------
     ConstraintsRejected
-        For point handles on a mesh that repair changed: they refer to the repaired
-        triangles, and ``arap deform`` refuses them on such a mesh. (A picture's pins refer to the triangles of the
-        studio's mesh of the picture, which is no file's: they are kept.)
+        For point handles on a mesh that repair changed (:attr:`MeshData.repaired`): they refer to the repaired
+        triangles, and ``arap deform`` refuses them on such a mesh.
 
     Examples
     --------
@@ -175,7 +174,7 @@ def document_in_file_numbering(document: dict[str, Any], mesh: MeshData) -> dict
     ...                             "handle_groups": [[2]]}, mesh)
     {'fixed': [1], 'handles': [3], 'targets': [[0.0, 2, 0]], 'handle_groups': [[3]]}
     """
-    if document.get("points") and mesh.report and mesh.picture is None:  # (a picture's pins: its studio mesh's)
+    if document.get("points") and mesh.repaired:
         raise ConstraintsRejected(_points_refused(mesh))
     if mesh.vertex_map is None:
         return document

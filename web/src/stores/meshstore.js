@@ -109,7 +109,8 @@ export class MeshStore {
     this.#name = msg.name;
     this.#nFaces = msg.n_faces;
     this.#vertexMap = vertexMap; // constraints documents name the file's vertices (numbering.js)
-    this.#repaired = (msg.report || []).length > 0;
+    // a picture's mesh is no file's (its pins name its own triangles); its report only describes it
+    this.#repaired = (msg.report || []).length > 0 && !msg.picture;
     this.#lastSeq = -1;
   }
 
