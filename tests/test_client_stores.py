@@ -1,8 +1,9 @@
 """The studio client's stores (``web/src/stores/``) are the only writers of their fields: the other modules read
 them and tell a store what happened through its methods (``history.dragEnded()``, ``mesh.connectionLost()`` …).
-The selection (``Selection``), the pointer tools (``SelectionTools``) and the gizmo's placed pivots
-(``HandleGizmo.pivots``) follow the same rule from their own modules (``selection.groupChosen(g)``,
-``tools.toolChosen(tool)``, ``gizmo.pivotFollowed(g, pivot)`` …).
+The selection (``Selection``), the pointer tools (``SelectionTools``) and the gizmo's placed pivots and matrices
+(``HandleGizmo.pivots``, ``HandleGizmo.matrices``) follow the same rule from their own modules
+(``selection.groupChosen(g)``, ``tools.toolChosen(tool)``, ``gizmo.pivotFollowed(g, pivot)``,
+``gizmo.setMatrix(g, m)`` …).
 
 A store keeps its state in private fields (``#name``) behind getters, so ``npm run typecheck`` already refuses
 an assignment from outside; these tests say the same without Node, and name the line that breaks the rule.
@@ -22,10 +23,14 @@ STORES = WEB_SRC / "stores"
 MUTATORS = ("push", "pop", "shift", "unshift", "splice", "sort", "reverse", "fill", "copyWithin", "set")
 """Array methods that change the array they are called on (``set``: a typed array's)."""
 
+THREE_MUTATORS = ("copy", "identity", "fromArray", "multiply", "premultiply", "multiplyMatrices", "invert",
+                  "compose", "applyMatrix4", "applyQuaternion", "setPosition", "makeTranslation", "add", "sub")
+"""Methods of the Three.js values fields hold (matrices, vectors) that change the value they are called on."""
+
 OWNERS: dict[str, tuple[str, frozenset[str] | None]] = {
     "Selection": ("selection.js", None),
     "SelectionTools": ("tools.js", None),
-    "HandleGizmo": ("gizmo.js", frozenset({"pivots"})),
+    "HandleGizmo": ("gizmo.js", frozenset({"pivots", "matrices"})),
 }
 """Classes outside ``stores/`` that are the only writers of fields of theirs, as a store is of its fields: the module
 that defines each, and the fields it keeps to itself (None: all it shows)."""
@@ -90,7 +95,7 @@ def write_pattern(names: set[str], fields: set[str], field_aliases: set[str]) ->
     a local copy of such a field (``const {roi} = selection; roi[i] = 1``)."""
     assign = r"(?:[-+*/%&|^]?=(?![=>])|\+\+|--)"
     part = r"(?:\??\.\w+|\[[^\]]*\])*"
-    mutate = rf"\.(?:{'|'.join(MUTATORS)})\("
+    mutate = rf"\.(?:{'|'.join(MUTATORS + THREE_MUTATORS)})\("
     receiver = rf"\b(?:{'|'.join(sorted(names))})\??\.(?:{'|'.join(sorted(fields))})\b"
     alternatives = [
         rf"{receiver}{part}\s*{assign}",
@@ -115,7 +120,10 @@ def aliases(text: str, names: set[str], fields: set[str]) -> tuple[set[str], set
             source, _, local = entry.partition(":")
             if source.strip() in fields:
                 field_aliases.add((local or source).strip())
-    for local, field in re.findall(rf"\b(?:const|let|var)\s+(\w+)\s*=\s*(?:[\w.]*\.)?(?:{every})\.(\w+)\s*;", text):
+    element = r"(?:\??\.?\[[^\]]*\])*"  # a field, or an element of it (``const m = gizmo.matrices[g];``)
+    for local, field in re.findall(
+        rf"\b(?:const|let|var)\s+(\w+)\s*=\s*(?:[\w.]*\.)?(?:{every})\??\.(\w+){element}\s*;", text
+    ):
         if field in fields:
             field_aliases.add(local)
     return instance, field_aliases
@@ -202,7 +210,7 @@ def test_the_owners_are_found() -> None:
     classes = owner_classes()
     assert {"activeGroup", "groups", "roi", "role", "stiff", "stiffnessValue", "version"} <= classes["Selection"]
     assert {"tool", "units", "radiusPx", "worldRadiusFrac", "frontOnly", "metric"} <= classes["SelectionTools"]
-    assert classes["HandleGizmo"] == {"pivots"}
+    assert classes["HandleGizmo"] == {"pivots", "matrices"}
     assert {"selection", "tools", "gizmo"} <= store_names(set(classes))
 
 
@@ -260,4 +268,36 @@ def test_the_scan_follows_local_names(tmp_path: Path, monkeypatch: pytest.Monkey
         ["m.js", "4"],
         ["m.js", "6"],
         ["m.js", "9"],
+    ]
+
+
+def test_the_scan_sees_a_matrix_changed_in_place(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A kept field's Three.js values changed in place (``gizmo.matrices[g].copy(m)``, or through a local name of an
+    element) are writes; computing from them (``.clone().invert()``, ``.elements``) and the gizmo's method are not."""
+    src = tmp_path / "src"
+    (src / "stores").mkdir(parents=True)
+    (src / "gizmo.js").write_text(
+        "export class HandleGizmo {\n  #m = [];\n  get matrices() {\n    return this.#m;\n  }\n"
+        "  setMatrix(g, m) {\n    this.#m[g]?.copy(m);\n  }\n}\n",
+        encoding="utf-8",
+    )
+    (src / "mirror.js").write_text(
+        "/** @param {import('./gizmo.js').HandleGizmo} gizmo */\n"
+        "gizmo.matrices[p].multiplyMatrices(this.matrix, T).multiply(this.matrix);\n"
+        "const m = gizmo.matrices[turning.group];\n"
+        "m.copy(turned);\n"
+        "gizmo.matrices[0].identity();\n"
+        "const inverse = gizmo.matrices[g].clone().invert();\n"
+        "const e = Array.from(gizmo.matrices[g].elements);\n"
+        "gizmo.setMatrix(p, new THREE.Matrix4().multiplyMatrices(a, b));\n",
+        encoding="utf-8",
+    )
+    module = sys.modules[__name__]
+    monkeypatch.setattr(module, "WEB_SRC", src)
+    monkeypatch.setattr(module, "STORES", src / "stores")
+    monkeypatch.setattr(module, "OWNERS", {"HandleGizmo": ("gizmo.js", frozenset({"matrices"}))})
+    assert [w.split(":")[:2] for w in outside_writes(owner_classes())] == [
+        ["mirror.js", "2"],
+        ["mirror.js", "4"],
+        ["mirror.js", "5"],
     ]

@@ -10,6 +10,8 @@ const IDENTITY = new THREE.Matrix4().elements.slice();
 export class HandleGizmo {
   /** @type {(THREE.Vector3|null)[]} per group: the placed pivot in the group's untransformed frame, or null (the centroid) */
   #pivots = [];
+  /** @type {THREE.Matrix4[]} one per client handle group */
+  #matrices = [];
 
   /**
    * @param {import('./viewer.js').Viewer} viewer
@@ -37,8 +39,6 @@ export class HandleGizmo {
       this.marker.updateMatrixWorld(true);
     };
     viewer.scene.add(this.marker);
-    /** @type {THREE.Matrix4[]} one per client handle group */
-    this.matrices = [];
     this.group = -1;
     /** @type {number[]} */
     this.indices = [];
@@ -78,6 +78,25 @@ export class HandleGizmo {
    */
   get pivots() {
     return this.#pivots;
+  }
+
+  /**
+   * Per client handle group, its whole transform. Only the gizmo writes them (a drag, apply, setTransforms,
+   * setMatrix …).
+   * @returns {ReadonlyArray<Readonly<THREE.Matrix4>>}
+   */
+  get matrices() {
+    return this.#matrices;
+  }
+
+  /**
+   * Group g's whole transform becomes `matrix` (copied): a turn about a picture's pin, the mirror image of the
+   * partner's (mirror editing). Groups that do not exist are ignored.
+   * @param {number} g
+   * @param {THREE.Matrix4} matrix
+   */
+  setMatrix(g, matrix) {
+    this.#matrices[g]?.copy(matrix);
   }
 
   get dragging() {
@@ -121,7 +140,7 @@ export class HandleGizmo {
   meshChanged() {
     this._saved = null; // a preview's positions belong to the mesh gone
     this.previewing = false;
-    this.#pivots = this.matrices.map(() => null);
+    this.#pivots = this.#matrices.map(() => null);
     this.controls.gridStep = gridStep(this.viewer.geometry?.boundingBox ?? null);
   }
 
@@ -130,15 +149,15 @@ export class HandleGizmo {
    * @param {number} nGroups
    */
   syncGroups(nGroups) {
-    while (this.matrices.length < nGroups) this.matrices.push(new THREE.Matrix4());
-    this.matrices.length = nGroups;
+    while (this.#matrices.length < nGroups) this.#matrices.push(new THREE.Matrix4());
+    this.#matrices.length = nGroups;
     while (this.#pivots.length < nGroups) this.#pivots.push(null);
     this.#pivots.length = nGroups;
   }
 
   /** Every group back to identity (a new constraint set: its frame is the current pose); pivots stay put. */
   resetTransforms() {
-    this.matrices.forEach((m, g) => {
+    this.#matrices.forEach((m, g) => {
       if (this.#pivots[g]) this.#pivots[g].applyMatrix4(m);
       m.identity();
     });
@@ -150,10 +169,10 @@ export class HandleGizmo {
    * @param {number[]} groupMap
    */
   setTransforms(transforms, groupMap) {
-    for (const m of this.matrices) m.identity();
+    for (const m of this.#matrices) m.identity();
     (transforms || []).forEach((t, k) => {
       const g = groupMap[k];
-      if (g !== undefined && this.matrices[g] && Array.isArray(t) && t.length === 16) this.matrices[g].fromArray(t);
+      if (g !== undefined && this.#matrices[g] && Array.isArray(t) && t.length === 16) this.#matrices[g].fromArray(t);
     });
     this.recenter();
   }
@@ -191,7 +210,7 @@ export class HandleGizmo {
    * @param {number[]} p
    */
   placePivot(p) {
-    const m = this.matrices[this.group];
+    const m = this.#matrices[this.group];
     if (!m || !this.indices.length) return;
     this.#pivots[this.group] = new THREE.Vector3(p[0], p[1], p[2]).applyMatrix4(m.clone().invert());
     this.opts.onPivot?.();
@@ -200,7 +219,7 @@ export class HandleGizmo {
 
   /** Per group, its placed pivot where it is now (world [x, y, z]), or null where it turns about its centroid. */
   placedPivots() {
-    return this.#pivots.map((q, g) => (q ? q.clone().applyMatrix4(this.matrices[g] || new THREE.Matrix4()).toArray() : null));
+    return this.#pivots.map((q, g) => (q ? q.clone().applyMatrix4(this.#matrices[g] || new THREE.Matrix4()).toArray() : null));
   }
 
   /**
@@ -211,7 +230,7 @@ export class HandleGizmo {
   restorePivots(points) {
     (points || []).forEach((p, g) => {
       if (g >= this.#pivots.length || !Array.isArray(p) || p.length !== 3 || !p.every(Number.isFinite)) return;
-      this.#pivots[g] = new THREE.Vector3(p[0], p[1], p[2]).applyMatrix4((this.matrices[g] || new THREE.Matrix4()).clone().invert());
+      this.#pivots[g] = new THREE.Vector3(p[0], p[1], p[2]).applyMatrix4((this.#matrices[g] || new THREE.Matrix4()).clone().invert());
     });
     this.recenter();
   }
@@ -237,7 +256,7 @@ export class HandleGizmo {
   /** Put the pivot at the group's placed pivot or at its centroid (a point handle: its point). */
   recenter() {
     if (this.controls.dragging || this.previewing || !this.indices.length) return;
-    const m = this.matrices[this.group] || new THREE.Matrix4();
+    const m = this.#matrices[this.group] || new THREE.Matrix4();
     const placed = this.#pivots[this.group];
     if (placed) this.pivot.position.copy(placed).applyMatrix4(m);
     else this.pivot.position.fromArray(this.centroid);
@@ -282,7 +301,7 @@ export class HandleGizmo {
    */
   axisVector(letter) {
     const v = new THREE.Vector3(letter === 'x' ? 1 : 0, letter === 'y' ? 1 : 0, letter === 'z' ? 1 : 0);
-    if (this.space === 'local') v.applyQuaternion(rotationOf(this.matrices[this.group] || new THREE.Matrix4()));
+    if (this.space === 'local') v.applyQuaternion(rotationOf(this.#matrices[this.group] || new THREE.Matrix4()));
     return v;
   }
 
@@ -291,7 +310,7 @@ export class HandleGizmo {
    * @param {THREE.Matrix4} matrix
    */
   preview(matrix) {
-    const m = this.matrices[this.group];
+    const m = this.#matrices[this.group];
     if (!m || this.controls.dragging) return;
     if (!this.previewing) {
       this.recenter();
@@ -348,7 +367,7 @@ export class HandleGizmo {
    * @param {THREE.Matrix4} matrix
    */
   apply(matrix) {
-    const m = this.matrices[this.group];
+    const m = this.#matrices[this.group];
     if (!m || this.controls.dragging) return false;
     if (this.opts.onDragStart?.() === false) {
       this.cancelPreview();
@@ -367,13 +386,13 @@ export class HandleGizmo {
     this.pivot.updateMatrix();
     this._base.copy(this.pivot.matrix);
     this._baseInv.copy(this._base).invert();
-    this._start.copy(this.matrices[this.group] || new THREE.Matrix4());
+    this._start.copy(this.#matrices[this.group] || new THREE.Matrix4());
   }
 
   _changed() {
-    if (this.refused || this.group < 0 || !this.matrices[this.group]) return;
+    if (this.refused || this.group < 0 || !this.#matrices[this.group]) return;
     this.pivot.updateMatrix();
-    this.matrices[this.group].multiplyMatrices(this.pivot.matrix, this._baseInv).multiply(this._start);
+    this.#matrices[this.group].multiplyMatrices(this.pivot.matrix, this._baseInv).multiply(this._start);
     if (this.pivotPlaced) this._showMarker(true);
     this.opts.onDrag();
   }
@@ -384,6 +403,6 @@ export class HandleGizmo {
    * @returns {number[][]}
    */
   transformsFor(groupMap) {
-    return groupMap.map((g) => (this.matrices[g] ? Array.from(this.matrices[g].elements) : IDENTITY.slice()));
+    return groupMap.map((g) => (this.#matrices[g] ? Array.from(this.#matrices[g].elements) : IDENTITY.slice()));
   }
 }

@@ -253,7 +253,7 @@ export class MirrorEditing {
   /**
    * The active group's matrix changed (a drag, or any other edit of its transform): with mirror editing on, its
    * partner's becomes M·T·M (M the reflection, T the group's matrix), so one drag message carries both.
-   * @param {{matrices: THREE.Matrix4[]}} gizmo
+   * @param {{matrices: ReadonlyArray<Readonly<THREE.Matrix4>>, setMatrix: (g: number, m: THREE.Matrix4) => void}} gizmo
    * @param {number} group client handle group
    */
   follow(gizmo, group) {
@@ -261,7 +261,7 @@ export class MirrorEditing {
     const p = this.selection.partnerOf(group);
     const T = gizmo.matrices[group];
     if (p < 0 || !T || !gizmo.matrices[p]) return;
-    gizmo.matrices[p].multiplyMatrices(this.matrix, T).multiply(this.matrix);
+    gizmo.setMatrix(p, new THREE.Matrix4().multiplyMatrices(this.matrix, T).multiply(this.matrix));
   }
 
   /**

@@ -141,9 +141,8 @@ export function installPinRotation({ viewer, gizmo, picture, activePin, send }) 
     if (!turning || e.pointerId !== turning.id) return;
     e.stopPropagation();
     const now = angleAbout(e, turning.pin);
-    const m = gizmo.matrices[turning.group];
-    if (now === null || !m) return;
-    m.copy(turnedAbout(turning.start, turning.pin, now - turning.from));
+    if (now === null || !gizmo.matrices[turning.group]) return;
+    gizmo.setMatrix(turning.group, turnedAbout(turning.start, turning.pin, now - turning.from));
     gizmo.opts.onDrag();
     gizmo.recenter();
   }, { capture: true });
