@@ -134,10 +134,12 @@ def test_alt_drag_turns_the_picture_about_its_pin_and_a_restored_session_keeps_i
     assert not page.evaluate("() => window.__arap.errors")
 
 
-def test_pin_depth_chooses_which_part_the_page_draws_over_the_other(page: Page, tmp_path: Path) -> None:
+def _blue_dragged_over_red(page: Page, tmp_path: Path) -> np.ndarray:
+    """Open a red square and a blue one, apart, put a pin on each (the blue one's is then the active pin) and drag
+    the blue square over the red one's right part; the red square's vertices (a mask of the vertices)."""
     from tests.e2e.conftest import screen_points, wait_idle
 
-    rgba = np.zeros((60, 120, 4), dtype=np.uint8)  # a red square and a blue one, apart
+    rgba = np.zeros((60, 120, 4), dtype=np.uint8)
     rgba[10:50, 10:50] = [230, 40, 40, 255]
     rgba[10:50, 70:110] = [40, 60, 230, 255]
     Image.fromarray(rgba, "RGBA").save(tmp_path / "squares.png")
@@ -146,12 +148,17 @@ def test_pin_depth_chooses_which_part_the_page_draws_over_the_other(page: Page, 
     left, right = pts[:, 0].min(), pts[:, 0].max()
     y = float(np.median(pts[:, 1]))
     red_x, blue_x = left + (right - left) * 20 / 100, left + (right - left) * 80 / 100  # the squares' centres
-    for x in (red_x, blue_x):  # a pin on each; the blue one is then the active pin
+    for x in (red_x, blue_x):
         page.mouse.click(x, y)
         wait_idle(page)
     page.wait_for_function("() => window.__arap.constraints().points.length === 2")
-    drag_gizmo_x(page, -0.6 * (blue_x - red_x))  # the blue square over the red one's right part
+    drag_gizmo_x(page, -0.6 * (blue_x - red_x))
     wait_settled(page)
+    return np.asarray(pts[:, 0] < (left + right) / 2)
+
+
+def test_pin_depth_chooses_which_part_the_page_draws_over_the_other(page: Page, tmp_path: Path) -> None:
+    _blue_dragged_over_red(page, tmp_path)
 
     def counts_after(button: str, first: int | None) -> tuple[int, int, int]:
         page.get_by_test_id(button).click()  # the state that answers it gives another drawing order
@@ -163,4 +170,44 @@ def test_pin_depth_chooses_which_part_the_page_draws_over_the_other(page: Page, 
     red_back, blue_front, first = counts_after("pin-forward", None)
     red_front, blue_back, _ = counts_after("pin-backward", first)
     assert red_front > red_back + 50 and blue_front > blue_back + 50, (red_back, blue_front, red_front, blue_back)
+    assert not page.evaluate("() => window.__arap.errors")
+
+
+def test_the_mesh_drawn_over_a_picture_hides_the_edges_of_a_part_under_another(page: Page, tmp_path: Path) -> None:
+    """With the blue square brought forward over the red one, the blue square covers the red one where they overlap,
+    and the mesh drawn over the picture shows there the blue square's edges and none of the red one's: its edges
+    darken the overlap as much as they darken the blue square alone."""
+    from tests.e2e.conftest import canvas_origin, canvas_pixels, screen_points
+
+    red = _blue_dragged_over_red(page, tmp_path)
+    page.get_by_test_id("pin-forward").click()  # the blue square drawn over the red one
+    page.wait_for_function("() => window.__arap.picturePins().drawFirst !== null")
+    page.evaluate("() => new Promise((done) => requestAnimationFrame(() => requestAnimationFrame(done)))")
+    bare = canvas_pixels(page)[..., :3].astype(np.float64)
+    page.get_by_test_id("picture-mesh").check()
+    page.evaluate("() => new Promise((done) => requestAnimationFrame(() => requestAnimationFrame(done)))")
+    meshed = canvas_pixels(page)[..., :3].astype(np.float64)
+    pts = screen_points(page) - np.asarray(canvas_origin(page))
+    red_box = pts[red].min(axis=0), pts[red].max(axis=0)
+    blue_box = pts[~red].min(axis=0), pts[~red].max(axis=0)
+    assert blue_box[0][0] < red_box[1][0] - 20 < blue_box[1][0] - 40  # they overlap, and the blue one reaches out
+    rows = slice(int(max(red_box[0][1], blue_box[0][1])) + 4, int(min(red_box[1][1], blue_box[1][1])) - 4)
+
+    def region(px: np.ndarray, x0: float, x1: float) -> np.ndarray:
+        return px[rows, int(x0) + 4:int(x1) - 4]
+
+    def blue_share(x0: float, x1: float) -> float:
+        px = region(bare, x0, x1)
+        return float(((px[..., 2] > 1.5 * px[..., 0]) & (px[..., 2] > 60)).mean())
+
+    def edge_ink(x0: float, x1: float) -> float:
+        """How much the mesh darkens the picture between columns x0 and x1 (the gizmo, the same in both, aside)."""
+        ratio = region(meshed, x0, x1).sum(axis=2) / np.maximum(region(bare, x0, x1).sum(axis=2), 1.0)
+        return float(np.clip(1.0 - ratio, 0.0, None).mean())
+
+    overlap, alone = (blue_box[0][0], red_box[1][0]), (red_box[1][0], blue_box[1][0])
+    assert blue_share(*overlap) > 0.9 and blue_share(*alone) > 0.9, (blue_share(*overlap), blue_share(*alone))
+    over_red, blue_alone = edge_ink(*overlap), edge_ink(*alone)
+    assert 0.5 * blue_alone < over_red < 1.25 * blue_alone, (over_red, blue_alone)
+    assert page.evaluate("() => window.__arap.wireLayers") == 2
     assert not page.evaluate("() => window.__arap.errors")

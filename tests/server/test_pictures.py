@@ -203,19 +203,24 @@ def test_the_state_gives_the_page_the_drawing_order_of_the_pins_depths() -> None
     s.load(mesh, look)
     s.set_constraints(None, [], [], points=[_pin_at(mesh, 30, 30), _pin_at(mesh, 90, 30)])
     assert state_message(s)["draw_order"] is None  # no depths: the mesh's order
+    assert state_message(s)["draw_layers"] is None
     blue = mesh.V[mesh.F].mean(axis=1)[:, 0] > 60  # the triangles of the right square (pin 1's part)
 
     def last_drawn() -> np.ndarray:
-        order = state_message(s)["draw_order"]
+        state = state_message(s)
+        order = state["draw_order"]
         assert order is not None and sorted(order) == list(range(mesh.n_faces))
-        return blue[np.asarray(order)]
+        # the layers: the runs of the order whose triangles share a depth (here a square each), back to front
+        drawn = blue[np.asarray(order)]
+        assert state["draw_layers"] == [int((drawn == drawn[0]).sum()), int((drawn != drawn[0]).sum())]
+        return drawn
 
     s.set_pin_depth([0, 1])
     assert last_drawn()[-int(blue.sum()):].all()  # the blue square's triangles after the red one's
     s.set_pin_depth([1, 0])
     assert not last_drawn()[-int((~blue).sum()):].any()
     s.set_pin_depth([0, 0])
-    assert state_message(s)["draw_order"] is None
+    assert state_message(s)["draw_order"] is None and state_message(s)["draw_layers"] is None
     bar = Session()
     bar.load(load_builtin("bar"))
     bar.set_pin_depth([1])

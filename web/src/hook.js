@@ -121,6 +121,10 @@ export function installTestHook({
     get textureReady() {
       return viewer.textureReady;
     },
+    /** The layers the wireframe overlay is drawn in (a picture's pin depths; 0: over the whole mesh at once). */
+    get wireLayers() {
+      return viewer.wireLayers;
+    },
     get nFaces() {
       return mesh.nFaces;
     },

@@ -127,14 +127,15 @@ export function pictureShown(msg) {
 }
 
 /**
- * A state: the angles the picture's pins hold, and the order in which its triangles are drawn (their pins' depths).
- * @param {{constraints?: {points?: {angle?: number}[]}, draw_order?: number[]|null}} msg
+ * A state: the angles the picture's pins hold, and the order in which its triangles are drawn (their pins' depths)
+ * with its layers (the wireframe overlay follows them).
+ * @param {{constraints?: {points?: {angle?: number}[]}, draw_order?: number[]|null, draw_layers?: number[]|null}} msg
  * @param {import('./viewer.js').Viewer} viewer
  */
 export function pinsStated(msg, viewer) {
   angles = (msg.constraints?.points ?? []).map((p) => (typeof p.angle === 'number' ? p.angle : null));
   drawFirst = msg.draw_order?.[0] ?? null;
-  viewer.drawOrder(msg.draw_order); // in every surface view (texture, colours, plain, the heat map)
+  viewer.drawOrder(msg.draw_order, msg.draw_layers); // in every surface view (texture, colours, plain, the heat map)
 }
 
 /** The pins' depths as last sent, their angles and the first triangle drawn as last stated (the test hook's view). */

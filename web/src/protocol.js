@@ -366,6 +366,7 @@ export const UPLOAD_EXTENSIONS = Object.freeze([
  * @property {number} rest_id the rest pose: a new value after apply, the earlier one again when an undo or redo goes back to it
  * @property {{n_vertices: number, n_faces: number, roi_size: number, n_free: number, factor_ms: number}} stats n_vertices, n_faces, roi_size, n_free, factor_ms
  * @property {number[]|null} [draw_order] a picture whose pins have depths (set_pin_depth): the order in which to draw the triangles of its textured mesh (appearance's render triangles), later over earlier where the warp overlaps them; else null
+ * @property {number[]|null} [draw_layers] with draw_order: how many of its triangles share each depth, back to front (the page draws each such layer's wireframe right after its triangles, so a layer drawn over another hides its edges); else null
  */
 
 /**

@@ -8,6 +8,7 @@ import { SubsetNormals, VertexFaces, computeBounds, computeNormals } from './nor
 import { BASE_LIN, fillRoleColors } from './rolecolors.js';
 import { addLights, floorGrid, frameSphere } from './stage.js';
 import { RenderMesh, textureParts } from './texture.js';
+import { DepthLayers, WIRE_COLOR, WIRE_OPACITY, validLayers } from './depthlayers.js';
 
 /**
  * The positions, index and bounds of a geometry of the viewer: setMesh gives every geometry it makes Float32Array
@@ -53,7 +54,8 @@ export class Viewer {
       polygonOffsetFactor: 1,
       polygonOffsetUnits: 1,
     });
-    this.wireMaterial = new THREE.MeshBasicMaterial({ color: 0x111418, wireframe: true, transparent: true, opacity: 0.28 });
+    this.wireMaterial = new THREE.MeshBasicMaterial({
+      color: WIRE_COLOR, wireframe: true, transparent: true, opacity: WIRE_OPACITY });
     /** @type {THREE.BufferGeometry|null} */
     this.geometry = null;
     /** @type {THREE.Mesh<THREE.BufferGeometry, THREE.MeshStandardMaterial>|null} */
@@ -74,6 +76,11 @@ export class Viewer {
     this.ordered = null;
     /** @type {number[]|null} the drawing order given last */
     this._order = null;
+    /** @type {number[]|null} the number of its triangles at each depth, back to front (with the order) */
+    this._layers = null;
+    /** @type {DepthLayers|null} a drawing order's layers painted in turn, each with its edges under the wireframe
+     * overlay (a layer drawn over another hides its edges too) */
+    this.layered = null;
     /** @type {THREE.GridHelper|null} */
     this.grid = null;
     this.radius = 1;
@@ -224,10 +231,12 @@ export class Viewer {
    * Draw the triangles in `order` (later over earlier where they overlap: a picture's pin depths), or in the mesh's
    * own order (null): the textured render mesh (whose triangles are the solved mesh's for a picture) and the solved
    * mesh of the other surface views and the heat map alike. The solved mesh keeps its index (picking and point
-   * handles name its triangles): a copy of it in that order is drawn instead.
+   * handles name its triangles): a copy of it in that order is drawn instead. With `layers` (the runs of the order
+   * that share a depth) the layers are painted in turn, the wireframe overlay's edges with each (DepthLayers).
    * @param {number[]|null|undefined} order a permutation of the triangles
+   * @param {number[]|null} [layers] the number of triangles of each depth in `order`, back to front
    */
-  drawOrder(order) {
+  drawOrder(order, layers = null) {
     this.textured?.drawOrder(order);
     const g = this.geometry;
     const index = g ? /** @type {THREE.BufferAttribute} */ (g.index) : null;
@@ -252,11 +261,14 @@ export class Viewer {
       drawnIndex.needsUpdate = true;
       this._order = order.slice();
     }
+    this._layers = this._order && validLayers(layers, this._order.length) ? layers.slice() : null;
     this._applySurface();
   }
 
   /** Drop the ordered copy of the solved mesh (with the solved mesh, whose attributes it shares). */
   _dropOrdered() {
+    this.layered?.drop();
+    this._layers = null;
     if (this.ordered) {
       this.scene.remove(this.ordered);
       this.ordered.geometry.dispose();
@@ -271,7 +283,26 @@ export class Viewer {
     if (this.mesh) this.mesh.visible = !textured && !ordered;
     if (this.ordered) this.ordered.visible = !textured && ordered;
     if (this.textured) this.textured.mesh.visible = textured;
+    const fill = textured ? this.textured?.mesh : this.ordered;
+    const layers = ordered ? this._layers : null;
+    const index = this.ordered?.geometry.index;
+    const layered = !!(fill && layers && index && this.geometry);
+    if (fill && layers && index && this.geometry) {
+      // painted in turn, in place of the whole mesh and its overlay: a layer drawn over another hides its edges too
+      this.layered ??= new DepthLayers(this.scene);
+      const position = /** @type {THREE.BufferAttribute} */ (this.geometry.attributes.position);
+      this.layered.show(fill, position, index, layers, this.wireOverlay);
+      fill.visible = false;
+    } else {
+      this.layered?.hide();
+    }
+    if (this.wire) this.wire.visible = this.wireOverlay && !layered;
     this.requestRender();
+  }
+
+  /** The number of layers the wireframe overlay is drawn in (0: none, or over the whole mesh at once). */
+  get wireLayers() {
+    return this.layered?.wire ? this.layered.nLayers : 0;
   }
 
   get nVertices() {
@@ -409,8 +440,7 @@ export class Viewer {
   /** @param {boolean} on */
   setWireframe(on) {
     this.wireOverlay = on;
-    if (this.wire) this.wire.visible = on;
-    this.requestRender();
+    this._applySurface();
   }
 
   /** @param {THREE.Box3} box the mesh's bounds */

@@ -26,11 +26,13 @@ from arap.server.meshdata import load_upload
 __all__ = [
     "DENSITIES",
     "PICTURE_EXTENSIONS",
+    "draw_layers",
     "draw_order",
     "is_picture",
     "load_picture",
     "locate_points",
     "page_draw_order",
+    "page_drawing",
     "picture_mesh",
     "pin_parts",
     "pin_rings",
@@ -233,13 +235,31 @@ def draw_order(parts: np.ndarray, depth: list[int] | np.ndarray | None) -> np.nd
     >>> draw_order(np.array([0, 1, -1, 0]), [2, 1]).tolist()
     [2, 1, 0, 3]
     """
+    per_triangle = _triangle_depths(parts, depth)
+    return None if per_triangle is None else np.argsort(per_triangle, kind="stable").astype(np.int64)
+
+
+def draw_layers(parts: np.ndarray, depth: list[int] | np.ndarray | None) -> np.ndarray | None:
+    """How many triangles :func:`draw_order` puts at each depth, back to front (runs of its order that share a
+    depth; None where it is None).
+
+    Example
+    -------
+    >>> draw_layers(np.array([0, 1, -1, 0]), [2, 1]).tolist()
+    [1, 1, 2]
+    """
+    per_triangle = _triangle_depths(parts, depth)
+    return None if per_triangle is None else np.unique(per_triangle, return_counts=True)[1].astype(np.int64)
+
+
+def _triangle_depths(parts: np.ndarray, depth: list[int] | np.ndarray | None) -> np.ndarray | None:
+    """Each triangle's depth (:func:`draw_order`), or None without depths."""
     if depth is None or len(depth) == 0:
         return None
     d = np.zeros(len(parts) and int(parts.max()) + 2, dtype=np.float64)
     given = np.asarray(depth, dtype=np.float64)[: len(d) - 1]
     d[: len(given)] = given
-    per_triangle = d[parts]  # -1 (no pin) reads the last entry, 0
-    return np.argsort(per_triangle, kind="stable").astype(np.int64)
+    return d[parts]  # -1 (no pin) reads the last entry, 0
 
 
 class _DrawnSession(Protocol):
@@ -262,21 +282,29 @@ def page_draw_order(session: _DrawnSession) -> list[int] | None:
     """The order in which the page draws the triangles of a picture's textured mesh (its look's render triangles,
     :class:`arap.server.render_mesh.Look`) for the session's pin depths (:func:`draw_order`; later over earlier), or
     None: not a picture, no depths, or all equal (the mesh's order)."""
+    drawing = page_drawing(session)
+    return None if drawing is None else drawing[0]
+
+
+def page_drawing(session: _DrawnSession) -> tuple[list[int], list[int]] | None:
+    """:func:`page_draw_order` and the number of its triangles at each depth, back to front (:func:`draw_layers`:
+    the page draws each layer's wireframe over that layer alone), or None where the order is None."""
     mesh, look = session.mesh, session.look
     depth = session.pin_depth
     if mesh is None or mesh.picture is None or not any(depth):
         return None
-    order = draw_order(pin_parts(mesh, session.constraints.points), depth)
-    if order is None:
+    parts = pin_parts(mesh, session.constraints.points)
+    order, layers = draw_order(parts, depth), draw_layers(parts, depth)
+    if order is None or layers is None:
         return None
-    listed: list[int] = order.tolist()
+    drawing = (order.tolist(), layers.tolist())
     if look is None or look.render_faces is None or look.render_map is None:
-        return listed
+        return drawing
     drawn = look.render_map[look.render_faces].astype(np.int64)
     F = np.asarray(mesh.F, dtype=np.int64)
     if drawn.shape != F.shape or not np.array_equal(np.sort(drawn, axis=1), np.sort(F, axis=1)):
         return None  # (a picture's render triangles are its mesh's, in its order)
-    return listed
+    return drawing
 
 
 def warped_picture_png(mesh: MeshData, U: np.ndarray, points: PointConstraints | None = None,

@@ -23,7 +23,7 @@ from arap.server.constraints import matrices_to_json
 from arap.server.frames import encode_binary
 from arap.server.meshdata import builtin_names
 from arap.server.messages import MAX_HANDLE_GROUPS, PROTOCOL_VERSION
-from arap.server.pictures import page_draw_order
+from arap.server.pictures import page_drawing
 from arap.server.records import DragOutcome, readable_energy
 from arap.server.server_messages import Appearance, Settle, State, Vertices, Welcome
 from arap.server.session import Session
@@ -66,6 +66,7 @@ def state_message(session: Session) -> dict[str, Any]:
     cs = session.constraints
     solver = session.solver
     constraints = cs.to_json()
+    drawing = page_drawing(session)
     for point, angle in zip(constraints["points"], session.pin_angles(), strict=True):
         if angle is not None:
             point["angle"] = angle  # the angle a picture's pin holds (its hidden ring is the solver's alone)
@@ -76,7 +77,8 @@ def state_message(session: Session) -> dict[str, Any]:
         constraints=constraints,
         transforms=matrices_to_json(session.transforms),
         rest_id=session.rest_id,
-        draw_order=page_draw_order(session),
+        draw_order=None if drawing is None else drawing[0],
+        draw_layers=None if drawing is None else drawing[1],
         stats={
             "n_vertices": n,
             "n_faces": 0 if session.mesh is None else session.mesh.n_faces,

@@ -218,6 +218,10 @@ class State(ServerMessage):
         "a picture whose pins have depths (set_pin_depth): the order in which to draw the triangles of its textured "
         "mesh (appearance's render triangles), later over earlier where the warp overlaps them; else null",
         js_type="number[]"))
+    draw_layers: Annotated[list[int], Wire.LIST] | None = field(default=None, metadata=wire(
+        "with draw_order: how many of its triangles share each depth, back to front (the page draws each such "
+        "layer's wireframe right after its triangles, so a layer drawn over another hides its edges); else null",
+        js_type="number[]"))
 
 
 @dataclass(frozen=True)
