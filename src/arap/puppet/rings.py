@@ -4,7 +4,8 @@ A pin (a point handle of a flat triangle mesh) may hold an angle (Photoshop's fi
 then turn by that angle about it instead of turning freely with the bend. The solver holds this with a hidden ring of
 :data:`RING_POINTS` hard point handles at :data:`RING_SPACINGS` mean edge lengths about the pin, those of them that lie
 on the mesh, which move with the pin turned by its angle. :class:`arap.PuppetWarp` (``arap warp``), the studio and
-``arap deform`` / ``arap batch`` on a constraints document whose pins hold angles all make their rings here.
+``arap deform`` / ``arap batch`` on a constraints document whose pins hold angles (:func:`held_points`) all make
+their rings here.
 
 Angles here are radians, counter-clockwise from x towards y (seen from +z when y points up, as in the studio; a
 picture's pixels, y down, turn the other way as seen).
@@ -14,6 +15,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -21,8 +23,11 @@ from numpy.typing import ArrayLike, NDArray
 from arap.errors import ConstraintError
 from arap.method.points import PointConstraints
 
-__all__ = ["RING_POINTS", "RING_SPACINGS", "PinRings", "locate_points", "mean_edge_length", "pin_rings",
-           "ring_offsets", "turned"]
+if TYPE_CHECKING:
+    from arap.constraints.document import Constraints
+
+__all__ = ["RING_POINTS", "RING_SPACINGS", "PinRings", "held_points", "locate_points", "mean_edge_length",
+           "pin_rings", "ring_offsets", "turned"]
 
 RING_POINTS = 6
 """Hidden points around a pin that holds an angle (those on the mesh are kept)."""
@@ -202,3 +207,47 @@ def pin_rings(V: ArrayLike, F: ArrayLike, pins: ArrayLike,
     points = PointConstraints(np.concatenate(faces), np.concatenate(bary), np.full(sum(map(len, pin)), np.inf))
     return PinRings(tuple(None if a is None else float(a) for a in angles), points, np.concatenate(pin),
                     np.concatenate(offset))
+
+
+def held_points(constraints: Constraints, V: ArrayLike, F: ArrayLike,
+                command: str) -> tuple[PointConstraints | None, NDArray[np.float64] | None]:
+    """The point handles a solve of ``constraints`` on the mesh ``V``, ``F`` holds, and their targets: the document's
+    point handles, then the hidden rings (:func:`pin_rings`) of those that hold an angle (``"angle"``, a picture's pin
+    turned in the studio), each ring point at its pin's target plus its rest offset turned by the angle. Without
+    angles, the document's own.
+
+    Angles turn about the z axis, counter-clockwise as seen from +z, as the studio saves them for a picture's mesh
+    in ``z = 0``: they are held on a mesh of triangles in a plane of constant z (``command``, e.g. ``"arap deform"``,
+    names the command that refuses the others).
+
+    Raises
+    ------
+    ConstraintError
+        A pin holds an angle on a mesh that is not flat in a plane of constant z (a surface in space, a solid), or is
+        too near the shape's edge to hold it.
+    """
+    from arap.meshes.domain import PLANAR_TOLERANCE
+
+    points, targets = constraints.points, constraints.point_targets
+    angles = constraints.pin_angles or []
+    held = [(k, a) for k, a in enumerate(angles) if a is not None]
+    if not held or points is None or targets is None:
+        return points, targets
+    W = np.asarray(V, dtype=np.float64)
+    T = np.asarray(F, dtype=np.int64)
+    spread = np.ptp(W, axis=0) if len(W) else np.zeros(3)
+    flat = W.shape[1] == 2 or float(spread[2]) <= PLANAR_TOLERANCE * max(float(np.linalg.norm(spread)), 1e-300)
+    if T.shape[1] != 3 or not flat:
+        k, a = held[0]
+        what = "a solid" if T.shape[1] != 3 else "a surface that is not flat in a plane of constant z"
+        raise ConstraintError(
+            f"{command} holds a pin's angle only on a flat mesh in a plane of constant z (a picture's, as the studio "
+            f"saves it), and this is {what}: points[{k}] holds an angle of {a:g} degrees "
+            f"(\"angle\"{f', and {len(held) - 1} more' if len(held) > 1 else ''}); remove \"angle\" to let the "
+            "pins turn freely with the bend")
+    rings = pin_rings(W, T, points.positions(W, T), [None if a is None else np.radians(a) for a in angles])
+    ring = rings.points
+    return (PointConstraints(np.concatenate([points.faces, ring.faces]),
+                             np.concatenate([points.barycentric, ring.barycentric]),
+                             np.concatenate([points.weights, ring.weights])),
+            np.concatenate([targets, rings.targets(targets)]))
