@@ -127,18 +127,22 @@ def _red_square_turned(s: Session, U: np.ndarray, degrees: float) -> None:
     np.testing.assert_allclose(U[red], (V[red] - pin) @ R.T + pin, atol=1e-4 * float(np.ptp(V)))
 
 
-def test_arap_deform_holds_the_pins_angles_as_the_studio_does(tmp_path: Path) -> None:
+def _deformed(mesh: Path, doc: Path) -> np.ndarray:
+    """``arap deform`` of ``mesh`` with the document ``doc`` and the element energy (the studio's rigid warp)."""
     from arap.io import load_mesh
 
-    s = _turned_and_layered()
-    mesh = _mesh_file(s, tmp_path / "squares.obj")
-    doc = tmp_path / "pins.json"
-    doc.write_text(json.dumps(s.constraints_document()))
-    out = tmp_path / "out.obj"
+    out = doc.with_suffix(".out.obj")
     assert main(["deform", str(mesh), "-c", str(doc), "-o", str(out), "--quiet", "--energy", "elements"]) == 0
     U, _ = load_mesh(out, repair=False)
-    studio = _settled(s)
-    np.testing.assert_allclose(U, studio, atol=1e-3 * float(np.ptp(s.V)))
+    return U
+
+
+def test_arap_deform_holds_the_pins_angles_as_the_studio_does(tmp_path: Path) -> None:
+    s = _turned_and_layered()
+    doc = tmp_path / "pins.json"
+    doc.write_text(json.dumps(s.constraints_document()))
+    U = _deformed(_mesh_file(s, tmp_path / "squares.obj"), doc)
+    np.testing.assert_allclose(U, _settled(s), atol=1e-3 * float(np.ptp(s.V)))
     _red_square_turned(s, U, 30.0)  # pin 0's square, alone on its island, turned by its angle about the pin
 
 
@@ -148,9 +152,9 @@ def test_arap_deform_turns_a_pins_surroundings_inside_a_bent_shape(tmp_path: Pat
     without the angle nothing turns."""
     from PIL import Image
 
-    from arap.io import load_mesh
     from arap.server.pictures import pin_turn
     from tests.puppet.pictures import bar
+    from tests.server.test_pictures import _pin_at
 
     png = tmp_path / "bar.png"
     Image.fromarray(bar()).save(png)
@@ -158,31 +162,23 @@ def test_arap_deform_turns_a_pins_surroundings_inside_a_bent_shape(tmp_path: Pat
     s = Session()
     s.load(mesh, look)
     V, F = mesh.V, mesh.F
-    pins = []
-    h = float(V[:, 1].max() + V[:, 1].min())
-    for x in (30.0, 100.0, 170.0):
-        centre = V[F].mean(axis=1)
-        face = int(np.argmin(np.hypot(centre[:, 0] - x, centre[:, 1] - h / 2)))
-        pins.append({"face": face, "barycentric": [1 / 3, 1 / 3, 1 / 3]})
-    s.set_constraints(None, [], [], points=pins)
+    middle = float(V[:, 1].max() + V[:, 1].min()) / 2
+    s.set_constraints(None, [], [], points=[_pin_at(mesh, x, middle) for x in (30.0, 100.0, 170.0)])
     s.set_pin_angle(1, 40.0)
     s.end_drag()
     path = _mesh_file(s, tmp_path / "bar.obj")
     doc = tmp_path / "pins.json"
     doc.write_text(json.dumps(s.constraints_document()))
-    out = tmp_path / "out.obj"
-    assert main(["deform", str(path), "-c", str(doc), "-o", str(out), "--quiet", "--energy", "elements"]) == 0
-    U, _ = load_mesh(out, repair=False)
+    U = _deformed(path, doc)
     np.testing.assert_allclose(U, _settled(s), atol=1e-3 * float(np.ptp(V)))
     assert s.constraints.points is not None
+    pin = s.constraints.points.positions(V, F)[1]
     assert np.degrees(pin_turn(V, U, F, s.constraints.points, 1)) == pytest.approx(40.0, abs=1e-6)  # its ring
-    assert _mean_turn(V, U, F, s.constraints.points.positions(V, F)[1]) == pytest.approx(40.0, abs=4.0)
+    assert _mean_turn(V, U, F, pin) == pytest.approx(40.0, abs=4.0)
     free = json.loads(doc.read_text())
     del free["points"][1]["angle"]
     doc.write_text(json.dumps(free))
-    assert main(["deform", str(path), "-c", str(doc), "-o", str(out), "--quiet", "--energy", "elements"]) == 0
-    U, _ = load_mesh(out, repair=False)
-    assert abs(_mean_turn(V, U, F, s.constraints.points.positions(V, F)[1])) < 1.0
+    assert abs(_mean_turn(V, _deformed(path, doc), F, pin)) < 1.0
 
 
 def _mean_turn(V: np.ndarray, U: np.ndarray, F: np.ndarray, pin: np.ndarray) -> float:
