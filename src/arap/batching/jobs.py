@@ -181,7 +181,8 @@ def read_manifest(path: str | os.PathLike[str]) -> tuple[list[Job], list[JobOutc
 
 
 def _constraint_set_key(path: str) -> str:
-    """A digest of the constraints file without its targets: files with equal digests share a solver. A file that
+    """A digest of the constraints file without its targets (and its pins' angles and depths, but whether each holds
+    an angle): files with equal digests share a solver. A file that
     cannot be read (or is not a regular file: a FIFO would block, a device fill the memory) gets a key of its own
     (the job then fails with the reason)."""
     from arap.io.paths import read_regular_file
@@ -193,9 +194,9 @@ def _constraint_set_key(path: str) -> str:
     if not isinstance(data, dict):
         return "invalid:" + path
     data = {k: v for k, v in data.items() if k not in ("targets", "meta")}
-    if isinstance(data.get("points"), list):
-        data["points"] = [{k: v for k, v in p.items() if k != "target"} if isinstance(p, dict) else p
-                          for p in data["points"]]
+    if isinstance(data.get("points"), list):  # a pin's angle moves only its ring's targets, its depth nothing
+        data["points"] = [{**{k: v for k, v in p.items() if k not in ("target", "angle", "depth")},
+                           "angle": p.get("angle") is not None} if isinstance(p, dict) else p for p in data["points"]]
     return hashlib.sha256(json.dumps(data, sort_keys=True, default=str).encode()).hexdigest()
 
 

@@ -72,6 +72,8 @@ def _structure(c: Any) -> tuple[bytes, ...]:
              np.array([]) if c.stiffness is None else c.stiffness]
     if c.points is not None:
         parts += [c.points.faces, c.points.barycentric, c.points.weights]
+        # the pins that hold an angle have hidden rings (their angles only move the rings' targets)
+        parts.append(np.array([a is not None for a in c.pin_angles or []], dtype=bool))
     return tuple(np.ascontiguousarray(p).tobytes() + str(np.asarray(p).dtype).encode() for p in parts)
 
 
@@ -91,6 +93,7 @@ def _solve_and_write(job: Job, state: _Chunk) -> JobOutcome:
     from arap.errors import ArapError
     from arap.io import format_of, save_mesh
     from arap.io.volume import is_volume_file, save_deformed_volume, save_volume_mesh
+    from arap.puppet.rings import held_points
     from arap.solve.solver import ArapSolver
 
     t0 = time.perf_counter()
@@ -104,10 +107,11 @@ def _solve_and_write(job: Job, state: _Chunk) -> JobOutcome:
             raise ArapError(state.load_error)
         V, F, repair, columns = state.mesh
         constraints = load_constraints(job.constraints, len(repair.vertex_map), len(F))
-        constraints.refuse_pin_angles("arap batch")
         if repair.renumbers:
             constraints = constraints.remapped(repair.vertex_map)
         indices, targets = constraints.indices_and_targets(V)
+        # A picture's pins that hold an angle bring their hidden rings (on a flat mesh; refused elsewhere).
+        points, point_targets = held_points(constraints, V, F, "arap batch")
         structure = _structure(constraints)
         solver = state.solver if structure == state.built_for else None
         factorised = solver is None
@@ -115,10 +119,10 @@ def _solve_and_write(job: Job, state: _Chunk) -> JobOutcome:
             state.solver = None  # the previous factor goes before the next is built
             solver = ArapSolver(V, F, indices, energy=job.energy, weights=job.weights,  # type: ignore[arg-type]
                                 roi=constraints.roi, stiffness=constraints.stiffness, alpha=job.alpha,
-                                points=constraints.points)
+                                points=points)
             state.solver, state.built_for = solver, structure
         result = solver.solve(targets, initial="auto", max_iterations=job.max_iterations,
-                                    tolerance=job.tolerance, point_targets=constraints.point_targets)
+                                    tolerance=job.tolerance, point_targets=point_targets)
         if not np.isfinite(result.vertices).all():
             raise ArapError("the solve produced non-finite positions; nothing was written")
         U, F_out = result.vertices, F

@@ -293,6 +293,7 @@ def run_deform(args: argparse.Namespace) -> int:
     from arap.io.assets import save_asset
     from arap.io.volume import is_volume_file, save_volume_mesh
     from arap.options import DEFAULT_ELEMENT_ENERGY, DEFAULT_ENERGY
+    from arap.puppet.rings import held_points
     from arap.solve.solver import ArapSolver
 
     # Fail before any work on an unsupported output type, a missing folder (or a file where a folder should be), or
@@ -326,7 +327,6 @@ def run_deform(args: argparse.Namespace) -> int:
                               "...), not both" if picked is not None else "give the constraints as a file "
                               "(-c FILE.json) or by position (--fix 'y<0.1' --handle 'y>0.9' --move 0.2,0,0)")
     constraints = picked if picked is not None else load_constraints(args.constraints, n_file, len(F))
-    constraints.refuse_pin_angles("arap deform")
     renumbered = repair.renumbers
     if repair.report and constraints.points is not None and len(constraints.points):
         raise ConstraintError("point handles refer to the file's triangles, which mesh repair changed; repair the "
@@ -338,6 +338,8 @@ def run_deform(args: argparse.Namespace) -> int:
         if not args.quiet:
             err("arap: vertex indices changed by the repair; constraints were renumbered to match")
     indices, targets = constraints.indices_and_targets(solve_V)
+    # A picture's pins that hold an angle bring their hidden rings (on a flat mesh; refused elsewhere).
+    points, point_targets = held_points(constraints, solve_V, solve_F, "arap deform")
     if elements is not None and args.start not in START_NAMES:
         raise ArapError(f"--start takes {', '.join(START_NAMES)} for solids and volume files; a start shape file is "
                         "for surfaces")
@@ -346,7 +348,7 @@ def run_deform(args: argparse.Namespace) -> int:
     warm_up_kernels(args.quiet)
     try:
         solver = ArapSolver(solve_V, solve_F, indices, energy=args.energy, weights=args.weights, roi=constraints.roi,
-                            stiffness=constraints.stiffness, alpha=args.alpha, points=constraints.points)
+                            stiffness=constraints.stiffness, alpha=args.alpha, points=points)
     except UnconstrainedRegionError as exc:
         if not renumbered or elements is not None:
             raise
@@ -381,7 +383,7 @@ def run_deform(args: argparse.Namespace) -> int:
         try:
             result = solver.solve(targets, initial=start, max_iterations=args.iterations,
                                   tolerance=args.tolerance, callback=callback, acceleration=args.acceleration,
-                                  point_targets=constraints.point_targets)
+                                  point_targets=point_targets)
         finally:
             progress.close()
         seconds = time.perf_counter() - t0

@@ -28,8 +28,10 @@ A picture's pin (a point handle of the studio's picture mesh) may carry the angl
 counter-clockwise as seen, from the picture as opened; left out: its surroundings turn freely with the bend) and its
 depth (``"depth"``, an integer: where the warped parts overlap, the part of the pin of larger depth is drawn over
 the other; left out: 0), as the studio's **Save constraints** writes them and its loading restores them
-(:data:`arap.constraints.entries.PIN_KEYS`). ``arap deform`` and ``arap animate`` refuse a document whose pins hold
-angles (they hold no pins' surroundings turned); depths only concern drawing, and they ignore them.
+(:data:`arap.constraints.entries.PIN_KEYS`). ``arap deform`` and ``arap batch`` hold the angles on a flat mesh with
+the studio's hidden rings (:func:`arap.puppet.rings.held_points`) and refuse them elsewhere; ``arap animate`` refuses
+a document whose pins hold angles (:meth:`Constraints.refuse_pin_angles`); depths only concern drawing, and they
+ignore them.
 
 Indices are 0-based in the mesh file's vertex order. ``fixed`` or ``handles`` may be omitted or empty, but not both.
 Handles may lie outside the region of interest: like every constrained vertex they go to their targets, while the
@@ -145,7 +147,8 @@ class Constraints:
         return np.concatenate([self.fixed, self.handles])
 
     def refuse_pin_angles(self, command: str) -> None:
-        """Refuse, for ``command`` (a solve that holds no pin's surroundings turned), pins that hold an angle.
+        """Refuse, for ``command`` (a solve that holds no pin's surroundings turned, unlike ``arap deform`` and
+        ``arap batch`` on a flat mesh: :func:`arap.puppet.rings.held_points`), pins that hold an angle.
 
         Raises
         ------

@@ -22,8 +22,8 @@ A part of the shape (an island of the picture) without any pin stays where it is
 
 A pin may hold an angle (Photoshop's fixed pin rotation, set there by Alt-dragging around a pin): its neighbourhood
 then turns by that angle about the pin instead of turning freely with the bend. Such a pin carries a hidden ring of
-:data:`RING_POINTS` hard point handles at :data:`RING_SPACINGS` mesh spacings around it, which move with the pin
-turned by its angle.
+:data:`~arap.puppet.rings.RING_POINTS` hard point handles at :data:`~arap.puppet.rings.RING_SPACINGS` mean edge
+lengths around it, which move with the pin turned by its angle (:mod:`arap.puppet.rings`, as in the studio).
 """
 
 from __future__ import annotations
@@ -40,20 +40,17 @@ from arap.errors import ArapError, ConstraintError, OptionError
 from arap.puppet.imagemesh import DEFAULT_DENSITY, ImageMesh, image_mesh
 from arap.puppet.picture import as_picture
 from arap.puppet.raster import draw_textured
+from arap.puppet.rings import pin_rings
 
 if TYPE_CHECKING:
     from arap.puppet.blend import BlendSolver
     from arap.solve.solver import ArapSolver
 
-__all__ = ["MODES", "RING_POINTS", "RING_SPACINGS", "PuppetWarp", "WarpMode", "pin_targets", "warp"]
+__all__ = ["MODES", "PuppetWarp", "WarpMode", "pin_targets", "warp"]
 
 WarpMode = Literal["rigid", "normal", "distort"]
 MODES: tuple[str, ...] = ("rigid", "normal", "distort")
 """The warp's modes, from the stiffest: Photoshop's Puppet Warp offers the same three."""
-RING_POINTS = 6
-"""Hidden points around a pin that holds an angle (those on the shape are kept)."""
-RING_SPACINGS = 2.0
-"""Radius of that ring, in mesh spacings."""
 
 
 def _points(value: object, what: str) -> NDArray[np.float64]:
@@ -179,16 +176,6 @@ def _angles(value: object, k: int, what: str) -> list[float | None]:
     return out
 
 
-def _ring(mesh: ImageMesh, pin: NDArray[np.float64]) -> NDArray[np.float64]:
-    """The hidden ring of a pin that holds an angle: the points of a circle around it that lie on the shape."""
-    radius = RING_SPACINGS * mesh.spacing
-    turn = 2.0 * np.pi * np.arange(RING_POINTS) / RING_POINTS
-    ring = pin + radius * np.column_stack([np.cos(turn), np.sin(turn)])
-    w, h = mesh.size
-    inside = [(0 <= x < w and 0 <= y < h and bool(mesh.mask[int(y), int(x)])) for x, y in ring]
-    return ring[np.asarray(inside, dtype=bool)]
-
-
 def _similarity_matrix(V: NDArray[np.float64], F: NDArray[np.int64]) -> sp.csr_matrix:
     """The rows whose squares sum to the as-similar-as-possible energy ``Σ_t |t| ‖J_t − S_t‖²`` (``S_t`` the
     similarity nearest the deformation gradient ``J_t``), over the unknowns ``[x; y]``."""
@@ -271,18 +258,14 @@ class PuppetWarp:
         self.pins, _ = pin_targets(pins)
         #: Per pin, the angle (degrees) it holds, or None (turns freely).
         self.angles = _angles(angles, len(self.pins), "angles")
-        rings = [np.zeros((0, 2)) if a is None else _ring(self.mesh, p) for a, p in zip(self.angles, self.pins,
-                                                                                     strict=True)]
-        for j, (a, ring) in enumerate(zip(self.angles, rings, strict=True)):
-            if a is not None and not len(ring):
-                raise ConstraintError(f"pin {j} holds an angle but its surroundings are not on the picture's shape "
-                                      "(too near its edge for the mesh's spacing)")
-        #: For every hidden ring point: its pin, and its place relative to the pin at rest.
-        self._ring_pin = np.concatenate([np.full(len(r), j, dtype=np.int64) for j, r in enumerate(rings)])
-        self._ring_offset = np.concatenate([r - p for r, p in zip(rings, self.pins, strict=True)])
-        handles = np.concatenate([self.pins, *rings])
-        self._faces_all, self._bary_all = _locate(self.mesh, handles)
-        self.faces, self.barycentric = self._faces_all[:len(self.pins)], self._bary_all[:len(self.pins)]
+        faces, bary = _locate(self.mesh, self.pins)
+        # The hidden rings, on the rest mesh; their angles are counter-clockwise as seen with y down, so turned the
+        # other way in the rings' x-towards-y sense.
+        self._rings = pin_rings(self.mesh.vertices, self.mesh.triangles, self.pins,
+                                [None if a is None else -np.radians(a) for a in self.angles])
+        ring = self._rings.points
+        self._faces_all, self._bary_all = np.concatenate([faces, ring.faces]), np.concatenate([bary, ring.barycentric])
+        self.faces, self.barycentric = faces, bary
         V, F = self.mesh.vertices, self.mesh.triangles
         n = len(V)
         adjacency = sp.coo_matrix((np.ones(3 * len(F)), (F.ravel(), np.roll(F, 1, axis=1).ravel())), shape=(n, n))
@@ -368,13 +351,8 @@ class PuppetWarp:
             if a is not None and self.angles[j] is None:
                 raise ConstraintError(f"pin {j} was made without an angle: give it one (angles=) when making the "
                                       "PuppetWarp")
-        if len(self._ring_pin):
-            turn = np.radians([given[j] if given[j] is not None else self.angles[j] for j in self._ring_pin])
-            c, s = np.cos(turn), np.sin(turn)
-            o = self._ring_offset
-            # Counter-clockwise as seen with y down: x turns towards −y.
-            turned = np.column_stack([c * o[:, 0] + s * o[:, 1], -s * o[:, 0] + c * o[:, 1]])
-            T = np.concatenate([T, T[self._ring_pin] + turned])
+        if len(self._rings.pin):
+            T = np.concatenate([T, self._rings.targets(T, [None if a is None else -np.radians(a) for a in given])])
         V = self.mesh.vertices
         if self._solver is not None:
             result = self._solver.solve(V[self.held], point_targets=T)

@@ -19,9 +19,10 @@ import numpy as np
 from arap.constraints import check_selection, points_from_json, stiffness_from_json, stiffness_to_json
 from arap.errors import ConstraintError
 from arap.method.points import PointConstraints
+from arap.puppet.rings import PinRings
 from arap.server.session_errors import ConstraintsRejected
 
-__all__ = ["ConstraintSet", "PinRings", "identity_transforms", "matrices_from_json", "matrices_to_json", "turn_of"]
+__all__ = ["ConstraintSet", "identity_transforms", "matrices_from_json", "matrices_to_json", "turn_of"]
 
 
 def identity_transforms(n_groups: int) -> np.ndarray:
@@ -66,32 +67,6 @@ def turn_of(transforms: np.ndarray) -> np.ndarray:
     """The turn about z (radians, counter-clockwise seen from +z) of each of ``transforms`` ``(g, 4, 4)``."""
     T = np.asarray(transforms, dtype=np.float64).reshape(-1, 4, 4)
     return np.arctan2(T[:, 1, 0], T[:, 0, 0])
-
-
-@dataclass(frozen=True, eq=False)
-class PinRings:
-    """The angles a picture's pins hold, and the hidden rings that hold them (:func:`arap.server.pictures.pin_rings`):
-    around each pin that holds an angle, hard point handles that move with the pin turned by its angle. They are the
-    solver's alone: the constraint set's point handles, the ``state`` message and documents hold the pins only.
-
-    Attributes
-    ----------
-    angles : tuple of float or None
-        Per point handle, the angle (radians, counter-clockwise seen from +z, from the rest pose) it holds while its
-        transform is the identity (its transform's turn about z adds to it), or None for a pin whose surroundings turn
-        freely with the bend.
-    points : PointConstraints
-        The ring points, on the rest pose (hard).
-    pin : (r,) int64 array
-        The point handle each ring point turns with.
-    offset : (r, 3) float64 array
-        Each ring point's rest place relative to its pin's rest place.
-    """
-
-    angles: tuple[float | None, ...]
-    points: PointConstraints
-    pin: np.ndarray
-    offset: np.ndarray
 
 
 @dataclass(frozen=True, eq=False)
@@ -275,11 +250,7 @@ class ConstraintSet:
         if targets is None or self.rings is None or not len(self.rings.pin):
             return targets
         rings = self.rings
-        base = np.array([0.0 if a is None else a for a in rings.angles])[rings.pin]
-        c, s = np.cos(base), np.sin(base)
-        o = rings.offset
-        turned = np.column_stack([c * o[:, 0] - s * o[:, 1], s * o[:, 0] + c * o[:, 1], o[:, 2]])
-        pose = self.point_pose[rings.pin] + turned
+        pose = rings.targets(self.point_pose)  # each ring point at its pin's pose, turned by the pin's angle
         T = transforms[len(self.groups):][rings.pin]
         return np.concatenate([targets, np.einsum("pij,pj->pi", T[:, :3, :3], pose) + T[:, :3, 3]])
 

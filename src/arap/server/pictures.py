@@ -15,10 +15,11 @@ from typing import Any, Protocol
 import numpy as np
 
 import arap.io.formats as formats
-from arap.errors import ArapError
+from arap.errors import ArapError, ConstraintError
 from arap.method.points import PointConstraints
+from arap.puppet.rings import PinRings
 from arap.server.appearance import Look, look_from_upload
-from arap.server.constraints import ConstraintSet, PinRings
+from arap.server.constraints import ConstraintSet
 from arap.server.errors import RequestError
 from arap.server.mesh_model import MeshData
 from arap.server.meshdata import load_upload
@@ -30,7 +31,6 @@ __all__ = [
     "draw_order",
     "is_picture",
     "load_picture",
-    "locate_points",
     "page_draw_order",
     "page_drawing",
     "picture_mesh",
@@ -135,81 +135,23 @@ def pin_parts(mesh: MeshData, points: PointConstraints | None) -> np.ndarray:
     return PuppetWarp.pin_parts(warp)  # the same parts whatever the y axis' direction
 
 
-def locate_points(mesh: MeshData, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The triangle of a flat ``mesh`` (in ``z = 0``) under each of ``points`` ((k, 2|3), x and y read) and the
-    points' barycentric coordinates in it; a point outside the mesh takes the nearest triangle (the one where its
-    most negative coordinate is least negative), its coordinates clipped to it.
-
-    Example
-    -------
-    >>> m = MeshData("sq", np.array([[0.0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]]), np.array([[0, 1, 2], [0, 2, 3]]))
-    >>> faces, bary = locate_points(m, np.array([[0.25, 0.75]]))
-    >>> faces.tolist(), bary.round(2).tolist()
-    ([1], [[0.25, 0.25, 0.5]])
-    """
-    P = np.asarray(points, dtype=np.float64)[:, :2]
-    F = np.asarray(mesh.F, dtype=np.int64)
-    a, b, c = (mesh.V[F[:, k], :2] for k in range(3))
-    det = (b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (c[:, 0] - a[:, 0]) * (b[:, 1] - a[:, 1])
-    det = np.where(det == 0.0, np.finfo(np.float64).tiny, det)
-    faces = np.empty(len(P), dtype=np.int64)
-    bary = np.empty((len(P), 3))
-    for k, (x, y) in enumerate(P):
-        l1 = ((x - a[:, 0]) * (c[:, 1] - a[:, 1]) - (c[:, 0] - a[:, 0]) * (y - a[:, 1])) / det
-        l2 = ((b[:, 0] - a[:, 0]) * (y - a[:, 1]) - (x - a[:, 0]) * (b[:, 1] - a[:, 1])) / det
-        lam = np.column_stack([1.0 - l1 - l2, l1, l2])
-        best = int(np.argmax(lam.min(axis=1)))
-        inside = np.clip(lam[best], 0.0, None)
-        faces[k], bary[k] = best, inside / inside.sum()
-    return faces, bary
-
-
-def _ring_offsets(V: np.ndarray, F: np.ndarray) -> np.ndarray:
-    """The rest offsets of a ring about a pin: :data:`arap.puppet.warp.RING_POINTS` points at
-    :data:`arap.puppet.warp.RING_SPACINGS` mean edge lengths (as :class:`arap.puppet.PuppetWarp`'s)."""
-    from arap.puppet.warp import RING_POINTS, RING_SPACINGS
-
-    edges = np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]])
-    spacing = float(np.linalg.norm(V[edges[:, 0], :2] - V[edges[:, 1], :2], axis=1).mean())
-    turn = 2.0 * np.pi * np.arange(RING_POINTS) / RING_POINTS
-    return RING_SPACINGS * spacing * np.column_stack([np.cos(turn), np.sin(turn), np.zeros(RING_POINTS)])
-
-
 def pin_rings(V: np.ndarray, F: np.ndarray, points: PointConstraints,
-              angles: list[float | None] | tuple[float | None, ...]) -> PinRings | None:
-    """The hidden rings of the pins ``points`` of a picture's mesh (rest pose ``V``, triangles ``F``) that hold an
-    angle (``angles``: per pin, radians or None; see :class:`arap.server.constraints.PinRings`): the points of a ring
-    about each such pin that lie on the picture's shape. None when no pin holds an angle.
+              angles: list[float | None] | tuple[float | None, ...]) -> PinRings:
+    """The hidden rings (:func:`arap.puppet.rings.pin_rings`) of the pins ``points`` of a picture's mesh (rest pose
+    ``V``, triangles ``F``) that hold an angle (``angles``: per pin, radians or None).
 
     Raises
     ------
     BadValues
         A pin that holds an angle with no ring point on the shape (too near its edge).
     """
+    from arap.puppet.rings import pin_rings as rings_of
     from arap.server.session_errors import BadValues
 
-    held = [k for k, a in enumerate(angles) if a is not None]
-    if not held:
-        return None
-    F = np.asarray(F, dtype=np.int64)
-    offsets = _ring_offsets(V, F)
-    centre = points.positions(V, F)
-    mesh = MeshData("rings", V, F)
-    faces, bary, pin, offset = [], [], [], []
-    for k in held:
-        ring = centre[k] + offsets
-        f, b = locate_points(mesh, ring)
-        on = np.linalg.norm(np.einsum("kc,kcd->kd", b, V[F[f]])[:, :2] - ring[:, :2], axis=1) <= 1e-6 * (
-            1.0 + np.abs(ring[:, :2]).max())
-        if not on.any():
-            raise BadValues(f"pin {k} is too near the picture's edge to hold an angle")
-        faces.append(f[on])
-        bary.append(b[on])
-        pin.append(np.full(int(on.sum()), k, dtype=np.int64))
-        offset.append(offsets[on])
-    ring_points = PointConstraints(np.concatenate(faces), np.concatenate(bary), np.full(sum(map(len, pin)), np.inf))
-    return PinRings(tuple(None if a is None else float(a) for a in angles), ring_points, np.concatenate(pin),
-                    np.concatenate(offset))
+    try:
+        return rings_of(V, F, points.positions(V, np.asarray(F, dtype=np.int64)), angles)
+    except ConstraintError as exc:
+        raise BadValues(str(exc)) from exc
 
 
 def pin_turn(V: np.ndarray, U: np.ndarray, F: np.ndarray, points: PointConstraints, k: int) -> float:
@@ -218,7 +160,6 @@ def pin_turn(V: np.ndarray, U: np.ndarray, F: np.ndarray, points: PointConstrain
     F = np.asarray(F, dtype=np.int64)
     single = PointConstraints(points.faces[k:k + 1], points.barycentric[k:k + 1], points.weights[k:k + 1])
     rings = pin_rings(V, F, single, [0.0])
-    assert rings is not None
     at_rest = rings.points.positions(V, F)[:, :2] - single.positions(V, F)[0, :2]
     now = rings.points.positions(U, F)[:, :2] - single.positions(U, F)[0, :2]
     cross = float(np.sum(at_rest[:, 0] * now[:, 1] - at_rest[:, 1] * now[:, 0]))

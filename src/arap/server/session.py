@@ -654,7 +654,7 @@ class Session:
     def set_pin_angle(self, pin: int, angle: float | None = None) -> DragOutcome:
         """Make a picture's pin hold its surroundings turned by ``angle`` degrees about it (counter-clockwise as seen,
         from the picture as opened; None: the angle they show now), as Photoshop's fixed pin rotation: a hidden
-        ring of points about the pin moves with it, turned by that angle (:func:`arap.server.pictures.pin_rings`);
+        ring of points about the pin moves with it, turned by that angle (:func:`arap.puppet.rings.pin_rings`);
         a turn of the pin's transform about z (a drag that turns it about itself) adds to the angle. The shape is
         solved at once; like a drag, the change becomes an undo step with the next :meth:`end_drag`.
 
@@ -708,7 +708,8 @@ class Session:
         UnusableMesh
             When the mesh is not a picture's.
         """
-        from arap.server.pictures import locate_points, picture_mesh
+        from arap.puppet.rings import locate_points
+        from arap.server.pictures import picture_mesh
 
         mesh = self.require_mesh()
         if mesh.picture is None:
@@ -720,7 +721,7 @@ class Session:
             corners = mesh.F[old.faces]
             rest = np.einsum("kc,kcd->kd", old.barycentric, self.V[corners])
             now = np.einsum("kc,kcd->kd", old.barycentric, self.U[corners])
-            faces, bary = locate_points(new, rest)
+            faces, bary = locate_points(new.V, new.F, rest)
             for k in range(len(faces)):
                 pin: dict[str, Any] = {"face": int(faces[k]), "barycentric": bary[k].tolist(),
                                        "target": now[k].tolist()}
