@@ -7,24 +7,28 @@ global step (``A x = b`` over the free vertices ``x``):
   ``A`` and ``w_k C_kᵀ t_k`` to ``b`` (weights are relative to the cotangent weights of the energy, which are of
   order 1);
 - **hard** constraints (``w_k = inf``) are met exactly through their Lagrange multipliers: with ``Z = A⁻¹ C_hᵀ``
-  and the small dense ``S = C_h Z``, both computed once per constraint set, each global step solves ``y = A⁻¹ b`` as
-  before and corrects it, ``x = y − Z S⁻¹ (C_h y − d)``. ``A`` also holds ``μ C_hᵀC_h`` (an augmented Lagrangian
-  term, ``μ`` the mean diagonal of the system matrix): it does not move the constrained minimiser, but keeps ``A``
-  positive definite when a part of the mesh is held only by point handles.
+  and the small dense ``S = C_h Z``, each global step solves ``y = A⁻¹ b`` as before and corrects it,
+  ``x = y − W (C_h y − d)`` with ``W = Z S⁻¹`` (``n_free × h``), computed once per constraint set. ``A`` also holds
+  ``μ C_hᵀC_h`` (an augmented Lagrangian term, ``μ`` the mean diagonal of the system matrix): it does not move the
+  constrained minimiser, but keeps ``A`` positive definite when a part of the mesh is held only by point handles.
 
-The factorisation stays once per constraint set; a hard point costs one more back-substitution at set-up and
-``O(n_free · h)`` per iteration.
+The factorisation stays once per constraint set; a hard point costs one more back-substitution at set-up. Per
+iteration the correction reads the few rows of ``y`` at the hard points' corners and updates ``y`` in place with the
+product of ``W`` by the (h, d) miss: one compiled pass over ``W`` and ``y``, no temporary ``n_free``-long array and
+no BLAS call (a threaded BLAS would share the cores with the solver's own threaded kernels).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numba as nb
 import numpy as np
 import scipy.linalg as sla
 import scipy.sparse as sp
 from numpy.typing import NDArray
 
+import arap.kernels.cache  # noqa: F401  (a writable cache folder before the kernel below is defined)
 from arap.errors import ConstraintError
 
 __all__ = ["BARYCENTRIC_TOLERANCE", "PointConstraints", "PointSystem", "check_points"]
@@ -132,6 +136,36 @@ def check_points(faces: object, barycentric: object, weights: object, n_faces: i
     return PointConstraints(f, np.clip(b, 0.0, None), w)
 
 
+
+@nb.njit("void(float64[:, :], float64[:, :], int64[:], int64[:], float64[:], float64[:, :])", cache=True, nogil=True)
+def _project(y, W, indptr, indices, data, goal):  # pragma: no cover - compiled
+    """``y −= W (C_h y − goal)`` in place, ``C_h`` given by its CSR arrays (a few entries per row). One signature of
+    any memory layout: a back-substitution returns C or Fortran order depending on the backend, and ``y`` is run
+    through in its own order."""
+    h, d = goal.shape
+    miss = np.empty((h, d))
+    for k in range(h):
+        for j in range(d):
+            acc = -goal[k, j]
+            for q in range(indptr[k], indptr[k + 1]):
+                acc += data[q] * y[indices[q], j]
+            miss[k, j] = acc
+    if y.strides[0] >= y.strides[1]:  # rows contiguous
+        for i in range(y.shape[0]):
+            for j in range(d):
+                acc = 0.0
+                for k in range(h):
+                    acc += W[i, k] * miss[k, j]
+                y[i, j] -= acc
+    else:  # columns contiguous (Fortran order)
+        for j in range(d):
+            for i in range(y.shape[0]):
+                acc = 0.0
+                for k in range(h):
+                    acc += W[i, k] * miss[k, j]
+                y[i, j] -= acc
+
+
 class PointSystem:
     """Point constraints in the reduced global step of a solver.
 
@@ -162,9 +196,9 @@ class PointSystem:
             raise ConstraintError(f"point {k} lies on a triangle whose corners are all constrained or held; move it "
                                   "or free one of them")
         self._w_all = np.where(self.hard, self.mu, self.soft_w)
-        self.Z: NDArray[np.float64] | None = None
-        self._S: tuple[NDArray[np.float64], bool] | None = None
-        self._C_hard: sp.csr_matrix | None = None
+        self._entry_point = np.repeat(np.arange(p), np.diff(self.C_free.indptr))  # the point of each entry of C_free
+        self.W: NDArray[np.float64] | None = None
+        self._hard_rows: tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.float64]] | None = None
 
     def matrix(self) -> sp.csr_matrix:
         """``Σ_soft w CᵀC + μ Σ_hard CᵀC`` over the free vertices, added to the system matrix."""
@@ -172,10 +206,17 @@ class PointSystem:
         return (self.C_free.T @ W @ self.C_free).tocsr()
 
     def prepare(self, solve: object) -> None:
-        """Precompute ``Z = A⁻¹ C_hᵀ`` and factor ``S = C_h Z`` with the factorised ``A`` (``solve(B)``)."""
+        """Precompute ``W = Z S⁻¹`` (``Z = A⁻¹ C_hᵀ``, ``S = C_h Z``) with the factorised ``A`` (``solve(B)``), and
+        the hard rows of ``C``: all that the per-iteration correction reads besides ``y``.
+
+        Raises
+        ------
+        ConstraintError
+            The hard points do not pin independent positions (``S`` numerically singular).
+        """
         if not self.hard.any():
             return
-        Ch = self.C_free[self.hard]
+        Ch = self.C_free[self.hard].tocsr()
         Z = np.asarray(solve(np.ascontiguousarray(Ch.T.toarray())))  # type: ignore[operator]
         S = np.asarray(Ch @ Z)
         S = 0.5 * (S + S.T)
@@ -188,9 +229,10 @@ class PointSystem:
         pivots = np.abs(np.diag(factor[0]))
         if pivots.min() <= 1e-6 * pivots.max():  # numerically singular: rounding let the factorisation through
             raise ConstraintError(message)
-        self._S = factor
-        self.Z = Z
-        self._C_hard = Ch
+        # W = Z S⁻¹ = (S⁻¹ Zᵀ)ᵀ, S symmetric; row-major, as the correction runs over the free vertices.
+        self.W = np.ascontiguousarray(sla.cho_solve(factor, Z.T, check_finite=False).T)
+        self._hard_rows = (Ch.indptr.astype(np.int64), Ch.indices.astype(np.int64),
+                           np.ascontiguousarray(Ch.data, dtype=np.float64))
 
     def known(self, fixed: NDArray[np.float64]) -> NDArray[np.float64]:
         """(p, 3) contribution of the non-free vertices to each point."""
@@ -201,9 +243,19 @@ class PointSystem:
         r = (targets - self.known(fixed)) * self._w_all[:, None]
         return np.asarray(self.C_free.T @ r)
 
+    def subtract_rhs(self, const: NDArray[np.float64], targets: NDArray[np.float64], fixed: NDArray[np.float64]
+                     ) -> NDArray[np.float64]:
+        """``const − rhs(targets, fixed)`` as a new array, written into a copy of ``const`` at the few rows the points'
+        corners touch (no other ``n_free``-long array)."""
+        r = (targets - self.known(fixed)) * self._w_all[:, None]
+        out = np.array(const, dtype=np.float64)
+        np.subtract.at(out, self.C_free.indices, self.C_free.data[:, None] * r[self._entry_point])
+        return out
+
     def correct(self, y: NDArray[np.float64], targets: NDArray[np.float64], fixed: NDArray[np.float64]
                 ) -> NDArray[np.float64]:
-        """The solution of the global step with the hard constraints met, from the unconstrained one ``y``."""
+        """The solution of the global step with the hard constraints met, from the unconstrained one ``y`` (corrected
+        in place)."""
         return self.project(y, self.goal(targets, fixed))
 
     def goal(self, targets: NDArray[np.float64], fixed: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -212,12 +264,24 @@ class PointSystem:
         return targets[h] - self.known(fixed)[h]
 
     def project(self, y: NDArray[np.float64], goal: NDArray[np.float64]) -> NDArray[np.float64]:
-        """:meth:`correct` with the hard points' :meth:`goal` computed before (the matrices' rows taken once, at
-        :meth:`prepare`: a drag corrects every iteration)."""
-        if self._S is None or self.Z is None or self._C_hard is None:
+        """:meth:`correct` with the hard points' :meth:`goal` computed before (once per solve: a drag corrects every
+        iteration). ``y`` (float64, ``(n_free, d)``, any memory layout) is corrected in place and returned.
+
+        Example
+        -------
+        Two triangles, a hard point at the middle of their shared edge, ``A`` the identity:
+
+        >>> pts = check_points([0], [[0.0, 0.5, 0.5]], None, n_faces=2)
+        >>> system = PointSystem(pts, np.array([[0, 1, 2]]), n_free=4, n=4, mu=1.0)
+        >>> system.prepare(lambda B: B)
+        >>> y = np.zeros((4, 2))
+        >>> system.project(y, np.array([[1.0, 2.0]])).round(12).tolist()
+        [[0.0, 0.0], [1.0, 2.0], [1.0, 2.0], [0.0, 0.0]]
+        """
+        if self.W is None or self._hard_rows is None:
             return y
-        miss = np.asarray(self._C_hard @ y) - goal
-        return np.asarray(y - self.Z @ sla.cho_solve(self._S, miss, check_finite=False))
+        _project(y, self.W, *self._hard_rows, np.asarray(goal, dtype=np.float64))
+        return y
 
     def penalty(self, free: NDArray[np.float64], targets: NDArray[np.float64], fixed: NDArray[np.float64]) -> float:
         """``Σ_soft w ‖C x − t‖²``: the soft constraints' part of the energy."""

@@ -164,7 +164,8 @@ class AddOn:
         return const
 
     def corrector(self, P: Array | None, fixed: Array) -> Callable[[Array], Array] | None:
-        """What a global step's solution goes through, or None."""
+        """What a global step's solution goes through (its argument, a new array, may be corrected in place), or
+        None."""
         return None
 
     def lbfgs_applies(self, P: Array | None) -> bool:
@@ -227,7 +228,7 @@ class PointHandles(AddOn):
         return e
 
     def rhs_constant(self, const: Array, P: Array | None, fixed: Array) -> Array:
-        return const if P is None else const - self.system.rhs(P, fixed)
+        return const if P is None else self.system.subtract_rhs(const, P, fixed)
 
     def corrector(self, P: Array | None, fixed: Array) -> Callable[[Array], Array] | None:
         if P is None or not self.system.hard.any():

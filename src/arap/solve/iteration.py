@@ -131,7 +131,7 @@ def make_iterate(p: Prepared, state: LocalState, U: Array, fixed: Array, P: Arra
     # Element energies have no barrier against inversion: elements a solve turns over are opened and the solve resumes.
     unfold = None
     if p.energy_type == "elements" and p.domain.kind in ("planar", "solid") and nf:
-        unfold = Unfolder(p.numbering.inv[p.F], p.rest, U, nf)
+        unfold = Unfolder(p.elements, p.rest, U, nf)
     scale = p.diagonal * np.sqrt(max(nf, 1))
     return Iterate(U=X, nf=nf, rotations=R, local=lambda X: local_energy(p, state, X, const_E, timings), rhs=rhs,
                    rhs_gradient=rhs_gradient, solve=solve, correct=correct, coupled=p.rotation_fit.coupled,

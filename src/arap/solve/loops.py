@@ -64,7 +64,8 @@ class Iterate:
     solve : callable
         ``solve(B)``: ``A⁻¹ B`` for (nf, 3) ``B`` (a new array).
     correct : callable or None
-        Applied to the global step's solution (hard point handles), or None.
+        Applied to the global step's solution (hard point handles), or None; it may correct its argument in place
+        (the solution of ``solve``, a new array) and returns the corrected solution.
     coupled : bool
         The rotations are moved on from their previous values (``smooth_rotations``): the plain step after a
         rejected extrapolation restarts from the rotations before it.

@@ -117,6 +117,8 @@ class Prepared:
     following : FollowingParts or None
         Where the loose parts go (``loose="follow"``).
     numbering : Numbering
+    elements : (m, 3) or (m, 4) int array
+        ``F`` in the internal numbering (what the iterations that open turned-over elements read).
     bounds : (2, 3) float array
         Bounding box of ``V``; ``diagonal`` its diagonal (1 for a single point).
     origin : (3,) float array
@@ -177,6 +179,7 @@ class Prepared:
     loose_parts: list[NDArray[np.int64]]
     following: FollowingParts | None
     numbering: Numbering
+    elements: NDArray[np.int64]
     bounds: NDArray[np.float64]
     diagonal: float
     origin: NDArray[np.float64]
@@ -445,7 +448,7 @@ def prepare(V: NDArray[np.floating] | MeshLike, F: NDArray[np.integer] | None = 
     return Prepared(V=given.V, F=F, domain=domain, energy_type=energy, weight_type=weights, alpha=given.alpha,
                     constrained=given.constrained, roi=given.roi, stiffness=given.stiffness, points=given.points,
                     free=free, held=held, nonfree=nonfree, loose=loose, loose_parts=parts, following=following,
-                    numbering=numbering, bounds=bounds, diagonal=diagonal,
+                    numbering=numbering, elements=F_int, bounds=bounds, diagonal=diagonal,
                     origin=origin, rest=rest, areas=areas, cells=cells, cell_order=cell_order,
                     non_negative=non_negative, matrix=L_ff.tocsr(), L_fn=L_fn, coupling=SparseRowsProduct(L_fn),
                     gather=gather, active=active, rotation_fit=fit, addons=addons, point_system=point_system,
