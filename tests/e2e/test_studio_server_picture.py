@@ -88,3 +88,43 @@ def test_a_restore_keeps_the_picture_the_server_opened(started_with_picture: Pag
     assert [p["face"] for p in restored] == [p["face"] for p in pins]
     assert np.allclose([p["barycentric"] for p in restored], [p["barycentric"] for p in pins], atol=1e-6)
     assert not page.evaluate("() => window.__arap.errors")
+
+
+@pytest.mark.parametrize("started_with_picture", ["notebook"], indirect=True)
+def test_a_restore_meshes_the_picture_again_at_its_density_and_keeps_it_after_an_apply(
+        started_with_picture: Page) -> None:
+    page = started_with_picture
+    opened = page.evaluate("() => window.__arap.nVertices")
+    page.get_by_test_id("density").select_option("coarse")
+    page.wait_for_function(f"() => window.__arap.nVertices !== {opened}", timeout=30_000)
+    wait_idle(page)
+    coarse = page.evaluate("() => window.__arap.nVertices")
+    x, y = np.median(screen_points(page), axis=0)
+    page.mouse.click(x, y)
+    wait_idle(page)
+    page.wait_for_function("() => window.__arap.constraints().points.length === 1")
+    select_anchor_and_handle(page)
+    drag_gizmo_x(page, 60)
+    wait_settled(page)
+    page.get_by_test_id("apply").click()
+    wait_idle(page)
+    shape = positions(page)
+    pins = page.evaluate("() => window.__arap.constraints().points")
+
+    wait_autosaved(page)
+    Dialogs(page, accept=True)
+    page.reload()
+    wait_ready(page)
+    page.get_by_test_id("restore-accept").click()
+    page.wait_for_function("() => window.__arap.meshName === 'upright' && !window.__arap.restoring")
+    page.wait_for_function("() => window.__arap.constraints().points.length === 1", timeout=30_000)
+    wait_idle(page)
+
+    assert page.evaluate("() => window.__arap.nVertices") == coarse
+    page.wait_for_function(TEXTURED)
+    expect(page.get_by_test_id("picture-rows")).to_be_visible()
+    expect(page.get_by_test_id("density")).to_have_value("coarse")
+    scale = float(np.ptp(shape, axis=0).max())
+    assert np.allclose(positions(page), shape, atol=1e-4 * scale), "the restore did not bring the saved shape back"
+    assert [p["face"] for p in page.evaluate("() => window.__arap.constraints().points")] == [p["face"] for p in pins]
+    assert not page.evaluate("() => window.__arap.errors")
