@@ -308,11 +308,16 @@ class StudioWidget:
 
     # ------------------------------------------------------------------ the picture kept in the notebook
     def picture(self) -> Picture:
-        """A picture of the current shape with its constraints (:func:`arap.show`), as kept in the notebook."""
+        """A picture of the current shape with its constraints (:func:`arap.show`), as kept in the notebook; for a
+        picture opened for the puppet warp, the warped picture (as **Export PNG** gives it, on white, made smaller to
+        fit :data:`PICTURE_SIZE`)."""
         from arap.render.show import show
 
         U, F = self.vertices, self.faces
         width, height = PICTURE_SIZE
+        mesh = self.session.mesh
+        if mesh is not None and mesh.picture is not None:
+            return _warped_picture(mesh, U, self.session)
         try:
             return show(U, F, constraints=self.session.constraints_document(), width=width, height=height)
         except (ArapError, ValueError, KeyError, IndexError):  # constraints in another numbering (a repaired file)
@@ -362,6 +367,25 @@ class StudioWidget:
                 self._picture_key = key
             except Exception:
                 logger.exception("could not update the studio's picture")
+
+
+def _warped_picture(mesh: Any, U: NDArray[np.float64], session: Session) -> Picture:
+    """The warped picture of a picture's ``mesh`` at ``U`` (:func:`arap.server.pictures.warped_picture_png`, its pins'
+    depths the session's), on white, made smaller to fit :data:`PICTURE_SIZE` (never larger)."""
+    import io
+
+    from PIL import Image
+
+    from arap.render.picture import Picture
+    from arap.server.pictures import warped_picture_png
+
+    png = warped_picture_png(mesh, U, session.constraints.points, session.pin_depth)
+    with Image.open(io.BytesIO(png)) as image:
+        warped = image.convert("RGBA")
+    warped.thumbnail(PICTURE_SIZE, Image.Resampling.LANCZOS)
+    flat = Image.new("RGBA", warped.size, (255, 255, 255, 255))
+    flat.alpha_composite(warped)
+    return Picture(np.asarray(flat.convert("RGB")))
 
 
 def widget(

@@ -131,6 +131,27 @@ def test_a_picture_opens_in_the_widget_for_the_puppet_warp() -> None:
     finally:
         w.stop()
 
+def test_the_saved_notebook_keeps_a_picture_of_a_picture_warped_and_textured() -> None:
+    """A picture opened in the widget is kept in the notebook as the warped picture (its own colours), made smaller to
+    fit the kept picture's size, not as a grey drawing of its mesh."""
+    from arap.jupyter_widget import PICTURE_SIZE
+
+    rgba = np.zeros((300, 700, 4), dtype=np.uint8)
+    rgba[50:250, 100:600] = (30, 90, 220, 255)
+    w = arap.widget(rgba, name="sprite")
+    try:
+        assert w.wait(60)
+        kept = w.picture()
+        assert kept.width <= PICTURE_SIZE[0] and kept.height <= PICTURE_SIZE[1]
+        assert abs(kept.width / kept.height - 700 / 300) < 0.05
+        px = kept.pixels.astype(np.int64)
+        blue = (px[..., 2] > 180) & (px[..., 0] < 80) & (px[..., 1] < 130)
+        white = (px > 245).all(axis=2)
+        assert 0.35 < blue.mean() < 0.6 and 0.35 < white.mean() < 0.65, (blue.mean(), white.mean())
+    finally:
+        w.stop()
+
+
 def test_a_drag_is_answered_with_the_solved_positions(opened: tuple[StudioWidget, Comm],
                                                       cactus: tuple[np.ndarray, np.ndarray]) -> None:
     w, comm = opened

@@ -281,3 +281,40 @@ def test_the_studio_sets_pin_depths_and_meshes_a_picture_again(studio: StudioCli
     while (reply := studio.recv()).type != "state":
         replies.append(reply.type)
     assert "appearance" in replies and "vertices" in replies and len(reply.data["constraints"]["points"]) == 1
+
+
+def test_a_server_started_on_a_picture_file_opens_it_as_the_page_opens_one(tmp_path: Any) -> None:
+    """``arap studio picture.png``: the picture is meshed and textured as an upload of it is, and the texture its look
+    sends is the picture itself, which the page keeps as the session's source: opened again, the same mesh."""
+    from arap.server.app import create_app
+    from arap.studio_handle import picture_input
+
+    path = tmp_path / "disc.png"
+    path.write_bytes(_disc_png())
+    studio = create_app(path).state.studio
+    uploaded, _ = load_picture(_disc_png(), "disc.png", 100_000)
+    mesh, look = studio.default_mesh, studio.default_look
+    assert mesh.name == "disc" and mesh.picture is not None and look is not None and look.textured
+    assert np.array_equal(mesh.V, uploaded.V) and np.array_equal(mesh.F, uploaded.F)
+    opened = picture_input(path, None, "mesh")  # arap.studio(picture) from a notebook
+    assert opened is not None
+    for m, lk in ((mesh, look), opened):
+        assert lk.texture_mime == "image/png"
+        again, _ = load_picture(lk.texture, "disc.png", 100_000)
+        assert again.picture is not None and np.array_equal(again.picture, m.picture)
+        assert np.array_equal(again.V, m.V) and np.array_equal(again.F, m.F)
+
+
+def test_a_server_refuses_a_picture_file_it_cannot_mesh_with_its_reason(tmp_path: Any) -> None:
+    from arap.errors import ArapError
+    from arap.server.app import create_app
+
+    empty = tmp_path / "empty.png"
+    Image.fromarray(np.zeros((20, 20, 4), dtype=np.uint8), "RGBA").save(empty)
+    with pytest.raises(ArapError, match=r"empty\.png: the picture's shape is empty"):
+        create_app(empty)
+    broken = tmp_path / "broken.png"
+    broken.write_bytes(b"not a picture")
+    with pytest.raises(ArapError, match=r"broken\.png: not a picture file") as info:
+        create_app(broken)
+    assert str(info.value).count("broken.png") == 1

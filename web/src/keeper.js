@@ -5,7 +5,9 @@ import { showRestoreOffer } from './offer.js';
 import { CLIENT } from './protocol.js';
 import { SessionRestore } from './restore.js';
 import { deleteSession, getMesh, newestOrphan, newSessionId } from './sessiondb.js';
-import { builtinSource, captureSession, describe, encodePly, fileSource, hasEdits, restExportFormat } from './snapshot.js';
+import {
+  builtinSource, captureSession, describe, encodePly, fileSource, hasEdits, isPictureSource, pictureSource, restExportFormat,
+} from './snapshot.js';
 
 /**
  * What the keeper reads and tells.
@@ -30,6 +32,9 @@ export class SessionKeeper {
     this.id = newSessionId();
     this.pendingSource = null; // source of the mesh requested last
     this.madeSource = false; // the mesh shown came from the server (its own file): its source is a PLY made here
+    this.picture = false; // the mesh shown is a picture's
+    /** @type {string[]} the densities of the remesh requests whose mesh has not arrived yet, in order */
+    this.remeshes = [];
     this.applying = 0; // apply requests whose state has not arrived yet
     /**
      * Per export request not answered yet, in order: false for a download, else the rest pose kept as the mesh's
@@ -108,6 +113,7 @@ export class SessionKeeper {
   /** @param {import('./protocol.js').ClientMessage} msg a message sent to the server */
   sent(msg) {
     if (msg.type === CLIENT.EXPORT) this.exports.push(this.exportingRest);
+    if (msg.type === CLIENT.REMESH) this.remeshes.push(msg.density);
     if (msg.type !== CLIENT.APPLY) return;
     this.applying++;
     // a mesh with a look (UVs, textures, colours) keeps it through a restore: the rest pose is kept as a file of the
@@ -131,16 +137,40 @@ export class SessionKeeper {
   }
 
   /**
-   * The look of the mesh just sent arrived (`fileFormat`: its file's format). A mesh the server opened itself (the
-   * one it was started with) has only a PLY of its triangles as its source here, which would lose the look in a
-   * restore; its file is asked for now, while the shape is its rest pose, and kept as the source.
+   * The look of the mesh just sent arrived (`fileFormat`: its file's format; `texture`: its image). A mesh the server
+   * opened itself (the one it was started with) has only a PLY of its triangles as its source here, which would lose
+   * the look in a restore; its file is asked for now, while the shape is its rest pose, and kept as the source. A
+   * picture's file is the picture itself, which its look brings as its texture (the picture's pixels, as PNG): kept
+   * as the source, a restore opens it again as a picture, meshed the same.
    * @param {string} fileFormat
+   * @param {Blob|null} [texture]
    */
-  appearanceArrived(fileFormat) {
+  appearanceArrived(fileFormat, texture = null) {
     if (!this.madeSource) return;
     this.madeSource = false;
+    if (this.picture) {
+      if (texture) this._keepPicture(texture);
+      return;
+    }
     const format = restExportFormat({ kind: 'file', filename: `mesh.${fileFormat}` });
     if (format) this._exportRest(format, this.deps.mesh.name ?? 'model');
+  }
+
+  /**
+   * Keep a picture's image as the source of the mesh shown, in place of the PLY of its triangles (unless another
+   * mesh or source came meanwhile, or it is over the upload limit).
+   * @param {Blob} texture
+   */
+  _keepPicture(texture) {
+    const { mesh } = this.deps;
+    const made = mesh.source;
+    const ext = texture.type === 'image/jpeg' ? 'jpg' : 'png';
+    texture.arrayBuffer().then((bytes) => {
+      if (mesh.source !== made) return;
+      if (mesh.limits.max_upload_bytes && bytes.byteLength > mesh.limits.max_upload_bytes) return;
+      mesh.sourceKnown(fileSource(`${mesh.name ?? 'picture'}.${ext}`, bytes));
+      this.touch();
+    }, () => {});
   }
 
   /**
@@ -167,6 +197,7 @@ export class SessionKeeper {
     this.madeSource = false;
     this.applying = 0;
     this.exports = [];
+    this.remeshes = [];
     const restoring = this.restore.cancel();
     if (restoring) this.lost = { snap: restoring, live: false };
     else if (!this.lost && !this.autosave.held) this.lost = { snap: this.autosave.hold(), live: true };
@@ -186,10 +217,15 @@ export class SessionKeeper {
    */
   meshArrived(msg, positions, faces) {
     const { mesh } = this.deps;
-    // a picture's look is its image, which no mesh export keeps as a picture
-    this.madeSource = !this.pendingSource && !mesh.builtins.includes(msg.name) && !msg.picture;
-    mesh.sourceKnown(this.pendingSource ?? (mesh.builtins.includes(msg.name) ? builtinSource(msg.name)
-      : fileSource(`${msg.name}.ply`, encodePly(positions, faces, mesh.vertexMap), mesh.repaired)));
+    this.picture = !!msg.picture;
+    // a picture meshed again at another density: its picture stays the source, with the density to mesh it at
+    const density = this.picture ? this.remeshes.shift() : undefined;
+    const builtin = mesh.builtins.includes(msg.name);
+    this.madeSource = !this.pendingSource && !builtin && density === undefined;
+    const picture = density !== undefined && isPictureSource(mesh.source) ? mesh.source : null;
+    mesh.sourceKnown(this.pendingSource ?? (builtin ? builtinSource(msg.name)
+      : picture ? pictureSource(picture, /** @type {string} */ (density))
+        : fileSource(`${msg.name}.ply`, encodePly(positions, faces, mesh.vertexMap), mesh.repaired)));
     this.pendingSource = null;
     this.rest = Float32Array.from(positions);
     if (this.offer?.banner.open) this.offer.banner.setText(describe(this.offer.record, msg.name));
@@ -214,9 +250,14 @@ export class SessionKeeper {
     const { mesh, viewer } = this.deps;
     if (this.applying > 0) {
       // the deformed shape is now the rest pose: a restore must upload it (as a PLY until the export of a mesh
-      // with a look arrives, exportArrived)
+      // with a look arrives, exportArrived); a picture stays its source, which a PLY would lose (a restore opens the
+      // picture and puts the shape back on it)
       this.applying--;
       this.rest = Float32Array.from(viewer.positions);
+      if (isPictureSource(mesh.source)) {
+        this.restore.stateArrived(synced);
+        return;
+      }
       // an apply was answered, so a mesh is shown: its geometry and triangles are there
       const geometry = /** @type {NonNullable<typeof viewer.geometry>} */ (viewer.geometry);
       const faces = /** @type {import('three').BufferAttribute} */ (geometry.index).array;
@@ -232,6 +273,7 @@ export class SessionKeeper {
   errorArrived(msg) {
     if (msg.request === CLIENT.LOAD_BUILTIN || msg.request === CLIENT.UPLOAD) this.pendingSource = null;
     if (msg.request === CLIENT.APPLY) this.applying = Math.max(0, this.applying - 1);
+    if (msg.request === CLIENT.REMESH) this.remeshes.shift();
     if (msg.request === CLIENT.EXPORT) this.exports.shift();
     this.restore.errorArrived(msg);
   }

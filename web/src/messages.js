@@ -169,8 +169,9 @@ export class ServerMessages {
    */
   appearance(msg) {
     const { d } = this;
-    d.viewer.setLook(appearanceArrays(msg.frame, d.viewer.nVertices));
-    d.keeper.appearanceArrived(msg.file_format);
+    const look = appearanceArrays(msg.frame, d.viewer.nVertices);
+    d.viewer.setLook(look);
+    d.keeper.appearanceArrived(msg.file_format, look.texture);
     d.panel.setSurfaces(d.viewer.surfaces, d.viewer.surface);
     d.refreshSelection(false);
     if (msg.notes?.length) d.panel.showStatus(`${d.mesh.name}: ${msg.notes.join('; ')}.`, 'info', 10000);

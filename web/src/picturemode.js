@@ -76,7 +76,12 @@ export function installPictureControls(actions) {
   addSnapshotPart('pins', () => (shownPicture && (depth.length || angles.some((a) => a !== null))
     ? { depth: depth.slice(), angles: angles.slice() } : null));
   sendPinMessage = actions.send;
-  onSessionRestored((snap) => restorePins(/** @type {{depth?: unknown, angles?: unknown}|undefined} */ (snap.pins)));
+  onSessionRestored((snap) => {
+    restorePins(/** @type {{depth?: unknown, angles?: unknown}|undefined} */ (snap.pins));
+    // a picture meshed again at another density comes back so meshed (restore.js): the control shows it
+    const density = snap.source?.density;
+    if (shownPicture && typeof density === 'string') byIdAs('density', HTMLSelectElement).value = density;
+  });
   const select = byIdAs('warp', HTMLSelectElement);
   select.innerHTML = '';
   for (const value of PARAMS.warp.choices) {

@@ -9,6 +9,9 @@ import { mismatch } from './snapshot.js';
 
 /** @typedef {import('./autosave.js').Snapshot} Snapshot */
 
+/** The density a picture is meshed at when it is opened (the server's `remesh` names the others). */
+const OPENED_DENSITY = 'normal';
+
 /** @type {((snap: Snapshot) => void)[]} */
 const restored = [];
 
@@ -29,7 +32,10 @@ export class SessionRestore {
    */
   constructor(deps) {
     this.deps = deps;
-    /** @type {{snap: Snapshot, stage: 'mesh'|'constraints', onDone: (error: string|null) => void}|null} */
+    /**
+     * `remeshed`: a picture's remesh was asked for (its source names a density).
+     * @type {{snap: Snapshot, stage: 'mesh'|'constraints', onDone: (error: string|null) => void, remeshed?: boolean}|null}
+     */
     this.active = null;
     /** @type {string|null} */
     this.pinKey = null; // constraintsKey of the set that put the shape back, while the server's history holds it
@@ -77,6 +83,13 @@ export class SessionRestore {
     this.pinKey = null; // a new mesh starts a new history
     const a = this.active;
     if (!a || a.stage !== 'mesh') return false;
+    const density = a.snap.source?.density;
+    if (msg.picture && density && density !== OPENED_DENSITY && !a.remeshed) {
+      // a picture meshed again at another density: meshed so again, its mesh is the saved one
+      a.remeshed = true;
+      if (!this.deps.send({ type: CLIENT.REMESH, density })) this._finish('not connected to the studio server');
+      return true;
+    }
     const problem = mismatch(a.snap, msg.n_vertices, msg.n_faces);
     if (problem) {
       this._finish(problem);
@@ -109,7 +122,7 @@ export class SessionRestore {
     const a = this.active;
     if (!a) return;
     /** @type {(string|null)[]} */
-    const fatal = a.stage === 'mesh' ? [CLIENT.LOAD_BUILTIN, CLIENT.UPLOAD] : [CLIENT.SET_CONSTRAINTS];
+    const fatal = a.stage === 'mesh' ? [CLIENT.LOAD_BUILTIN, CLIENT.UPLOAD, CLIENT.REMESH] : [CLIENT.SET_CONSTRAINTS];
     if (fatal.includes(msg.request)) this._finish(msg.message || msg.code);
   }
 

@@ -26,6 +26,28 @@ export function fileSource(filename, bytes, repaired = false) {
   return { kind: 'file', filename, bytes, key: ++sourceKeys, repaired };
 }
 
+/** Extensions of the pictures the studio opens (meshed, for the puppet warp). */
+const PICTURE_EXTENSIONS = ['png', 'jpg', 'jpeg', 'webp'];
+
+/**
+ * True when `source` is a picture file (a restore opens it again as a picture).
+ * @param {{kind: string, filename?: string}|null} source
+ */
+export function isPictureSource(source) {
+  const ext = String(source?.filename ?? '').split('.').pop()?.toLowerCase() ?? '';
+  return source?.kind === 'file' && PICTURE_EXTENSIONS.includes(ext);
+}
+
+/**
+ * The source of a picture (`picture`, a picture file's source) meshed at `density` (the server's `remesh`): a restore
+ * opens the picture and meshes it again at that density.
+ * @param {{filename?: string, bytes?: any}} picture
+ * @param {string} density
+ */
+export function pictureSource(picture, density) {
+  return { ...fileSource(String(picture.filename), picture.bytes), density };
+}
+
 /**
  * The export format (of the server's `export`) that keeps the look of a mesh from `source` (UVs, materials, textures,
  * vertex colours) and its file's vertex numbering, so that the file uploads again as the same mesh with the same

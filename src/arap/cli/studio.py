@@ -29,7 +29,8 @@ def add_parser(commands: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     p = commands.add_parser("studio", help="start the browser modeler",
                             description="Serve ARAP Studio; open the printed URL in a browser.")
     p.add_argument("mesh", metavar="MESH", nargs="?", default=None,
-                   help="mesh every session starts with: a file or a built-in name (default: the first built-in)")
+                   help="mesh every session starts with: a file, a picture (PNG, JPEG, WebP) for the puppet warp, "
+                        "or a built-in name (default: the first built-in)")
     p.add_argument("--host", default="127.0.0.1",
                    help="address to bind (default: 127.0.0.1, this machine only); any other address serves the "
                         "network and requires a token")

@@ -24,6 +24,7 @@ from starlette.types import Receive, Scope, Send
 from starlette.websockets import WebSocket, WebSocketDisconnect
 
 from arap import __version__
+from arap.errors import ArapError
 from arap.server.appearance import Look, look_from_path
 from arap.server.client_files import STATIC_DIR, client_dir, client_missing_advice
 from arap.server.connection import Connection
@@ -33,6 +34,7 @@ from arap.server.guard import RequestGuard, normalize_origin, presented_token, t
 from arap.server.memory import release_memory
 from arap.server.mesh_model import MeshData
 from arap.server.meshdata import load_default
+from arap.server.pictures import is_picture, load_picture
 from arap.server.protocol import error_message
 from arap.server.session import Session
 from arap.server.studio_config import StudioConfig
@@ -126,6 +128,29 @@ class _ClientFiles:
         await self._files(scope, receive, send)
 
 
+def _default_mesh(spec: str | os.PathLike[str] | MeshData | None, max_vertices: int) -> tuple[MeshData, Look | None]:
+    """The mesh every session starts with and its look: a picture file (PNG, JPEG, WebP) opened as the page opens
+    one (:func:`arap.server.pictures.load_picture`), anything else as :func:`arap.server.meshdata.load_default` and
+    :func:`arap.server.appearance.look_from_path` read it.
+
+    Raises
+    ------
+    arap.errors.ArapError
+        The file cannot be read, is not a usable mesh, or is a picture without an opaque part or with too many
+        vertices once meshed.
+    """
+    if isinstance(spec, (str, os.PathLike)) and is_picture(os.fspath(spec)) and Path(spec).is_file():
+        path = Path(spec)
+        try:
+            return load_picture(path.read_bytes(), path.name, max_vertices)
+        except OSError as exc:
+            raise ArapError(f"{path}: cannot be read: {exc.strerror or exc}") from exc
+        except RequestError as exc:
+            raise ArapError(f"{path}: {exc.message.removeprefix(f'{path.name}: ')}") from exc
+    mesh = load_default(spec)
+    return mesh, look_from_path(spec, mesh)
+
+
 def create_app(
     default_mesh: str | os.PathLike[str] | MeshData | None = None,
     *,
@@ -151,8 +176,9 @@ def create_app(
     ----------
     default_mesh : str, path-like, MeshData or None
         Mesh every new session starts with: a built-in model name (``arap.BUILTIN_MESHES``), a mesh file chosen
-        by whoever runs the server, arrays wrapped in a :class:`~arap.server.mesh_model.MeshData`, or None for the
-        first built-in model. Loaded once, here.
+        by whoever runs the server, a picture file (PNG, JPEG, WebP: opened as the page opens one, for the puppet
+        warp), arrays wrapped in a :class:`~arap.server.mesh_model.MeshData`, or None for the first built-in model.
+        Loaded once, here.
     max_upload_bytes : int
         Largest mesh file a client may upload.
     max_vertices : int
@@ -195,7 +221,7 @@ def create_app(
     Raises
     ------
     arap.errors.ArapError
-        The default mesh cannot be loaded.
+        The default mesh cannot be loaded (or a picture has no opaque part, or too many vertices once meshed).
     ValueError
         A limit is not positive, an allowed origin is not an http(s) origin, or the token is empty.
     """
@@ -224,9 +250,8 @@ def create_app(
         raise ValueError("the token must not be empty")
     guard = Middleware(RequestGuard, bind_host=bind_host, allowed_hosts=tuple(allowed_hosts), allow_origins=origins,
                        token=token)
-    mesh = load_default(default_mesh)
+    mesh, look = _default_mesh(default_mesh, int(max_vertices))
     logger.info("default mesh %s: %d vertices, %d faces", mesh.name, mesh.n_vertices, mesh.n_faces)
-    look = look_from_path(default_mesh, mesh)
     static = Path(static_dir) if static_dir is not None else client_dir()
     advice = client_missing_advice(static)
     if advice is not None:

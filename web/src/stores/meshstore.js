@@ -13,8 +13,10 @@
 
 /**
  * Where the session's rest mesh comes from (snapshot.js builtinSource, fileSource): a built-in model by name, or a
- * mesh file's bytes; `repaired`: the bytes are a mesh that repair changed when its file was loaded.
- * @typedef {{kind: string, key: number, name?: string, filename?: string, bytes?: any, repaired?: boolean}} MeshSource
+ * mesh file's bytes; `repaired`: the bytes are a mesh that repair changed when its file was loaded; `density`: a
+ * picture's, when it was meshed again at another density than the one it opens with.
+ * @typedef {{kind: string, key: number, name?: string, filename?: string, bytes?: any, repaired?: boolean,
+ *   density?: string}} MeshSource
  */
 
 export class MeshStore {
