@@ -33,7 +33,7 @@ from __future__ import annotations
 import math
 import re
 import time
-from collections.abc import Iterator, Mapping
+from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -134,6 +134,7 @@ def at_keyframes(keyframes: Keyframes, times: NDArray[np.float64]) -> NDArray[np
 
 def iter_frames(solver: ArapSolver, keyframes: Keyframes, V: NDArray[np.float64], times: NDArray[np.float64], *,
                 exact: bool = True, frame_tolerance: float = FRAME_TOLERANCE,
+                more_point_targets: Callable[[float], NDArray[np.float64]] | None = None,
                 **solve_options: Any) -> Iterator[tuple[float, ArapResult]]:
     """Solve the frames at ``times`` one after another, each starting from the previous one.
 
@@ -150,6 +151,10 @@ def iter_frames(solver: ArapSolver, keyframes: Keyframes, V: NDArray[np.float64]
         ``frame_tolerance`` (see :data:`FRAME_TOLERANCE`), a few times sooner.
     frame_tolerance : float
         Tolerance of the frames between keyframes with ``exact=False`` (never below ``tolerance``).
+    more_point_targets : callable or None
+        The targets at a time of point handles the solver holds after the keyframes' (``solver`` built with them
+        after ``keyframes.constraints.points``): the hidden rings of a picture's pins that hold an angle (``arap
+        animate``, with :func:`arap.server.animation_export.ring_targets`).
     **solve_options
         Passed to :meth:`arap.ArapSolver.solve` (``tolerance``, ``max_iterations``, ...).
 
@@ -175,6 +180,9 @@ def iter_frames(solver: ArapSolver, keyframes: Keyframes, V: NDArray[np.float64]
         points = keyframes.point_targets(float(t))
         if points is None:
             points = c.point_targets
+        if more_point_targets is not None:
+            more = more_point_targets(float(t))
+            points = more if points is None else np.concatenate([points, more])
         keyed = keyframes.key_at(float(t)) if key else None
         shape = None if keyed is None else keyed.shape
         if shape is not None:

@@ -28,10 +28,10 @@ A picture's pin (a point handle of the studio's picture mesh) may carry the angl
 counter-clockwise as seen, from the picture as opened; left out: its surroundings turn freely with the bend) and its
 depth (``"depth"``, an integer: where the warped parts overlap, the part of the pin of larger depth is drawn over
 the other; left out: 0), as the studio's **Save constraints** writes them and its loading restores them
-(:data:`arap.constraints.entries.PIN_KEYS`). ``arap deform`` and ``arap batch`` hold the angles on a flat mesh with
-the studio's hidden rings (:func:`arap.puppet.rings.held_points`) and refuse them elsewhere; ``arap animate`` refuses
-a document whose pins hold angles (:meth:`Constraints.refuse_pin_angles`); depths only concern drawing, and they
-ignore them.
+(:data:`arap.constraints.entries.PIN_KEYS`). ``arap deform``, ``arap batch`` and ``arap animate`` hold the angles on
+a flat mesh with the studio's hidden rings (:func:`arap.puppet.rings.held_points`; ``arap animate`` also a keyframe's
+``"point_angles"``, :mod:`arap.constraints.keyframes`) and refuse them elsewhere; depths only concern drawing, and
+they ignore them.
 
 Indices are 0-based in the mesh file's vertex order. ``fixed`` or ``handles`` may be omitted or empty, but not both.
 Handles may lie outside the region of interest: like every constrained vertex they go to their targets, while the
