@@ -122,40 +122,6 @@ def _save_volume_animation(output: str, T: np.ndarray, columns: int, animation: 
     return save_animation(output, T, animation)
 
 
-def _pin_rings(V: np.ndarray, F: np.ndarray, keys: Any) -> tuple[Any, Any]:
-    """The point handles to solve for ``keys`` (:class:`arap.constraints.keyframes.Keyframes`) on the mesh ``V``,
-    ``F``: the document's, then the hidden rings of a picture's pins that hold an angle (as the studio holds them:
-    :func:`arap.server.pictures.pin_rings`); and the rings' targets at a time
-    (:func:`arap.server.animation_export.ring_targets`), or None without such pins.
-
-    Raises
-    ------
-    ConstraintError
-        A pin that holds an angle too near the mesh's edge to have a ring, or a mesh that is not flat in z = 0 (pins
-        turn about z, on a picture or a planar mesh).
-    """
-    from arap.method.points import PointConstraints
-    from arap.server.animation_export import ring_targets
-    from arap.server.pictures import pin_rings
-    from arap.server.session_errors import BadValues
-
-    c = keys.constraints
-    if c.points is None or not any(a is not None for a in c.pin_angles or []):
-        return c.points, None
-    if F.shape[1] != 3 or np.abs(V[:, 2]).max(initial=0.0) > 1e-9 * max(float(np.ptp(V[:, :2])), 1e-300):
-        raise ConstraintError("arap animate holds a pin's angle (points' \"angle\") on a flat mesh in z = 0 only "
-                              "(a picture's, as the studio saves it); remove \"angle\" to let the pins turn freely")
-    try:
-        rings = pin_rings(V, F, c.points, [None if a is None else np.radians(a) for a in c.pin_angles])
-    except BadValues as exc:
-        raise ConstraintError(str(exc)) from None
-    assert rings is not None
-    p, r = c.points, rings.points
-    points = PointConstraints(np.concatenate([p.faces, r.faces]), np.concatenate([p.barycentric, r.barycentric]),
-                              np.concatenate([p.weights, r.weights]))
-    return points, ring_targets(keys, rings)
-
-
 def run_animate(args: argparse.Namespace) -> int:
     """``arap animate``: the exit status."""
     from arap.animation import (
@@ -163,6 +129,7 @@ def run_animate(args: argparse.Namespace) -> int:
         Animation,
         at_keyframes,
         frame_times,
+        held_rings,
         iter_frames,
         load_keyframes,
         save_animation,
@@ -181,7 +148,7 @@ def run_animate(args: argparse.Namespace) -> int:
                                   "mesh file first (arap info shows what repair changes)")
         args.energy = args.energy or DEFAULT_ENERGY
     keys = load_keyframes(args.keyframes, V, len(F))
-    points, rings = _pin_rings(V, F, keys)
+    points, rings = held_rings(keys, V, F, "arap animate")
     times = frame_times(keys, args.fps)
     warm_up_kernels(args.quiet)
     c = keys.constraints

@@ -146,24 +146,6 @@ class Constraints:
         """Fixed vertices then handles, shape (f + h,): the order of :meth:`indices_and_targets`."""
         return np.concatenate([self.fixed, self.handles])
 
-    def refuse_pin_angles(self, command: str) -> None:
-        """Refuse, for ``command`` (a solve that holds no pin's surroundings turned, unlike ``arap deform`` and
-        ``arap batch`` on a flat mesh: :func:`arap.puppet.rings.held_points`), pins that hold an angle.
-
-        Raises
-        ------
-        ConstraintError
-            A point handle holds an angle (``"angle"``: the studio's turn about a picture's pin).
-        """
-        held = [(k, a) for k, a in enumerate(self.pin_angles or []) if a is not None]
-        if held:
-            k, a = held[0]
-            raise ConstraintError(
-                f'{command} cannot hold a pin\'s surroundings turned: points[{k}] holds an angle of {a:g} degrees '
-                f'("angle", a picture pin turned in the studio{f", and {len(held) - 1} more" if len(held) > 1 else ""})'
-                '; remove "angle" to let the pins turn freely with the bend, or warp the picture in the studio or with '
-                '"angles" in the pins file of arap warp')
-
     def indices_and_targets(self, V: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Constrained vertices and their targets, fixed vertices at their rest positions.
 

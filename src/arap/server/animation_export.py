@@ -36,12 +36,13 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 import arap.io.formats as formats
-from arap.constraints.keyframes import Keyframe, Keyframes
-from arap.errors import ArapError, ConstraintError
+from arap.animation import ring_targets
+from arap.constraints.keyframes import Keyframes
+from arap.errors import ArapError
 from arap.io.animated_gltf import animation_glb
 from arap.options import DEFAULT_TOLERANCE
 from arap.server.budget import MemoryBudget
-from arap.server.constraints import PinRings, identity_transforms, matrices_from_json
+from arap.server.constraints import identity_transforms, matrices_from_json
 from arap.server.errors import RequestError
 from arap.server.messages import ANIMATION_FORMATS, EASINGS, MAX_FPS
 from arap.server.numbering import document_in_file_numbering
@@ -50,7 +51,7 @@ if TYPE_CHECKING:
     from arap.server.session import Session
 
 __all__ = ["ANIMATION_MIMES", "EXPORT_MIME", "MAX_EXPORT_FRAMES", "AnimationCancelled", "ProgressCallback",
-           "export_animation", "export_bytes", "keyframes_document", "ring_targets"]
+           "export_animation", "export_bytes", "keyframes_document"]
 
 MAX_EXPORT_FRAMES = 600
 """Most frames an animation export solves (20 s at 30 frames per second)."""
@@ -347,36 +348,9 @@ def _export(session: Session, times_ms: Sequence[int] | np.ndarray, transforms: 
 
 
 def _rings_of(session: Session, keys: Keyframes) -> Callable[[float], np.ndarray] | None:
-    """:func:`ring_targets` of the session's pins that hold an angle, or None without any."""
+    """:func:`arap.animation.ring_targets` of the session's pins that hold an angle, or None without any."""
     rings = session.constraints.rings
     return None if rings is None or not len(rings.pin) else ring_targets(keys, rings)
-
-
-def ring_targets(keys: Keyframes, rings: PinRings) -> Callable[[float], np.ndarray]:
-    """The targets at a time of the hidden rings of a picture's pins that hold an angle (``rings``:
-    :func:`arap.server.pictures.pin_rings` on the rest pose of ``keys``' mesh): at each keyframe, each ring point about
-    its pin's target, turned from its rest place by the angle the pin holds then (``"point_angles"``); between two
-    keyframes blended from one to the other with the keyframe's easing, as the pins' targets are
-    (:mod:`arap.constraints.keyframes`). The studio's animation export and ``arap animate`` both solve them so.
-
-    Raises
-    ------
-    ConstraintError
-        A pin with a ring but no angle in the keyframes.
-    """
-    o = rings.offset
-
-    def at_key(key: Keyframe) -> np.ndarray:
-        angles, targets = key.point_angles, key.point_targets
-        if angles is None or targets is None or any(angles[int(k)] is None for k in np.unique(rings.pin)):
-            raise ConstraintError(f"the keyframe at {key.time:g} s gives no angle for a pin that holds one")
-        a = np.radians(np.array([angles[int(k)] for k in rings.pin], dtype=np.float64))
-        c, s = np.cos(a), np.sin(a)
-        turned = np.column_stack([c * o[:, 0] - s * o[:, 1], s * o[:, 0] + c * o[:, 1], o[:, 2]])
-        return np.asarray(targets)[rings.pin] + turned
-
-    at_keys = {id(key): at_key(key) for key in keys.keys}
-    return lambda t: keys.blend(t, lambda key: at_keys[id(key)])
 
 
 def _solve_and_encode(session: Session, mine: dict[str, Any], frames_keys: Keyframes, frame_t: np.ndarray, fps: float,
@@ -385,7 +359,7 @@ def _solve_and_encode(session: Session, mine: dict[str, Any], frames_keys: Keyfr
                       fmt: str, rings: Callable[[float], np.ndarray] | None = None
                       ) -> tuple[str, str, bytes, int, float]:
     """Solve the frames at times ``frame_t`` and encode them (see :func:`_export`); ``rings``: the targets at a time
-    of the hidden rings of the pins that hold an angle (:func:`ring_targets`)."""
+    of the hidden rings of the pins that hold an angle (:func:`arap.animation.ring_targets`)."""
     mesh = session.require_mesh()
     solver = session.solver
     assert solver is not None
