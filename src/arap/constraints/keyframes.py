@@ -25,7 +25,7 @@ Each keyframe may also give:
   studio turns a pin that holds an angle with its keyframes). A number exactly for the points that give an
   ``"angle"``, ``null`` for the others (they turn freely). A keyframe without them holds the angles of the previous
   keyframe that has them (or the points' ``"angle"`` before any). Between keyframes, the hidden ring of points that
-  holds a pin's angle (:func:`arap.server.pictures.pin_rings`) moves on straight lines from its place at one keyframe
+  holds a pin's angle (:mod:`arap.puppet.rings`) moves on straight lines from its place at one keyframe
   (the pin's target, with the ring about it turned by the pin's angle) to its place at the next, with the keyframe's
   easing, as the point handles do; ``arap animate`` and the studio's animation export solve them so.
 - ``"shape"``: one ``[x, y, z]`` per mesh vertex: the whole shape at that time, as it was when the keyframe was made.
