@@ -33,7 +33,7 @@ from __future__ import annotations
 import math
 import re
 import time
-from collections.abc import Iterator, Mapping
+from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -42,15 +42,18 @@ import numpy as np
 from numpy.typing import NDArray
 
 from arap.constraints.keyframes import MAX_KEYFRAMES, Keyframe, Keyframes, load_keyframes
-from arap.errors import OptionError
+from arap.errors import ConstraintError, OptionError
 from arap.options import DEFAULT_TOLERANCE
 from arap.solve.result import ArapResult
 
 if TYPE_CHECKING:
+    from arap.method.points import PointConstraints
+    from arap.puppet.rings import PinRings
     from arap.solve.solver import ArapSolver
 
 __all__ = ["DEFAULT_FPS", "FRAME_TOLERANCE", "MAX_FRAMES", "MAX_KEYFRAMES", "Animation", "Keyframe", "Keyframes",
-           "animate", "at_keyframes", "frame_paths", "frame_times", "iter_frames", "load_keyframes", "save_animation"]
+           "animate", "at_keyframes", "frame_paths", "frame_times", "held_rings", "iter_frames", "load_keyframes",
+           "ring_targets", "save_animation"]
 
 DEFAULT_FPS = 30.0
 """Frames per second when none is given."""
@@ -134,6 +137,7 @@ def at_keyframes(keyframes: Keyframes, times: NDArray[np.float64]) -> NDArray[np
 
 def iter_frames(solver: ArapSolver, keyframes: Keyframes, V: NDArray[np.float64], times: NDArray[np.float64], *,
                 exact: bool = True, frame_tolerance: float = FRAME_TOLERANCE,
+                more_point_targets: Callable[[float], NDArray[np.float64]] | None = None,
                 **solve_options: Any) -> Iterator[tuple[float, ArapResult]]:
     """Solve the frames at ``times`` one after another, each starting from the previous one.
 
@@ -150,6 +154,10 @@ def iter_frames(solver: ArapSolver, keyframes: Keyframes, V: NDArray[np.float64]
         ``frame_tolerance`` (see :data:`FRAME_TOLERANCE`), a few times sooner.
     frame_tolerance : float
         Tolerance of the frames between keyframes with ``exact=False`` (never below ``tolerance``).
+    more_point_targets : callable or None
+        The targets at a time of point handles the solver holds after the keyframes' (``solver`` built with them
+        after ``keyframes.constraints.points``): the hidden rings of a picture's pins that hold an angle (``arap
+        animate``: :func:`held_rings`).
     **solve_options
         Passed to :meth:`arap.ArapSolver.solve` (``tolerance``, ``max_iterations``, ...).
 
@@ -175,6 +183,9 @@ def iter_frames(solver: ArapSolver, keyframes: Keyframes, V: NDArray[np.float64]
         points = keyframes.point_targets(float(t))
         if points is None:
             points = c.point_targets
+        if more_point_targets is not None:
+            more = more_point_targets(float(t))
+            points = more if points is None else np.concatenate([points, more])
         keyed = keyframes.key_at(float(t)) if key else None
         shape = None if keyed is None else keyed.shape
         if shape is not None:
@@ -182,6 +193,54 @@ def iter_frames(solver: ArapSolver, keyframes: Keyframes, V: NDArray[np.float64]
             continue
         yield float(t), solver.solve(targets, point_targets=points, tolerance=tolerance if key else between,
                                      **solve_options)
+
+
+def held_rings(keyframes: Keyframes, V: NDArray[np.float64], F: NDArray[np.integer], command: str = "arap.animate"
+               ) -> tuple[PointConstraints | None, Callable[[float], NDArray[np.float64]] | None]:
+    """The point handles a solve of ``keyframes`` on the mesh ``V``, ``F`` holds, and the targets at a time of those
+    after the keyframes' own: the document's point handles, then the hidden rings of a picture's pins that hold an
+    angle (:func:`arap.puppet.rings.held_points`, as the studio holds them) and :func:`ring_targets`; without such
+    pins, the document's point handles and None.
+
+    Raises
+    ------
+    ConstraintError
+        A pin holds an angle on a mesh that is not flat in a plane of constant z, or too near the shape's edge
+        (``command`` names the command that refuses it).
+    """
+    from arap.puppet.rings import held_points, pin_rings
+
+    c = keyframes.constraints
+    points, _ = held_points(c, V, F, command)
+    if points is c.points or c.points is None:  # no pin holds an angle
+        return c.points, None
+    W, T = np.asarray(V, dtype=np.float64), np.asarray(F, dtype=np.int64)
+    angles = [None if a is None else math.radians(a) for a in c.pin_angles or []]
+    return points, ring_targets(keyframes, pin_rings(W, T, c.points.positions(W, T), angles))
+
+
+def ring_targets(keyframes: Keyframes, rings: PinRings) -> Callable[[float], NDArray[np.float64]]:
+    """The targets at a time of the hidden rings of a picture's pins that hold an angle (``rings``:
+    :func:`arap.puppet.rings.pin_rings` on the rest pose of the keyframes' mesh): at each keyframe each ring point at
+    its pin's target plus its rest offset turned by the angle the pin holds then (``"point_angles"``), between two
+    keyframes blended from one to the other with the keyframe's easing, as the pins' targets are
+    (:mod:`arap.constraints.keyframes`). ``arap animate`` and the studio's animation export both solve them so.
+
+    Raises
+    ------
+    ConstraintError
+        A keyframe gives no angle for a pin that has a ring.
+    """
+    held = {int(k) for k in np.unique(rings.pin)}
+
+    def at_key(key: Keyframe) -> NDArray[np.float64]:
+        angles, targets = key.point_angles, key.point_targets
+        if angles is None or targets is None or any(angles[k] is None for k in held):
+            raise ConstraintError(f"the keyframe at {key.time:g} s gives no angle for a pin that holds one")
+        return rings.targets(targets, [None if a is None else math.radians(a) for a in angles])
+
+    at_keys = {id(key): at_key(key) for key in keyframes.keys}
+    return lambda t: keyframes.blend(t, lambda key: at_keys[id(key)])
 
 
 def _keyed(solver: ArapSolver, targets: NDArray[np.float64], points: NDArray[np.float64] | None,
@@ -242,14 +301,16 @@ def animate(V: NDArray[np.float64], F: NDArray[np.integer], keyframes: Keyframes
     times = frame_times(keys, fps)
     c = keys.constraints
     t0 = time.perf_counter()
-    solver = ArapSolver(V, F, c.constrained, roi=c.roi, stiffness=c.stiffness, points=c.points, **solver_options)
+    points, rings = held_rings(keys, V, F)
+    solver = ArapSolver(V, F, c.constrained, roi=c.roi, stiffness=c.stiffness, points=points, **solver_options)
     setup = time.perf_counter() - t0
     frames = np.empty((len(times), len(V), 3))
     iterations = np.zeros(len(times), dtype=np.int64)
     converged = np.zeros(len(times), dtype=bool)
     seconds = np.zeros(len(times))
     for k, (_, result) in enumerate(iter_frames(solver, keys, V, times, exact=exact, frame_tolerance=frame_tolerance,
-                                                tolerance=tolerance, max_iterations=max_iterations)):
+                                                tolerance=tolerance, max_iterations=max_iterations,
+                                                more_point_targets=rings)):
         frames[k] = result.vertices
         iterations[k] = result.iterations
         converged[k] = result.converged

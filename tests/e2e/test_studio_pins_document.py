@@ -147,3 +147,42 @@ def test_holding_alt_near_the_active_pin_shows_the_turn_is_armed(page: Page, tmp
     page.wait_for_function("() => document.getElementById('pin-turn-ring').hidden")
     assert _armed(page) == (False, "")
     assert not page.evaluate("() => window.__arap.errors")
+
+
+def test_a_loaded_timeline_moves_and_turns_the_pins_as_its_keyframes_do(page: Page, tmp_path: Path) -> None:
+    """A saved timeline of a picture: per keyframe the pins' targets and the angles they hold. Loaded, the timeline
+    poses the pins as the keyframes say: the held pin at its target, turned by its angle there."""
+    from tests.e2e.test_studio_timeline import seek, timeline
+
+    upload(page, _squares(tmp_path / "squares.png"), "texture")
+    doc = _document(page, [0, 1], angle=30.0)
+    del doc["stiffness"]
+    doc |= {"fixed": [], "handles": [], "targets": [], "handle_groups": []}  # as the studio saves a picture's pins
+    start = [p["target"] for p in doc["points"]]
+    lifted = [[start[0][0], start[0][1] + 6.0, start[0][2]], start[1]]
+    doc["keyframes"] = [{"time": 0.0, "transforms": [], "point_targets": start, "point_angles": [30.0, None]},
+                        {"time": 1.0, "transforms": [], "point_targets": lifted, "point_angles": [120.0, None]}]
+    _load(page, tmp_path, doc, "timeline.json")
+    page.wait_for_function("() => window.__arap.timeline.keys.length === 2", timeout=30_000)
+    page.wait_for_function("() => window.__arap.picturePins().angles[0] !== null && "
+                           "window.__arap.picturePins().angles[0] !== undefined", timeout=30_000)
+    wait_idle(page)
+    assert [len(k["transforms"]) for k in timeline(page)["keys"]] == [2, 2]  # one per pin
+    assert page.evaluate("() => window.__arap.picturePins().depth") == [0, 1]
+
+    F = np.asarray(page.evaluate("() => window.__arap.faces()"), dtype=np.int64).reshape(-1, 3)
+    pin = doc["points"][0]
+
+    def pin_and_angle() -> tuple[np.ndarray, float]:
+        where = np.asarray(pin["barycentric"]) @ positions(page)[F[pin["face"]]]
+        return where, float(page.evaluate("() => window.__arap.picturePins().angles[0]"))
+
+    seek(page, 1000)
+    where, angle = pin_and_angle()
+    np.testing.assert_allclose(where, lifted[0], atol=1e-3)
+    assert abs(angle - 120.0) < 1e-6, angle
+    seek(page, 0)
+    where, angle = pin_and_angle()
+    np.testing.assert_allclose(where, start[0], atol=1e-3)
+    assert abs(angle - 30.0) < 1e-6, angle
+    assert not page.evaluate("() => window.__arap.errors")

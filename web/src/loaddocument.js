@@ -14,7 +14,8 @@ import { CLIENT } from './protocol.js';
  * @param {string} text
  * @param {ArrayLike<number>|null} rest (null: not known)
  * @param {Int32Array|null} vertexMap
- * @returns {{text: string, keys: {ms: number, transforms: number[][], easing: string}[]}|null}
+ * @returns {{text: string, keys: {ms: number, transforms: number[][], easing: string}[], pins: number[][]}|null}
+ *   (`pins`: the pivots of the point handles' transforms, after the handle groups', when the keyframes move them)
  */
 export function keyframedDocument(text, rest, vertexMap) {
   let doc;
@@ -33,13 +34,46 @@ export function keyframedDocument(text, rest, vertexMap) {
     const r = /** @type {ArrayLike<number>} */ (rest);
     return [r[3 * v], r[3 * v + 1], r[3 * v + 2]];
   });
-  const keys = doc.keyframes.map((/** @type {any} */ k) => ({
-    ms: Math.round(1000 * k.time),
-    transforms: k.transforms.map((/** @type {any} */ m) => [0, 1, 2, 3].flatMap((c) => [0, 1, 2, 3]
-      .map((r) => Number(m[r][c])))),
-    easing: EASINGS.includes(k.easing) ? k.easing : 'linear',
-  }));
-  return { text: JSON.stringify({ ...doc, targets: base }), keys };
+  // The point handles (a picture's pins) move with the keyframes too: the timeline holds one transform per pin after
+  // the handle groups', from the pin's target in the document to its target at the keyframe, turned by the change of
+  // the angle it holds (the points' "angle", then each keyframe's "point_angles").
+  const points = Array.isArray(doc.points) ? doc.points : [];
+  const groups = Array.isArray(doc.handle_groups) ? doc.handle_groups.length : 0;
+  const pinned = points.length > 0 && points.every((/** @type {any} */ p) => Array.isArray(p?.target))
+    && doc.keyframes.every((/** @type {any} */ k) => k.transforms.length === groups);
+  /** @type {number[][]} */
+  let held = points.map((/** @type {any} */ p) => p?.target);
+  /** @type {(number|null)[]} */
+  let angles = points.map((/** @type {any} */ p) => (Number.isFinite(p?.angle) ? p.angle : null));
+  const keys = doc.keyframes.map((/** @type {any} */ k) => {
+    const transforms = k.transforms.map((/** @type {any} */ m) => [0, 1, 2, 3].flatMap((c) => [0, 1, 2, 3]
+      .map((r) => Number(m[r][c]))));
+    if (pinned) {
+      if (Array.isArray(k.point_targets) && k.point_targets.length === points.length) held = k.point_targets;
+      if (Array.isArray(k.point_angles) && k.point_angles.length === points.length) angles = k.point_angles;
+      points.forEach((/** @type {any} */ p, /** @type {number} */ j) => {
+        const a = angles[j];
+        const turn = Number.isFinite(p.angle) && typeof a === 'number' ? ((a - p.angle) * Math.PI) / 180 : 0;
+        transforms.push(pinTransform(p.target, held[j], turn));
+      });
+    }
+    return { ms: Math.round(1000 * k.time), transforms, easing: EASINGS.includes(k.easing) ? k.easing : 'linear' };
+  });
+  const pins = pinned ? points.map((/** @type {any} */ p) => p.target.map(Number)) : [];
+  return { text: JSON.stringify({ ...doc, targets: base }), keys, pins };
+}
+
+/**
+ * Column-major 4×4 that turns about z by `turn` (radians) about `from` and moves it to `to`.
+ * @param {number[]} from @param {number[]} to @param {number} turn
+ * @returns {number[]}
+ */
+function pinTransform(from, to, turn) {
+  const c = Math.cos(turn);
+  const s = Math.sin(turn);
+  const [x, y, z] = from.map(Number);
+  const [u, v, w] = to.map(Number);
+  return [c, s, 0, 0, -s, c, 0, 0, 0, 0, 1, 0, u - (c * x - s * y), v - (s * x + c * y), w - z, 1];
 }
 
 /**
@@ -85,7 +119,7 @@ export function loadConstraintsFile(file, d) {
           for (const i of g) /** @type {number[]} */ (targets.get(i)).forEach((x, k) => (sum[k] += x));
           return sum.map((x) => x / Math.max(g.length, 1));
         });
-        d.timeline.load(keyed.keys, pivots);
+        d.timeline.load(keyed.keys, pivots.concat(keyed.pins));
       }
     });
   }).catch((err) => {

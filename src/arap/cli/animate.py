@@ -41,8 +41,9 @@ def add_parser(commands: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     p.add_argument("-k", "--keyframes", required=True, metavar="KEYS.json",
                    help='a constraints file with "keyframes": [{"time": seconds, "targets": [...]} or '
                         '{"time": seconds, "transforms": [4x4 per handle group]}, ...]; a keyframe may add '
-                        '"easing" (linear, ease-in-out, ease-in, ease-out), "point_targets" (one per point handle) '
-                        'and "shape" (the whole shape at that time, one [x, y, z] per vertex)')
+                        '"easing" (linear, ease-in-out, ease-in, ease-out), "point_targets" (one per point handle), '
+                        '"point_angles" (the angles a picture\'s pins hold, as their "angle") and "shape" (the whole '
+                        'shape at that time, one [x, y, z] per vertex)')
     p.add_argument("-o", "--output", required=True, metavar="OUT",
                    help="frame_####.obj (numbered files in that mesh format; a volume format such as frame_####.msh "
                         "for a volume MESH) or OUT.glb (one animated glTF); a solid written to a surface format is "
@@ -128,6 +129,7 @@ def run_animate(args: argparse.Namespace) -> int:
         Animation,
         at_keyframes,
         frame_times,
+        held_rings,
         iter_frames,
         load_keyframes,
         save_animation,
@@ -146,12 +148,12 @@ def run_animate(args: argparse.Namespace) -> int:
                                   "mesh file first (arap info shows what repair changes)")
         args.energy = args.energy or DEFAULT_ENERGY
     keys = load_keyframes(args.keyframes, V, len(F))
-    keys.constraints.refuse_pin_angles("arap animate")
+    points, rings = held_rings(keys, V, F, "arap animate")
     times = frame_times(keys, args.fps)
     warm_up_kernels(args.quiet)
     c = keys.constraints
     solver = ArapSolver(V, F, c.constrained, energy=args.energy, weights=args.weights, roi=c.roi,
-                        stiffness=c.stiffness, alpha=args.alpha, points=c.points)
+                        stiffness=c.stiffness, alpha=args.alpha, points=points)
     if not args.quiet:
         how = ("every frame to convergence" if args.exact else
                f"keyframes to convergence, the frames between to tolerance {FRAME_TOLERANCE:g}; --exact: all to "
@@ -165,7 +167,7 @@ def run_animate(args: argparse.Namespace) -> int:
     at_key = at_keyframes(keys, times)
     t0 = time.perf_counter()
     for k, (t, result) in enumerate(iter_frames(solver, keys, V, times, exact=args.exact, tolerance=args.tolerance,
-                                                max_iterations=args.iterations)):
+                                                max_iterations=args.iterations, more_point_targets=rings)):
         frames[k], iterations[k], converged[k] = result.vertices, result.iterations, result.converged
         seconds[k] = result.timings["total"]
         if not args.quiet:

@@ -28,10 +28,10 @@ A picture's pin (a point handle of the studio's picture mesh) may carry the angl
 counter-clockwise as seen, from the picture as opened; left out: its surroundings turn freely with the bend) and its
 depth (``"depth"``, an integer: where the warped parts overlap, the part of the pin of larger depth is drawn over
 the other; left out: 0), as the studio's **Save constraints** writes them and its loading restores them
-(:data:`arap.constraints.entries.PIN_KEYS`). ``arap deform`` and ``arap batch`` hold the angles on a flat mesh with
-the studio's hidden rings (:func:`arap.puppet.rings.held_points`) and refuse them elsewhere; ``arap animate`` refuses
-a document whose pins hold angles (:meth:`Constraints.refuse_pin_angles`); depths only concern drawing, and they
-ignore them.
+(:data:`arap.constraints.entries.PIN_KEYS`). ``arap deform``, ``arap batch`` and ``arap animate`` hold the angles on
+a flat mesh with the studio's hidden rings (:func:`arap.puppet.rings.held_points`; ``arap animate`` also a keyframe's
+``"point_angles"``, :mod:`arap.constraints.keyframes`) and refuse them elsewhere; depths only concern drawing, and
+they ignore them.
 
 Indices are 0-based in the mesh file's vertex order. ``fixed`` or ``handles`` may be omitted or empty, but not both.
 Handles may lie outside the region of interest: like every constrained vertex they go to their targets, while the
@@ -145,24 +145,6 @@ class Constraints:
     def constrained(self) -> np.ndarray:
         """Fixed vertices then handles, shape (f + h,): the order of :meth:`indices_and_targets`."""
         return np.concatenate([self.fixed, self.handles])
-
-    def refuse_pin_angles(self, command: str) -> None:
-        """Refuse, for ``command`` (a solve that holds no pin's surroundings turned, unlike ``arap deform`` and
-        ``arap batch`` on a flat mesh: :func:`arap.puppet.rings.held_points`), pins that hold an angle.
-
-        Raises
-        ------
-        ConstraintError
-            A point handle holds an angle (``"angle"``: the studio's turn about a picture's pin).
-        """
-        held = [(k, a) for k, a in enumerate(self.pin_angles or []) if a is not None]
-        if held:
-            k, a = held[0]
-            raise ConstraintError(
-                f'{command} cannot hold a pin\'s surroundings turned: points[{k}] holds an angle of {a:g} degrees '
-                f'("angle", a picture pin turned in the studio{f", and {len(held) - 1} more" if len(held) > 1 else ""})'
-                '; remove "angle" to let the pins turn freely with the bend, or warp the picture in the studio or with '
-                '"angles" in the pins file of arap warp')
 
     def indices_and_targets(self, V: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Constrained vertices and their targets, fixed vertices at their rest positions.

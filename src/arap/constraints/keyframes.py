@@ -20,6 +20,14 @@ Each keyframe may also give:
   are at that time. They move linearly between keyframes (with the keyframe's easing), as vertex handles do. A
   keyframe without them holds the point handles at the targets of the previous keyframe that has them (or at the
   ``"target"`` of each point before any).
+- ``"point_angles"``: one angle in degrees (or ``null``) per point handle, in their order: the angle each of a
+  picture's pins holds at that time (as the points' ``"angle"``, :data:`arap.constraints.entries.PIN_KEYS`: the
+  studio turns a pin that holds an angle with its keyframes). A number exactly for the points that give an
+  ``"angle"``, ``null`` for the others (they turn freely). A keyframe without them holds the angles of the previous
+  keyframe that has them (or the points' ``"angle"`` before any). Between keyframes, the hidden ring of points that
+  holds a pin's angle (:mod:`arap.puppet.rings`) moves on straight lines from its place at one keyframe
+  (the pin's target, with the ring about it turned by the pin's angle) to its place at the next, with the keyframe's
+  easing, as the point handles do; ``arap animate`` and the studio's animation export solve them so.
 - ``"shape"``: one ``[x, y, z]`` per mesh vertex: the whole shape at that time, as it was when the keyframe was made.
   An ARAP pose is not always unique (a large turn can end in one of several shapes, depending on the way there), so
   an animation that solves the keyframe again from another path can reach another shape. With ``"shape"``,
@@ -42,8 +50,10 @@ stays a turn instead of cutting across. Before the first and after the last keyf
 
 from __future__ import annotations
 
+import json
 import math
-from collections.abc import Mapping
+import sys
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
@@ -63,7 +73,7 @@ __all__ = ["EASINGS", "MAX_KEYFRAMES", "Keyframe", "Keyframes", "ease", "load_ke
 
 MAX_KEYFRAMES = 10_000
 """Most keyframes a file may hold."""
-_KEYFRAME_KEYS = ("time", "targets", "transforms", "easing", "point_targets", "shape")
+_KEYFRAME_KEYS = ("time", "targets", "transforms", "easing", "point_targets", "point_angles", "shape")
 EASINGS = ("linear", "ease-in-out", "ease-in", "ease-out")
 """Names of the easings a keyframe may give (how the handles move from it to the next keyframe)."""
 _SHAPE_AT_TARGETS = 1e-6
@@ -74,8 +84,9 @@ _BASE_KEY = "keyframe_base"
 @dataclass(frozen=True)
 class Keyframe:
     """The handles' pose at one time: ``targets`` (h, 3), or ``transforms`` (g, 4, 4) per handle group; the point
-    handles' targets ``point_targets`` (p, 3) or None (held); the whole ``shape`` (n, 3) or None; the ``easing`` of
-    the motion to the next keyframe (one of :data:`EASINGS`)."""
+    handles' targets ``point_targets`` (p, 3) or None (held); the angles in degrees the point handles (a picture's
+    pins) hold, ``point_angles`` (None per pin that turns freely), or None (none holds one); the whole ``shape``
+    (n, 3) or None; the ``easing`` of the motion to the next keyframe (one of :data:`EASINGS`)."""
 
     time: float
     targets: NDArray[np.float64] | None = None
@@ -83,6 +94,7 @@ class Keyframe:
     easing: str = "linear"
     point_targets: NDArray[np.float64] | None = None
     shape: NDArray[np.float64] | None = None
+    point_angles: tuple[float | None, ...] | None = None
 
 
 def ease(easing: str, s: float) -> float:
@@ -162,11 +174,16 @@ class Keyframes:
         base = self.constraints.point_targets
         if base is None or self.constraints.points is None or not len(self.constraints.points):
             return None
+        return self.blend(t, self._point_pose)
+
+    def blend(self, t: float, value: Callable[[Keyframe], NDArray[np.float64]]) -> NDArray[np.float64]:
+        """``value`` (an array per keyframe) at time ``t``: that of the keyframe whose pose holds at ``t``, or
+        between two keyframes the linear blend of theirs at the eased fraction (as point handles move)."""
         seg = self._segment(t)
         if isinstance(seg, Keyframe):
-            return self._point_pose(seg)
+            return value(seg)
         ka, kb, s = seg
-        return (1.0 - s) * self._point_pose(ka) + s * self._point_pose(kb)
+        return (1.0 - s) * value(ka) + s * value(kb)
 
     def _point_pose(self, key: Keyframe) -> NDArray[np.float64]:
         if key.point_targets is not None:  # always so for parsed keyframes with point handles
@@ -271,6 +288,7 @@ def _parse(data: Mapping[str, Any], V: NDArray[np.float64], n_faces: int | None)
         raise ConstraintError('keyframes pose the handles: give "handles" (the vertices the keyframes move) or '
                               '"points" (point handles)')
     held = constraints.point_targets if p else None
+    held_angles = tuple(constraints.pin_angles) if constraints.pin_angles is not None else None
     groups = _groups(constraints)
     box = bounding_box(V)
     keys: list[Keyframe] = []
@@ -312,8 +330,12 @@ def _parse(data: Mapping[str, Any], V: NDArray[np.float64], n_faces: int | None)
                 raise ConstraintError(f"{where}.point_targets: {exc}") from None
             check_reach(box, P, f"{where}.point_targets")
             held = P
+        if "point_angles" in raw:
+            if p == 0:
+                raise ConstraintError(f'{where}.point_angles: the constraints have no point handles ("points")')
+            held_angles = _check_angles(raw["point_angles"], constraints.pin_angles, p, f"{where}.point_angles")
         shape = None if raw.get("shape") is None else _check_shape(raw["shape"], V, box, where)
-        keys.append(replace(key, easing=str(easing), point_targets=held, shape=shape))
+        keys.append(replace(key, easing=str(easing), point_targets=held, point_angles=held_angles, shape=shape))
     rest = V[constraints.handles].copy()
     if data.get(_BASE_KEY) is not None:
         try:
@@ -332,6 +354,30 @@ def _parse(data: Mapping[str, Any], V: NDArray[np.float64], n_faces: int | None)
                 raise ConstraintError(f"keyframes[{k}].shape puts a handle {off:.3g} away from the keyframe's target "
                                       "(the shape of a keyframe is the pose of its handles)")
     return frames
+
+
+def _check_angles(raw: Any, pins: list[float | None] | None, p: int, where: str) -> tuple[float | None, ...]:
+    """A keyframe's ``point_angles``: per point handle a finite number of degrees where the points give an
+    ``"angle"`` (``pins``), null elsewhere."""
+    if not isinstance(raw, list) or len(raw) != p:
+        raise ConstraintError(f"{where} must be a list of one angle in degrees (or null) per point handle ({p})")
+    out: list[float | None] = []
+    for j, a in enumerate(raw):
+        holds = pins is not None and pins[j] is not None
+        if a is None:
+            if holds:
+                raise ConstraintError(f'{where}[{j}] is null, but points[{j}] holds an angle ("angle"): give the '
+                                      "angle it holds at that time")
+            out.append(None)
+            continue
+        if type(a) not in (int, float) or not -sys.float_info.max <= a <= sys.float_info.max:
+            raise ConstraintError(f"{where}[{j}] must be a finite number of degrees or null, got "
+                                  f"{json.dumps(a, default=repr)[:40]}")
+        if not holds:
+            raise ConstraintError(f'{where}[{j}]: points[{j}] holds no angle (it turns freely); give it an "angle" '
+                                  'in "points" or null here')
+        out.append(float(a))
+    return tuple(out)
 
 
 def _check_shape(raw: Any, V: NDArray[np.float64], box: NDArray[np.float64], where: str) -> NDArray[np.float64]:

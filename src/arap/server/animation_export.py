@@ -13,8 +13,9 @@ In the document they become the ``"keyframes"`` of :mod:`arap.constraints.keyfra
 plus an identity for the group of handles in no group when the document has such handles (fixed vertices the pose moved,
 vertices outside the region of interest that it holds away from rest); ``"keyframe_base"`` gives the handles' pose
 positions when those are not their rest positions (the transforms of the studio apply to the pose); each keyframe
-has its ``"easing"``, the point handles' ``"point_targets"`` and its kept ``"shape"`` (in the saved document only
-when mesh repair kept the file's numbering). The interpolation
+has its ``"easing"``, the point handles' ``"point_targets"``, the angles a picture's pins hold then
+(``"point_angles"``, when some pin holds one; the pins' entries carry their ``"angle"`` and ``"depth"``) and its kept
+``"shape"`` (in the saved document only when mesh repair kept the file's numbering). The interpolation
 between keyframes is that of :meth:`arap.constraints.keyframes.Keyframes.handle_targets` (the page's timeline implements
 the same rule), and the export solves the frames of :func:`arap.animation.frame_times` as
 :func:`arap.animation.iter_frames` does, each from the previous one, with the session's solver and parameters.
@@ -35,6 +36,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 import arap.io.formats as formats
+from arap.animation import ring_targets
 from arap.constraints.keyframes import Keyframes
 from arap.errors import ArapError
 from arap.io.animated_gltf import animation_glb
@@ -150,9 +152,13 @@ def _keyframe_matrices(session: Session, times_ms: Sequence[int] | np.ndarray,
 def _document(session: Session, keyed: _Keys, in_file: bool = True) -> tuple[dict[str, Any], dict[str, Any]]:
     """The constraints document with keyframes, in the session's mesh numbering and (``in_file``; else an empty
     dict) in the file's."""
+    from arap.constraints.entries import pin_entries
+
     cs = session.constraints
     V = session.V
     mine = cs.document(V, session.transforms)
+    if mine.get("points"):  # a picture's pins: the angles they hold now and their depths
+        mine["points"] = pin_entries(mine["points"], session.pin_angles(), session.pin_depth)
     grouped = sum(len(g) for g in cs.groups)
     extra = len(mine["handles"]) > grouped  # handles in no group: one more keyframes group, held at its pose
     handles = np.asarray(mine["handles"], dtype=np.int64)
@@ -172,6 +178,8 @@ def _document(session: Session, keyed: _Keys, in_file: bool = True) -> tuple[dic
         points = cs.point_targets(Tk)
         if points is not None:
             key["point_targets"] = points.tolist()
+        if cs.rings is not None:
+            key["point_angles"] = [None if a is None else float(np.degrees(a)) for a in cs.pin_angles(Tk)]
         file_keys.append(dict(key))
         if shape is not None:
             key["shape"] = shape
@@ -329,38 +337,20 @@ def _export(session: Session, times_ms: Sequence[int] | np.ndarray, transforms: 
                            "animation")
     if budget is None:
         return _solve_and_encode(session, mine, frames_keys, frame_t, fps, interrupted, progress, encoder, fmt,
-                                 _ring_targets(session, keyed))
+                                 _rings_of(session, frames_keys))
     if progress is not None:
         progress(0, len(frame_t))  # while waiting for room
     with budget.reserve(needed, interrupted) as reserved:
         if not reserved:
             raise AnimationCancelled
         return _solve_and_encode(session, mine, frames_keys, frame_t, fps, interrupted, progress, encoder, fmt,
-                                 _ring_targets(session, keyed))
+                                 _rings_of(session, frames_keys))
 
 
-def _ring_targets(session: Session, keyed: _Keys) -> Callable[[float], np.ndarray] | None:
-    """The targets at a time of the hidden rings of a picture's pins that hold an angle (None without any): at each
-    keyframe those its transforms give (:meth:`~arap.server.constraints.ConstraintSet.solver_point_targets`), between
-    two eased from one to the other as the pins' targets are."""
-    from arap.constraints.keyframes import ease
-
-    cs = session.constraints
-    if cs.rings is None:
-        return None
-    at_keys = [np.asarray(cs.solver_point_targets(Tk))[cs.n_points:] for Tk in keyed.T]
-    times = keyed.times
-
-    def at(t: float) -> np.ndarray:
-        if t <= times[0]:
-            return at_keys[0]
-        if t >= times[-1]:
-            return at_keys[-1]
-        b = int(np.searchsorted(times, t, side="right"))
-        s = ease(keyed.easings[b - 1], (t - times[b - 1]) / (times[b] - times[b - 1]))
-        return (1.0 - s) * at_keys[b - 1] + s * at_keys[b]
-
-    return at
+def _rings_of(session: Session, keys: Keyframes) -> Callable[[float], np.ndarray] | None:
+    """:func:`arap.animation.ring_targets` of the session's pins that hold an angle, or None without any."""
+    rings = session.constraints.rings
+    return None if rings is None or not len(rings.pin) else ring_targets(keys, rings)
 
 
 def _solve_and_encode(session: Session, mine: dict[str, Any], frames_keys: Keyframes, frame_t: np.ndarray, fps: float,
@@ -369,7 +359,7 @@ def _solve_and_encode(session: Session, mine: dict[str, Any], frames_keys: Keyfr
                       fmt: str, rings: Callable[[float], np.ndarray] | None = None
                       ) -> tuple[str, str, bytes, int, float]:
     """Solve the frames at times ``frame_t`` and encode them (see :func:`_export`); ``rings``: the targets at a time
-    of the hidden rings of the pins that hold an angle (:func:`_ring_targets`)."""
+    of the hidden rings of the pins that hold an angle (:func:`arap.animation.ring_targets`)."""
     mesh = session.require_mesh()
     solver = session.solver
     assert solver is not None
