@@ -315,6 +315,7 @@ export const UPLOAD_EXTENSIONS = Object.freeze([
  * @property {number} file_vertices vertices of the mesh file when repair renumbered them (the payload then ends with the mesh vertex each file vertex became, -1 for one dropped), else 0: constraints documents use the file's numbering
  * @property {number} n_tetrahedra tetrahedra of a solid, which the solver deforms (0 for a surface)
  * @property {number[]|null} [picture] [width, height] of the picture this mesh is (the puppet warp), else null
+ * @property {boolean} [builtin] the mesh is the built-in model of that name (load_builtin, or the server's default), not a file, upload or picture that shares its name
  */
 
 /**

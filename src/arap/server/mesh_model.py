@@ -44,6 +44,9 @@ class MeshData:
     picture : (h, w, 3|4) uint8 array or None
         For a picture opened for the puppet warp (:mod:`arap.server.pictures`): its pixels; the mesh then lies in
         ``z = 0`` at ``(x, h − y)`` pixels and bends in its plane.
+    builtin : bool
+        The mesh is the built-in model named :attr:`name` (:func:`arap.server.meshdata.load_builtin`), not a file,
+        upload, picture or arrays that happen to share a built-in's name.
     """
 
     name: str
@@ -54,6 +57,7 @@ class MeshData:
     elements: np.ndarray | None = None
     face_owner: np.ndarray | None = None
     picture: np.ndarray | None = None
+    builtin: bool = False
 
     @classmethod
     def solid(cls, name: str, V: np.ndarray, T: np.ndarray, report: list[str] | None = None) -> MeshData:

@@ -11,6 +11,7 @@ from __future__ import annotations
 import logging
 import os
 import re
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -43,7 +44,8 @@ def builtin_names() -> list[str]:
 
 
 def load_builtin(name: str) -> MeshData:
-    """A built-in model.
+    """A built-in model (marked :attr:`~arap.server.mesh_model.MeshData.builtin`, which a file of the same name is
+    not).
 
     Raises
     ------
@@ -56,9 +58,9 @@ def load_builtin(name: str) -> MeshData:
     if name in SOLID_BUILTINS:
         (nx, ny, nz), size = SOLID_BUILTINS[name]
         V, T = box_tetrahedra(nx, ny, nz, size=size)
-        return MeshData.solid(name, V - np.array([size[0], 0.0, size[2]]) / 2, T)
+        return replace(MeshData.solid(name, V - np.array([size[0], 0.0, size[2]]) / 2, T), builtin=True)
     V, F = builtin_mesh(name)
-    return MeshData.make(name, V, F)
+    return replace(MeshData.make(name, V, F), builtin=True)
 
 
 def load_default(spec: str | os.PathLike[str] | MeshData | None) -> MeshData:
@@ -166,7 +168,8 @@ def mesh_frame(mesh: MeshData) -> bytes:
     header = Mesh(name=mesh.name, n_vertices=mesh.n_vertices, n_faces=mesh.n_faces, report=mesh.report,
                   file_vertices=0 if vmap is None else len(vmap),
                   n_tetrahedra=0 if mesh.elements is None else len(mesh.elements),
-                  picture=None if mesh.picture is None else [mesh.picture.shape[1], mesh.picture.shape[0]]).to_wire()
+                  picture=None if mesh.picture is None else [mesh.picture.shape[1], mesh.picture.shape[0]],
+                  builtin=mesh.builtin).to_wire()
     parts = [np.ascontiguousarray(mesh.V, dtype="<f4").tobytes(), np.ascontiguousarray(mesh.F, dtype="<u4").tobytes()]
     if vmap is not None:
         parts.append(np.ascontiguousarray(vmap, dtype="<i4").tobytes())

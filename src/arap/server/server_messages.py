@@ -101,6 +101,9 @@ class Mesh(ServerMessage):
     n_tetrahedra: Int = field(metadata=wire("tetrahedra of a solid, which the solver deforms (0 for a surface)"))
     picture: Annotated[list[int], Wire.LIST] | None = field(default=None, metadata=wire(
         "[width, height] of the picture this mesh is (the puppet warp), else null", js_type="number[]"))
+    builtin: Flag = field(default=False, metadata=wire(
+        "the mesh is the built-in model of that name (load_builtin, or the server's default), not a file, upload or "
+        "picture that shares its name"))
 
 
 @dataclass(frozen=True)
