@@ -220,7 +220,7 @@ export class SessionKeeper {
     this.picture = !!msg.picture;
     // a picture meshed again at another density: its picture stays the source, with the density to mesh it at
     const density = this.picture ? this.remeshes.shift() : undefined;
-    const builtin = mesh.builtins.includes(msg.name);
+    const builtin = !!msg.builtin; // not the name: a file may be named like a built-in model
     this.madeSource = !this.pendingSource && !builtin && density === undefined;
     const picture = density !== undefined && isPictureSource(mesh.source) ? mesh.source : null;
     mesh.sourceKnown(this.pendingSource ?? (builtin ? builtinSource(msg.name)

@@ -87,8 +87,8 @@ export class MeshLoading {
    */
   builtin(name) {
     const { d } = this;
-    if (!name || name === d.mesh.name) return;
+    if (!name || (name === d.mesh.name && d.mesh.builtin)) return;
     if (d.keeper.confirmReplace(name)) this.request(builtinSource(name));
-    else d.panel.setCurrentModel(d.mesh.name);
+    else d.panel.setCurrentModel(d.mesh.name, d.mesh.builtin);
   }
 }

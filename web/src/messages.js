@@ -125,7 +125,7 @@ export class ServerMessages {
       return;
     }
     d.keeper.welcomed();
-    d.panel.setBuiltins(d.mesh.builtins, d.mesh.name);
+    d.panel.setBuiltins(d.mesh.builtins, d.mesh.name, d.mesh.builtin);
     d.panel.setParams(msg.params);
     d.params.take(msg.params);
     d.setBusy('Loading mesh…', SERVER.MESH);

@@ -215,8 +215,9 @@ export class Panel extends PanelReadouts {
   /**
    * @param {readonly string[]} names
    * @param {string|null} current
+   * @param {boolean} builtin `current` is the built-in model of that name (not a file named like it)
    */
-  setBuiltins(names, current) {
+  setBuiltins(names, current, builtin) {
     const sel = $('builtin-select');
     sel.innerHTML = '';
     const head = document.createElement('option');
@@ -230,16 +231,18 @@ export class Panel extends PanelReadouts {
       o.textContent = n;
       sel.appendChild(o);
     }
-    this.setCurrentModel(current);
+    this.setCurrentModel(current, builtin);
   }
 
   /**
-   * Show the model loaded: a built-in one selected in the list, any other (a file) by its name at the list's head.
+   * Show the model loaded: a built-in one selected in the list, any other (a file, even one named like a built-in
+   * model) by its name at the list's head.
    * @param {string|null} name
+   * @param {boolean} builtin the model is the built-in one of that name (the mesh message's `builtin`)
    */
-  setCurrentModel(name) {
+  setCurrentModel(name, builtin) {
     const sel = /** @type {HTMLSelectElement} */ ($('builtin-select'));
-    const known = Array.from(sel.options).some((o) => o.value === name && name);
+    const known = builtin && Array.from(sel.options).some((o) => o.value === name && name);
     const head = sel.options[0];
     if (head && head.value === '') head.textContent = !known && name ? `${name} (file)` : 'Built-in model…';
     sel.value = known ? /** @type {string} known */ (name) : '';
@@ -256,7 +259,7 @@ export class Panel extends PanelReadouts {
    */
   meshLoaded(msg) {
     const n = (/** @type {number} */ x) => x.toLocaleString('en-US');
-    this.setCurrentModel(msg.name);
+    this.setCurrentModel(msg.name, !!msg.builtin);
     const tets = msg.n_tetrahedra ? `, ${n(msg.n_tetrahedra)} tetrahedra` : '';
     this.setMeshInfo(`${msg.name}: ${n(msg.n_vertices)} vertices, ${n(msg.n_faces)} faces${tets}`);
     this.setStats({ n_vertices: msg.n_vertices, n_faces: msg.n_faces, n_tetrahedra: msg.n_tetrahedra || 0, ups: NaN,

@@ -24,6 +24,7 @@ export class MeshStore {
   #incompatible = false;
   /** @type {string|null} */
   #name = null;
+  #builtin = false;
   #nFaces = 0;
   /** @type {Int32Array|null} */
   #vertexMap = null;
@@ -49,6 +50,11 @@ export class MeshStore {
   /** @returns {string|null} the model's name (null before the first mesh) */
   get name() {
     return this.#name;
+  }
+
+  /** The mesh shown is the built-in model of its name (the server says so: a file may share a built-in's name). */
+  get builtin() {
+    return this.#builtin;
   }
 
   /** The number of triangles of the mesh shown. */
@@ -109,6 +115,7 @@ export class MeshStore {
    */
   shown(msg, vertexMap) {
     this.#name = msg.name;
+    this.#builtin = !!msg.builtin;
     this.#nFaces = msg.n_faces;
     this.#vertexMap = vertexMap; // constraints documents name the file's vertices (numbering.js)
     // a picture's mesh is no file's (its pins name its own triangles); its report only describes it
