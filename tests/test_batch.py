@@ -19,7 +19,7 @@ import arap
 from arap.batching import batch, read_manifest
 from arap.batching.jobs import chunks_for
 from arap.cli import main
-from tests.waiting import poll_until
+from tests.waiting import poll_until, scaled, wait_until
 
 pytestmark = pytest.mark.timeout(300)
 
@@ -97,31 +97,91 @@ def test_a_broken_job_fails_alone_with_its_line(tmp_path: Path, capsys: pytest.C
     assert sorted(p.name for p in (tmp_path / "out").iterdir()) == ["pose_0.ply", "pose_1.ply"]
 
 
-def test_interrupted_batch_leaves_no_partial_output(tmp_path: Path) -> None:
-    manifest = _family(tmp_path, 24, mesh="sphere:20000", shift=0.02)
-    env = {**os.environ, "PYTHONUNBUFFERED": "1"}
-    proc = subprocess.Popen([sys.executable, "-m", "arap.cli", "batch", str(manifest), "--workers", "2", "-q"],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=env, start_new_session=True)
-    try:
-        def first_written() -> bool:
-            assert proc.poll() is None, proc.communicate()
-            return any((tmp_path / "out").glob("pose_*.ply"))
+def _interruptible() -> None:  # pragma: no cover - runs in the child before exec
+    import signal
 
-        poll_until(first_written, 120, interval=0.05)
-        os.killpg(proc.pid, signal.SIGINT)  # Ctrl-C reaches the whole process group, workers included
-        proc.wait(timeout=60)
+    # Ctrl-C as at a terminal: a test run from a background job of a script (or a CI runner started so) inherits an
+    # ignored SIGINT, and the batch would then ignore the test's Ctrl-C and finish every job.
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
+def _start_batch(manifest: Path) -> subprocess.Popen[bytes]:
+    """``arap batch MANIFEST --workers 2 -q`` in a process group of its own, as a terminal starts it."""
+    env = {**os.environ, "PYTHONUNBUFFERED": "1"}
+    return subprocess.Popen([sys.executable, "-m", "arap.cli", "batch", str(manifest), "--workers", "2", "-q"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=env, start_new_session=True,
+                            preexec_fn=_interruptible)
+
+
+def _interrupt(proc: subprocess.Popen[bytes], ready: Any, what: str, group: bool = True) -> tuple[str, str]:
+    """Once ``ready()``, a SIGINT to the batch's process group (a Ctrl-C at the terminal: the workers get it too) or
+    to the batch alone; the batch's stdout and stderr once it has ended."""
+    try:
+        def waiting() -> bool:
+            assert proc.poll() is None, proc.communicate()
+            return bool(ready())
+
+        wait_until(waiting, 120, what, interval=0.05)
+        if group:
+            os.killpg(proc.pid, signal.SIGINT)
+        else:
+            os.kill(proc.pid, signal.SIGINT)
+        out, err = proc.communicate(timeout=scaled(60))
     finally:
         if proc.poll() is None:
             os.killpg(proc.pid, signal.SIGKILL)
-    written = sorted((tmp_path / "out").iterdir())
-    assert 0 < len(written) < 24
-    V, F = arap.builtin_mesh("sphere:20000")
+    assert proc.returncode == 130, err
+    # One line, whoever got the signal: no worker's traceback (a worker that a Ctrl-C ended between two chunks)
+    assert err.decode() == "arap: interrupted\n"
+    return out.decode(), err.decode()
+
+
+def _no_partial_output(folder: Path, mesh: str) -> list[Path]:
+    """The files in ``folder``: whole meshes, and no temporary or lock file left."""
+    written = sorted(folder.iterdir())
+    V, F = arap.builtin_mesh(mesh)
     for path in written:
-        assert path.suffix == ".ply", f"left behind: {path.name}"
+        assert path.suffix == ".ply" and not path.name.startswith("."), f"left behind: {path.name}"
         U, G = arap.load_mesh(path)
         assert U.shape == V.shape and np.array_equal(G, F)
+    return written
+
+
+def test_interrupted_batch_leaves_no_partial_output(tmp_path: Path) -> None:
+    manifest = _family(tmp_path, 24, mesh="sphere:20000", shift=0.02)
+    out = tmp_path / "out"
+    _interrupt(_start_batch(manifest), lambda: any(out.glob("pose_*.ply")), "a first output")
+    written = _no_partial_output(out, "sphere:20000")
+    assert 0 < len(written) < 24
     report = batch(manifest, workers=2, progress=False)  # and the next run finishes the rest
     assert report.counts() == {"done": 24 - len(written), "skipped": len(written), "failed": 0}
+
+
+def test_an_interrupt_of_the_batch_alone_stops_its_workers(tmp_path: Path) -> None:
+    # A SIGINT to the batch's process only (kill -INT, a supervisor): its workers do not get it, the batch stops them.
+    manifest = _family(tmp_path, 12, mesh="sphere:20000", shift=0.02)
+    out = tmp_path / "out"
+    _interrupt(_start_batch(manifest), lambda: any(out.glob("pose_*.ply")), "a first output", group=False)
+    assert 0 < len(_no_partial_output(out, "sphere:20000")) < 12  # each worker stopped in its chunk of six
+
+
+def test_a_ctrl_c_while_a_worker_waits_for_work_ends_the_batch_cleanly(tmp_path: Path) -> None:
+    # Two chunks: six jobs on the bar, done long before the six on the sphere. A Ctrl-C once the bar's worker waits
+    # for work must not end that worker (the pool would then be broken and kill the other in the middle of a job).
+    manifest = _family(tmp_path, 6, mesh="sphere:20000", shift=0.02)
+    bars = tmp_path / "bars"
+    bars.mkdir()
+    lines = [line.replace('"out/', '"bars/').replace('"pose_', '"bars/pose_')
+             for line in _family(bars, 6, mesh="bar").read_text().splitlines()]
+    with manifest.open("a") as file:
+        file.write("\n".join(lines) + "\n")
+    out = tmp_path / "out"
+
+    def bars_done_and_a_sphere_written() -> bool:
+        return len(list((tmp_path / "bars").glob("pose_*.ply"))) == 6 and any(out.glob("pose_*.ply"))
+
+    _interrupt(_start_batch(manifest), bars_done_and_a_sphere_written, "the bars and a first sphere written")
+    assert 0 < len(_no_partial_output(out, "sphere:20000")) < 6
 
 
 def _limited_memory() -> None:  # pragma: no cover - runs in the child before exec

@@ -12,13 +12,15 @@ from __future__ import annotations
 import logging
 import multiprocessing
 import os
+import signal
+import threading
 from collections.abc import Callable, Iterator
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from contextlib import contextmanager
 from typing import Any
 
 from arap.batching.jobs import Job, JobOutcome
-from arap.batching.worker import environment, run_chunk, start_worker, worker_environment
+from arap.batching.worker import environment, run_chunk, run_pool_chunk, start_worker, worker_environment
 from arap.errors import OptionError
 
 __all__ = ["BACKENDS", "run_chunks"]
@@ -63,15 +65,20 @@ def _serial(chunks: list[list[Job]], skip_existing: bool,
 def _process(chunks: list[list[Job]], workers: int, skip_existing: bool,
              update: Callable[[list[JobOutcome]], None]) -> list[JobOutcome]:
     # "spawn": a fresh interpreter per worker, never a fork of a process whose kernel threads are running. Each worker
-    # ends with this process, even when it is killed (start_worker).
+    # ends with this process, even when it is killed, and stops its job when this process sets ``stop`` (start_worker).
     count = min(workers, len(chunks))
     outcomes: list[JobOutcome] = []
-    pool = ProcessPoolExecutor(max_workers=count, mp_context=multiprocessing.get_context("spawn"),
-                               initializer=start_worker, initargs=(os.getpid(),))
+    context = multiprocessing.get_context("spawn")
+    stop = context.Event()
+    pool = ProcessPoolExecutor(max_workers=count, mp_context=context, initializer=start_worker,
+                               initargs=(os.getpid(), stop))
     try:
-        with environment(_threads(count)):  # the workers start inside, with these thread counts
+        # The workers start inside, with these thread counts and ignoring Ctrl-C until they run a chunk: one ended by
+        # a Ctrl-C while it started (or between chunks) would break the pool, which then kills the other workers in
+        # the middle of their jobs, leaving their lock and temporary files.
+        with environment(_threads(count)), _interrupts_ignored():
             pending: dict[Future[list[JobOutcome]], list[Job]] = {
-                pool.submit(run_chunk, c, skip_existing): c for c in chunks}
+                pool.submit(run_pool_chunk, c, skip_existing): c for c in chunks}
         while pending:
             finished, _ = wait(pending, return_when=FIRST_COMPLETED)
             for future in finished:
@@ -83,10 +90,29 @@ def _process(chunks: list[list[Job]], workers: int, skip_existing: bool,
                 update(done)
                 outcomes += done
     except BaseException:
-        pool.shutdown(wait=False, cancel_futures=True)
+        # Interrupted (a Ctrl-C at the terminal reaches the workers too, a SIGINT to this process alone does not): each
+        # worker ends its job under way cleanly and takes no other chunk; this process waits for them, so that it
+        # ends after them and no job is left half done.
+        stop.set()
+        pool.shutdown(wait=True, cancel_futures=True)
         raise
     pool.shutdown()
     return outcomes
+
+
+@contextmanager
+def _interrupts_ignored() -> Iterator[None]:
+    """SIGINT ignored for the block, where the main thread has Python's handler: the processes started inside begin
+    with it ignored (an ignored signal stays ignored in a new program). A Ctrl-C in the block, the few milliseconds
+    that starting the workers takes, is lost."""
+    if threading.current_thread() is not threading.main_thread() or not callable(signal.getsignal(signal.SIGINT)):
+        yield
+        return
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
 
 
 def _ray(chunks: list[list[Job]], workers: int, address: str | None, skip_existing: bool,

@@ -7,8 +7,11 @@ data, and catches every error of a job into that job's outcome so that the other
 
 from __future__ import annotations
 
+import _thread
 import contextlib
 import os
+import signal
+import threading
 import time
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -23,7 +26,7 @@ from arap.batching.locks import exit_with_parent, output_lock
 if TYPE_CHECKING:
     from arap.solve.solver import ArapSolver
 
-__all__ = ["run_chunk", "start_worker", "worker_environment"]
+__all__ = ["run_chunk", "run_pool_chunk", "start_worker", "worker_environment"]
 
 
 def worker_environment(threads: int) -> dict[str, str]:
@@ -144,6 +147,17 @@ def _solve_and_write(job: Job, state: _Chunk) -> JobOutcome:
                           seconds=time.perf_counter() - t0)
 
 
+_stop: Any = None
+"""In a pool's worker process, the pool's stop event (see :func:`start_worker`)."""
+
+
+def _stop_if_asked() -> None:
+    """In a pool's worker, a KeyboardInterrupt when the batch was stopped: checked before each job, so that the worker
+    takes no further job even if the interrupt of the job before went astray."""
+    if _stop is not None and _stop.is_set():
+        raise KeyboardInterrupt
+
+
 def _locked(job: Job, state: _Chunk, skip_existing: bool, wait: bool) -> JobOutcome | None:
     """Run ``job`` holding its output's lock (:mod:`arap.batching.locks`); None when another process holds it and
     ``wait`` is false. With ``skip_existing``, a job whose output appeared meanwhile (another batch wrote it) is
@@ -175,19 +189,70 @@ def run_chunk(jobs: list[Job], skip_existing: bool = True) -> list[JobOutcome]:
     outcomes: dict[int, JobOutcome] = {}
     busy: list[int] = []
     for k, job in enumerate(jobs):
+        _stop_if_asked()
         outcome = _locked(job, state, skip_existing, wait=False)
         if outcome is None:
             busy.append(k)
         else:
             outcomes[k] = outcome
     for k in busy:
+        _stop_if_asked()
         done = _locked(jobs[k], state, skip_existing, wait=True)
         assert done is not None
         outcomes[k] = done
     return [outcomes[k] for k in range(len(jobs))]
 
 
-def start_worker(parent: int) -> None:
+def _interrupt_once(signum: int, frame: object) -> None:
+    """SIGINT handler while a pool's worker runs a chunk: a KeyboardInterrupt the first time, and further ones ignored,
+    so that a second SIGINT (the batch's stop after the terminal's Ctrl-C, say) does not cut the first one's clean-up
+    short (the job's lock file and temporary file removed)."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    raise KeyboardInterrupt
+
+
+def _interrupt_main_when(stop: Any, main: int) -> None:
+    """Wait for ``stop``, then interrupt the chunk that the main thread ``main`` runs (a SIGINT it handles only while
+    it runs one: between chunks, :func:`run_pool_chunk` sees ``stop`` set)."""
+    stop.wait()
+    if hasattr(signal, "pthread_kill"):
+        signal.pthread_kill(main, signal.SIGINT)  # to that thread: it also ends a wait in a system call (a lock's)
+    else:
+        _thread.interrupt_main()
+
+
+def run_pool_chunk(jobs: list[Job], skip_existing: bool = True) -> list[JobOutcome]:
+    """:func:`run_chunk` in a pool's worker process, interruptible: a SIGINT (a Ctrl-C at the terminal, or the batch
+    setting the stop event of :func:`start_worker`) ends the job under way with a KeyboardInterrupt, its lock let go
+    and no partial output written. Outside a chunk the worker ignores SIGINT, so that it never ends between two
+    (which would break the pool, and the pool would then kill the other workers in the middle of their jobs).
+
+    Raises
+    ------
+    KeyboardInterrupt
+        Interrupted, or the batch was stopped before the chunk started.
+    """
+    if threading.current_thread() is not threading.main_thread():  # not a pool's worker: nothing to set up
+        return run_chunk(jobs, skip_existing)
+    previous = signal.signal(signal.SIGINT, _interrupt_once)
+    try:
+        return run_chunk(jobs, skip_existing)
+    finally:
+        signal.signal(signal.SIGINT, previous)  # ignored again (start_worker)
+
+
+def start_worker(parent: int, stop: Any = None) -> None:
     """Initializer of a pool's worker process: it ends with the process ``parent`` that started the pool, however that
-    one ended (see :func:`arap.batching.locks.exit_with_parent`), so that no worker of a killed batch keeps writing."""
+    one ended (see :func:`arap.batching.locks.exit_with_parent`), so that no worker of a killed batch keeps writing.
+
+    It ignores SIGINT but while it runs a chunk (:func:`run_pool_chunk`), and it stops when the batch sets ``stop``
+    (a :class:`multiprocessing.Event`; the batch was interrupted): it interrupts the chunk under way and runs no
+    other.
+    """
+    global _stop
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
     exit_with_parent(parent)
+    if stop is not None:
+        _stop = stop
+        threading.Thread(target=_interrupt_main_when, args=(stop, threading.main_thread().ident),
+                         name="arap-batch-stop", daemon=True).start()
