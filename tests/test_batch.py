@@ -263,7 +263,7 @@ def test_killing_a_batch_ends_its_workers(tmp_path: Path) -> None:
             assert proc.poll() is None, proc.communicate()
             return any((tmp_path / "out").glob("pose_*.ply"))
 
-        assert poll_until(running, 180, interval=0.05), "no job was done in time"
+        wait_until(running, 180, "a first output", interval=0.05)
         children = psutil.Process(proc.pid).children(recursive=True)
         assert children
         proc.kill()  # SIGKILL: the batch cannot stop its workers itself
@@ -275,8 +275,9 @@ def test_killing_a_batch_ends_its_workers(tmp_path: Path) -> None:
             except psutil.NoSuchProcess:
                 return True
 
-        assert poll_until(lambda: all(gone(p) for p in children), 20, interval=0.1), \
-            f"still running 20 s after the batch was killed: {[p.pid for p in children if not gone(p)]}"
+        deadline = scaled(20)
+        assert poll_until(lambda: all(gone(p) for p in children), deadline, interval=0.1), \
+            f"still running {deadline:g} s after the batch was killed: {[p.pid for p in children if not gone(p)]}"
     finally:
         if proc.poll() is None:
             proc.kill()
@@ -304,13 +305,14 @@ def test_a_job_another_batch_is_running_is_not_run_twice(tmp_path: Path) -> None
     second = threading.Thread(target=lambda: reports.append(batch(manifest, backend="serial", progress=False)))
     second.start()
     try:
-        assert poll_until(lambda: (out / "pose_0.ply").exists() and (out / "pose_2.ply").exists(), 120)
+        wait_until(lambda: (out / "pose_0.ply").exists() and (out / "pose_2.ply").exists(), 120, "the free jobs done")
         assert second.is_alive() and not (out / "pose_1.ply").exists()  # it waits for the other batch
         (out / "pose_1.ply").write_bytes((out / "pose_0.ply").read_bytes())  # the other batch finishes the job
     finally:
         os.unlink(held)
         os.close(fd)
-        second.join(120)
+        second.join(scaled(120))
+    assert not second.is_alive(), "the second batch went on after the other let its job go"
     (report,) = reports
     assert [o.status for o in report.outcomes] == ["done", "skipped", "done"]
     assert sorted(p.name for p in out.iterdir()) == ["pose_0.ply", "pose_1.ply", "pose_2.ply"]  # locks removed

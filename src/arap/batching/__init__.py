@@ -6,9 +6,10 @@ Jobs (:mod:`arap.batching.jobs`) are grouped by solver: jobs on the same mesh wi
 has work, each part factorising once.
 
 A job whose output exists is skipped (a second run finishes what the first left), unless ``skip_existing=False``.
-Outputs are written atomically, so an interrupted batch leaves finished files and no partial ones. A job that fails
-(a bad file, a constraint set with a free part no constraint holds) is reported with its manifest line and reason
-while the others finish.
+Outputs are written atomically, and an interrupted batch (a Ctrl-C, or a SIGINT to its process alone) stops the job
+under way in every worker, so it leaves finished files and no partial ones. A job that fails (a bad file, a
+constraint set with a free part no constraint holds) is reported with its manifest line and reason while the others
+finish.
 
 Before any worker starts, the batch checks the jobs' files in its own process (:mod:`arap.batching.preflight`): a
 missing or unreadable mesh or constraints file, a FIFO or a device named as one, an output that cannot be written

@@ -103,8 +103,8 @@ def _process(chunks: list[list[Job]], workers: int, skip_existing: bool,
 @contextmanager
 def _interrupts_ignored() -> Iterator[None]:
     """SIGINT ignored for the block, where the main thread has Python's handler: the processes started inside begin
-    with it ignored (an ignored signal stays ignored in a new program). A Ctrl-C in the block, the few milliseconds
-    that starting the workers takes, is lost."""
+    with it ignored (an ignored signal stays ignored in a new program). This process misses a Ctrl-C in the block, the
+    milliseconds that starting the workers takes (the workers already running a chunk get it, and end the batch)."""
     if threading.current_thread() is not threading.main_thread() or not callable(signal.getsignal(signal.SIGINT)):
         yield
         return
