@@ -318,6 +318,48 @@ def test_a_job_another_batch_is_running_is_not_run_twice(tmp_path: Path) -> None
     assert sorted(p.name for p in out.iterdir()) == ["pose_0.ply", "pose_1.ply", "pose_2.ply"]  # locks removed
 
 
+@pytest.mark.parametrize("moment", ["made", "taken", "waiting"])
+def test_an_interrupt_as_a_lock_is_taken_leaves_no_lock_file(moment: str, tmp_path: Path,
+                                                             monkeypatch: pytest.MonkeyPatch) -> None:
+    import fcntl
+
+    from arap.batching import locks
+
+    # A Ctrl-C handled right after the lock file was made, right after the lock was taken, or while another batch
+    # holds it: the first two leave no lock file behind, the third leaves the other batch's.
+    output = tmp_path / "pose.ply"
+    held = None
+    if moment == "waiting":
+        held = os.open(locks.lock_path(output), os.O_RDWR | os.O_CREAT)
+        fcntl.flock(held, fcntl.LOCK_EX)
+    calls: list[str] = []
+
+    def interrupted_once(name: str, real: Any) -> Any:
+        def call(*args: Any) -> Any:
+            first = name not in calls
+            calls.append(name)
+            if first and moment == "waiting":
+                raise KeyboardInterrupt  # the wait for the other batch's lock, interrupted
+            result = real(*args)
+            if first:
+                raise KeyboardInterrupt
+            return result
+        return call
+
+    if moment == "made":
+        monkeypatch.setattr(locks.os, "open", interrupted_once("open", os.open))
+    else:
+        monkeypatch.setattr(locks.fcntl, "flock", interrupted_once("flock", fcntl.flock))
+    with pytest.raises(KeyboardInterrupt), locks.output_lock(output):
+        pytest.fail("the block ran")
+    monkeypatch.undo()
+    if held is None:
+        assert list(tmp_path.iterdir()) == []
+    else:
+        assert list(tmp_path.iterdir()) == [locks.lock_path(output)]
+        os.close(held)
+
+
 def test_a_quiet_dask_batch_prints_only_its_summary(tmp_path: Path) -> None:
     pytest.importorskip("distributed")
     manifest = _family(tmp_path, 2, mesh="bar")

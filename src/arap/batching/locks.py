@@ -51,6 +51,9 @@ def _take(path: Path, wait: bool) -> int | None:
             fd = os.open(path, os.O_RDWR | os.O_CREAT | getattr(os, "O_CLOEXEC", 0), 0o644)
         except OSError:
             return None
+        except BaseException:  # interrupted as the file was made: removed, unless another process holds it
+            _give_up(None, path)
+            raise
         try:
             fcntl.flock(fd, fcntl.LOCK_EX | (0 if wait else fcntl.LOCK_NB))
         except BlockingIOError:
@@ -59,18 +62,45 @@ def _take(path: Path, wait: bool) -> int | None:
         except OSError:  # e.g. ENOLCK: a file system without locks
             os.close(fd)
             return None
+        except BaseException:  # interrupted (a Ctrl-C) while waiting, or as the lock was taken: no lock file left
+            _give_up(fd, path)
+            raise
         # The previous holder removes the file as it lets go: the lock is ours only if the file is still the one there.
         try:
-            here = os.stat(path)
-        except FileNotFoundError:
-            here = None
-        mine = os.fstat(fd)
-        if here is not None and (here.st_dev, here.st_ino) == (mine.st_dev, mine.st_ino):
-            with contextlib.suppress(OSError):
-                os.ftruncate(fd, 0)
-                os.write(fd, f"{os.getpid()}\n".encode())
-            return fd
+            if _is_there(fd, path):
+                with contextlib.suppress(OSError):
+                    os.ftruncate(fd, 0)
+                    os.write(fd, f"{os.getpid()}\n".encode())
+                return fd
+        except BaseException:
+            _give_up(fd, path)
+            raise
         os.close(fd)
+
+
+def _is_there(fd: int, path: Path) -> bool:
+    """Whether the file open as ``fd`` is the one at ``path``."""
+    try:
+        here = os.stat(path)
+    except FileNotFoundError:
+        return False
+    mine = os.fstat(fd)
+    return (here.st_dev, here.st_ino) == (mine.st_dev, mine.st_ino)
+
+
+def _give_up(fd: int | None, path: Path) -> None:
+    """Close ``fd``, the lock file at ``path`` being taken when an interrupt came (None: opened again here), and
+    remove the file first when the lock is ours, or free: another batch's held lock file stays."""
+    assert fcntl is not None
+    with contextlib.suppress(OSError):
+        if fd is None:
+            fd = os.open(path, os.O_RDWR | getattr(os, "O_CLOEXEC", 0))
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)  # ours already, or taken now: no other process holds it
+        if _is_there(fd, path):
+            os.unlink(path)
+    if fd is not None:
+        with contextlib.suppress(OSError):
+            os.close(fd)
 
 
 @contextlib.contextmanager

@@ -11,9 +11,10 @@ import _thread
 import contextlib
 import os
 import signal
+import sys
 import threading
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
@@ -149,6 +150,8 @@ def _solve_and_write(job: Job, state: _Chunk) -> JobOutcome:
 
 _stop: Any = None
 """In a pool's worker process, the pool's stop event (see :func:`start_worker`)."""
+_interrupted = False
+"""Whether this pool's worker was interrupted (:func:`_interrupt_once`)."""
 
 
 def _stop_if_asked() -> None:
@@ -207,8 +210,20 @@ def _interrupt_once(signum: int, frame: object) -> None:
     """SIGINT handler while a pool's worker runs a chunk: a KeyboardInterrupt the first time, and further ones ignored,
     so that a second SIGINT (the batch's stop after the terminal's Ctrl-C, say) does not cut the first one's clean-up
     short (the job's lock file and temporary file removed)."""
+    global _interrupted
+    _interrupted = True
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     raise KeyboardInterrupt
+
+
+def _quiet_once_interrupted(previous: Callable[[Any], object]) -> Callable[[Any], object]:
+    """A :data:`sys.unraisablehook` for a pool's worker: once it was interrupted, an error in the finaliser of an
+    object that the interrupt left half made (llvmlite's, as a kernel was loaded) is not reported; the batch says
+    "interrupted" in one line."""
+    def hook(unraisable: Any) -> None:
+        if not _interrupted:
+            previous(unraisable)
+    return hook
 
 
 def _interrupt_main_when(stop: Any, main: int) -> None:
@@ -251,6 +266,7 @@ def start_worker(parent: int, stop: Any = None) -> None:
     """
     global _stop
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    sys.unraisablehook = _quiet_once_interrupted(sys.unraisablehook)
     exit_with_parent(parent)
     if stop is not None:
         _stop = stop
