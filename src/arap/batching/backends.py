@@ -20,7 +20,7 @@ from contextlib import contextmanager
 from typing import Any
 
 from arap.batching.jobs import Job, JobOutcome
-from arap.batching.worker import environment, run_chunk, run_pool_chunk, start_worker, worker_environment
+from arap.batching.worker import environment, run_chunk, start_worker, worker_environment
 from arap.errors import OptionError
 
 __all__ = ["BACKENDS", "run_chunks"]
@@ -73,12 +73,12 @@ def _process(chunks: list[list[Job]], workers: int, skip_existing: bool,
     pool = ProcessPoolExecutor(max_workers=count, mp_context=context, initializer=start_worker,
                                initargs=(os.getpid(), stop))
     try:
-        # The workers start inside, with these thread counts and ignoring Ctrl-C until they run a chunk: one ended by
-        # a Ctrl-C while it started (or between chunks) would break the pool, which then kills the other workers in
-        # the middle of their jobs, leaving their lock and temporary files.
+        # The workers start inside, with these thread counts and ignoring Ctrl-C: one ended by a Ctrl-C while it
+        # started would break the pool, which then kills the other workers in the middle of their jobs, leaving their
+        # lock and temporary files. This process stops them instead (``stop``).
         with environment(_threads(count)), _interrupts_ignored():
             pending: dict[Future[list[JobOutcome]], list[Job]] = {
-                pool.submit(run_pool_chunk, c, skip_existing): c for c in chunks}
+                pool.submit(run_chunk, c, skip_existing): c for c in chunks}
         while pending:
             finished, _ = wait(pending, return_when=FIRST_COMPLETED)
             for future in finished:
@@ -90,9 +90,9 @@ def _process(chunks: list[list[Job]], workers: int, skip_existing: bool,
                 update(done)
                 outcomes += done
     except BaseException:
-        # Interrupted (a Ctrl-C at the terminal reaches the workers too, a SIGINT to this process alone does not): each
-        # worker ends its job under way cleanly and takes no other chunk; this process waits for them, so that it
-        # ends after them and no job is left half done.
+        # Interrupted (a Ctrl-C, or a SIGINT to this process alone): each worker ends its job under way at the end of
+        # a solver iteration, nothing written, and takes no other chunk; this process waits for them, so that no job
+        # is left half done (a worker ends with this process).
         stop.set()
         pool.shutdown(wait=True, cancel_futures=True)
         raise
@@ -104,7 +104,7 @@ def _process(chunks: list[list[Job]], workers: int, skip_existing: bool,
 def _interrupts_ignored() -> Iterator[None]:
     """SIGINT ignored for the block, where the main thread has Python's handler: the processes started inside begin
     with it ignored (an ignored signal stays ignored in a new program). This process misses a Ctrl-C in the block, the
-    milliseconds that starting the workers takes (the workers already running a chunk get it, and end the batch)."""
+    milliseconds that starting the workers takes."""
     if threading.current_thread() is not threading.main_thread() or not callable(signal.getsignal(signal.SIGINT)):
         yield
         return

@@ -7,14 +7,11 @@ data, and catches every error of a job into that job's outcome so that the other
 
 from __future__ import annotations
 
-import _thread
 import contextlib
 import os
 import signal
-import sys
-import threading
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
@@ -27,7 +24,7 @@ from arap.batching.locks import exit_with_parent, output_lock
 if TYPE_CHECKING:
     from arap.solve.solver import ArapSolver
 
-__all__ = ["run_chunk", "run_pool_chunk", "start_worker", "worker_environment"]
+__all__ = ["run_chunk", "start_worker", "worker_environment"]
 
 
 def worker_environment(threads: int) -> dict[str, str]:
@@ -91,6 +88,19 @@ class _Chunk:
     built_for: tuple[bytes, ...] | None = None
 
 
+_stop: Any = None
+"""In a pool's worker process, the pool's stop event (see :func:`start_worker`)."""
+LOCK_POLL_SECONDS = 0.2
+"""How often a pool's worker waiting for another batch's lock looks again (and at its stop event)."""
+
+
+def _stop_if_asked(*iteration: object) -> None:
+    """In a pool's worker, a KeyboardInterrupt once the batch is stopped (see :func:`start_worker`); also the solver's
+    iteration callback."""
+    if _stop is not None and _stop.is_set():
+        raise KeyboardInterrupt
+
+
 def _solve_and_write(job: Job, state: _Chunk) -> JobOutcome:
     """Solve one job and write its output, reusing the mesh and the solver of the jobs before."""
     from arap.constraints import load_constraints
@@ -125,8 +135,8 @@ def _solve_and_write(job: Job, state: _Chunk) -> JobOutcome:
                                 roi=constraints.roi, stiffness=constraints.stiffness, alpha=job.alpha,
                                 points=points)
             state.solver, state.built_for = solver, structure
-        result = solver.solve(targets, initial="auto", max_iterations=job.max_iterations,
-                                    tolerance=job.tolerance, point_targets=point_targets)
+        result = solver.solve(targets, initial="auto", max_iterations=job.max_iterations, tolerance=job.tolerance,
+                              point_targets=point_targets, callback=None if _stop is None else _stop_if_asked)
         if not np.isfinite(result.vertices).all():
             raise ArapError("the solve produced non-finite positions; nothing was written")
         U, F_out = result.vertices, F
@@ -146,19 +156,6 @@ def _solve_and_write(job: Job, state: _Chunk) -> JobOutcome:
         reason = " ".join(str(exc).split()) or type(exc).__name__
         return JobOutcome(line=job.line, output=job.output, status="failed", reason=reason[:500],
                           seconds=time.perf_counter() - t0)
-
-
-_stop: Any = None
-"""In a pool's worker process, the pool's stop event (see :func:`start_worker`)."""
-_interrupted = False
-"""Whether this pool's worker was interrupted (:func:`_interrupt_once`)."""
-
-
-def _stop_if_asked() -> None:
-    """In a pool's worker, a KeyboardInterrupt when the batch was stopped: checked before each job, so that the worker
-    takes no further job even if the interrupt of the job before went astray."""
-    if _stop is not None and _stop.is_set():
-        raise KeyboardInterrupt
 
 
 def _locked(job: Job, state: _Chunk, skip_existing: bool, wait: bool) -> JobOutcome | None:
@@ -200,75 +197,26 @@ def run_chunk(jobs: list[Job], skip_existing: bool = True) -> list[JobOutcome]:
             outcomes[k] = outcome
     for k in busy:
         _stop_if_asked()
-        done = _locked(jobs[k], state, skip_existing, wait=True)
-        assert done is not None
+        # A pool's worker looks again now and then, so that a stop reaches it while it waits.
+        while (done := _locked(jobs[k], state, skip_existing, wait=_stop is None)) is None:
+            time.sleep(LOCK_POLL_SECONDS)
+            _stop_if_asked()
         outcomes[k] = done
     return [outcomes[k] for k in range(len(jobs))]
-
-
-def _interrupt_once(signum: int, frame: object) -> None:
-    """SIGINT handler while a pool's worker runs a chunk: a KeyboardInterrupt the first time, and further ones ignored,
-    so that a second SIGINT (the batch's stop after the terminal's Ctrl-C, say) does not cut the first one's clean-up
-    short (the job's lock file and temporary file removed)."""
-    global _interrupted
-    _interrupted = True
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-    raise KeyboardInterrupt
-
-
-def _quiet_once_interrupted(previous: Callable[[Any], object]) -> Callable[[Any], object]:
-    """A :data:`sys.unraisablehook` for a pool's worker: once it was interrupted, an error in the finaliser of an
-    object that the interrupt left half made (llvmlite's, as a kernel was loaded) is not reported; the batch says
-    "interrupted" in one line."""
-    def hook(unraisable: Any) -> None:
-        if not _interrupted:
-            previous(unraisable)
-    return hook
-
-
-def _interrupt_main_when(stop: Any, main: int) -> None:
-    """Wait for ``stop``, then interrupt the chunk that the main thread ``main`` runs (a SIGINT it handles only while
-    it runs one: between chunks, :func:`run_pool_chunk` sees ``stop`` set)."""
-    stop.wait()
-    if hasattr(signal, "pthread_kill"):
-        signal.pthread_kill(main, signal.SIGINT)  # to that thread: it also ends a wait in a system call (a lock's)
-    else:
-        _thread.interrupt_main()
-
-
-def run_pool_chunk(jobs: list[Job], skip_existing: bool = True) -> list[JobOutcome]:
-    """:func:`run_chunk` in a pool's worker process, interruptible: a SIGINT (a Ctrl-C at the terminal, or the batch
-    setting the stop event of :func:`start_worker`) ends the job under way with a KeyboardInterrupt, its lock let go
-    and no partial output written. Outside a chunk the worker ignores SIGINT, so that it never ends between two
-    (which would break the pool, and the pool would then kill the other workers in the middle of their jobs).
-
-    Raises
-    ------
-    KeyboardInterrupt
-        Interrupted, or the batch was stopped before the chunk started.
-    """
-    if threading.current_thread() is not threading.main_thread():  # not a pool's worker: nothing to set up
-        return run_chunk(jobs, skip_existing)
-    previous = signal.signal(signal.SIGINT, _interrupt_once)
-    try:
-        return run_chunk(jobs, skip_existing)
-    finally:
-        signal.signal(signal.SIGINT, previous)  # ignored again (start_worker)
 
 
 def start_worker(parent: int, stop: Any = None) -> None:
     """Initializer of a pool's worker process: it ends with the process ``parent`` that started the pool, however that
     one ended (see :func:`arap.batching.locks.exit_with_parent`), so that no worker of a killed batch keeps writing.
 
-    It ignores SIGINT but while it runs a chunk (:func:`run_pool_chunk`), and it stops when the batch sets ``stop``
-    (a :class:`multiprocessing.Event`; the batch was interrupted): it interrupts the chunk under way and runs no
-    other.
+    It ignores SIGINT (a Ctrl-C at the terminal reaches every process of the batch): a KeyboardInterrupt could come
+    anywhere, between two chunks (the worker would end and break the pool, which then kills the other workers in the
+    middle of their jobs) or inside a kernel being loaded (where llvmlite's callbacks swallow it or crash). The batch
+    sets ``stop`` instead (a :class:`multiprocessing.Event`), and the worker stops at the next safe point: before a
+    job, at the end of a solver iteration, or while waiting for another batch's lock; the job under way then ends with
+    a KeyboardInterrupt, its lock let go and nothing written.
     """
     global _stop
     signal.signal(signal.SIGINT, signal.SIG_IGN)
-    sys.unraisablehook = _quiet_once_interrupted(sys.unraisablehook)
     exit_with_parent(parent)
-    if stop is not None:
-        _stop = stop
-        threading.Thread(target=_interrupt_main_when, args=(stop, threading.main_thread().ident),
-                         name="arap-batch-stop", daemon=True).start()
+    _stop = stop
