@@ -26,7 +26,6 @@ from arap.errors import ArapError
 from arap.meshes.shapes import BUILTIN_MESHES
 from arap.options import (
     DEFAULT_ALPHA,
-    DEFAULT_ELEMENT_ENERGY,
     DEFAULT_ENERGY,
     DEFAULT_TOLERANCE,
     DEFAULT_WEIGHTS,
@@ -61,7 +60,11 @@ class Job:
     output : str
         Where the deformed mesh is written (absolute path; the format by its extension): a solid written to a
         surface format is its boundary surface, as ``arap deform`` writes it.
-    energy, weights : str
+    energy : str or None
+        None: the default ``arap deform`` takes for the mesh and the job's targets
+        (:func:`arap.meshes.domain.default_energy`): ``elements`` for a solid and for a flat mesh that the targets keep
+        in its plane, else the surface energy.
+    weights : str
     alpha, tolerance : float
     max_iterations : int or None
     """
@@ -70,7 +73,7 @@ class Job:
     mesh: str
     constraints: str
     output: str
-    energy: str = DEFAULT_ENERGY
+    energy: str | None = None
     weights: str = DEFAULT_WEIGHTS
     alpha: float = DEFAULT_ALPHA
     tolerance: float = DEFAULT_TOLERANCE
@@ -79,7 +82,7 @@ class Job:
     def solver_key(self) -> tuple[str, ...]:
         """What its solver depends on besides the constraint set: jobs with equal keys and constraint sets share one
         factorisation."""
-        return (self.mesh, self.energy, self.weights, repr(self.alpha))
+        return (self.mesh, self.energy or "", self.weights, repr(self.alpha))
 
 
 @dataclass
@@ -101,14 +104,6 @@ def _is_builtin(name: str) -> bool:
     return name in BUILTIN_MESHES or name == "sphere" or name.startswith("sphere:")
 
 
-def _default_energy(mesh: str) -> str:
-    """The energy ``arap deform`` takes when none is given: the element energy for a volume file (a solid, or a planar
-    mesh), else the surface default."""
-    from arap.io.volume import is_volume_file
-
-    return DEFAULT_ELEMENT_ENERGY if os.path.isabs(mesh) and is_volume_file(mesh) else DEFAULT_ENERGY
-
-
 def job_from_json(data: object, line: int, base: Path) -> Job:
     """A job from one parsed manifest line; paths relative to ``base``.
 
@@ -128,11 +123,11 @@ def job_from_json(data: object, line: int, base: Path) -> Job:
         if not isinstance(value, str) or not value:
             raise ArapError(f'"{key}" must be a path (a non-empty string)')
         paths[key] = value if key == "mesh" and _is_builtin(value) else str((base / value).resolve())
-    energy = data.get("energy", _default_energy(paths["mesh"]))
+    energy = data.get("energy")
     weights = data.get("weights", DEFAULT_WEIGHTS)
-    if not isinstance(energy, str) or not isinstance(weights, str):
+    if not isinstance(energy, str | None) or not isinstance(weights, str):
         raise ArapError('"energy" and "weights" must be names')
-    check_energy_and_weights(energy, weights)
+    check_energy_and_weights(DEFAULT_ENERGY if energy is None else energy, weights)
     alpha = check_alpha(data.get("alpha", DEFAULT_ALPHA))
     tolerance = data.get("tolerance", DEFAULT_TOLERANCE)
     cap = data.get("max_iterations")

@@ -107,6 +107,7 @@ def _solve_and_write(job: Job, state: _Chunk) -> JobOutcome:
     from arap.errors import ArapError
     from arap.io import format_of, save_mesh
     from arap.io.volume import is_volume_file, save_deformed_volume, save_volume_mesh
+    from arap.meshes.domain import default_energy
     from arap.puppet.rings import held_points
     from arap.solve.solver import ArapSolver
 
@@ -126,12 +127,16 @@ def _solve_and_write(job: Job, state: _Chunk) -> JobOutcome:
         indices, targets = constraints.indices_and_targets(V)
         # A picture's pins that hold an angle bring their hidden rings (on a flat mesh; refused elsewhere).
         points, point_targets = held_points(constraints, V, F, "arap batch")
-        structure = _structure(constraints)
+        energy = job.energy
+        if energy is None:  # as arap deform picks it: elements for a solid, or a flat mesh its targets keep flat
+            asked = targets if point_targets is None else np.concatenate([targets, point_targets])
+            energy = default_energy(V, F, asked)
+        structure = (*_structure(constraints), energy.encode())
         solver = state.solver if structure == state.built_for else None
         factorised = solver is None
         if solver is None:
             state.solver = None  # the previous factor goes before the next is built
-            solver = ArapSolver(V, F, indices, energy=job.energy, weights=job.weights,  # type: ignore[arg-type]
+            solver = ArapSolver(V, F, indices, energy=energy, weights=job.weights,  # type: ignore[arg-type]
                                 roi=constraints.roi, stiffness=constraints.stiffness, alpha=job.alpha,
                                 points=points)
             state.solver, state.built_for = solver, structure

@@ -15,12 +15,11 @@ from arap.cli.common import (
     add_energy_options,
     add_iteration_options,
     check_iterations_and_tolerance,
+    energy_for,
     err,
     load_mesh_argument,
-    planar_triangles,
 )
 from arap.errors import ConstraintError, MeshFormatError, OptionError
-from arap.options import DEFAULT_ELEMENT_ENERGY, DEFAULT_ENERGY
 from arap.warmup import warm_up_kernels
 
 __all__ = ["add_parser", "run_animate"]
@@ -93,15 +92,12 @@ def _check_output(output: str) -> None:
 
 
 def _read_volume(args: argparse.Namespace) -> tuple[np.ndarray, np.ndarray, int] | None:
-    """A volume file given as MESH, as :func:`arap.io.volume.volume_for_solving` gives it (and the element energy
-    when none was given, as ``arap deform`` picks it for solids and planar meshes); None for other meshes."""
+    """A volume file given as MESH, as :func:`arap.io.volume.volume_for_solving` gives it; None for other meshes."""
     from arap.io.volume import is_volume_file, volume_for_solving
 
     if not is_volume_file(args.mesh):
         return None
     V, T, columns = volume_for_solving(args.mesh)
-    if args.energy is None:
-        args.energy = DEFAULT_ELEMENT_ENERGY if T.shape[1] == 4 or planar_triangles(V, T) else DEFAULT_ENERGY
     return V, T, columns
 
 
@@ -146,12 +142,14 @@ def run_animate(args: argparse.Namespace) -> int:
         if repair.renumbers:
             raise ConstraintError(f"the keyframes name vertices of {label}, which mesh repair renumbered; repair the "
                                   "mesh file first (arap info shows what repair changes)")
-        args.energy = args.energy or DEFAULT_ENERGY
     keys = load_keyframes(args.keyframes, V, len(F))
     points, rings = held_rings(keys, V, F, "arap animate")
     times = frame_times(keys, args.fps)
-    warm_up_kernels(args.quiet)
     c = keys.constraints
+    if args.energy is None:  # the default for the mesh and every frame's targets, as arap deform picks it
+        args.energy = energy_for(None, V, F, V[c.fixed], *(keys.handle_targets(float(t)) for t in times),
+                                 *(keys.point_targets(float(t)) for t in times), c.point_targets)
+    warm_up_kernels(args.quiet)
     solver = ArapSolver(V, F, c.constrained, energy=args.energy, weights=args.weights, roi=c.roi,
                         stiffness=c.stiffness, alpha=args.alpha, points=points)
     if not args.quiet:

@@ -44,13 +44,13 @@ __all__ = [
     "alpha_value",
     "check_bench_runs",
     "check_iterations_and_tolerance",
+    "energy_for",
     "err",
     "format_list",
     "load_mesh_argument",
     "one_line",
     "origin_value",
     "out",
-    "planar_triangles",
     "positive_int",
     "selector_constraints",
     "token_value",
@@ -121,13 +121,15 @@ def selector_constraints(args: argparse.Namespace, V: np.ndarray) -> Any:
 def add_energy_options(p: argparse.ArgumentParser, *, elements_default: bool = False) -> None:
     """``--energy``, ``--weights`` and ``--alpha``, as :class:`arap.ArapSolver` takes them.
 
-    ``elements_default``: the command also takes solids and planar meshes, whose default is ``elements``; the
-    energy is then None when not given (the command picks the default for its input).
+    ``elements_default``: the command also takes solids and flat meshes, whose default is ``elements``; the
+    energy is then None when not given (the command picks the default for its input with :func:`energy_for`).
     """
     if elements_default:
         p.add_argument("--energy", choices=ENERGY_TYPES, default=None,
-                       help=f"cell definition (default: {DEFAULT_ENERGY} for surfaces, {DEFAULT_ELEMENT_ENERGY} for "
-                            "solids and planar meshes from volume files; spokes is the 2007 paper's)")
+                       help=f"cell definition (default: {DEFAULT_ELEMENT_ENERGY} for solids and for flat meshes in a "
+                            "plane of constant coordinate, such as a picture's, deformed in their plane as the studio "
+                            f"does, unless the constraints move them out of it; {DEFAULT_ENERGY} for other surfaces; "
+                            "spokes is the 2007 paper's)")
     else:
         p.add_argument("--energy", choices=ENERGY_TYPES, default=DEFAULT_ENERGY,
                        help=f"cell definition (default: {DEFAULT_ENERGY}; spokes is the 2007 paper's)")
@@ -158,13 +160,16 @@ def one_line(exc: BaseException) -> str:
 
 
 # ---------------------------------------------------------------------------------------------- meshes
-def planar_triangles(V: np.ndarray, T: np.ndarray) -> bool:
-    """Whether elements ``T`` of a volume file are triangles in a plane of constant coordinate (deformed in their plane
-    with the element energy, as tetrahedra are)."""
-    from arap.meshes.domain import PLANAR_TOLERANCE
+def energy_for(given: str | None, V: np.ndarray, T: np.ndarray, *targets: np.ndarray | None) -> str:
+    """The energy a command deforms the mesh ``(V, T)`` with: ``--energy`` when given, else the default for the mesh
+    and every target position of its constraints (:func:`arap.meshes.domain.default_energy`: ``elements`` for
+    tetrahedra and for a flat mesh that the targets keep in its plane, the surface energy otherwise)."""
+    from arap.meshes.domain import default_energy
 
-    spread = np.ptp(V, axis=0) if len(V) else np.zeros(3)
-    return T.shape[1] == 3 and bool(spread.min() <= PLANAR_TOLERANCE * max(float(np.linalg.norm(spread)), 1e-300))
+    if given is not None:
+        return given
+    given_targets = [np.asarray(t, dtype=np.float64).reshape(-1, 3) for t in targets if t is not None]
+    return default_energy(V, T, np.concatenate(given_targets) if given_targets else None)
 
 
 def format_list(kind: formats.Kind) -> str:

@@ -22,10 +22,10 @@ from arap.cli.common import (
     add_iteration_options,
     add_selector_options,
     check_iterations_and_tolerance,
+    energy_for,
     err,
     format_list,
     load_mesh_argument,
-    planar_triangles,
     selector_constraints,
     writable_destination,
 )
@@ -238,9 +238,6 @@ class _Elements:
         assert self.tets is not None and self.barycentric is not None
         return interpolate_points(U, self.T, self.tets, self.barycentric)
 
-    def planar(self) -> bool:
-        return planar_triangles(self.V, self.T)
-
 
 def _read_volume(spec: str) -> _Elements:
     """A volume file given as MESH (tetrahedra, or triangles: planar ones are deformed in their plane)."""
@@ -292,7 +289,6 @@ def run_deform(args: argparse.Namespace) -> int:
     from arap.io import format_of, save_mesh
     from arap.io.assets import save_asset
     from arap.io.volume import is_volume_file, save_volume_mesh
-    from arap.options import DEFAULT_ELEMENT_ENERGY, DEFAULT_ENERGY
     from arap.puppet.rings import held_points
     from arap.solve.solver import ArapSolver
 
@@ -317,9 +313,6 @@ def run_deform(args: argparse.Namespace) -> int:
         if args.solid:
             elements = _fill(V, F, label, args)
     solve_V, solve_F = (V, F) if elements is None else (elements.V, elements.T)
-    if args.energy is None:
-        args.energy = DEFAULT_ENERGY if elements is None or not (elements.T.shape[1] == 4 or elements.planar()) \
-            else DEFAULT_ELEMENT_ENERGY
     n_file = len(repair.vertex_map)
     picked = selector_constraints(args, solve_V)  # by position, on the loaded mesh: in its numbering already
     if (picked is None) == (args.constraints is None):
@@ -340,6 +333,8 @@ def run_deform(args: argparse.Namespace) -> int:
     indices, targets = constraints.indices_and_targets(solve_V)
     # A picture's pins that hold an angle bring their hidden rings (on a flat mesh; refused elsewhere).
     points, point_targets = held_points(constraints, solve_V, solve_F, "arap deform")
+    # The default energy: elements for a solid, and for a flat mesh (a picture's) that the targets keep in its plane.
+    args.energy = energy_for(args.energy, solve_V, solve_F, targets, point_targets)
     if elements is not None and args.start not in START_NAMES:
         raise ArapError(f"--start takes {', '.join(START_NAMES)} for solids and volume files; a start shape file is "
                         "for surfaces")

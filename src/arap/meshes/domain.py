@@ -34,9 +34,10 @@ from arap.meshes.mesh import (
     is_mesh_like,
     mesh_arrays,
 )
+from arap.options import DEFAULT_ELEMENT_ENERGY, DEFAULT_ENERGY, EnergyType
 
 __all__ = ["PLANAR_TOLERANCE", "Domain", "DomainKind", "boundary_faces", "boundary_faces_and_owners", "check_domain",
-           "element_mesh_arrays",
+           "default_energy", "element_mesh_arrays",
            "signed_measures", "tetrahedron_faces"]
 
 DomainKind = Literal["surface", "planar", "solid"]
@@ -282,6 +283,51 @@ def _plane_axis(V: NDArray[np.float64]) -> int | None:
     diag = float(np.linalg.norm(spread))
     flat = np.flatnonzero(spread <= PLANAR_TOLERANCE * max(diag, 1e-300))
     return int(flat[-1]) if len(flat) and diag > 0 else None
+
+
+def default_energy(V: NDArray[np.floating], T: NDArray[np.integer],
+                   targets: NDArray[np.floating] | None = None) -> EnergyType:
+    """The energy a mesh file is deformed with when none is given (``arap deform``, ``arap animate``, ``arap batch``).
+
+    ``elements`` for tetrahedra, and for triangles in a plane of constant coordinate (a picture's mesh saved by the
+    studio, in ``z = 0``) that all turn the same way in it and that the ``targets`` keep in it: such a mesh is
+    deformed in its plane, as the studio deforms it. The surface energy :data:`~arap.options.DEFAULT_ENERGY`
+    otherwise: for a surface in space, and for a flat sheet that the targets bend out of its plane (or whose
+    triangles are folded over), which only a surface energy can deform. (:class:`arap.ArapSolver` itself takes
+    ``elements`` only for triangles given with two coordinates and for tetrahedra.)
+
+    Parameters
+    ----------
+    V : (n, 2) or (n, 3) float array
+    T : (m, 3) or (m, 4) int array
+    targets : (k, 3) float array or None
+        Every position the constraints ask for (their handles', fixed vertices' and point handles' targets).
+
+    Example
+    -------
+    >>> V = np.array([[0., 0, 0], [1, 0, 0], [0, 1, 0]]); T = np.array([[0, 1, 2]])
+    >>> default_energy(V, T), default_energy(V, T, np.array([[1., 0, 0.5]]))
+    ('elements', 'spokes_and_rims')
+    """
+    P: NDArray[np.float64] = np.asarray(V, dtype=np.float64)
+    T = np.asarray(T)
+    if T.ndim == 2 and T.shape[1] == 4:
+        return DEFAULT_ELEMENT_ENERGY
+    if P.ndim != 2 or P.shape[1] != 3 or not len(P) or not np.isfinite(P).all():
+        return DEFAULT_ELEMENT_ENERGY if P.ndim == 2 and P.shape[1] == 2 else DEFAULT_ENERGY
+    axis = _plane_axis(P)
+    if axis is None:
+        return DEFAULT_ENERGY
+    if targets is not None and len(targets):
+        off = np.asarray(targets, dtype=np.float64)[:, axis] - P[0, axis]
+        scale = max(float(np.abs(P).max()), 1.0)  # as Domain.lift measures a target's distance from the plane
+        if np.abs(off[np.isfinite(off)]).max(initial=0.0) > 1e-9 * scale:
+            return DEFAULT_ENERGY
+    if len(T) and T.ndim == 2 and T.shape[1] == 3 and T.min() >= 0 and T.max() < len(P):
+        signed = signed_measures(P[:, [a for a in range(3) if a != axis] + [axis]], T.astype(np.int64))
+        if (signed > 0).any() and (signed < 0).any():
+            return DEFAULT_ENERGY
+    return DEFAULT_ELEMENT_ENERGY
 
 
 def check_domain(V: Any, F: Any = None, elements: bool = False) -> Domain:
