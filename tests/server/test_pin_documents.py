@@ -128,11 +128,12 @@ def _red_square_turned(s: Session, U: np.ndarray, degrees: float) -> None:
 
 
 def _deformed(mesh: Path, doc: Path) -> np.ndarray:
-    """``arap deform`` of ``mesh`` with the document ``doc`` and the element energy (the studio's rigid warp)."""
+    """``arap deform`` of ``mesh`` with the document ``doc``: a flat mesh, so the element energy by default (the
+    studio's rigid warp)."""
     from arap.io import load_mesh
 
     out = doc.with_suffix(".out.obj")
-    assert main(["deform", str(mesh), "-c", str(doc), "-o", str(out), "--quiet", "--energy", "elements"]) == 0
+    assert main(["deform", str(mesh), "-c", str(doc), "-o", str(out), "--quiet"]) == 0
     U, _ = load_mesh(out, repair=False)
     return U
 
@@ -276,7 +277,7 @@ def test_arap_batch_holds_the_pins_angles_as_arap_deform_does(tmp_path: Path) ->
     (tmp_path / "free.json").write_text(json.dumps(free))
     manifest = tmp_path / "jobs.jsonl"
     manifest.write_text("".join(json.dumps({"mesh": "squares.obj", "constraints": f"{name}.json",
-                                            "output": f"{name}.obj", "energy": "elements"}) + "\n"
+                                            "output": f"{name}.obj"}) + "\n"
                                 for name in ("pins", "free")))
     assert main(["batch", str(manifest), "--backend", "serial", "-q"]) == 0
     U, _ = load_mesh(tmp_path / "pins.obj", repair=False)
@@ -305,7 +306,7 @@ def test_a_batch_shares_a_solver_between_pins_angles_not_between_held_and_free_p
             d["points"][0]["angle"] = angle
         files[name] = tmp_path / f"{name}.json"
         files[name].write_text(json.dumps(d))
-    jobs = [Job(k + 1, mesh, str(files[name]), str(tmp_path / f"{name}.obj"), energy="elements")
+    jobs = [Job(k + 1, mesh, str(files[name]), str(tmp_path / f"{name}.obj"))
             for k, name in enumerate(("a30", "a50", "free"))]
     assert sorted(len(c) for c in chunks_for(jobs, 1)) == [1, 2]
     outcomes = run_chunk(jobs)
