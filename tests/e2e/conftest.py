@@ -9,6 +9,7 @@ import shutil
 import subprocess
 import threading
 from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -135,6 +136,25 @@ class _ServerThread(threading.Thread):
         again.start()
         again.wait_started()
         return again
+
+
+@contextmanager
+def page_on_server(browser: Browser, server: _ServerThread) -> Iterator[Page]:
+    """A page of ``server``, which is started here and stopped after (e.g. one started with a mesh of its own,
+    ``_ServerThread(default_mesh=...)``), once the page is ready."""
+    server.start()
+    try:
+        server.wait_started()
+        context = browser.new_context(viewport=VIEWPORT)
+        try:
+            page = context.new_page()
+            page.goto(server.url)
+            wait_ready(page)
+            yield page
+        finally:
+            context.close()
+    finally:
+        server.stop()
 
 
 @pytest.fixture(scope="session")

@@ -4,6 +4,7 @@ reconnects and restores by itself after a server restart."""
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import numpy as np
@@ -58,6 +59,18 @@ def active_tool(page: Page) -> str:
 def wait_autosaved(page: Page) -> None:
     page.wait_for_function("() => window.__arap.autosave.idle && window.__arap.autosave.saves > 0",
                            timeout=scaled_ms(10))
+
+
+def reload_and_restore(page: Page, mesh: str) -> None:
+    """Reload the page once its session is autosaved, accept the restore offer, and wait until the mesh named
+    ``mesh`` is restored and the page idle."""
+    wait_autosaved(page)
+    Dialogs(page, accept=True)
+    page.reload()
+    wait_ready(page)
+    page.get_by_test_id("restore-accept").click()
+    page.wait_for_function(f"() => window.__arap.meshName === {json.dumps(mesh)} && !window.__arap.restoring")
+    wait_idle(page)
 
 
 def edit_session(page: Page) -> dict:

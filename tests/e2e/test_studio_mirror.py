@@ -14,8 +14,8 @@ from playwright.sync_api import Page, expect
 from scipy.spatial.transform import Rotation
 
 from arap.meshes import shapes
-from tests.e2e.conftest import positions, wait_idle, wait_ready, wait_settled
-from tests.e2e.test_session_safety import Dialogs, wait_autosaved
+from tests.e2e.conftest import positions, wait_idle, wait_settled
+from tests.e2e.test_session_safety import reload_and_restore
 from tests.e2e.test_studio import box_select, drag_gizmo_x
 
 pytestmark = pytest.mark.e2e
@@ -282,13 +282,7 @@ def test_pairs_survive_an_undo_and_a_reload(page: Page, tmp_path: Path) -> None:
     assert page.evaluate("() => window.__arap.partners()") == [1, 0]
     groups = page.evaluate("() => window.__arap.constraints().handle_groups")
 
-    wait_autosaved(page)
-    Dialogs(page, accept=True)
-    page.reload()
-    wait_ready(page)
-    page.get_by_test_id("restore-accept").click()
-    page.wait_for_function("() => window.__arap.meshName === 'warped' && !window.__arap.restoring")
-    wait_idle(page)
+    reload_and_restore(page, "warped")
     assert page.evaluate("() => window.__arap.constraints().handle_groups") == groups
     assert page.evaluate("() => window.__arap.partners()") == [1, 0]
     assert not page.evaluate("() => window.__arap.errors")

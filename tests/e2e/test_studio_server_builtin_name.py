@@ -12,8 +12,8 @@ import pytest
 from playwright.sync_api import Browser, Page
 
 from arap.io import save_mesh
-from tests.e2e.conftest import VIEWPORT, _ServerThread, positions, wait_idle, wait_ready, wait_settled
-from tests.e2e.test_session_safety import Dialogs, wait_autosaved
+from tests.e2e.conftest import _ServerThread, page_on_server, positions, wait_idle, wait_settled
+from tests.e2e.test_session_safety import reload_and_restore
 from tests.e2e.test_studio import drag_gizmo_x, select_anchor_and_handle
 from tests.e2e.test_studio_model_list import SHOWN
 
@@ -37,17 +37,9 @@ def _grid_named_bar(folder: Path) -> Path:
 @pytest.fixture
 def started_with_bar_obj(browser: Browser, tmp_path: Path) -> Iterator[Page]:
     """A page of a studio server started with ``bar.obj`` (a grid, not the built-in bar) as its mesh."""
-    server = _ServerThread(default_mesh=_grid_named_bar(tmp_path))
-    server.start()
-    server.wait_started()
-    context = browser.new_context(viewport=VIEWPORT)
-    page = context.new_page()
-    page.goto(server.url)
-    wait_ready(page)
-    wait_idle(page)
-    yield page
-    context.close()
-    server.stop()
+    with page_on_server(browser, _ServerThread(default_mesh=_grid_named_bar(tmp_path))) as page:
+        wait_idle(page)
+        yield page
 
 
 def test_a_restore_brings_back_the_file_named_like_a_built_in(started_with_bar_obj: Page) -> None:
@@ -59,13 +51,7 @@ def test_a_restore_brings_back_the_file_named_like_a_built_in(started_with_bar_o
     wait_settled(page)
     shape = positions(page)
 
-    wait_autosaved(page)
-    Dialogs(page, accept=True)
-    page.reload()
-    wait_ready(page)
-    page.get_by_test_id("restore-accept").click()
-    page.wait_for_function("() => window.__arap.meshName === 'bar' && !window.__arap.restoring")
-    wait_idle(page)
+    reload_and_restore(page, "bar")
     assert page.evaluate("() => window.__arap.nVertices") == N * N, "the restore loaded the built-in bar"
     scale = float(np.ptp(shape, axis=0).max())
     assert np.allclose(positions(page), shape, atol=1e-4 * scale), "the restore did not bring the saved shape back"

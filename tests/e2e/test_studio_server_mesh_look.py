@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 from playwright.sync_api import Browser, Page, expect
 
-from tests.e2e.conftest import VIEWPORT, _ServerThread, positions, wait_idle, wait_ready, wait_settled
-from tests.e2e.test_session_safety import Dialogs, wait_autosaved
+from tests.e2e.conftest import _ServerThread, page_on_server, positions, wait_idle, wait_settled
+from tests.e2e.test_session_safety import reload_and_restore
 from tests.e2e.test_studio import drag_gizmo_x, select_anchor_and_handle
 from tests.e2e.test_studio_texture import colour_counts, textured_grid_glb
 
@@ -24,26 +24,13 @@ TEXTURED = "() => window.__arap.surface === 'texture' && window.__arap.textureRe
 @pytest.fixture
 def started_with_glb(browser: Browser, tmp_path: Path) -> Iterator[Page]:
     """A page of a studio server started with a textured GLB as its mesh."""
-    server = _ServerThread(default_mesh=textured_grid_glb(tmp_path / "checker.glb"))
-    server.start()
-    server.wait_started()
-    context = browser.new_context(viewport=VIEWPORT)
-    page = context.new_page()
-    page.goto(server.url)
-    wait_ready(page)
-    page.wait_for_function(TEXTURED)
-    yield page
-    context.close()
-    server.stop()
+    with page_on_server(browser, _ServerThread(default_mesh=textured_grid_glb(tmp_path / "checker.glb"))) as page:
+        page.wait_for_function(TEXTURED)
+        yield page
 
 
 def _restore_after_reload(page: Page) -> None:
-    wait_autosaved(page)
-    Dialogs(page, accept=True)
-    page.reload()
-    wait_ready(page)
-    page.get_by_test_id("restore-accept").click()
-    page.wait_for_function("() => window.__arap.meshName === 'checker' && !window.__arap.restoring")
+    reload_and_restore(page, "checker")
     page.wait_for_function(TEXTURED)
     wait_idle(page)
 

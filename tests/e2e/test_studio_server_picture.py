@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 from playwright.sync_api import Browser, Page, expect
 
-from tests.e2e.conftest import VIEWPORT, _ServerThread, positions, screen_points, wait_idle, wait_ready, wait_settled
-from tests.e2e.test_session_safety import Dialogs, wait_autosaved
+from tests.e2e.conftest import _ServerThread, page_on_server, positions, screen_points, wait_idle, wait_settled
+from tests.e2e.test_session_safety import reload_and_restore
 from tests.e2e.test_studio import drag_gizmo_x, select_anchor_and_handle
 from tests.e2e.test_studio_picture import _picture
 from tests.e2e.test_studio_texture import colour_counts
@@ -40,18 +40,10 @@ def _server(how: str, path: Path) -> _ServerThread:
 @pytest.fixture(params=["cli", "notebook"])
 def started_with_picture(request: pytest.FixtureRequest, browser: Browser, tmp_path: Path) -> Iterator[Page]:
     """A page of a studio server started with a picture (an upright red bar, its top blue) as its mesh."""
-    server = _server(request.param, _picture(tmp_path / "upright.png"))
-    server.start()
-    server.wait_started()
-    context = browser.new_context(viewport=VIEWPORT)
-    page = context.new_page()
-    page.goto(server.url)
-    wait_ready(page)
-    page.wait_for_function(TEXTURED)
-    wait_idle(page)
-    yield page
-    context.close()
-    server.stop()
+    with page_on_server(browser, _server(request.param, _picture(tmp_path / "upright.png"))) as page:
+        page.wait_for_function(TEXTURED)
+        wait_idle(page)
+        yield page
 
 
 def test_a_restore_keeps_the_picture_the_server_opened(started_with_picture: Page) -> None:
@@ -69,14 +61,8 @@ def test_a_restore_keeps_the_picture_the_server_opened(started_with_picture: Pag
     pins = page.evaluate("() => window.__arap.constraints().points")
     assert np.ptp(shape[:, 0]) > 0.0
 
-    wait_autosaved(page)
-    Dialogs(page, accept=True)
-    page.reload()
-    wait_ready(page)
-    page.get_by_test_id("restore-accept").click()
-    page.wait_for_function("() => window.__arap.meshName === 'upright' && !window.__arap.restoring")
+    reload_and_restore(page, "upright")
     page.wait_for_function("() => window.__arap.constraints().points.length === 1", timeout=30_000)
-    wait_idle(page)
 
     page.wait_for_function(TEXTURED)
     expect(page.get_by_test_id("picture-rows")).to_be_visible()  # the picture mode, not a mesh of its triangles
@@ -111,14 +97,8 @@ def test_a_restore_meshes_the_picture_again_at_its_density_and_keeps_it_after_an
     shape = positions(page)
     pins = page.evaluate("() => window.__arap.constraints().points")
 
-    wait_autosaved(page)
-    Dialogs(page, accept=True)
-    page.reload()
-    wait_ready(page)
-    page.get_by_test_id("restore-accept").click()
-    page.wait_for_function("() => window.__arap.meshName === 'upright' && !window.__arap.restoring")
+    reload_and_restore(page, "upright")
     page.wait_for_function("() => window.__arap.constraints().points.length === 1", timeout=30_000)
-    wait_idle(page)
 
     assert page.evaluate("() => window.__arap.nVertices") == coarse
     page.wait_for_function(TEXTURED)
