@@ -235,17 +235,27 @@ def test_an_owner_keeps_its_fields_private(name: str) -> None:
     assert not public_writes, f"{module}: {name} writes public fields {sorted(public_writes)}"
 
 
+def _scanned(tmp_path: Path, monkeypatch: pytest.MonkeyPatch, owners: dict[str, tuple[str, frozenset[str] | None]],
+             files: dict[str, str]) -> list[list[str]]:
+    """The outside writes (file and line) the scan finds in a source folder of ``files`` with ``owners``."""
+    src = tmp_path / "src"
+    (src / "stores").mkdir(parents=True)
+    for name, text in files.items():
+        (src / name).write_text(text, encoding="utf-8")
+    module = sys.modules[__name__]
+    monkeypatch.setattr(module, "WEB_SRC", src)
+    monkeypatch.setattr(module, "STORES", src / "stores")
+    monkeypatch.setattr(module, "OWNERS", owners)
+    return [w.split(":")[:2] for w in outside_writes(owner_classes())]
+
+
 def test_the_scan_follows_local_names(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     """Writes through a local name of the instance or of one of its fields are seen; writes in the class's own
     module, to other fields, and rebinding a local name are not."""
-    src = tmp_path / "src"
-    (src / "stores").mkdir(parents=True)
-    (src / "sel.js").write_text(
-        "export class Selection {\n  #g = 0;\n  get activeGroup() {\n    return this.#g;\n  }\n"
-        "  get roi() {\n    return this.#g;\n  }\n}\nconst selection = new Selection();\nselection.activeGroup = 2;\n",
-        encoding="utf-8",
-    )
-    (src / "m.js").write_text(
+    sel = ("export class Selection {\n  #g = 0;\n  get activeGroup() {\n    return this.#g;\n  }\n"
+           "  get roi() {\n    return this.#g;\n  }\n}\n"
+           "const selection = new Selection();\nselection.activeGroup = 2;\n")
+    m = (
         "/** @param {import('./sel.js').Selection} selection */\n"
         "const s = this.selection;\n"
         "s.activeGroup = 1;\n"
@@ -256,14 +266,9 @@ def test_the_scan_follows_local_names(tmp_path: Path, monkeypatch: pytest.Monkey
         "let r = s.roi;\n"
         "r.set([1]);\n"
         "r = null;\n"
-        "s.partnerOf(1).x = 2;\n",
-        encoding="utf-8",
+        "s.partnerOf(1).x = 2;\n"
     )
-    module = sys.modules[__name__]
-    monkeypatch.setattr(module, "WEB_SRC", src)
-    monkeypatch.setattr(module, "STORES", src / "stores")
-    monkeypatch.setattr(module, "OWNERS", {"Selection": ("sel.js", None)})
-    assert [w.split(":")[:2] for w in outside_writes(owner_classes())] == [
+    assert _scanned(tmp_path, monkeypatch, {"Selection": ("sel.js", None)}, {"sel.js": sel, "m.js": m}) == [
         ["m.js", "3"],
         ["m.js", "4"],
         ["m.js", "6"],
@@ -274,14 +279,9 @@ def test_the_scan_follows_local_names(tmp_path: Path, monkeypatch: pytest.Monkey
 def test_the_scan_sees_a_matrix_changed_in_place(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     """A kept field's Three.js values changed in place (``gizmo.matrices[g].copy(m)``, or through a local name of an
     element) are writes; computing from them (``.clone().invert()``, ``.elements``) and the gizmo's method are not."""
-    src = tmp_path / "src"
-    (src / "stores").mkdir(parents=True)
-    (src / "gizmo.js").write_text(
-        "export class HandleGizmo {\n  #m = [];\n  get matrices() {\n    return this.#m;\n  }\n"
-        "  setMatrix(g, m) {\n    this.#m[g]?.copy(m);\n  }\n}\n",
-        encoding="utf-8",
-    )
-    (src / "mirror.js").write_text(
+    gizmo = ("export class HandleGizmo {\n  #m = [];\n  get matrices() {\n    return this.#m;\n  }\n"
+             "  setMatrix(g, m) {\n    this.#m[g]?.copy(m);\n  }\n}\n")
+    mirror = (
         "/** @param {import('./gizmo.js').HandleGizmo} gizmo */\n"
         "gizmo.matrices[p].multiplyMatrices(this.matrix, T).multiply(this.matrix);\n"
         "const m = gizmo.matrices[turning.group];\n"
@@ -289,14 +289,10 @@ def test_the_scan_sees_a_matrix_changed_in_place(tmp_path: Path, monkeypatch: py
         "gizmo.matrices[0].identity();\n"
         "const inverse = gizmo.matrices[g].clone().invert();\n"
         "const e = Array.from(gizmo.matrices[g].elements);\n"
-        "gizmo.setMatrix(p, new THREE.Matrix4().multiplyMatrices(a, b));\n",
-        encoding="utf-8",
+        "gizmo.setMatrix(p, new THREE.Matrix4().multiplyMatrices(a, b));\n"
     )
-    module = sys.modules[__name__]
-    monkeypatch.setattr(module, "WEB_SRC", src)
-    monkeypatch.setattr(module, "STORES", src / "stores")
-    monkeypatch.setattr(module, "OWNERS", {"HandleGizmo": ("gizmo.js", frozenset({"matrices"}))})
-    assert [w.split(":")[:2] for w in outside_writes(owner_classes())] == [
+    owners = {"HandleGizmo": ("gizmo.js", frozenset({"matrices"}))}
+    assert _scanned(tmp_path, monkeypatch, owners, {"gizmo.js": gizmo, "mirror.js": mirror}) == [
         ["mirror.js", "2"],
         ["mirror.js", "4"],
         ["mirror.js", "5"],

@@ -51,14 +51,8 @@ def serial_then_threaded(run: Callable[[], object]) -> None:
     """``run()`` as the kernels' thread policy has it, then again with every kernel above its threading threshold
     (the threaded variants of large meshes too), the policy put back after."""
     run()
-    saved = policy.min_work, policy.work_per_thread
-    try:
-        policy.min_work, policy.work_per_thread = 0, 1
-        policy.reset()
+    with policy.every_kernel_threaded():
         run()
-    finally:
-        policy.min_work, policy.work_per_thread = saved
-        policy.reset()
 
 
 def _every_solve() -> None:

@@ -314,14 +314,8 @@ def _warm_up(first_ready: Callable[[], None] | None, every_energy: bool = False)
     # The paper's spokes energy assembles its cells from the edge weight matrix, which the default energy does not.
     ArapSolver(V, F, constrained, energy="spokes").solve(targets, max_iterations=2)
     # Large meshes run the threaded variants: make the size rule pick them for this tiny solve too.
-    saved = policy.min_work, policy.work_per_thread
-    try:
-        policy.min_work, policy.work_per_thread = 0, 1
-        policy.reset()
+    with policy.every_kernel_threaded():
         ArapSolver(V, F, constrained).solve(targets, max_iterations=2)
-    finally:
-        policy.min_work, policy.work_per_thread = saved
-        policy.reset()
     if every_energy:
         warm_up_every_solve()
     hits, misses = _counts()
@@ -367,14 +361,8 @@ def warm_up_every_solve() -> None:
         _picture_solves()
 
     solves()
-    saved = policy.min_work, policy.work_per_thread
-    try:
-        policy.min_work, policy.work_per_thread = 0, 1
-        policy.reset()
+    with policy.every_kernel_threaded():
         solves()
-    finally:
-        policy.min_work, policy.work_per_thread = saved
-        policy.reset()
 
 
 def _picture_solves() -> None:

@@ -61,15 +61,16 @@ def wait_autosaved(page: Page) -> None:
                            timeout=scaled_ms(10))
 
 
-def reload_and_restore(page: Page, mesh: str) -> None:
-    """Reload the page once its session is autosaved, accept the restore offer, and wait until the mesh named
-    ``mesh`` is restored and the page idle."""
+def reload_and_restore(page: Page, mesh: str | None = None, restored: str = "true") -> None:
+    """Reload the page once its session is autosaved, accept the restore offer, and wait until the restore is done
+    (the mesh named ``mesh`` shown, when given, and the JavaScript condition ``restored`` true) and the page idle."""
     wait_autosaved(page)
     Dialogs(page, accept=True)
     page.reload()
     wait_ready(page)
     page.get_by_test_id("restore-accept").click()
-    page.wait_for_function(f"() => window.__arap.meshName === {json.dumps(mesh)} && !window.__arap.restoring")
+    shown = "true" if mesh is None else f"window.__arap.meshName === {json.dumps(mesh)}"
+    page.wait_for_function(f"() => {shown} && ({restored}) && !window.__arap.restoring")
     wait_idle(page)
 
 
@@ -437,13 +438,7 @@ def test_undo_after_a_restore_never_shows_the_set_that_put_the_shape_back(page: 
     moved = positions(page)
     n_moved = int((np.abs(moved - rest).max(axis=1) > 0).sum())
     assert n_moved > 2 * max(before["groups"]), "the drag should move many more vertices than the handle"
-    wait_autosaved(page)
-    Dialogs(page, accept=True)
-    page.reload()
-    wait_ready(page)
-    page.get_by_test_id("restore-accept").click()
-    page.wait_for_function(f"() => window.__arap.counts().fixed === {before['fixed']} && !window.__arap.restoring")
-    wait_idle(page)
+    reload_and_restore(page, restored=f"window.__arap.counts().fixed === {before['fixed']}")
     assert page.evaluate(COUNTS) == before
     assert page.evaluate("() => window.__arap.canUndo")
     page.evaluate(RECORD_SELECTIONS)

@@ -26,7 +26,8 @@ import statistics
 import threading
 import time
 from collections import deque
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from typing import TypeVar
 
 import numba
@@ -168,6 +169,19 @@ class ThreadPolicy:
     def reset(self) -> None:
         """Forget the measured times."""
         self._times.clear()
+
+    @contextmanager
+    def every_kernel_threaded(self) -> Iterator[None]:
+        """Within: every kernel above its threading threshold, whatever its work (the threaded variants of large
+        meshes run, and compile, on small ones); the rule and the measured times put back after."""
+        saved = self.min_work, self.work_per_thread
+        try:
+            self.min_work, self.work_per_thread = 0, 1
+            self.reset()
+            yield
+        finally:
+            self.min_work, self.work_per_thread = saved
+            self.reset()
 
 
 policy = ThreadPolicy()
