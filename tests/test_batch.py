@@ -181,7 +181,9 @@ def test_a_ctrl_c_while_a_worker_waits_for_work_ends_the_batch_cleanly(tmp_path:
         return len(list((tmp_path / "bars").glob("pose_*.ply"))) == 6 and any(out.glob("pose_*.ply"))
 
     _interrupt(_start_batch(manifest), bars_done_and_a_sphere_written, "the bars and a first sphere written")
-    assert 0 < len(_no_partial_output(out, "sphere:20000")) < 6
+    # The sphere's worker may write its last poses before the signal reaches it: what must hold is whole files and
+    # no lock left, whatever it had written (and, in _interrupt, the one line and the exit status).
+    assert 0 < len(_no_partial_output(out, "sphere:20000")) <= 6
 
 
 def _limited_memory() -> None:  # pragma: no cover - runs in the child before exec
